@@ -1,0 +1,36 @@
+"""hubbeam-ctrl: control design for rotating flexible hub-beam systems.
+
+Plant side of the toolbox: parameters, modal basis, the four nonlinear models (CFOAM,
+FOAM, TLAM, SFOAM) defined by their energies, simulation, modal analysis and the CLI.
+The controllers live in the sibling package ``controllers``.
+
+Examples
+--------
+>>> from hubbeam_ctrl import Params, simulate, SpinUp
+>>> res = simulate("foam", SpinUp(w_f=2.8, t_f=30.0), t_end=40.0, params=Params(m_t=0.0))
+>>> round(res.summary()["peak_tip_m"], 2)
+0.2
+"""
+
+from .basis import ModalBasis, modal_basis
+from .errors import HubbeamError, ParameterError
+from .linear import first_order_matrices, second_order_linearization
+from .maneuvers import ConstantSpin, SpinUp, TorquePulse, UserManeuver
+from .modal import (campbell, critical_speed, critical_speed_map, modal_analysis,
+                    natural_frequencies)
+from .models import MODEL_NAMES, HubBeamModel, build_model
+from .params import Params, load_params, save_params
+from .results import SimulationResult, load_result
+from .simulate import SimulationSettings, simulate
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Params", "load_params", "save_params", "ModalBasis", "modal_basis",
+    "HubBeamModel", "build_model", "MODEL_NAMES",
+    "SpinUp", "TorquePulse", "ConstantSpin", "UserManeuver",
+    "simulate", "SimulationSettings", "SimulationResult", "load_result",
+    "modal_analysis", "natural_frequencies", "campbell", "critical_speed", "critical_speed_map",
+    "second_order_linearization", "first_order_matrices",
+    "HubbeamError", "ParameterError",
+]
