@@ -169,11 +169,9 @@ class SimulationResult:
             cols = self.columns()
             data = np.column_stack(list(cols.values()))
             header = ",".join(cols)
-            meta = json.dumps(self._metadata())
 
             def write(tmp):
                 with open(tmp, "w", encoding="utf-8") as fh:
-                    fh.write(f"# {meta}\n")
                     np.savetxt(fh, data, delimiter=",", header=header, comments="", fmt="%.10e")
             return atomic_write(path, write)
         if suffix == ".npz":

@@ -1,0 +1,244 @@
+"""Command-line interface: ``hubbeam modes | critical-speed | simulate | linearize | compare``.
+
+Every subcommand accepts the common options ``--tip-mass KG``, ``--tip-position M``,
+``--n-modes N`` (both families) and ``--params FILE.toml``. Bad input prints one line on
+stderr naming the parameter and exits with status 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import sys
+
+import numpy as np
+
+from .errors import HubbeamError, ParameterError
+from .params import Params, load_params
+
+__all__ = ["main", "params_from_args", "build_parser", "positive_float", "finite_float"]
+
+#: Subcommands contributed by other modules: module name -> provides add_parser/run.
+EXTRA_COMMANDS = ("hubbeam_ctrl.cli_linearize", "hubbeam_ctrl.cli_compare")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises instead of printing usage, so errors are one line."""
+
+    def error(self, message):
+        raise ParameterError(message)
+
+
+def _common_parser() -> argparse.ArgumentParser:
+    common = _Parser(add_help=False)
+    g = common.add_argument_group("system parameters (default: the paper's Table 1)")
+    g.add_argument("--params", metavar="FILE.toml", help="TOML file with Params fields (SI units)")
+    g.add_argument("--tip-mass", metavar="KG", type=float, help="tip mass m_t [kg], >= 0")
+    g.add_argument("--tip-position", metavar="M", type=float,
+                   help="tip-mass position l along the beam [m], 0..L (default L)")
+    g.add_argument("--n-modes", metavar="N", type=int,
+                   help="number of axial and of transverse modes, 1..20 (default 5)")
+    return common
+
+
+def params_from_args(args) -> Params:
+    """Build :class:`Params` from the common options (file first, then flags)."""
+    base = load_params(args.params) if getattr(args, "params", None) else Params()
+    changes = {}
+    if getattr(args, "tip_mass", None) is not None:
+        changes["m_t"] = args.tip_mass
+    if getattr(args, "tip_position", None) is not None:
+        changes["l"] = args.tip_position
+    if getattr(args, "n_modes", None) is not None:
+        changes["n_axial"] = changes["n_transverse"] = args.n_modes
+    return base.replace(**changes) if changes else base
+
+
+def positive_float(name):
+    """argparse type: a finite number > 0, errors naming ``name``."""
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"{name} must be a finite number > 0, got {text}")
+        return value
+    return parse
+
+
+def finite_float(name):
+    """argparse type: a finite number, errors naming ``name``."""
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text}")
+        return value
+    return parse
+
+
+def check_output_folder(option: str, path) -> None:
+    """Raise :class:`ParameterError` unless the folder of ``path`` exists and is writable."""
+    import os
+    from pathlib import Path
+    folder = Path(path).parent
+    if not folder.is_dir():
+        raise ParameterError(f"{option}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise ParameterError(f"{option}: folder {folder} is not writable")
+
+
+# -- modes ----------------------------------------------------------------------
+def _cmd_modes(args) -> int:
+    from .modal import modal_analysis
+    params = params_from_args(args)
+    res = modal_analysis(args.model, args.spin, args.hub, params)
+    out = {"model": args.model, "spin_rad_s": args.spin, "hub": args.hub,
+           "frequencies_hz": [float(f) for f in res.bending_hz],
+           "axial_frequencies_hz": [float(f) for f in res.axial_hz],
+           "unstable": res.unstable}
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"{args.model.upper()} at {args.spin:g} rad/s, hub {args.hub}"
+              + (" (UNSTABLE: a mode has lost its stiffness)" if res.unstable else ""))
+        for i, f in enumerate(res.bending_hz, 1):
+            print(f"  bending mode {i}: {f:10.4f} Hz")
+        for i, f in enumerate(res.axial_hz, 1):
+            print(f"  axial mode {i}:   {f:10.2f} Hz")
+    return 0
+
+
+# -- critical speed ---------------------------------------------------------------
+def _cmd_critical(args) -> int:
+    from .modal import critical_speed
+    params = params_from_args(args)
+    w = critical_speed(args.model, params)
+    if args.json:
+        print(json.dumps({"model": args.model, "critical_speed_rad_s": w}))
+    if w is None:
+        print(f"{args.model.upper()} keeps positive bending stiffness at every spin rate up to "
+              "1000 rad/s: no critical speed", file=sys.stderr if args.json else sys.stdout)
+    elif not args.json:
+        print(f"{args.model.upper()} critical speed: {w:.4f} rad/s "
+              f"(m_t = {params.m_t:g} kg at l = {params.tip_position:g} m)")
+    return 0
+
+
+# -- simulate -----------------------------------------------------------------------
+def _cmd_simulate(args) -> int:
+    from .maneuvers import SpinUp, TorquePulse
+    from .simulate import simulate
+    params = params_from_args(args)
+    if args.out and not args.out.lower().endswith((".csv", ".npz")):
+        raise ParameterError(f"out must end in .csv or .npz, got {args.out!r}")
+    if args.plot and not args.plot.lower().endswith(".png"):
+        raise ParameterError(f"plot must end in .png, got {args.plot!r}")
+    for option, path in (("out", args.out), ("plot", args.plot)):
+        if path:
+            check_output_folder(option, path)
+    if args.maneuver == "spinup":
+        maneuver = SpinUp(args.wf if args.wf is not None else 3.0, args.tf if args.tf is not None else 30.0)
+    else:
+        maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
+                               args.tf if args.tf is not None else 10.0)
+    res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json)
+    if args.out:
+        res.save(args.out)
+    if args.plot:
+        from .plots import plot_result, save_figure
+        save_figure(plot_result(res), args.plot)
+    s = res.summary()
+    out = {k: s[k] for k in ("peak_tip_m", "residual_tip_m", "peak_axial_m", "final_theta_rad",
+                             "final_theta_dot_rad_s", "diverged", "wall_s")}
+    if args.json:
+        print(json.dumps(out))
+    else:
+        for k, v in out.items():
+            print(f"{k:>22}: {v}")
+        print(f"{'message':>22}: {res.message}")
+    if res.diverged:
+        print(f"warning: {res.message}", file=sys.stderr)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``hubbeam`` argument parser (with the subcommands of other modules)."""
+    common = _common_parser()
+    parser = _Parser(prog="hubbeam", description=(
+        "Rotating hub-beam toolbox: nonlinear models with dynamic stiffening (CFOAM, FOAM, "
+        "TLAM, SFOAM), modal analysis, simulation, linear models and controllers."))
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser("modes", parents=[common], help="natural frequencies at a spin rate",
+                       description="Bending (and axial) natural frequencies of a model linearised "
+                                   "about steady rotation.")
+    p.add_argument("--model", choices=["tlam", "foam", "cfoam", "sfoam"], default="foam")
+    p.add_argument("--spin", metavar="RAD_S", type=finite_float("spin"), default=0.0,
+                   help="spin rate [rad/s] (default 0)")
+    p.add_argument("--hub", choices=["prescribed", "free"], default="prescribed",
+                   help="prescribed: clamped root turning at --spin (Table 2); free: hub free")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=_cmd_modes)
+
+    p = sub.add_parser("critical-speed", parents=[common],
+                       help="spin rate at which the bending stiffness is lost",
+                       description="Critical speed of TLAM (or FOAM, which has none).")
+    p.add_argument("--model", choices=["tlam", "foam"], default="tlam")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(func=_cmd_critical)
+
+    p = sub.add_parser("simulate", parents=[common], help="simulate a maneuver",
+                       description="Simulate the Eq. 43 spin-up (prescribed hub) or the Eq. 44 "
+                                   "torque pulse (free hub).")
+    p.add_argument("--model", choices=["tlam", "foam", "cfoam", "sfoam"], required=True)
+    p.add_argument("--maneuver", choices=["spinup", "torque"], required=True)
+    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), help="spin-up final rate [rad/s] (default 3)")
+    p.add_argument("--tf", metavar="S", type=positive_float("tf"),
+                   help="maneuver time [s] (default 30 for spinup, 10 for torque)")
+    p.add_argument("--tau-max", metavar="NM", type=finite_float("tau-max"), help="torque amplitude [N m] (default 200)")
+    p.add_argument("--t-end", metavar="S", type=positive_float("t-end"), required=True, help="final time [s]")
+    p.add_argument("--out", metavar="FILE.csv|FILE.npz", help="save the time series")
+    p.add_argument("--plot", metavar="FILE.png", help="save a plot")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.set_defaults(func=_cmd_simulate)
+
+    for name in EXTRA_COMMANDS:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:
+                raise
+            continue
+        module.add_parser(sub, common)
+    return parser
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``hubbeam`` console script. Returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        if not getattr(args, "command", None):
+            parser.print_help()
+            return 2
+        func = getattr(args, "func", None)
+        if func is None:
+            module = importlib.import_module(f"hubbeam_ctrl.cli_{args.command}")
+            func = module.run
+        return int(func(args) or 0)
+    except (ParameterError, HubbeamError) as exc:
+        print(f"hubbeam: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("hubbeam: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,75 @@
+"""Plots of simulation results (Matplotlib, object-oriented API, no pyplot state).
+
+Plotting is kept apart from computing: every function takes results and returns a
+``matplotlib.figure.Figure``; :func:`save_figure` writes it atomically.
+"""
+
+from __future__ import annotations
+
+from matplotlib.figure import Figure
+
+from .fileio import atomic_write
+
+__all__ = ["plot_result", "plot_tip_comparison", "save_figure"]
+
+
+def plot_result(result, title: str | None = None) -> Figure:
+    """Tip deflection, axial tip displacement, hub rate and torque of one run.
+
+    Parameters
+    ----------
+    result : SimulationResult
+    title : str, optional
+
+    Returns
+    -------
+    Figure
+    """
+    fig = Figure(figsize=(8, 7), constrained_layout=True)
+    axes = fig.subplots(4, 1, sharex=True)
+    axes[0].plot(result.t, result.v_tip)
+    axes[0].set_ylabel("v_tip [m]")
+    axes[1].plot(result.t, 1e3 * result.u_tip)
+    axes[1].set_ylabel("u_tip [mm]")
+    axes[2].plot(result.t, result.theta_dot)
+    axes[2].set_ylabel("hub rate [rad/s]")
+    axes[3].plot(result.t, result.tau, label="tau")
+    axes[3].plot(result.t, result.q_theta, label="Q_theta")
+    axes[3].set_ylabel("[N m]")
+    axes[3].legend(loc="best")
+    axes[3].set_xlabel("t [s]")
+    fig.suptitle(title or f"{result.model.upper()} ({result.hub} hub)"
+                 + ("  DIVERGED" if result.diverged else ""))
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    return fig
+
+
+def plot_tip_comparison(results: dict, title: str = "") -> Figure:
+    """Overlay the tip deflections of several runs.
+
+    Parameters
+    ----------
+    results : dict
+        Label -> SimulationResult.
+    title : str
+
+    Returns
+    -------
+    Figure
+    """
+    fig = Figure(figsize=(8, 4.5), constrained_layout=True)
+    ax = fig.subplots()
+    for label, res in results.items():
+        ax.plot(res.t, res.v_tip, label=label + (" (diverged)" if res.diverged else ""))
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("tip deflection v_tip [m]")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best")
+    return fig
+
+
+def save_figure(fig: Figure, path, dpi: int = 120):
+    """Save a figure atomically (PNG by the file's extension)."""
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
