@@ -8,6 +8,7 @@ outputs, or if it takes 90 s or more.
 
 from __future__ import annotations
 
+import re
 import time
 from pathlib import Path
 
@@ -51,7 +52,8 @@ def test_notebook_executes(path, tmp_path, monkeypatch):
     try:
         client.execute()
     except nbclient.exceptions.CellExecutionError as exc:
-        pytest.fail(f"{path.name}: a cell raised\n{exc}", pytrace=False)
+        plain = re.sub(r"\x1b\[[0-9;]*m", "", str(exc))      # drop the ANSI colours
+        pytest.fail(f"{path.name}: a cell raised\n{plain}", pytrace=False)
     elapsed = time.perf_counter() - start
     print(f"{path.name}: {elapsed:.1f} s")
     assert elapsed < MAX_NOTEBOOK_S, f"{path.name} took {elapsed:.1f} s (budget {MAX_NOTEBOOK_S:g} s)"
