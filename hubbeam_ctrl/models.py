@@ -260,6 +260,7 @@ class HubBeamModel:
             return C
         b = self.basis
         for sl, K, Mm in ((self.axial_slice, b.K1, b.beam.M1), (self.transverse_slice, b.K2, b.beam.M2)):
+            if sl.start == sl.stop: continue  # SFOAM has no axial modes
             C[sl, sl] = np.diag(2 * zeta * np.sqrt(np.diag(K) * np.diag(Mm)))
         return C
 
