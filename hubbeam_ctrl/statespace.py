@@ -388,8 +388,8 @@ def discretize(lm: LinearModel, dt: float, method: str = "zoh") -> LinearModel:
         Continuous-time model.
     dt : float
         Sample time [s], > 0.
-    method : str
-        Any method of :meth:`control.StateSpace.sample` (``zoh``, ``foh``, ``tustin``...).
+    method : {"zoh", "foh", "impulse", "tustin", "bilinear", "euler", "backward_diff"}
+        Passed to :meth:`control.StateSpace.sample` (default zero-order hold).
 
     Returns
     -------
@@ -406,6 +406,9 @@ def discretize(lm: LinearModel, dt: float, method: str = "zoh") -> LinearModel:
         raise ParameterError(f"dt must be a finite number > 0 [s], got {dt}")
     if lm.is_discrete:
         raise ParameterError(f"model must be continuous-time to discretize, it has dt = {lm.dt}")
+    methods = ("zoh", "foh", "impulse", "tustin", "bilinear", "euler", "backward_diff")
+    if method not in methods:
+        raise ParameterError(f"method must be one of {', '.join(methods)}, got {method!r}")
     sysd = lm.sys.sample(dt, method=method, name=f"{lm.name}_d", copy_names=True)
     sysd = _make_ss(sysd.A, sysd.B, sysd.C, sysd.D, dt, lm.state_names, lm.output_names, sysd.name)
     return dataclasses.replace(lm, sys=sysd)
