@@ -1,0 +1,430 @@
+"""What every controller shares: the design model, the reference, the weights, the interface.
+
+A controller is built once from a :class:`DesignModel` (the linear SFOAM about a spin
+rate, sampled at the controller's period), its settings and a :class:`Reference` (the
+hub trajectory to follow and its feedforward torque). It is then a function of time and
+measurement at its sample instants::
+
+    ctrl = LQR(design, LQRSettings(), reference)
+    ctrl.reset()
+    tau = ctrl(t, y)           # hub torque [N m] to hold until the next sample
+
+Coordinates. The design model's state is the SFOAM state
+``x = [theta, q2_1..q2_m, theta_dot, q2_dot_1..q2_dot_m]`` (rad, m, rad/s, m/s). About a
+spin rate ``Omega`` the linear model describes deviations from the steady rotation
+``theta = Omega t``; with the reference ``x_ref = [theta_ref, 0, theta_dot_ref, 0]`` the
+tracking error ``e = x - x_ref`` is the same in absolute and deviation coordinates, so the
+full-state controllers work directly on the plant's measured state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from hubbeam_ctrl.errors import ParameterError
+from hubbeam_ctrl.params import Params
+
+__all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate",
+           "check_positive", "check_nonnegative", "check_psd"]
+
+
+# -- validation helpers -----------------------------------------------------------------
+def check_positive(name: str, value, unit: str) -> float:
+    """Return ``float(value)`` or raise :class:`ParameterError` unless finite and > 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+            or not math.isfinite(value) or not value > 0:
+        raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {value!r}")
+    return float(value)
+
+
+def check_nonnegative(name: str, value, unit: str) -> float:
+    """Return ``float(value)`` or raise :class:`ParameterError` unless finite and >= 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+            or not math.isfinite(value) or not value >= 0:
+        raise ParameterError(f"{name} must be a finite number >= 0 [{unit}], got {value!r}")
+    return float(value)
+
+
+def check_psd(name: str, M, n: int, definite: bool = False) -> np.ndarray:
+    """Check that ``M`` is a symmetric positive (semi)definite ``n x n`` matrix.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``name`` and the smallest eigenvalue.
+    """
+    M = np.asarray(M, dtype=float)
+    if M.shape != (n, n) or not np.all(np.isfinite(M)):
+        raise ParameterError(f"{name} must be a finite {n} x {n} matrix, got shape {M.shape}")
+    if not np.allclose(M, M.T, rtol=1e-10, atol=1e-12 * max(1.0, np.abs(M).max())):
+        raise ParameterError(f"{name} must be symmetric")
+    lam = np.linalg.eigvalsh(0.5 * (M + M.T))
+    tol = 1e-12 * max(1.0, np.abs(lam).max())
+    if definite and lam.min() <= tol:
+        raise ParameterError(f"{name} must be positive definite; smallest eigenvalue {lam.min():.3g}")
+    if lam.min() < -tol:
+        raise ParameterError(f"{name} must be positive semidefinite; smallest eigenvalue {lam.min():.3g}")
+    return 0.5 * (M + M.T)
+
+
+def saturate(tau: float, tau_max: float) -> float:
+    """Clip a torque to ``[-tau_max, tau_max]`` [N m] (NaN passes through)."""
+    return tau_max if tau > tau_max else (-tau_max if tau < -tau_max else tau)
+
+
+# -- design model -------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class DesignModel:
+    """The linear SFOAM design model, continuous and sampled (zero-order hold).
+
+    Build it with :meth:`build`.
+
+    Attributes
+    ----------
+    params : Params
+        Parameters of the design model (``n_transverse`` = ``n_modes``).
+    spin : float
+        Spin rate of the linearisation [rad/s].
+    dt : float
+        Sample time [s].
+    n_modes : int
+        Transverse modes ``m``; the state has ``2 (1 + m)`` entries.
+    A, B : ndarray
+        Continuous state matrices of ``dx/dt = A x + B tau``.
+    Ad, Bd : ndarray
+        Sampled ones, ``x[k+1] = Ad x[k] + Bd tau[k]``.
+    C_sensors : ndarray (3, nx)
+        Rows giving ``[theta, theta_dot, M_root]`` [rad, rad/s, N m].
+    C_tip : ndarray (2, nx)
+        Rows giving the tip deflection ``v_tip`` [m] and its rate [m/s].
+    inertia : float
+        Rigid-body inertia of hub, beam and tip mass ``params.total_inertia`` [kg m^2].
+    state_names : list of str
+    M2, K2 : ndarray (1 + m, 1 + m)
+        Second-order mass and stiffness matrices ``M dq'' + G dq' + K dq = B tau``.
+    linear_model : hubbeam_ctrl.statespace.LinearModel
+        The sampled model as a python-control system (``.sys``).
+    """
+
+    params: Params
+    spin: float
+    dt: float
+    n_modes: int
+    A: np.ndarray
+    B: np.ndarray
+    Ad: np.ndarray
+    Bd: np.ndarray
+    C_sensors: np.ndarray
+    C_tip: np.ndarray
+    inertia: float
+    state_names: list
+    M2: np.ndarray = None
+    K2: np.ndarray = None
+    linear_model: object = None
+
+    @classmethod
+    def build(cls, params: Params = Params(), spin: float = 0.0, dt: float = 0.01,
+              n_modes: int | None = None) -> "DesignModel":
+        """Linearise SFOAM about steady spin and sample it.
+
+        Parameters
+        ----------
+        params : Params
+            System parameters (Table 1 by default).
+        spin : float
+            Spin rate of the linearisation [rad/s] (0 for a slew).
+        dt : float
+            Controller sample time [s], > 0.
+        n_modes : int, optional
+            Transverse modes of the design model (default ``params.n_transverse``).
+
+        Returns
+        -------
+        DesignModel
+
+        Examples
+        --------
+        >>> d = DesignModel.build(n_modes=2)
+        >>> d.Ad.shape, d.state_names[:2]
+        ((6, 6), ['theta', 'q2_1'])
+        """
+        from hubbeam_ctrl.linear import second_order_linearization
+        from hubbeam_ctrl.models import build_model
+        from hubbeam_ctrl.statespace import discretize, linearize
+        dt = check_positive("dt", dt, "s")
+        if not isinstance(params, Params):
+            raise ParameterError(f"params must be a Params, got {type(params).__name__}")
+        if not (isinstance(spin, (int, float)) and math.isfinite(spin)):
+            raise ParameterError(f"spin must be a finite number [rad/s], got {spin!r}")
+        m = params.n_transverse if n_modes is None else n_modes
+        p = params.replace(n_transverse=m)
+        outputs = ("theta", "theta_dot", "root_moment", "tip_deflection", "tip_rate")
+        lm = linearize("sfoam", float(spin), p, outputs)
+        lmd = discretize(lm, dt)
+        so = second_order_linearization(build_model("sfoam", p), float(spin), "free")
+        return cls(params=p, spin=float(spin), dt=dt, n_modes=p.n_transverse,
+                   A=np.asarray(lm.A), B=np.asarray(lm.B), Ad=np.asarray(lmd.A),
+                   Bd=np.asarray(lmd.B), C_sensors=np.asarray(lm.C[:3]),
+                   C_tip=np.asarray(lm.C[3:]), inertia=p.total_inertia,
+                   state_names=list(lm.state_names), M2=so.M, K2=so.K, linear_model=lmd)
+
+    @property
+    def n_x(self) -> int:
+        """Number of states ``2 (1 + n_modes)``."""
+        return self.A.shape[0]
+
+    @property
+    def quasi_static_gain(self) -> np.ndarray:
+        """Modal deflection per unit hub acceleration [m/(rad/s^2)], shape (n_modes,).
+
+        The beam's quasi-static bending under a slowly varying hub acceleration ``a``:
+        ``q2 = -K_22^-1 M_21 a`` (the elastic rows without their inertia).
+        """
+        return -np.linalg.solve(self.K2[1:, 1:], self.M2[1:, 0])
+
+    def reference_states(self, reference: "Reference", elastic: bool = True) -> np.ndarray:
+        """Reference states ``[theta, q2, theta_dot, q2_dot]`` at the reference's samples.
+
+        Parameters
+        ----------
+        reference : Reference
+        elastic : bool
+            Include the quasi-static deflection ``q2 = g theta_ddot`` (and its rate)
+            that the reference acceleration necessarily causes; otherwise ``q2 = 0``.
+
+        Returns
+        -------
+        ndarray (K, n_x)
+        """
+        n = self.n_x // 2
+        X = np.zeros((len(reference.theta), self.n_x))
+        X[:, 0] = reference.theta
+        X[:, n] = reference.theta_dot
+        if elastic and len(reference.theta) > 1:
+            g = self.quasi_static_gain
+            acc = reference.theta_ddot
+            X[:, 1:n] = np.outer(acc, g)
+            X[:, n + 1:] = np.outer(np.gradient(acc, reference.dt), g)
+        return X
+
+
+# -- reference ------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Reference:
+    """A hub reference sampled at the controller's instants ``t_k = k dt``.
+
+    Beyond the last sample the reference continues at its final rate with its final
+    feedforward torque.
+
+    Attributes
+    ----------
+    dt : float
+        Sample time [s].
+    theta : ndarray (K,)
+        Reference hub angle [rad].
+    theta_dot : ndarray (K,)
+        Reference hub rate [rad/s].
+    theta_ddot : ndarray (K,)
+        Reference hub acceleration [rad/s^2].
+    torque : ndarray (K,)
+        Feedforward torque [N m] that drives the rigid body along the reference.
+    description : str
+    """
+
+    dt: float
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    theta_ddot: np.ndarray
+    torque: np.ndarray
+    description: str = ""
+
+    @classmethod
+    def from_profile(cls, profile, dt: float, t_end: float, description: str = "") -> "Reference":
+        """Sample ``profile(t) -> (theta, theta_dot, theta_ddot, torque)`` on ``0..t_end``."""
+        dt = check_positive("dt", dt, "s")
+        t = dt * np.arange(int(round(t_end / dt)) + 1)
+        th, thd, thdd, tau = (np.asarray(a, dtype=float) * np.ones_like(t) for a in profile(t))
+        return cls(dt, th, thd, thdd, tau, description)
+
+    @classmethod
+    def rest(cls, dt: float, theta: float = 0.0) -> "Reference":
+        """Stay at rest at ``theta`` [rad]."""
+        z = np.zeros(1)
+        return cls(dt, z + theta, z, z, z, "rest")
+
+    @property
+    def t(self) -> np.ndarray:
+        """Sample instants [s]."""
+        return self.dt * np.arange(len(self.theta))
+
+    def index(self, t: float) -> int:
+        """Sample index of time ``t`` [s] (rounded)."""
+        return int(round(t / self.dt))
+
+    def window(self, k: int, n: int):
+        """Reference at samples ``k..k+n-1``: ``(theta, theta_dot, torque)`` arrays."""
+        K = len(self.theta)
+        if k + n <= K:
+            return self.theta[k:k + n], self.theta_dot[k:k + n], self.torque[k:k + n]
+        idx = np.arange(k, k + n)
+        inside = np.minimum(idx, K - 1)
+        extra = (idx - inside) * self.dt
+        return (self.theta[inside] + self.theta_dot[-1] * extra, self.theta_dot[inside],
+                self.torque[inside])
+
+    def at(self, t):
+        """``(theta, theta_dot, torque)`` at time(s) ``t`` [s] (nearest sample)."""
+        t = np.asarray(t, dtype=float)
+        K = len(self.theta)
+        k = np.rint(t / self.dt).astype(int)
+        inside = np.clip(k, 0, K - 1)
+        extra = np.maximum(k - (K - 1), 0) * self.dt
+        return (self.theta[inside] + self.theta_dot[-1] * extra, self.theta_dot[inside],
+                self.torque[inside])
+
+    def theta_at(self, t):
+        """Reference hub angle at ``t`` [rad]."""
+        return self.at(t)[0]
+
+    def theta_dot_at(self, t):
+        """Reference hub rate at ``t`` [rad/s]."""
+        return self.at(t)[1]
+
+
+# -- weights -----------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Weights:
+    """Quadratic weights of LQR, LQG and MPC: ``sum e'Q e + R (tau - tau_ff)^2``.
+
+    ``Q = angle diag + rate diag + tip c_tip' c_tip + tip_rate c_rate' c_rate`` on the
+    tracking error ``e = x - x_ref``, unless ``state_matrix`` gives the whole ``Q``.
+    The defaults were tuned on the default slew (see ``notes/readme_controllers.md``).
+    """
+
+    angle: float = 1e4
+    """Weight on the hub-angle error [1/rad^2], >= 0."""
+    rate: float = 1e5
+    """Weight on the hub-rate error [1/(rad/s)^2], >= 0."""
+    tip: float = 3e3
+    """Weight on the tip deflection v_tip [1/m^2], >= 0."""
+    tip_rate: float = 3e3
+    """Weight on the tip-deflection rate [1/(m/s)^2], >= 0."""
+    modal: float = 1e4
+    """Weight on every modal coordinate and rate [1/m^2, 1/(m/s)^2], >= 0 (helps
+    damp the higher modes that barely move the tip)."""
+    torque: float = 2.5e-5
+    """Weight on the torque beyond the feedforward [1/(N m)^2], > 0."""
+    state_matrix: np.ndarray | None = None
+    """Optional full state weight Q (n_x x n_x, symmetric positive semidefinite) that
+    replaces the scalar state weights above."""
+
+    def __post_init__(self):
+        for f in fields(self):
+            if f.name in ("state_matrix", "torque"):
+                continue
+            check_nonnegative(f"weights.{f.name}", getattr(self, f.name), "weight")
+        check_positive("weights.torque", self.torque, "1/(N m)^2")
+
+    def matrices(self, design: DesignModel):
+        """State and input weights ``(Q, R)`` for ``design`` (validated)."""
+        nx = design.n_x
+        if self.state_matrix is not None:
+            Q = check_psd("weights.state_matrix", self.state_matrix, nx)
+        else:
+            n = nx // 2
+            Q = np.zeros((nx, nx))
+            Q[0, 0] = self.angle
+            Q[n, n] = self.rate
+            c, cd = design.C_tip
+            Q += self.tip * np.outer(c, c) + self.tip_rate * np.outer(cd, cd)
+            idx = np.r_[1:n, n + 1:nx]
+            Q[idx, idx] += self.modal
+        return Q, np.array([[self.torque]])
+
+
+# -- the interface ----------------------------------------------------------------------------
+class Controller:
+    """Base class of every controller: ``ctrl(t, y) -> tau``, ``ctrl.reset()``.
+
+    Parameters
+    ----------
+    design : DesignModel
+        The sampled linear SFOAM model (gives ``dt`` and ``n_modes``).
+    settings : dataclass
+        The controller's own frozen settings.
+    reference : Reference, optional
+        Hub trajectory and feedforward torque (none: regulate to rest at theta = 0).
+
+    Attributes
+    ----------
+    name : str
+        Short name used in tables (``"lqr"``...).
+    measurement : {"state", "sensors"}
+        What the simulator hands over: the plant's SFOAM-ordered state, or the noisy
+        sensors ``[theta, theta_dot, M_root]`` (see
+        :func:`hubbeam_ctrl.closedloop.simulate_closed_loop`).
+    dt : float
+        Sample time [s].
+    n_modes : int
+        Transverse modes read from the plant (``measurement="state"``).
+    """
+
+    name = "controller"
+    measurement = "state"
+
+    def __init__(self, design: DesignModel, settings, reference: Reference | None = None):
+        if not isinstance(design, DesignModel):
+            raise ParameterError(f"design must be a DesignModel, got {type(design).__name__}")
+        if reference is None:
+            reference = Reference.rest(design.dt)
+        if not isinstance(reference, Reference):
+            raise ParameterError(f"reference must be a Reference, got {type(reference).__name__}")
+        if abs(reference.dt - design.dt) > 1e-12 * design.dt:
+            raise ParameterError(f"reference.dt = {reference.dt:g} s differs from the design "
+                                 f"model's dt = {design.dt:g} s")
+        self.design = design
+        self.settings = settings
+        self.reference = reference
+        self.dt = design.dt
+        self.n_modes = design.n_modes
+
+    def _prepare_reference(self, elastic: bool, extra: int = 0) -> None:
+        """Tabulate reference states and feedforward torques (plus ``extra`` samples)."""
+        ref = self.reference
+        K = len(ref.theta) + extra + 1
+        th, thd, tff = ref.window(0, K)
+        X = np.zeros((K, self.design.n_x))
+        X[: len(ref.theta)] = self.design.reference_states(ref, elastic)
+        n = self.design.n_x // 2
+        X[len(ref.theta):, 0] = th[len(ref.theta):]
+        X[len(ref.theta):, n] = thd[len(ref.theta):]
+        if elastic and len(ref.theta) > 1:      # hold the last deflection
+            X[len(ref.theta):, 1:n] = X[len(ref.theta) - 1, 1:n]
+        self._xref = X
+        self._tff = np.asarray(tff, dtype=float)
+
+    def _reference_at(self, k: int):
+        """``(x_ref, tau_ff)`` at sample ``k`` from the table (extended beyond its end)."""
+        K = len(self._tff)
+        if k < K:
+            return self._xref[k], self._tff[k]
+        x = self._xref[-1].copy()
+        x[0] += x[self.design.n_x // 2] * (k - K + 1) * self.dt
+        return x, self._tff[-1]
+
+    def reset(self) -> None:
+        """Prepare a new run (clears estimator and solver memory)."""
+
+    def __call__(self, t: float, y) -> float:
+        """Hub torque [N m] at time ``t`` [s] from measurement ``y``."""
+        raise NotImplementedError
+
+    def stats(self) -> dict:
+        """Run statistics (e.g. QP fallbacks) since the last :meth:`reset`."""
+        return {}
+
+    def __repr__(self):
+        return f"{type(self).__name__}(dt={self.dt:g}, n_modes={self.n_modes}, settings={self.settings!r})"

@@ -1,0 +1,276 @@
+"""Linear MPC on the sampled SFOAM: a condensed dense QP built once, solved each step.
+
+The decision variables are the ``N`` torques of the horizon (plus one slack when the tip
+deflection is soft-bounded). With ``X = Phi x0 + Gamma U`` the predicted states
+``x_1..x_N`` and the reference ``X_r``, ``U_ff`` of the horizon, the QP is::
+
+    min  (X - X_r)' Qb (X - X_r) + (U - U_ff)' Rb (U - U_ff) + w_s s^2
+    s.t. -tau_max <= U <= tau_max                      (hard)
+         |c_tip x_i| <= v_max + s,  s >= 0,  i = 1..N  (soft, optional)
+
+``Qb = diag(Q, .., Q, P)`` with ``P`` the LQR Riccati solution (terminal cost), so the
+Hessian and the constraint matrix are fixed and only the gradient and the constraint
+bounds change with the measured state. CasADi's ``conic`` interface solves it (DAQP by
+default; qpOASES, qrqp and OSQP selectable), warm-started with the shifted previous plan.
+A failed solve falls back to the saturated LQR torque; :meth:`MPC.stats` counts them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from hubbeam_ctrl.errors import ParameterError
+
+from .base import (Controller, DesignModel, Reference, Weights, check_nonnegative,
+                   check_positive, saturate)
+from .lqr import dlqr_gain
+
+__all__ = ["MPCSettings", "MPC", "QP_SOLVERS", "condensed_matrices"]
+
+#: QP solvers of CasADi's ``conic`` that :class:`MPC` accepts, with their quiet options.
+QP_SOLVERS = {
+    "daqp": {},
+    "qpoases": {"printLevel": "none", "sparse": False, "error_on_fail": False},
+    "qrqp": {"print_iter": False, "print_header": False, "print_info": False,
+             "error_on_fail": False},
+    "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-7, "eps_rel": 1e-7, "max_iter": 20000},
+             "error_on_fail": False},
+}
+
+
+@dataclass(frozen=True)
+class MPCSettings:
+    """Settings of :class:`MPC`."""
+
+    weights: Weights = field(default_factory=Weights)
+    """Stage weights (see :class:`Weights`); the terminal weight is the LQR Riccati solution."""
+    horizon: int = 50
+    """Prediction horizon N in samples, >= 1."""
+    tau_max: float = 200.0
+    """Hard torque limit [N m], > 0."""
+    tip_bound: float | None = None
+    """Soft bound on |v_tip| over the horizon [m], > 0; None: no bound."""
+    tip_bound_weight: float = 1e8
+    """Quadratic penalty on the bound's violation [1/m^2], > 0 (same scale as the weights)."""
+    solver: str = "daqp"
+    """QP solver: one of :data:`QP_SOLVERS`."""
+    warm_start: bool = True
+    """Start each QP from the previous plan, shifted by one sample."""
+    feedforward: bool = True
+    """Use the reference's feedforward torque as the torque reference of the cost."""
+    elastic_reference: bool = True
+    """Track the quasi-static deflection of the reference acceleration (as LQR)."""
+
+    def __post_init__(self):
+        if not isinstance(self.weights, Weights):
+            raise ParameterError(f"weights must be a Weights, got {type(self.weights).__name__}")
+        if isinstance(self.horizon, bool) or not isinstance(self.horizon, (int, np.integer)) \
+                or self.horizon < 1:
+            raise ParameterError(f"horizon must be an integer >= 1 [samples], got {self.horizon!r}")
+        check_positive("tau_max", self.tau_max, "N m")
+        if self.tip_bound is not None:
+            check_positive("tip_bound", self.tip_bound, "m")
+        check_positive("tip_bound_weight", self.tip_bound_weight, "1/m^2")
+        if self.solver not in QP_SOLVERS:
+            raise ParameterError(f"solver must be one of {', '.join(QP_SOLVERS)}, got {self.solver!r}")
+
+
+def condensed_matrices(Ad: np.ndarray, Bd: np.ndarray, N: int):
+    """Prediction matrices of ``X = Phi x0 + Gamma U`` over ``N`` steps.
+
+    Returns
+    -------
+    Phi : ndarray (N nx, nx)
+    Gamma : ndarray (N nx, N)
+        Block lower-triangular, block ``(i, j) = Ad^(i-j) Bd`` for ``j <= i``.
+    """
+    nx = Ad.shape[0]
+    Phi = np.zeros((N * nx, nx))
+    Gamma = np.zeros((N * nx, N))
+    Ak = np.eye(nx)
+    powers_B = []
+    for i in range(N):
+        powers_B.append(Ak @ Bd[:, 0])        # Ad^i Bd
+        Ak = Ad @ Ak
+        Phi[i * nx:(i + 1) * nx] = Ak
+    for i in range(N):
+        for j in range(i + 1):
+            Gamma[i * nx:(i + 1) * nx, j] = powers_B[i - j]
+    return Phi, Gamma
+
+
+class MPC(Controller):
+    """Linear MPC with a hard torque limit and an optional soft tip-deflection bound.
+
+    Parameters
+    ----------
+    design : DesignModel
+        Sampled SFOAM at the design spin rate.
+    settings : MPCSettings, optional
+    reference : Reference, optional
+
+    Attributes
+    ----------
+    K, P : ndarray
+        LQR gain (fallback) and Riccati solution (terminal weight).
+    solver : casadi.Function
+        The QP solver, built once.
+
+    Examples
+    --------
+    >>> from controllers import DesignModel, MPC, MPCSettings
+    >>> mpc = MPC(DesignModel.build(n_modes=2), MPCSettings(horizon=20))
+    >>> mpc.reset(); x = np.zeros(6); x[0] = -0.01   # 10 mrad behind the reference
+    >>> 0 < mpc(0.0, x) <= 200.0
+    True
+    """
+
+    name = "mpc"
+    measurement = "state"
+
+    def __init__(self, design: DesignModel, settings: MPCSettings | None = None,
+                 reference: Reference | None = None):
+        settings = settings or MPCSettings()
+        super().__init__(design, settings, reference)
+        s = settings
+        N, nx = s.horizon, design.n_x
+        self.K, self.P = dlqr_gain(design, s.weights)
+        Q, R = s.weights.matrices(design)
+        r = float(R[0, 0])
+        Phi, Gamma = condensed_matrices(design.Ad, design.Bd, N)
+        Qb = np.kron(np.eye(N), Q)
+        Qb[-nx:, -nx:] = self.P
+        scale = 1.0 / r                        # cost scaled so that the torque weight is 1
+        GtQ = Gamma.T @ Qb
+        H = 2 * scale * (GtQ @ Gamma + r * np.eye(N))
+        H = 0.5 * (H + H.T)
+        self._Gx = 2 * scale * (GtQ @ Phi)                      # (N, nx)
+        self._Gr = 2 * scale * GtQ                              # (N, N nx)
+        self._ff = 1.0 if s.feedforward else 0.0
+        # g = Gx x0 - ref_term[k]: the reference part of the gradient for every sample
+        self._prepare_reference(s.elastic_reference, extra=N + 1)
+        self._ref_term = self._reference_terms()
+        soft = s.tip_bound is not None
+        nz = N + (1 if soft else 0)
+        if soft:
+            c_tip = design.C_tip[0]
+            Ct = np.kron(np.eye(N), c_tip[None, :])            # (N, N nx)
+            self._CtPhi = Ct @ Phi                              # (N, nx)
+            CtG = Ct @ Gamma
+            A = np.block([[CtG, -np.ones((N, 1))], [CtG, np.ones((N, 1))]])
+            Hz = np.zeros((nz, nz))
+            Hz[:N, :N] = H
+            Hz[N, N] = 2 * scale * s.tip_bound_weight
+            H = Hz
+        elif s.solver == "qpoases":
+            A = np.ones((1, nz))     # an always-inactive row: qpOASES keeps its factorisation
+        else:
+            A = np.zeros((0, nz))
+        self._soft = soft
+        self._H = ca.DM(H)
+        self._A = ca.DM(A)
+        self._n_a = A.shape[0]
+        self._nz = nz
+        lbx = np.full(nz, -s.tau_max)
+        ubx = np.full(nz, s.tau_max)
+        if soft:
+            lbx[-1], ubx[-1] = 0.0, np.inf
+        self._lbx, self._ubx = lbx, ubx
+        opts = dict(QP_SOLVERS[s.solver])
+        try:
+            self.solver = ca.conic("mpc_qp", s.solver, {"h": self._H.sparsity(),
+                                                         "a": self._A.sparsity()}, opts)
+        except RuntimeError as exc:
+            raise ParameterError(f"solver {s.solver!r} could not be created: "
+                                 f"{str(exc).splitlines()[-1][:120]}") from None
+        self.reset()
+
+    def _reference_terms(self) -> np.ndarray:
+        N, nx = self.settings.horizon, self.design.n_x
+        X, U = self._xref, self._tff
+        n_k = len(X) - N
+        G3 = self._Gr.reshape(N, N, nx)
+        win = np.lib.stride_tricks.sliding_window_view(X[1:], N, axis=0)[:n_k]   # (k, nx, N)
+        term = np.einsum("ijc,kcj->ki", G3, win, optimize=True)
+        uwin = np.lib.stride_tricks.sliding_window_view(U, N)[:n_k]               # (k, N)
+        return term + 2.0 * self._ff * uwin
+
+    def _reference_term(self, k: int) -> np.ndarray:
+        if k < len(self._ref_term):
+            return self._ref_term[k]
+        N = self.settings.horizon
+        X = np.array([self._reference_at(k + 1 + i)[0] for i in range(N)])
+        U = np.array([self._reference_at(k + i)[1] for i in range(N)])
+        return self._Gr @ X.ravel() + 2.0 * self._ff * U
+
+    def reset(self) -> None:
+        self._z = np.zeros(self._nz)
+        self._lam_x = np.zeros(self._nz)
+        self._lam_a = np.zeros(self._n_a)
+        self.n_solves = 0
+        self.n_fallbacks = 0
+        self.last_status = ""
+
+    def stats(self) -> dict:
+        return {"qp_solves": self.n_solves, "qp_fallbacks": self.n_fallbacks,
+                "fallback_fraction": self.n_fallbacks / self.n_solves if self.n_solves else 0.0,
+                "solver": self.settings.solver, "horizon": self.settings.horizon}
+
+    def plan(self, t: float, y) -> np.ndarray:
+        """Solve the QP at time ``t`` [s] for state ``y``; return the planned torques [N m].
+
+        Raises
+        ------
+        RuntimeError
+            If the solver fails (the controller's call falls back to LQR instead).
+        """
+        s = self.settings
+        N = s.horizon
+        k = int(round(t / self.dt))
+        g = self._Gx @ y - self._reference_term(k)
+        lba = uba = None
+        if self._soft:
+            g = np.append(g, 0.0)
+            off = self._CtPhi @ y
+            vmax = s.tip_bound
+            lba = np.concatenate([np.full(N, -np.inf), -vmax - off])
+            uba = np.concatenate([vmax - off, np.full(N, np.inf)])
+        elif self._n_a:
+            lba, uba = np.array([-np.inf]), np.array([np.inf])
+        args = {"h": self._H, "g": g, "a": self._A, "lbx": self._lbx, "ubx": self._ubx}
+        if lba is not None:
+            args["lba"], args["uba"] = lba, uba
+        if s.warm_start:
+            args["x0"] = np.append(self._z[1:], self._z[-1]) if not self._soft else \
+                np.concatenate([self._z[1:N], [self._z[N - 1]], [self._z[N]]])
+            args["lam_x0"] = self._lam_x
+            if self._n_a:
+                args["lam_a0"] = self._lam_a
+        sol = self.solver(**args)
+        st = self.solver.stats()
+        self.last_status = str(st.get("return_status", ""))
+        z = np.asarray(sol["x"]).ravel()
+        if not st.get("success", False) or not np.all(np.isfinite(z)):
+            raise RuntimeError(f"QP failed: {self.last_status}")
+        self._z = z
+        self._lam_x = np.asarray(sol["lam_x"]).ravel()
+        if self._n_a:
+            self._lam_a = np.asarray(sol["lam_a"]).ravel()
+        return z[:N]
+
+    def __call__(self, t: float, y) -> float:
+        self.n_solves += 1
+        y = np.asarray(y, dtype=float)
+        try:
+            u = self.plan(t, y)
+            tau = float(u[0])
+        except RuntimeError:
+            self.n_fallbacks += 1
+            self._z = np.zeros(self._nz)
+            xr, tff = self._reference_at(int(round(t / self.dt)))
+            tau = self._ff * tff - self.K @ (y - xr)
+        return saturate(tau, self.settings.tau_max)

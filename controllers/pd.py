@@ -1,0 +1,106 @@
+"""Collocated PD control of the hub toward a reference (the classic design)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .base import Controller, DesignModel, Reference, check_nonnegative, check_positive, saturate
+
+__all__ = ["PDSettings", "PD", "pd_gains"]
+
+
+def pd_gains(bandwidth: float, damping: float, inertia: float) -> tuple:
+    """PD gains that give the rigid hub a second-order closed loop.
+
+    ``J s^2 + kd s + kp = J (s^2 + 2 zeta w s + w^2)``, i.e. ``kp = J w^2``,
+    ``kd = 2 zeta w J``.
+
+    Parameters
+    ----------
+    bandwidth : float
+        Closed-loop natural frequency w [rad/s], > 0.
+    damping : float
+        Damping ratio zeta [-], > 0.
+    inertia : float
+        Rigid-body inertia J [kg m^2], > 0.
+
+    Returns
+    -------
+    kp : float
+        Angle gain [N m/rad].
+    kd : float
+        Rate gain [N m s/rad].
+
+    Examples
+    --------
+    >>> pd_gains(1.0, 0.7, 300.0)
+    (300.0, 420.0)
+    """
+    w = check_positive("bandwidth", bandwidth, "rad/s")
+    z = check_positive("damping", damping, "-")
+    J = check_positive("inertia", inertia, "kg m^2")
+    return J * w * w, 2 * z * w * J
+
+
+@dataclass(frozen=True)
+class PDSettings:
+    """Settings of :class:`PD`. Gains default to :func:`pd_gains` of bandwidth and damping."""
+
+    bandwidth: float = 1.0
+    """Rigid-body closed-loop natural frequency [rad/s], > 0 (used when kp/kd are None)."""
+    damping: float = 0.9
+    """Rigid-body closed-loop damping ratio [-], > 0 (used when kp/kd are None)."""
+    kp: float | None = None
+    """Angle gain [N m/rad], >= 0; overrides the bandwidth design."""
+    kd: float | None = None
+    """Rate gain [N m s/rad], >= 0; overrides the bandwidth design."""
+    tau_max: float = 200.0
+    """Torque limit [N m], > 0: the output is clipped to +-tau_max."""
+    feedforward: bool = True
+    """Add the reference's rigid-body feedforward torque."""
+
+    def __post_init__(self):
+        check_positive("bandwidth", self.bandwidth, "rad/s")
+        check_positive("damping", self.damping, "-")
+        if self.kp is not None:
+            check_nonnegative("kp", self.kp, "N m/rad")
+        if self.kd is not None:
+            check_nonnegative("kd", self.kd, "N m s/rad")
+        check_positive("tau_max", self.tau_max, "N m")
+
+
+class PD(Controller):
+    """``tau = sat(tau_ff + kp (theta_ref - theta) + kd (theta_dot_ref - theta_dot))``.
+
+    Reads the hub sensors (angle and rate, with their noise): a collocated design that
+    knows nothing of the beam.
+
+    Parameters
+    ----------
+    design : DesignModel
+        Gives ``dt`` and the rigid inertia for the default gains.
+    settings : PDSettings, optional
+    reference : Reference, optional
+    """
+
+    name = "pd"
+    measurement = "sensors"
+
+    def __init__(self, design: DesignModel, settings: PDSettings | None = None,
+                 reference: Reference | None = None):
+        settings = settings or PDSettings()
+        super().__init__(design, settings, reference)
+        kp, kd = pd_gains(settings.bandwidth, settings.damping, design.inertia)
+        self.kp = float(settings.kp) if settings.kp is not None else kp
+        self.kd = float(settings.kd) if settings.kd is not None else kd
+        self._ff = 1.0 if settings.feedforward else 0.0
+
+    def __call__(self, t: float, y) -> float:
+        ref = self.reference
+        k = int(round(t / self.dt))
+        if k < len(ref.theta):
+            th, thd, tff = ref.theta[k], ref.theta_dot[k], ref.torque[k]
+        else:
+            (th,), (thd,), (tff,) = ref.window(k, 1)
+        tau = self._ff * tff + self.kp * (th - y[0]) + self.kd * (thd - y[1])
+        return saturate(float(tau), self.settings.tau_max)

@@ -1,0 +1,169 @@
+"""Hub references for the two scenarios: a rest-to-rest slew and a spin-up.
+
+Each gives the hub angle and rate to follow and the feedforward torque that drives the
+*rigid* body (inertia ``J_total``) along them; the feedback controllers add what the
+flexible plant needs on top.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hubbeam_ctrl.errors import ParameterError
+from hubbeam_ctrl.maneuvers import SpinUp
+
+from .base import Reference, check_positive
+
+__all__ = ["slew_reference", "spinup_reference", "eq44_reference", "slew_shape_constant"]
+
+
+def _shape(u, flatness):
+    """Acceleration shape on ``u = t/T`` in [0, 1]: ``tanh(k sin 2 pi u) / tanh(k)``."""
+    if flatness <= 1e-6:
+        return np.sin(2 * math.pi * u)
+    return np.tanh(flatness * np.sin(2 * math.pi * u)) / math.tanh(flatness)
+
+
+def slew_shape_constant(flatness: float) -> float:
+    """``c`` with rest-to-rest angle ``= c a_max T^2`` for the shape of :func:`slew_reference`.
+
+    ``c = 1/(2 pi)`` for a sine (``flatness = 0``), tending to ``1/4`` (bang-bang).
+    """
+    u = np.linspace(0.0, 1.0, 20001)
+    s = _shape(u, flatness)
+    # angle(1) = int_0^1 (1 - u) s(u) du
+    w = (1.0 - u) * s
+    return float(np.sum(0.5 * (w[1:] + w[:-1]) * np.diff(u)))
+
+
+def slew_reference(angle: float, duration: float, inertia: float, tau_max: float, dt: float,
+                   t_end: float, flatness: float = 3.0) -> Reference:
+    """Smooth rest-to-rest reference of the rigid body.
+
+    Hub acceleration ``a(t) = a_max tanh(k sin(2 pi t/T)) / tanh(k)`` for ``0 <= t <= T``
+    (``k = flatness``; ``k -> 0`` is the Eq. 44 sine, large ``k`` approaches bang-bang),
+    with ``a_max`` chosen so that the hub turns by ``angle`` in ``T = duration``. A flatter
+    shape needs less peak torque for the same angle and time (k = 3: 75 % of the sine's),
+    leaving the feedback controllers a margin below ``tau_max``.
+
+    Parameters
+    ----------
+    angle : float
+        Rotation [rad].
+    duration : float
+        Maneuver time T [s], > 0.
+    inertia : float
+        Rigid-body inertia [kg m^2] (``Params.total_inertia``).
+    tau_max : float
+        Torque budget [N m]; the feedforward ``inertia * a_max`` must stay below it.
+    dt : float
+        Sample time [s].
+    t_end : float
+        Last sample [s].
+    flatness : float
+        Shape parameter k >= 0 [-].
+
+    Returns
+    -------
+    Reference
+    """
+    T = check_positive("tf", duration, "s")
+    J = check_positive("inertia", inertia, "kg m^2")
+    check_positive("tau_max", tau_max, "N m")
+    if not (isinstance(flatness, (int, float)) and math.isfinite(flatness) and flatness >= 0):
+        raise ParameterError(f"flatness must be a finite number >= 0, got {flatness!r}")
+    c = slew_shape_constant(flatness)
+    a_max = angle / (c * T ** 2)
+    peak = J * abs(a_max)
+    if peak > tau_max:
+        raise ParameterError(
+            f"tau_max = {tau_max:g} N m is below the {peak:.4g} N m the reference needs to turn "
+            f"{angle:.4g} rad in tf = {T:g} s; raise tau_max or tf")
+    # fine grid, exact double integration by the trapezoidal rule, then sampling
+    n_fine = max(20001, int(T / dt) * 20 + 1)
+    tf_grid = np.linspace(0.0, T, n_fine)
+    acc = a_max * _shape(tf_grid / T, flatness)
+    h = T / (n_fine - 1)
+    vel = np.concatenate([[0.0], np.cumsum(0.5 * (acc[1:] + acc[:-1]) * h)])
+    pos = np.concatenate([[0.0], np.cumsum(0.5 * (vel[1:] + vel[:-1]) * h)])
+    pos *= angle / pos[-1] if pos[-1] != 0 else 1.0     # remove the quadrature's last digits
+
+    def profile(t):
+        inside = t <= T
+        th = np.where(inside, np.interp(t, tf_grid, pos), angle)
+        thd = np.where(inside, np.interp(t, tf_grid, vel), 0.0)
+        acc = np.where(inside, a_max * _shape(np.clip(t / T, 0, 1), flatness), 0.0)
+        return th, thd, acc, J * acc
+
+    return Reference.from_profile(profile, dt, t_end,
+                                  f"slew {angle:.4g} rad in {T:g} s (flatness {flatness:g}, "
+                                  f"peak feedforward {peak:.4g} N m)")
+
+
+def eq44_reference(tau_m: float, t_f: float, inertia: float, dt: float, t_end: float) -> Reference:
+    """The rigid-body motion under the Eq. 44 torque ``tau_m sin(2 pi t/t_f)`` (its own feedforward).
+
+    Parameters
+    ----------
+    tau_m : float
+        Torque amplitude [N m].
+    t_f : float
+        Maneuver time [s].
+    inertia : float
+        Rigid-body inertia [kg m^2].
+    dt, t_end : float
+        Sample time and last sample [s].
+    """
+    T = check_positive("tf", t_f, "s")
+    J = check_positive("inertia", inertia, "kg m^2")
+    w = 2 * math.pi / T
+    angle = tau_m * T ** 2 / (2 * math.pi * J)
+
+    def profile(t):
+        inside = t <= T
+        th = np.where(inside, tau_m / J * (t / w - np.sin(w * t) / w ** 2), angle)
+        thd = np.where(inside, tau_m / J * (1 - np.cos(w * t)) / w, 0.0)
+        tau = np.where(inside, tau_m * np.sin(w * t), 0.0)
+        return th, thd, tau / J, tau
+
+    return Reference.from_profile(profile, dt, t_end, f"Eq. 44 rigid motion ({angle:.4g} rad)")
+
+
+def spinup_reference(w_f: float, t_f: float, inertia: float, dt: float, t_end: float,
+                     tau_max: float | None = None) -> Reference:
+    """The corrected Eq. 43 spin-up (Kane, Ryan and Banerjee) to ``w_f`` in ``t_f``, then hold.
+
+    Feedforward ``inertia * theta_ddot`` (peak ``2 inertia w_f / t_f``).
+
+    Parameters
+    ----------
+    w_f : float
+        Final rate [rad/s].
+    t_f : float
+        Spin-up time [s].
+    inertia : float
+        Rigid-body inertia [kg m^2].
+    dt, t_end : float
+        Sample time and last sample [s].
+    tau_max : float, optional
+        Torque budget [N m]; raises if the feedforward alone exceeds it.
+    """
+    T = check_positive("tf", t_f, "s")
+    J = check_positive("inertia", inertia, "kg m^2")
+    if not (isinstance(w_f, (int, float)) and math.isfinite(w_f)):
+        raise ParameterError(f"wf must be a finite number [rad/s], got {w_f!r}")
+    peak = 2 * J * abs(w_f) / T
+    if tau_max is not None and peak > tau_max:
+        raise ParameterError(
+            f"tau_max = {tau_max:g} N m is below the {peak:.4g} N m the spin-up to {w_f:g} rad/s "
+            f"in tf = {T:g} s needs; raise tau_max or tf")
+    spin = SpinUp(float(w_f), T)
+
+    def profile(t):
+        th, thd, thdd = spin(t)
+        return th, thd, thdd, J * thdd
+
+    return Reference.from_profile(profile, dt, t_end,
+                                  f"spin-up to {w_f:g} rad/s in {T:g} s (peak feedforward {peak:.4g} N m)")
