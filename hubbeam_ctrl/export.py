@@ -122,7 +122,8 @@ def _write_mat(tmp, mats, meta, params: Params):
     data["spin_rad_s"] = float(meta["spin_rad_s"])
     for key in ("model", "name", "reduction", "hub"):
         data[key] = meta[key]
-    data["params"] = {k: float(v) for k, v in params.to_dict().items()}
+    data["params"] = {k: float(params.tip_position if v is None else v)   # l resolved
+                      for k, v in params.to_dict().items()}
     data["param_units"] = dict(meta["param_units"])
     data["hubbeam_metadata"] = json.dumps(meta)
     with open(tmp, "wb") as fh:

@@ -149,10 +149,8 @@ class Params:
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
-        """Plain dictionary of all fields (``l`` is resolved to a number)."""
-        d = dataclasses.asdict(self)
-        d["l"] = self.tip_position
-        return d
+        """Plain dictionary of all fields (``l`` is ``None`` when the mass is at the end)."""
+        return dataclasses.asdict(self)
 
     @classmethod
     def units(cls) -> dict:
@@ -208,5 +206,8 @@ def save_params(params: Params, path) -> None:
     units = Params.units()
     lines = ["# hubbeam-ctrl parameters, SI units"]
     for key, value in params.to_dict().items():
+        if value is None:   # l unset: tip mass at the free end
+            lines.append(f"# {key} unset: at the free end")
+            continue
         lines.append(f"{key} = {value!r}  # [{units[key]}]")
     atomic_write_text(path, "\n".join(lines) + "\n")

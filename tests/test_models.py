@@ -1,0 +1,138 @@
+"""Models from energies: term-by-term check against the paper's FOAM, conservation laws."""
+
+import numpy as np
+import pytest
+
+from hubbeam_ctrl import Params, build_model, simulate
+from hubbeam_ctrl.basis import axial_shapes, foreshortening_matrices, transverse_shapes
+
+
+def paper_foam(params, q, v):
+    """The paper's Eqs. (24)-(34) without the Delta terms, plus the appendix's tip mass
+    (A1)-(A10) with r_A + l, written out by hand. Returns (M, bias) with bias = 2 thd G v +
+    K q - Q so that M a + bias = [tau, 0, 0]."""
+    from hubbeam_ctrl.basis import modal_basis
+    b = modal_basis(params)
+    n1, n2 = params.n_axial, params.n_transverse
+    m, l, r = params.m_t, params.tip_position, params.r
+    f1 = axial_shapes([l], n1, params.L)[0]
+    f2 = transverse_shapes([l], n2, params.L)[0]
+    S = foreshortening_matrices([l], n2, params.L)[0]
+    bm = b.beam
+    # beam plus the appendix's tip terms, each written from point values
+    J = bm.J + m * (r + l) ** 2
+    M1 = bm.M1 + m * np.outer(f1, f1)
+    M2 = bm.M2 + m * np.outer(f2, f2)
+    V1 = bm.V1 + m * (r + l) * f1
+    V2 = bm.V2 + m * (r + l) * f2
+    R = bm.R + m * np.outer(f1, f2)
+    D = bm.D + m * (r + l) * S
+    th_d = v[0]
+    q1, q2 = q[1:1 + n1], q[1 + n1:]
+    q1d, q2d = v[1:1 + n1], v[1 + n1:]
+    n = 1 + n1 + n2
+    M = np.zeros((n, n))
+    M[0, 0] = params.J_h + J + q1 @ M1 @ q1 + q2 @ M2 @ q2 + 2 * V1 @ q1 - q2 @ D @ q2   # (25)
+    M[1:1 + n1, 0] = M[0, 1:1 + n1] = -R @ q2                                          # (26)
+    M[1 + n1:, 0] = M[0, 1 + n1:] = V2 + q1 @ R                                        # (27)
+    M[1:1 + n1, 1:1 + n1] = M1
+    M[1 + n1:, 1 + n1:] = M2
+    G = np.zeros((n, n))
+    G[1:1 + n1, 1 + n1:] = -R                                                          # (29)
+    G[1 + n1:, 1:1 + n1] = R.T
+    K = np.zeros((n, n))
+    K[1:1 + n1, 1:1 + n1] = b.K1 - th_d ** 2 * M1                                      # (30)
+    K[1 + n1:, 1 + n1:] = b.K2 - th_d ** 2 * M2 + th_d ** 2 * D                        # (31)
+    Q = np.zeros(n)
+    Q[0] = -2 * th_d * (q1 @ M1 @ q1d + q2 @ M2 @ q2d + V1 @ q1d - q2 @ D @ q2d)        # (32)
+    Q[1:1 + n1] = th_d ** 2 * V1                                                       # (33)
+    return M, 2 * th_d * G @ v + K @ q - Q, Q[0]
+
+
+@pytest.mark.parametrize("params", [Params(m_t=0.0), Params(), Params(m_t=0.5, l=3.0, n_axial=3, n_transverse=4)])
+def test_foam_equals_paper_equations(params):
+    model = build_model("foam", params)
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        q = rng.normal(size=model.n_q) * np.r_[1.0, 1e-3 * np.ones(model.n_q - 1)]
+        v = rng.normal(size=model.n_q) * np.r_[3.0, 1e-2 * np.ones(model.n_q - 1)]
+        M_ref, bias_ref, q_theta_ref = paper_foam(params, q, v)
+        M = model.mass_matrix(q)
+        np.testing.assert_allclose(M, M_ref, rtol=1e-12, atol=1e-12 * np.abs(M_ref).max())
+        bias = model.bias(q, v)
+        np.testing.assert_allclose(bias, bias_ref, rtol=1e-10, atol=1e-10 * np.abs(bias_ref).max())
+        assert model.q_theta(q, v) == pytest.approx(q_theta_ref, rel=1e-10, abs=1e-14)
+
+
+def test_tlam_is_foam_without_foreshortening(table1):
+    foam, tlam = build_model("foam", table1), build_model("tlam", table1)
+    D = foam.basis.total.D
+    q = np.r_[0.3, 1e-4 * np.ones(5), 0.02 * np.ones(5)]
+    v = np.r_[2.0, np.zeros(10)]
+    dM = foam.mass_matrix(q) - tlam.mass_matrix(q)
+    assert dM[0, 0] == pytest.approx(-q[6:] @ D @ q[6:], rel=1e-12)
+    db = foam.bias(q, v) - tlam.bias(q, v)
+    np.testing.assert_allclose(db[6:], 4.0 * D @ q[6:], rtol=1e-10)
+
+
+def test_sfoam_is_foam_without_axial_and_q_theta(table1):
+    foam, sfoam = build_model("foam", table1), build_model("sfoam", table1)
+    rng = np.random.default_rng(2)
+    q2, q2d = 0.05 * rng.normal(size=5), 0.05 * rng.normal(size=5)
+    qf = np.r_[0.2, np.zeros(5), q2]
+    vf = np.r_[1.5, np.zeros(5), q2d]
+    qs, vs = np.r_[0.2, q2], np.r_[1.5, q2d]
+    keep = np.r_[0, 6:11]
+    np.testing.assert_allclose(sfoam.mass_matrix(qs), foam.mass_matrix(qf)[np.ix_(keep, keep)], rtol=1e-13)
+    bf, bs = foam.bias(qf, vf), sfoam.bias(qs, vs)
+    np.testing.assert_allclose(bs[1:], bf[6:], rtol=1e-12)
+    assert bs[0] == 0.0                                           # Q_theta dropped
+    assert sfoam.q_theta(qs, vs) == pytest.approx(-bf[0], rel=1e-12)  # but still reported
+
+
+def test_cfoam_differs_from_foam_at_third_order(table1):
+    """CFOAM's extra terms are of order >= 3 in the elastic coordinates."""
+    foam, cfoam = build_model("foam", table1), build_model("cfoam", table1)
+    rng = np.random.default_rng(3)
+    q0, v0 = rng.normal(size=11), rng.normal(size=11)
+    q0[0], v0[0] = 0.0, 0.0
+    gaps = []
+    for eps in (1e-2, 1e-3):
+        q, v = eps * q0, eps * v0
+        gaps.append(abs(cfoam.energy(q, v) - foam.energy(q, v)))
+    assert gaps[0] > 0
+    assert gaps[1] / gaps[0] < 1.1e-3                                 # at least cubic
+
+
+def _deflected_spinning_state(model, spin=2.0):
+    x0 = model.steady_state(spin)
+    x0[model.transverse_slice] = [0.05, -0.01, 0.002, 0.0, 0.0]
+    x0[model.n_q + model.transverse_slice.start] = 0.02
+    return x0
+
+
+@pytest.mark.parametrize("name", ["tlam", "foam", "cfoam"])
+def test_free_unforced_conserves_energy_and_momentum(name, table1):
+    model = build_model(name, table1)
+    res = simulate(model, None, 60.0, x0=_deflected_spinning_state(model), rtol=1e-8, atol=1e-8)
+    assert not res.diverged
+    E, H = res.energy, res.angular_momentum
+    assert np.max(np.abs(E - E[0])) / abs(E[0]) < 1e-6
+    assert np.max(np.abs(H - H[0])) / abs(H[0]) < 1e-6
+    # the elastic motion is real: the bending energy exchanges with the hub
+    assert np.ptp(res.v_tip) > 0.1 and np.ptp(res.theta_dot) > 1e-5
+
+
+def test_sfoam_does_not_conserve(table1):
+    """Dropping Q_theta breaks the conservation that FOAM keeps from the same start."""
+    drifts = {}
+    for name in ("sfoam", "foam"):
+        model = build_model(name, table1)
+        x0 = model.steady_state(2.0)
+        x0[model.transverse_slice.start] = 0.05
+        x0[model.n_q + model.transverse_slice.start] = 0.02
+        res = simulate(model, None, 20.0, x0=x0)
+        E, H = res.energy, res.angular_momentum
+        drifts[name] = (np.max(np.abs(E - E[0])) / abs(E[0]), np.max(np.abs(H - H[0])) / abs(H[0]))
+    assert drifts["sfoam"][0] > 100 * drifts["foam"][0] and drifts["sfoam"][0] > 1e-7
+    assert drifts["sfoam"][1] > 100 * drifts["foam"][1] and drifts["sfoam"][1] > 1e-7
