@@ -22,6 +22,8 @@ from .models import MODEL_NAMES, HubBeamModel, build_model
 from .params import Params, load_params, save_params
 from .results import SimulationResult, load_result
 from .simulate import SimulationSettings, simulate
+from .statespace import LinearModel, compare_poles, discretize, linearize, reduce
+from .export import load_model, save_model
 
 __version__ = "0.1.0"
 
@@ -32,5 +34,6 @@ __all__ = [
     "simulate", "SimulationSettings", "SimulationResult", "load_result",
     "modal_analysis", "natural_frequencies", "campbell", "critical_speed", "critical_speed_map",
     "second_order_linearization", "first_order_matrices",
+    "linearize", "LinearModel", "discretize", "reduce", "compare_poles", "save_model", "load_model",
     "HubbeamError", "ParameterError",
 ]
