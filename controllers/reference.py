@@ -39,7 +39,7 @@ def slew_shape_constant(flatness: float) -> float:
 
 
 def slew_reference(angle: float, duration: float, inertia: float, tau_max: float, dt: float,
-                   t_end: float, flatness: float = 3.0) -> Reference:
+                   t_end: float, flatness: float = 3.0, smoothing: float = 0.0) -> Reference:
     """Smooth rest-to-rest reference of the rigid body.
 
     Hub acceleration ``a(t) = a_max tanh(k sin(2 pi t/T)) / tanh(k)`` for ``0 <= t <= T``
@@ -64,6 +64,10 @@ def slew_reference(angle: float, duration: float, inertia: float, tau_max: float
         Last sample [s].
     flatness : float
         Shape parameter k >= 0 [-].
+    smoothing : float
+        Length [s] of a moving average applied to the acceleration (0: none). The shape
+        then spans ``duration - smoothing`` and the average stretches it back to
+        ``duration``; the jerk becomes continuous and the angle is unchanged.
 
     Returns
     -------
@@ -74,8 +78,11 @@ def slew_reference(angle: float, duration: float, inertia: float, tau_max: float
     check_positive("tau_max", tau_max, "N m")
     if not (isinstance(flatness, (int, float)) and math.isfinite(flatness) and flatness >= 0):
         raise ParameterError(f"flatness must be a finite number >= 0, got {flatness!r}")
+    if not (isinstance(smoothing, (int, float)) and 0 <= smoothing < 0.5 * T):
+        raise ParameterError(f"smoothing must be in [0, tf/2) [s], got {smoothing!r}")
+    Ts = T - smoothing
     c = slew_shape_constant(flatness)
-    a_max = angle / (c * T ** 2)
+    a_max = angle / (c * Ts ** 2)
     peak = J * abs(a_max)
     if peak > tau_max:
         raise ParameterError(
@@ -84,8 +91,11 @@ def slew_reference(angle: float, duration: float, inertia: float, tau_max: float
     # fine grid, exact double integration by the trapezoidal rule, then sampling
     n_fine = max(20001, int(T / dt) * 20 + 1)
     tf_grid = np.linspace(0.0, T, n_fine)
-    acc = a_max * _shape(tf_grid / T, flatness)
     h = T / (n_fine - 1)
+    acc = a_max * _shape(np.clip(tf_grid / Ts, 0, 1), flatness)
+    if smoothing > 0:
+        m = max(1, int(round(smoothing / h)))
+        acc = np.convolve(acc, np.full(m, 1.0 / m))[:n_fine]
     vel = np.concatenate([[0.0], np.cumsum(0.5 * (acc[1:] + acc[:-1]) * h)])
     pos = np.concatenate([[0.0], np.cumsum(0.5 * (vel[1:] + vel[:-1]) * h)])
     pos *= angle / pos[-1] if pos[-1] != 0 else 1.0     # remove the quadrature's last digits
@@ -94,11 +104,11 @@ def slew_reference(angle: float, duration: float, inertia: float, tau_max: float
         inside = t <= T
         th = np.where(inside, np.interp(t, tf_grid, pos), angle)
         thd = np.where(inside, np.interp(t, tf_grid, vel), 0.0)
-        acc = np.where(inside, a_max * _shape(np.clip(t / T, 0, 1), flatness), 0.0)
-        return th, thd, acc, J * acc
+        a = np.where(inside, np.interp(t, tf_grid, acc), 0.0)
+        return th, thd, a, J * a
 
     return Reference.from_profile(profile, dt, t_end,
-                                  f"slew {angle:.4g} rad in {T:g} s (flatness {flatness:g}, "
+                                  f"slew {angle:.4g} rad in {T:g} s (flatness {flatness:g}, smoothing {smoothing:g} s, "
                                   f"peak feedforward {peak:.4g} N m)")
 
 

@@ -1,0 +1,107 @@
+"""``hubbeam compare``: the controllers in closed loop on FOAM or CFOAM (see :mod:`.compare`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from .errors import ParameterError
+
+__all__ = ["add_parser", "run"]
+
+
+def _positive(name, kind=float):
+    def parse(text):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a{'n integer' if kind is int else ' number'}, "
+                                             f"got {text!r}") from None
+        if not (value == value and abs(value) != float("inf") and value > 0):
+            raise argparse.ArgumentTypeError(f"{name} must be a finite number > 0, got {text}")
+        return value
+    return parse
+
+
+def _finite(name):
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not (value == value and abs(value) != float("inf")):
+            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text}")
+        return value
+    return parse
+
+
+def add_parser(subparsers, common) -> argparse.ArgumentParser:
+    """Add the ``compare`` subcommand.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+    common : argparse.ArgumentParser
+        Parent parser with ``--tip-mass``, ``--tip-position``, ``--n-modes``, ``--params``.
+    """
+    p = subparsers.add_parser(
+        "compare", parents=[common], help="compare controllers in closed loop",
+        description=("Design open-loop (Eq. 44), PD, LQR, LQG and MPC controllers on SFOAM and "
+                     "compare them in closed loop (100 Hz zero-order hold) on the nonlinear FOAM "
+                     "or CFOAM plant. Writes metrics.csv, metrics.json, tip_deflection.png, "
+                     "hub_angle.png, torque.png and report.md to --out."))
+    p.add_argument("--plant", choices=["foam", "cfoam"], required=True, help="nonlinear plant")
+    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
+                   help="slew: rest-to-rest by the Eq. 44 rigid angle (default); spinup: to --wf and hold")
+    p.add_argument("--controllers", metavar="LIST", default="openloop,pd,lqr,lqg,mpc",
+                   help="comma-separated subset of openloop,pd,lqr,lqg,mpc (default: all)")
+    p.add_argument("--tau-max", metavar="NM", type=_positive("tau-max"), default=200.0,
+                   help="torque budget = Eq. 44 amplitude [N m] (default 200)")
+    p.add_argument("--tf", metavar="S", type=_positive("tf"), default=10.0,
+                   help="maneuver time [s] (default 10)")
+    p.add_argument("--t-end", metavar="S", type=_positive("t-end"), default=30.0,
+                   help="simulated time [s], > tf + 5 (default 30)")
+    p.add_argument("--wf", metavar="RAD_S", type=_finite("wf"), default=3.0,
+                   help="spin-up final rate [rad/s] (default 3, above TLAM's critical speed)")
+    p.add_argument("--dt", metavar="S", type=_positive("dt"), default=0.01,
+                   help="controller sample time [s] (default 0.01)")
+    p.add_argument("--horizon", metavar="N", type=_positive("horizon", int), default=50,
+                   help="MPC horizon [samples] (default 50)")
+    p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
+    p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args) -> int:
+    """Run ``hubbeam compare``; returns the exit status (0)."""
+    from pathlib import Path
+
+    from .cli import params_from_args
+    from .compare import _json_metrics, compare, format_table, write_outputs
+    params = params_from_args(args)
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise ParameterError(f"out: folder {out.parent} does not exist")
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"out: {out} exists and is not a folder")
+    t0 = time.perf_counter()
+    comparison = compare(args.plant, args.scenario, args.controllers, params=params,
+                         tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
+                         w_f=args.wf, horizon=args.horizon, progress=not args.json)
+    write_outputs(comparison, out)
+    wall = time.perf_counter() - t0
+    if args.json:
+        print(json.dumps(_json_metrics(comparison.metrics)))
+    else:
+        sc = comparison.scenario
+        print(f"{sc.plant.upper()}, {sc.name}: {sc.description}")
+        print(format_table(comparison.metrics))
+        print(f"wrote {out}/metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
+              f"torque.png, report.md ({wall:.1f} s)")
+    for name, m in comparison.metrics.items():
+        if not m["completed"]:
+            print(f"warning: {name}: {m['message']}", file=sys.stderr)
+    return 0

@@ -1,0 +1,142 @@
+"""Figures of merit of a closed-loop run (one flat dictionary per run).
+
+Names are snake case with their unit as suffix (``_m``, ``_rad``, ``_s``, ``_nm``,
+``_ms``...), the same in ``metrics.csv``, ``metrics.json`` and the printed tables.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import ParameterError
+
+__all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time"]
+
+#: Metric name -> (unit, description), in table order.
+METRIC_UNITS = {
+    "peak_tip_m": ("m", "peak |v_tip| over the whole run"),
+    "residual_tip_rms_m": ("m", "RMS of v_tip from t_f + delay to the end"),
+    "residual_tip_max_m": ("m", "max |v_tip| from t_f + delay to the end"),
+    "angle_error_tf_rad": ("rad", "hub angle minus reference at t_f"),
+    "final_angle_error_rad": ("rad", "hub angle minus reference at the end"),
+    "settling_time_s": ("s", "time after which |angle error| and |v_tip| stay inside their bands "
+                             "(None: not within the run)"),
+    "peak_torque_nm": ("N m", "peak |tau|"),
+    "torque_squared_integral_n2m2s": ("N^2 m^2 s", "integral of tau^2 (held torque)"),
+    "step_time_median_ms": ("ms", "median wall time of one controller call"),
+    "step_time_p99_ms": ("ms", "99th percentile of the controller call time"),
+}
+
+
+def settling_time(t, angle_error, v_tip, angle_band: float, tip_band: float):
+    """First time after which both ``|angle_error| <= angle_band`` and ``|v_tip| <= tip_band``.
+
+    Parameters
+    ----------
+    t : ndarray
+        Times [s].
+    angle_error : ndarray
+        Hub-angle error [rad].
+    v_tip : ndarray
+        Tip deflection [m].
+    angle_band : float
+        [rad], > 0.
+    tip_band : float
+        [m], > 0.
+
+    Returns
+    -------
+    float or None
+        [s]; None if the response is outside the bands at the last sample.
+    """
+    inside = (np.abs(angle_error) <= angle_band) & (np.abs(v_tip) <= tip_band)
+    if not inside.size or not inside[-1]:
+        return None
+    outside = np.nonzero(~inside)[0]
+    return float(t[0]) if not outside.size else float(t[outside[-1] + 1])
+
+
+def _positive(name, value, unit):
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {value!r}")
+    return float(value)
+
+
+def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
+                        settle_angle: float = 1e-3, settle_tip: float = 1e-3,
+                        tau_max: float | None = None) -> dict:
+    """Metrics of one :class:`~hubbeam_ctrl.closedloop.ClosedLoopResult`.
+
+    Parameters
+    ----------
+    result : ClosedLoopResult
+        Must carry the task's hub reference (``theta_ref``).
+    t_f : float
+        Maneuver time [s]: the angle error is taken there, and the residual vibration
+        window starts at ``t_f + residual_delay``.
+    residual_delay : float
+        [s], >= 0 (default 5).
+    settle_angle : float
+        Settling band of the hub-angle error [rad] (default 1 mrad).
+    settle_tip : float
+        Settling band of the tip deflection [m] (default 1 mm).
+    tau_max : float, optional
+        Torque limit [N m]; adds ``within_torque_limit``.
+
+    Returns
+    -------
+    dict
+        The :data:`METRIC_UNITS` entries plus ``controller``, ``plant``, ``completed``,
+        ``message``, ``wall_s``, the controller's own statistics (e.g.
+        ``qp_fallbacks``, ``fallback_fraction``) and ``within_torque_limit``.
+
+    Raises
+    ------
+    ParameterError
+        If the run ended before ``t_f + residual_delay`` or has no reference.
+    """
+    t_f = _positive("tf", t_f, "s")
+    if not (isinstance(residual_delay, (int, float)) and residual_delay >= 0):
+        raise ParameterError(f"residual_delay must be >= 0 [s], got {residual_delay!r}")
+    settle_angle = _positive("settle_angle", settle_angle, "rad")
+    settle_tip = _positive("settle_tip", settle_tip, "m")
+    if result.theta_ref is None:
+        raise ParameterError("the result has no hub reference (pass reference= to simulate_closed_loop)")
+    t, v_tip, tau = result.t, result.v_tip, result.tau
+    err = result.theta - result.theta_ref
+    start = t_f + residual_delay
+    window = t >= start - 1e-9
+    planned_end = float(result.settings.get("t_end", t[-1]))
+    out = {"controller": result.controller, "plant": result.plant}
+    if planned_end < start:
+        raise ParameterError(f"t_end = {planned_end:g} s must exceed tf + {residual_delay:g} s = "
+                             f"{start:g} s to measure the residual vibration")
+    k_f = int(np.argmin(np.abs(t - t_f)))
+    applied = tau[:-1] if len(tau) > 1 else tau
+    dt = float(t[1] - t[0]) if len(t) > 1 else 0.0
+    steps = result.step_time_s[np.isfinite(result.step_time_s)]
+    res = v_tip[window]
+    nan = float("nan")
+    out.update({
+        "peak_tip_m": float(np.max(np.abs(v_tip))),
+        "residual_tip_rms_m": float(np.sqrt(np.mean(res ** 2))) if res.size else nan,
+        "residual_tip_max_m": float(np.max(np.abs(res))) if res.size else nan,
+        "angle_error_tf_rad": float(err[k_f]) if t[-1] >= t_f - 1e-9 else nan,
+        "final_angle_error_rad": float(err[-1]),
+        "settling_time_s": settling_time(t, err, v_tip, settle_angle, settle_tip),
+        "peak_torque_nm": float(np.max(np.abs(tau[np.isfinite(tau)]))) if np.any(np.isfinite(tau)) else nan,
+        "torque_squared_integral_n2m2s": float(np.sum(applied[np.isfinite(applied)] ** 2) * dt),
+        "step_time_median_ms": float(np.median(steps) * 1e3) if steps.size else nan,
+        "step_time_p99_ms": float(np.percentile(steps, 99) * 1e3) if steps.size else nan,
+    })
+    if tau_max is not None:
+        out["within_torque_limit"] = bool(out["peak_torque_nm"] <= tau_max * (1 + 1e-9))
+    out["completed"] = not result.stopped
+    out["message"] = result.message
+    out["wall_s"] = float(result.wall_s)
+    for key, value in result.controller_stats.items():
+        if isinstance(value, (int, float, str, bool)):
+            out[key] = value
+    return out

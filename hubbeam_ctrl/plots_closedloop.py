@@ -1,0 +1,135 @@
+"""Plots of closed-loop comparisons (Matplotlib object API; nothing computed here).
+
+Each function takes a mapping ``controller name -> ClosedLoopResult`` and returns a
+:class:`matplotlib.figure.Figure`; :func:`hubbeam_ctrl.plots.save_figure` writes it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+__all__ = ["plot_tip_deflection", "plot_hub_angle", "plot_torque", "CONTROLLER_COLORS"]
+
+#: Fixed colours so that every plot and report shows a controller the same way.
+CONTROLLER_COLORS = {"openloop": "0.45", "pd": "tab:orange", "lqr": "tab:blue",
+                     "lqg": "tab:green", "mpc": "tab:red"}
+
+
+def _color(name):
+    return CONTROLLER_COLORS.get(name)
+
+
+def _label(name, res):
+    return name + ("" if not res.stopped else " (stopped)")
+
+
+def plot_tip_deflection(results: dict, t_f: float | None = None, residual_start: float | None = None,
+                        title: str = "") -> Figure:
+    """Tip deflection of every run: linear scale, and ``|v_tip|`` on a log scale.
+
+    Parameters
+    ----------
+    results : dict
+        Controller name -> ClosedLoopResult.
+    t_f : float, optional
+        Maneuver time [s] (dashed line).
+    residual_start : float, optional
+        Start of the residual-vibration window [s] (shaded).
+    title : str
+
+    Returns
+    -------
+    Figure
+    """
+    fig = Figure(figsize=(9, 6.5), constrained_layout=True)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    for name, res in results.items():
+        ax1.plot(res.t, res.v_tip, color=_color(name), lw=1.2, label=_label(name, res))
+        ax2.semilogy(res.t, np.maximum(np.abs(res.v_tip), 1e-9), color=_color(name), lw=0.9)
+    ax1.set_ylabel("tip deflection v_tip [m]")
+    ax2.set_ylabel("|v_tip| [m] (log)")
+    ax2.set_xlabel("t [s]")
+    for ax in (ax1, ax2):
+        if t_f is not None:
+            ax.axvline(t_f, color="k", ls="--", lw=0.8)
+        if residual_start is not None:
+            ax.axvspan(residual_start, max(r.t[-1] for r in results.values()),
+                       color="0.9", zorder=0)
+        ax.grid(True, alpha=0.3)
+    ax2.set_ylim(bottom=1e-7)
+    ax1.legend(loc="best", ncol=min(5, len(results)))
+    ax1.set_title(title or "Tip deflection (shaded: residual-vibration window)")
+    return fig
+
+
+def plot_hub_angle(results: dict, t_f: float | None = None, title: str = "") -> Figure:
+    """Hub angle with the task's reference, and the angle error.
+
+    Parameters
+    ----------
+    results : dict
+        Controller name -> ClosedLoopResult (with ``theta_ref``).
+    t_f : float, optional
+        Maneuver time [s] (dashed line).
+    title : str
+
+    Returns
+    -------
+    Figure
+    """
+    fig = Figure(figsize=(9, 6.5), constrained_layout=True)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    ref_drawn = False
+    for name, res in results.items():
+        ax1.plot(res.t, res.theta, color=_color(name), lw=1.2, label=_label(name, res))
+        if res.theta_ref is not None:
+            if not ref_drawn:
+                ax1.plot(res.t, res.theta_ref, "k:", lw=1.0, label="reference")
+                ref_drawn = True
+            ax2.plot(res.t, 1e3 * (res.theta - res.theta_ref), color=_color(name), lw=1.0)
+    ax1.set_ylabel("hub angle [rad]")
+    ax2.set_ylabel("angle error [mrad]")
+    ax2.set_xlabel("t [s]")
+    for ax in (ax1, ax2):
+        if t_f is not None:
+            ax.axvline(t_f, color="k", ls="--", lw=0.8)
+        ax.grid(True, alpha=0.3)
+    lim = max((np.max(np.abs(1e3 * (r.theta - r.theta_ref))[r.t >= (t_f or 0)])
+               for r in results.values() if r.theta_ref is not None and np.any(r.t >= (t_f or 0))),
+              default=None)
+    if lim:
+        ax2.set_ylim(-1.2 * lim, 1.2 * lim)
+    ax1.legend(loc="best", ncol=min(6, len(results) + 1))
+    ax1.set_title(title or "Hub angle (error axis scaled to t >= t_f)")
+    return fig
+
+
+def plot_torque(results: dict, tau_max: float | None = None, title: str = "") -> Figure:
+    """Hub torque of every run (held between samples), with the torque limit.
+
+    Parameters
+    ----------
+    results : dict
+        Controller name -> ClosedLoopResult.
+    tau_max : float, optional
+        Torque limit [N m] (dotted lines).
+    title : str
+
+    Returns
+    -------
+    Figure
+    """
+    fig = Figure(figsize=(9, 4.5), constrained_layout=True)
+    ax = fig.subplots()
+    for name, res in results.items():
+        ax.step(res.t, res.tau, where="post", color=_color(name), lw=1.0, label=_label(name, res))
+    if tau_max is not None:
+        for s in (-1, 1):
+            ax.axhline(s * tau_max, color="k", ls=":", lw=0.8)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("hub torque [N m]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", ncol=min(5, len(results)))
+    ax.set_title(title or "Hub torque (dotted: limit)")
+    return fig
