@@ -48,7 +48,7 @@ def dlqr_gain(design: DesignModel, weights: Weights):
                              f"({exc}); give weight to the hub angle and the modes") from None
     K = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A).ravel()
     rho = max(abs(np.linalg.eigvals(A - B @ K[None, :])))
-    if not np.all(np.isfinite(K)) or rho >= 1.0:
+    if not np.all(np.isfinite(K)) or rho >= 1.0 - 1e-9:
         raise ParameterError(f"weights: the LQR design is not stabilising (spectral radius {rho:.6f}); "
                              "give weight to the hub angle and the modes")
     return K, P

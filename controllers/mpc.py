@@ -157,14 +157,24 @@ class MPC(Controller):
         soft = s.tip_bound is not None
         nz = N + (1 if soft else 0)
         if soft:
+            # Scaled for the active-set solvers (DAQP returns infeasible plans on badly
+            # scaled QPs): the slack is measured in units that give it the Hessian entry
+            # of an average torque, and every constraint row is normalised.
             c_tip = design.C_tip[0]
             Ct = np.kron(np.eye(N), c_tip[None, :])            # (N, N nx)
-            self._CtPhi = Ct @ Phi                              # (N, nx)
             CtG = Ct @ Gamma
-            A = np.block([[CtG, -np.ones((N, 1))], [CtG, np.ones((N, 1))]])
+            h_s = 2 * scale * s.tip_bound_weight
+            sigma = math.sqrt(h_s / np.mean(np.diag(H)))        # s = s_scaled / sigma
+            rows = np.hstack([CtG, np.full((N, 1), 1.0 / sigma)])
+            self._row_scale = 1.0 / np.max(np.abs(rows), axis=1)
+            self._CtPhi = (Ct @ Phi) * self._row_scale[:, None]   # (N, nx), scaled
+            CtGs = CtG * self._row_scale[:, None]
+            col = (self._row_scale / sigma)[:, None]
+            A = np.block([[CtGs, -col], [CtGs, col]])
+            self._sigma = sigma
             Hz = np.zeros((nz, nz))
             Hz[:N, :N] = H
-            Hz[N, N] = 2 * scale * s.tip_bound_weight
+            Hz[N, N] = h_s / sigma ** 2
             H = Hz
         elif s.solver == "qpoases":
             A = np.ones((1, nz))     # an always-inactive row: qpOASES keeps its factorisation
@@ -215,6 +225,11 @@ class MPC(Controller):
         self.n_fallbacks = 0
         self.last_status = ""
 
+    @property
+    def slack(self) -> float:
+        """Violation of the soft tip bound in the last plan [m] (0 without a bound)."""
+        return float(self._z[-1] / self._sigma) if self._soft else 0.0
+
     def stats(self) -> dict:
         return {"qp_solves": self.n_solves, "qp_fallbacks": self.n_fallbacks,
                 "fallback_fraction": self.n_fallbacks / self.n_solves if self.n_solves else 0.0,
@@ -236,7 +251,7 @@ class MPC(Controller):
         if self._soft:
             g = np.append(g, 0.0)
             off = self._CtPhi @ y
-            vmax = s.tip_bound
+            vmax = s.tip_bound * self._row_scale
             lba = np.concatenate([np.full(N, -np.inf), -vmax - off])
             uba = np.concatenate([vmax - off, np.full(N, np.inf)])
         elif self._n_a:
