@@ -32,6 +32,7 @@ import numpy as np
 
 from controllers import MPC, DesignModel, MPCSettings, slew_reference
 from hubbeam_ctrl import Params, build_model
+from hubbeam_ctrl.cli_compare import stdout_to_stderr
 from hubbeam_ctrl.closedloop import PlantStepper, simulate_closed_loop
 
 HORIZON = 50
@@ -139,6 +140,13 @@ def main(argv=None) -> int:
     ap.add_argument("--solvers", default="daqp,qpoases,qrqp")
     ap.add_argument("--no-compare", action="store_true", help="skip the hubbeam compare timing")
     args = ap.parse_args(argv)
+    with stdout_to_stderr():          # keep native libraries' banners out of the JSON
+        report = _run(args)
+    print(json.dumps(report, indent=2))
+    return 0
+
+
+def _run(args) -> dict:
     report = {"machine": {"python": platform.python_version(), "cpus": __import__("os").cpu_count()},
               "problem": {"horizon": HORIZON, "dt_s": DT, "tau_max_nm": TAU_MAX,
                           "closed_loop": "default slew on FOAM, 30 s, 3001 controller calls"},
@@ -173,8 +181,7 @@ def main(argv=None) -> int:
     two = [r for r in report["ours"] if r["n_modes"] == 2 and r["solver"] == "daqp"]
     if two:
         report["target_met_2_modes"] = two[0]["median_ms"] <= 0.5
-    print(json.dumps(report, indent=2))
-    return 0
+    return report
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ Examples
 >>> design = DesignModel.build(p, spin=0.0, dt=0.01)
 >>> ref = slew_reference(1.0, 10.0, p.total_inertia, 200.0, 0.01, 20.0)
 >>> res = simulate_closed_loop("foam", LQR(design, reference=ref), 20.0, params=p)
->>> abs(res.theta[-1] - 1.0) < 1e-3
+>>> bool(abs(res.theta[-1] - 1.0) < 1e-3)
 True
 """
 

@@ -9,7 +9,26 @@ import time
 
 from .errors import ParameterError
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "stdout_to_stderr"]
+
+
+class stdout_to_stderr:
+    """Send file descriptor 1 to stderr for a while (native libraries such as qpOASES
+    print banners with printf; ``--json`` output must stay clean)."""
+
+    def __enter__(self):
+        import os
+        sys.stdout.flush()
+        self._saved = os.dup(1)
+        os.dup2(2, 1)
+        return self
+
+    def __exit__(self, *exc):
+        import os
+        sys.stdout.flush()
+        os.dup2(self._saved, 1)
+        os.close(self._saved)
+        return False
 
 
 def _positive(name, kind=float):
@@ -88,10 +107,11 @@ def run(args) -> int:
     if out.exists() and not out.is_dir():
         raise ParameterError(f"out: {out} exists and is not a folder")
     t0 = time.perf_counter()
-    comparison = compare(args.plant, args.scenario, args.controllers, params=params,
-                         tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
-                         w_f=args.wf, horizon=args.horizon, progress=not args.json)
-    write_outputs(comparison, out)
+    with stdout_to_stderr():
+        comparison = compare(args.plant, args.scenario, args.controllers, params=params,
+                             tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
+                             w_f=args.wf, horizon=args.horizon, progress=not args.json)
+        write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:
         print(json.dumps(_json_metrics(comparison.metrics)))

@@ -130,10 +130,10 @@ class PlantStepper:
     --------
     >>> from hubbeam_ctrl import build_model
     >>> stepper = PlantStepper(build_model("foam"))
-    >>> s = stepper.initial_state()
+    >>> s = stepper.initial_state(tau=100.0)
     >>> s = stepper.step(s, 100.0)          # 10 ms at 100 N m
     >>> round(float(s[stepper.model.n_q]), 4)   # hub rate [rad/s]
-    0.0031
+    0.005
     """
 
     def __init__(self, model: HubBeamModel, settings: StepperSettings | None = None):

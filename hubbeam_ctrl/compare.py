@@ -421,14 +421,14 @@ def _report(comparison: Comparison) -> str:
 
 _TABLE = [
     ("controller", "controller", "{}"),
-    ("peak_tip_m", "peak|v| m", "{:.4f}"),
+    ("peak_tip_m", "peak v_tip m", "{:.4f}"),
     ("residual_tip_max_m", "resid max m", "{:.2e}"),
     ("residual_tip_rms_m", "resid rms m", "{:.2e}"),
     ("residual_pct_of_openloop", "% of OL", "{:.3g}"),
     ("angle_error_tf_rad", "err(tf) rad", "{:.2e}"),
     ("final_angle_error_rad", "err(end) rad", "{:.2e}"),
     ("settling_time_s", "settle s", "{:.2f}"),
-    ("peak_torque_nm", "peak|tau| Nm", "{:.1f}"),
+    ("peak_torque_nm", "peak tau Nm", "{:.1f}"),
     ("torque_squared_integral_n2m2s", "int tau^2", "{:.3g}"),
     ("step_time_median_ms", "step med ms", "{:.3f}"),
     ("step_time_p99_ms", "step p99 ms", "{:.3f}"),
