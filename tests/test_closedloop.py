@@ -161,3 +161,27 @@ def test_stepper_speed_is_reported():
         print(f"{name}: {ms:.3f} ms per 10 ms sample")
         assert ms < 5.0
         assert math.isfinite(s[0])
+
+
+def test_stopped_run_metrics_and_save(tmp_path):
+    from hubbeam_ctrl.metrics import closed_loop_metrics
+
+    class Bad(_Recorder):
+        name = "nan-at-3s"
+
+        def __call__(self, t, y):
+            return float("nan") if t >= 3.0 else 5.0
+
+    p = Params(n_axial=1, n_transverse=1)
+    ref = (lambda t: 0 * t, lambda t: 0 * t)
+    res = simulate_closed_loop("foam", Bad(), 20.0, params=p, reference=ref)
+    m = closed_loop_metrics(res, 10.0, tau_max=10.0)
+    assert not m["completed"] and "nan-at-3s" in m["message"]
+    assert math.isnan(m["residual_tip_max_m"])          # the run never reached 15 s
+    assert m["peak_torque_nm"] == 5.0 and m["within_torque_limit"]
+    path = res.save(tmp_path / "run.npz")
+    with np.load(path) as data:
+        assert np.array_equal(data["t"], res.t)
+        assert "nan-at-3s" in str(data["metadata"])
+    with pytest.raises(ParameterError, match="t_end"):
+        closed_loop_metrics(res, 16.0)
