@@ -142,6 +142,25 @@ def make_integrator(model: HubBeamModel, hub: str = "free", maneuver=None, grid=
     return Integrator(model, hub, maneuver, grid, settings)
 
 
+def _cached_integrator(model, hub, maneuver, grid, settings) -> Integrator:
+    """Build an :class:`Integrator` once per model, hub, maneuver, grid and settings.
+
+    Built-in maneuvers are frozen dataclasses and so can key the cache; user functions
+    are built afresh every time.
+    """
+    cache = model.__dict__.setdefault("_integrator_cache", {})
+    try:
+        key = (hub, maneuver, len(grid), float(grid[0]), settings)
+        hash(key)
+    except TypeError:
+        return Integrator(model, hub, maneuver, grid, settings)
+    if key not in cache:
+        if len(cache) > 16:
+            cache.clear()
+        cache[key] = Integrator(model, hub, maneuver, grid, settings)
+    return cache[key]
+
+
 def _resolve_model(model, params) -> HubBeamModel:
     if isinstance(model, HubBeamModel):
         if params is not None and params != model.params:
@@ -234,7 +253,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     n_out = int(round(t_end / dt))
     per_chunk = max(1, int(round(settings.chunk_s / dt)))
     grid = dt * np.arange(1, per_chunk + 1)
-    integ = Integrator(m, hub, maneuver, grid, settings)
+    integ = _cached_integrator(m, hub, maneuver, grid, settings)
     z0 = _initial_accelerations(m, hub, maneuver, x0)
 
     times, xs_all, zs_all = [np.array([0.0])], [x0[None, :]], []
