@@ -463,7 +463,7 @@ def nb01_paper_reproduction():
         | Fig. 5, residual ratio TLAM/FOAM | ~100 | ~235 | same order only |
         | Fig. 6, transverse/axial peak | ~1500 | ~1780 | agrees roughly |
         | Table 3, max Q_theta 50/100/200/400 N m | 6.24e-3 / 4.61e-2 / 3.72e-1 / 2.62 | 6.42e-3 / 4.93e-2 / 0.340 / 1.95 | +3 / +7 / -9 / -25 % |
-        | Fig. 8, SFOAM at 200 N m | leads 0.45 rad, 24 % smaller | leads < 0.02 rad, within 1.2 % | **not reproduced** |
+        | Fig. 8, SFOAM at 200 N m | leads 0.45 rad, 24 % smaller | phase within 0.02 rad, amplitude within 1.2 % | **not reproduced** |
         | Fig. 9, critical speeds | 2.91 / 2.60 / 1.91 rad/s | 2.911 / 2.604 / 1.937 rad/s | agrees (<= 1.4 %) |
         | Fig. 10, TLAM with 0.5 kg at 2 rad/s | fails | fails at 25.2 s | agrees |
         """),
