@@ -20,32 +20,19 @@ full-state controllers work directly on the plant's measured state.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 
 import numpy as np
 
 from hubbeam_ctrl.errors import ParameterError
 from hubbeam_ctrl.params import Params
+from hubbeam_ctrl.validation import check_nonnegative, check_positive
 
 __all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate",
            "check_positive", "check_nonnegative", "check_psd"]
 
 
 # -- validation helpers -----------------------------------------------------------------
-def check_positive(name: str, value, unit: str) -> float:
-    """Return ``float(value)`` or raise :class:`ParameterError` unless finite and > 0."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-            or not math.isfinite(value) or not value > 0:
-        raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {value!r}")
-    return float(value)
-
-
-def check_nonnegative(name: str, value, unit: str) -> float:
-    """Return ``float(value)`` or raise :class:`ParameterError` unless finite and >= 0."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-            or not math.isfinite(value) or not value >= 0:
-        raise ParameterError(f"{name} must be a finite number >= 0 [{unit}], got {value!r}")
-    return float(value)
 
 
 def check_psd(name: str, M, n: int, definite: bool = False) -> np.ndarray:

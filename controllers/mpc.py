@@ -25,7 +25,7 @@ import numpy as np
 
 from hubbeam_ctrl.errors import ParameterError
 
-from .base import (Controller, DesignModel, Reference, Weights, check_nonnegative,
+from .base import (Controller, DesignModel, Reference, Weights,
                    check_positive, saturate)
 from .lqr import dlqr_gain
 

@@ -13,12 +13,11 @@ import json
 import math
 import sys
 
-import numpy as np
 
 from .errors import HubbeamError, ParameterError
 from .params import Params, load_params
 
-__all__ = ["main", "params_from_args", "build_parser", "positive_float", "finite_float"]
+__all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float"]
 
 #: Subcommands contributed by other modules: module name -> provides add_parser/run.
 EXTRA_COMMANDS = ("hubbeam_ctrl.cli_linearize", "hubbeam_ctrl.cli_compare")
@@ -65,6 +64,19 @@ def positive_float(name):
             raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
         if not (math.isfinite(value) and value > 0):
             raise argparse.ArgumentTypeError(f"{name} must be a finite number > 0, got {text}")
+        return value
+    return parse
+
+
+def positive_int(name):
+    """argparse type: an integer > 0, errors naming ``name``."""
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
+        if value <= 0:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer > 0, got {text}")
         return value
     return parse
 

@@ -7,6 +7,7 @@ import json
 import sys
 import time
 
+from .cli import finite_float, positive_float, positive_int
 from .errors import ParameterError
 
 __all__ = ["add_parser", "run", "stdout_to_stderr"]
@@ -31,31 +32,6 @@ class stdout_to_stderr:
         return False
 
 
-def _positive(name, kind=float):
-    def parse(text):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a{'n integer' if kind is int else ' number'}, "
-                                             f"got {text!r}") from None
-        if not (value == value and abs(value) != float("inf") and value > 0):
-            raise argparse.ArgumentTypeError(f"{name} must be a finite number > 0, got {text}")
-        return value
-    return parse
-
-
-def _finite(name):
-    def parse(text):
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
-        if not (value == value and abs(value) != float("inf")):
-            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text}")
-        return value
-    return parse
-
-
 def add_parser(subparsers, common) -> argparse.ArgumentParser:
     """Add the ``compare`` subcommand.
 
@@ -76,17 +52,17 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="slew: rest-to-rest by the Eq. 44 rigid angle (default); spinup: to --wf and hold")
     p.add_argument("--controllers", metavar="LIST", default="openloop,pd,lqr,lqg,mpc",
                    help="comma-separated subset of openloop,pd,lqr,lqg,mpc (default: all)")
-    p.add_argument("--tau-max", metavar="NM", type=_positive("tau-max"), default=200.0,
+    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"), default=200.0,
                    help="torque budget = Eq. 44 amplitude [N m] (default 200)")
-    p.add_argument("--tf", metavar="S", type=_positive("tf"), default=10.0,
+    p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
                    help="maneuver time [s] (default 10)")
-    p.add_argument("--t-end", metavar="S", type=_positive("t-end"), default=30.0,
+    p.add_argument("--t-end", metavar="S", type=positive_float("t-end"), default=30.0,
                    help="simulated time [s], > tf + 5 (default 30)")
-    p.add_argument("--wf", metavar="RAD_S", type=_finite("wf"), default=3.0,
+    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), default=3.0,
                    help="spin-up final rate [rad/s] (default 3, above TLAM's critical speed)")
-    p.add_argument("--dt", metavar="S", type=_positive("dt"), default=0.01,
+    p.add_argument("--dt", metavar="S", type=positive_float("dt"), default=0.01,
                    help="controller sample time [s] (default 0.01)")
-    p.add_argument("--horizon", metavar="N", type=_positive("horizon", int), default=50,
+    p.add_argument("--horizon", metavar="N", type=positive_int("horizon"), default=50,
                    help="MPC horizon [samples] (default 50)")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")

@@ -42,24 +42,14 @@ import casadi as ca
 import numpy as np
 
 from .errors import HubbeamError, ParameterError
+from .validation import check_nonnegative as _check_nonnegative
+from .validation import check_positive as _check_positive
 from .models import HubBeamModel, build_model
 from .params import Params
 
 __all__ = ["StepperSettings", "PlantStepper", "SensorSettings", "ClosedLoopSettings",
            "ClosedLoopResult", "simulate_closed_loop", "simulate_fixed_step",
            "sensor_matrix", "generalized_alpha_coefficients"]
-
-
-def _check_positive(name, value, unit):
-    if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
-                                       and value > 0):
-        raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {value!r}")
-
-
-def _check_nonnegative(name, value, unit):
-    if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
-                                       and value >= 0):
-        raise ParameterError(f"{name} must be a finite number >= 0 [{unit}], got {value!r}")
 
 
 def _check_int(name, value, lo, hi):

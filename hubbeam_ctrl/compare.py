@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .closedloop import ClosedLoopResult, ClosedLoopSettings, simulate_closed_loop
+from .closedloop import ClosedLoopSettings, simulate_closed_loop
 from .errors import ParameterError
 from .fileio import atomic_write_text
 from .metrics import METRIC_UNITS, closed_loop_metrics

@@ -30,7 +30,6 @@ Writes are atomic (temporary file in the target folder, then a rename); errors a
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 

@@ -15,6 +15,8 @@ import casadi as ca
 import numpy as np
 
 from .errors import ParameterError
+from .validation import check_finite as _check_finite
+from .validation import check_positive as _check_positive
 
 __all__ = ["SpinUp", "TorquePulse", "ConstantSpin", "UserManeuver", "spinup_rate"]
 
@@ -35,14 +37,6 @@ def _cos(z, t):
     return ca.cos(z) if _is_symbolic(t) else np.cos(z)
 
 
-def _check_positive(name, value, unit):
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {value!r}")
-
-
-def _check_finite(name, value, unit):
-    if not (isinstance(value, (int, float)) and math.isfinite(value)):
-        raise ParameterError(f"{name} must be a finite number [{unit}], got {value!r}")
 
 
 @dataclass(frozen=True)

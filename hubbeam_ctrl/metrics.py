@@ -6,11 +6,11 @@ Names are snake case with their unit as suffix (``_m``, ``_rad``, ``_s``, ``_nm`
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 from .errors import ParameterError
+from .validation import check_positive
 
 __all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time"]
 
@@ -58,12 +58,6 @@ def settling_time(t, angle_error, v_tip, angle_band: float, tip_band: float):
     return float(t[0]) if not outside.size else float(t[outside[-1] + 1])
 
 
-def _positive(name, value, unit):
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {value!r}")
-    return float(value)
-
-
 def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
                         settle_angle: float = 1e-3, settle_tip: float = 1e-3,
                         tau_max: float | None = None) -> dict:
@@ -97,11 +91,11 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
     ParameterError
         If the run ended before ``t_f + residual_delay`` or has no reference.
     """
-    t_f = _positive("tf", t_f, "s")
+    t_f = check_positive("tf", t_f, "s")
     if not (isinstance(residual_delay, (int, float)) and residual_delay >= 0):
         raise ParameterError(f"residual_delay must be >= 0 [s], got {residual_delay!r}")
-    settle_angle = _positive("settle_angle", settle_angle, "rad")
-    settle_tip = _positive("settle_tip", settle_tip, "m")
+    settle_angle = check_positive("settle_angle", settle_angle, "rad")
+    settle_tip = check_positive("settle_tip", settle_tip, "m")
     if result.theta_ref is None:
         raise ParameterError("the result has no hub reference (pass reference= to simulate_closed_loop)")
     t, v_tip, tau = result.t, result.v_tip, result.tau

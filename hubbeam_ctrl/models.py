@@ -26,12 +26,12 @@ is the Hessian of ``T`` in the velocities, the bias vector
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
+from functools import lru_cache
 
 import casadi as ca
 import numpy as np
 
-from .basis import ModalBasis, modal_basis
+from .basis import modal_basis
 from .errors import ParameterError
 from .params import Params
 
@@ -212,7 +212,7 @@ class HubBeamModel:
 
     # -- symbolic construction -------------------------------------------------
     def _build(self):
-        p, b, spec = self.params, self.basis, self.spec
+        p, spec = self.params, self.spec
         nq = self.n_q
         q = ca.SX.sym("q", nq)
         v = ca.SX.sym("v", nq)
