@@ -28,6 +28,7 @@ test: $(STAMP_TEST)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plant.py
+	$(BIN)/python benchmarks/bench_mpc.py
 
 notebooks: $(STAMP_TEST)
 	$(BIN)/python -m pip install --quiet nbconvert
