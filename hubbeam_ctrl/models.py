@@ -295,6 +295,32 @@ class HubBeamModel:
         rhs[0] += tau
         return np.linalg.solve(self.mass_matrix(q), rhs)
 
+    def state_derivative(self, x, tau: float = 0.0) -> np.ndarray:
+        """Free-hub state derivative ``d/dt [q, v] = [v, M^-1 (B tau - c)]``.
+
+        Parameters
+        ----------
+        x : array_like (2 n_q,)
+            State ``[q, v]`` [rad, m, rad/s, m/s].
+        tau : float
+            Hub torque [N m].
+
+        Returns
+        -------
+        ndarray (2 n_q,)
+        """
+        x = np.asarray(x, dtype=float)
+        q, v = x[: self.n_q], x[self.n_q:]
+        return np.concatenate([v, self.accelerations(q, v, tau)])
+
+    def hub_torque(self, q, v, a) -> float:
+        """Hub torque that produces accelerations ``a`` in state ``(q, v)`` [N m].
+
+        With the hub prescribed this is the torque the motion takes (the first row of the
+        inverse dynamics ``M(q) a + c(q, v)``).
+        """
+        return float(self.inverse_dynamics_function(q, v, a)[0])
+
     def energy(self, q, v) -> float:
         """Total energy ``T + U`` [J]."""
         return float(self.energy_function(q, v)[2])

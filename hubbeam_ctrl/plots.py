@@ -10,7 +10,8 @@ from matplotlib.figure import Figure
 
 from .fileio import atomic_write
 
-__all__ = ["plot_result", "plot_tip_comparison", "save_figure"]
+__all__ = ["plot_result", "plot_tip_comparison", "plot_campbell", "plot_critical_speed_map",
+           "save_figure"]
 
 
 def plot_result(result, title: str | None = None) -> Figure:
@@ -73,3 +74,63 @@ def plot_tip_comparison(results: dict, title: str = "") -> Figure:
 def save_figure(fig: Figure, path, dpi: int = 120):
     """Save a figure atomically (PNG by the file's extension)."""
     return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
+
+
+def plot_campbell(spins, frequencies_hz, title: str = "Campbell diagram") -> Figure:
+    """Bending frequencies against spin rate (output of :func:`hubbeam_ctrl.campbell`).
+
+    Parameters
+    ----------
+    spins : array_like (m,)
+        Spin rates [rad/s].
+    frequencies_hz : array_like (m, n)
+        Frequencies [Hz] (NaN where a mode has lost its stiffness).
+    title : str
+
+    Returns
+    -------
+    Figure
+    """
+    import numpy as np
+    fig = Figure(figsize=(7, 4.5), constrained_layout=True)
+    ax = fig.subplots()
+    f = np.asarray(frequencies_hz)
+    for k in range(f.shape[1]):
+        ax.plot(spins, f[:, k], marker=".", label=f"mode {k + 1}")
+    ax.plot(spins, np.asarray(spins) / (2 * np.pi), "k--", lw=0.8, label="1x spin")
+    ax.set_xlabel("spin rate [rad/s]")
+    ax.set_ylabel("frequency [Hz]")
+    ax.set_yscale("log")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3, which="both")
+    ax.legend(loc="best", fontsize="small")
+    return fig
+
+
+def plot_critical_speed_map(tip_masses, tip_positions, speeds, title: str = "") -> Figure:
+    """TLAM critical speed against tip-mass position, one line per tip mass (Fig. 9).
+
+    Parameters
+    ----------
+    tip_masses : array_like (m,)
+        [kg]
+    tip_positions : array_like (k,)
+        [m]
+    speeds : array_like (m, k)
+        Critical speeds [rad/s] from :func:`hubbeam_ctrl.critical_speed_map`.
+    title : str
+
+    Returns
+    -------
+    Figure
+    """
+    fig = Figure(figsize=(7, 4.5), constrained_layout=True)
+    ax = fig.subplots()
+    for mt, row in zip(tip_masses, speeds):
+        ax.plot(tip_positions, row, label=f"m_t = {mt:g} kg")
+    ax.set_xlabel("tip-mass position l [m]")
+    ax.set_ylabel("TLAM critical speed [rad/s]")
+    ax.set_title(title or "TLAM critical speed (Fig. 9)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best")
+    return fig

@@ -136,3 +136,12 @@ def test_sfoam_does_not_conserve(table1):
         drifts[name] = (np.max(np.abs(E - E[0])) / abs(E[0]), np.max(np.abs(H - H[0])) / abs(H[0]))
     assert drifts["sfoam"][0] > 100 * drifts["foam"][0] and drifts["sfoam"][0] > 1e-7
     assert drifts["sfoam"][1] > 100 * drifts["foam"][1] and drifts["sfoam"][1] > 1e-7
+
+
+def test_state_derivative_and_hub_torque(table1):
+    model = build_model("cfoam", table1)
+    rng = np.random.default_rng(4)
+    q, v = 0.01 * rng.normal(size=11), 0.01 * rng.normal(size=11)
+    xdot = model.state_derivative(np.r_[q, v], tau=12.0)
+    np.testing.assert_array_equal(xdot[:11], v)
+    assert model.hub_torque(q, v, xdot[11:]) == pytest.approx(12.0, rel=1e-9)
