@@ -300,6 +300,6 @@ def modal_basis(params: Params, refine: int = 1) -> ModalBasis:
     --------
     >>> b = modal_basis(Params(m_t=0.0))
     >>> round(b.J_b, 3)   # rho A ((r+L)^3 - r^3) / 3
-    113.389
+    41.318
     """
     return _build_basis(params, refine)

@@ -83,8 +83,9 @@ def modal_analysis(model="foam", spin: float = 0.0, hub: str = "prescribed",
 
     Examples
     --------
+    >>> from hubbeam_ctrl import Params, modal_analysis
     >>> r = modal_analysis("foam", spin=1.0, params=Params(m_t=0.0))
-    >>> [round(f, 3) for f in r.bending_hz[:2]]
+    >>> [round(float(f), 3) for f in r.bending_hz[:2]]
     [0.471, 2.929]
     """
     m = _model(model, params)

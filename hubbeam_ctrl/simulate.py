@@ -220,6 +220,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
 
     Examples
     --------
+    >>> from hubbeam_ctrl import Params, SpinUp, simulate
     >>> res = simulate("foam", SpinUp(w_f=2.8, t_f=30.0), t_end=5.0, params=Params(m_t=0.0))
     >>> res.diverged
     False
