@@ -59,15 +59,22 @@ def plot_tip_comparison(results: dict, title: str = "") -> Figure:
     -------
     Figure
     """
-    fig = Figure(figsize=(8, 4.5), constrained_layout=True)
-    ax = fig.subplots()
-    for label, res in results.items():
-        ax.plot(res.t, res.v_tip, label=label + (" (diverged)" if res.diverged else ""))
-    ax.set_xlabel("t [s]")
+    import numpy as np
+    fig = Figure(figsize=(8, 6.5), constrained_layout=True)
+    ax, ax_log = fig.subplots(2, 1, sharex=True)
+    styles = ["-", "--", ":", "-."]
+    for k, (label, res) in enumerate(results.items()):
+        style = styles[k % len(styles)]
+        name = label + (" (diverged)" if res.diverged else "")
+        ax.plot(res.t, res.v_tip, style, label=name)
+        ax_log.semilogy(res.t, np.maximum(np.abs(res.v_tip), 1e-9), style, lw=0.9, label=name)
     ax.set_ylabel("tip deflection v_tip [m]")
     ax.set_title(title)
-    ax.grid(True, alpha=0.3)
     ax.legend(loc="best")
+    ax_log.set_ylabel("|v_tip| [m] (log)")
+    ax_log.set_xlabel("t [s]")
+    for a in (ax, ax_log):
+        a.grid(True, alpha=0.3)
     return fig
 
 
