@@ -114,7 +114,7 @@ class Integrator:
             alg = inv(q, v, ca.vertcat(thdd, z))[1:]
             ode = ca.vertcat(x[ne:], z)
         opts = dict(abstol=settings.atol, reltol=settings.rtol, max_order=settings.max_order,
-                    max_num_steps=200000, suppress_algebraic=True, calc_ic=False)
+                    max_num_steps=5000, suppress_algebraic=True, calc_ic=False)
         self._function = ca.integrator("plant", "idas", {"x": x, "z": z, "p": p, "t": t,
                                                          "ode": ode, "alg": alg},
                                        0.0, self.grid, opts)
