@@ -46,6 +46,7 @@ from .validation import check_nonnegative as _check_nonnegative
 from .validation import check_positive as _check_positive
 from .models import HubBeamModel, build_model
 from .params import Params
+from .results import HubStateViews
 
 __all__ = ["StepperSettings", "PlantStepper", "SensorSettings", "ClosedLoopSettings",
            "ClosedLoopResult", "simulate_closed_loop", "simulate_fixed_step",
@@ -383,7 +384,7 @@ class ClosedLoopSettings:
 
 
 @dataclass
-class ClosedLoopResult:
+class ClosedLoopResult(HubStateViews):
     """Time series of one closed-loop run, sampled at the controller's instants.
 
     Attributes
@@ -439,16 +440,6 @@ class ClosedLoopResult:
     message: str = "completed"
     wall_s: float = 0.0
     plant_fallbacks: int = 0
-
-    @property
-    def theta(self) -> np.ndarray:
-        """Hub angle [rad]."""
-        return self.q[:, 0]
-
-    @property
-    def theta_dot(self) -> np.ndarray:
-        """Hub rate [rad/s]."""
-        return self.v[:, 0]
 
     def save(self, path):
         """Save all arrays and metadata to a ``.npz`` file (atomically).

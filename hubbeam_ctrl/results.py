@@ -13,7 +13,7 @@ from .errors import ParameterError
 from .fileio import atomic_write
 from .params import Params
 
-__all__ = ["SimulationResult", "load_result", "CSV_COLUMNS"]
+__all__ = ["SimulationResult", "HubStateViews", "load_result", "CSV_COLUMNS"]
 
 #: Columns of the CSV export, in order, with units.
 CSV_COLUMNS = {"t": "s", "theta": "rad", "theta_dot": "rad/s", "v_tip": "m", "u_tip": "m",
@@ -28,8 +28,22 @@ def _describe(obj) -> str:
     return f"{type(obj).__name__}"
 
 
+class HubStateViews:
+    """Views of the hub's angle and rate for results holding ``q`` and ``v`` (N, n_q)."""
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Hub angle [rad]."""
+        return self.q[:, 0]
+
+    @property
+    def theta_dot(self) -> np.ndarray:
+        """Hub rate [rad/s]."""
+        return self.v[:, 0]
+
+
 @dataclass
-class SimulationResult:
+class SimulationResult(HubStateViews):
     """Time series of one simulation.
 
     Attributes
@@ -103,17 +117,6 @@ class SimulationResult:
                    tau=tau, q_theta=q_theta, energy=energy, angular_momentum=momentum,
                    params=model.params, settings=s, diverged=diverged, message=message,
                    wall_s=wall_s)
-
-    # -- convenient views ------------------------------------------------------
-    @property
-    def theta(self) -> np.ndarray:
-        """Hub angle [rad]."""
-        return self.q[:, 0]
-
-    @property
-    def theta_dot(self) -> np.ndarray:
-        """Hub rate [rad/s]."""
-        return self.v[:, 0]
 
     def window(self, t_start: float, t_stop: float | None = None) -> np.ndarray:
         """Boolean mask of samples with ``t_start <= t <= t_stop`` (``None``: to the end)."""
