@@ -16,6 +16,7 @@ e.g. a TLAM above its critical speed) or whose integrator fails stops with
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -228,7 +229,11 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     m = _resolve_model(model, params)
     settings = settings or SimulationSettings()
     if setting_overrides:
-        settings = SimulationSettings(**{**settings.__dict__, **setting_overrides})
+        unknown = sorted(set(setting_overrides) - set(SimulationSettings.__dataclass_fields__))
+        if unknown:
+            raise ParameterError(f"unknown simulation setting(s) {', '.join(unknown)}; allowed: "
+                                 f"{', '.join(SimulationSettings.__dataclass_fields__)}")
+        settings = dataclasses.replace(settings, **setting_overrides)
     if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
         raise ParameterError(f"t_end must be a finite number > 0 [s], got {t_end!r}")
     if maneuver is not None and not hasattr(maneuver, "kind"):

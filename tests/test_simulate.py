@@ -117,5 +117,9 @@ def test_bad_inputs(table1):
         simulate("foam", SpinUp(), 1.0, hub="free")
     with pytest.raises(ParameterError, match="tf must be"):
         SpinUp(3.0, 0.0)
+    with pytest.raises(ParameterError, match="unknown simulation setting.*rtoll"):
+        simulate("foam", TorquePulse(), 1.0, rtoll=1e-6)
+    with pytest.raises(ParameterError, match="max_order must be an integer in 1..5"):
+        simulate("foam", TorquePulse(), 1.0, max_order=7)
     with pytest.raises(ParameterError, match="x0 must hold"):
         simulate("foam", None, 1.0, x0=[0.0])
