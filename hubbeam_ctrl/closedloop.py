@@ -44,7 +44,7 @@ import numpy as np
 from .errors import HubbeamError, ParameterError
 from .validation import check_nonnegative as _check_nonnegative
 from .validation import check_positive as _check_positive
-from .models import HubBeamModel, build_model
+from .models import HubBeamModel, resolve_model
 from .params import Params
 from .results import HubStateViews
 
@@ -518,12 +518,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     ``stopped = True`` and a message naming the cause.
     """
     settings = settings or ClosedLoopSettings()
-    if isinstance(plant, HubBeamModel):
-        model = plant
-        if params is not None and params != model.params:
-            raise ParameterError("params differ from the plant model's own; pass one or the other")
-    else:
-        model = build_model(plant, params if params is not None else Params())
+    model = resolve_model(plant, params)
     _check_positive("t_end", t_end, "s")
     if not callable(controller) or not hasattr(controller, "reset"):
         raise ParameterError("controller must be callable as controller(t, y) and have reset()")
@@ -644,7 +639,7 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
         ``t`` (N+1,) [s], ``q``, ``v`` (N+1, n_q), ``v_tip`` (N+1,) [m], ``wall_s``,
         ``ms_per_step`` (wall time per sample) and ``fallbacks``.
     """
-    model = plant if isinstance(plant, HubBeamModel) else build_model(plant, params or Params())
+    model = resolve_model(plant, params)
     settings = settings or StepperSettings()
     _check_positive("t_end", t_end, "s")
     stepper = PlantStepper(model, settings)

@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import ParameterError
 from .linear import first_order_matrices, second_order_linearization
-from .models import HubBeamModel, build_model
+from .models import resolve_model
 from .params import Params
 from .progress import Progress
 
@@ -57,12 +57,6 @@ class ModalResult:
     n_rigid: int
 
 
-def _model(model, params) -> HubBeamModel:
-    if isinstance(model, HubBeamModel):
-        return model
-    return build_model(model, params if params is not None else Params())
-
-
 def modal_analysis(model="foam", spin: float = 0.0, hub: str = "prescribed",
                    params: Params | None = None) -> ModalResult:
     """Natural frequencies of a model about steady rotation.
@@ -88,7 +82,7 @@ def modal_analysis(model="foam", spin: float = 0.0, hub: str = "prescribed",
     >>> [round(float(f), 3) for f in r.bending_hz[:2]]
     [0.471, 2.929]
     """
-    m = _model(model, params)
+    m = resolve_model(model, params)
     lin = second_order_linearization(m, spin, hub)
     A, _, _ = first_order_matrices(lin)
     lam, vec = np.linalg.eig(A)
@@ -142,7 +136,7 @@ def campbell(model="foam", spins=np.linspace(0, 5, 26), hub: str = "prescribed",
     ndarray (len(spins), n2)
         Frequencies [Hz]; NaN where a mode has lost its stiffness (unstable).
     """
-    m = _model(model, params)
+    m = resolve_model(model, params)
     spins = np.atleast_1d(np.asarray(spins, dtype=float))
     out = np.full((len(spins), m.n_transverse), np.nan)
     bar = Progress(len(spins), f"campbell {m.name}", enabled=progress)
@@ -173,7 +167,7 @@ def critical_speed(model="tlam", params: Params | None = None,
     float or None
         Critical speed [rad/s]; ``None`` if the model keeps its stiffness up to ``max_spin``.
     """
-    m = _model(model, params)
+    m = resolve_model(model, params)
     if m.name == "cfoam":
         raise ParameterError("model must be tlam, foam or sfoam for critical-speed (CFOAM's "
                              "stiffness is not quadratic in the spin)")

@@ -35,7 +35,7 @@ from .basis import modal_basis
 from .errors import ParameterError
 from .params import Params
 
-__all__ = ["MODEL_NAMES", "ModelSpec", "MODEL_SPECS", "HubBeamModel", "build_model",
+__all__ = ["MODEL_NAMES", "ModelSpec", "MODEL_SPECS", "HubBeamModel", "build_model", "resolve_model",
            "kinetic_energy", "potential_energy"]
 
 MODEL_NAMES = ("cfoam", "foam", "tlam", "sfoam")
@@ -386,3 +386,26 @@ def build_model(name: str, params: Params = Params()) -> HubBeamModel:
     if not isinstance(name, str) or name.lower() not in MODEL_SPECS:
         raise ParameterError(f"model must be one of {', '.join(MODEL_NAMES)}, got {name!r}")
     return HubBeamModel(name.lower(), params)
+
+
+def resolve_model(model, params: Params | None = None) -> HubBeamModel:
+    """A built model from a name plus parameters, or a model passed through.
+
+    Parameters
+    ----------
+    model : str or HubBeamModel
+    params : Params, optional
+        With a name: the parameters (default Table 1). With a model: must be ``None`` or
+        equal to the model's own.
+
+    Returns
+    -------
+    HubBeamModel
+    """
+    if isinstance(model, HubBeamModel):
+        if params is not None and params != model.params:
+            raise ParameterError("params differ from the model's own; pass one or the other")
+        return model
+    if params is not None and not isinstance(params, Params):
+        raise ParameterError(f"params must be a Params, got {type(params).__name__}")
+    return build_model(model, params if params is not None else Params())

@@ -26,7 +26,7 @@ import numpy as np
 
 from .errors import ParameterError
 from .maneuvers import UserManeuver
-from .models import HubBeamModel, build_model
+from .models import HubBeamModel, resolve_model
 from .params import Params
 from .progress import Progress
 from .results import SimulationResult
@@ -162,14 +162,6 @@ def _cached_integrator(model, hub, maneuver, grid, settings) -> Integrator:
     return cache[key]
 
 
-def _resolve_model(model, params) -> HubBeamModel:
-    if isinstance(model, HubBeamModel):
-        if params is not None and params != model.params:
-            raise ParameterError("params differ from the model's own; pass one or the other")
-        return model
-    return build_model(model, params if params is not None else Params())
-
-
 def _full_state(model, hub, maneuver, t, xs, zs):
     """Generalised coordinates, velocities and accelerations (N, n_q) from integrator output."""
     n = model.n_q
@@ -226,7 +218,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     >>> res.diverged
     False
     """
-    m = _resolve_model(model, params)
+    m = resolve_model(model, params)
     settings = settings or SimulationSettings()
     if setting_overrides:
         unknown = sorted(set(setting_overrides) - set(SimulationSettings.__dataclass_fields__))
