@@ -50,7 +50,7 @@ def direct_formulation(model, horizon: float) -> float:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--direct-horizon", type=float, default=5.0,
+    parser.add_argument("--direct-horizon", type=float, default=30.0,
                         help="horizon of the direct formulation [s], scaled to 30 s")
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args(argv)
