@@ -288,7 +288,7 @@ class Weights:
 
     ``Q = angle diag + rate diag + tip c_tip' c_tip + tip_rate c_rate' c_rate`` on the
     tracking error ``e = x - x_ref``, unless ``state_matrix`` gives the whole ``Q``.
-    The defaults were tuned on the default slew (see ``notes/readme_controllers.md``).
+    The defaults were tuned on the default slew (see the README, "Default weights").
     """
 
     angle: float = 1e4
