@@ -6,6 +6,7 @@ Plotting is kept apart from computing: every function takes results and returns 
 
 from __future__ import annotations
 
+import numpy as np
 from matplotlib.figure import Figure
 
 from .fileio import atomic_write
@@ -59,7 +60,6 @@ def plot_tip_comparison(results: dict, title: str = "") -> Figure:
     -------
     Figure
     """
-    import numpy as np
     fig = Figure(figsize=(8, 6.5), constrained_layout=True)
     ax, ax_log = fig.subplots(2, 1, sharex=True)
     styles = ["-", "--", ":", "-."]
@@ -98,7 +98,6 @@ def plot_campbell(spins, frequencies_hz, title: str = "Campbell diagram") -> Fig
     -------
     Figure
     """
-    import numpy as np
     fig = Figure(figsize=(7, 4.5), constrained_layout=True)
     ax = fig.subplots()
     f = np.asarray(frequencies_hz)
