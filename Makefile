@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 STAMP_TEST := $(VENV)/.installed-test
 export MPLBACKEND := Agg
 
-.PHONY: demo test bench notebooks clean
+.PHONY: demo test test-fast lint bench notebooks clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -21,10 +21,19 @@ $(STAMP_TEST): $(BIN)/python pyproject.toml
 	touch $@ $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/python -m hubbeam_ctrl.demo --out demo_out
+	$(BIN)/python -m hubbeam_ctrl.cli.demo --out demo_out
 
-test: $(STAMP_TEST)
+test: lint
 	$(BIN)/python -m pytest -q
+
+# everyday tier: everything but the tests marked slow (under 2 minutes on 2 cores)
+test-fast: lint
+	$(BIN)/python -m pytest -q -m "not slow"
+
+# ruff and the import contracts of the layers (pyproject.toml [tool.importlinter])
+lint: $(STAMP_TEST)
+	$(BIN)/ruff check .
+	$(BIN)/lint-imports --no-cache
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plant.py

@@ -32,8 +32,8 @@ import numpy as np
 
 from controllers import MPC, DesignModel, MPCSettings, slew_reference
 from hubbeam_ctrl import Params, build_model
-from hubbeam_ctrl.cli_compare import stdout_to_stderr
-from hubbeam_ctrl.closedloop import PlantStepper, simulate_closed_loop
+from hubbeam_ctrl.cli.compare import stdout_to_stderr
+from hubbeam_ctrl.sim import PlantStepper, simulate_closed_loop
 
 HORIZON = 50
 DT = 0.01
@@ -118,7 +118,7 @@ def compare_wall() -> dict:
     cmd = [str(exe) if exe.exists() else sys.executable, "compare", "--plant", "cfoam",
            "--json"]
     if not exe.exists():
-        cmd = [sys.executable, "-m", "hubbeam_ctrl.cli", "compare", "--plant", "cfoam", "--json"]
+        cmd = [sys.executable, "-m", "hubbeam_ctrl.cli.main", "compare", "--plant", "cfoam", "--json"]
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         proc = subprocess.run(cmd + ["--out", str(Path(tmp) / "cmp")], capture_output=True, text=True)

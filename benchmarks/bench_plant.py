@@ -3,7 +3,7 @@
 Case: Eq. 44 torque, tau_m = 200 N m, t_f = 10 s, m_t = 0.1 kg, 5 + 5 modes, 30 s, output
 every 10 ms. For CFOAM and FOAM it times
 
-* ``toolbox``: :func:`hubbeam_ctrl.simulate` (implicit form, IDAS, BDF order <= 2);
+* ``toolbox``: :func:`hubbeam_ctrl.sim.simulate` (implicit form, IDAS, BDF order <= 2);
 * ``direct``: the named alternative, the Lagrangian differentiated symbolically with CasADi,
   the mass matrix solved symbolically (``casadi.solve`` on SX), the explicit ODE handed to
   CasADi's CVODES over the output grid (default settings, rtol = atol = 1e-8). It is run on

@@ -3,13 +3,13 @@
 Every controller is built once from a linear SFOAM :class:`DesignModel`, its settings and
 a :class:`Reference`, and is then a function of time and measurement at its sample
 instants: ``tau = ctrl(t, y)``; ``ctrl.reset()`` starts a new run. The closed-loop
-simulator (:func:`hubbeam_ctrl.closedloop.simulate_closed_loop`) runs any of them on the
-nonlinear FOAM or CFOAM plant; :func:`hubbeam_ctrl.compare.run_compare` compares them.
+simulator (:func:`hubbeam_ctrl.sim.closedloop.simulate_closed_loop`) runs any of them on the
+nonlinear FOAM or CFOAM plant; :func:`hubbeam_ctrl.study.compare.run_compare` compares them.
 
 Examples
 --------
 >>> from hubbeam_ctrl import Params
->>> from hubbeam_ctrl.closedloop import simulate_closed_loop
+>>> from hubbeam_ctrl.sim import simulate_closed_loop
 >>> from controllers import DesignModel, LQR, slew_reference
 >>> p = Params(n_axial=2, n_transverse=2)
 >>> design = DesignModel.build(p, spin=0.0, dt=0.01)
@@ -61,7 +61,7 @@ def make_controller(name: str, design: DesignModel, settings=None, reference: Re
     -------
     Controller
     """
-    from hubbeam_ctrl.errors import ParameterError
+    from hubbeam_ctrl.core.errors import ParameterError
     if name not in CONTROLLERS:
         raise ParameterError(f"controllers: unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)}")
     cls, settings_cls = CONTROLLERS[name]

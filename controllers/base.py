@@ -24,9 +24,9 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from hubbeam_ctrl.errors import ParameterError
-from hubbeam_ctrl.params import Params
-from hubbeam_ctrl.validation import check_nonnegative, check_positive
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.validation import check_nonnegative, check_positive
+from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate",
            "check_positive", "check_nonnegative", "check_psd"]
@@ -92,7 +92,7 @@ class DesignModel:
     state_names : list of str
     M2, K2 : ndarray (1 + m, 1 + m)
         Second-order mass and stiffness matrices ``M dq'' + G dq' + K dq = B tau``.
-    linear_model : hubbeam_ctrl.statespace.LinearModel
+    linear_model : hubbeam_ctrl.linear.statespace.LinearModel
         The sampled model as a python-control system (``.sys``).
     """
 
@@ -138,9 +138,9 @@ class DesignModel:
         >>> d.Ad.shape, d.state_names[:2]
         ((6, 6), ['theta', 'q2_1'])
         """
-        from hubbeam_ctrl.linear import second_order_linearization
-        from hubbeam_ctrl.models import build_model
-        from hubbeam_ctrl.statespace import discretize, linearize
+        from hubbeam_ctrl.linear.statespace import discretize, linearize
+        from hubbeam_ctrl.plant.linearization import second_order_linearization
+        from hubbeam_ctrl.plant.models import build_model
         dt = check_positive("dt", dt, "s")
         if not isinstance(params, Params):
             raise ParameterError(f"params must be a Params, got {type(params).__name__}")
@@ -352,7 +352,7 @@ class Controller:
     measurement : {"state", "sensors"}
         What the simulator hands over: the plant's SFOAM-ordered state, or the noisy
         sensors ``[theta, theta_dot, M_root]`` (see
-        :func:`hubbeam_ctrl.closedloop.simulate_closed_loop`).
+        :func:`hubbeam_ctrl.sim.closedloop.simulate_closed_loop`).
     dt : float
         Sample time [s].
     n_modes : int

@@ -7,10 +7,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from hubbeam_ctrl.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError
 
-from .base import (Controller, DesignModel, Reference, Weights, check_nonnegative,
-                   check_positive, saturate)
+from .base import Controller, DesignModel, Reference, Weights, check_nonnegative, check_positive, saturate
 from .lqr import dlqr_gain
 
 __all__ = ["LQGSettings", "LQG", "kalman_gain"]
@@ -21,7 +20,7 @@ class LQGSettings:
     """Settings of :class:`LQG`.
 
     The sensor noise levels are what the filter assumes; they default to the closed-loop
-    simulator's :class:`hubbeam_ctrl.closedloop.SensorSettings`.
+    simulator's :class:`hubbeam_ctrl.plant.sensors.SensorSettings`.
     """
 
     weights: Weights = field(default_factory=Weights)

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from hubbeam_ctrl.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, Reference, Weights, check_positive, saturate
 

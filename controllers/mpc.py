@@ -23,10 +23,9 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from hubbeam_ctrl.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError
 
-from .base import (Controller, DesignModel, Reference, Weights,
-                   check_positive, saturate)
+from .base import Controller, DesignModel, Reference, Weights, check_positive, saturate
 from .lqr import dlqr_gain
 
 __all__ = ["MPCSettings", "MPC", "QP_SOLVERS", "condensed_matrices"]

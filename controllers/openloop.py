@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from hubbeam_ctrl.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, Reference, check_positive
 

@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from hubbeam_ctrl.errors import ParameterError
-from hubbeam_ctrl.maneuvers import SpinUp
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.maneuvers import SpinUp
 
 from .base import Reference, check_positive
 

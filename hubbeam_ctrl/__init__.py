@@ -12,18 +12,17 @@ Examples
 0.2
 """
 
-from .basis import ModalBasis, modal_basis
-from .errors import HubbeamError, ParameterError
-from .linear import first_order_matrices, second_order_linearization
-from .maneuvers import ConstantSpin, SpinUp, TorquePulse, UserManeuver
-from .modal import (campbell, critical_speed, critical_speed_map, modal_analysis,
-                    natural_frequencies)
-from .models import MODEL_NAMES, HubBeamModel, build_model
-from .params import Params, load_params, save_params
-from .results import SimulationResult, load_result
-from .simulate import SimulationSettings, simulate
-from .statespace import LinearModel, compare_poles, discretize, linearize, reduce
-from .export import load_model, save_model
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.linear.export import load_model, save_model
+from hubbeam_ctrl.linear.statespace import LinearModel, compare_poles, discretize, linearize, reduce
+from hubbeam_ctrl.plant.basis import ModalBasis, modal_basis
+from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization
+from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse, UserManeuver
+from hubbeam_ctrl.plant.modal import campbell, critical_speed, critical_speed_map, modal_analysis, natural_frequencies
+from hubbeam_ctrl.plant.models import MODEL_NAMES, HubBeamModel, build_model
+from hubbeam_ctrl.plant.params import Params, load_params, save_params
+from hubbeam_ctrl.sim.results import SimulationResult, load_result
+from hubbeam_ctrl.sim.simulate import SimulationSettings, simulate
 
 __version__ = "0.1.0"
 

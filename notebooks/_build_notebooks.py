@@ -506,10 +506,10 @@ def nb02_design_pd_lqr():
         from IPython.display import display
 
         from hubbeam_ctrl import Params, compare_poles, linearize, modal_analysis
-        from hubbeam_ctrl.closedloop import simulate_closed_loop
-        from hubbeam_ctrl.compare import make_scenario, print_table
-        from hubbeam_ctrl.metrics import closed_loop_metrics
-        from hubbeam_ctrl.plots_closedloop import CONTROLLER_COLORS, plot_tip_deflection
+        from hubbeam_ctrl.sim import simulate_closed_loop
+        from hubbeam_ctrl.study import make_scenario, print_table
+        from hubbeam_ctrl.study.metrics import closed_loop_metrics
+        from hubbeam_ctrl.plots.closedloop import CONTROLLER_COLORS, plot_tip_deflection
         from controllers import (LQG, LQGSettings, LQR, LQRSettings, PD, PDSettings, DesignModel,
                                  OpenLoop, OpenLoopSettings, Weights, dlqr_gain, kalman_gain,
                                  pd_gains)
@@ -781,9 +781,9 @@ def nb03_mpc():
         import numpy as np
 
         from hubbeam_ctrl import Params
-        from hubbeam_ctrl.closedloop import simulate_closed_loop
-        from hubbeam_ctrl.compare import make_scenario
-        from hubbeam_ctrl.metrics import closed_loop_metrics
+        from hubbeam_ctrl.sim import simulate_closed_loop
+        from hubbeam_ctrl.study import make_scenario
+        from hubbeam_ctrl.study.metrics import closed_loop_metrics
         from controllers import (LQR, MPC, DesignModel, LQRSettings, MPCSettings, OpenLoop,
                                  OpenLoopSettings, Weights)
 
@@ -1013,8 +1013,8 @@ def nb04_export():
         import scipy.io
 
         from hubbeam_ctrl import Params, discretize, linearize, load_model, save_model, simulate
-        from hubbeam_ctrl.export import FORMATS          # (".mat", ".npz", ".json")
-        from hubbeam_ctrl.statespace import OUTPUTS      # output name -> (unit, description)
+        from hubbeam_ctrl.linear.export import FORMATS          # (".mat", ".npz", ".json")
+        from hubbeam_ctrl.linear.statespace import OUTPUTS      # output name -> (unit, description)
 
         T0 = time.perf_counter()
         plt.rcParams.update({"figure.figsize": (9, 3.4), "axes.grid": True})

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from hubbeam_ctrl import Params, modal_basis
-from hubbeam_ctrl.basis import axial_shapes, clamped_free_roots, transverse_shapes
+from hubbeam_ctrl.plant.basis import axial_shapes, clamped_free_roots, transverse_shapes
 
 
 def test_clamped_free_roots():

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from hubbeam_ctrl.cli import main
+from hubbeam_ctrl.cli.main import main
 
 
 def run(capsys, *argv):
@@ -68,11 +68,11 @@ def test_bad_input_exit_2_one_line(capsys, argv, needle):
 
 
 def test_console_script_exit_status():
-    proc = subprocess.run([sys.executable, "-m", "hubbeam_ctrl.cli", "modes", "--n-modes", "30"],
+    proc = subprocess.run([sys.executable, "-m", "hubbeam_ctrl.cli.main", "modes", "--n-modes", "30"],
                           capture_output=True, text=True)
     assert proc.returncode == 2 and "n_axial must be an integer in 1..20" in proc.stderr
     assert "Traceback" not in proc.stderr
-    proc = subprocess.run([sys.executable, "-m", "hubbeam_ctrl.cli", "--help"], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-m", "hubbeam_ctrl.cli.main", "--help"], capture_output=True, text=True)
     assert proc.returncode == 0
     for command in ("modes", "critical-speed", "simulate", "linearize"):
         assert command in proc.stdout

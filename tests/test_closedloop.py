@@ -6,10 +6,16 @@ import numpy as np
 import pytest
 
 from hubbeam_ctrl import Params, TorquePulse, build_model, simulate
-from hubbeam_ctrl.closedloop import (ClosedLoopSettings, PlantStepper, SensorSettings,
-                                     StepperSettings, generalized_alpha_coefficients,
-                                     sensor_matrix, simulate_closed_loop, simulate_fixed_step)
-from hubbeam_ctrl.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
+from hubbeam_ctrl.sim import (
+    ClosedLoopSettings,
+    PlantStepper,
+    StepperSettings,
+    generalized_alpha_coefficients,
+    simulate_closed_loop,
+    simulate_fixed_step,
+)
 
 
 def test_stepper_matches_tight_idas_on_foam():
@@ -164,7 +170,7 @@ def test_stepper_speed_is_reported():
 
 
 def test_stopped_run_metrics_and_save(tmp_path):
-    from hubbeam_ctrl.metrics import closed_loop_metrics
+    from hubbeam_ctrl.study.metrics import closed_loop_metrics
 
     class Bad(_Recorder):
         name = "nan-at-3s"

@@ -7,11 +7,18 @@ import numpy as np
 import pytest
 
 from hubbeam_ctrl import Params
-from hubbeam_ctrl.cli import main
-from hubbeam_ctrl.compare import (DEFAULT_CONTROLLERS, compare, format_table, make_scenario,
-                                  print_table, run_compare, write_outputs)
-from hubbeam_ctrl.errors import ParameterError
-from hubbeam_ctrl.metrics import METRIC_UNITS
+from hubbeam_ctrl.cli.main import main
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.study import (
+    DEFAULT_CONTROLLERS,
+    compare,
+    format_table,
+    make_scenario,
+    print_table,
+    run_compare,
+    write_outputs,
+)
+from hubbeam_ctrl.study.metrics import METRIC_UNITS
 
 
 @pytest.fixture(scope="module")

@@ -5,13 +5,30 @@ import math
 import numpy as np
 import pytest
 
-from controllers import (LQG, LQR, MPC, PD, DesignModel, LQGSettings, LQRSettings, MPCSettings,
-                         OpenLoop, OpenLoopSettings, PDSettings, Reference, Weights,
-                         condensed_matrices, dlqr_gain, make_controller, pd_gains, slew_reference,
-                         spinup_reference)
+from controllers import (
+    LQG,
+    LQR,
+    MPC,
+    PD,
+    DesignModel,
+    LQGSettings,
+    LQRSettings,
+    MPCSettings,
+    OpenLoop,
+    OpenLoopSettings,
+    PDSettings,
+    Reference,
+    Weights,
+    condensed_matrices,
+    dlqr_gain,
+    make_controller,
+    pd_gains,
+    slew_reference,
+    spinup_reference,
+)
 from controllers.reference import slew_shape_constant
 from hubbeam_ctrl import Params
-from hubbeam_ctrl.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError
 
 P2 = Params(n_axial=2, n_transverse=2)
 

@@ -10,9 +10,9 @@ import pytest
 import scipy.io
 
 from hubbeam_ctrl import Params
-from hubbeam_ctrl.errors import ParameterError
-from hubbeam_ctrl.export import FORMATS, load_model, save_model
-from hubbeam_ctrl.statespace import discretize, linearize, reduce
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.linear.export import FORMATS, load_model, save_model
+from hubbeam_ctrl.linear.statespace import discretize, linearize, reduce
 
 FMT = [f.lstrip(".") for f in FORMATS]
 
@@ -170,12 +170,12 @@ def test_load_errors(tmp_path):
 
 # -- CLI ---------------------------------------------------------------------------------
 def _parse(argv):
-    from hubbeam_ctrl.cli import build_parser
+    from hubbeam_ctrl.cli.main import build_parser
     return build_parser().parse_args(argv)
 
 
 def test_cli_json_and_file(tmp_path, capsys):
-    from hubbeam_ctrl import cli_linearize
+    from hubbeam_ctrl.cli import linearize as cli_linearize
     out = tmp_path / "plant.npz"
     args = _parse(["linearize", "--model", "foam", "--spin", "1", "--n-modes", "3",
                    "--outputs", "theta,root_moment", "--damping", "0.01", "--dt", "0.001",
@@ -193,7 +193,7 @@ def test_cli_json_and_file(tmp_path, capsys):
 
 
 def test_cli_defaults_and_main(tmp_path, capsys):
-    from hubbeam_ctrl.cli import main
+    from hubbeam_ctrl.cli.main import main
     out = tmp_path / "p.mat"
     assert main(["linearize", "--out", str(out), "--tip-mass", "0", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
@@ -216,7 +216,7 @@ def test_cli_defaults_and_main(tmp_path, capsys):
     (["--out", "X/m.mat", "--n-modes", "0"], "n_axial"),
 ])
 def test_cli_errors_one_line_no_file(argv, word, tmp_path, capsys):
-    from hubbeam_ctrl.cli import main
+    from hubbeam_ctrl.cli.main import main
     argv = ["linearize"] + [a.replace("X", str(tmp_path)) for a in argv]
     assert main(argv) == 2
     err = capsys.readouterr().err

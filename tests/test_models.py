@@ -4,14 +4,14 @@ import numpy as np
 import pytest
 
 from hubbeam_ctrl import Params, build_model, simulate
-from hubbeam_ctrl.basis import axial_shapes, foreshortening_matrices, transverse_shapes
+from hubbeam_ctrl.plant.basis import axial_shapes, foreshortening_matrices, transverse_shapes
 
 
 def paper_foam(params, q, v):
     """The paper's Eqs. (24)-(34) without the Delta terms, plus the appendix's tip mass
     (A1)-(A10) with r_A + l, written out by hand. Returns (M, bias) with bias = 2 thd G v +
     K q - Q so that M a + bias = [tau, 0, 0]."""
-    from hubbeam_ctrl.basis import modal_basis
+    from hubbeam_ctrl.plant.basis import modal_basis
     b = modal_basis(params)
     n1, n2 = params.n_axial, params.n_transverse
     m, l, r = params.m_t, params.tip_position, params.r

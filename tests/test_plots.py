@@ -3,8 +3,13 @@
 import numpy as np
 
 from hubbeam_ctrl import Params, SpinUp, campbell, critical_speed_map, simulate
-from hubbeam_ctrl.plots import (plot_campbell, plot_critical_speed_map, plot_result,
-                                plot_tip_comparison, save_figure)
+from hubbeam_ctrl.plots.plant import (
+    plot_campbell,
+    plot_critical_speed_map,
+    plot_result,
+    plot_tip_comparison,
+    save_figure,
+)
 
 
 def test_figures_carry_the_data(tmp_path):

@@ -5,8 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hubbeam_ctrl import (ParameterError, Params, SpinUp, TorquePulse, UserManeuver, load_result,
-                          simulate)
+from hubbeam_ctrl import ParameterError, Params, SpinUp, TorquePulse, UserManeuver, load_result, simulate
 
 REFERENCE = Path(__file__).resolve().parents[1] / "hubbeam_ctrl" / "data" / "spinup_w5_tf30_ancf.csv"
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from .fileio import atomic_write
+from hubbeam_ctrl.core.fileio import atomic_write
 
 __all__ = ["plot_result", "plot_tip_comparison", "plot_campbell", "plot_critical_speed_map",
            "save_figure"]

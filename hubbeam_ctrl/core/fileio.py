@@ -6,7 +6,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from .errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["atomic_write", "atomic_write_text"]
 
@@ -30,7 +30,7 @@ def atomic_write(path, write, binary: bool = True, suffix: str | None = None) ->
     -------
     Path
         The final path. On any error no file is left behind and
-        :class:`~hubbeam_ctrl.errors.ParameterError` names the path.
+        :class:`~hubbeam_ctrl.core.errors.ParameterError` names the path.
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")

@@ -3,8 +3,8 @@
 :func:`linearize` turns any of the four nonlinear models (SFOAM by default) into a
 python-control :class:`~control.StateSpace` with named states, input and outputs,
 wrapped in a :class:`LinearModel` that also keeps the model name, the spin rate and the
-:class:`~hubbeam_ctrl.params.Params` it was made from. The linearisation itself is
-:func:`hubbeam_ctrl.linear.second_order_linearization` (CasADi automatic differentiation
+:class:`~hubbeam_ctrl.plant.params.Params` it was made from. The linearisation itself is
+:func:`hubbeam_ctrl.plant.linearization.second_order_linearization` (CasADi automatic differentiation
 about ``theta_dot = spin``, ``q1 = q1*(spin)`` (the steady axial stretch), ``q2 = 0``,
 ``tau = 0``), so FOAM's and CFOAM's stretch and gyroscopic coupling are included.
 
@@ -35,10 +35,10 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from .errors import ParameterError
-from .linear import first_order_matrices, second_order_linearization, velocity_name
-from .models import MODEL_NAMES, HubBeamModel, build_model
-from .params import Params
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization, velocity_name
+from hubbeam_ctrl.plant.models import MODEL_NAMES, HubBeamModel, build_model
+from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["LinearModel", "OUTPUTS", "DEFAULT_OUTPUTS", "linearize", "discretize", "reduce",
            "poles", "continuous_poles", "poles_hz", "compare_poles", "PoleComparison"]
@@ -659,7 +659,7 @@ def compare_poles(model_a="sfoam", model_b="foam", spin: float = 0.0,
 
     Shows what one model leaves out (e.g. SFOAM's missing axial modes and axial coupling
     against FOAM). Modes are classified as bending or axial by where their kinetic energy
-    lies (:func:`hubbeam_ctrl.modal.modal_analysis`, hub free).
+    lies (:func:`hubbeam_ctrl.plant.modal.modal_analysis`, hub free).
 
     Parameters
     ----------
@@ -681,7 +681,7 @@ def compare_poles(model_a="sfoam", model_b="foam", spin: float = 0.0,
     >>> len(c.axial_a_hz), len(c.axial_b_hz)
     (0, 5)
     """
-    from .modal import modal_analysis
+    from hubbeam_ctrl.plant.modal import modal_analysis
 
     def analyse(m):
         if isinstance(m, LinearModel):

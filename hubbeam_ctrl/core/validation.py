@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["check_positive", "check_nonnegative", "check_finite"]
 

@@ -14,11 +14,11 @@ import sys
 import time
 from pathlib import Path
 
-from .fileio import atomic_write_text
-from .maneuvers import SpinUp
-from .params import Params
-from .plots import plot_tip_comparison, save_figure
-from .simulate import simulate
+from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.plant.maneuvers import SpinUp
+from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plots.plant import plot_tip_comparison, save_figure
+from hubbeam_ctrl.sim.simulate import simulate
 
 __all__ = ["spinup_comparison", "main"]
 
@@ -65,7 +65,7 @@ def spinup_comparison(out_dir, w_f: float = 2.8, t_f: float = 30.0, t_end: float
 
 def main(argv=None) -> int:
     """Run the demo; print its tables."""
-    parser = argparse.ArgumentParser(prog="python -m hubbeam_ctrl.demo")
+    parser = argparse.ArgumentParser(prog="python -m hubbeam_ctrl.cli.demo")
     parser.add_argument("--out", default="demo_out", help="output folder")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
@@ -80,7 +80,7 @@ def main(argv=None) -> int:
     print(f"TLAM/FOAM residual vibration ratio: {summary['tlam_over_foam_residual']:.0f} (paper: ~100)")
     print(f"wrote {Path(args.out) / 'spinup_comparison.png'} and spinup_summary.json")
     try:
-        from .compare import print_table, run_compare
+        from hubbeam_ctrl.study import print_table, run_compare
     except ImportError:
         run_compare = None
     if run_compare is not None:

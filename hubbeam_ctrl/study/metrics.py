@@ -6,11 +6,10 @@ Names are snake case with their unit as suffix (``_m``, ``_rad``, ``_s``, ``_nm`
 
 from __future__ import annotations
 
-
 import numpy as np
 
-from .errors import ParameterError
-from .validation import check_positive
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.validation import check_positive
 
 __all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time"]
 
@@ -61,7 +60,7 @@ def settling_time(t, angle_error, v_tip, angle_band: float, tip_band: float):
 def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
                         settle_angle: float = 1e-3, settle_tip: float = 1e-3,
                         tau_max: float | None = None) -> dict:
-    """Metrics of one :class:`~hubbeam_ctrl.closedloop.ClosedLoopResult`.
+    """Metrics of one :class:`~hubbeam_ctrl.sim.closedloop.ClosedLoopResult`.
 
     Parameters
     ----------

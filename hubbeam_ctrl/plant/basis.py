@@ -26,7 +26,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.optimize import brentq
 
-from .params import Params
+from hubbeam_ctrl.plant.params import Params
 
 __all__ = [
     "clamped_free_roots",
@@ -210,7 +210,7 @@ def _moments(x, w, r, f1, f2, S) -> MassMoments:
 
 @dataclass(frozen=True)
 class ModalBasis:
-    """Modal integrals of a :class:`~hubbeam_ctrl.params.Params` (see module docstring).
+    """Modal integrals of a :class:`~hubbeam_ctrl.plant.params.Params` (see module docstring).
 
     Attributes
     ----------

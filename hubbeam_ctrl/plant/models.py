@@ -31,9 +31,9 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from .basis import modal_basis
-from .errors import ParameterError
-from .params import Params
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.basis import modal_basis
+from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["MODEL_NAMES", "ModelSpec", "MODEL_SPECS", "HubBeamModel", "build_model", "resolve_model",
            "kinetic_energy", "potential_energy"]
@@ -260,7 +260,8 @@ class HubBeamModel:
             return C
         b = self.basis
         for sl, K, Mm in ((self.axial_slice, b.K1, b.beam.M1), (self.transverse_slice, b.K2, b.beam.M2)):
-            if sl.start == sl.stop: continue  # SFOAM has no axial modes
+            if sl.start == sl.stop:  # SFOAM has no axial modes
+                continue
             C[sl, sl] = np.diag(2 * zeta * np.sqrt(np.diag(K) * np.diag(Mm)))
         return C
 

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .errors import ParameterError
-from .validation import check_finite as _check_finite
-from .validation import check_positive as _check_positive
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.validation import check_finite as _check_finite
+from hubbeam_ctrl.core.validation import check_positive as _check_positive
 
 __all__ = ["SpinUp", "TorquePulse", "ConstantSpin", "UserManeuver", "spinup_rate"]
 

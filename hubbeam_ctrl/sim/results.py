@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ParameterError
-from .fileio import atomic_write
-from .params import Params
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.fileio import atomic_write
+from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["SimulationResult", "HubStateViews", "load_result", "CSV_COLUMNS"]
 

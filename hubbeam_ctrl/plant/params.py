@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from .errors import ParameterError
-from .fileio import atomic_write_text
+import tomllib
+
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.fileio import atomic_write_text
 
 __all__ = ["Params", "load_params", "save_params", "MAX_MODES"]
 

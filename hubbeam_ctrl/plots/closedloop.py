@@ -1,7 +1,7 @@
 """Plots of closed-loop comparisons (Matplotlib object API; nothing computed here).
 
 Each function takes a mapping ``controller name -> ClosedLoopResult`` and returns a
-:class:`matplotlib.figure.Figure`; :func:`hubbeam_ctrl.plots.save_figure` writes it.
+:class:`matplotlib.figure.Figure`; :func:`hubbeam_ctrl.plots.plant.save_figure` writes it.
 """
 
 from __future__ import annotations

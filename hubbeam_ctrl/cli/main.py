@@ -13,14 +13,13 @@ import json
 import math
 import sys
 
-
-from .errors import HubbeamError, ParameterError
-from .params import Params, load_params
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.plant.params import Params, load_params
 
 __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float"]
 
 #: Subcommands contributed by other modules: module name -> provides add_parser/run.
-EXTRA_COMMANDS = ("hubbeam_ctrl.cli_linearize", "hubbeam_ctrl.cli_compare")
+EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -107,7 +106,7 @@ def check_output_folder(option: str, path) -> None:
 
 # -- modes ----------------------------------------------------------------------
 def _cmd_modes(args) -> int:
-    from .modal import modal_analysis
+    from hubbeam_ctrl.plant.modal import modal_analysis
     params = params_from_args(args)
     res = modal_analysis(args.model, args.spin, args.hub, params)
     out = {"model": args.model, "spin_rad_s": args.spin, "hub": args.hub,
@@ -128,7 +127,7 @@ def _cmd_modes(args) -> int:
 
 # -- critical speed ---------------------------------------------------------------
 def _cmd_critical(args) -> int:
-    from .modal import critical_speed
+    from hubbeam_ctrl.plant.modal import critical_speed
     params = params_from_args(args)
     w = critical_speed(args.model, params)
     if args.json:
@@ -144,8 +143,8 @@ def _cmd_critical(args) -> int:
 
 # -- simulate -----------------------------------------------------------------------
 def _cmd_simulate(args) -> int:
-    from .maneuvers import SpinUp, TorquePulse
-    from .simulate import simulate
+    from hubbeam_ctrl.plant.maneuvers import SpinUp, TorquePulse
+    from hubbeam_ctrl.sim.simulate import simulate
     params = params_from_args(args)
     if args.out and not args.out.lower().endswith((".csv", ".npz")):
         raise ParameterError(f"out must end in .csv or .npz, got {args.out!r}")
@@ -163,7 +162,7 @@ def _cmd_simulate(args) -> int:
     if args.out:
         res.save(args.out)
     if args.plot:
-        from .plots import plot_result, save_figure
+        from hubbeam_ctrl.plots.plant import plot_result, save_figure
         save_figure(plot_result(res), args.plot)
     s = res.summary()
     out = {k: s[k] for k in ("peak_tip_m", "residual_tip_m", "peak_axial_m", "final_theta_rad",
@@ -241,7 +240,7 @@ def main(argv=None) -> int:
             return 2
         func = getattr(args, "func", None)
         if func is None:
-            module = importlib.import_module(f"hubbeam_ctrl.cli_{args.command}")
+            module = importlib.import_module(f"hubbeam_ctrl.cli.{args.command}")
             func = module.run
         return int(func(args) or 0)
     except (ParameterError, HubbeamError) as exc:

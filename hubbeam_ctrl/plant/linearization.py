@@ -18,8 +18,8 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from .errors import ParameterError
-from .models import HubBeamModel
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.models import HubBeamModel
 
 __all__ = ["SecondOrderLinearization", "second_order_linearization", "first_order_matrices",
            "velocity_name"]

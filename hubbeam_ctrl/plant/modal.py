@@ -1,7 +1,7 @@
 """Modal analysis: frequencies at a spin rate, Campbell sweeps, TLAM critical speed.
 
 Frequencies are those of the linearisation about steady rotation
-(:mod:`hubbeam_ctrl.linear`): the undamped natural frequencies of the oscillatory
+(:mod:`hubbeam_ctrl.plant.linearization`): the undamped natural frequencies of the oscillatory
 eigenvalues of the first-order system, split into bending (transverse) and axial modes
 by where the eigenvector's kinetic energy lies. With the hub prescribed (Table 2's
 convention, a clamped root turning at the given rate) and no tip mass, FOAM's bending
@@ -15,11 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ParameterError
-from .linear import first_order_matrices, second_order_linearization
-from .models import resolve_model
-from .params import Params
-from .progress import Progress
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.progress import Progress
+from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization
+from hubbeam_ctrl.plant.models import resolve_model
+from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["ModalResult", "modal_analysis", "natural_frequencies", "campbell",
            "critical_speed", "critical_speed_map"]

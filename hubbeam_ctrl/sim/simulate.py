@@ -24,12 +24,12 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .errors import ParameterError
-from .maneuvers import UserManeuver
-from .models import HubBeamModel, resolve_model
-from .params import Params
-from .progress import Progress
-from .results import SimulationResult
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.progress import Progress
+from hubbeam_ctrl.plant.maneuvers import UserManeuver
+from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
+from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.results import SimulationResult
 
 __all__ = ["simulate", "Integrator", "make_integrator", "SimulationSettings"]
 

@@ -7,8 +7,8 @@ import json
 import sys
 import time
 
-from .cli import finite_float, positive_float, positive_int
-from .errors import ParameterError
+from hubbeam_ctrl.cli.main import finite_float, positive_float, positive_int
+from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["add_parser", "run", "stdout_to_stderr"]
 
@@ -74,8 +74,9 @@ def run(args) -> int:
     """Run ``hubbeam compare``; returns the exit status (0)."""
     from pathlib import Path
 
-    from .cli import params_from_args
-    from .compare import _json_metrics, compare, format_table, write_outputs
+    from hubbeam_ctrl.cli.main import params_from_args
+    from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     params = params_from_args(args)
     out = Path(args.out)
     if not out.parent.is_dir():

@@ -1,4 +1,4 @@
-"""Save and load linear models (:class:`~hubbeam_ctrl.statespace.LinearModel`).
+"""Save and load linear models (:class:`~hubbeam_ctrl.linear.statespace.LinearModel`).
 
 Three formats, chosen by the file extension, all holding the same content:
 
@@ -25,7 +25,7 @@ Three formats, chosen by the file extension, all holding the same content:
     metadata keys. Floats are written with ``repr`` precision, so they read back exactly.
 
 Writes are atomic (temporary file in the target folder, then a rename); errors are
-:class:`~hubbeam_ctrl.errors.ParameterError` with a one-line message and leave no file.
+:class:`~hubbeam_ctrl.core.errors.ParameterError` with a one-line message and leave no file.
 """
 
 from __future__ import annotations
@@ -35,10 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ParameterError
-from .fileio import atomic_write
-from .params import Params
-from .statespace import LinearModel, _make_ss
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.fileio import atomic_write
+from hubbeam_ctrl.linear.statespace import LinearModel, _make_ss
+from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["save_model", "load_model", "FORMATS"]
 

@@ -13,8 +13,8 @@ import json
 
 def add_parser(subparsers, common) -> None:
     """Add the ``linearize`` subcommand (``common`` holds the system-parameter options)."""
-    from .cli import finite_float, positive_float
-    from .statespace import DEFAULT_OUTPUTS, OUTPUTS
+    from hubbeam_ctrl.cli.main import finite_float, positive_float
+    from hubbeam_ctrl.linear.statespace import DEFAULT_OUTPUTS, OUTPUTS
 
     p = subparsers.add_parser(
         "linearize", parents=[common],
@@ -47,10 +47,10 @@ def run(args) -> int:
     """Run ``hubbeam linearize``; bad input raises :class:`ParameterError`."""
     from pathlib import Path
 
-    from .cli import check_output_folder, params_from_args
-    from .errors import ParameterError
-    from .export import FORMATS, save_model
-    from .statespace import discretize, linearize
+    from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.linear.export import FORMATS, save_model
+    from hubbeam_ctrl.linear.statespace import discretize, linearize
 
     out = Path(args.out)
     if out.suffix.lower() not in FORMATS:

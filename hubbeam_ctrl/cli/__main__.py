@@ -1,0 +1,5 @@
+import sys
+
+from hubbeam_ctrl.cli.main import main
+
+sys.exit(main())

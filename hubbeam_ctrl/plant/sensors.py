@@ -1,0 +1,73 @@
+"""Hub sensors: the measured signals, defined once for the linear model and the simulator.
+
+The sensors are the hub angle (encoder), the hub rate (tachometer or gyro) and the root
+bending moment ``M_root = E I w2''(0) = E I f2''(0) q2`` (a strain gauge at the root).
+:func:`sensor_matrix` gives their rows on a plant state ``[q, v]``; the linear models of
+:mod:`hubbeam_ctrl.linear.statespace` and the closed-loop simulator both use it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hubbeam_ctrl.core.validation import check_nonnegative as _check_nonnegative
+from hubbeam_ctrl.plant.basis import modal_basis
+from hubbeam_ctrl.plant.params import Params
+
+__all__ = ["SensorSettings", "sensor_matrix"]
+
+
+@dataclass(frozen=True)
+class SensorSettings:
+    """Realistic hub sensors for output-feedback controllers (``measurement="sensors"``).
+
+    The measurement is ``[theta, theta_dot, M_root]`` plus independent zero-mean Gaussian
+    white noise of the standard deviations below, drawn afresh at each sample.
+    """
+
+    angle_noise_rad: float = 1e-4
+    """Hub-angle encoder noise, standard deviation [rad] (about a 16-bit encoder)."""
+    rate_noise_rad_s: float = 1e-3
+    """Hub-rate (tachometer / gyro) noise, standard deviation [rad/s]."""
+    moment_noise_nm: float = 0.02
+    """Root bending-moment (strain gauge) noise, standard deviation [N m]."""
+    seed: int = 0
+    """Seed of the noise generator (runs are reproducible)."""
+
+    def __post_init__(self):
+        _check_nonnegative("angle_noise_rad", self.angle_noise_rad, "rad")
+        _check_nonnegative("rate_noise_rad_s", self.rate_noise_rad_s, "rad/s")
+        _check_nonnegative("moment_noise_nm", self.moment_noise_nm, "N m")
+
+    @property
+    def std(self) -> np.ndarray:
+        """Noise standard deviations ``[rad, rad/s, N m]``."""
+        return np.array([self.angle_noise_rad, self.rate_noise_rad_s, self.moment_noise_nm])
+
+
+def sensor_matrix(params: Params, n_modes: int, n_axial: int = 0) -> np.ndarray:
+    """Output matrix of the sensors ``[theta, theta_dot, M_root]`` on a state ``[q, v]``.
+
+    ``M_root = EI f2''(0) q2`` is the bending moment at the beam root [N m].
+
+    Parameters
+    ----------
+    params : Params
+    n_modes : int
+        Number of transverse modes in the state.
+    n_axial : int
+        Number of axial coordinates between ``theta`` and ``q2`` (0 for SFOAM).
+
+    Returns
+    -------
+    ndarray (3, 2 (1 + n_axial + n_modes))
+    """
+    basis = modal_basis(params.replace(n_transverse=n_modes))
+    n = 1 + n_axial + n_modes
+    C = np.zeros((3, 2 * n))
+    C[0, 0] = 1.0
+    C[1, n] = 1.0
+    C[2, 1 + n_axial:n] = params.EI * basis.f2pp_root
+    return C

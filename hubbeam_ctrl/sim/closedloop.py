@@ -1,0 +1,305 @@
+"""Closed-loop simulation: a sampled controller on a nonlinear plant.
+
+The controller is called at the sample instants ``t_k = k dt`` with the measurement
+``y(t_k)`` and returns a hub torque, which is held over ``[t_k, t_k + dt)`` (zero-order
+hold); in between, the nonlinear plant (FOAM, CFOAM, TLAM or SFOAM with a free hub) is
+integrated continuously by :class:`PlantStepper`.
+
+The plant is advanced by :class:`hubbeam_ctrl.sim.stepper.PlantStepper` (one compiled
+CasADi call per sample), so a closed-loop step costs one Python call for the plant and one
+for the controller.
+
+The controller is any object with
+
+* ``__call__(t, y) -> float``: hub torque [N m] at time ``t`` [s] from measurement ``y``;
+* ``reset()``: prepare a new run;
+* ``measurement``: ``"state"`` or ``"sensors"`` (see :func:`simulate_closed_loop`);
+* optionally ``name``, ``dt`` (its sample time, checked against the simulator's),
+  ``n_modes`` (the transverse modes of its design model) and ``stats() -> dict``.
+
+This module is plant side: it does not import the ``controllers`` package.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.validation import check_positive as _check_positive
+from hubbeam_ctrl.plant.models import resolve_model
+from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
+from hubbeam_ctrl.sim.results import HubStateViews
+from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings
+
+__all__ = ["ClosedLoopSettings", "ClosedLoopResult", "simulate_closed_loop"]
+
+
+@dataclass(frozen=True)
+class ClosedLoopSettings:
+    """Settings of :func:`simulate_closed_loop`."""
+
+    dt: float = 0.01
+    """Sample period of the controller and of the zero-order hold [s] (default 100 Hz)."""
+    substeps: int = 2
+    """Integration steps of the plant per sample (see :class:`StepperSettings`)."""
+    rho_inf: float = 0.9
+    """Numerical damping of the plant integrator, 0..1 (see :class:`StepperSettings`)."""
+    newton_iterations: int = 3
+    """Newton iterations per integration step (see :class:`StepperSettings`)."""
+    sensors: SensorSettings = field(default_factory=SensorSettings)
+    """Sensor noise for controllers that read ``"sensors"``."""
+    divergence_limit: float = 0.3
+    """The run stops when ``|v_tip| > divergence_limit * L`` [-]."""
+    max_wall_s: float = 600.0
+    """The run stops (flagged) when it has taken longer than this [s]."""
+
+    def __post_init__(self):
+        _check_positive("divergence_limit", self.divergence_limit, "-")
+        _check_positive("max_wall_s", self.max_wall_s, "s")
+        if not isinstance(self.sensors, SensorSettings):
+            raise ParameterError("sensors must be a SensorSettings")
+        self.stepper  # validates dt, substeps, rho_inf, newton_iterations
+
+    @property
+    def stepper(self) -> StepperSettings:
+        """The plant integrator's settings."""
+        return StepperSettings(dt=self.dt, substeps=self.substeps, rho_inf=self.rho_inf,
+                               newton_iterations=self.newton_iterations)
+
+
+@dataclass
+class ClosedLoopResult(HubStateViews):
+    """Time series of one closed-loop run, sampled at the controller's instants.
+
+    Attributes
+    ----------
+    plant : str
+        Plant model name.
+    controller : str
+        Controller name.
+    t : ndarray (N,)
+        Sample instants [s].
+    q, v : ndarray (N, n_q)
+        Plant coordinates ``[theta, q1, q2]`` [rad, m] and rates.
+    v_tip, u_tip : ndarray (N,)
+        Transverse and axial tip displacement in the hub frame [m].
+    root_moment : ndarray (N,)
+        Root bending moment ``EI f2''(0) q2`` [N m] (noise-free).
+    tau : ndarray (N,)
+        Torque commanded at ``t_k`` and held until ``t_{k+1}`` [N m] (the last one is
+        computed but not applied).
+    step_time_s : ndarray (N,)
+        Wall time of each controller call [s].
+    theta_ref, theta_dot_ref : ndarray (N,) or None
+        The task's hub reference [rad, rad/s], when the caller gave one.
+    params : Params
+    settings : dict
+    controller_stats : dict
+        What the controller's ``stats()`` returned at the end (e.g. QP fallbacks).
+    stopped : bool
+        True when the run ended early; ``message`` says why.
+    message : str
+    wall_s : float
+        Wall time of the whole run [s].
+    plant_fallbacks : int
+        Integration steps that needed the exact rootfinder.
+    """
+
+    plant: str
+    controller: str
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    v_tip: np.ndarray
+    u_tip: np.ndarray
+    root_moment: np.ndarray
+    tau: np.ndarray
+    step_time_s: np.ndarray
+    params: Params
+    theta_ref: np.ndarray | None = None
+    theta_dot_ref: np.ndarray | None = None
+    settings: dict = field(default_factory=dict)
+    controller_stats: dict = field(default_factory=dict)
+    stopped: bool = False
+    message: str = "completed"
+    wall_s: float = 0.0
+    plant_fallbacks: int = 0
+
+    def save(self, path):
+        """Save all arrays and metadata to a ``.npz`` file (atomically).
+
+        Parameters
+        ----------
+        path : str or Path
+        """
+        import json
+        from pathlib import Path
+
+        from hubbeam_ctrl.core.fileio import atomic_write
+        path = Path(path)
+        if path.suffix.lower() != ".npz":
+            raise ParameterError(f"path must end in .npz, got {path.name!r}")
+        arrays = {k: getattr(self, k) for k in ("t", "q", "v", "v_tip", "u_tip", "root_moment",
+                                                "tau", "step_time_s")}
+        for k in ("theta_ref", "theta_dot_ref"):
+            if getattr(self, k) is not None:
+                arrays[k] = getattr(self, k)
+        meta = {"plant": self.plant, "controller": self.controller,
+                "params": self.params.to_dict(), "settings": self.settings,
+                "controller_stats": self.controller_stats, "stopped": self.stopped,
+                "message": self.message, "wall_s": self.wall_s}
+
+        def write(tmp):
+            with open(tmp, "wb") as fh:
+                np.savez(fh, metadata=json.dumps(meta, default=str), **arrays)
+        return atomic_write(path, write)
+
+
+def _controller_name(controller) -> str:
+    return str(getattr(controller, "name", type(controller).__name__))
+
+
+def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
+                         settings: ClosedLoopSettings | None = None, x0=None,
+                         reference=None) -> ClosedLoopResult:
+    """Run a sampled controller on a nonlinear plant (zero-order hold).
+
+    At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
+    the measurement and returns the torque held until ``t_{k+1}``. The measurement is, by
+    the controller's ``measurement`` attribute:
+
+    * ``"state"``: the plant's own coordinates in SFOAM order
+      ``[theta, q2_1..q2_m, theta_dot, q2_dot_1..q2_dot_m]`` with ``m`` the controller's
+      ``n_modes`` (default all the plant's transverse modes); the axial ``q1`` is not given;
+    * ``"sensors"``: ``[theta, theta_dot, M_root]`` [rad, rad/s, N m] plus the noise of
+      ``settings.sensors``.
+
+    Parameters
+    ----------
+    plant : str or HubBeamModel
+        ``"foam"``, ``"cfoam"``, ``"tlam"``, ``"sfoam"`` or a built model (free hub).
+    controller : object
+        See the module docstring. ``reset()`` is called before the run.
+    t_end : float
+        Final time [s], > 0.
+    params : Params, optional
+        Parameters when ``plant`` is a name.
+    settings : ClosedLoopSettings, optional
+    x0 : array_like (2 n_q,), optional
+        Initial plant state ``[q, v]`` (default: at rest).
+    reference : tuple of callables, optional
+        ``(theta_ref(t), theta_dot_ref(t))`` of arrays, stored with the result for
+        metrics and plots.
+
+    Returns
+    -------
+    ClosedLoopResult
+
+    Notes
+    -----
+    A controller that returns a non-finite torque, or a plant that leaves its range
+    (``|v_tip| > divergence_limit * L``), stops the run: the result is cut there, with
+    ``stopped = True`` and a message naming the cause.
+    """
+    settings = settings or ClosedLoopSettings()
+    model = resolve_model(plant, params)
+    _check_positive("t_end", t_end, "s")
+    if not callable(controller) or not hasattr(controller, "reset"):
+        raise ParameterError("controller must be callable as controller(t, y) and have reset()")
+    name = _controller_name(controller)
+    dt = settings.dt
+    cdt = getattr(controller, "dt", None)
+    if cdt is not None and abs(float(cdt) - dt) > 1e-12 * dt:
+        raise ParameterError(f"controller {name!r} is designed for dt = {cdt:g} s but the "
+                             f"simulator samples at dt = {dt:g} s")
+    kind = getattr(controller, "measurement", "state")
+    if kind not in ("state", "sensors"):
+        raise ParameterError(f"controller {name!r}: measurement must be 'state' or 'sensors', got {kind!r}")
+    n = model.n_q
+    n1, n2 = model.n_axial, model.n_transverse
+    m = int(getattr(controller, "n_modes", None) or n2)
+    if not 1 <= m <= n2:
+        raise ParameterError(f"controller {name!r} reads {m} transverse modes but the plant has {n2}")
+    # index map plant state [q, v] -> measurement
+    idx_state = np.r_[0, 1 + n1:1 + n1 + m, n, n + 1 + n1:n + 1 + n1 + m]
+    C_sens = sensor_matrix(model.params, n2, n1)
+    stepper = PlantStepper(model, settings.stepper)
+    N = int(round(t_end / dt))
+    t = dt * np.arange(N + 1)
+    rng = np.random.default_rng(settings.sensors.seed)
+    noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None
+    f2_tip = model.basis.f2_tip
+    sl2 = model.transverse_slice
+    limit = settings.divergence_limit * model.params.L
+
+    states = np.empty((N + 1, 2 * n))
+    taus = np.full(N + 1, np.nan)
+    step_times = np.full(N + 1, np.nan)
+    x = np.zeros(2 * n) if x0 is None else np.asarray(x0, dtype=float).ravel()
+    controller.reset()
+    stopped, message = False, "completed"
+    start = time.perf_counter()
+    s = None
+    last = N
+    perf = time.perf_counter
+    for k in range(N + 1):
+        states[k] = x
+        y = x[idx_state] if noise is None else C_sens @ x + noise[k]
+        t0 = perf()
+        tau = controller(t[k], y)
+        step_times[k] = perf() - t0
+        tau = float(tau)
+        taus[k] = tau
+        if not math.isfinite(tau):
+            stopped = True
+            message = (f"controller {name!r} returned a non-finite torque ({tau}) at "
+                       f"t = {t[k]:.3f} s; run stopped")
+            last = k
+            break
+        if k == N:
+            break
+        if s is None:
+            s = stepper.initial_state(x, tau)
+        try:
+            s = stepper.step(s, tau)
+        except HubbeamError as exc:
+            stopped, message, last = True, f"{exc} at t = {t[k]:.3f} s; run stopped", k
+            break
+        x = s[:2 * n]
+        if not abs(f2_tip @ x[sl2]) <= limit:
+            stopped, last = True, k + 1
+            states[k + 1] = x
+            message = (f"{model.name.upper()} left its range at t = {t[k + 1]:.3f} s under "
+                       f"controller {name!r}: |v_tip| > {settings.divergence_limit:g} L")
+            break
+        if (k & 255) == 0 and perf() - start > settings.max_wall_s:
+            stopped, last = True, k + 1
+            states[k + 1] = x
+            message = f"stopped after max_wall_s = {settings.max_wall_s:g} s at t = {t[k + 1]:.3f} s"
+            break
+    wall = time.perf_counter() - start
+    keep = slice(0, last + 1)
+    t, states, taus, step_times = t[keep], states[keep], taus[keep], step_times[keep]
+    q, v = states[:, :n], states[:, n:]
+    v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(len(t))(q.T))
+    root_moment = states @ C_sens[2]
+    theta_ref = theta_dot_ref = None
+    if reference is not None:
+        theta_ref = np.asarray(reference[0](t), dtype=float) * np.ones_like(t)
+        theta_dot_ref = np.asarray(reference[1](t), dtype=float) * np.ones_like(t)
+    stats = dict(controller.stats()) if hasattr(controller, "stats") else {}
+    s_dict = dataclasses.asdict(settings)
+    s_dict["t_end"] = float(t_end)
+    s_dict["measurement"] = kind
+    return ClosedLoopResult(
+        plant=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip, u_tip=u_tip,
+        root_moment=root_moment, tau=taus, step_time_s=step_times, params=model.params,
+        theta_ref=theta_ref, theta_dot_ref=theta_dot_ref, settings=s_dict,
+        controller_stats=stats, stopped=stopped, message=message, wall_s=wall,
+        plant_fallbacks=stepper.fallbacks)

@@ -1,0 +1,13 @@
+"""The study layer: scenarios, closed-loop comparison, metrics and reports. It may import
+``controllers`` (at module level); the layers below may not.
+"""
+
+import sys as _sys  # noqa: E402
+
+from hubbeam_ctrl.study.compare import *  # noqa: F401,F403
+from hubbeam_ctrl.study.metrics import *  # noqa: F401,F403
+from hubbeam_ctrl.study.report import *  # noqa: F401,F403
+from hubbeam_ctrl.study.scenarios import *  # noqa: F401,F403
+
+__all__ = [name for _m in ('metrics', 'scenarios', 'compare', 'report')
+           for name in _sys.modules[f"hubbeam_ctrl.study.{_m}"].__all__]

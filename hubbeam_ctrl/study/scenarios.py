@@ -1,0 +1,151 @@
+"""Closed-loop scenarios: the task (reference, torque budget, times) and its design point.
+
+Scenarios
+---------
+``slew``
+    Rest-to-rest rotation by the rigid-body angle of the paper's Eq. 44 profile,
+    ``Theta = tau_m t_f^2 / (2 pi J_total)``, in the same ``t_f`` and with the same torque
+    budget ``tau_max = tau_m``. The baseline is the open-loop Eq. 44 torque itself; the
+    feedback controllers follow a smooth reference (:func:`controllers.slew_reference`)
+    designed on SFOAM linearised at rest.
+``spinup``
+    Spin-up to ``w_f`` (default 3 rad/s, above TLAM's critical speed) along the corrected
+    Eq. 43 profile in ``t_f``, then hold; design model linearised at ``w_f``. The baseline
+    is the rigid-body feedforward torque alone.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from controllers import slew_reference, spinup_reference
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.params import Params
+
+__all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario"]
+
+SCENARIOS = ("slew", "spinup")
+PLANTS = ("foam", "cfoam")
+
+
+def _number(name, value, unit, positive=True):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+            or not math.isfinite(value) or (positive and not value > 0):
+        raise ParameterError(f"{name} must be a finite number{' > 0' if positive else ''} "
+                             f"[{unit}], got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A closed-loop task: reference, torque budget, times and design point.
+
+    Attributes
+    ----------
+    name : {"slew", "spinup"}
+    plant : {"foam", "cfoam"}
+    params : Params
+    tau_max : float
+        Torque budget [N m] (= Eq. 44's tau_m in the slew).
+    t_f : float
+        Maneuver time [s].
+    t_end : float
+        Simulated time [s].
+    dt : float
+        Controller sample time [s].
+    design_spin : float
+        Spin rate of the SFOAM linearisation [rad/s].
+    target : float
+        Slew angle Theta [rad] or final rate w_f [rad/s].
+    reference : controllers.Reference
+        Hub reference and feedforward torque of the feedback controllers.
+    description : str
+    """
+
+    name: str
+    plant: str
+    params: Params
+    tau_max: float
+    t_f: float
+    t_end: float
+    dt: float
+    design_spin: float
+    target: float
+    reference: object
+    description: str
+
+    def to_dict(self) -> dict:
+        """Plain-data summary (JSON-ready)."""
+        return {"scenario": self.name, "plant": self.plant, "tau_max_nm": self.tau_max,
+                "tf_s": self.t_f, "t_end_s": self.t_end, "dt_s": self.dt,
+                "design_spin_rad_s": self.design_spin,
+                ("slew_angle_rad" if self.name == "slew" else "final_rate_rad_s"): self.target,
+                "reference": self.reference.description, "params": self.params.to_dict(),
+                "description": self.description}
+
+
+def make_scenario(scenario: str = "slew", *, plant: str = "cfoam", params: Params | None = None,
+                  tau_max: float = 200.0, t_f: float = 10.0, t_end: float = 30.0,
+                  dt: float = 0.01, w_f: float = 3.0, flatness: float = 3.0,
+                  preview_s: float = 2.0) -> Scenario:
+    """Build a :class:`Scenario` (validating every setting).
+
+    Parameters
+    ----------
+    scenario : {"slew", "spinup"}
+    plant : {"foam", "cfoam"}
+    params : Params, optional
+        Default: Table 1 (m_t = 0.1 kg at the tip).
+    tau_max : float
+        Torque budget [N m], > 0 (the slew's Eq. 44 amplitude).
+    t_f : float
+        Maneuver time [s], > 0.
+    t_end : float
+        Simulated time [s]; must exceed ``t_f + 5`` (the residual window).
+    dt : float
+        Controller sample time [s], > 0.
+    w_f : float
+        Spin-up final rate [rad/s] (spinup only).
+    flatness : float
+        Shape of the slew reference (see :func:`controllers.slew_reference`).
+    preview_s : float
+        Reference tabulated this long beyond ``t_end`` (MPC preview) [s].
+
+    Returns
+    -------
+    Scenario
+    """
+    if scenario not in SCENARIOS:
+        raise ParameterError(f"scenario must be one of {', '.join(SCENARIOS)}, got {scenario!r}")
+    if plant not in PLANTS:
+        raise ParameterError(f"plant must be one of {', '.join(PLANTS)}, got {plant!r}")
+    params = params if params is not None else Params()
+    if not isinstance(params, Params):
+        raise ParameterError(f"params must be a Params, got {type(params).__name__}")
+    tau_max = _number("tau_max", tau_max, "N m")
+    t_f = _number("tf", t_f, "s")
+    t_end = _number("t_end", t_end, "s")
+    dt = _number("dt", dt, "s")
+    if t_end <= t_f + 5.0:
+        raise ParameterError(f"t_end must exceed tf + 5 s = {t_f + 5:g} s (the residual-vibration "
+                             f"window starts there), got {t_end:g} s")
+    if dt > t_f / 10:
+        raise ParameterError(f"dt must be at most tf/10 = {t_f / 10:g} s, got {dt:g} s")
+    J = params.total_inertia
+    horizon_end = t_end + preview_s
+    if scenario == "slew":
+        theta = tau_max * t_f ** 2 / (2 * math.pi * J)
+        ref = slew_reference(theta, t_f, J, tau_max, dt, horizon_end, flatness=flatness)
+        return Scenario("slew", plant, params, tau_max, t_f, t_end, dt, 0.0, theta, ref,
+                        f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
+                        f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)")
+    w_f = _number("wf", w_f, "rad/s", positive=False)
+    ref = spinup_reference(w_f, t_f, J, dt, horizon_end, tau_max=tau_max)
+    return Scenario("spinup", plant, params, tau_max, t_f, t_end, dt, w_f, w_f, ref,
+                    f"spin-up to {w_f:g} rad/s in tf = {t_f:g} s (Eq. 43), then hold; "
+                    f"design model linearised at {w_f:g} rad/s")
+
+
