@@ -19,7 +19,8 @@ from hubbeam_ctrl.plant.params import Params, load_params
 __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float"]
 
 #: Subcommands contributed by other modules: module name -> provides add_parser/run.
-EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare")
+EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.sweep",
+                  "hubbeam_ctrl.cli.tune")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -324,14 +324,20 @@ class StudySpec:
             raise ParameterError(f"study.design must be 'base' or 'matched', got {self.design!r}")
         if not isinstance(self.settings, dict):
             raise ParameterError("settings must be a table of controller tables")
-        sc = self.scenario_for(self.params)
+        try:
+            sc = self.scenario_for(self.params)
+        except ParameterError as exc:
+            raise ParameterError(f"study: {exc}") from None
         for name, table in self.settings.items():
             if name not in self.controllers:
                 raise ParameterError(f"settings.{name}: not among study.controllers ({', '.join(self.controllers)})")
             controller_settings(name, table, sc, self.horizon, self.solver)
-        cases = self.cases()
-        for case in cases[:1] + cases[-1:]:
-            self.plant_params(case)
+        for name, values in self.grid.items():     # each grid value on the base parameters
+            for v in values if name not in FACTORS_EXTRA else ():
+                try:
+                    self.params.replace(**{name: v})
+                except ParameterError as exc:
+                    raise ParameterError(f"grid.{name} = {v!r}: {exc}") from None
 
     @property
     def factors(self) -> tuple:

@@ -42,7 +42,7 @@ from hubbeam_ctrl.study.report import CSV_FIELDS
 from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec
 
 __all__ = ["sweep", "run_case", "run_batch", "CaseCache", "result_columns", "read_results",
-           "connect", "plan_batches", "TIMING_COLUMNS"]
+           "connect", "plan_batches", "Engine", "TIMING_COLUMNS"]
 
 #: Columns that hold wall times (they differ from run to run; everything else is deterministic).
 TIMING_COLUMNS = ("setup_s", "wall_s", "sim_wall_s", "step_time_median_ms", "step_time_p99_ms")
@@ -124,7 +124,8 @@ def run_case(case: dict, spec: StudySpec, cache: CaseCache | None = None) -> lis
         w_f = float(case.get("w_f", spec.w_f))
         task = _task_key(spec)
         sc = cache.get(("scenario", task, design_p, w_f), lambda: spec.scenario_for(design_p, w_f))
-        spin = sc.design_spin if spec.design == "matched" else spec.scenario_for(spec.params).design_spin
+        base = cache.get(("scenario", task, spec.params, spec.w_f), lambda: spec.scenario_for(spec.params))
+        spin = sc.design_spin if spec.design == "matched" else base.design_spin
         dkey = ("design", design_p, spin, spec.dt, spec.design_modes)
         design = cache.get(dkey, lambda: DesignModel.build(design_p, spin, spec.dt, spec.design_modes))
         model = cache.get(("plant", spec.plant, plant_p), lambda: build_model(spec.plant, plant_p))
@@ -229,11 +230,6 @@ def _default_workers() -> int:
         return os.cpu_count() or 1
 
 
-def _run_inprocess(batches, spec, sink) -> None:
-    for batch in batches:
-        sink(batch, run_batch(batch, spec))
-
-
 def _pool_context():
     import multiprocessing as mp
     if "forkserver" in mp.get_all_start_methods():
@@ -243,41 +239,94 @@ def _pool_context():
     return mp.get_context("spawn")
 
 
-def _run_pool(batches, spec, sink, workers: int, rounds: int = 3) -> None:
-    """Local process pool; batches lost with a dead worker are rerun on a fresh pool."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    from concurrent.futures.process import BrokenProcessPool
-    todo = batches
-    for _ in range(rounds):
-        lost = []
-        with ProcessPoolExecutor(min(workers, len(todo)), mp_context=_pool_context()) as pool:
-            futures = {pool.submit(run_batch, b, spec): b for b in todo}
+class Engine:
+    """Where batches run: this process, a local process pool, or a Dask cluster.
+
+    Use it as a context manager; the pool (and with it each worker's :class:`CaseCache`)
+    lives until the ``with`` block ends, so repeated :meth:`run` calls (a tuner's
+    generations) reuse warm workers.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Local worker processes (default: one per core); 1 runs in this process.
+    client : distributed.Client, optional
+        Run on this Dask cluster (``workers`` is then ignored).
+    retries : int
+        Dask: reruns of a task whose worker raised; a task whose worker died is rerun by the
+        scheduler (up to its ``allowed-failures``). Pool: fresh pools for batches lost with a
+        dead worker.
+    """
+
+    def __init__(self, workers: int | None = None, client=None, retries: int = 2):
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
+        self.client, self.retries = client, retries
+        self.workers = _dask_workers(client) if client is not None else (workers or _default_workers())
+        self._pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def close(self) -> None:
+        """Shut the local pool down (a Dask client stays open: it is the caller's)."""
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+
+    def run(self, jobs: list, sink) -> None:
+        """Run ``[(batch, spec), ...]`` with :func:`run_batch`; ``sink(batch, spec, rows)`` gets
+        each batch's rows as it finishes (in completion order)."""
+        if self.client is not None:
+            self._run_dask(jobs, sink)
+        elif self.workers == 1 or sum(len(b) for b, _ in jobs) <= 1:
+            for batch, spec in jobs:
+                sink(batch, spec, run_batch(batch, spec))
+        else:
+            self._run_pool(jobs, sink)
+
+    def _submit_pool(self, jobs):
+        from concurrent.futures import ProcessPoolExecutor
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=_pool_context())
+        return {self._pool.submit(run_batch, b, s): (b, s) for b, s in jobs}
+
+    def _run_pool(self, jobs, sink) -> None:
+        from concurrent.futures import as_completed
+        from concurrent.futures.process import BrokenProcessPool
+        for _ in range(self.retries + 1):
+            lost = []
+            futures = self._submit_pool(jobs)
             for fut in as_completed(futures):
+                batch, spec = futures[fut]
                 try:
-                    sink(futures[fut], fut.result())
+                    sink(batch, spec, fut.result())
                 except BrokenProcessPool:
-                    lost.append(futures[fut])
+                    lost.append((batch, spec))
                 except Exception as exc:  # noqa: BLE001
-                    sink(futures[fut], _failed_batch(futures[fut], spec, _one_line(exc)))
-        if not lost:
-            return
-        todo = lost
-    for b in todo:
-        sink(b, _failed_batch(b, spec, "worker process died on this case"))
+                    sink(batch, spec, _failed_batch(batch, spec, _one_line(exc)))
+            if not lost:
+                return
+            self.close()
+            jobs = lost
+        for batch, spec in jobs:
+            sink(batch, spec, _failed_batch(batch, spec, "worker process died on this case"))
 
-
-def _run_dask(batches, spec, sink, client, retries: int = 2) -> None:
-    """Dask: one task per batch; a dead worker's tasks are rerun by the scheduler."""
-    from distributed import as_completed
-    futures = {client.submit(run_batch, b, spec, retries=retries, pure=False): i
-               for i, b in enumerate(batches)}
-    for fut in as_completed(list(futures)):
-        batch = batches[futures[fut]]
-        try:
-            sink(batch, fut.result())
-        except Exception as exc:  # noqa: BLE001 - KilledWorker etc.: rows with the error
-            sink(batch, _failed_batch(batch, spec, _one_line(exc)))
-        fut.release()
+    def _run_dask(self, jobs, sink) -> None:
+        from distributed import as_completed
+        futures = {self.client.submit(run_batch, b, s, retries=self.retries, pure=False): (b, s)
+                   for b, s in jobs}
+        for fut in as_completed(list(futures)):
+            batch, spec = futures[fut]
+            try:
+                sink(batch, spec, fut.result())
+            except Exception as exc:  # noqa: BLE001 - KilledWorker etc.: rows with the error
+                sink(batch, spec, _failed_batch(batch, spec, _one_line(exc)))
+            fut.release()
 
 
 def connect(address: str, timeout: float = 10.0):
@@ -390,7 +439,8 @@ def read_results(path, spec: StudySpec | None = None):
     import pandas as pd
     if isinstance(path, (str, Path)) and Path(path).is_dir():
         path = Path(path) / _RESULTS
-    df = pd.read_csv(path, float_precision="round_trip", keep_default_na=False, na_values=[""])
+    exact = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}  # 3.x: default
+    df = pd.read_csv(path, keep_default_na=False, na_values=[""], **exact)
     return _tidy(df, spec)
 
 
@@ -438,8 +488,7 @@ def sweep(spec, *, workers: int | None = None, client=None, progress: bool = Tru
     """
     from tqdm.auto import tqdm
     spec = load_spec(spec)
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
+    Engine(workers)  # validates workers before anything is written
     cases = list(enumerate(spec.cases()))
     results = done = None
     if out_dir is not None:
@@ -451,7 +500,7 @@ def sweep(spec, *, workers: int | None = None, client=None, progress: bool = Tru
     bar = tqdm(total=len(cases), unit="case", disable=not progress, file=sys.stderr, desc="sweep")
     failed = 0
 
-    def sink(batch, batch_rows):
+    def sink(batch, _spec, batch_rows):
         nonlocal failed
         if results is not None:
             results.append(batch_rows)
@@ -460,14 +509,9 @@ def sweep(spec, *, workers: int | None = None, client=None, progress: bool = Tru
         bar.update(len(batch))
         bar.set_postfix(failed=failed)
 
-    n_workers = workers or _default_workers()
     try:
-        if client is not None:
-            _run_dask(plan_batches(cases, _dask_workers(client)), spec, sink, client)
-        elif n_workers == 1 or len(cases) <= 1:
-            _run_inprocess(plan_batches(cases, 1), spec, sink)
-        else:
-            _run_pool(plan_batches(cases, n_workers), spec, sink, n_workers)
+        with Engine(workers, client) as engine:
+            engine.run([(b, spec) for b in plan_batches(cases, engine.workers)], sink)
     finally:
         bar.close()
     if out_dir is not None:
