@@ -45,6 +45,8 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("spec", metavar="SPEC.toml", help="study spec")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
     p.add_argument("--resume", action="store_true", help="finish an interrupted study in --out")
+    p.add_argument("--settings", metavar="FILE.toml",
+                   help="controller settings merged into the spec's [settings] (e.g. hubbeam tune's output)")
     add_engine_options(p)
     p.set_defaults(func=run)
 
@@ -52,11 +54,13 @@ def add_parser(subparsers, common) -> None:
 def run(args) -> int:
     """Run ``hubbeam sweep``; bad input raises ParameterError (exit 2)."""
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.spec import load_settings, load_spec
     from hubbeam_ctrl.study.sweep import sweep
     from hubbeam_ctrl.study.sweep_report import write_sweep_outputs
 
     spec = load_spec(args.spec)
+    if args.settings:
+        spec = load_settings(spec, args.settings)
     client = engine_from_args(args)
     t0 = time.perf_counter()
     try:

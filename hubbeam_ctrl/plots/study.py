@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 
 from hubbeam_ctrl.plots.closedloop import CONTROLLER_COLORS
 
-__all__ = ["plot_robustness_curves", "plot_heatmap", "plot_stable_region", "unstable_mask",
+__all__ = ["plot_robustness_curves", "plot_heatmap", "plot_stable_region", "plot_convergence", "unstable_mask",
            "ROBUSTNESS_METRICS"]
 
 #: Metrics drawn against each factor: column -> (axis label, log scale).
@@ -184,4 +184,33 @@ def plot_stable_region(df, x: str, y: str | None = None, controllers=None, title
         axes[0].set_yticks(range(len(names)), names)
         axes[0].set_ylim(-0.5, len(names) - 0.5)
     fig.suptitle(title or "Stable (green) and unstable, diverged or failed (red) cases")
+    return fig
+
+
+def plot_convergence(history, reference: float | None = None, title: str = "") -> Figure:
+    """Best objective after each generation of a tuner.
+
+    Parameters
+    ----------
+    history : sequence of float
+        Best objective per generation.
+    reference : float, optional
+        Objective of the starting design (dashed line).
+    title : str
+
+    Returns
+    -------
+    Figure
+    """
+    fig = Figure(figsize=(6, 3.6), constrained_layout=True)
+    ax = fig.subplots()
+    gen = np.arange(1, len(history) + 1)
+    ax.plot(gen, history, "o-", label="best candidate")
+    if reference is not None:
+        ax.axhline(reference, color="0.4", ls="--", label="starting design")
+    ax.set_xlabel("generation")
+    ax.set_ylabel("objective")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    ax.set_title(title or "Convergence")
     return fig

@@ -62,7 +62,7 @@ from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.compare import _default_settings, _parse_controllers
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
 
-__all__ = ["StudySpec", "load_spec", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
+__all__ = ["StudySpec", "load_spec", "load_settings", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
            "SAMPLERS", "settings_to_toml"]
 
 #: Factors beyond the Params fields: the spin-up rate [rad/s] and the sensor-noise seed.
@@ -438,6 +438,36 @@ def load_spec(spec) -> StudySpec:
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"spec: {path} is not valid TOML: {exc}") from None
     return StudySpec.from_dict(data)
+
+
+def load_settings(spec: StudySpec, path) -> StudySpec:
+    """``spec`` with the controller settings of a TOML file merged in (what ``hubbeam tune``
+    writes: ``[settings.NAME]`` tables, or ``[NAME]`` tables at top level).
+
+    Parameters
+    ----------
+    spec : StudySpec
+    path : str or Path
+
+    Returns
+    -------
+    StudySpec
+        Validated; a controller of the file that the study does not run is an error.
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except (FileNotFoundError, IsADirectoryError):
+        raise ParameterError(f"settings: file {path} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"settings: {path} is not valid TOML: {exc}") from None
+    data = data.get("settings", data)
+    merged = {name: dict(table) for name, table in spec.settings.items()}
+    for name, table in data.items():
+        if not isinstance(table, dict):
+            raise ParameterError(f"settings: {path} must hold [settings.NAME] tables, got {name} = {table!r}")
+        merged.setdefault(name, {}).update(table)
+    return spec.replace(settings=merged)
 
 
 def controller_settings(name: str, table: dict | None, scenario, horizon: int = 50, solver: str = "daqp"):
