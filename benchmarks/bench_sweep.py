@@ -27,8 +27,8 @@ import time
 
 import numpy as np
 
-from hubbeam_ctrl.study.sweep import CaseCache, run_case, sweep
 from hubbeam_ctrl.study.spec import load_spec
+from hubbeam_ctrl.study.sweep import CaseCache, run_case, sweep
 
 
 def spec_dict(n: int, t_end: float) -> dict:

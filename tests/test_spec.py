@@ -1,9 +1,8 @@
 """Study specs: TOML loading, case generation (grid, Latin hypercube), validation."""
 
-import tomllib
-
 import numpy as np
 import pytest
+import tomllib
 from scipy.stats import norm
 
 from controllers import LQRSettings, Weights

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hubbeam_ctrl.cli.main import main
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.compare import compare
@@ -188,15 +189,28 @@ def _write_spec(path, data):
     return path
 
 
-def test_cli_bad_input_exits_2_with_one_line(tmp_path):
+def test_cli_bad_input_exits_2_with_one_line(tmp_path, capsys):
     spec = _write_spec(tmp_path / "bad.toml", small(grid={"tip_mass": [0.1]}))
-    r = _cli("sweep", str(spec), "--out", str(tmp_path / "o"))
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "unknown factor 'tip_mass'" in r.stderr
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unknown factor 'tip_mass'" in err
     assert not (tmp_path / "o").exists()
     good = _write_spec(tmp_path / "good.toml", small(grid={"m_t": [0.1]}))
-    r = _cli("sweep", str(good), "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9",
-             "--scheduler-timeout", "1")
-    assert r.returncode == 2 and "no Dask scheduler answered" in r.stderr and r.stderr.count("\n") == 1
+    assert main(["sweep", str(good), "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9",
+                 "--scheduler-timeout", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "no Dask scheduler answered" in err and err.count("\n") == 1
+    assert main(["sweep", str(good), "--out", str(tmp_path / "o"), "--settings", str(tmp_path / "none.toml")]) == 2
+    assert "settings: file" in capsys.readouterr().err
+
+
+def test_cli_sweep_in_process(tmp_path, capsys):
+    good = _write_spec(tmp_path / "good.toml", small(controllers=("lqr",), grid={"m_t": [0.1, 0.3]}))
+    assert main(["sweep", str(good), "--out", str(tmp_path / "o"), "--workers", "1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n_cases"] == 2 and out["n_failed"] == 0
+    assert out["summary"][0]["residual_tip_max_m_worst"] == read_results(tmp_path / "o")["residual_tip_max_m"].max()
+    assert {"summary.csv", "report.md", "robustness_m_t.png", "stable_region.png"} <= set(out["files"])
 
 
 @pytest.mark.slow

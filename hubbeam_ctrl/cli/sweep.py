@@ -72,7 +72,7 @@ def run(args) -> int:
     finally:
         if client is not None:
             client.close()
-    summary = json.loads(_summary_json(df))
+    summary = _summary_records(df)
     n_cases = int(df["case"].nunique()) if len(df) else 0
     failed = int(df.loc[df["error"].astype(str) != "", "case"].nunique())
     if args.json:
@@ -86,6 +86,11 @@ def run(args) -> int:
     return 0
 
 
-def _summary_json(df) -> str:
+def _summary_records(df) -> list:
+    """summary.csv as JSON-ready records (full precision; NaN as None)."""
+    import math
+
     from hubbeam_ctrl.study.sweep_report import summarize
-    return summarize(df).to_json(orient="records")
+    clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v
+    return [{k: clean(v.item() if hasattr(v, "item") else v) for k, v in r.items()}
+            for r in summarize(df).to_dict("records")]

@@ -56,8 +56,9 @@ def add_parser(subparsers, common) -> None:
 
 def run(args) -> int:
     """Run ``hubbeam tune``; bad input raises ParameterError (exit 2)."""
-    import tomllib
     from pathlib import Path
+
+    import tomllib
 
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
     from hubbeam_ctrl.cli.main import check_output_folder
@@ -89,8 +90,9 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(out))
     else:
-        print(f"{result.controller}: objective {result.objective:.4f} (scaled defaults {result.default_objective:.4f}); "
-              f"worst residual {result.worst_residual_m:.3e} m (scaled defaults {result.default_worst_residual_m:.3e} m)")
+        r = result
+        print(f"{r.controller}: objective {r.objective:.4f} (scaled defaults {r.default_objective:.4f}); "
+              f"worst residual {r.worst_residual_m:.3e} m (scaled defaults {r.default_worst_residual_m:.3e} m)")
         print("weights: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["weights"].items()))
         print(f"{result.n_runs} closed-loop runs in {result.wall_s:.1f} s; wrote {args.out}/tuned_settings.toml, "
               "tune.json, convergence.png")

@@ -50,11 +50,11 @@ import hashlib
 import itertools
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 from controllers import CONTROLLERS
 from hubbeam_ctrl.core.errors import ParameterError
@@ -534,17 +534,13 @@ def settings_to_toml(settings: dict) -> str:
     """
     lines = []
     for name, table in settings.items():
-        lines.append(f"[settings.{name}]")
-        subs = []
+        plain = [f"{k} = {_toml_value(v)}" for k, v in table.items() if not isinstance(v, dict) and v is not None]
+        if plain or not any(isinstance(v, dict) for v in table.values()):
+            lines += [f"[settings.{name}]", *plain, ""]
         for key, value in table.items():
             if isinstance(value, dict):
-                subs.append((key, value))
-            elif value is not None:
-                lines.append(f"{key} = {_toml_value(value)}")
-        for key, value in subs:
-            lines += ["", f"[settings.{name}.{key}]"]
-            lines += [f"{k} = {_toml_value(v)}" for k, v in value.items() if v is not None]
-        lines.append("")
+                lines += [f"[settings.{name}.{key}]"]
+                lines += [f"{k} = {_toml_value(v)}" for k, v in value.items() if v is not None] + [""]
     return "\n".join(lines)
 
 

@@ -375,7 +375,8 @@ def write_tune_outputs(result: TuneResult, out_dir) -> dict:
     head = (f"# hubbeam tune: {result.controller} weights, objective {result.objective:.4f} "
             f"(scaled defaults {result.default_objective:.4f}); worst residual {result.worst_residual_m:.3e} m "
             f"(scaled defaults {result.default_worst_residual_m:.3e} m)\n")
-    paths = {"settings": atomic_write_text(out / "tuned_settings.toml", head + settings_to_toml(result.settings_table()))}
+    toml = head + settings_to_toml(result.settings_table())
+    paths = {"settings": atomic_write_text(out / "tuned_settings.toml", toml)}
     summary = {k: v for k, v in dataclasses.asdict(result).items() if k not in ("rows", "default_rows", "weights")}
     summary["weights"] = result.settings_table()[result.controller]["weights"]
     paths["json"] = atomic_write_text(out / "tune.json", json.dumps(summary, indent=2, default=float) + "\n")
