@@ -14,6 +14,8 @@ new plant, so every case builds its plant functions).
 2. Per-case overhead: the wall time of a case beyond its closed-loop run (``sim_wall_s``),
    split into building a new plant (``setup_s`` and the stepper functions) and the rest; and
    with warm caches (the same 5 tip masses run again in this process).
+   ``busy_fraction`` (time inside cases / (workers x wall)) separates engine overhead from a
+   machine too loaded to give two cores.
 3. The load of the machine (``os.getloadavg``) before and after, since the 2 cores may be shared.
 """
 
@@ -42,25 +44,34 @@ def timed(fn):
     return out, time.perf_counter() - t0
 
 
-def overheads(df) -> dict:
+def overheads(df, wall: float, workers: int) -> dict:
+    """Medians per case, and the fraction of the workers' wall time spent inside cases
+    (``busy_fraction``: below 1 by the engine's own overhead and idle tails; a loaded
+    machine slows the cases themselves, which this fraction does not hide)."""
     beyond = df["setup_s"] + df["wall_s"] - df["sim_wall_s"]
     return {"sim_wall_s_median": float(df["sim_wall_s"].median()),
+            "sim_wall_s_sum": float(df["sim_wall_s"].sum()),
             "setup_s_median": float(df["setup_s"].median()),
-            "beyond_run_ms_median": float(1e3 * beyond.median())}
+            "beyond_run_ms_median": float(1e3 * beyond.median()),
+            "busy_fraction": float((df["setup_s"] + df["wall_s"]).sum() / (workers * wall))}
 
 
 def warm_overhead(t_end: float) -> dict:
-    """The same 5 plants twice in this process: the second pass has every function built."""
+    """The same 5 plants twice in this process: the second pass has every function built.
+    ``sim_outside_loop_ms`` is the part spent inside ``simulate_closed_loop`` before and after
+    its sample loop (tip outputs over all samples, reference, noise)."""
     spec = load_spec(spec_dict(5, t_end))
     cache = CaseCache()
     for case in spec.cases():
         run_case(case, spec, cache)
-    out = []
+    out, inside = [], []
     for case in spec.cases():
         t0 = time.perf_counter()
         row = run_case(case, spec, cache)[0]
         out.append((time.perf_counter() - t0 - row["sim_wall_s"]) * 1e3)
-    return {"warm_beyond_run_ms_median": float(np.median(out)), "warm_beyond_run_ms_max": float(np.max(out))}
+        inside.append((row["wall_s"] - row["sim_wall_s"]) * 1e3)
+    return {"warm_beyond_run_ms_median": float(np.median(out)), "warm_beyond_run_ms_max": float(np.max(out)),
+            "warm_controller_sim_metrics_outside_loop_ms_median": float(np.median(inside))}
 
 
 def main() -> None:
@@ -76,8 +87,8 @@ def main() -> None:
     n = args.cases
     out = {"machine": platform.machine(), "cpus": os.cpu_count(), "python": platform.python_version(),
            "cases": n, "t_end_s": args.t_end,
-           "one_worker": {"wall_s": t1, "cases_per_s_per_worker": n / t1, **overheads(one)},
-           "pool_two_workers": {"wall_s": t2, "cases_per_s_per_worker": n / t2 / 2, **overheads(two)},
+           "one_worker": {"wall_s": t1, "cases_per_s_per_worker": n / t1, **overheads(one, t1, 1)},
+           "pool_two_workers": {"wall_s": t2, "cases_per_s_per_worker": n / t2 / 2, **overheads(two, t2, 2)},
            "parallel_efficiency": t1 / (2 * t2)}
     if not args.skip_dask:
         from distributed import Client, LocalCluster
@@ -90,7 +101,7 @@ def main() -> None:
         out["dask_local_cluster_two_workers"] = {
             "startup_s": start, "wall_s": td, "cases_per_s_per_worker": n / td / 2,
             "overhead_vs_pool": td / t2 - 1, "overhead_vs_pool_with_startup": (td + start) / t2 - 1,
-            **overheads(dask_df)}
+            **overheads(dask_df, td, 2)}
     out.update(warm_overhead(args.t_end))
     out["load_avg_before_after"] = [load_before[0], os.getloadavg()[0]]
     print(json.dumps(out, indent=1))
