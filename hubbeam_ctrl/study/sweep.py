@@ -97,8 +97,9 @@ def _task_key(spec: StudySpec) -> tuple:
 def run_case(case: dict, spec: StudySpec, cache: CaseCache | None = None) -> list:
     """Run every controller of ``spec`` on one case of its plant spread.
 
-    This is the one function that calls the comparison API (scenario, design model,
-    controllers, closed-loop simulation, metrics); adapt it when that API changes.
+    This function and its two helpers (``_case_context``: scenario, design model, plant;
+    ``_run_controller``: controller, closed-loop run, metrics) are the only code that calls
+    the comparison API; adapt them when that API changes.
 
     Parameters
     ----------
@@ -120,16 +121,7 @@ def run_case(case: dict, spec: StudySpec, cache: CaseCache | None = None) -> lis
     cache = _PROCESS_CACHE if cache is None else cache
     t0 = time.perf_counter()
     try:
-        plant_p, design_p = spec.plant_params(case), spec.design_params(case)
-        w_f = float(case.get("w_f", spec.w_f))
-        task = _task_key(spec)
-        sc = cache.get(("scenario", task, design_p, w_f), lambda: spec.scenario_for(design_p, w_f))
-        base = cache.get(("scenario", task, spec.params, spec.w_f), lambda: spec.scenario_for(spec.params))
-        spin = sc.design_spin if spec.design == "matched" else base.design_spin
-        dkey = ("design", design_p, spin, spec.dt, spec.design_modes)
-        design = cache.get(dkey, lambda: DesignModel.build(design_p, spin, spec.dt, spec.design_modes))
-        model = cache.get(("plant", spec.plant, plant_p), lambda: build_model(spec.plant, plant_p))
-        sim = ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(seed=int(case.get("seed", 0))))
+        ctx = _case_context(case, spec, cache)
     except Exception as exc:  # noqa: BLE001 - a case that cannot be set up is a row with its error
         return [_error_row(name, spec, _one_line(exc)) for name in spec.controllers]
     setup = time.perf_counter() - t0
@@ -137,20 +129,41 @@ def run_case(case: dict, spec: StudySpec, cache: CaseCache | None = None) -> lis
     for name in spec.controllers:
         t1 = time.perf_counter()
         try:
-            table = spec.settings.get(name)
-            ckey = ("controller", name, json.dumps(table, sort_keys=True), dkey, task, design_p, w_f)
-            ctrl = cache.get(ckey, lambda: make_controller(
-                name, design, controller_settings(name, table, sc, spec.horizon, spec.solver), sc.reference))
-            res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
-                                       reference=(sc.reference.theta_at, sc.reference.theta_dot_at))
-            row = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max)
-            row.update(scenario=sc.name, verdict=row.get("verdict"), error="", sim_wall_s=row["wall_s"])
+            row = _run_controller(name, ctx, spec, cache)
         except Exception as exc:  # noqa: BLE001
             row = _error_row(name, spec, _one_line(exc))
         row.update(setup_s=setup, wall_s=time.perf_counter() - t1)
         rows.append(row)
     _percent_of_openloop(rows)
     return rows
+
+
+def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
+    """Scenario, design model, plant model and simulator settings of one case (cached)."""
+    plant_p, design_p = spec.plant_params(case), spec.design_params(case)
+    w_f = float(case.get("w_f", spec.w_f))
+    task = _task_key(spec)
+    sc = cache.get(("scenario", task, design_p, w_f), lambda: spec.scenario_for(design_p, w_f))
+    base = cache.get(("scenario", task, spec.params, spec.w_f), lambda: spec.scenario_for(spec.params))
+    spin = sc.design_spin if spec.design == "matched" else base.design_spin
+    dkey = ("design", design_p, spin, spec.dt, spec.design_modes)
+    return {"scenario": sc, "key": (dkey, task, design_p, w_f),
+            "design": cache.get(dkey, lambda: DesignModel.build(design_p, spin, spec.dt, spec.design_modes)),
+            "plant": cache.get(("plant", spec.plant, plant_p), lambda: build_model(spec.plant, plant_p)),
+            "sim": ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(seed=int(case.get("seed", 0))))}
+
+
+def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> dict:
+    """One closed-loop run and its metrics (the controller built once per design and task)."""
+    sc, table = ctx["scenario"], spec.settings.get(name)
+    ckey = ("controller", name, json.dumps(table, sort_keys=True, default=str), *ctx["key"])
+    ctrl = cache.get(ckey, lambda: make_controller(
+        name, ctx["design"], controller_settings(name, table, sc, spec.horizon, spec.solver), sc.reference))
+    res = simulate_closed_loop(ctx["plant"], ctrl, sc.t_end, settings=ctx["sim"],
+                               reference=(sc.reference.theta_at, sc.reference.theta_dot_at))
+    row = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max)
+    row.update(scenario=sc.name, verdict=row.get("verdict"), error="", sim_wall_s=row["wall_s"])
+    return row
 
 
 def _error_row(name: str, spec: StudySpec, message: str) -> dict:
@@ -486,7 +499,7 @@ def sweep(spec, *, workers: int | None = None, client=None, progress: bool = Tru
         metrics, ``verdict``, ``error`` (one line, empty when the run worked) and the wall
         times ``setup_s``, ``wall_s``, ``sim_wall_s`` [s] (see :data:`TIMING_COLUMNS`).
     """
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
     spec = load_spec(spec)
     Engine(workers)  # validates workers before anything is written
     cases = list(enumerate(spec.cases()))
