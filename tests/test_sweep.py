@@ -75,12 +75,12 @@ def test_base_design_stays_at_the_base_and_the_cache_changes_nothing():
 
 
 def test_spin_rate_factor_keeps_the_design_at_the_base_rate():
-    spec = load_spec(small(controllers=("lqr",), study={"scenario": "spinup", "w_f": 3.0},
+    spec = load_spec(small(t_end=16.0, controllers=("lqr",), study={"scenario": "spinup", "w_f": 3.0, "t_f": 10.0},
                            grid={"w_f": [2.0, 3.0]}))
     df = sweep(spec, workers=1, progress=False)
     p = Params(n_axial=2, n_transverse=2)
-    at_base = compare("foam", "spinup", "lqr", params=p, t_f=1.0, t_end=6.5, w_f=3.0).metrics["lqr"]
-    matched = compare("foam", "spinup", "lqr", params=p, t_f=1.0, t_end=6.5, w_f=2.0).metrics["lqr"]
+    at_base = compare("foam", "spinup", "lqr", params=p, t_f=10.0, t_end=16.0, w_f=3.0).metrics["lqr"]
+    matched = compare("foam", "spinup", "lqr", params=p, t_f=10.0, t_end=16.0, w_f=2.0).metrics["lqr"]
     assert df.loc[df["w_f"] == 3.0, "residual_tip_max_m"].item() == at_base["residual_tip_max_m"]
     # at 2 rad/s the task changes but the design stays linearised at 3 rad/s
     assert df.loc[df["w_f"] == 2.0, "residual_tip_max_m"].item() != matched["residual_tip_max_m"]
