@@ -26,6 +26,8 @@ from .mpc import MPC, QP_SOLVERS, MPCSettings, condensed_matrices
 from .openloop import OpenLoop, OpenLoopSettings
 from .pd import PD, PDSettings, pd_gains
 from .reference import eq44_reference, slew_reference, spinup_reference
+from .shaped import EIOpenLoop, ShapedOpenLoop, ShapedSettings, ZVDOpenLoop, ZVOpenLoop
+from .shaping import Shaper, design_shaper, shape_reference
 
 __all__ = [
     "Controller", "DesignModel", "Reference", "Weights", "saturate",
@@ -34,6 +36,8 @@ __all__ = [
     "MPC", "MPCSettings", "QP_SOLVERS", "condensed_matrices",
     "slew_reference", "spinup_reference", "eq44_reference",
     "CONTROLLERS", "make_controller",
+    "Shaper", "design_shaper", "shape_reference", "ShapedOpenLoop", "ShapedSettings",
+    "ZVOpenLoop", "ZVDOpenLoop", "EIOpenLoop",
 ]
 
 #: Controller name -> (class, settings class).
@@ -43,11 +47,15 @@ CONTROLLERS = {
     "lqr": (LQR, LQRSettings),
     "lqg": (LQG, LQGSettings),
     "mpc": (MPC, MPCSettings),
+    "zv": (ZVOpenLoop, ShapedSettings),
+    "zvd": (ZVDOpenLoop, ShapedSettings),
+    "ei": (EIOpenLoop, ShapedSettings),
 }
 
 
-def make_controller(name: str, design: DesignModel, settings=None, reference: Reference | None = None):
-    """Build a controller by name (``openloop``, ``pd``, ``lqr``, ``lqg``, ``mpc``).
+def make_controller(name: str, design: DesignModel, settings=None, reference: Reference | None = None,
+                    shaping=None):
+    """Build a controller by name (``openloop``, ``pd``, ``lqr``, ``lqg``, ``mpc``, ``zv``, ``zvd``, ``ei``).
 
     Parameters
     ----------
@@ -56,6 +64,10 @@ def make_controller(name: str, design: DesignModel, settings=None, reference: Re
     settings : dataclass, optional
         The controller's settings (default: its defaults).
     reference : Reference, optional
+    shaping : {"zv", "zvd", "ei"} or Shaper, optional
+        Filter the reference (and its feedforward) through this input shaper first
+        (a name: designed on the design model's first mode, see
+        :func:`controllers.shaping.design_shaper`).
 
     Returns
     -------
@@ -65,4 +77,7 @@ def make_controller(name: str, design: DesignModel, settings=None, reference: Re
     if name not in CONTROLLERS:
         raise ParameterError(f"controllers: unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)}")
     cls, settings_cls = CONTROLLERS[name]
+    if shaping is not None:
+        reference = shape_reference(reference if reference is not None else Reference.rest(design.dt),
+                                    shaping if isinstance(shaping, Shaper) else design_shaper(design, shaping))
     return cls(design, settings if settings is not None else settings_cls(), reference)

@@ -56,7 +56,8 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive
 
 __all__ = ["Shaper", "zv_shaper", "zvd_shaper", "ei_shaper", "make_shaper", "SHAPERS",
-           "residual_vibration", "ei_side_frequencies"]
+           "residual_vibration", "ei_side_frequencies", "design_modes", "design_shaper",
+           "shaper_sensitivity", "shape_reference"]
 
 #: Shaper kinds understood by :func:`make_shaper`.
 SHAPERS = ("zv", "zvd", "ei")
@@ -371,3 +372,171 @@ def make_shaper(kind: str, frequency: float, damping: float = 0.0, tolerance: fl
     if kind == "ei":
         return ei_shaper(frequency, damping, tolerance)
     raise ParameterError(f"shaper must be one of {', '.join(SHAPERS)}, got {kind!r}")
+
+
+# -- shapers for the design model ---------------------------------------------------------------
+def design_modes(design) -> tuple:
+    """Natural frequencies and damping ratios of the design model's flexible modes.
+
+    From the eigenvalues ``lambda`` of the continuous ``design.A`` (the rigid-body pair at
+    zero left out): ``omega = |lambda|``, ``zeta = -Re(lambda) / |lambda|``; the damped
+    frequency is ``Im(lambda)``.
+
+    Parameters
+    ----------
+    design : DesignModel
+        Linear SFOAM at its design spin (free hub).
+
+    Returns
+    -------
+    frequency : ndarray (n_modes,)
+        Natural frequencies [rad/s], ascending (mode 1 first).
+    damping : ndarray (n_modes,)
+        Damping ratios [-] (below 1e-10, round-off of an undamped model, set to 0).
+    """
+    from .base import DesignModel
+    if not isinstance(design, DesignModel):
+        raise ParameterError(f"design must be a DesignModel, got {type(design).__name__}")
+    lam = np.linalg.eigvals(design.A)
+    scale = max(1.0, float(np.abs(lam).max()))
+    osc = lam[lam.imag > 1e-9 * scale]
+    osc = osc[np.argsort(np.abs(osc))]
+    w = np.abs(osc)
+    zeta = -osc.real / w
+    return w, np.where(zeta < 1e-10, 0.0, zeta)      # round-off of an undamped model -> 0
+
+
+def _mode_numbers(modes, n: int) -> tuple:
+    if isinstance(modes, (int, np.integer)) and not isinstance(modes, bool):
+        modes = (int(modes),)
+    try:
+        modes = tuple(modes)
+    except TypeError:
+        modes = None
+    if not modes or any(isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not 1 <= m <= n
+                        for m in modes) or len(set(modes)) != len(modes):
+        raise ParameterError(f"modes must be distinct mode numbers in 1..{n} (the design model's "
+                             f"flexible modes), got {modes!r}")
+    return tuple(int(m) for m in modes)
+
+
+def design_shaper(design, kind: str = "zvd", modes=(1,), tolerance: float = 0.05) -> Shaper:
+    """Shaper for the design model's modes: one per mode, convolved.
+
+    Parameters
+    ----------
+    design : DesignModel
+        Its modes at the design spin give the frequencies and damping ratios
+        (:func:`design_modes`).
+    kind : {"zv", "zvd", "ei"}
+    modes : int or sequence of int
+        Mode numbers to shape, 1 = the first bending mode (default: the first only).
+    tolerance : float
+        EI only: allowed residual [-].
+
+    Returns
+    -------
+    Shaper
+
+    Examples
+    --------
+    >>> from controllers import DesignModel
+    >>> s = design_shaper(DesignModel.build(n_modes=2), "zvd")
+    >>> round(s.duration, 3)        # one damped period of the 0.46 Hz first mode
+    2.175
+    """
+    w, z = design_modes(design)
+    shaper = None
+    for m in _mode_numbers(modes, len(w)):
+        s = make_shaper(kind, float(w[m - 1]), float(z[m - 1]), tolerance)
+        shaper = s if shaper is None else shaper.convolve(s)
+    return shaper
+
+
+def shaper_sensitivity(design, kinds=SHAPERS, errors=np.linspace(-0.3, 0.3, 61), mode: int = 1,
+                       tolerance: float = 0.05) -> dict:
+    """Residual vibration of each shaper against the error of a mode's frequency.
+
+    The shapers are designed for mode ``mode`` of the design model; the mode's actual
+    frequency is ``(1 + error) omega`` (same damping ratio). The residual of a linear mode
+    is exactly the shaper's percentage residual vibration (:func:`residual_vibration`).
+
+    Parameters
+    ----------
+    design : DesignModel
+    kinds : sequence of {"zv", "zvd", "ei"}
+    errors : array_like
+        Relative frequency errors [-], each > -1 (default -30 % .. +30 %).
+    mode : int
+        Mode number (1 = first bending mode).
+    tolerance : float
+        EI's allowed residual [-].
+
+    Returns
+    -------
+    dict
+        ``"errors"``: the errors [-]; ``"frequency"``, ``"damping"``: the nominal mode
+        [rad/s, -]; and one array of residuals [-] per kind.
+    """
+    err = np.asarray(errors, dtype=float).ravel()
+    if err.size == 0 or not np.all(np.isfinite(err)) or np.any(err <= -1):
+        raise ParameterError("errors must be finite relative frequency errors > -1 [-]")
+    w, z = design_modes(design)
+    (m,) = _mode_numbers(mode, len(w))
+    out = {"errors": err, "frequency": float(w[m - 1]), "damping": float(z[m - 1])}
+    for kind in kinds:
+        s = make_shaper(kind, float(w[m - 1]), float(z[m - 1]), tolerance)
+        out[kind] = s.residual(w[m - 1] * (1 + err), float(z[m - 1]))
+    return out
+
+
+# -- the reference filter ------------------------------------------------------------------------
+def _reference_channels(reference):
+    """Functions of time of the reference's channels, linear between samples.
+
+    Before ``t = 0`` every channel keeps its first value; after the last sample the angle
+    continues at the final rate and the other channels keep their last value (as
+    :class:`Reference` itself does).
+    """
+    t = reference.t
+    t_last = t[-1]
+
+    def channel(values, ramp=None):
+        def f(s):
+            out = np.interp(s, t, values)
+            if ramp is not None:
+                out = out + ramp * np.maximum(s - t_last, 0.0)
+            return out
+        return f
+
+    return (channel(reference.theta, reference.theta_dot[-1]), channel(reference.theta_dot),
+            channel(reference.theta_ddot), channel(reference.torque))
+
+
+def shape_reference(reference, shaper: Shaper):
+    """Filter a hub reference through an input shaper (reference shaping for feedback control).
+
+    Every channel (angle, rate, acceleration, feedforward torque) is convolved with the
+    shaper, so the shaped reference is still a rigid-body trajectory with its own
+    feedforward, reaching the same end state ``shaper.duration`` later; the table grows by
+    that many samples. Linear interpolation between the samples gives the delayed copies.
+
+    Parameters
+    ----------
+    reference : Reference
+    shaper : Shaper
+
+    Returns
+    -------
+    Reference
+    """
+    from .base import Reference
+    if not isinstance(reference, Reference):
+        raise ParameterError(f"reference must be a Reference, got {type(reference).__name__}")
+    if not isinstance(shaper, Shaper):
+        raise ParameterError(f"shaper must be a Shaper, got {type(shaper).__name__}")
+    n = len(reference.theta) + int(math.ceil(shaper.duration / reference.dt - 1e-9))
+    t = reference.dt * np.arange(n)
+    th, thd, thdd, tau = (shaper.apply(f, t) for f in _reference_channels(reference))
+    return Reference(reference.dt, th, thd, thdd, tau,
+                     f"{reference.description}, shaped by {shaper.name} ({shaper.duration:.4g} s)")

@@ -51,7 +51,11 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
     p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
                    help="slew: rest-to-rest by the Eq. 44 rigid angle (default); spinup: to --wf and hold")
     p.add_argument("--controllers", metavar="LIST", default="openloop,pd,lqr,lqg,mpc",
-                   help="comma-separated subset of openloop,pd,lqr,lqg,mpc (default: all)")
+                   help="comma-separated subset of openloop,pd,lqr,lqg,mpc and the open-loop "
+                        "input-shaped zv,zvd,ei (default: openloop,pd,lqr,lqg,mpc)")
+    p.add_argument("--shaping", choices=["zv", "zvd", "ei"], default=None,
+                   help="filter the feedback controllers' reference through this input shaper "
+                        "(designed on the first mode of the design model)")
     p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"), default=200.0,
                    help="torque budget = Eq. 44 amplitude [N m] (default 200)")
     p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
@@ -87,7 +91,8 @@ def run(args) -> int:
     with stdout_to_stderr():
         comparison = compare(args.plant, args.scenario, args.controllers, params=params,
                              tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
-                             w_f=args.wf, horizon=args.horizon, progress=not args.json)
+                             w_f=args.wf, horizon=args.horizon, shaping=args.shaping,
+                             progress=not args.json)
         write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:

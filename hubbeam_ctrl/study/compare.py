@@ -42,6 +42,7 @@ from controllers import (
     MPCSettings,
     OpenLoopSettings,
     PDSettings,
+    ShapedSettings,
     make_controller,
 )
 from hubbeam_ctrl.core.errors import ParameterError
@@ -57,6 +58,10 @@ __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare",
 DEFAULT_CONTROLLERS = ("openloop", "pd", "lqr", "lqg", "mpc")
 #: The controllers held to the targets of the slew (PD is only reported).
 TARGET_CONTROLLERS = ("lqr", "lqg", "mpc")
+#: Open-loop input-shaped controllers (see :mod:`controllers.shaped`).
+SHAPED_CONTROLLERS = ("zv", "zvd", "ei")
+#: Controllers that follow the reference by feedback (``shaping=`` filters their reference).
+FEEDBACK_CONTROLLERS = ("pd", "lqr", "lqg", "mpc")
 
 
 def _parse_controllers(controllers) -> tuple:
@@ -86,6 +91,8 @@ def _default_settings(name: str, sc: Scenario, horizon: int, solver: str):
         return LQRSettings(tau_max=sc.tau_max)
     if name == "lqg":
         return LQGSettings(tau_max=sc.tau_max)
+    if name in SHAPED_CONTROLLERS:
+        return ShapedSettings(profile="smooth" if sc.name == "slew" else "feedforward", tau_max=sc.tau_max)
     return MPCSettings(tau_max=sc.tau_max, horizon=horizon, solver=solver)
 
 
@@ -116,7 +123,7 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
             t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0,
             design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
             settings: dict | None = None, sim_settings: ClosedLoopSettings | None = None,
-            progress: bool = False) -> Comparison:
+            shaping: str | None = None, progress: bool = False) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear plant.
 
     Parameters
@@ -142,6 +149,9 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
         Controller name -> settings object, replacing the defaults.
     sim_settings : ClosedLoopSettings, optional
         Plant integration and sensor settings (its ``dt`` is replaced by ``dt``).
+    shaping : {"zv", "zvd", "ei"}, optional
+        Filter the reference of the feedback controllers (pd, lqr, lqg, mpc) through this
+        input shaper, designed on the design model's first mode.
     progress : bool
         Print one line per controller on stderr.
 
@@ -170,7 +180,8 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
     results, metrics = {}, {}
     for name in names:
         st = settings.get(name) or _default_settings(name, sc, horizon, solver)
-        ctrl = make_controller(name, design, st, ref)
+        ctrl = make_controller(name, design, st, ref,
+                               shaping=shaping if name in FEEDBACK_CONTROLLERS else None)
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res
