@@ -26,6 +26,15 @@ from .mpc import MPC, QP_SOLVERS, MPCSettings, condensed_matrices
 from .openloop import OpenLoop, OpenLoopSettings
 from .pd import PD, PDSettings, pd_gains
 from .reference import eq44_reference, slew_reference, spinup_reference
+from .schedule import (
+    DesignSchedule,
+    ScheduledLQG,
+    ScheduledLQR,
+    ScheduledMPC,
+    make_scheduled_controller,
+    scheduled_lqg_iosystem,
+    scheduled_lqr_iosystem,
+)
 from .shaped import EIOpenLoop, ShapedOpenLoop, ShapedSettings, ZVDOpenLoop, ZVOpenLoop
 from .shaping import Shaper, design_shaper, shape_reference
 
@@ -38,6 +47,8 @@ __all__ = [
     "CONTROLLERS", "make_controller",
     "Shaper", "design_shaper", "shape_reference", "ShapedOpenLoop", "ShapedSettings",
     "ZVOpenLoop", "ZVDOpenLoop", "EIOpenLoop",
+    "DesignSchedule", "ScheduledLQR", "ScheduledLQG", "ScheduledMPC", "make_scheduled_controller",
+    "scheduled_lqr_iosystem", "scheduled_lqg_iosystem",
 ]
 
 #: Controller name -> (class, settings class).

@@ -68,6 +68,9 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="controller sample time [s] (default 0.01)")
     p.add_argument("--horizon", metavar="N", type=positive_int("horizon"), default=50,
                    help="MPC horizon [samples] (default 50)")
+    p.add_argument("--schedule", metavar="N", type=positive_int("schedule"), default=1,
+                   help="design lqr, lqg and mpc at N spin rates from 0 to the top reference rate and "
+                        "interpolate them on the measured rate (default 1: one design point)")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     p.set_defaults(func=run)
@@ -91,7 +94,7 @@ def run(args) -> int:
     with stdout_to_stderr():
         comparison = compare(args.plant, args.scenario, args.controllers, params=params,
                              tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
-                             w_f=args.wf, horizon=args.horizon, shaping=args.shaping,
+                             w_f=args.wf, horizon=args.horizon, shaping=args.shaping, schedule=args.schedule,
                              progress=not args.json)
         write_outputs(comparison, out)
     wall = time.perf_counter() - t0

@@ -34,17 +34,24 @@ import sys
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from controllers import (
     CONTROLLERS,
     DesignModel,
+    DesignSchedule,
     LQGSettings,
     LQRSettings,
     MPCSettings,
     OpenLoopSettings,
     PDSettings,
     ShapedSettings,
+    design_shaper,
     make_controller,
+    make_scheduled_controller,
+    shape_reference,
 )
+from controllers.schedule import SCHEDULED
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.params import Params
@@ -96,6 +103,26 @@ def _default_settings(name: str, sc: Scenario, horizon: int, solver: str):
     return MPCSettings(tau_max=sc.tau_max, horizon=horizon, solver=solver)
 
 
+def _design_schedule(sc: Scenario, points, design_modes):
+    """The scenario's design schedule: ``points`` spins from 0 to the reference's top rate (None for 1)."""
+    if isinstance(points, bool) or not isinstance(points, int) or points < 1:
+        raise ParameterError(f"schedule must be an integer >= 1 (number of spin rates; 1 = a single "
+                             f"design at the scenario's design spin), got {points!r}")
+    if points == 1:
+        return None
+    top = float(np.max(np.abs(sc.reference.theta_dot)))
+    return DesignSchedule.build(sc.params, np.linspace(0.0, top, points), sc.dt, design_modes)
+
+
+def _build_controller(name, design, schedule, settings, reference, shaping):
+    """A controller by name: scheduled when a schedule is given, its reference shaped if asked."""
+    if shaping is not None and name in FEEDBACK_CONTROLLERS:
+        reference = shape_reference(reference, design_shaper(design, shaping))
+    if schedule is not None and name in SCHEDULED:
+        return make_scheduled_controller(name, schedule, settings, reference)
+    return make_controller(name, design, settings, reference)
+
+
 @dataclass
 class Comparison:
     """Everything one comparison produced.
@@ -123,7 +150,7 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
             t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0,
             design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
             settings: dict | None = None, sim_settings: ClosedLoopSettings | None = None,
-            shaping: str | None = None, progress: bool = False) -> Comparison:
+            shaping: str | None = None, schedule: int = 1, progress: bool = False) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear plant.
 
     Parameters
@@ -152,6 +179,10 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
     shaping : {"zv", "zvd", "ei"}, optional
         Filter the reference of the feedback controllers (pd, lqr, lqg, mpc) through this
         input shaper, designed on the design model's first mode.
+    schedule : int
+        Spin rates of the design schedule of lqr, lqg and mpc, evenly spaced from 0 to the
+        reference's top rate (see :class:`controllers.DesignSchedule`); 1: a single design
+        at the scenario's design spin.
     progress : bool
         Print one line per controller on stderr.
 
@@ -172,6 +203,7 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
     if unknown:
         raise ParameterError(f"settings given for controllers not run: {', '.join(unknown)}")
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, design_modes)
+    sched = _design_schedule(sc, schedule, design_modes)
     sim = sim_settings or ClosedLoopSettings()
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
@@ -180,8 +212,7 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
     results, metrics = {}, {}
     for name in names:
         st = settings.get(name) or _default_settings(name, sc, horizon, solver)
-        ctrl = make_controller(name, design, st, ref,
-                               shaping=shaping if name in FEEDBACK_CONTROLLERS else None)
+        ctrl = _build_controller(name, design, sched, st, ref, shaping)
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res
