@@ -176,3 +176,16 @@ def test_default_grid_is_dense_enough(spinup_runs):
     for name in ("lqr", "mpc"):
         a, b = spinup_runs[9][name]["residual_tip_max_m"], spinup_runs[17][name]["residual_tip_max_m"]
         assert abs(b - a) < 0.05 * b, (name, a, b)                        # measured 1.3 %, 3.0 %
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--schedule", "0"], "schedule must be an integer > 0"),
+    (["--schedule", "two"], "schedule must be an integer"),
+    (["--shaping", "zvdd"], "invalid choice: 'zvdd'"),
+])
+def test_cli_bad_schedule_or_shaping_exits_2(capsys, tmp_path, argv, match):
+    from hubbeam_ctrl.cli.main import main
+    code = main(["compare", "--plant", "foam", "--scenario", "spinup", "--controllers", "lqr",
+                 "--out", str(tmp_path / "out"), *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and match in err and len(err.strip().splitlines()) == 1

@@ -13,7 +13,8 @@ __all__ = ["plot_tip_deflection", "plot_hub_angle", "plot_torque", "CONTROLLER_C
 
 #: Fixed colours so that every plot and report shows a controller the same way.
 CONTROLLER_COLORS = {"openloop": "0.45", "pd": "tab:orange", "lqr": "tab:blue",
-                     "lqg": "tab:green", "mpc": "tab:red"}
+                     "lqg": "tab:green", "mpc": "tab:red", "zv": "tab:purple", "zvd": "tab:cyan",
+                     "ei": "tab:olive"}
 
 
 def _color(name):
