@@ -89,7 +89,7 @@ plot_tip_deflection(slew.results, t_f=10.0, residual_start=15.0, title="shaped s
 
 # %% [markdown]
 # ZVD leaves under 1 % of the Eq. 44 residual. ZV, exact only at the design frequency, is
-# spoilt by the stiffening during this fast slew (the hub reaches about 2.5 rad/s); EI
+# spoilt by the stiffening during this fast slew (the hub reaches 2.6-2.7 rad/s); EI
 # leaves its 5 % tolerance by design.
 #
 # ## 4 · Sensitivity to the frequency
