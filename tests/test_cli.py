@@ -76,3 +76,28 @@ def test_console_script_exit_status():
     assert proc.returncode == 0
     for command in ("modes", "critical-speed", "simulate", "linearize"):
         assert command in proc.stdout
+
+
+def test_cli_start_up_does_not_import_python_control():
+    """``hubbeam modes`` starts fast: building the parser pulls in neither python-control nor
+    Matplotlib; the linear layer loads them when a command needs it."""
+    code = ("import sys, hubbeam_ctrl.cli.main; sys.modules['hubbeam_ctrl.cli.main'].build_parser(); "
+            "print(sorted(m for m in ('control', 'matplotlib', 'scipy.signal') if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert proc.stdout.strip() == "[]"
+
+
+def test_linearize_help_lists_the_outputs(capsys):
+    from hubbeam_ctrl.linear.statespace import DEFAULT_OUTPUTS, OUTPUTS
+    with pytest.raises(SystemExit):
+        main(["linearize", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert f"among {','.join(OUTPUTS)} (default {','.join(DEFAULT_OUTPUTS)})" in help_text
+
+
+def test_json_output_has_no_progress_lines(capfd, tmp_path):
+    """``--json`` keeps stdout machine-readable and stderr free of progress output."""
+    code = main(["simulate", "--model", "foam", "--maneuver", "torque", "--t-end", "2", "--n-modes", "2",
+                 "--json"])
+    out, err = capfd.readouterr()
+    assert code == 0 and json.loads(out)["diverged"] is False and err == ""
