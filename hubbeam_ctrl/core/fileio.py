@@ -11,7 +11,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 __all__ = ["atomic_write", "atomic_write_text"]
 
 
-def atomic_write(path, write, binary: bool = True, suffix: str | None = None) -> Path:
+def atomic_write(path, write, suffix: str | None = None) -> Path:
     """Write a file atomically.
 
     Parameters
@@ -20,8 +20,6 @@ def atomic_write(path, write, binary: bool = True, suffix: str | None = None) ->
         Final file name.
     write : callable
         ``write(tmp_path)`` writes the whole content to the temporary path it is given.
-    binary : bool
-        Unused, kept for symmetry with :func:`atomic_write_text`.
     suffix : str, optional
         Suffix of the temporary file (some writers insist on an extension). Defaults to
         the suffix of ``path``.
@@ -29,8 +27,15 @@ def atomic_write(path, write, binary: bool = True, suffix: str | None = None) ->
     Returns
     -------
     Path
-        The final path. On any error no file is left behind and
-        :class:`~hubbeam_ctrl.core.errors.ParameterError` names the path.
+        The final path.
+
+    Raises
+    ------
+    ParameterError
+        If the folder does not exist or no file can be created in it.
+    Exception
+        Whatever ``write`` raises, unchanged. In every case the temporary file is removed
+        and an existing file at ``path`` keeps its old content.
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
