@@ -45,4 +45,4 @@ notebooks: $(STAMP_TEST)
 	$(BIN)/jupyter nbconvert --to html --execute --output-dir docs notebooks/*.ipynb
 
 clean:
-	rm -rf $(VENV) demo_out docs
+	rm -rf $(VENV) demo_out docs/*.html
