@@ -154,6 +154,15 @@ class Result:
     wall_s: float = 0.0
 
     def __post_init__(self):
+        self._check_scalars()
+        self._check_arrays()
+        for name in ("settings", "stats", "controller_stats"):
+            value = getattr(self, name)
+            if not isinstance(value, dict):
+                raise ParameterError(f"{name} must be a dict, got {type(value).__name__}")
+            setattr(self, name, json_ready(value))
+
+    def _check_scalars(self):
         _check_choice("kind", self.kind, RESULT_KINDS)
         _check_choice("hub", self.hub, ("free", "prescribed"))
         if not isinstance(self.params, Params):
@@ -167,12 +176,6 @@ class Result:
         if not (isinstance(self.wall_s, (int, float)) and math.isfinite(self.wall_s) and self.wall_s >= 0):
             raise ParameterError(f"wall_s must be a finite number >= 0 [s], got {self.wall_s!r}")
         self.wall_s = float(self.wall_s)
-        self._check_arrays()
-        for name in ("settings", "stats", "controller_stats"):
-            value = getattr(self, name)
-            if not isinstance(value, dict):
-                raise ParameterError(f"{name} must be a dict, got {type(value).__name__}")
-            setattr(self, name, json_ready(value))
 
     def _check_arrays(self):
         missing = [k for k in _REQUIRED + _REQUIRED_BY_KIND[self.kind] if getattr(self, k) is None]
