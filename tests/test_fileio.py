@@ -70,3 +70,19 @@ def test_relative_path_writes_in_the_working_directory(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     atomic_write_text("plain.txt", "ok")
     assert (tmp_path / "plain.txt").read_text() == "ok"
+
+
+def test_system_refusal_is_a_parameter_error_naming_the_path(tmp_path):
+    def refused(tmp):
+        raise PermissionError(13, "Permission denied")
+
+    with pytest.raises(ParameterError, match=r"out: cannot write .*run\.npz: Permission denied"):
+        atomic_write(tmp_path / "run.npz", refused)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_folder_as_file_name_is_a_parameter_error(tmp_path):
+    (tmp_path / "results").mkdir()
+    with pytest.raises(ParameterError, match="is a folder"):
+        atomic_write_text(tmp_path / "results", "x")
+    assert [p.name for p in tmp_path.iterdir()] == ["results"]

@@ -1,35 +1,45 @@
 """Closed-loop metrics (:mod:`hubbeam_ctrl.study.metrics`) on synthetic series with known answers."""
 
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.results import Result
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, closed_loop_metrics, settling_time
 
 DT, T_F, T_END = 0.01, 10.0, 30.0
 
 
-def _run(residual_amp=5e-4, with_reference=True, t_end=T_END, **extra):
-    """A 30 s run sampled at 100 Hz whose every metric has a closed form:
+def _run(residual_amp=5e-4, with_reference=True, cut=None, **extra):
+    """A 30 s closed-loop result sampled at 100 Hz whose every metric has a closed form:
 
     * ``v_tip = 0.3 sin(2 pi t)`` before 15 s, ``residual_amp cos(2 pi t)`` from 15 s on;
     * torque ``100 sin(2 pi t / 10)`` up to ``t_f = 10 s``, then 0;
-    * angle error ``0.05`` before ``t_f``, ``0.02 exp(-(t - t_f)/2)`` after.
+    * angle error ``0.05`` before ``t_f``, ``0.02 exp(-(t - t_f)/2)`` after;
+    * controller call times evenly spaced from 0.01 to 1 ms.
+
+    ``cut`` keeps only the first ``cut`` samples (a run that stopped early).
     """
-    t = DT * np.arange(int(round(t_end / DT)) + 1)
+    t = DT * np.arange(int(round(T_END / DT)) + 1)
     v_tip = np.where(t < 15.0 - 1e-9, 0.3 * np.sin(2 * np.pi * t), residual_amp * np.cos(2 * np.pi * t))
     tau = np.where(t <= T_F, 100.0 * np.sin(2 * np.pi * t / T_F), 0.0)
     err = np.where(t < T_F, 0.05, 0.02 * np.exp(-(t - T_F) / 2))
     ref = 0.1 * t
-    fields = dict(t=t, v_tip=v_tip, tau=tau, theta=ref + err, theta_ref=ref if with_reference else None,
-                  settings={"t_end": t_end}, step_time_s=1e-5 * np.arange(1, 101),
-                  controller="toy", plant="foam", stopped=False, message="completed", wall_s=1.5,
-                  controller_stats={"qp_fallbacks": 3, "matrix": np.eye(2)})
+    q = np.zeros((len(t), 3))
+    q[:, 0] = ref + err
+    series = dict(t=t, q=q, v=np.zeros_like(q), v_tip=v_tip, u_tip=np.zeros_like(t), tau=tau,
+                  root_moment=np.zeros_like(t), step_time_s=np.linspace(1e-5, 1e-3, len(t)),
+                  theta_ref=ref if with_reference else None)
+    series = {k: (v[:cut] if v is not None and cut else v) for k, v in series.items()}
+    fields = dict(kind="closed_loop", model="foam", params=Params(n_axial=1, n_transverse=1),
+                  settings={"t_end": T_END}, controller="toy", stopped=cut is not None,
+                  message="completed" if cut is None else "stopped", wall_s=1.5,
+                  controller_stats={"qp_fallbacks": 3, "matrix": np.eye(2)}, **series)
     fields.update(extra)
-    return SimpleNamespace(**fields)
+    return Result(**fields)
 
 
 def test_metrics_against_closed_forms():
@@ -46,8 +56,8 @@ def test_metrics_against_closed_forms():
     assert m["peak_torque_nm"] == pytest.approx(100.0, rel=1e-12)
     # held torque over one sine period: tau_m^2 t_f / 2 (exact for whole-period sampling)
     assert m["torque_squared_integral_n2m2s"] == pytest.approx(100.0 ** 2 * T_F / 2, rel=1e-9)
-    assert m["step_time_median_ms"] == pytest.approx(0.505, rel=1e-12)
-    assert m["step_time_p99_ms"] == pytest.approx(0.01 * (1 + 0.99 * 99), rel=1e-12)
+    assert m["step_time_median_ms"] == pytest.approx(0.505, rel=1e-12)           # the middle sample
+    assert m["step_time_p99_ms"] == pytest.approx(0.01 + 0.99 * 0.99, rel=1e-12)  # even spacing
     assert m["within_torque_limit"] is True and m["completed"] is True
     assert m["qp_fallbacks"] == 3 and "matrix" not in m             # scalar statistics only
     assert (m["controller"], m["plant"], m["wall_s"]) == ("toy", "foam", 1.5)
@@ -83,13 +93,16 @@ def test_run_without_reference_is_rejected():
 
 
 def test_stopped_run_has_nan_residual():
-    full = _run()
-    cut = len(full.t) // 4                                         # stopped at 7.5 s
-    run = _run(t=full.t[:cut], v_tip=full.v_tip[:cut], tau=full.tau[:cut], theta=full.theta[:cut],
-               theta_ref=full.theta_ref[:cut], stopped=True, message="stopped")
-    m = closed_loop_metrics(run, T_F)
+    m = closed_loop_metrics(_run(cut=750), T_F)                   # stopped at 7.49 s
     assert math.isnan(m["residual_tip_max_m"]) and math.isnan(m["angle_error_tf_rad"])
     assert m["completed"] is False and m["final_angle_error_rad"] == pytest.approx(0.05)
+
+
+def test_open_loop_result_is_rejected():
+    run = _run()
+    with pytest.raises(ParameterError, match="closed-loop"):
+        closed_loop_metrics(Result(kind="fixed_step", model="foam", t=run.t, q=run.q, v=run.v, v_tip=run.v_tip,
+                                   u_tip=run.u_tip, tau=run.tau, params=run.params), T_F)
 
 
 @pytest.mark.parametrize("angle,tip,expected", [
