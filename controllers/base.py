@@ -26,11 +26,11 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
-from hubbeam_ctrl.core.validation import check_nonnegative, check_positive
+from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate", "ControllerSettings",
-           "TrackingSettings", "LQSettings", "check_positive", "check_nonnegative", "check_psd"]
+           "TrackingSettings", "LQSettings", "check_positive", "check_psd"]
 
 
 # -- validation helpers -----------------------------------------------------------------
@@ -391,7 +391,8 @@ class Controller:
     Attributes
     ----------
     name : str
-        Short name used in tables (``"lqr"``...).
+        Short name used in tables (``"lqr"``...): the registry key, set by
+        :func:`controllers.register_controller` unless the class sets its own.
     measurement : {"state", "sensors"}
         What the simulator hands over: the plant's SFOAM-ordered state, or the noisy
         sensors ``[theta, theta_dot, M_root]`` (see

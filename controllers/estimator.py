@@ -160,13 +160,29 @@ class KalmanEstimator:
         self.reset()
 
     def reset(self, x0=None) -> None:
-        """Start again from the state guess ``x0`` (default zero) with no measurement yet."""
+        """Start again from a state guess, with no measurement yet.
+
+        Parameters
+        ----------
+        x0 : array_like (nx,), optional
+            Initial guess of the (deviation) state; default zero.
+        """
         x0 = np.zeros(len(self._b)) if x0 is None else np.array(x0, dtype=float)
         self.x_pred = x0
         self.x_hat = x0
 
     def predict(self, u: float) -> np.ndarray:
-        """Prediction of the next sample's state from the current estimate and torque ``u`` [N m]."""
+        """Prediction of the next sample's state ``Ad x_hat + Bd u`` (the estimator is unchanged).
+
+        Parameters
+        ----------
+        u : float
+            Torque held over the coming sample [N m].
+
+        Returns
+        -------
+        ndarray (nx,)
+        """
         return self._A @ self.x_hat + self._b * u
 
     def update(self, y, u_prev: float | None) -> np.ndarray:

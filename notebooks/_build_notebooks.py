@@ -509,8 +509,8 @@ def nb02_design_pd_lqr():
         from hubbeam_ctrl.sim import simulate_closed_loop
         from hubbeam_ctrl.study import make_scenario, print_table
         from hubbeam_ctrl.study.metrics import closed_loop_metrics
-        from hubbeam_ctrl.plots.closedloop import CONTROLLER_COLORS, plot_tip_deflection
-        from controllers import (LQG, LQGSettings, LQR, LQRSettings, PD, PDSettings, DesignModel,
+        from hubbeam_ctrl.plots.closedloop import plot_tip_deflection
+        from controllers import (CONTROLLERS, LQG, LQGSettings, LQR, LQRSettings, PD, PDSettings, DesignModel,
                                  OpenLoop, OpenLoopSettings, Weights, dlqr_gain, kalman_gain,
                                  pd_gains)
 
@@ -681,9 +681,9 @@ def nb02_design_pd_lqr():
                                     title="Slew on FOAM: tip deflection (shaded: residual window)"))
         fig, ax = plt.subplots(1, 2, figsize=(10, 3.4))
         for name, res in results.items():
-            ax[0].plot(res.t, res.tau, lw=1, color=CONTROLLER_COLORS[name], label=name)
+            ax[0].plot(res.t, res.tau, lw=1, color=CONTROLLERS[name].color, label=name)
             if name != "openloop":      # Eq. 44 follows its own rigid motion, not this reference
-                ax[1].plot(res.t, res.theta - res.theta_ref, lw=1, color=CONTROLLER_COLORS[name], label=name)
+                ax[1].plot(res.t, res.theta - res.theta_ref, lw=1, color=CONTROLLERS[name].color, label=name)
         ax[0].set(xlabel="t [s]", ylabel="tau [N m]", title="hub torque (budget 200 N m)")
         ax[1].set(xlabel="t [s]", ylabel="theta - theta_ref [rad]", title="hub-angle error")
         ax[0].legend(fontsize=8)

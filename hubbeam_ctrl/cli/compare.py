@@ -49,9 +49,12 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                      "closed loop (zero-order hold at --dt) on the nonlinear FOAM or CFOAM plant. "
                      "Writes metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
                      "torque.png and report.md to --out."))
-    p.add_argument("--plant", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "PLANTS"), required=True,
-                   help="nonlinear plant: %(choices)s")
-    p.add_argument("--scenario", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "SCENARIOS"),
+    # explicit metavars: argparse would otherwise read the choices (importing the study layer)
+    # when the parser is built, not only when --help is shown or a value is checked
+    p.add_argument("--plant", metavar="PLANT", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "PLANTS"),
+                   required=True, help="nonlinear plant: %(choices)s")
+    p.add_argument("--scenario", metavar="NAME", choices=RegistryChoices("hubbeam_ctrl.study.scenarios",
+                                                                         "SCENARIOS"),
                    default="slew", help="registered scenario: %(choices)s (default %(default)s; see "
                                         "hubbeam_ctrl.study.scenarios)")
     default = ",".join(controller_names(default=True))

@@ -300,7 +300,17 @@ class Settings:
         validate(self)
 
     def replace(self, **changes):
-        """A copy with some fields changed (validated again)."""
+        """A copy with some fields changed (validated again).
+
+        Parameters
+        ----------
+        **changes
+            Field name -> new value.
+
+        Returns
+        -------
+        Settings
+        """
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
