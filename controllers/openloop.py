@@ -39,7 +39,7 @@ class OpenLoopSettings(ControllerSettings):
         -------
         OpenLoopSettings
         """
-        return cls(scenario.baseline, scenario.tau_max, scenario.t_f)
+        return cls(profile=scenario.baseline, tau_m=scenario.tau_max, t_f=scenario.t_f)
 
 
 class OpenLoop(Controller):

@@ -65,7 +65,8 @@ class Scenario:
 
     Attributes
     ----------
-    name : {"slew", "spinup"}
+    name : str
+        Registered scenario name (:data:`SCENARIOS`).
     plant : {"foam", "cfoam"}
     params : Params
     tau_max : float
