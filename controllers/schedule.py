@@ -12,6 +12,11 @@ linearly in the spin rate (the end values outside the grid), what they need from
 * :class:`ScheduledMPC`: the condensed QP's Hessian and gradient (the prediction model is
   held over the horizon), and the fallback LQR gain.
 
+Each scheduled class is the ``scheduled`` entry of its controller in the registry
+(:mod:`controllers.registry`): ``make_controller("lqr", design, settings, reference,
+schedule=DesignSchedule.for_scenario(scenario, 9))`` builds it with the same settings as
+the fixed design (``LQRSettings.for_scenario``).
+
 The scheduling variable is the measured hub rate (``variable="measured"``, default) or
 the reference rate (``"reference"``). The elastic reference (the quasi-static deflection
 of the reference acceleration) uses the model at the reference rate of each sample.
@@ -33,21 +38,24 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import control as ct
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 
 from .base import DesignModel, Reference, Weights, check_positive, saturate
-from .lqg import LQG, LQGSettings, kalman_gain
+from .estimator import KalmanNoise, kalman_gain
+from .lqg import LQG, LQGSettings
 from .lqr import LQR, LQRSettings, dlqr_gain
 from .mpc import MPC, MPCSettings
 
-__all__ = ["DesignSchedule", "ScheduledLQR", "ScheduledLQG", "ScheduledMPC", "SCHEDULED",
-           "make_scheduled_controller", "scheduled_lqr_iosystem", "scheduled_lqg_iosystem",
-           "DEFAULT_SCHEDULE_POINTS", "VARIABLES"]
+if TYPE_CHECKING:
+    import control as ct
+
+__all__ = ["DesignSchedule", "ScheduledKalmanEstimator", "ScheduledLQR", "ScheduledLQG", "ScheduledMPC",
+           "scheduled_lqr_iosystem", "scheduled_lqg_iosystem", "DEFAULT_SCHEDULE_POINTS", "VARIABLES"]
 
 #: Spin rates of the default grid (0 to the top rate, evenly spaced).
 DEFAULT_SCHEDULE_POINTS = 9
@@ -125,6 +133,31 @@ class DesignSchedule:
             spins = np.linspace(0.0, top, int(points))
         s = _check_spins(spins)
         return cls(s, tuple(DesignModel.build(params, float(w), dt, n_modes) for w in s))
+
+    @classmethod
+    def for_scenario(cls, scenario, points: int = DEFAULT_SCHEDULE_POINTS,
+                     n_modes: int | None = None) -> "DesignSchedule":
+        """The schedule of a closed-loop scenario: ``points`` spins from 0 to its reference's top rate.
+
+        Parameters
+        ----------
+        scenario : object
+            A :class:`hubbeam_ctrl.study.scenarios.Scenario` (read: ``params``, ``dt``,
+            ``reference``).
+        points : int
+            Number of spin rates, >= 2.
+        n_modes : int, optional
+            Transverse modes of the design models (default: the scenario's).
+
+        Returns
+        -------
+        DesignSchedule
+        """
+        top = float(np.max(np.abs(scenario.reference.theta_dot)))
+        if not top > 0:
+            raise ParameterError("schedule: the scenario's reference never turns (top rate 0 rad/s); "
+                                 "use a single design (schedule=1)")
+        return cls.build(scenario.params, dt=scenario.dt, n_modes=n_modes, top=top, points=points)
 
     def __post_init__(self):
         s = _check_spins(self.spins)
@@ -244,11 +277,89 @@ class ScheduledLQR(_Scheduled, LQR):
         return saturate(float(self._ff * tff - K @ (y - xr)), self.settings.tau_max)
 
 
+class ScheduledKalmanEstimator:
+    """Kalman filter with its gain and prediction model interpolated in the spin rate.
+
+    The interface of :class:`~controllers.estimator.KalmanEstimator`, in absolute
+    coordinates (a steady rotation at any rate is a solution of every linear model of the
+    grid); :meth:`update` also takes the spin rate that schedules the gain and the next
+    prediction: ``x_hat = x_pred + L(Omega) (y - C x_pred)``, then
+    ``x_pred+ = Ad(Omega) x_hat + Bd(Omega) u``.
+
+    Parameters
+    ----------
+    schedule : DesignSchedule
+    noise : KalmanNoise
+        Noise model of every design of the grid.
+
+    Attributes
+    ----------
+    L : ndarray (S, nx, 3)
+        Filter gain (measurement update) at each spin of the schedule.
+    models : ndarray (S, nx, nx + 1)
+        ``[Ad, Bd]`` at each spin.
+    x_pred, x_hat : ndarray (nx,)
+        Prediction used by the last update, and the current estimate.
+    """
+
+    def __init__(self, schedule: "DesignSchedule", noise: KalmanNoise):
+        self.schedule = schedule
+        self.L = schedule.stack(lambda d: kalman_gain(d, noise))
+        self.models = schedule.stack(lambda d: np.hstack([d.Ad, d.Bd]))
+        self._C = schedule.designs[0].C_sensors
+        self.reset()
+
+    def reset(self, x0=None) -> None:
+        """Start again from a state guess (default zero), with no measurement yet."""
+        x0 = np.zeros(self.schedule.n_x) if x0 is None else np.array(x0, dtype=float)
+        self.x_pred = x0
+        self.x_hat = x0
+        self._spin = 0.0
+
+    def predict(self, u: float) -> np.ndarray:
+        """Prediction of the next sample's state with the model at the last update's spin.
+
+        Parameters
+        ----------
+        u : float
+            Torque held over the coming sample [N m].
+
+        Returns
+        -------
+        ndarray (nx,)
+        """
+        ab = self.schedule.interpolate(self.models, self._spin)
+        return ab[:, :-1] @ self.x_hat + ab[:, -1] * u
+
+    def update(self, y, u_prev: float | None, spin: float) -> np.ndarray:
+        """Take one measurement at spin rate ``spin`` [rad/s] and return the new estimate.
+
+        Parameters
+        ----------
+        y : ndarray (3,)
+            Measurement ``[theta, theta_dot, M_root]`` (absolute).
+        u_prev : float or None
+            Torque held since the previous update [N m]; ``None`` right after :meth:`reset`.
+        spin : float
+            Scheduling variable [rad/s].
+
+        Returns
+        -------
+        ndarray (nx,)
+        """
+        if u_prev is not None:
+            self.x_pred = self.predict(u_prev)
+        self._spin = spin
+        L = self.schedule.interpolate(self.L, spin)
+        self.x_hat = self.x_pred + L @ (np.asarray(y, dtype=float) - self._C @ self.x_pred)
+        return self.x_hat
+
+
 class ScheduledLQG(_Scheduled, LQG):
     """LQG with LQR gain, Kalman gain and prediction model interpolated in the spin rate.
 
-    Absolute coordinates: ``x_hat = x_pred + L(Omega) (y - C x_pred)``,
-    ``tau = sat(tau_ff - K(Omega) (x_hat - x_ref))``, ``x_pred = Ad(Omega) x_hat + Bd(Omega) tau``.
+    A :class:`ScheduledKalmanEstimator` (absolute coordinates) and
+    ``tau = sat(tau_ff - K(Omega) (x_hat - x_ref))``.
 
     Parameters
     ----------
@@ -257,6 +368,12 @@ class ScheduledLQG(_Scheduled, LQG):
     reference : Reference, optional
     variable : {"measured", "reference"}
         The measured hub rate (the rate sensor) or the reference rate.
+
+    Attributes
+    ----------
+    gains : ndarray (S, nx)
+        LQR gain at each spin of the schedule.
+    estimator : ScheduledKalmanEstimator
     """
 
     def __init__(self, schedule: DesignSchedule, settings: LQGSettings | None = None,
@@ -264,29 +381,24 @@ class ScheduledLQG(_Scheduled, LQG):
         self._init_schedule(schedule, variable)
         settings = settings or LQGSettings()
         super().__init__(schedule.designs[0], settings, reference)
+        self.estimator = ScheduledKalmanEstimator(schedule, settings)
         self.gains = schedule.stack(lambda d: dlqr_gain(d, settings.weights)[0])
-        self.kalman_gains = schedule.stack(lambda d: kalman_gain(d, settings))
-        self.models = schedule.stack(lambda d: np.hstack([d.Ad, d.Bd]))
-        self._C = schedule.designs[0].C_sensors
+        self.reset()
 
     def reset(self) -> None:
-        x, _ = self._reference_at(0)
-        self.x_pred = x.copy()
-        self.x_hat = x.copy()
+        """Start the estimator from the reference's first state; forget the last torque."""
+        self.estimator.reset(self._reference_at(0)[0])
+        self._tau = None
 
     def __call__(self, t: float, y) -> float:
+        """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
         k = int(round(t / self.dt))
         xr, tff = self._reference_at(k)
         spin = self._spin(k, y[1])
-        i, w = self.schedule.locate(spin)
-        mix = lambda table: table[i] if w == 0.0 else (1.0 - w) * table[i] + w * table[i + 1]
-        L = mix(self.kalman_gains)
-        x_hat = self.x_pred + L @ (np.asarray(y, dtype=float) - self._C @ self.x_pred)
-        tau = saturate(float(self._ff * tff - mix(self.gains) @ (x_hat - xr)), self.settings.tau_max)
-        AB = mix(self.models)
-        self.x_hat = x_hat
-        self.x_pred = AB[:, :-1] @ x_hat + AB[:, -1] * tau
-        return tau
+        x_hat = self.estimator.update(y, self._tau, spin)
+        K = self.schedule.interpolate(self.gains, spin)
+        self._tau = saturate(float(self._ff * tff - K @ (x_hat - xr)), self.settings.tau_max)
+        return self._tau
 
 
 class ScheduledMPC(_Scheduled, MPC):
@@ -327,31 +439,6 @@ class ScheduledMPC(_Scheduled, MPC):
         g_j = self._Gxs[i + 1] @ y - self._reference_term(k, self._ref_terms[i + 1], self._Grs[i + 1])
         self.K = (1 - w) * self.gains[i] + w * self.gains[i + 1]
         return (1 - w) * self._Hs[i] + w * self._Hs[i + 1], (1 - w) * g_i + w * g_j
-
-
-#: Controller name -> scheduled class.
-SCHEDULED = {"lqr": ScheduledLQR, "lqg": ScheduledLQG, "mpc": ScheduledMPC}
-
-
-def make_scheduled_controller(name: str, schedule: DesignSchedule, settings=None,
-                              reference: Reference | None = None, variable: str = "measured"):
-    """Build a scheduled controller by name (``lqr``, ``lqg``, ``mpc``).
-
-    Parameters
-    ----------
-    name : {"lqr", "lqg", "mpc"}
-    schedule : DesignSchedule
-    settings : LQRSettings, LQGSettings or MPCSettings, optional
-    reference : Reference, optional
-    variable : {"measured", "reference"}
-
-    Returns
-    -------
-    Controller
-    """
-    if name not in SCHEDULED:
-        raise ParameterError(f"schedule: no scheduled version of {name!r}; allowed: {', '.join(SCHEDULED)}")
-    return SCHEDULED[name](schedule, settings, reference, variable)
 
 
 # -- python-control systems ---------------------------------------------------------------------------
@@ -403,6 +490,7 @@ def scheduled_lqr_iosystem(schedule: DesignSchedule, weights: Weights = Weights(
     -------
     control.NonlinearIOSystem
     """
+    import control as ct  # lazily: keeps the CLI's start-up light
     _check_schedule(schedule, "measured")
     d = schedule.designs[0]
     xd, ud, x = _labels(d)
@@ -442,6 +530,7 @@ def scheduled_lqg_iosystem(schedule: DesignSchedule, settings: LQGSettings = LQG
     -------
     control.NonlinearIOSystem
     """
+    import control as ct  # lazily: keeps the CLI's start-up light
     _check_schedule(schedule, "measured")
     d = schedule.designs[0]
     xd, ud, x = _labels(d)

@@ -28,11 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.validation import check_finite
+from hubbeam_ctrl.core.settings import setting
 
-from .base import Controller, DesignModel, Reference, check_positive
+from .base import Controller, ControllerSettings, DesignModel, Reference
 from .reference import slew_reference, slew_shape_constant
-from .shaping import SHAPERS, Shaper, _check_tolerance, _mode_numbers, design_shaper
+from .shaping import SHAPERS, Shaper, _mode_numbers, design_shaper
 
 __all__ = ["ShapedSettings", "ShapedOpenLoop", "ZVOpenLoop", "ZVDOpenLoop", "EIOpenLoop",
            "ShapedProfile", "shaped_profile", "PROFILES"]
@@ -41,40 +41,57 @@ __all__ = ["ShapedSettings", "ShapedOpenLoop", "ZVOpenLoop", "ZVDOpenLoop", "EIO
 PROFILES = ("bangbang", "smooth", "feedforward")
 
 
+def _ends_at_rest(reference: Reference) -> bool:
+    """Whether the reference's final rate is zero (to round-off of its top rate)."""
+    return abs(reference.theta_dot[-1]) <= 1e-9 * max(1.0, float(np.abs(reference.theta_dot).max()))
+
+
 @dataclass(frozen=True)
-class ShapedSettings:
+class ShapedSettings(ControllerSettings):
     """Settings of the open-loop shaped controllers (:class:`ShapedOpenLoop`)."""
 
-    profile: str = "bangbang"
-    """Base profile: ``"bangbang"``, ``"smooth"`` (rest-to-rest slews) or ``"feedforward"``
-    (the reference's rigid-body feedforward, shaped)."""
-    duration: float | None = None
-    """Whole shaped manoeuvre, base profile plus shaper [s], > 0; None: the shortest one
-    within ``tau_max`` (ignored by ``"feedforward"``, which keeps the reference's timing)."""
-    angle: float | None = None
-    """Slew angle [rad]; None: the reference's final angle (its final rate must be 0)."""
-    tau_max: float = 200.0
-    """Torque budget [N m], > 0: the base profile's peak must stay within it."""
-    modes: tuple = (1,)
-    """Mode numbers of the design model to shape, 1 = first bending mode; several modes are
-    shaped by convolving their shapers."""
-    tolerance: float = 0.05
-    """EI: allowed residual vibration at the design frequency [-], in (0, 0.5)."""
-    flatness: float = 3.0
-    """``"smooth"`` only: shape parameter k >= 0 of :func:`controllers.slew_reference`."""
+    profile: str = setting("bangbang", choices=PROFILES,
+                           doc="Base profile: bangbang or smooth (rest-to-rest slews), or feedforward "
+                               "(the reference's rigid-body feedforward, shaped).")
+    duration: float | None = setting(None, unit="s", lo=0.0, lo_open=True, kind=float,
+                                     doc="Whole shaped manoeuvre, base profile plus shaper; None: the "
+                                         "shortest one within tau_max (ignored by feedforward, which "
+                                         "keeps the reference's timing).")
+    angle: float | None = setting(None, unit="rad", kind=float,
+                                  doc="Slew angle; None: the reference's final angle (its final rate "
+                                      "must be 0).")
+    tau_max: float = setting(200.0, unit="N m", lo=0.0, lo_open=True,
+                             doc="Torque budget: the base profile's peak must stay within it.")
+    modes: tuple = setting((1,), kind=object,
+                           doc="Mode numbers of the design model to shape (1 = first bending mode); "
+                               "several modes are shaped by convolving their shapers.")
+    tolerance: float = setting(0.05, lo=0.0, lo_open=True, hi=0.5, hi_open=True,
+                               doc="EI: allowed residual vibration at the design frequency.")
+    flatness: float = setting(3.0, lo=0.0,
+                              doc="smooth only: shape parameter k of controllers.slew_reference.")
 
     def __post_init__(self):
-        if self.profile not in PROFILES:
-            raise ParameterError(f"profile must be one of {', '.join(PROFILES)}, got {self.profile!r}")
-        if self.duration is not None:
-            check_positive("duration", self.duration, "s")
-        if self.angle is not None:
-            check_finite("angle", self.angle, "rad")
-        check_positive("tau_max", self.tau_max, "N m")
-        _mode_numbers(self.modes, 10 ** 6)
-        _check_tolerance(self.tolerance)
-        if not (isinstance(self.flatness, (int, float)) and math.isfinite(self.flatness) and self.flatness >= 0):
-            raise ParameterError(f"flatness must be a finite number >= 0 [-], got {self.flatness!r}")
+        super().__post_init__()
+        object.__setattr__(self, "modes", _mode_numbers(self.modes, 10 ** 6))
+
+    @classmethod
+    def for_scenario(cls, scenario, **options) -> "ShapedSettings":
+        """The scenario's torque budget; a smooth slew if its reference ends at rest, else its
+        feedforward shaped.
+
+        Parameters
+        ----------
+        scenario : object
+            Read: ``tau_max``, ``reference``.
+        **options
+            Ignored unless they name a field.
+
+        Returns
+        -------
+        ShapedSettings
+        """
+        profile = "smooth" if _ends_at_rest(scenario.reference) else "feedforward"
+        return super().for_scenario(scenario, **{"profile": profile, **options})
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,7 +179,7 @@ def _feedforward(settings: ShapedSettings, reference: Reference, J: float):
 
 
 def _reference_angle(reference: Reference) -> float:
-    if abs(reference.theta_dot[-1]) > 1e-9 * max(1.0, np.abs(reference.theta_dot).max()):
+    if not _ends_at_rest(reference):
         raise ParameterError("angle: the reference does not end at rest (final rate "
                              f"{reference.theta_dot[-1]:.4g} rad/s); give angle= or profile='feedforward'")
     return float(reference.theta[-1] - reference.theta[0])

@@ -50,13 +50,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive
 
 __all__ = ["Shaper", "zv_shaper", "zvd_shaper", "ei_shaper", "make_shaper", "SHAPERS",
-           "residual_vibration", "ei_side_frequencies", "design_modes", "design_shaper",
+           "residual_vibration", "ei_side_frequencies", "design_modes", "design_shaper", "as_shaper",
            "shaper_sensitivity", "shape_reference"]
 
 #: Shaper kinds understood by :func:`make_shaper`.
@@ -288,6 +287,7 @@ def _ei_solve(tol, damping):
     u = _ei_undamped(tol)
     if damping == 0.0:
         return u
+    import scipy.optimize  # lazily: keeps the CLI's start-up light
     for z in np.linspace(0.0, damping, 1 + max(1, int(math.ceil(damping / 0.02))))[1:]:
         beta = z / math.sqrt(1.0 - z * z)
         sol = scipy.optimize.root(_ei_residuals, u, args=(tol, beta), method="hybr", tol=1e-14)
@@ -451,6 +451,22 @@ def design_shaper(design, kind: str = "zvd", modes=(1,), tolerance: float = 0.05
         s = make_shaper(kind, float(w[m - 1]), float(z[m - 1]), tolerance)
         shaper = s if shaper is None else shaper.convolve(s)
     return shaper
+
+
+def as_shaper(design, shaping) -> Shaper:
+    """``shaping`` itself if it is a :class:`Shaper`, else the shaper of that kind for the first mode.
+
+    Parameters
+    ----------
+    design : DesignModel
+        Its first mode (at the design spin) gives the shaper of a kind (:func:`design_shaper`).
+    shaping : {"zv", "zvd", "ei"} or Shaper
+
+    Returns
+    -------
+    Shaper
+    """
+    return shaping if isinstance(shaping, Shaper) else design_shaper(design, shaping)
 
 
 def shaper_sensitivity(design, kinds=SHAPERS, errors=np.linspace(-0.3, 0.3, 61), mode: int = 1,

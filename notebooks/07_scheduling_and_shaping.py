@@ -31,7 +31,7 @@
 # %%
 import numpy as np
 
-from controllers import DesignModel, DesignSchedule
+from controllers import CONTROLLERS, DesignModel, DesignSchedule, controller_styles
 from controllers.shaping import design_modes, shaper_sensitivity
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.plots import plot_campbell, plot_shaper_sensitivity, plot_tip_deflection
@@ -59,18 +59,21 @@ plot_campbell(schedule.spins, freqs_hz[:, :3], title="SFOAM design model, free h
 #
 # Spin-up to 3 rad/s in 10 s (the corrected Eq. 43), then hold; the baseline is the
 # rigid-body feedforward torque alone. `schedule=9` designs LQR at the 9 spin rates and
-# interpolates the gain on the measured hub rate.
+# interpolates the gain on the measured hub rate: the registry entry of `lqr` names its
+# scheduled version, which takes the same settings (`LQRSettings.for_scenario`).
 
 # %%
 fixed = compare("foam", "spinup", "openloop,lqr")
 scheduled = compare("foam", "spinup", "lqr", schedule=9)
+print("scheduled version of lqr:", CONTROLLERS["lqr"].scheduled.__name__)
 base = fixed.metrics["openloop"]["residual_tip_max_m"]
 for label, m in (("fixed (3 rad/s)", fixed.metrics["lqr"]), ("scheduled (9 spins)", scheduled.metrics["lqr"])):
     print(f"LQR {label:20s} residual {m['residual_tip_max_m']:.2e} m = "
           f"{100 * m['residual_tip_max_m'] / base:.2f} % of the feedforward alone")
 plot_tip_deflection({"openloop": fixed.results["openloop"], "lqr": fixed.results["lqr"],
                      "lqr scheduled": scheduled.results["lqr"]}, t_f=10.0, residual_start=15.0,
-                    title="spin-up to 3 rad/s on FOAM")
+                    title="spin-up to 3 rad/s on FOAM",
+                    styles={**fixed.styles, "lqr scheduled": {"color": "tab:purple", "label": "LQR scheduled"}})
 
 # %% [markdown]
 # ## 3 · Input-shaped open-loop slews
@@ -78,14 +81,17 @@ plot_tip_deflection({"openloop": fixed.results["openloop"], "lqr": fixed.results
 # The default paper slew (the Eq. 44 rigid angle, 12.8 rad, with 200 N m). Each shaper is
 # designed on the first mode of the design model at rest; it filters a smooth rigid-body
 # profile that uses the whole torque budget, and lengthens the manoeuvre by its own
-# duration (ZV half a period of the 0.46 Hz mode, ZVD and EI a whole one).
+# duration (ZV half a period of the 0.46 Hz mode, ZVD and EI a whole one). `zv`, `zvd` and
+# `ei` are registered controllers (not in the default list); their settings for the slew
+# come from `ShapedSettings.for_scenario`: a smooth profile, since the reference ends at rest.
 
 # %%
 slew = compare("foam", "slew", "openloop,zv,zvd,ei")
 for name, m in slew.metrics.items():
     print(f"{name:8s} residual {m['residual_tip_max_m']:.2e} m = {m['residual_pct_of_openloop']:7.2f} % "
           f"of Eq. 44, peak torque {m['peak_torque_nm']:.1f} N m")
-plot_tip_deflection(slew.results, t_f=10.0, residual_start=15.0, title="shaped slews on FOAM")
+plot_tip_deflection(slew.results, t_f=10.0, residual_start=15.0, title="shaped slews on FOAM",
+                    styles=slew.styles)
 
 # %% [markdown]
 # ZVD leaves under 1 % of the Eq. 44 residual. ZV, exact only at the design frequency, is
@@ -108,7 +114,8 @@ for kind in ("zv", "zvd", "ei"):
           np.round(100 * measured[f"{kind}_linear"], 2), "%")
 plot_shaper_sensitivity(linear["errors"], {k: linear[k] for k in ("zv", "zvd", "ei")},
                         measured["errors"], {k: measured[k] for k in ("zv", "zvd", "ei")},
-                        tolerance=0.05, title="residual vibration against frequency error")
+                        tolerance=0.05, title="residual vibration against frequency error",
+                        styles=controller_styles(("zv", "zvd", "ei")))
 
 # %% [markdown]
 # EI stays near its 5 % tolerance over -20 % .. +20 % (4.0 to 5.2 % measured), ZVD within

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from controllers import (
+    CONTROLLERS,
     LQG,
     LQR,
     DesignModel,
@@ -17,7 +18,7 @@ from controllers import (
     Weights,
     dlqr_gain,
     kalman_gain,
-    make_scheduled_controller,
+    make_controller,
     scheduled_lqg_iosystem,
     scheduled_lqr_iosystem,
     spinup_reference,
@@ -25,6 +26,7 @@ from controllers import (
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.scenarios import make_scenario
 
 P2 = Params(n_axial=2, n_transverse=2)
 
@@ -99,7 +101,7 @@ def test_lqg_iosystem_matches_the_controller(sched, ref):
         xs = sys.dynamics(0, xs, u)
         assert np.allclose(xs, ctrl.x_pred, rtol=1e-12, atol=1e-15)
     # the Kalman gains of the schedule are those of its designs
-    assert np.allclose(kalman_gain(sched.designs[0], settings), ctrl.kalman_gains[0])
+    assert np.allclose(kalman_gain(sched.designs[0], settings), ctrl.L[0])
 
 
 def test_scheduled_lqg_at_constant_spin_equals_fixed_lqg(ref):
@@ -114,10 +116,29 @@ def test_scheduled_lqg_at_constant_spin_equals_fixed_lqg(ref):
         t = 0.01 * k
         xr, _ = sch._reference_at(k)
         y = np.array([xr[0], 3.0, 0.0]) + rng.normal(scale=[1e-4, 1e-3, 0.02])
-        if k == 1200:
-            for c in (fixed, sch):                                  # start both on the reference
-                c.x_pred = xr.copy() - (np.r_[3.0 * t, 0, 0, 3.0, 0, 0] if c is fixed else 0.0)
+        if k == 1200:                                               # start both on the reference
+            fixed.estimator.reset(xr - np.r_[3.0 * t, 0, 0, 3.0, 0, 0])   # deviation coordinates
+            sch.estimator.reset(xr)
         assert fixed(t, y) == pytest.approx(sch(t, y), rel=1e-9, abs=1e-9)
+
+
+def test_registry_builds_the_scheduled_versions(sched, ref):
+    """make_controller(schedule=...) builds the registered scheduled class with the usual settings."""
+    for name, cls, settings in (("lqr", ScheduledLQR, None), ("lqg", ScheduledLQG, LQGSettings(tau_max=150.0)),
+                                ("mpc", ScheduledMPC, MPCSettings(horizon=5))):
+        assert CONTROLLERS[name].scheduled is cls
+        ctrl = make_controller(name, sched.designs[1], settings, ref, schedule=sched)
+        assert type(ctrl) is cls and ctrl.name == name and ctrl.schedule is sched
+        assert ctrl.stats()["schedule_points"] == 4
+    assert np.allclose(ctrl.gains[2], dlqr_gain(sched.designs[2], Weights())[0], rtol=1e-12)
+    assert ctrl.settings.horizon == 5
+
+
+def test_schedule_for_a_scenario_spans_its_reference_rates():
+    sc = make_scenario("spinup", plant="foam", params=P2, t_f=10.0, t_end=15.5, w_f=2.0)
+    s = DesignSchedule.for_scenario(sc, 3)
+    assert np.allclose(s.spins, [0.0, 1.0, 2.0], rtol=0, atol=1e-12)
+    assert [d.spin for d in s.designs] == s.spins.tolist() and s.n_modes == 2 and s.dt == sc.dt
 
 
 @pytest.mark.parametrize("spins, match", [
@@ -135,7 +156,7 @@ def test_bad_schedule_is_one_line(spins, match):
 
 
 @pytest.mark.parametrize("call, match", [
-    (lambda s: make_scheduled_controller("pd", s), "no scheduled version of 'pd'"),
+    (lambda s: make_controller("pd", s.designs[0], schedule=s), "no scheduled version of 'pd'"),
     (lambda s: ScheduledLQR(s, variable="estimated"), "variable must be one of measured, reference"),
     (lambda s: ScheduledLQR(DesignModel.build(P2)), "schedule must be a DesignSchedule"),
     (lambda s: ScheduledMPC(s, MPCSettings(horizon=5, tip_bound=0.1)), "tip_bound is not available"),

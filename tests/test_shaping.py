@@ -295,20 +295,23 @@ def test_shape_reference_delays_and_keeps_the_end_state(design3):
 
 
 def test_registered_and_sensitivity_arrays(design3):
-    assert {k: CONTROLLERS[k][0] for k in ("zv", "zvd", "ei")} == {"zv": ZVOpenLoop, "zvd": ZVDOpenLoop,
-                                                                   "ei": EIOpenLoop}
+    specs = {k: CONTROLLERS[k] for k in ("zv", "zvd", "ei")}
+    assert {k: s.controller for k, s in specs.items()} == {"zv": ZVOpenLoop, "zvd": ZVDOpenLoop, "ei": EIOpenLoop}
+    assert all(s.settings is ShapedSettings and not s.default and not s.tracks_reference and s.scheduled is None
+               for s in specs.values())
     out = shaper_sensitivity(design3, errors=[-0.2, 0.0, 0.2])
     assert np.allclose(out["zv"], [abs(math.cos(0.4 * math.pi)), 0.0, abs(math.cos(0.6 * math.pi))], atol=1e-12)
     assert np.allclose(out["zvd"], np.cos([0.4 * math.pi, 0.5 * math.pi, 0.6 * math.pi]) ** 2, atol=1e-12)
     assert out["ei"][1] == pytest.approx(0.05, abs=1e-12)
 
 
-def test_sensitivity_plot_takes_arrays(tmp_path):
-    from hubbeam_ctrl.plots import plot_shaper_sensitivity, save_figure
-    e = np.linspace(-0.3, 0.3, 7)
-    fig = plot_shaper_sensitivity(e, {"zv": np.abs(e)}, [0.0], {"zv": [0.01]}, tolerance=0.05)
-    save_figure(fig, tmp_path / "s.png")
-    assert (tmp_path / "s.png").stat().st_size > 1000
+def test_shaped_settings_for_a_scenario():
+    """A rest-to-rest scenario gets a smooth slew, any other its feedforward shaped; both its budget."""
+    slew = make_scenario("slew", plant="foam", tau_max=150.0, t_f=8.0, t_end=14.0)
+    spin = make_scenario("spinup", plant="foam", tau_max=150.0, t_f=8.0, t_end=14.0, w_f=2.0)
+    assert ShapedSettings.for_scenario(slew, horizon=50) == ShapedSettings(profile="smooth", tau_max=150.0)
+    assert ShapedSettings.for_scenario(spin) == ShapedSettings(profile="feedforward", tau_max=150.0)
+    assert ShapedSettings(modes=[2, 1]).modes == (2, 1)
 
 
 @pytest.mark.parametrize("call, match", [
@@ -318,15 +321,17 @@ def test_sensitivity_plot_takes_arrays(tmp_path):
     (lambda d: shaper_sensitivity(d, mode=7), "modes must be distinct mode numbers in 1..3"),
     (lambda d: shaper_sensitivity(d, errors=[float("nan")]), "errors must be finite"),
     (lambda d: ZVOpenLoop(d, ShapedSettings(angle=1.0, modes=(5,))), "modes must be distinct mode numbers in 1..3"),
-    (lambda d: ShapedSettings(profile="sine"), "profile must be one of bangbang, smooth, feedforward"),
-    (lambda d: ShapedSettings(duration=-1.0), "duration must be a finite number > 0"),
-    (lambda d: ShapedSettings(angle=float("nan")), "angle must be a finite number"),
-    (lambda d: ShapedSettings(tolerance=0.6), "tolerance must be a finite number in"),
+    (lambda d: ShapedSettings(profile="sine"), "profile must be one of 'bangbang', 'smooth', 'feedforward'"),
+    (lambda d: ShapedSettings(duration=-1.0), r"duration must be > 0 \[s\], got -1"),
+    (lambda d: ShapedSettings(angle=float("nan")), r"angle must be finite \[rad\]"),
+    (lambda d: ShapedSettings(tolerance=0.6), r"tolerance must be in \(0, 0.5\), got 0.6"),
     (lambda d: ShapedSettings(modes=()), "modes must be distinct"),
     (lambda d: ZVOpenLoop(d, ShapedSettings(profile="feedforward")), "needs a reference"),
     (lambda d: ZVOpenLoop(d, ShapedSettings(profile="feedforward", tau_max=10.0),
                           eq44_reference(200.0, 10.0, d.inertia, 0.01, 12.0)), "more than tau_max = 10 N m"),
     (lambda d: make_controller("lqr", d, shaping="zvdd"), "shaper must be one of zv, zvd, ei"),
+    (lambda d: make_controller("openloop", d, shaping="zv"), "'openloop' does not track a reference"),
+    (lambda d: compare("foam", "slew", "lqr", shaping="zvdd"), "shaper must be one of zv, zvd, ei"),
     (lambda d: shape_reference([0.0], zv_shaper(1.0)), "reference must be a Reference"),
 ])
 def test_bad_design_level_input_is_one_line(design3, call, match):

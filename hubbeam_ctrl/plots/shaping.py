@@ -1,4 +1,9 @@
-"""Plots of input shapers: residual vibration against frequency error (nothing computed here)."""
+"""Plots of input shapers: residual vibration against frequency error (nothing computed here).
+
+Colours and labels come from ``styles`` (``name -> {"color", "label"}``, e.g.
+:func:`controllers.controller_styles` of ``zv, zvd, ei``); without them, Matplotlib's
+colour cycle and the names are used.
+"""
 
 from __future__ import annotations
 
@@ -7,12 +12,13 @@ from matplotlib.figure import Figure
 
 __all__ = ["plot_shaper_sensitivity"]
 
-#: Fixed styles so that the shapers look the same in every figure.
-SHAPER_STYLES = {"zv": ("tab:purple", "o"), "zvd": ("tab:cyan", "s"), "ei": ("tab:olive", "^")}
+#: Markers of the measured points, one per curve in order.
+MARKERS = ("o", "s", "^", "D", "v")
 
 
 def plot_shaper_sensitivity(errors, curves: dict, measured_errors=None, measured: dict | None = None,
-                            tolerance: float | None = None, title: str = "") -> Figure:
+                            tolerance: float | None = None, title: str = "",
+                            styles: dict | None = None) -> Figure:
     """Residual vibration [%] against the relative error of the mode's frequency [%].
 
     Parameters
@@ -28,6 +34,8 @@ def plot_shaper_sensitivity(errors, curves: dict, measured_errors=None, measured
     tolerance : float, optional
         A residual level to mark (e.g. EI's 5 %) [-].
     title : str
+    styles : dict, optional
+        Shaper name -> ``{"color": ..., "label": ...}``.
 
     Returns
     -------
@@ -36,12 +44,14 @@ def plot_shaper_sensitivity(errors, curves: dict, measured_errors=None, measured
     fig = Figure(figsize=(7, 4.5), constrained_layout=True)
     ax = fig.subplots()
     e = 100 * np.asarray(errors, dtype=float)
-    for name, v in curves.items():
-        color, marker = SHAPER_STYLES.get(name, (None, "x"))
-        ax.plot(e, 100 * np.asarray(v), color=color, lw=1.5, label=f"{name} (linear)")
+    for i, (name, v) in enumerate(curves.items()):
+        style = (styles or {}).get(name, {})
+        color, label = style.get("color") or f"C{i}", style.get("label") or name
+        ax.plot(e, 100 * np.asarray(v), color=color, lw=1.5, label=f"{label} (linear)")
         if measured is not None and name in measured:
             ax.plot(100 * np.asarray(measured_errors, dtype=float), 100 * np.asarray(measured[name]),
-                    ls="none", marker=marker, color=color, mfc="none", ms=8, label=f"{name} (nonlinear plant)")
+                    ls="none", marker=MARKERS[i % len(MARKERS)], color=color, mfc="none", ms=8,
+                    label=f"{label} (nonlinear plant)")
     if tolerance is not None:
         ax.axhline(100 * tolerance, color="k", ls=":", lw=0.8)
     ax.set_xlabel("frequency error [%]")
