@@ -26,6 +26,7 @@
 # %%
 import matplotlib.pyplot as plt
 
+from controllers import controller_styles
 from hubbeam_ctrl.plots.study import plot_heatmap, plot_robustness_curves, plot_stable_region
 from hubbeam_ctrl.study.spec import load_spec
 from hubbeam_ctrl.study.sweep import sweep
@@ -52,7 +53,7 @@ summary = summarize(df)
 summary[["controller", "residual_tip_max_m_worst", "residual_tip_max_m_median", "fraction_unstable"]]
 
 # %%
-plot_robustness_curves(df, "m_t")
+plot_robustness_curves(df, "m_t", styles=controller_styles())
 
 # %%
 plot_heatmap(df, "m_t", "l")

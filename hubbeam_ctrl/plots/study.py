@@ -12,8 +12,6 @@ import numpy as np
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 
-from hubbeam_ctrl.plots.closedloop import CONTROLLER_COLORS
-
 __all__ = ["plot_robustness_curves", "plot_heatmap", "plot_stable_region", "plot_convergence", "unstable_mask",
            "ROBUSTNESS_METRICS"]
 
@@ -41,7 +39,8 @@ def _controllers(df, controllers):
     return list(controllers) if controllers is not None else list(dict.fromkeys(df["controller"]))
 
 
-def plot_robustness_curves(df, factor: str, metrics=None, controllers=None, title: str = "") -> Figure:
+def plot_robustness_curves(df, factor: str, metrics=None, controllers=None, title: str = "",
+                           styles: dict | None = None) -> Figure:
     """Each metric against one factor, one colour per controller.
 
     Every case is a dot; the line joins the worst case (largest absolute value) at each
@@ -59,24 +58,30 @@ def plot_robustness_curves(df, factor: str, metrics=None, controllers=None, titl
     controllers : sequence of str, optional
         Default: all in ``df``, in order.
     title : str
+    styles : dict, optional
+        Controller name -> ``{"color": ..., "label": ...}`` (e.g. :func:`controllers.controller_styles`);
+        default: Matplotlib's colour cycle and the names.
 
     Returns
     -------
     Figure
     """
+    names = _controllers(df, controllers)
+    style = {n: (styles or {}).get(n, {}) for n in names}
+    color = {n: style[n].get("color") or f"C{i}" for i, n in enumerate(names)}
     metrics = [m for m in (metrics or ROBUSTNESS_METRICS) if m in df]
     fig = Figure(figsize=(5.0 * min(len(metrics), 2), 3.4 * _ceil_div(len(metrics), 2)), constrained_layout=True)
     axes = np.atleast_1d(fig.subplots(_ceil_div(len(metrics), 2), min(len(metrics), 2), squeeze=False)).ravel()
     for ax, metric in zip(axes, metrics):
         label, log = ROBUSTNESS_METRICS.get(metric, (metric, False))
-        for name in _controllers(df, controllers):
+        for name in names:
             sub = df[df["controller"] == name]
             x = sub[factor].to_numpy(dtype=float)
             y = np.abs(sub[metric].to_numpy(dtype=float))
-            ax.plot(x, y, ".", color=CONTROLLER_COLORS.get(name), alpha=0.5)
+            ax.plot(x, y, ".", color=color[name], alpha=0.5)
             xs = np.unique(x[np.isfinite(x)])
             worst = [np.nanmax(y[x == v]) if np.any(np.isfinite(y[x == v])) else np.nan for v in xs]
-            ax.plot(xs, worst, "-", color=CONTROLLER_COLORS.get(name), label=name)
+            ax.plot(xs, worst, "-", color=color[name], label=style[name].get("label") or name)
         ax.set_xlabel(factor)
         ax.set_ylabel(label)
         if log:

@@ -25,140 +25,38 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, fields
 
 import numpy as np
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import resolve_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
-from hubbeam_ctrl.sim.results import HubStateViews
+from hubbeam_ctrl.sim.results import Result
 from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings
 
-__all__ = ["ClosedLoopSettings", "ClosedLoopResult", "simulate_closed_loop"]
+__all__ = ["ClosedLoopSettings", "simulate_closed_loop"]
 
 
 @dataclass(frozen=True)
-class ClosedLoopSettings:
-    """Settings of :func:`simulate_closed_loop`."""
+class ClosedLoopSettings(StepperSettings):
+    """Settings of :func:`simulate_closed_loop`: the plant integrator's (``dt`` is also the
+    controller's sample period and the zero-order hold's), the sensors and when to stop."""
 
-    dt: float = 0.01
-    """Sample period of the controller and of the zero-order hold [s] (default 100 Hz)."""
-    substeps: int = 2
-    """Integration steps of the plant per sample (see :class:`StepperSettings`)."""
-    rho_inf: float = 0.9
-    """Numerical damping of the plant integrator, 0..1 (see :class:`StepperSettings`)."""
-    newton_iterations: int = 3
-    """Newton iterations per integration step (see :class:`StepperSettings`)."""
-    sensors: SensorSettings = field(default_factory=SensorSettings)
-    """Sensor noise for controllers that read ``"sensors"``."""
-    divergence_limit: float = 0.3
-    """The run stops when ``|v_tip| > divergence_limit * L`` [-]."""
-    max_wall_s: float = 600.0
-    """The run stops (flagged) when it has taken longer than this [s]."""
-
-    def __post_init__(self):
-        _check_positive("divergence_limit", self.divergence_limit, "-")
-        _check_positive("max_wall_s", self.max_wall_s, "s")
-        if not isinstance(self.sensors, SensorSettings):
-            raise ParameterError("sensors must be a SensorSettings")
-        self.stepper  # validates dt, substeps, rho_inf, newton_iterations
+    sensors: SensorSettings = setting(factory=SensorSettings,
+                                      doc='Sensor noise for controllers that read "sensors".')
+    divergence_limit: float = setting(0.3, lo=0.0, lo_open=True,
+                                      doc="The run stops when abs(v_tip) > divergence_limit * L.")
+    max_wall_s: float = setting(600.0, unit="s", lo=0.0, lo_open=True,
+                                doc="The run stops (flagged) when it has taken longer than this.")
 
     @property
     def stepper(self) -> StepperSettings:
         """The plant integrator's settings."""
-        return StepperSettings(dt=self.dt, substeps=self.substeps, rho_inf=self.rho_inf,
-                               newton_iterations=self.newton_iterations)
-
-
-@dataclass
-class ClosedLoopResult(HubStateViews):
-    """Time series of one closed-loop run, sampled at the controller's instants.
-
-    Attributes
-    ----------
-    plant : str
-        Plant model name.
-    controller : str
-        Controller name.
-    t : ndarray (N,)
-        Sample instants [s].
-    q, v : ndarray (N, n_q)
-        Plant coordinates ``[theta, q1, q2]`` [rad, m] and rates.
-    v_tip, u_tip : ndarray (N,)
-        Transverse and axial tip displacement in the hub frame [m].
-    root_moment : ndarray (N,)
-        Root bending moment ``EI f2''(0) q2`` [N m] (noise-free).
-    tau : ndarray (N,)
-        Torque commanded at ``t_k`` and held until ``t_{k+1}`` [N m] (the last one is
-        computed but not applied).
-    step_time_s : ndarray (N,)
-        Wall time of each controller call [s].
-    theta_ref, theta_dot_ref : ndarray (N,) or None
-        The task's hub reference [rad, rad/s], when the caller gave one.
-    params : Params
-    settings : dict
-    controller_stats : dict
-        What the controller's ``stats()`` returned at the end (e.g. QP fallbacks).
-    stopped : bool
-        True when the run ended early; ``message`` says why.
-    message : str
-    wall_s : float
-        Wall time of the whole run [s].
-    plant_fallbacks : int
-        Integration steps that needed the exact rootfinder.
-    """
-
-    plant: str
-    controller: str
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    v_tip: np.ndarray
-    u_tip: np.ndarray
-    root_moment: np.ndarray
-    tau: np.ndarray
-    step_time_s: np.ndarray
-    params: Params
-    theta_ref: np.ndarray | None = None
-    theta_dot_ref: np.ndarray | None = None
-    settings: dict = field(default_factory=dict)
-    controller_stats: dict = field(default_factory=dict)
-    stopped: bool = False
-    message: str = "completed"
-    wall_s: float = 0.0
-    plant_fallbacks: int = 0
-
-    def save(self, path):
-        """Save all arrays and metadata to a ``.npz`` file (atomically).
-
-        Parameters
-        ----------
-        path : str or Path
-        """
-        import json
-        from pathlib import Path
-
-        from hubbeam_ctrl.core.fileio import atomic_write
-        path = Path(path)
-        if path.suffix.lower() != ".npz":
-            raise ParameterError(f"path must end in .npz, got {path.name!r}")
-        arrays = {k: getattr(self, k) for k in ("t", "q", "v", "v_tip", "u_tip", "root_moment",
-                                                "tau", "step_time_s")}
-        for k in ("theta_ref", "theta_dot_ref"):
-            if getattr(self, k) is not None:
-                arrays[k] = getattr(self, k)
-        meta = {"plant": self.plant, "controller": self.controller,
-                "params": self.params.to_dict(), "settings": self.settings,
-                "controller_stats": self.controller_stats, "stopped": self.stopped,
-                "message": self.message, "wall_s": self.wall_s}
-
-        def write(tmp):
-            with open(tmp, "wb") as fh:
-                np.savez(fh, metadata=json.dumps(meta, default=str), **arrays)
-        return atomic_write(path, write)
+        return StepperSettings(**{f.name: getattr(self, f.name) for f in fields(StepperSettings)})
 
 
 def _controller_name(controller) -> str:
@@ -167,7 +65,7 @@ def _controller_name(controller) -> str:
 
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
                          settings: ClosedLoopSettings | None = None, x0=None,
-                         reference=None) -> ClosedLoopResult:
+                         reference=None) -> Result:
     """Run a sampled controller on a nonlinear plant (zero-order hold).
 
     At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
@@ -199,7 +97,12 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
 
     Returns
     -------
-    ClosedLoopResult
+    Result
+        Of kind ``"closed_loop"``, sampled at the controller's instants: the plant's
+        ``q``, ``v``, ``v_tip``, ``u_tip``, ``root_moment``, the commanded ``tau``, the
+        controller's ``step_time_s`` and ``controller_stats``, the reference (when given),
+        and ``stats`` with the plant integrator's ``plant_fallbacks`` and
+        ``jacobian_updates``.
 
     Notes
     -----
@@ -297,9 +200,9 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     s_dict = dataclasses.asdict(settings)
     s_dict["t_end"] = float(t_end)
     s_dict["measurement"] = kind
-    return ClosedLoopResult(
-        plant=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip, u_tip=u_tip,
-        root_moment=root_moment, tau=taus, step_time_s=step_times, params=model.params,
-        theta_ref=theta_ref, theta_dot_ref=theta_dot_ref, settings=s_dict,
-        controller_stats=stats, stopped=stopped, message=message, wall_s=wall,
-        plant_fallbacks=stepper.fallbacks)
+    return Result(
+        kind="closed_loop", model=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip,
+        u_tip=u_tip, root_moment=root_moment, tau=taus, step_time_s=step_times,
+        params=model.params, theta_ref=theta_ref, theta_dot_ref=theta_dot_ref, settings=s_dict,
+        stats={"plant_fallbacks": stepper.fallbacks, "jacobian_updates": stepper.jacobian_updates},
+        controller_stats=stats, stopped=stopped, message=message, wall_s=wall)

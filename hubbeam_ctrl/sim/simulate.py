@@ -25,11 +25,11 @@ import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.progress import Progress
+from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.plant.maneuvers import UserManeuver
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.sim.results import SimulationResult
+from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["simulate", "Integrator", "make_integrator", "SimulationSettings"]
 
@@ -177,7 +177,7 @@ def _full_state(model, hub, maneuver, t, xs, zs):
 
 def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params | None = None,
              hub: str | None = None, x0=None, settings: SimulationSettings | None = None,
-             progress: bool = False, **setting_overrides) -> SimulationResult:
+             progress: bool = False, **setting_overrides) -> Result:
     """Simulate a hub-beam model.
 
     Parameters
@@ -200,16 +200,17 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         elastic part at rest (prescribed hub).
     settings : SimulationSettings, optional
     progress : bool
-        Print progress to stderr.
+        Show a progress bar on stderr (only when stderr is a terminal).
     **setting_overrides
         Fields of :class:`SimulationSettings` (``dt``, ``rtol``, ...).
 
     Returns
     -------
-    SimulationResult
-        Time series (``t``, ``q``, ``v``, ``theta``, ``theta_dot``, ``v_tip``, ``u_tip``,
-        ``tau``, ``q_theta``, ``energy``, ``angular_momentum``) with the parameters and
-        settings that made them; ``diverged`` and ``message`` say how the run ended.
+    Result
+        Of kind ``"open_loop"``: time series (``t``, ``q``, ``v``, ``a``, ``theta``,
+        ``theta_dot``, ``v_tip``, ``u_tip``, ``tau``, ``q_theta``, ``energy``,
+        ``angular_momentum``) with the parameters and settings that made them;
+        ``diverged`` (same as ``stopped``) and ``message`` say how the run ended.
 
     Examples
     --------
@@ -260,7 +261,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     tip_map = m.tip_function
     start = time.perf_counter()
     done = 0
-    bar = Progress(n_out, f"simulate {m.name}", enabled=progress)
+    bar = progress_bar(n_out, f"simulate {m.name}", enabled=progress)
     x, z = x0, z0
     while done < n_out:
         k = min(per_chunk, n_out - done)
@@ -295,7 +296,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         xs_all.append(xs)
         zs_all.append(zs)
         done += len(xs)
-        bar.update(done)
+        bar.update(len(xs))
         if diverged:
             message = (f"{m.name.upper()} left its range at t = {tk[-1] if len(tk) else t0:.3f} s: "
                        f"|v_tip| > {settings.divergence_limit:g} L = {limit:.3g} m"
@@ -314,9 +315,25 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     zs = np.vstack(zs_all) if zs_all else np.zeros((0, n_x // 2))
     zs = np.vstack([z0[None, :], zs])
     q, v, a = _full_state(m, hub, maneuver, t, xs, zs)
-    return SimulationResult.from_states(
-        m, t, q, v, a, hub=hub, maneuver=maneuver, settings=settings,
-        diverged=diverged, message=message, wall_s=wall)
+    return _open_loop_result(m, t, q, v, a, hub=hub, maneuver=maneuver, settings=settings,
+                             stopped=diverged, message=message, wall_s=wall)
+
+
+def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, settings, stopped,
+                      message, wall_s) -> Result:
+    """A :class:`Result` of kind ``"open_loop"``, the model's outputs evaluated on all samples."""
+    N = len(t)
+    Q, V, A = q.T, v.T, a.T
+    v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(N)(Q))
+    tau = np.array(model.inverse_dynamics_function.map(N)(Q, V, A))[0]
+    q_theta = np.array(model.q_theta_function.map(N)(Q, V)).ravel()
+    energy = np.array(model.energy_function.map(N)(Q, V)[2]).ravel()
+    momentum = np.array(model.momentum_function.map(N)(Q, V)).ravel()
+    return Result(kind="open_loop", model=model.name, hub=hub, t=t, q=q, v=v, a=a,
+                  v_tip=v_tip, u_tip=u_tip, tau=tau, q_theta=q_theta, energy=energy,
+                  angular_momentum=momentum, params=model.params,
+                  settings={"maneuver": describe_input(maneuver), **dataclasses.asdict(settings)},
+                  stopped=stopped, message=message, wall_s=wall_s)
 
 
 def _initial_accelerations(m: HubBeamModel, hub, maneuver, x0):

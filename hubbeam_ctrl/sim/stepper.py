@@ -17,6 +17,7 @@ correction is not small enough is recomputed with CasADi's ``rootfinder('newton'
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -25,16 +26,13 @@ import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients"]
-
-
-def _check_int(name, value, lo, hi):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise ParameterError(f"{name} must be an integer in {lo}..{hi}, got {value!r}")
 
 
 def generalized_alpha_coefficients(rho_inf: float) -> tuple:
@@ -58,29 +56,21 @@ def generalized_alpha_coefficients(rho_inf: float) -> tuple:
 
 
 @dataclass(frozen=True)
-class StepperSettings:
+class StepperSettings(Settings):
     """Settings of the fixed-step plant integrator :class:`PlantStepper`."""
 
-    dt: float = 0.01
-    """Sample period [s]: one call of the stepper advances the plant by ``dt``."""
-    substeps: int = 2
-    """Integration steps per sample (1..100); the step is ``dt / substeps``. Two steps of
-    5 ms reproduce a tight IDAS run of the Eq. 44 slew to ~0.04 % of the peak deflection."""
-    rho_inf: float = 0.9
-    """Spectral radius at infinity of the generalized-alpha method, 0..1 [-]."""
-    newton_iterations: int = 3
-    """Newton iterations per step in the fast path (1..20)."""
-    newton_tol: float = 1e-6
-    """Largest accepted last Newton correction of the accelerations [m/s^2, rad/s^2];
-    a step above it is recomputed by the exact rootfinder."""
-
-    def __post_init__(self):
-        _check_positive("dt", self.dt, "s")
-        _check_int("substeps", self.substeps, 1, 100)
-        if not (isinstance(self.rho_inf, (int, float)) and 0.0 <= self.rho_inf <= 1.0):
-            raise ParameterError(f"rho_inf must be a number in [0, 1], got {self.rho_inf!r}")
-        _check_int("newton_iterations", self.newton_iterations, 1, 20)
-        _check_positive("newton_tol", self.newton_tol, "m/s^2")
+    dt: float = setting(0.01, unit="s", lo=0.0, lo_open=True,
+                        doc="Sample period: one call of the stepper advances the plant by dt.")
+    substeps: int = setting(2, lo=1, hi=100,
+                            doc="Integration steps per sample; the step is dt / substeps. Two steps of "
+                                "5 ms reproduce a tight IDAS run of the Eq. 44 slew to ~0.04 % of the "
+                                "peak deflection.")
+    rho_inf: float = setting(0.9, lo=0.0, hi=1.0,
+                             doc="Spectral radius at infinity of the generalized-alpha method.")
+    newton_iterations: int = setting(3, lo=1, hi=20, doc="Newton iterations per step in the fast path.")
+    newton_tol: float = setting(1e-6, unit="m/s^2, rad/s^2", lo=0.0, lo_open=True,
+                                doc="Largest accepted last Newton correction of the accelerations; a "
+                                    "step above it is recomputed by the exact rootfinder.")
 
 
 class PlantStepper:
@@ -273,7 +263,7 @@ def _robust_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.
 
 
 def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = None,
-                        settings: StepperSettings | None = None, x0=None) -> dict:
+                        settings: StepperSettings | None = None, x0=None) -> Result:
     """Integrate a free-hub model under a torque profile with :class:`PlantStepper`.
 
     The torque is evaluated at the end of every substep (no zero-order hold), so the
@@ -282,19 +272,24 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     Parameters
     ----------
     plant : str or HubBeamModel
+        ``"foam"``, ``"cfoam"``, ``"tlam"``, ``"sfoam"`` or a built model (free hub).
     torque : callable
         ``torque(t)`` [N m] of an array of times [s] (e.g. a ``TorquePulse``).
     t_end : float
-        Final time [s].
+        Final time [s], > 0.
     params : Params, optional
+        Parameters when ``plant`` is a name.
     settings : StepperSettings, optional
     x0 : array_like (2 n_q,), optional
+        Initial state ``[q, v]`` (default: at rest).
 
     Returns
     -------
-    dict
-        ``t`` (N+1,) [s], ``q``, ``v`` (N+1, n_q), ``v_tip`` (N+1,) [m], ``wall_s``,
-        ``ms_per_step`` (wall time per sample) and ``fallbacks``.
+    Result
+        Of kind ``"fixed_step"``: ``t`` (N+1,) [s] on the sample grid, ``q``, ``v``, ``a``
+        (N+1, n_q), ``v_tip``, ``u_tip`` [m], the applied ``tau`` [N m], ``wall_s`` and
+        ``stats`` with ``ms_per_step`` (wall time per sample), ``fallbacks`` and
+        ``jacobian_updates``.
     """
     model = resolve_model(plant, params)
     settings = settings or StepperSettings()
@@ -306,16 +301,22 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     sub = (t[:-1, None] + dt * np.arange(1, k + 1)[None, :] / k)
     u = np.asarray(torque(sub), dtype=float) * np.ones_like(sub)
     n = model.n_q
-    s = stepper.initial_state(x0, float(np.asarray(torque(np.array(0.0)))))
-    out = np.empty((N + 1, 2 * n))
-    out[0] = s[:2 * n]
+    tau0 = float(np.asarray(torque(np.array(0.0))))
+    s = stepper.initial_state(x0, tau0)
+    out = np.empty((N + 1, 3 * n))
+    out[0] = s[:3 * n]
     start = time.perf_counter()
     for i in range(N):
         s = stepper.step(s, u[i])
-        out[i + 1] = s[:2 * n]
+        out[i + 1] = s[:3 * n]
     wall = time.perf_counter() - start
-    q, v = out[:, :n], out[:, n:]
-    v_tip = np.array(model.tip_function.map(N + 1)(q.T)[0]).ravel()
-    return {"t": t, "q": q, "v": v, "v_tip": v_tip, "wall_s": wall,
-            "ms_per_step": 1e3 * wall / max(N, 1), "fallbacks": stepper.fallbacks,
-            "jacobian_updates": stepper.jacobian_updates}
+    q, v, a = out[:, :n], out[:, n:2 * n], out[:, 2 * n:]
+    v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(N + 1)(q.T))
+    tau = np.concatenate([[tau0], u[:, -1]])
+    stats = {"ms_per_step": 1e3 * wall / max(N, 1), "fallbacks": stepper.fallbacks,
+             "jacobian_updates": stepper.jacobian_updates}
+    return Result(kind="fixed_step", model=model.name, t=t, q=q, v=v, a=a, v_tip=v_tip,
+                  u_tip=u_tip, tau=tau, params=model.params,
+                  settings={"torque": describe_input(torque), "t_end": float(t_end),
+                            **dataclasses.asdict(settings)},
+                  stats=stats, wall_s=wall)

@@ -59,7 +59,6 @@ import tomllib
 from controllers import CONTROLLERS
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.study.compare import _default_settings, _parse_controllers
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
 
 __all__ = ["StudySpec", "load_spec", "load_settings", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
@@ -75,6 +74,19 @@ _INTEGER_FACTORS = ("n_axial", "n_transverse", "seed")
 _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", "lqr"), "design": "base",
                "tau_max": 200.0, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
                "solver": "daqp", "design_modes": None}
+
+
+def _controller_list(value) -> tuple:
+    """``study.controllers`` (a list, or a comma-separated string) checked against the registry."""
+    items = value.split(",") if isinstance(value, str) else value
+    if not isinstance(items, (list, tuple)):
+        raise ParameterError(f"study.controllers must be a list of names, got {value!r}")
+    names = tuple(str(c).strip().lower() for c in items if str(c).strip())
+    bad = [n for n in names if n not in CONTROLLERS]
+    if not names or bad or len(set(names)) != len(names):
+        raise ParameterError(f"study.controllers must name each of {', '.join(CONTROLLERS)} at most once "
+                             f"(at least one), got {', '.join(map(str, items)) or 'none'}")
+    return names
 
 
 def _factor_names() -> tuple:
@@ -303,7 +315,7 @@ class StudySpec:
         if bad:
             raise ParameterError(f"study: unknown key(s) {', '.join(bad)}; allowed: {', '.join(_STUDY_KEYS)}")
         kw = {k: study.get(k, v) for k, v in _STUDY_KEYS.items()}
-        kw["controllers"] = _parse_controllers(kw["controllers"])
+        kw["controllers"] = _controller_list(kw["controllers"])
         params = Params.from_dict(dict(data.get("params", {})))
         grid = _grid("grid", data.get("grid", {}), kw["scenario"])
         random = None
@@ -471,12 +483,11 @@ def load_settings(spec: StudySpec, path) -> StudySpec:
 
 
 def controller_settings(name: str, table: dict | None, scenario, horizon: int = 50, solver: str = "daqp"):
-    """A controller's settings object: the comparison's defaults for ``scenario`` with the
-    entries of ``table`` replacing them (a nested table updates a dataclass-valued setting,
-    e.g. ``weights = {tip = 1e4}``).
+    """A controller's settings object: the registry's defaults for ``scenario`` (its settings
+    class's ``for_scenario``, as in the comparison) with the entries of ``table`` replacing
+    them (a nested table updates a dataclass-valued setting, e.g. ``weights = {tip = 1e4}``).
 
-    This is the one place that knows how settings are built from plain data; adapt it when
-    the settings registry changes.
+    This is the one place that knows how settings are built from plain data.
 
     Parameters
     ----------
@@ -492,12 +503,12 @@ def controller_settings(name: str, table: dict | None, scenario, horizon: int = 
 
     Returns
     -------
-    dataclass
-        The controller's settings.
+    ControllerSettings
+        The controller's settings (validated).
     """
     if name not in CONTROLLERS:
         raise ParameterError(f"controllers: unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)}")
-    base = _default_settings(name, scenario, horizon, solver)
+    base = CONTROLLERS[name].settings.for_scenario(scenario, horizon=horizon, solver=solver)
     table = dict(table or {})
     known = {f.name: f for f in dataclasses.fields(base)}
     bad = sorted(set(table) - set(known))
@@ -512,11 +523,16 @@ def controller_settings(name: str, table: dict | None, scenario, horizon: int = 
             if unknown:
                 raise ParameterError(f"settings.{name}.{key}: unknown {', '.join(unknown)}; allowed: "
                                      f"{', '.join(sorted(sub))}")
-            value = dataclasses.replace(current, **value)
+            value = _replaced(name, current, value)
         changes[key] = value
+    return _replaced(name, base, changes)
+
+
+def _replaced(name: str, settings, changes: dict):
+    """``settings`` with ``changes``, its validation error prefixed by ``settings.NAME``."""
     try:
-        return dataclasses.replace(base, **changes)
-    except TypeError as exc:
+        return dataclasses.replace(settings, **changes)
+    except (TypeError, ParameterError) as exc:
         raise ParameterError(f"settings.{name}: {exc}") from None
 
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from controllers import controller_styles
 from hubbeam_ctrl.core.fileio import atomic_write_text
 from hubbeam_ctrl.plots.plant import save_figure
 from hubbeam_ctrl.plots.study import (
@@ -103,8 +104,10 @@ def write_sweep_outputs(df, spec: StudySpec, out_dir, wall_s: float | None = Non
     summary = summarize(df)
     paths = {"summary": atomic_write_text(out / "summary.csv", summary.to_csv(index=False))}
     factors = _plot_factors(df, spec)
+    styles = controller_styles(spec.controllers)
     for f in factors:
-        paths[f"robustness_{f}"] = save_figure(plot_robustness_curves(df, f), out / f"robustness_{f}.png")
+        paths[f"robustness_{f}"] = save_figure(plot_robustness_curves(df, f, styles=styles),
+                                               out / f"robustness_{f}.png")
     if len(factors) >= 2:
         paths["heatmap"] = save_figure(plot_heatmap(df, factors[0], factors[1]), out / "heatmap.png")
     if factors:
