@@ -1,4 +1,9 @@
-"""LQG: the LQR gain on a steady-state Kalman filter fed by realistic hub and root sensors."""
+"""LQG: the LQR gain on a steady-state Kalman filter fed by realistic hub and root sensors.
+
+By default (``robust=True``) the filter's model carries the beam's residual modes (see
+:mod:`controllers.residual` and docs/controllers.md): a filter on the design modes alone
+destabilises the modes it leaves out through the root-moment sensor.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +16,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, Reference, Weights, check_nonnegative, check_positive, saturate
 from .lqr import dlqr_gain
+from .residual import embedding, estimator_model
 
 __all__ = ["LQGSettings", "LQG", "kalman_gain"]
 
@@ -37,11 +43,20 @@ class LQGSettings:
     """Assumed hub-rate sensor noise, standard deviation [rad/s], > 0."""
     moment_noise_nm: float = 0.02
     """Assumed root-moment sensor noise, standard deviation [N m], > 0."""
-    torque_noise_nm: float = 5.0
+    torque_noise_nm: float = 1.0
     """Process noise: white torque disturbance at the hub, standard deviation per sample
-    [N m], > 0 (stands for model error: FOAM's stiffening and Q_theta, the axial modes)."""
-    modal_noise: float = 1e-4
-    """Process noise on each modal coordinate and rate per sample [m, m/s], >= 0."""
+    [N m], > 0 (stands for model error: FOAM's stiffening and Q_theta, the axial modes).
+    Until the residual modes came, 5 N m; 1 N m halves the tip motion the sensor noise
+    causes (docs/controllers.md)."""
+    modal_noise: float = 1e-5
+    """Process noise on each modal coordinate and rate per sample [m, m/s], >= 0 (until
+    the residual modes came, 1e-4)."""
+    robust: bool = True
+    """Model the residual modes in the filter (:mod:`controllers.residual`); ``False`` is
+    the filter on the design model alone, which the modes it leaves out destabilise."""
+    residual_modes: int | None = None
+    """Transverse modes of the filter's model when ``robust`` (design modes..20); ``None``:
+    every mode below the Nyquist frequency and the first above it."""
 
     def __post_init__(self):
         if not isinstance(self.weights, Weights):
@@ -52,6 +67,8 @@ class LQGSettings:
         check_positive("moment_noise_nm", self.moment_noise_nm, "N m")
         check_positive("torque_noise_nm", self.torque_noise_nm, "N m")
         check_nonnegative("modal_noise", self.modal_noise, "m")
+        if not isinstance(self.robust, bool):
+            raise ParameterError(f"robust must be True or False, got {self.robust!r}")
 
 
 def kalman_gain(design: DesignModel, settings: LQGSettings) -> np.ndarray:
@@ -88,7 +105,9 @@ class LQG(Controller):
     The filter works in deviations from the steady rotation at the design spin ``Omega``:
     ``x - [Omega t, 0, Omega, 0]``. Each call makes the measurement update, computes
     ``tau = sat(tau_ff - K (x_hat - x_ref))`` and predicts the next state with the torque
-    actually applied.
+    actually applied. With ``settings.robust`` the filter's model (:attr:`estimator`) has the
+    residual modes of :func:`controllers.residual.estimator_modes`; ``K`` acts on the design
+    modes only.
 
     Parameters
     ----------
@@ -99,9 +118,11 @@ class LQG(Controller):
     Attributes
     ----------
     K : ndarray (nx,)
-        LQR gain.
-    L : ndarray (nx, 3)
-        Kalman gain.
+        LQR gain on the design model.
+    L : ndarray (nx_est, 3)
+        Kalman gain on the filter's model.
+    estimator : DesignModel
+        The filter's model (``design`` itself unless residual modes are added).
     """
 
     name = "lqg"
@@ -112,17 +133,20 @@ class LQG(Controller):
         settings = settings or LQGSettings()
         super().__init__(design, settings, reference)
         self.K, self.P = dlqr_gain(design, settings.weights)
-        self.L = kalman_gain(design, settings)
-        C = design.C_sensors
-        self._IminusLC = np.eye(design.n_x) - self.L @ C
+        est = estimator_model(design, settings.residual_modes) if settings.robust else design
+        self.estimator = est
+        self._E = embedding(design.n_modes, est.n_modes)
+        self._Ke = self.K @ self._E.T
+        self.L = kalman_gain(est, settings)
+        self._IminusLC = np.eye(est.n_x) - self.L @ est.C_sensors
         self._ff = 1.0 if settings.feedforward else 0.0
-        self._n = design.n_x // 2
+        self._n = est.n_x // 2
         self._prepare_reference(settings.elastic_reference)
         self.reset()
 
     def reset(self) -> None:
         x, _ = self._reference_at(0)
-        x = x.copy()
+        x = self._E @ x
         x[self._n] -= self.design.spin
         self.x_pred = x
         self.x_hat = x
@@ -132,10 +156,10 @@ class LQG(Controller):
         xr, tff = self._reference_at(int(round(t / self.dt)))
         yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
         x_hat = self._IminusLC @ self.x_pred + self.L @ yd
-        K = self.K
+        K = self._Ke
         # x_hat is a deviation from the steady rotation; x_ref is absolute
-        u = K @ (x_hat - xr) + K[0] * spin * t + K[self._n] * spin
+        u = K @ (x_hat - self._E @ xr) + K[0] * spin * t + K[self._n] * spin
         tau = saturate(float(self._ff * tff - u), self.settings.tau_max)
         self.x_hat = x_hat
-        self.x_pred = self.design.Ad @ x_hat + self.design.Bd[:, 0] * tau
+        self.x_pred = self.estimator.Ad @ x_hat + self.estimator.Bd[:, 0] * tau
         return tau

@@ -15,7 +15,9 @@ The controller is any object with
 * ``reset()``: prepare a new run;
 * ``measurement``: ``"state"`` or ``"sensors"`` (see :func:`simulate_closed_loop`);
 * optionally ``name``, ``dt`` (its sample time, checked against the simulator's),
-  ``n_modes`` (the transverse modes of its design model) and ``stats() -> dict``.
+  ``n_modes`` (the transverse modes of its design model), ``design`` (with ``params`` and
+  ``spin``: the design model's parameters and spin rate, used to choose the evaluation
+  plant and its integration step) and ``stats() -> dict``.
 
 This module is plant side: it does not import the ``controllers`` package.
 """
@@ -31,11 +33,13 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
-from hubbeam_ctrl.plant.models import resolve_model
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.modal import modal_analysis
+from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
+from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
+from hubbeam_ctrl.sim.evaluation import evaluation_plant
 from hubbeam_ctrl.sim.results import HubStateViews
-from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings
+from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings, substep_rule
 
 __all__ = ["ClosedLoopSettings", "ClosedLoopResult", "simulate_closed_loop"]
 
@@ -46,30 +50,40 @@ class ClosedLoopSettings:
 
     dt: float = 0.01
     """Sample period of the controller and of the zero-order hold [s] (default 100 Hz)."""
-    substeps: int = 2
-    """Integration steps of the plant per sample (see :class:`StepperSettings`)."""
+    substeps: int | None = None
+    """Integration steps of the plant per sample, 1..200; ``None`` (default): the fewest that
+    keep every bending mode of the plant within ``frequency_tolerance`` of its modal-analysis
+    frequency (:func:`~hubbeam_ctrl.sim.stepper.substep_rule`)."""
+    frequency_tolerance: float = 0.005
+    """Largest relative frequency error of any bending mode in the integrator [-] (0.5 %)."""
     rho_inf: float = 0.9
     """Numerical damping of the plant integrator, 0..1 (see :class:`StepperSettings`)."""
     newton_iterations: int = 3
     """Newton iterations per integration step (see :class:`StepperSettings`)."""
     sensors: SensorSettings = field(default_factory=SensorSettings)
     """Sensor noise for controllers that read ``"sensors"``."""
-    divergence_limit: float = 0.3
-    """The run stops when ``|v_tip| > divergence_limit * L`` [-]."""
+    range_limit: float = 0.3
+    """Validated range of the models: a run with ``|v_tip| > range_limit * L`` is flagged
+    (``outside_validated_range``, with the time) and goes on [-]."""
+    divergence_limit: float = 1.0
+    """The run stops (diverged) when ``|v_tip| > divergence_limit * L`` [-]."""
     max_wall_s: float = 600.0
     """The run stops (flagged) when it has taken longer than this [s]."""
 
     def __post_init__(self):
+        _check_positive("range_limit", self.range_limit, "-")
         _check_positive("divergence_limit", self.divergence_limit, "-")
         _check_positive("max_wall_s", self.max_wall_s, "s")
+        if not (isinstance(self.frequency_tolerance, (int, float)) and 0 < self.frequency_tolerance <= 0.1):
+            raise ParameterError(f"frequency_tolerance must be in (0, 0.1] [-], got {self.frequency_tolerance!r}")
         if not isinstance(self.sensors, SensorSettings):
             raise ParameterError("sensors must be a SensorSettings")
-        self.stepper  # validates dt, substeps, rho_inf, newton_iterations
+        # validates dt, substeps, rho_inf and newton_iterations
+        self.stepper_settings(1 if self.substeps is None else self.substeps)
 
-    @property
-    def stepper(self) -> StepperSettings:
-        """The plant integrator's settings."""
-        return StepperSettings(dt=self.dt, substeps=self.substeps, rho_inf=self.rho_inf,
+    def stepper_settings(self, substeps: int) -> StepperSettings:
+        """The plant integrator's settings with ``substeps`` steps per sample."""
+        return StepperSettings(dt=self.dt, substeps=substeps, rho_inf=self.rho_inf,
                                newton_iterations=self.newton_iterations)
 
 
@@ -103,12 +117,17 @@ class ClosedLoopResult(HubStateViews):
     controller_stats : dict
         What the controller's ``stats()`` returned at the end (e.g. QP fallbacks).
     stopped : bool
-        True when the run ended early; ``message`` says why.
+        True when the run ended early (passed ``divergence_limit * L``, integrator or
+        controller failure, time limit); ``message`` says why.
     message : str
     wall_s : float
         Wall time of the whole run [s].
     plant_fallbacks : int
         Integration steps that needed the exact rootfinder.
+    outside_validated_range : bool
+        True when ``|v_tip|`` passed ``range_limit * L`` (the run went on).
+    outside_range_time_s : float or None
+        When it first did [s].
     """
 
     plant: str
@@ -130,6 +149,8 @@ class ClosedLoopResult(HubStateViews):
     message: str = "completed"
     wall_s: float = 0.0
     plant_fallbacks: int = 0
+    outside_validated_range: bool = False
+    outside_range_time_s: float | None = None
 
     def save(self, path):
         """Save all arrays and metadata to a ``.npz`` file (atomically).
@@ -153,7 +174,9 @@ class ClosedLoopResult(HubStateViews):
         meta = {"plant": self.plant, "controller": self.controller,
                 "params": self.params.to_dict(), "settings": self.settings,
                 "controller_stats": self.controller_stats, "stopped": self.stopped,
-                "message": self.message, "wall_s": self.wall_s}
+                "message": self.message, "wall_s": self.wall_s,
+                "outside_validated_range": self.outside_validated_range,
+                "outside_range_time_s": self.outside_range_time_s}
 
         def write(tmp):
             with open(tmp, "wb") as fh:
@@ -165,9 +188,40 @@ def _controller_name(controller) -> str:
     return str(getattr(controller, "name", type(controller).__name__))
 
 
+def _plant_and_rule(plant, controller, params, design_params, plant_params, plant_modes, settings):
+    """The plant model, its description and the integration step of the run."""
+    spin = float(getattr(getattr(controller, "design", None), "spin", 0.0) or 0.0)
+    explicit = isinstance(plant, HubBeamModel) or params is not None
+    if explicit:
+        if any(v is not None for v in (design_params, plant_params, plant_modes)):
+            raise ParameterError("give either params (the exact plant) or design_params / plant_params / "
+                                 "plant_modes (the evaluation-plant rule), not both")
+        model = resolve_model(plant, params)
+        info = {"plant_model": model.name, "plant_modes": model.n_transverse,
+                "plant_axial_modes": model.n_axial, "plant_modes_reason": "as given"}
+    else:
+        design = design_params if design_params is not None else \
+            getattr(getattr(controller, "design", None), "params", None) or Params()
+        n_design = int(getattr(controller, "n_modes", None) or design.n_transverse)
+        ev = evaluation_plant(plant, design, settings.dt, min(n_design, MAX_MODES), spin,
+                              plant_params=plant_params, plant_modes=plant_modes)
+        model = build_model(ev.model, ev.params)
+        info = {k: v for k, v in ev.to_dict().items() if k != "plant_params"}
+    if settings.substeps is None:
+        f = modal_analysis(model, spin, "free").bending_hz
+        rule = substep_rule(f, settings.dt, tolerance=settings.frequency_tolerance, rho_inf=settings.rho_inf)
+        info.update(rule.to_dict())
+    else:
+        info.update({"substeps": settings.substeps, "step_s": settings.dt / settings.substeps,
+                     "step_reason": f"{settings.substeps} steps per sample as requested"})
+    info["modal_spin_rad_s"] = spin
+    return model, info
+
+
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
-                         settings: ClosedLoopSettings | None = None, x0=None,
-                         reference=None) -> ClosedLoopResult:
+                         design_params: Params | None = None, plant_params: Params | None = None,
+                         plant_modes: int | None = None, settings: ClosedLoopSettings | None = None,
+                         x0=None, reference=None) -> ClosedLoopResult:
     """Run a sampled controller on a nonlinear plant (zero-order hold).
 
     At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
@@ -180,16 +234,33 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     * ``"sensors"``: ``[theta, theta_dot, M_root]`` [rad, rad/s, N m] plus the noise of
       ``settings.sensors``.
 
+    The plant is, in this order: ``plant`` itself when it is a built model; the model named
+    ``plant`` with exactly ``params`` when they are given; otherwise the **evaluation plant**
+    of :func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`: the physical parameters of
+    ``plant_params`` (default ``design_params``, default the controller's design model's, default
+    Table 1) with every bending mode below the sampling frequency and at least three more
+    than the controller's design model (or ``plant_modes``). The integration step follows from
+    the plant's highest bending frequency (``settings.substeps = None``, see
+    :func:`~hubbeam_ctrl.sim.stepper.substep_rule`). ``result.settings`` says which plant and
+    which step were used, and why.
+
     Parameters
     ----------
     plant : str or HubBeamModel
-        ``"foam"``, ``"cfoam"``, ``"tlam"``, ``"sfoam"`` or a built model (free hub).
+        ``"foam"`` or ``"cfoam"`` (also ``"tlam"``, ``"sfoam"`` with ``params``), or a built
+        model (free hub).
     controller : object
         See the module docstring. ``reset()`` is called before the run.
     t_end : float
         Final time [s], > 0.
     params : Params, optional
-        Parameters when ``plant`` is a name.
+        The exact plant parameters (no evaluation-plant rule).
+    design_params : Params, optional
+        Parameters of the controller's design model (default: ``controller.design.params``).
+    plant_params : Params, optional
+        Physical parameters of the evaluation plant when they differ from the design's.
+    plant_modes : int, optional
+        Transverse modes of the evaluation plant (design modes..20).
     settings : ClosedLoopSettings, optional
     x0 : array_like (2 n_q,), optional
         Initial plant state ``[q, v]`` (default: at rest).
@@ -203,12 +274,13 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
 
     Notes
     -----
-    A controller that returns a non-finite torque, or a plant that leaves its range
-    (``|v_tip| > divergence_limit * L``), stops the run: the result is cut there, with
+    A plant that passes ``range_limit * L`` (default 0.3 L, the models' validated range) is
+    flagged (``outside_validated_range``, ``outside_range_time_s``) and the run goes on. A
+    controller that returns a non-finite torque, an integrator failure, or a plant that
+    passes ``divergence_limit * L`` (default L) stops the run: the result is cut there, with
     ``stopped = True`` and a message naming the cause.
     """
     settings = settings or ClosedLoopSettings()
-    model = resolve_model(plant, params)
     _check_positive("t_end", t_end, "s")
     if not callable(controller) or not hasattr(controller, "reset"):
         raise ParameterError("controller must be callable as controller(t, y) and have reset()")
@@ -221,6 +293,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     kind = getattr(controller, "measurement", "state")
     if kind not in ("state", "sensors"):
         raise ParameterError(f"controller {name!r}: measurement must be 'state' or 'sensors', got {kind!r}")
+    model, plant_info = _plant_and_rule(plant, controller, params, design_params, plant_params,
+                                        plant_modes, settings)
     n = model.n_q
     n1, n2 = model.n_axial, model.n_transverse
     m = int(getattr(controller, "n_modes", None) or n2)
@@ -229,14 +303,16 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     # index map plant state [q, v] -> measurement
     idx_state = np.r_[0, 1 + n1:1 + n1 + m, n, n + 1 + n1:n + 1 + n1 + m]
     C_sens = sensor_matrix(model.params, n2, n1)
-    stepper = PlantStepper(model, settings.stepper)
+    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]))
     N = int(round(t_end / dt))
     t = dt * np.arange(N + 1)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None
     f2_tip = model.basis.f2_tip
     sl2 = model.transverse_slice
-    limit = settings.divergence_limit * model.params.L
+    L = model.params.L
+    flag_at, stop_at = settings.range_limit * L, settings.divergence_limit * L
+    outside_time = None
 
     states = np.empty((N + 1, 2 * n))
     taus = np.full(N + 1, np.nan)
@@ -272,11 +348,14 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
             stopped, message, last = True, f"{exc} at t = {t[k]:.3f} s; run stopped", k
             break
         x = s[:2 * n]
-        if not abs(f2_tip @ x[sl2]) <= limit:
+        tip = abs(f2_tip @ x[sl2])
+        if outside_time is None and not tip <= flag_at:
+            outside_time = float(t[k + 1])
+        if not tip <= stop_at:
             stopped, last = True, k + 1
             states[k + 1] = x
             message = (f"{model.name.upper()} left its range at t = {t[k + 1]:.3f} s under "
-                       f"controller {name!r}: |v_tip| > {settings.divergence_limit:g} L")
+                       f"controller {name!r}: |v_tip| > {settings.divergence_limit:g} L; run stopped")
             break
         if (k & 255) == 0 and perf() - start > settings.max_wall_s:
             stopped, last = True, k + 1
@@ -295,11 +374,16 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         theta_dot_ref = np.asarray(reference[1](t), dtype=float) * np.ones_like(t)
     stats = dict(controller.stats()) if hasattr(controller, "stats") else {}
     s_dict = dataclasses.asdict(settings)
+    s_dict.update(plant_info)
     s_dict["t_end"] = float(t_end)
     s_dict["measurement"] = kind
+    if outside_time is not None and not stopped:
+        message = (f"completed; |v_tip| passed {settings.range_limit:g} L (outside the models' validated "
+                   f"range) at t = {outside_time:.3f} s")
     return ClosedLoopResult(
         plant=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip, u_tip=u_tip,
         root_moment=root_moment, tau=taus, step_time_s=step_times, params=model.params,
         theta_ref=theta_ref, theta_dot_ref=theta_dot_ref, settings=s_dict,
         controller_stats=stats, stopped=stopped, message=message, wall_s=wall,
-        plant_fallbacks=stepper.fallbacks)
+        plant_fallbacks=stepper.fallbacks, outside_validated_range=outside_time is not None,
+        outside_range_time_s=outside_time)
