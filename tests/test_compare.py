@@ -112,7 +112,9 @@ def test_bad_inputs():
     with pytest.raises(ParameterError, match="unknown 'pid'"):
         compare(plant="foam", controllers="lqr,pid")
     with pytest.raises(ParameterError, match="design_modes"):
-        compare(plant="foam", controllers="lqr", design_modes=9)
+        compare(plant="foam", controllers="lqr", design_modes=21)
+    with pytest.raises(ParameterError, match="plant_modes"):
+        compare(plant="foam", controllers="lqr", design_modes=5, plant_modes=4)
 
 
 def test_cli_compare_json(tmp_path, capsys):

@@ -37,7 +37,7 @@ from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
-from hubbeam_ctrl.sim.evaluation import evaluation_plant
+from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.sim.results import HubStateViews
 from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings, substep_rule
 
@@ -192,7 +192,13 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
     """The plant model, its description and the integration step of the run."""
     spin = float(getattr(getattr(controller, "design", None), "spin", 0.0) or 0.0)
     explicit = isinstance(plant, HubBeamModel) or params is not None
-    if explicit:
+    if isinstance(plant, EvaluationPlant):
+        if any(v is not None for v in (params, design_params, plant_params, plant_modes)):
+            raise ParameterError("an EvaluationPlant carries its parameters: give no params, "
+                                 "design_params, plant_params or plant_modes with it")
+        model = build_model(plant.model, plant.params)
+        info = {k: v for k, v in plant.to_dict().items() if k != "plant_params"}
+    elif explicit:
         if any(v is not None for v in (design_params, plant_params, plant_modes)):
             raise ParameterError("give either params (the exact plant) or design_params / plant_params / "
                                  "plant_modes (the evaluation-plant rule), not both")
@@ -246,9 +252,9 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
 
     Parameters
     ----------
-    plant : str or HubBeamModel
-        ``"foam"`` or ``"cfoam"`` (also ``"tlam"``, ``"sfoam"`` with ``params``), or a built
-        model (free hub).
+    plant : str, HubBeamModel or EvaluationPlant
+        ``"foam"`` or ``"cfoam"`` (also ``"tlam"``, ``"sfoam"`` with ``params``), a built
+        model (free hub), or the result of :func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`.
     controller : object
         See the module docstring. ``reset()`` is called before the run.
     t_end : float

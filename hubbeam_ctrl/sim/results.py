@@ -72,11 +72,15 @@ class SimulationResult(HubStateViews):
     settings : dict
         Maneuver and integrator settings.
     diverged : bool
-        True when the run stopped early (left the model's range, integrator failure or
-        time limit); ``message`` says which.
+        True when the run stopped early (passed ``divergence_limit * L``, integrator failure
+        or time limit); ``message`` says which.
     message : str
     wall_s : float
         Wall time of the integration [s].
+    outside_validated_range : bool
+        True when ``|v_tip|`` passed ``range_limit * L`` (the run went on).
+    outside_range_time_s : float or None
+        When it first did [s].
     """
 
     model: str
@@ -96,10 +100,13 @@ class SimulationResult(HubStateViews):
     diverged: bool = False
     message: str = "completed"
     wall_s: float = 0.0
+    outside_validated_range: bool = False
+    outside_range_time_s: float | None = None
 
     @classmethod
     def from_states(cls, model, t, q, v, a, *, hub, maneuver=None, settings=None, diverged=False,
-                    message="completed", wall_s=0.0, extra_settings=None) -> "SimulationResult":
+                    message="completed", wall_s=0.0, extra_settings=None,
+                    outside_range_time_s=None) -> "SimulationResult":
         """Build a result from states, evaluating the model's outputs on all samples."""
         N = len(t)
         Q, V, A = q.T, v.T, a.T
@@ -116,7 +123,8 @@ class SimulationResult(HubStateViews):
         return cls(model=model.name, hub=hub, t=t, q=q, v=v, a=a, v_tip=v_tip, u_tip=u_tip,
                    tau=tau, q_theta=q_theta, energy=energy, angular_momentum=momentum,
                    params=model.params, settings=s, diverged=diverged, message=message,
-                   wall_s=wall_s)
+                   wall_s=wall_s, outside_validated_range=outside_range_time_s is not None,
+                   outside_range_time_s=outside_range_time_s)
 
     def window(self, t_start: float, t_stop: float | None = None) -> np.ndarray:
         """Boolean mask of samples with ``t_start <= t <= t_stop`` (``None``: to the end)."""
@@ -135,7 +143,8 @@ class SimulationResult(HubStateViews):
         -------
         dict
             ``peak_tip_m``, ``residual_tip_m``, ``peak_axial_m``, ``final_theta_rad``,
-            ``final_theta_dot_rad_s``, ``diverged``, ``message``, ``wall_s``.
+            ``final_theta_dot_rad_s``, ``diverged``, ``outside_validated_range``,
+            ``outside_range_time_s``, ``message``, ``wall_s``.
         """
         last = self.window(self.t[-1] - residual_window_s)
         return {
@@ -146,6 +155,8 @@ class SimulationResult(HubStateViews):
             "final_theta_rad": float(self.theta[-1]),
             "final_theta_dot_rad_s": float(self.theta_dot[-1]),
             "diverged": bool(self.diverged),
+            "outside_validated_range": bool(self.outside_validated_range),
+            "outside_range_time_s": self.outside_range_time_s,
             "message": self.message,
             "wall_s": float(self.wall_s),
         }
@@ -190,7 +201,8 @@ class SimulationResult(HubStateViews):
     def _metadata(self) -> dict:
         return {"model": self.model, "hub": self.hub, "params": self.params.to_dict(),
                 "settings": self.settings, "diverged": self.diverged, "message": self.message,
-                "wall_s": self.wall_s}
+                "wall_s": self.wall_s, "outside_validated_range": self.outside_validated_range,
+                "outside_range_time_s": self.outside_range_time_s}
 
 
 def load_result(path) -> SimulationResult:
@@ -212,4 +224,6 @@ def load_result(path) -> SimulationResult:
         arrays = {k: data[k] for k in data.files if k != "metadata"}
     return SimulationResult(model=meta["model"], hub=meta["hub"], params=Params.from_dict(meta["params"]),
                             settings=meta["settings"], diverged=meta["diverged"],
-                            message=meta["message"], wall_s=meta["wall_s"], **arrays)
+                            message=meta["message"], wall_s=meta["wall_s"],
+                            outside_validated_range=meta.get("outside_validated_range", False),
+                            outside_range_time_s=meta.get("outside_range_time_s"), **arrays)
