@@ -41,11 +41,7 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.sim.results import HubStateViews
 from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings, substep_rule
 
-__all__ = ["ClosedLoopSettings", "ClosedLoopResult", "simulate_closed_loop", "COMPILE_THRESHOLD"]
-
-#: Runs with at least this many integration steps compile the plant's sample function to C
-#: (a few seconds to build, 3-7x faster per step; measured on FOAM and CFOAM, 10 modes).
-COMPILE_THRESHOLD = 20000
+__all__ = ["ClosedLoopSettings", "ClosedLoopResult", "simulate_closed_loop"]
 
 
 @dataclass(frozen=True)
@@ -73,13 +69,7 @@ class ClosedLoopSettings:
     """The run stops (diverged) when ``|v_tip| > divergence_limit * L`` [-]."""
     max_wall_s: float = 600.0
     """The run stops (flagged) when it has taken longer than this [s]."""
-    compiled: bool | None = None
-    """Compile the plant's sample function to C (see :class:`PlantStepper`); ``None``: when
-    the run has at least :data:`COMPILE_THRESHOLD` integration steps."""
-
     def __post_init__(self):
-        if self.compiled not in (None, True, False):
-            raise ParameterError(f"compiled must be None, True or False, got {self.compiled!r}")
         _check_positive("range_limit", self.range_limit, "-")
         _check_positive("divergence_limit", self.divergence_limit, "-")
         _check_positive("max_wall_s", self.max_wall_s, "s")
@@ -318,11 +308,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     # index map plant state [q, v] -> measurement
     idx_state = np.r_[0, 1 + n1:1 + n1 + m, n, n + 1 + n1:n + 1 + n1 + m]
     C_sens = sensor_matrix(model.params, n2, n1)
+    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]))
     N = int(round(t_end / dt))
-    compiled = settings.compiled if settings.compiled is not None else \
-        N * plant_info["substeps"] >= COMPILE_THRESHOLD
-    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), compiled=compiled)
-    plant_info["compiled"] = stepper.compiled
     t = dt * np.arange(N + 1)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None

@@ -17,7 +17,6 @@ correction is not small enough is recomputed with CasADi's ``rootfinder('newton'
 
 from __future__ import annotations
 
-import tempfile
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -280,10 +279,6 @@ class PlantStepper:
     model : HubBeamModel
         The plant (free hub, torque input).
     settings : StepperSettings, optional
-    compiled : bool
-        Compile the sample function to C with the system's C compiler (CasADi JIT, gcc
-        -O1), 3-7x faster per sample but 4 s (FOAM) to 50 s (CFOAM, 10 modes) to build;
-        worth it for long runs. Falls back to CasADi's virtual machine without a compiler.
 
     Examples
     --------
@@ -295,8 +290,7 @@ class PlantStepper:
     0.005
     """
 
-    def __init__(self, model: HubBeamModel, settings: StepperSettings | None = None,
-                 compiled: bool = False):
+    def __init__(self, model: HubBeamModel, settings: StepperSettings | None = None):
         self.model = model
         self.settings = settings or StepperSettings()
         self.n_q = model.n_q
@@ -304,9 +298,7 @@ class PlantStepper:
         self.h = self.settings.dt / self.settings.substeps
         self.fallbacks = 0
         self.jacobian_updates = 0
-        fast = _compiled_step_function(model, self.settings) if compiled else None
-        self.compiled = fast is not None
-        self._function = fast if fast is not None else _fast_step_function(model, self.settings)
+        self._function = _fast_step_function(model, self.settings)
         self._jacobian = _iteration_matrix_function(model, self.settings)
         self._J = None
         self._robust = None
@@ -442,18 +434,6 @@ def _fast_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.Fu
     xs, errs = accum(X, U, Jm)
     return ca.Function("plant_step", [X, U, Jm], [xs[:, -1], ca.mmax(errs)],
                        ["s", "tau", "J"], ["s_next", "err"])
-
-
-@lru_cache(maxsize=8)
-def _compiled_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.Function | None:
-    """:func:`_fast_step_function` compiled by CasADi's JIT (gcc -O1); ``None`` without a compiler."""
-    f = _fast_step_function(model, settings)
-    opts = {"jit": True, "compiler": "shell", "jit_cleanup": True,
-            "jit_options": {"compiler": "gcc", "flags": ["-O1"], "directory": tempfile.gettempdir() + "/"}}
-    try:
-        return ca.Function(f.name() + "_c", f.mx_in(), f.call(f.mx_in()), f.name_in(), f.name_out(), opts)
-    except RuntimeError:
-        return None
 
 
 @lru_cache(maxsize=16)

@@ -72,11 +72,13 @@ def _plant_lines(comparison) -> list:
     if ev is not None:
         lines.append(f"- Evaluation plant: {ev.model.upper()} with {p.n_axial} axial and {p.n_transverse} "
                      f"transverse modes ({ev.reason}), structural damping ratio {p.damping_ratio:g}.")
-        differs = {k: v for k, v in p.to_dict().items()
-                   if k not in ("n_axial", "n_transverse") and v != design.to_dict()[k]}
-        lines.append("- Plant parameters: " + (", ".join(f"{k} = {v:g}" for k, v in differs.items())
-                                               + " (differ from the design's; the rest as designed)"
-                                               if differs else "the design's physical parameters") + ".")
+        differs = sorted(k for k, v in p.to_dict().items()
+                         if k not in ("n_axial", "n_transverse") and v != design.to_dict()[k])
+        values = ", ".join(f"{k} = {v:g}" for k, v in p.to_dict().items()
+                           if k not in ("n_axial", "n_transverse") and v is not None)
+        lines.append(f"- Plant parameters (SI units): {values}; "
+                     + (f"{', '.join(differs)} differ from the design's." if differs
+                        else "the design's physical parameters."))
     if "step_reason" in st:
         lines.append(f"- Integration: generalized-alpha (rho_inf = {st.get('rho_inf', 0.9):g}), "
                      f"{st['step_reason']}.")
