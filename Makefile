@@ -39,10 +39,19 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plant.py
 	$(BIN)/python benchmarks/bench_mpc.py
 
+# the notebooks' only sources are notebooks/NN_*.py (jupytext percent format): convert each to
+# build/notebooks/NN_*.ipynb, execute it there and write build/notebooks/NN_*.html with the outputs
+NOTEBOOK_SOURCES := $(sort $(wildcard notebooks/[0-9]*.py))
+NOTEBOOK_OUT := build/notebooks
+
 notebooks: $(STAMP_TEST)
-	$(BIN)/python -m pip install --quiet nbconvert
-	mkdir -p docs
-	$(BIN)/jupyter nbconvert --to html --execute --output-dir docs notebooks/*.ipynb
+	$(BIN)/python -m pip install --quiet "nbconvert>=7"
+	mkdir -p $(NOTEBOOK_OUT)
+	set -e; for src in $(NOTEBOOK_SOURCES); do \
+		nb=$(NOTEBOOK_OUT)/$$(basename $$src .py).ipynb; \
+		$(BIN)/jupytext --quiet --to ipynb --output $$nb $$src; \
+		$(BIN)/jupyter nbconvert --to html --execute --output-dir $(NOTEBOOK_OUT) $$nb; \
+	done
 
 clean:
-	rm -rf $(VENV) demo_out docs
+	rm -rf $(VENV) demo_out build

@@ -21,7 +21,7 @@ from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse, User
 from hubbeam_ctrl.plant.modal import campbell, critical_speed, critical_speed_map, modal_analysis, natural_frequencies
 from hubbeam_ctrl.plant.models import MODEL_NAMES, HubBeamModel, build_model
 from hubbeam_ctrl.plant.params import Params, load_params, save_params
-from hubbeam_ctrl.sim.results import SimulationResult, load_result
+from hubbeam_ctrl.sim.results import Result, SimulationResult, load_result
 from hubbeam_ctrl.sim.simulate import SimulationSettings, simulate
 
 __version__ = "0.1.0"
@@ -30,7 +30,7 @@ __all__ = [
     "Params", "load_params", "save_params", "ModalBasis", "modal_basis",
     "HubBeamModel", "build_model", "MODEL_NAMES",
     "SpinUp", "TorquePulse", "ConstantSpin", "UserManeuver",
-    "simulate", "SimulationSettings", "SimulationResult", "load_result",
+    "simulate", "SimulationSettings", "Result", "SimulationResult", "load_result",
     "modal_analysis", "natural_frequencies", "campbell", "critical_speed", "critical_speed_map",
     "second_order_linearization", "first_order_matrices",
     "linearize", "LinearModel", "discretize", "reduce", "compare_poles", "save_model", "load_model",

@@ -13,6 +13,7 @@ from hubbeam_ctrl.sim import (
     PlantStepper,
     StepperSettings,
     generalized_alpha_coefficients,
+    load_result,
     simulate_closed_loop,
     simulate_fixed_step,
 )
@@ -24,25 +25,25 @@ def test_stepper_matches_tight_idas_on_foam():
     ref = simulate("foam", TorquePulse(200, 10), 30, rtol=1e-10, atol=1e-10, max_order=5)
     fix = simulate_fixed_step("foam", TorquePulse(200, 10), 30)
     peak = np.max(np.abs(ref.v_tip))
-    assert fix["v_tip"].shape == ref.v_tip.shape
-    err = np.max(np.abs(fix["v_tip"] - ref.v_tip)) / peak
+    assert fix.v_tip.shape == ref.v_tip.shape
+    err = np.max(np.abs(fix.v_tip - ref.v_tip)) / peak
     print(f"FOAM stepper: max tip error {100 * err:.4f} % of peak {peak:.4f} m, "
-          f"{fix['ms_per_step']:.3f} ms/step")
+          f"{fix.stats['ms_per_step']:.3f} ms/step")
     assert err < 5e-3
     assert err < 1e-3          # measured 0.035 %
     # hub angle too
-    assert np.max(np.abs(fix["q"][:, 0] - ref.theta)) < 1e-3 * np.max(np.abs(ref.theta))
+    assert np.max(np.abs(fix.q[:, 0] - ref.theta)) < 1e-3 * np.max(np.abs(ref.theta))
 
 
 def test_stepper_matches_idas_on_cfoam():
     ref = simulate("cfoam", TorquePulse(200, 10), 30)
     fix = simulate_fixed_step("cfoam", TorquePulse(200, 10), 30)
     peak = np.max(np.abs(ref.v_tip))
-    err = np.max(np.abs(fix["v_tip"] - ref.v_tip)) / peak
-    print(f"CFOAM stepper: max tip error {100 * err:.4f} % of peak, {fix['ms_per_step']:.3f} ms/step, "
-          f"{fix['jacobian_updates']} iteration-matrix updates, {fix['fallbacks']} fallbacks")
+    err = np.max(np.abs(fix.v_tip - ref.v_tip)) / peak
+    print(f"CFOAM stepper: max tip error {100 * err:.4f} % of peak, {fix.stats['ms_per_step']:.3f} ms/step, "
+          f"{fix.stats['jacobian_updates']} iteration-matrix updates, {fix.stats['fallbacks']} fallbacks")
     assert err < 5e-3
-    assert fix["fallbacks"] == 0
+    assert fix.stats["fallbacks"] == 0
 
 
 def test_generalized_alpha_coefficients():
@@ -62,8 +63,8 @@ def test_stepper_conserves_energy_free_plant():
     x0[m.transverse_slice.start] = 0.05    # deflected
     fix = simulate_fixed_step(m, lambda t: 0 * t, 5.0, x0=x0,
                               settings=StepperSettings(rho_inf=1.0, substeps=4))
-    E = np.array([m.energy(q, v) for q, v in zip(fix["q"], fix["v"])])
-    H = np.array([m.angular_momentum(q, v) for q, v in zip(fix["q"], fix["v"])])
+    E = np.array([m.energy(q, v) for q, v in zip(fix.q, fix.v)])
+    H = np.array([m.angular_momentum(q, v) for q, v in zip(fix.q, fix.v)])
     assert np.ptp(E) / abs(E[0]) < 1e-3
     assert np.ptp(H) / abs(H[0]) < 1e-3
 
@@ -189,5 +190,8 @@ def test_stopped_run_metrics_and_save(tmp_path):
     with np.load(path) as data:
         assert np.array_equal(data["t"], res.t)
         assert "nan-at-3s" in str(data["metadata"])
+    back = load_result(path)
+    assert back == res and back.stopped and back.controller == "nan-at-3s"
+    assert np.isnan(back.tau[-1]) and back.tau[-2] == 5.0
     with pytest.raises(ParameterError, match="t_end"):
         closed_loop_metrics(res, 16.0)

@@ -101,8 +101,8 @@ def test_every_bending_mode_within_half_a_percent(beam):
         x0 = _mode_state(model, k, 1e-4 * p.L)
         run = simulate_fixed_step(model, lambda t: 0 * t, 40.0 / f_modal[k - 1], x0=x0,
                                   settings=StepperSettings(dt=rule.step_s, substeps=1))
-        q = run["q"][:, model.transverse_slice.start + k - 1]
-        f_sim = _zero_crossing_frequency(run["t"], q - q.mean())
+        q = run.q[:, model.transverse_slice.start + k - 1]
+        f_sim = _zero_crossing_frequency(run.t, q - q.mean())
         err = f_sim / f_modal[k - 1] - 1
         predicted = period_error(2 * np.pi * f_modal[k - 1] * rule.step_s)
         print(f"  mode {k}: modal {f_modal[k - 1]:.4f} Hz, simulated {f_sim:.4f} Hz ({100 * err:+.3f} %, "

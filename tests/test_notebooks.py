@@ -1,24 +1,31 @@
-"""Execute every notebook under ``notebooks/`` top to bottom (issue 5).
+"""The tutorial notebooks: one source each, and every one runs top to bottom (issues 5 and 8).
 
-Each notebook is run with nbclient in a fresh ``python3`` kernel, with
-``MPLBACKEND=Agg`` and a temporary working directory (so nothing is written into the
-repository). The test fails if any cell raises, if the notebook was committed with
-outputs, or if it takes 90 s or more.
+The only source of a notebook is ``notebooks/NN_name.py`` in jupytext's percent format
+(``# %%`` code cells, ``# %% [markdown]`` markdown cells); no ``.ipynb`` is committed.
+The fast tests check that each source parses as such a notebook. The slow test converts
+each source to a notebook in memory and executes it with nbclient in a fresh ``python3``
+kernel, with ``MPLBACKEND=Agg`` and a temporary working directory (so nothing is written
+into the repository). It fails if any cell raises or if the notebook takes 90 s or more.
 """
 
 from __future__ import annotations
 
 import re
+import subprocess
 import time
 from pathlib import Path
 
 import pytest
 
-nbformat = pytest.importorskip("nbformat")
+jupytext = pytest.importorskip("jupytext")
 nbclient = pytest.importorskip("nbclient")
 
-NOTEBOOK_DIR = Path(__file__).resolve().parent.parent / "notebooks"
-NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
+ROOT = Path(__file__).resolve().parent.parent
+NOTEBOOK_DIR = ROOT / "notebooks"
+#: The notebook sources, in reading order (the file names start with 01, 02, ...).
+SOURCES = sorted(p for p in NOTEBOOK_DIR.glob("*.py") if not p.name.startswith("_"))
+IDS = [p.stem for p in SOURCES]
+FMT = "py:percent"
 
 #: Budget for a whole notebook, kernel start included [s] (issue 5: < 90 s on 2 cores).
 MAX_NOTEBOOK_S = 90.0
@@ -26,25 +33,56 @@ MAX_NOTEBOOK_S = 90.0
 CELL_TIMEOUT_S = 120
 
 
-def test_notebooks_exist():
-    names = [p.name for p in NOTEBOOKS]
-    assert "01_paper_reproduction.ipynb" in names, f"notebooks found: {names}"
+def read_source(path: Path):
+    """The notebook (nbformat v4 node) that the percent-format source ``path`` describes."""
+    return jupytext.read(path, fmt=FMT)
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
-def test_stored_without_outputs(path):
-    nb = nbformat.read(path, as_version=4)
-    dirty = [i for i, c in enumerate(nb.cells)
-             if c.cell_type == "code" and (c.get("outputs") or c.get("execution_count") is not None)]
-    assert not dirty, f"{path.name}: cells {dirty} were stored with outputs (clear them)"
+def test_sources_numbered_in_order():
+    names = [p.name for p in SOURCES]
+    assert "01_paper_reproduction.py" in names, f"notebook sources found: {names}"
+    numbers = [p.name[:3] for p in SOURCES]
+    assert numbers == [f"{k:02d}_" for k in range(1, len(SOURCES) + 1)], \
+        f"notebook sources must be named 01_*.py, 02_*.py, ... without gaps: {names}"
+
+
+def committed_ipynb() -> list[str]:
+    """The ``.ipynb`` files that git tracks under ``notebooks/`` (on disk without git)."""
+    try:
+        out = subprocess.run(["git", "ls-files", "--", "notebooks/*.ipynb"], cwd=ROOT,
+                             capture_output=True, text=True, check=True, timeout=30).stdout
+    except (OSError, subprocess.SubprocessError):       # no git, or not a checkout
+        return sorted(p.name for p in NOTEBOOK_DIR.glob("*.ipynb"))
+    return out.split()
+
+
+def test_no_ipynb_committed():
+    tracked = committed_ipynb()
+    assert not tracked, f"the .py sources are the only notebooks; remove {tracked} from git"
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=IDS)
+def test_source_is_percent_notebook(path):
+    text = path.read_text(encoding="utf-8")
+    compile(text, str(path), "exec")                    # the magics are commented out
+    nb = read_source(path)
+    kinds = [c.cell_type for c in nb.cells]
+    markers = re.findall(r"^# %%", text, flags=re.MULTILINE)
+    assert len(markers) == len(nb.cells), f"{path.name}: every cell must start with a '# %%' line"
+    assert kinds[0] == "markdown" and re.match(r"# \S", nb.cells[0].source), \
+        f"{path.name}: the first cell must be a markdown cell with a '# title'"
+    assert "code" in kinds, f"{path.name}: no code cell"
+    empty = [i for i, c in enumerate(nb.cells) if not c.source.strip()]
+    assert not empty, f"{path.name}: empty cells {empty}"
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+@pytest.mark.parametrize("path", SOURCES, ids=IDS)
 def test_notebook_executes(path, tmp_path, monkeypatch):
     monkeypatch.setenv("MPLBACKEND", "Agg")          # inherited by the kernel process
     monkeypatch.chdir(tmp_path)
-    nb = nbformat.read(path, as_version=4)
+    before = sorted(NOTEBOOK_DIR.iterdir())
+    nb = read_source(path)
     client = nbclient.NotebookClient(
         nb, kernel_name="python3", timeout=CELL_TIMEOUT_S, allow_errors=False,
         resources={"metadata": {"path": str(tmp_path)}})   # kernel's working directory
@@ -57,5 +95,4 @@ def test_notebook_executes(path, tmp_path, monkeypatch):
     elapsed = time.perf_counter() - start
     print(f"{path.name}: {elapsed:.1f} s")
     assert elapsed < MAX_NOTEBOOK_S, f"{path.name} took {elapsed:.1f} s (budget {MAX_NOTEBOOK_S:g} s)"
-    # nothing leaked into the repository
-    assert not list(NOTEBOOK_DIR.glob("*.mat")) + list(NOTEBOOK_DIR.glob("*.npz"))
+    assert sorted(NOTEBOOK_DIR.iterdir()) == before, "the notebook wrote into notebooks/"

@@ -94,12 +94,13 @@ def test_save_csv_npz(tmp_path, table1):
     res.save(tmp_path / "r.csv")
     data = np.loadtxt(tmp_path / "r.csv", delimiter=",", skiprows=1)
     header = (tmp_path / "r.csv").read_text().splitlines()[0]
-    assert header == "t,theta,theta_dot,v_tip,u_tip,tau,q_theta"
-    np.testing.assert_allclose(data[:, 3], res.v_tip, rtol=1e-9, atol=1e-15)
+    assert header == ("t [s],theta [rad],theta_dot [rad/s],v_tip [m],u_tip [m],tau [N m],"
+                      "q_theta [N m],energy [J],angular_momentum [kg m^2/s]")
+    np.testing.assert_array_equal(data[:, 3], res.v_tip)
     res.save(tmp_path / "r.npz")
     back = load_result(tmp_path / "r.npz")
     np.testing.assert_array_equal(back.q, res.q)
-    assert back.params == res.params and back.model == "sfoam"
+    assert back.params == res.params and back.model == "sfoam" and back == res
     with pytest.raises(ParameterError, match="unknown extension"):
         res.save(tmp_path / "r.xlsx")
     with pytest.raises(ParameterError, match="does not exist"):

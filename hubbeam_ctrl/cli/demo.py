@@ -47,7 +47,7 @@ def spinup_comparison(out_dir, w_f: float = 2.8, t_f: float = 30.0, t_end: float
     Returns
     -------
     dict
-        Model -> summary (see :meth:`SimulationResult.summary`).
+        Model -> summary (see :meth:`hubbeam_ctrl.sim.results.Result.summary`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

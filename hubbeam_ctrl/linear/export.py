@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write
+from hubbeam_ctrl.core.fileio import atomic_write, check_regular_file, read_npz, write_npz
 from hubbeam_ctrl.linear.statespace import LinearModel, _make_ss
 from hubbeam_ctrl.plant.params import Params
 
@@ -80,28 +80,19 @@ def save_model(model: LinearModel, path) -> Path:
         raise ParameterError(f"model must be a LinearModel, got {type(model).__name__}")
     path = Path(path)
     suffix = _suffix(path, "out")
-    if path.is_dir():
-        raise ParameterError(f"out: {path} is a folder, not a file name")
     meta = model.metadata()
     mats = {k: np.array(getattr(model, k), dtype=float) for k in _MATRICES}
+    if suffix == ".npz":
+        return write_npz(path, mats, meta)
     if suffix == ".mat":
         write = lambda tmp: _write_mat(tmp, mats, meta, model.params)
-    elif suffix == ".npz":
-        def write(tmp):
-            with open(tmp, "wb") as fh:
-                np.savez(fh, metadata=np.array(json.dumps(meta)), **mats)
     else:
         doc = {"format": _FORMAT_TAG, "version": _VERSION}
         doc.update({k: v.tolist() for k, v in mats.items()})
         doc.update(meta)
         text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
         write = lambda tmp: Path(tmp).write_text(text, encoding="utf-8")
-    try:
-        return atomic_write(path, write)
-    except ParameterError:
-        raise
-    except OSError as exc:
-        raise ParameterError(f"out: cannot write {path}: {exc.strerror or exc}") from None
+    return atomic_write(path, write)
 
 
 def _cell(strings) -> np.ndarray:
@@ -158,8 +149,9 @@ def load_model(path) -> LinearModel:
     """
     path = Path(path)
     suffix = _suffix(path, "path")
-    if not path.is_file():
-        raise ParameterError(f"path: file {path} does not exist")
+    check_regular_file(path, "path")
+    if suffix == ".npz":
+        mats, meta = read_npz(path, "path", "hubbeam model file")
     try:
         if suffix == ".mat":
             from scipy.io import loadmat
@@ -167,9 +159,7 @@ def load_model(path) -> LinearModel:
             meta = json.loads(str(np.asarray(data["hubbeam_metadata"]).ravel()[0]))
             mats = {k: data[k] for k in _MATRICES}
         elif suffix == ".npz":
-            with np.load(path, allow_pickle=False) as data:
-                meta = json.loads(str(data["metadata"]))
-                mats = {k: data[k] for k in _MATRICES}
+            mats = {k: mats[k] for k in _MATRICES}
         else:
             doc = json.loads(path.read_text(encoding="utf-8"))
             if doc.get("format") != _FORMAT_TAG:

@@ -1,6 +1,6 @@
 """Plots of closed-loop comparisons (Matplotlib object API; nothing computed here).
 
-Each function takes a mapping ``controller name -> ClosedLoopResult`` and returns a
+Each function takes a mapping ``controller name -> Result`` (closed-loop runs) and returns a
 :class:`matplotlib.figure.Figure`; :func:`hubbeam_ctrl.plots.plant.save_figure` writes it.
 """
 
@@ -31,7 +31,7 @@ def plot_tip_deflection(results: dict, t_f: float | None = None, residual_start:
     Parameters
     ----------
     results : dict
-        Controller name -> ClosedLoopResult.
+        Controller name -> Result.
     t_f : float, optional
         Maneuver time [s] (dashed line).
     residual_start : float, optional
@@ -69,7 +69,7 @@ def plot_hub_angle(results: dict, t_f: float | None = None, title: str = "") -> 
     Parameters
     ----------
     results : dict
-        Controller name -> ClosedLoopResult (with ``theta_ref``).
+        Controller name -> Result (with ``theta_ref``).
     t_f : float, optional
         Maneuver time [s] (dashed line).
     title : str
@@ -111,7 +111,7 @@ def plot_torque(results: dict, tau_max: float | None = None, title: str = "") ->
     Parameters
     ----------
     results : dict
-        Controller name -> ClosedLoopResult.
+        Controller name -> Result.
     tau_max : float, optional
         Torque limit [N m] (dotted lines).
     title : str

@@ -20,8 +20,10 @@ def plot_result(result, title: str | None = None) -> Figure:
 
     Parameters
     ----------
-    result : SimulationResult
+    result : Result
+        Any kind; ``Q_theta`` is drawn when the result has it (open-loop runs).
     title : str, optional
+        Default: the model, the hub condition and whether the run ended early.
 
     Returns
     -------
@@ -36,11 +38,13 @@ def plot_result(result, title: str | None = None) -> Figure:
     axes[2].plot(result.t, result.theta_dot)
     axes[2].set_ylabel("hub rate [rad/s]")
     axes[3].plot(result.t, result.tau, label="tau")
-    axes[3].plot(result.t, result.q_theta, label="Q_theta")
+    if result.q_theta is not None:
+        axes[3].plot(result.t, result.q_theta, label="Q_theta")
     axes[3].set_ylabel("[N m]")
     axes[3].legend(loc="best")
     axes[3].set_xlabel("t [s]")
     fig.suptitle(title or f"{result.model.upper()} ({result.hub} hub)"
+                 + (f", {result.controller}" if result.controller else "")
                  + ("  DIVERGED" if result.diverged else ""))
     for ax in axes:
         ax.grid(True, alpha=0.3)
@@ -53,7 +57,7 @@ def plot_tip_comparison(results: dict, title: str = "") -> Figure:
     Parameters
     ----------
     results : dict
-        Label -> SimulationResult.
+        Label -> Result (any kind).
     title : str
 
     Returns

@@ -38,10 +38,10 @@ from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
-from hubbeam_ctrl.sim.results import HubStateViews
+from hubbeam_ctrl.sim.results import Result
 from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings, substep_rule
 
-__all__ = ["ClosedLoopSettings", "ClosedLoopResult", "simulate_closed_loop"]
+__all__ = ["ClosedLoopSettings", "simulate_closed_loop"]
 
 
 @dataclass(frozen=True)
@@ -84,103 +84,6 @@ class ClosedLoopSettings:
         """The plant integrator's settings with ``substeps`` steps per sample."""
         return StepperSettings(dt=self.dt, substeps=substeps, rho_inf=self.rho_inf,
                                newton_iterations=self.newton_iterations)
-
-
-@dataclass
-class ClosedLoopResult(HubStateViews):
-    """Time series of one closed-loop run, sampled at the controller's instants.
-
-    Attributes
-    ----------
-    plant : str
-        Plant model name.
-    controller : str
-        Controller name.
-    t : ndarray (N,)
-        Sample instants [s].
-    q, v : ndarray (N, n_q)
-        Plant coordinates ``[theta, q1, q2]`` [rad, m] and rates.
-    v_tip, u_tip : ndarray (N,)
-        Transverse and axial tip displacement in the hub frame [m].
-    root_moment : ndarray (N,)
-        Root bending moment ``EI f2''(0) q2`` [N m] (noise-free).
-    tau : ndarray (N,)
-        Torque commanded at ``t_k`` and held until ``t_{k+1}`` [N m] (the last one is
-        computed but not applied).
-    step_time_s : ndarray (N,)
-        Wall time of each controller call [s].
-    theta_ref, theta_dot_ref : ndarray (N,) or None
-        The task's hub reference [rad, rad/s], when the caller gave one.
-    params : Params
-    settings : dict
-    controller_stats : dict
-        What the controller's ``stats()`` returned at the end (e.g. QP fallbacks).
-    stopped : bool
-        True when the run ended early (passed ``divergence_limit * L``, integrator or
-        controller failure, time limit); ``message`` says why.
-    message : str
-    wall_s : float
-        Wall time of the whole run [s].
-    plant_fallbacks : int
-        Integration steps that needed the exact rootfinder.
-    outside_validated_range : bool
-        True when ``|v_tip|`` passed ``range_limit * L`` (the run went on).
-    outside_range_time_s : float or None
-        When it first did [s].
-    """
-
-    plant: str
-    controller: str
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    v_tip: np.ndarray
-    u_tip: np.ndarray
-    root_moment: np.ndarray
-    tau: np.ndarray
-    step_time_s: np.ndarray
-    params: Params
-    theta_ref: np.ndarray | None = None
-    theta_dot_ref: np.ndarray | None = None
-    settings: dict = field(default_factory=dict)
-    controller_stats: dict = field(default_factory=dict)
-    stopped: bool = False
-    message: str = "completed"
-    wall_s: float = 0.0
-    plant_fallbacks: int = 0
-    outside_validated_range: bool = False
-    outside_range_time_s: float | None = None
-
-    def save(self, path):
-        """Save all arrays and metadata to a ``.npz`` file (atomically).
-
-        Parameters
-        ----------
-        path : str or Path
-        """
-        import json
-        from pathlib import Path
-
-        from hubbeam_ctrl.core.fileio import atomic_write
-        path = Path(path)
-        if path.suffix.lower() != ".npz":
-            raise ParameterError(f"path must end in .npz, got {path.name!r}")
-        arrays = {k: getattr(self, k) for k in ("t", "q", "v", "v_tip", "u_tip", "root_moment",
-                                                "tau", "step_time_s")}
-        for k in ("theta_ref", "theta_dot_ref"):
-            if getattr(self, k) is not None:
-                arrays[k] = getattr(self, k)
-        meta = {"plant": self.plant, "controller": self.controller,
-                "params": self.params.to_dict(), "settings": self.settings,
-                "controller_stats": self.controller_stats, "stopped": self.stopped,
-                "message": self.message, "wall_s": self.wall_s,
-                "outside_validated_range": self.outside_validated_range,
-                "outside_range_time_s": self.outside_range_time_s}
-
-        def write(tmp):
-            with open(tmp, "wb") as fh:
-                np.savez(fh, metadata=json.dumps(meta, default=str), **arrays)
-        return atomic_write(path, write)
 
 
 def _controller_name(controller) -> str:
@@ -226,7 +129,7 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
                          design_params: Params | None = None, plant_params: Params | None = None,
                          plant_modes: int | None = None, settings: ClosedLoopSettings | None = None,
-                         x0=None, reference=None) -> ClosedLoopResult:
+                         x0=None, reference=None) -> Result:
     """Run a sampled controller on a nonlinear plant (zero-order hold).
 
     At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
@@ -275,7 +178,12 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
 
     Returns
     -------
-    ClosedLoopResult
+    Result
+        Of kind ``"closed_loop"``, sampled at the controller's instants: the plant's
+        ``q``, ``v``, ``v_tip``, ``u_tip``, ``root_moment``, the commanded ``tau``, the
+        controller's ``step_time_s`` and ``controller_stats``, the reference (when given),
+        and ``stats`` with the plant integrator's ``plant_fallbacks`` and
+        ``jacobian_updates``.
 
     Notes
     -----
@@ -385,10 +293,10 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     if outside_time is not None and not stopped:
         message = (f"completed; |v_tip| passed {settings.range_limit:g} L (outside the models' validated "
                    f"range) at t = {outside_time:.3f} s")
-    return ClosedLoopResult(
-        plant=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip, u_tip=u_tip,
-        root_moment=root_moment, tau=taus, step_time_s=step_times, params=model.params,
-        theta_ref=theta_ref, theta_dot_ref=theta_dot_ref, settings=s_dict,
-        controller_stats=stats, stopped=stopped, message=message, wall_s=wall,
-        plant_fallbacks=stepper.fallbacks, outside_validated_range=outside_time is not None,
-        outside_range_time_s=outside_time)
+    return Result(
+        kind="closed_loop", model=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip,
+        u_tip=u_tip, root_moment=root_moment, tau=taus, step_time_s=step_times,
+        params=model.params, theta_ref=theta_ref, theta_dot_ref=theta_dot_ref, settings=s_dict,
+        stats={"plant_fallbacks": stepper.fallbacks, "jacobian_updates": stepper.jacobian_updates,
+               "outside_range_time_s": outside_time},
+        controller_stats=stats, stopped=stopped, message=message, wall_s=wall)

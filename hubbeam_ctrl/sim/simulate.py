@@ -31,7 +31,7 @@ from hubbeam_ctrl.core.progress import Progress
 from hubbeam_ctrl.plant.maneuvers import UserManeuver
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.sim.results import SimulationResult
+from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["simulate", "Integrator", "make_integrator", "SimulationSettings"]
 
@@ -182,7 +182,7 @@ def _full_state(model, hub, maneuver, t, xs, zs):
 
 def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params | None = None,
              hub: str | None = None, x0=None, settings: SimulationSettings | None = None,
-             progress: bool = False, **setting_overrides) -> SimulationResult:
+             progress: bool = False, **setting_overrides) -> Result:
     """Simulate a hub-beam model.
 
     Parameters
@@ -211,10 +211,11 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
 
     Returns
     -------
-    SimulationResult
-        Time series (``t``, ``q``, ``v``, ``theta``, ``theta_dot``, ``v_tip``, ``u_tip``,
-        ``tau``, ``q_theta``, ``energy``, ``angular_momentum``) with the parameters and
-        settings that made them; ``diverged`` and ``message`` say how the run ended.
+    Result
+        Of kind ``"open_loop"``: time series (``t``, ``q``, ``v``, ``a``, ``theta``,
+        ``theta_dot``, ``v_tip``, ``u_tip``, ``tau``, ``q_theta``, ``energy``,
+        ``angular_momentum``) with the parameters and settings that made them;
+        ``diverged`` (same as ``stopped``) and ``message`` say how the run ended.
 
     Examples
     --------
@@ -326,9 +327,27 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     if outside_time is not None and not diverged:
         message = (f"completed; |v_tip| passed {settings.range_limit:g} L = {flag_at:.3g} m (outside "
                    f"the models' validated range) at t = {outside_time:.3f} s")
-    return SimulationResult.from_states(
-        m, t, q, v, a, hub=hub, maneuver=maneuver, settings=settings,
-        diverged=diverged, message=message, wall_s=wall, outside_range_time_s=outside_time)
+    return _open_loop_result(m, t, q, v, a, hub=hub, maneuver=maneuver, settings=settings,
+                             stopped=diverged, message=message, wall_s=wall,
+                             outside_range_time_s=outside_time)
+
+
+def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, settings, stopped,
+                      message, wall_s, outside_range_time_s=None) -> Result:
+    """A :class:`Result` of kind ``"open_loop"``, the model's outputs evaluated on all samples."""
+    N = len(t)
+    Q, V, A = q.T, v.T, a.T
+    v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(N)(Q))
+    tau = np.array(model.inverse_dynamics_function.map(N)(Q, V, A))[0]
+    q_theta = np.array(model.q_theta_function.map(N)(Q, V)).ravel()
+    energy = np.array(model.energy_function.map(N)(Q, V)[2]).ravel()
+    momentum = np.array(model.momentum_function.map(N)(Q, V)).ravel()
+    return Result(kind="open_loop", model=model.name, hub=hub, t=t, q=q, v=v, a=a,
+                  v_tip=v_tip, u_tip=u_tip, tau=tau, q_theta=q_theta, energy=energy,
+                  angular_momentum=momentum, params=model.params,
+                  settings={"maneuver": describe_input(maneuver), **dataclasses.asdict(settings)},
+                  stats={"outside_range_time_s": outside_range_time_s},
+                  stopped=stopped, message=message, wall_s=wall_s)
 
 
 def _initial_accelerations(m: HubBeamModel, hub, maneuver, x0):

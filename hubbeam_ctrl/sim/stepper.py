@@ -17,6 +17,7 @@ correction is not small enough is recomputed with CasADi's ``rootfinder('newton'
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -28,6 +29,7 @@ from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients",
            "period_error", "max_step_for_frequency", "SubstepRule", "substep_rule", "MAX_SUBSTEPS"]
@@ -457,7 +459,7 @@ def _robust_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.
 
 
 def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = None,
-                        settings: StepperSettings | None = None, x0=None) -> dict:
+                        settings: StepperSettings | None = None, x0=None) -> Result:
     """Integrate a free-hub model under a torque profile with :class:`PlantStepper`.
 
     The torque is evaluated at the end of every substep (no zero-order hold), so the
@@ -466,19 +468,24 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     Parameters
     ----------
     plant : str or HubBeamModel
+        ``"foam"``, ``"cfoam"``, ``"tlam"``, ``"sfoam"`` or a built model (free hub).
     torque : callable
         ``torque(t)`` [N m] of an array of times [s] (e.g. a ``TorquePulse``).
     t_end : float
-        Final time [s].
+        Final time [s], > 0.
     params : Params, optional
+        Parameters when ``plant`` is a name.
     settings : StepperSettings, optional
     x0 : array_like (2 n_q,), optional
+        Initial state ``[q, v]`` (default: at rest).
 
     Returns
     -------
-    dict
-        ``t`` (N+1,) [s], ``q``, ``v`` (N+1, n_q), ``v_tip`` (N+1,) [m], ``wall_s``,
-        ``ms_per_step`` (wall time per sample) and ``fallbacks``.
+    Result
+        Of kind ``"fixed_step"``: ``t`` (N+1,) [s] on the sample grid, ``q``, ``v``, ``a``
+        (N+1, n_q), ``v_tip``, ``u_tip`` [m], the applied ``tau`` [N m], ``wall_s`` and
+        ``stats`` with ``ms_per_step`` (wall time per sample), ``fallbacks`` and
+        ``jacobian_updates``.
     """
     model = resolve_model(plant, params)
     settings = settings or StepperSettings()
@@ -490,16 +497,22 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     sub = (t[:-1, None] + dt * np.arange(1, k + 1)[None, :] / k)
     u = np.asarray(torque(sub), dtype=float) * np.ones_like(sub)
     n = model.n_q
-    s = stepper.initial_state(x0, float(np.asarray(torque(np.array(0.0)))))
-    out = np.empty((N + 1, 2 * n))
-    out[0] = s[:2 * n]
+    tau0 = float(np.asarray(torque(np.array(0.0))))
+    s = stepper.initial_state(x0, tau0)
+    out = np.empty((N + 1, 3 * n))
+    out[0] = s[:3 * n]
     start = time.perf_counter()
     for i in range(N):
         s = stepper.step(s, u[i])
-        out[i + 1] = s[:2 * n]
+        out[i + 1] = s[:3 * n]
     wall = time.perf_counter() - start
-    q, v = out[:, :n], out[:, n:]
-    v_tip = np.array(model.tip_function.map(N + 1)(q.T)[0]).ravel()
-    return {"t": t, "q": q, "v": v, "v_tip": v_tip, "wall_s": wall,
-            "ms_per_step": 1e3 * wall / max(N, 1), "fallbacks": stepper.fallbacks,
-            "jacobian_updates": stepper.jacobian_updates}
+    q, v, a = out[:, :n], out[:, n:2 * n], out[:, 2 * n:]
+    v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(N + 1)(q.T))
+    tau = np.concatenate([[tau0], u[:, -1]])
+    stats = {"ms_per_step": 1e3 * wall / max(N, 1), "fallbacks": stepper.fallbacks,
+             "jacobian_updates": stepper.jacobian_updates}
+    return Result(kind="fixed_step", model=model.name, t=t, q=q, v=v, a=a, v_tip=v_tip,
+                  u_tip=u_tip, tau=tau, params=model.params,
+                  settings={"torque": describe_input(torque), "t_end": float(t_end),
+                            **dataclasses.asdict(settings)},
+                  stats=stats, wall_s=wall)

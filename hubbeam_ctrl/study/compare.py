@@ -98,7 +98,7 @@ class Comparison:
     ----------
     scenario : Scenario
     results : dict
-        Controller name -> :class:`~hubbeam_ctrl.sim.closedloop.ClosedLoopResult`.
+        Controller name -> :class:`~hubbeam_ctrl.sim.results.Result` (closed loop).
     metrics : dict
         Controller name -> metrics dictionary (see :data:`hubbeam_ctrl.study.metrics.METRIC_UNITS`).
     wall_s : float

@@ -153,12 +153,13 @@ def verdict(stopped: bool, growth: float, residual_end_m: float, saturated: floa
 def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
                         settle_angle: float = 1e-3, settle_tip: float = 1e-3,
                         tau_max: float | None = None) -> dict:
-    """Metrics of one :class:`~hubbeam_ctrl.sim.closedloop.ClosedLoopResult`.
+    """Metrics of one closed-loop run.
 
     Parameters
     ----------
-    result : ClosedLoopResult
-        Must carry the task's hub reference (``theta_ref``).
+    result : Result
+        Of kind ``"closed_loop"`` (see :func:`hubbeam_ctrl.sim.closedloop.simulate_closed_loop`),
+        with the task's hub reference (``theta_ref``).
     t_f : float
         Maneuver time [s]: the angle error is taken there, and the residual vibration
         window starts at ``t_f + residual_delay``.
@@ -183,13 +184,16 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
     Raises
     ------
     ParameterError
-        If the run ended before ``t_f + residual_delay`` or has no reference.
+        If the result is not a closed-loop run, has no reference, or was planned to end
+        before ``t_f + residual_delay``.
     """
     t_f = check_positive("tf", t_f, "s")
     if not (isinstance(residual_delay, (int, float)) and residual_delay >= 0):
         raise ParameterError(f"residual_delay must be >= 0 [s], got {residual_delay!r}")
     settle_angle = check_positive("settle_angle", settle_angle, "rad")
     settle_tip = check_positive("settle_tip", settle_tip, "m")
+    if result.kind != "closed_loop":
+        raise ParameterError(f"result must be a closed-loop run (kind 'closed_loop'), got kind {result.kind!r}")
     if result.theta_ref is None:
         raise ParameterError("the result has no hub reference (pass reference= to simulate_closed_loop)")
     t, v_tip, tau = result.t, result.v_tip, result.tau
