@@ -28,6 +28,7 @@ def slew_foam():
     return compare(plant="foam", scenario="slew")
 
 
+@pytest.mark.slow
 def test_slew_targets_on_foam(slew_foam):
     m = slew_foam.metrics
     assert tuple(m) == DEFAULT_CONTROLLERS
@@ -57,6 +58,7 @@ def test_slew_targets_on_foam(slew_foam):
     assert m["openloop"]["verdict"] == "not settled" and m["pd"]["verdict"] == "not settled"
 
 
+@pytest.mark.slow
 def test_scenario_angle_is_the_rigid_eq44_angle(slew_foam):
     sc = slew_foam.scenario
     p = Params()
@@ -66,6 +68,7 @@ def test_scenario_angle_is_the_rigid_eq44_angle(slew_foam):
         assert res.t[-1] == pytest.approx(30.0)
 
 
+@pytest.mark.slow
 def test_outputs_are_written(slew_foam, tmp_path):
     paths = write_outputs(slew_foam, tmp_path / "out")
     out = tmp_path / "out"
@@ -95,6 +98,7 @@ def test_outputs_are_written(slew_foam, tmp_path):
     assert paths["report"] == out / "report.md"
 
 
+@pytest.mark.slow
 def test_print_table(slew_foam, capsys):
     print_table(slew_foam.metrics)
     text = capsys.readouterr().out
