@@ -7,125 +7,86 @@ destabilises the modes it leaves out through the root-moment sensor.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.settings import setting
+from hubbeam_ctrl.plant.params import MAX_MODES
 
-from .base import Controller, DesignModel, Reference, Weights, check_nonnegative, check_positive, saturate
+from .base import Controller, DesignModel, LQSettings, Reference, saturate
+from .estimator import KalmanEstimator, KalmanNoise
 from .lqr import dlqr_gain
 from .residual import embedding, estimator_model
 
-__all__ = ["LQGSettings", "LQG", "kalman_gain"]
+__all__ = ["LQGSettings", "LQG"]
 
 
 @dataclass(frozen=True)
-class LQGSettings:
-    """Settings of :class:`LQG`.
+class LQGSettings(KalmanNoise, LQSettings):
+    """Settings of :class:`LQG`: those of LQR, the Kalman filter's noise model and its model's modes.
 
     The sensor noise levels are what the filter assumes; they default to the closed-loop
     simulator's :class:`hubbeam_ctrl.plant.sensors.SensorSettings`.
     """
 
-    weights: Weights = field(default_factory=Weights)
-    """State and torque weights of the LQR part (see :class:`Weights`)."""
-    tau_max: float = 200.0
-    """Torque limit [N m], > 0."""
-    feedforward: bool = True
-    """Add the reference's rigid-body feedforward torque."""
-    elastic_reference: bool = True
-    """Track the quasi-static deflection of the reference acceleration (as :class:`LQR`)."""
-    angle_noise_rad: float = 1e-4
-    """Assumed hub-angle sensor noise, standard deviation [rad], > 0."""
-    rate_noise_rad_s: float = 1e-3
-    """Assumed hub-rate sensor noise, standard deviation [rad/s], > 0."""
-    moment_noise_nm: float = 0.02
-    """Assumed root-moment sensor noise, standard deviation [N m], > 0."""
-    torque_noise_nm: float = 1.0
-    """Process noise: white torque disturbance at the hub, standard deviation per sample
-    [N m], > 0 (stands for model error: FOAM's stiffening and Q_theta, the axial modes).
-    Until the residual modes came, 5 N m; 1 N m halves the tip motion the sensor noise
-    causes (docs/controllers.md)."""
-    modal_noise: float = 1e-5
-    """Process noise on each modal coordinate and rate per sample [m, m/s], >= 0 (until
-    the residual modes came, 1e-4)."""
-    robust: bool = True
-    """Model the residual modes in the filter (:mod:`controllers.residual`); ``False`` is
-    the filter on the design model alone, which the modes it leaves out destabilise."""
-    residual_modes: int | None = None
-    """Transverse modes of the filter's model when ``robust`` (design modes..20); ``None``:
-    every mode below the Nyquist frequency and the first above it."""
-
-    def __post_init__(self):
-        if not isinstance(self.weights, Weights):
-            raise ParameterError(f"weights must be a Weights, got {type(self.weights).__name__}")
-        check_positive("tau_max", self.tau_max, "N m")
-        check_positive("angle_noise_rad", self.angle_noise_rad, "rad")
-        check_positive("rate_noise_rad_s", self.rate_noise_rad_s, "rad/s")
-        check_positive("moment_noise_nm", self.moment_noise_nm, "N m")
-        check_positive("torque_noise_nm", self.torque_noise_nm, "N m")
-        check_nonnegative("modal_noise", self.modal_noise, "m")
-        if not isinstance(self.robust, bool):
-            raise ParameterError(f"robust must be True or False, got {self.robust!r}")
+    robust: bool = setting(True, doc="Model the residual modes in the filter (controllers.residual); "
+                                     "False: the filter on the design model alone, which the modes it "
+                                     "leaves out destabilise.")
+    residual_modes: int | None = setting(None, kind=int, lo=1, hi=MAX_MODES,
+                                         doc="Transverse modes of the filter's model when robust (from the "
+                                             "design's modes to 20); None: every mode below the Nyquist "
+                                             "frequency and the first above it.")
 
 
-def kalman_gain(design: DesignModel, settings: LQGSettings) -> np.ndarray:
-    """Steady-state Kalman filter gain (measurement update) for the three sensors.
+def filter_model(design: DesignModel, settings: LQGSettings) -> DesignModel:
+    """The model the Kalman filter of an LQG runs on: with residual modes if ``settings.robust``.
 
     Parameters
     ----------
     design : DesignModel
+        The design model of the state feedback.
     settings : LQGSettings
 
     Returns
     -------
-    ndarray (nx, 3)
-        ``x_hat = x_pred + L (y - C x_pred)``.
+    DesignModel
+        :func:`controllers.residual.estimator_model` of ``design``, or ``design`` itself.
     """
-    A, B, C = design.Ad, design.Bd, design.C_sensors
-    nx = design.n_x
-    Qn = settings.torque_noise_nm ** 2 * (B @ B.T)
-    idx = np.r_[1:nx // 2, nx // 2 + 1:nx]
-    Qn[idx, idx] += settings.modal_noise ** 2
-    Rn = np.diag([settings.angle_noise_rad ** 2, settings.rate_noise_rad_s ** 2,
-                  settings.moment_noise_nm ** 2])
-    try:
-        P = scipy.linalg.solve_discrete_are(A.T, C.T, Qn, Rn)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise ParameterError(f"the Kalman filter's Riccati equation has no solution ({exc}); "
-                             "check the noise levels") from None
-    return P @ C.T @ np.linalg.inv(C @ P @ C.T + Rn)
+    return estimator_model(design, settings.residual_modes) if settings.robust else design
 
 
 class LQG(Controller):
-    """Output feedback: Kalman filter on ``[theta, theta_dot, M_root]`` plus the LQR gain.
+    """Output feedback: a :class:`KalmanEstimator` on ``[theta, theta_dot, M_root]`` and the LQR gain.
 
     The filter works in deviations from the steady rotation at the design spin ``Omega``:
-    ``x - [Omega t, 0, Omega, 0]``. Each call makes the measurement update, computes
-    ``tau = sat(tau_ff - K (x_hat - x_ref))`` and predicts the next state with the torque
-    actually applied. With ``settings.robust`` the filter's model (:attr:`estimator`) has the
-    residual modes of :func:`controllers.residual.estimator_modes`; ``K`` acts on the design
-    modes only.
+    ``x - [Omega t, 0, Omega, 0]``. Each call updates the estimate with the measurement
+    (after predicting with the torque applied since the last call) and returns
+    ``tau = sat(tau_ff - K (x_hat - x_ref))``. With ``settings.robust`` the filter's model
+    (:attr:`filter_model`) has the residual modes of
+    :func:`controllers.residual.estimator_modes`; ``K`` acts on the design modes only.
 
     Parameters
     ----------
     design : DesignModel
+        Sampled SFOAM at the design spin rate.
     settings : LQGSettings, optional
+        LQR settings plus the filter's noise model.
     reference : Reference, optional
+        Hub trajectory and feedforward torque (default: rest at theta = 0).
 
     Attributes
     ----------
     K : ndarray (nx,)
         LQR gain on the design model.
-    L : ndarray (nx_est, 3)
-        Kalman gain on the filter's model.
-    estimator : DesignModel
+    P : ndarray (nx, nx)
+        LQR Riccati solution.
+    filter_model : DesignModel
         The filter's model (``design`` itself unless residual modes are added).
+    estimator : KalmanEstimator
+        The state estimator on :attr:`filter_model` (gain ``estimator.L``, (nx_est, 3)).
     """
 
-    name = "lqg"
     measurement = "sensors"
 
     def __init__(self, design: DesignModel, settings: LQGSettings | None = None,
@@ -133,33 +94,46 @@ class LQG(Controller):
         settings = settings or LQGSettings()
         super().__init__(design, settings, reference)
         self.K, self.P = dlqr_gain(design, settings.weights)
-        est = estimator_model(design, settings.residual_modes) if settings.robust else design
-        self.estimator = est
-        self._E = embedding(design.n_modes, est.n_modes)
+        self.filter_model = filter_model(design, settings)
+        self.estimator = KalmanEstimator(self.filter_model, settings)
+        self._E = embedding(design.n_modes, self.filter_model.n_modes)
         self._Ke = self.K @ self._E.T
-        self.L = kalman_gain(est, settings)
-        self._IminusLC = np.eye(est.n_x) - self.L @ est.C_sensors
         self._ff = 1.0 if settings.feedforward else 0.0
-        self._n = est.n_x // 2
+        self._n = self.filter_model.n_x // 2
         self._prepare_reference(settings.elastic_reference)
         self.reset()
 
+    @property
+    def L(self) -> np.ndarray:
+        """Kalman filter gain (nx_est, 3) of the estimator."""
+        return self.estimator.L
+
+    @property
+    def x_hat(self) -> np.ndarray:
+        """Current state estimate (deviation from the steady rotation, filter model's states)."""
+        return self.estimator.x_hat
+
+    @property
+    def x_pred(self) -> np.ndarray:
+        """Prediction of the state at the next sample (the initial guess after :meth:`reset`)."""
+        return self.estimator.x_pred if self._tau is None else self.estimator.predict(self._tau)
+
     def reset(self) -> None:
+        """Start the estimator from the reference's first state; forget the last torque."""
         x, _ = self._reference_at(0)
         x = self._E @ x
         x[self._n] -= self.design.spin
-        self.x_pred = x
-        self.x_hat = x
+        self.estimator.reset(x)
+        self._tau = None
 
     def __call__(self, t: float, y) -> float:
+        """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
         spin = self.design.spin
         xr, tff = self._reference_at(int(round(t / self.dt)))
         yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
-        x_hat = self._IminusLC @ self.x_pred + self.L @ yd
+        x_hat = self.estimator.update(yd, self._tau)
         K = self._Ke
         # x_hat is a deviation from the steady rotation; x_ref is absolute
         u = K @ (x_hat - self._E @ xr) + K[0] * spin * t + K[self._n] * spin
-        tau = saturate(float(self._ff * tff - u), self.settings.tau_max)
-        self.x_hat = x_hat
-        self.x_pred = self.estimator.Ad @ x_hat + self.estimator.Bd[:, 0] * tau
-        return tau
+        self._tau = saturate(float(self._ff * tff - u), self.settings.tau_max)
+        return self._tau

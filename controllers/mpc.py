@@ -18,14 +18,15 @@ A failed solve falls back to the saturated LQR torque; :meth:`MPC.stats` counts 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.settings import setting
 
-from .base import Controller, DesignModel, Reference, Weights, check_positive, saturate
+from .base import Controller, DesignModel, LQSettings, Reference, saturate
 from .lqr import dlqr_gain
 
 __all__ = ["MPCSettings", "MPC", "QP_SOLVERS", "condensed_matrices"]
@@ -42,40 +43,22 @@ QP_SOLVERS = {
 
 
 @dataclass(frozen=True)
-class MPCSettings:
-    """Settings of :class:`MPC`."""
+class MPCSettings(LQSettings):
+    """Settings of :class:`MPC`: those of LQR plus the horizon, the tip bound and the solver.
 
-    weights: Weights = field(default_factory=Weights)
-    """Stage weights (see :class:`Weights`); the terminal weight is the LQR Riccati solution."""
-    horizon: int = 50
-    """Prediction horizon N in samples, >= 1."""
-    tau_max: float = 200.0
-    """Hard torque limit [N m], > 0."""
-    tip_bound: float | None = None
-    """Soft bound on |v_tip| over the horizon [m], > 0; None: no bound."""
-    tip_bound_weight: float = 1e8
-    """Quadratic penalty on the bound's violation [1/m^2], > 0 (same scale as the weights)."""
-    solver: str = "daqp"
-    """QP solver: one of :data:`QP_SOLVERS`."""
-    warm_start: bool = True
-    """Start each QP from the previous plan, shifted by one sample."""
-    feedforward: bool = True
-    """Use the reference's feedforward torque as the torque reference of the cost."""
-    elastic_reference: bool = True
-    """Track the quasi-static deflection of the reference acceleration (as LQR)."""
+    The stage weights are ``weights``; the terminal weight is their LQR Riccati solution.
+    ``tau_max`` is a hard constraint of the QP; ``feedforward`` makes the reference's
+    feedforward torque the torque reference of the cost.
+    """
 
-    def __post_init__(self):
-        if not isinstance(self.weights, Weights):
-            raise ParameterError(f"weights must be a Weights, got {type(self.weights).__name__}")
-        if isinstance(self.horizon, bool) or not isinstance(self.horizon, (int, np.integer)) \
-                or self.horizon < 1:
-            raise ParameterError(f"horizon must be an integer >= 1 [samples], got {self.horizon!r}")
-        check_positive("tau_max", self.tau_max, "N m")
-        if self.tip_bound is not None:
-            check_positive("tip_bound", self.tip_bound, "m")
-        check_positive("tip_bound_weight", self.tip_bound_weight, "1/m^2")
-        if self.solver not in QP_SOLVERS:
-            raise ParameterError(f"solver must be one of {', '.join(QP_SOLVERS)}, got {self.solver!r}")
+    horizon: int = setting(50, unit="samples", lo=1, doc="Prediction horizon N.")
+    tip_bound: float | None = setting(None, unit="m", lo=0.0, lo_open=True, kind=float,
+                                      doc="Soft bound on abs(v_tip) over the horizon; None: no bound.")
+    tip_bound_weight: float = setting(1e8, unit="1/m^2", lo=0.0, lo_open=True,
+                                      doc="Quadratic penalty on the bound's violation (same scale as "
+                                          "the weights).")
+    solver: str = setting("daqp", choices=QP_SOLVERS, doc="QP solver of CasADi's conic (QP_SOLVERS).")
+    warm_start: bool = setting(True, doc="Start each QP from the previous plan, shifted by one sample.")
 
 
 def condensed_matrices(Ad: np.ndarray, Bd: np.ndarray, N: int):
@@ -128,7 +111,6 @@ class MPC(Controller):
     True
     """
 
-    name = "mpc"
     measurement = "state"
 
     def __init__(self, design: DesignModel, settings: MPCSettings | None = None,
@@ -136,19 +118,8 @@ class MPC(Controller):
         settings = settings or MPCSettings()
         super().__init__(design, settings, reference)
         s = settings
-        N, nx = s.horizon, design.n_x
-        self.K, self.P = dlqr_gain(design, s.weights)
-        Q, R = s.weights.matrices(design)
-        r = float(R[0, 0])
-        Phi, Gamma = condensed_matrices(design.Ad, design.Bd, N)
-        Qb = np.kron(np.eye(N), Q)
-        Qb[-nx:, -nx:] = self.P
-        scale = 1.0 / r                        # cost scaled so that the torque weight is 1
-        GtQ = Gamma.T @ Qb
-        H = 2 * scale * (GtQ @ Gamma + r * np.eye(N))
-        H = 0.5 * (H + H.T)
-        self._Gx = 2 * scale * (GtQ @ Phi)                      # (N, nx)
-        self._Gr = 2 * scale * GtQ                              # (N, N nx)
+        N = s.horizon
+        self.K, self.P, H, self._Gx, self._Gr, Phi, Gamma, scale = self._condensed_qp(design)
         self._ff = 1.0 if s.feedforward else 0.0
         # g = Gx x0 - ref_term[k]: the reference part of the gradient for every sample
         self._prepare_reference(s.elastic_reference, extra=N + 1)
@@ -198,23 +169,49 @@ class MPC(Controller):
                                  f"{str(exc).splitlines()[-1][:120]}") from None
         self.reset()
 
-    def _reference_terms(self) -> np.ndarray:
+    def _condensed_qp(self, design: DesignModel):
+        """LQR gain and Riccati solution, the QP's Hessian and gradient matrices for ``design``.
+
+        Returns ``(K, P, H, Gx, Gr, Phi, Gamma, scale)``: the gradient is
+        ``Gx x0 - Gr X_r - 2 U_ff`` (cost scaled by ``scale = 1/R``).
+        """
+        s = self.settings
+        N, nx = s.horizon, design.n_x
+        K, P = dlqr_gain(design, s.weights)
+        Q, R = s.weights.matrices(design)
+        r = float(R[0, 0])
+        Phi, Gamma = condensed_matrices(design.Ad, design.Bd, N)
+        Qb = np.kron(np.eye(N), Q)
+        Qb[-nx:, -nx:] = P
+        scale = 1.0 / r                        # cost scaled so that the torque weight is 1
+        GtQ = Gamma.T @ Qb
+        H = 2 * scale * (GtQ @ Gamma + r * np.eye(N))
+        H = 0.5 * (H + H.T)
+        return K, P, H, 2 * scale * (GtQ @ Phi), 2 * scale * GtQ, Phi, Gamma, scale
+
+    def _qp_data(self, k: int, y: np.ndarray):
+        """Hessian and gradient of the QP at sample ``k`` for state ``y`` (a scheduled MPC
+        interpolates them)."""
+        return self._H, self._Gx @ y - self._reference_term(k)
+
+    def _reference_terms(self, Gr: np.ndarray | None = None) -> np.ndarray:
         N, nx = self.settings.horizon, self.design.n_x
         X, U = self._xref, self._tff
         n_k = len(X) - N
-        G3 = self._Gr.reshape(N, N, nx)
+        G3 = (self._Gr if Gr is None else Gr).reshape(N, N, nx)
         win = np.lib.stride_tricks.sliding_window_view(X[1:], N, axis=0)[:n_k]   # (k, nx, N)
         term = np.einsum("ijc,kcj->ki", G3, win, optimize=True)
         uwin = np.lib.stride_tricks.sliding_window_view(U, N)[:n_k]               # (k, N)
         return term + 2.0 * self._ff * uwin
 
-    def _reference_term(self, k: int) -> np.ndarray:
-        if k < len(self._ref_term):
-            return self._ref_term[k]
+    def _reference_term(self, k: int, table: np.ndarray | None = None, Gr: np.ndarray | None = None) -> np.ndarray:
+        table = self._ref_term if table is None else table
+        if k < len(table):
+            return table[k]
         N = self.settings.horizon
         X = np.array([self._reference_at(k + 1 + i)[0] for i in range(N)])
         U = np.array([self._reference_at(k + i)[1] for i in range(N)])
-        return self._Gr @ X.ravel() + 2.0 * self._ff * U
+        return (self._Gr if Gr is None else Gr) @ X.ravel() + 2.0 * self._ff * U
 
     def reset(self) -> None:
         self._z = np.zeros(self._nz)
@@ -245,7 +242,7 @@ class MPC(Controller):
         s = self.settings
         N = s.horizon
         k = int(round(t / self.dt))
-        g = self._Gx @ y - self._reference_term(k)
+        H, g = self._qp_data(k, y)
         lba = uba = None
         if self._soft:
             g = np.append(g, 0.0)
@@ -255,7 +252,7 @@ class MPC(Controller):
             uba = np.concatenate([vmax - off, np.full(N, np.inf)])
         elif self._n_a:
             lba, uba = np.array([-np.inf]), np.array([np.inf])
-        args = {"h": self._H, "g": g, "a": self._A, "lbx": self._lbx, "ubx": self._ubx}
+        args = {"h": H, "g": g, "a": self._A, "lbx": self._lbx, "ubx": self._ubx}
         if lba is not None:
             args["lba"], args["uba"] = lba, uba
         if s.warm_start:

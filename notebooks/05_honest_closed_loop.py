@@ -129,7 +129,7 @@ plt.show()
 old = make_controller("lqg", design, controllers["lqg (old)"][1], ref)
 new = make_controller("lqg", design, LQGSettings(), ref)
 lqr = make_controller("lqr", design, None, ref)
-print(f"default filter's model: {new.estimator.n_modes} modes")
+print(f"default filter's model: {new.filter_model.n_modes} modes")
 print(f"{'plant modes':>11s} " + "".join(f"{k:>26s}" for k in ("lqg (old)", "lqg (default)", "lqr")))
 radius = {}
 for n in (5, 6, 7, 8, 10, 13):

@@ -47,8 +47,8 @@ def test_residual_modes_rule(design):
     E = embedding(5, 7)
     x = np.arange(12.0)
     assert np.array_equal(E.T @ (E @ x), x) and (E @ x)[6:8].tolist() == [0, 0]
-    assert LQG(design).estimator.n_modes == 7
-    assert LQG(design, LQGSettings(robust=False)).estimator is design
+    assert LQG(design).filter_model.n_modes == 7
+    assert LQG(design, LQGSettings(robust=False)).filter_model is design
     with pytest.raises(Exception, match="residual_modes"):
         LQG(design, LQGSettings(residual_modes=4))
 

@@ -11,7 +11,7 @@ Figures measured with Table 1's data (m_t = 0.1 kg at the tip, n = 5), hub free:
   (3e-8 of its non-rotating value), and a real pair appears above it.
 * tau -> theta: s^2 G(s) -> 1 / J_total = 4.0234e-3 1/(kg m^2) at Omega = 0.
 * Hub held (J_h = 1e9): SFOAM frequencies equal the prescribed-hub ones to 2e-8 and
-  lie 0.05-0.06 % below the printed Table 2 (which is 0.05 % high, see NOTES).
+  lie 0.05-0.06 % below the printed Table 2 (which is 0.05 % high, see docs/physics.md).
 """
 
 from __future__ import annotations
@@ -221,3 +221,20 @@ def test_poles_hz_of_plain_statespace():
     lm = linearize("sfoam", 0.0, P)
     np.testing.assert_allclose(poles_hz(lm.sys), lm.poles_hz(), rtol=1e-12)
     assert np.all(np.diff(lm.poles_hz()) > 0)
+
+
+def test_poles_hz_is_damp_without_the_rigid_poles():
+    """python-control's damp() gives the same frequencies, but it divides by |s| and so warns
+    (0/0) on the free hub's rigid-body poles at s = 0: why poles_hz keeps its own selection."""
+    import warnings
+    lm = linearize("sfoam", 1.0, Params(n_transverse=3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(RuntimeWarning):
+            lm.sys.damp()
+        f = poles_hz(lm)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        wn, zeta, p = lm.sys.damp()
+    expect = np.sort(wn[(p.imag > 0) & (wn > 1e-6)]) / (2 * np.pi)
+    assert np.allclose(f, expect, rtol=1e-12) and len(f) == 3

@@ -8,7 +8,8 @@ import json
 import sys
 import time
 
-from hubbeam_ctrl.cli.main import finite_float, positive_float, positive_int
+from controllers import CONTROLLERS, QP_SOLVERS, SHAPERS, controller_names
+from hubbeam_ctrl.cli.main import RegistryChoices, finite_float, positive_float, positive_int
 from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["add_parser", "run", "stdout_to_stderr"]
@@ -42,17 +43,21 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
     common : argparse.ArgumentParser
         Parent parser with ``--tip-mass``, ``--tip-position``, ``--n-modes``, ``--params``.
     """
+    labels = ", ".join(spec.label for spec in CONTROLLERS.values())
     p = subparsers.add_parser(
         "compare", parents=[common], help="compare controllers in closed loop",
-        description=("Design open-loop (Eq. 44), PD, LQR, LQG and MPC controllers on SFOAM and "
-                     "compare them in closed loop (100 Hz zero-order hold) on the nonlinear FOAM "
-                     "or CFOAM evaluation plant, which has every bending mode below the sampling "
-                     "frequency and at least three more than the design model. --params and the "
-                     "common options set both the design and the plant; --plant-params and "
-                     "--plant-tip-mass make the plant differ. Writes metrics.csv, metrics.json, "
-                     "tip_deflection.png, hub_angle.png, torque.png and report.md to --out."))
-    p.add_argument("--plant", choices=["foam", "cfoam"], default="foam",
-                   help="nonlinear plant (default foam: closer to an exact beam than cfoam)")
+        description=(f"Design the registered controllers ({labels}) on SFOAM and compare them in "
+                     "closed loop (zero-order hold at --dt) on the nonlinear FOAM or CFOAM evaluation "
+                     "plant, which has every bending mode below the sampling frequency and at least "
+                     "three more than the design model. --params and the common options set both the "
+                     "design and the plant; --plant-params and --plant-tip-mass make the plant differ. "
+                     "Writes metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
+                     "torque.png and report.md to --out."))
+    # explicit metavars: argparse would otherwise read the choices (importing the study layer)
+    # when the parser is built, not only when --help is shown or a value is checked
+    p.add_argument("--plant", metavar="PLANT", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "PLANTS"),
+                   default="foam", help="nonlinear plant: %(choices)s (default %(default)s: closer to an "
+                                        "exact beam than cfoam)")
     p.add_argument("--plant-params", metavar="FILE.toml",
                    help="physical parameters of the plant when they differ from the design's")
     p.add_argument("--plant-tip-mass", metavar="KG", type=float, help="tip mass of the plant [kg], >= 0")
@@ -64,10 +69,19 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
     p.add_argument("--range-limit", metavar="FRACTION", type=positive_float("range-limit"), default=0.3,
                    help="flag runs whose |v_tip| passes FRACTION * L (the models' validated "
                         "range; default 0.3); only L stops a run")
-    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
-                   help="slew: rest-to-rest by the Eq. 44 rigid angle (default); spinup: to --wf and hold")
-    p.add_argument("--controllers", metavar="LIST", default="openloop,pd,lqr,lqg,mpc",
-                   help="comma-separated subset of openloop,pd,lqr,lqg,mpc (default: all)")
+    p.add_argument("--scenario", metavar="NAME", choices=RegistryChoices("hubbeam_ctrl.study.scenarios",
+                                                                         "SCENARIOS"),
+                   default="slew", help="registered scenario: %(choices)s (default %(default)s; see "
+                                        "hubbeam_ctrl.study.scenarios)")
+    default = ",".join(controller_names(default=True))
+    p.add_argument("--controllers", metavar="LIST", default=default,
+                   help="comma-separated subset of the registered controllers "
+                        + ", ".join(f"{n} ({s.label})" for n, s in CONTROLLERS.items())
+                        + f" (default: {default})")
+    p.add_argument("--shaping", choices=list(SHAPERS), default=None,
+                   help="filter the reference of the controllers that track one ("
+                        + ",".join(n for n, s in CONTROLLERS.items() if s.tracks_reference)
+                        + ") through this input shaper, designed on the first mode of the design model")
     p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"), default=200.0,
                    help="torque budget = Eq. 44 amplitude [N m] (default 200)")
     p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
@@ -80,6 +94,13 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="controller sample time [s] (default 0.01)")
     p.add_argument("--horizon", metavar="N", type=positive_int("horizon"), default=50,
                    help="MPC horizon [samples] (default 50)")
+    p.add_argument("--solver", choices=list(QP_SOLVERS), default="daqp",
+                   help="MPC QP solver: %(choices)s (default %(default)s)")
+    p.add_argument("--schedule", metavar="N", type=positive_int("schedule"), default=1,
+                   help="design the controllers with a scheduled version ("
+                        + ",".join(n for n, s in CONTROLLERS.items() if s.scheduled)
+                        + ") at N spin rates from 0 to the top reference rate and interpolate them on "
+                          "the measured rate (default 1: one design point)")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     p.set_defaults(func=run)
@@ -118,6 +139,7 @@ def run(args) -> int:
                              plant_params=plant_params, design_modes=design_modes,
                              plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
                              t_end=args.t_end, dt=args.dt, w_f=args.wf, horizon=args.horizon,
+                             solver=args.solver, shaping=args.shaping, schedule=args.schedule,
                              sim_settings=ClosedLoopSettings(range_limit=args.range_limit),
                              progress=not args.json)
         write_outputs(comparison, out)

@@ -27,11 +27,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, fields
 
 import numpy as np
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
@@ -39,51 +40,46 @@ from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.sim.results import Result
-from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings, substep_rule
+from hubbeam_ctrl.sim.stepper import MAX_SUBSTEPS, PlantStepper, StepperSettings, substep_rule
 
 __all__ = ["ClosedLoopSettings", "simulate_closed_loop"]
 
 
 @dataclass(frozen=True)
-class ClosedLoopSettings:
-    """Settings of :func:`simulate_closed_loop`."""
+class ClosedLoopSettings(StepperSettings):
+    """Settings of :func:`simulate_closed_loop`: the plant integrator's (``dt`` is also the
+    controller's sample period and the zero-order hold's), the sensors and when to stop."""
 
-    dt: float = 0.01
-    """Sample period of the controller and of the zero-order hold [s] (default 100 Hz)."""
-    substeps: int | None = None
-    """Integration steps of the plant per sample, 1..200; ``None`` (default): the fewest that
-    keep every bending mode of the plant within ``frequency_tolerance`` of its modal-analysis
-    frequency (:func:`~hubbeam_ctrl.sim.stepper.substep_rule`)."""
-    frequency_tolerance: float = 0.005
-    """Largest relative frequency error of any bending mode in the integrator [-] (0.5 %)."""
-    rho_inf: float = 0.9
-    """Numerical damping of the plant integrator, 0..1 (see :class:`StepperSettings`)."""
-    newton_iterations: int = 3
-    """Newton iterations per integration step (see :class:`StepperSettings`)."""
-    sensors: SensorSettings = field(default_factory=SensorSettings)
-    """Sensor noise for controllers that read ``"sensors"``."""
-    range_limit: float = 0.3
-    """Validated range of the models: a run with ``|v_tip| > range_limit * L`` is flagged
-    (``outside_validated_range``, with the time) and goes on [-]."""
-    divergence_limit: float = 1.0
-    """The run stops (diverged) when ``|v_tip| > divergence_limit * L`` [-]."""
-    max_wall_s: float = 600.0
-    """The run stops (flagged) when it has taken longer than this [s]."""
-    def __post_init__(self):
-        _check_positive("range_limit", self.range_limit, "-")
-        _check_positive("divergence_limit", self.divergence_limit, "-")
-        _check_positive("max_wall_s", self.max_wall_s, "s")
-        if not (isinstance(self.frequency_tolerance, (int, float)) and 0 < self.frequency_tolerance <= 0.1):
-            raise ParameterError(f"frequency_tolerance must be in (0, 0.1] [-], got {self.frequency_tolerance!r}")
-        if not isinstance(self.sensors, SensorSettings):
-            raise ParameterError("sensors must be a SensorSettings")
-        # validates dt, substeps, rho_inf and newton_iterations
-        self.stepper_settings(1 if self.substeps is None else self.substeps)
+    substeps: int | None = setting(None, kind=int, lo=1, hi=MAX_SUBSTEPS,
+                                   doc="Integration steps of the plant per sample; None (default): the "
+                                       "fewest that keep every bending mode of the plant within "
+                                       "frequency_tolerance of its modal-analysis frequency "
+                                       "(hubbeam_ctrl.sim.stepper.substep_rule).")
+    frequency_tolerance: float = setting(0.005, lo=0.0, lo_open=True, hi=0.1,
+                                         doc="Largest relative frequency error of any bending mode in "
+                                             "the integrator (0.5 %).")
+    sensors: SensorSettings = setting(factory=SensorSettings,
+                                      doc='Sensor noise for controllers that read "sensors".')
+    range_limit: float = setting(0.3, lo=0.0, lo_open=True,
+                                 doc="Validated range of the models: a run with abs(v_tip) > range_limit * L "
+                                     "is flagged (outside_validated_range, with the time) and goes on.")
+    divergence_limit: float = setting(1.0, lo=0.0, lo_open=True,
+                                      doc="The run stops (diverged) when abs(v_tip) > divergence_limit * L.")
+    max_wall_s: float = setting(600.0, unit="s", lo=0.0, lo_open=True,
+                                doc="The run stops (flagged) when it has taken longer than this.")
+
+    @property
+    def stepper(self) -> StepperSettings:
+        """The plant integrator's settings (``substeps`` must be given; else see :meth:`stepper_settings`)."""
+        if self.substeps is None:
+            raise ParameterError("substeps is None (chosen per plant by substep_rule); "
+                                 "use stepper_settings(substeps)")
+        return self.stepper_settings(self.substeps)
 
     def stepper_settings(self, substeps: int) -> StepperSettings:
-        """The plant integrator's settings with ``substeps`` steps per sample."""
-        return StepperSettings(dt=self.dt, substeps=substeps, rho_inf=self.rho_inf,
-                               newton_iterations=self.newton_iterations)
+        """The plant integrator's settings with ``substeps`` steps per sample (1..200)."""
+        values = {f.name: getattr(self, f.name) for f in fields(StepperSettings)}
+        return StepperSettings(**{**values, "substeps": substeps})
 
 
 def _controller_name(controller) -> str:

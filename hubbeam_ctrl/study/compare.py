@@ -7,18 +7,12 @@ design model, :func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`) with
 :mod:`hubbeam_ctrl.study.metrics` and writes ``metrics.csv``, ``metrics.json``, three PNG
 plots and ``report.md``.
 
-Scenarios
----------
-``slew``
-    Rest-to-rest rotation by the rigid-body angle of the paper's Eq. 44 profile,
-    ``Theta = tau_m t_f^2 / (2 pi J_total)``, in the same ``t_f`` and with the same torque
-    budget ``tau_max = tau_m``. The baseline is the open-loop Eq. 44 torque itself; the
-    feedback controllers follow a smooth reference (:func:`controllers.slew_reference`)
-    designed on SFOAM linearised at rest.
-``spinup``
-    Spin-up to ``w_f`` (default 3 rad/s, above TLAM's critical speed) along the corrected
-    Eq. 43 profile in ``t_f``, then hold; design model linearised at ``w_f``. The baseline
-    is the rigid-body feedforward torque alone.
+The controllers come from the registry :data:`controllers.CONTROLLERS` (each with its
+default settings for a scenario, ``Settings.for_scenario``), the scenarios from
+:data:`hubbeam_ctrl.study.scenarios.SCENARIOS`. ``shaping=`` filters the reference of the
+controllers that track one through an input shaper; ``schedule=N`` runs the registered
+gain-scheduled version of those that have one on ``N`` design spins
+(:meth:`controllers.DesignSchedule.for_scenario`).
 
 Example
 -------
@@ -35,16 +29,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from controllers import (
-    CONTROLLERS,
-    DesignModel,
-    LQGSettings,
-    LQRSettings,
-    MPCSettings,
-    OpenLoopSettings,
-    PDSettings,
-    make_controller,
-)
+from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
@@ -55,12 +40,15 @@ from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
-DEFAULT_CONTROLLERS = ("openloop", "pd", "lqr", "lqg", "mpc")
-#: The controllers held to the targets of the slew (PD is only reported).
-TARGET_CONTROLLERS = ("lqr", "lqg", "mpc")
+#: The controllers a comparison runs by default (the built-ins; see :func:`controllers.controller_names`).
+DEFAULT_CONTROLLERS = controller_names(default=True)
+#: The controllers held to the targets of the slew (the others, e.g. PD, are only reported).
+TARGET_CONTROLLERS = controller_names(target=True)
 
 
 def _parse_controllers(controllers) -> tuple:
+    if controllers is None:
+        return controller_names(default=True)
     if isinstance(controllers, str):
         names = [c.strip().lower() for c in controllers.split(",") if c.strip()]
     else:
@@ -76,18 +64,12 @@ def _parse_controllers(controllers) -> tuple:
     return tuple(names)
 
 
-def _default_settings(name: str, sc: Scenario, horizon: int, solver: str):
-    if name == "openloop":
-        if sc.name == "slew":
-            return OpenLoopSettings("eq44", sc.tau_max, sc.t_f)
-        return OpenLoopSettings("feedforward", sc.tau_max, sc.t_f)
-    if name == "pd":
-        return PDSettings(tau_max=sc.tau_max)
-    if name == "lqr":
-        return LQRSettings(tau_max=sc.tau_max)
-    if name == "lqg":
-        return LQGSettings(tau_max=sc.tau_max)
-    return MPCSettings(tau_max=sc.tau_max, horizon=horizon, solver=solver)
+def _design_schedule(sc: Scenario, points, design_modes):
+    """The scenario's design schedule of ``points`` spins (None for a single design)."""
+    if isinstance(points, bool) or not isinstance(points, int) or points < 1:
+        raise ParameterError(f"schedule must be an integer >= 1 (number of spin rates; 1 = a single "
+                             f"design at the scenario's design spin), got {points!r}")
+    return None if points == 1 else DesignSchedule.for_scenario(sc, points, design_modes)
 
 
 @dataclass
@@ -104,7 +86,11 @@ class Comparison:
     wall_s : float
         Wall time of the comparison (design and simulation, without writing) [s].
     paths : dict
-        File kind -> Path, once written.
+        File kind -> Path, once :func:`~hubbeam_ctrl.study.report.write_outputs` wrote them.
+    styles : dict
+        Controller name -> plot style ``{"color", "label"}`` (from the registry).
+    targets : tuple of str
+        The controllers held to the slew's targets (the others are only reported).
     plant : EvaluationPlant
         The plant the controllers were judged on, and why it has its modes.
     """
@@ -114,6 +100,8 @@ class Comparison:
     metrics: dict
     wall_s: float = 0.0
     paths: dict = field(default_factory=dict)
+    styles: dict = field(default_factory=dict)
+    targets: tuple = ()
     plant: EvaluationPlant | None = None
 
 
@@ -125,13 +113,14 @@ def _design_modes(design_modes, design: Params) -> int:
     return design_modes
 
 
-def compare(plant: str = "foam", scenario: str = "slew", controllers=DEFAULT_CONTROLLERS, *,
+def compare(plant: str = "foam", scenario: str = "slew", controllers=None, *,
             params: Params | None = None, design_params: Params | None = None,
             plant_params: Params | None = None, tau_max: float = 200.0, t_f: float = 10.0,
             t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0,
             design_modes: int | None = None, plant_modes: int | None = None, horizon: int = 50,
             solver: str = "daqp", settings: dict | None = None,
-            sim_settings: ClosedLoopSettings | None = None, progress: bool = False) -> Comparison:
+            sim_settings: ClosedLoopSettings | None = None, shaping=None, schedule: int = 1,
+            progress: bool = False) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
@@ -142,11 +131,13 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=DEFAULT_CON
     Parameters
     ----------
     plant : {"foam", "cfoam"}
-        Plant model (default FOAM: it tracks an exact beam more closely than CFOAM at large
-        deflection, see the README).
-    scenario : {"slew", "spinup"}
-    controllers : str or sequence of str
-        Any of ``openloop, pd, lqr, lqg, mpc`` (comma-separated string accepted).
+        Nonlinear plant (:data:`~hubbeam_ctrl.study.scenarios.PLANTS`; default FOAM: it tracks
+        an exact beam more closely than CFOAM at large deflection, see docs/physics.md).
+    scenario : str
+        A registered scenario (``slew``, ``spinup``...).
+    controllers : str or sequence of str, optional
+        Registered controllers (``openloop, pd, lqr, lqg, mpc``...; a comma-separated string
+        is accepted). Default: those registered as default.
     params : Params, optional
         Parameters of both the design and the plant (default Table 1).
     design_params, plant_params : Params, optional
@@ -162,13 +153,23 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=DEFAULT_CON
     plant_modes : int, optional
         Transverse modes of the plant, ``design_modes..20`` (default: the rule above).
     horizon : int
-        MPC horizon [samples].
+        MPC horizon [samples] (passed to every controller's ``for_scenario``).
     solver : str
-        MPC QP solver (see :data:`controllers.QP_SOLVERS`).
+        MPC QP solver (see :data:`controllers.QP_SOLVERS`; passed likewise).
     settings : dict, optional
-        Controller name -> settings object, replacing the defaults.
+        Controller name -> settings object, replacing the defaults
+        (``SettingsClass.for_scenario(scenario, horizon=..., solver=...)``).
     sim_settings : ClosedLoopSettings, optional
         Plant integration and sensor settings (its ``dt`` is replaced by ``dt``).
+    shaping : {"zv", "zvd", "ei"} or Shaper, optional
+        Filter the reference of the controllers that track it (pd, lqr, lqg, mpc: see
+        :attr:`controllers.ControllerSpec.tracks_reference`) through this input shaper,
+        designed on the design model's first mode.
+    schedule : int
+        Spin rates of the design schedule of the controllers with a scheduled version (lqr,
+        lqg, mpc), evenly spaced from 0 to the reference's top rate
+        (:meth:`controllers.DesignSchedule.for_scenario`); 1: a single design at the
+        scenario's design spin.
     progress : bool
         Print one line per controller on stderr.
 
@@ -191,14 +192,18 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=DEFAULT_CON
     if unknown:
         raise ParameterError(f"settings given for controllers not run: {', '.join(unknown)}")
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
+    shaper = None if shaping is None else as_shaper(design, shaping)
+    sched = _design_schedule(sc, schedule, m)
     sim = sim_settings or ClosedLoopSettings()
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
     ref = sc.reference
     results, metrics = {}, {}
     for name in names:
-        st = settings.get(name) or _default_settings(name, sc, horizon, solver)
-        ctrl = make_controller(name, design, st, ref)
+        spec = CONTROLLERS[name]
+        st = settings.get(name) or spec.settings.for_scenario(sc, horizon=horizon, solver=solver)
+        ctrl = make_controller(name, design, st, ref, shaping=shaper if spec.tracks_reference else None,
+                               schedule=sched if spec.scheduled else None)
         res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res
@@ -214,25 +219,29 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=DEFAULT_CON
         for mm in metrics.values():
             mm["residual_pct_of_openloop"] = (100.0 * mm["residual_tip_max_m"] / base_res
                                               if base_res and math.isfinite(base_res) else float("nan"))
-    return Comparison(sc, results, metrics, time.perf_counter() - start, plant=ev)
+    return Comparison(sc, results, metrics, time.perf_counter() - start,
+                      styles={n: CONTROLLERS[n].style for n in names},
+                      targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev)
 
 
-def run_compare(plant: str = "foam", scenario: str = "slew", controllers=DEFAULT_CONTROLLERS,
+def run_compare(plant: str = "foam", scenario: str = "slew", controllers=None,
                 out_dir=None, **options) -> dict:
     """Run :func:`compare` and write its outputs to ``out_dir`` (if given).
 
     Parameters
     ----------
     plant : {"foam", "cfoam"}
-        Plant model (default FOAM).
-    scenario : {"slew", "spinup"}
-    controllers : str or sequence of str
+        Nonlinear plant (default FOAM).
+    scenario : str
+        A registered scenario.
+    controllers : str or sequence of str, optional
+        Registered controllers (default: those registered as default).
     out_dir : str or Path, optional
         Folder for metrics.csv, metrics.json, the PNG plots and report.md.
     **options
         Keyword arguments of :func:`compare` (``params``, ``design_params``, ``plant_params``,
         ``tau_max``, ``t_f``, ``t_end``, ``dt``, ``w_f``, ``design_modes``, ``plant_modes``,
-        ``horizon``, ``solver``, ``settings``...).
+        ``horizon``, ``solver``, ``settings``, ``shaping``, ``schedule``...).
 
     Returns
     -------

@@ -116,11 +116,15 @@ def write_outputs(comparison, out_dir) -> dict:
                                       json.dumps(_json_metrics(metrics), indent=2) + "\n")
     modes = f" ({comparison.plant.modes} modes)" if comparison.plant is not None else ""
     title = f"{sc.plant.upper()}{modes}, {sc.name}: "
+    styles = comparison.styles
     figs = {
         "tip_deflection.png": plot_tip_deflection(results, sc.t_f, sc.t_f + 5.0,
-                                                  title + "tip deflection (shaded: residual window)"),
-        "hub_angle.png": plot_hub_angle(results, sc.t_f, title + "hub angle and error vs reference"),
-        "torque.png": plot_torque(results, sc.tau_max, title + "hub torque (dotted: +-tau_max)"),
+                                                  title + "tip deflection (shaded: residual window)",
+                                                  styles=styles),
+        "hub_angle.png": plot_hub_angle(results, sc.t_f, title + "hub angle and error vs reference",
+                                        styles=styles),
+        "torque.png": plot_torque(results, sc.tau_max, title + "hub torque (dotted: +-tau_max)",
+                                  styles=styles),
     }
     for fname, fig in figs.items():
         paths[fname] = save_figure(fig, out / fname)
@@ -153,7 +157,7 @@ def _report(comparison) -> str:
                   "|---|---|---|---|---|"]
         yes = {True: "yes", False: "**no**", None: "-"}
         for name, s_ok, r_ok, t_ok, a_ok in _targets(comparison):
-            note = " (reported only)" if name in ("pd", "openloop") else ""
+            note = "" if name in comparison.targets or name == "openloop" else " (reported only)"
             lines.append(f"| {name}{note} | {yes[s_ok]} | {yes[r_ok]} | {yes[t_ok]} | {yes[a_ok]} |")
         lines.append("")
     notes = [f"- {name}: {m['message']}" for name, m in comparison.metrics.items()

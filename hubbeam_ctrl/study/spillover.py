@@ -79,7 +79,7 @@ def feedback_realization(controller: Controller):
         ``(Ak, Bk, Ck, Dk)``.
     """
     if isinstance(controller, LQG):
-        est = controller.estimator
+        est = controller.filter_model
         K = controller._Ke[None, :]
         L, C = controller.L, est.C_sensors
         F = est.Ad - est.Bd @ K
