@@ -417,6 +417,7 @@ class ScheduledLQG(_Scheduled, LQG):
         self.filter_model = models.designs[0]
         self.estimator = ScheduledKalmanEstimator(models, settings)
         self.gains = schedule.stack(lambda d: dlqr_gain(d, settings.weights)[0]) @ self._E.T
+        self._Ke = self.gains[0]            # the loop at the grid's first spin (study.loop_poles)
         self.reset()
 
     def reset(self) -> None:
