@@ -17,12 +17,14 @@ from controllers import (
     ScheduledMPC,
     Weights,
     dlqr_gain,
+    filter_schedule,
     kalman_gain,
     make_controller,
     scheduled_lqg_iosystem,
     scheduled_lqr_iosystem,
     spinup_reference,
 )
+from controllers.residual import embedding
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study.compare import compare
@@ -100,15 +102,23 @@ def test_lqg_iosystem_matches_the_controller(sched, ref):
         assert sys.output(0, xs, u)[0] == pytest.approx(tau, rel=1e-12, abs=1e-12)
         xs = sys.dynamics(0, xs, u)
         assert np.allclose(xs, ctrl.x_pred, rtol=1e-12, atol=1e-15)
-    # the Kalman gains of the schedule are those of its designs
-    assert np.allclose(kalman_gain(sched.designs[0], settings), ctrl.L[0])
+    # the Kalman gains of the schedule are those of its filter's models: the designs with the
+    # residual modes (robust, the default), or the designs themselves
+    models, E = filter_schedule(sched, settings)
+    assert models.n_modes == 7 and E.shape == (16, 6) and ctrl.gains.shape == (4, 16)
+    assert np.allclose(kalman_gain(models.designs[0], settings), ctrl.L[0])
+    plain = ScheduledLQG(sched, LQGSettings(robust=False), ref)
+    assert np.allclose(kalman_gain(sched.designs[0], settings), plain.estimator.L[0])
 
 
-def test_scheduled_lqg_at_constant_spin_equals_fixed_lqg(ref):
+@pytest.mark.parametrize("robust", [True, False])
+def test_scheduled_lqg_at_constant_spin_equals_fixed_lqg(ref, robust):
     """Both on a schedule whose grid ends at the design spin, driven at that spin, give the same torques."""
     s = DesignSchedule.build(P2, [2.0, 3.0], 0.01)
     hold = spinup_reference(3.0, 10.0, P2.total_inertia, 0.01, 15.0)
-    fixed, sch = LQG(s.designs[-1], None, hold), ScheduledLQG(s, None, hold, variable="reference")
+    st = LQGSettings(robust=robust)
+    fixed, sch = LQG(s.designs[-1], st, hold), ScheduledLQG(s, st, hold, variable="reference")
+    E = embedding(s.n_modes, fixed.filter_model.n_modes)
     fixed.reset()
     sch.reset()
     rng = np.random.default_rng(3)
@@ -117,8 +127,8 @@ def test_scheduled_lqg_at_constant_spin_equals_fixed_lqg(ref):
         xr, _ = sch._reference_at(k)
         y = np.array([xr[0], 3.0, 0.0]) + rng.normal(scale=[1e-4, 1e-3, 0.02])
         if k == 1200:                                               # start both on the reference
-            fixed.estimator.reset(xr - np.r_[3.0 * t, 0, 0, 3.0, 0, 0])   # deviation coordinates
-            sch.estimator.reset(xr)
+            fixed.estimator.reset(E @ (xr - np.r_[3.0 * t, 0, 0, 3.0, 0, 0]))   # deviation coordinates
+            sch.estimator.reset(E @ xr)
         assert fixed(t, y) == pytest.approx(sch(t, y), rel=1e-9, abs=1e-9)
 
 

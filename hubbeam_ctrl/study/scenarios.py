@@ -16,13 +16,14 @@ import numpy as np
 from controllers import slew_reference, spinup_reference
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.evaluation import PLANT_MODELS
 
 __all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
 
 #: Scenario name -> builder, in registration order (see :func:`register_scenario`).
 SCENARIOS: dict = {}
 #: The nonlinear plants a scenario runs on (the models with dynamic stiffening and axial modes).
-PLANTS = ("foam", "cfoam")
+PLANTS = PLANT_MODELS
 
 
 def register_scenario(name: str):
@@ -69,6 +70,7 @@ class Scenario:
         Registered scenario name (:data:`SCENARIOS`).
     plant : {"foam", "cfoam"}
     params : Params
+        Parameters of the design model (the reference uses their rigid-body inertia).
     tau_max : float
         Torque budget [N m] (= Eq. 44's tau_m in the slew).
     t_f : float
@@ -115,7 +117,7 @@ class Scenario:
                 "description": self.description}
 
 
-def make_scenario(scenario: str = "slew", *, plant: str = "cfoam", params: Params | None = None,
+def make_scenario(scenario: str = "slew", *, plant: str = "foam", params: Params | None = None,
                   tau_max: float = 200.0, t_f: float = 10.0, t_end: float = 30.0,
                   dt: float = 0.01, w_f: float = 3.0, flatness: float = 3.0,
                   preview_s: float = 2.0) -> Scenario:
