@@ -197,7 +197,7 @@ def test_target_scheduled_lqr_and_mpc_in_the_spinup(spinup_runs):
     for name in ("lqr", "mpc"):
         m = sched[name]
         assert m["completed"] and m["within_torque_limit"] and m["schedule_points"] == 9
-        assert m["residual_tip_max_m"] <= 0.01 * feedforward_only             # measured 0.90 %, 0.54 %
+        assert m["residual_tip_max_m"] <= 0.01 * feedforward_only   # measured 0.89 %, 0.53 % (5 modes: 0.90, 0.54)
         assert m["residual_tip_max_m"] <= 0.5 * fixed[name]["residual_tip_max_m"]   # fixed 3.1 %, 2.6 %
 
 
@@ -206,7 +206,7 @@ def test_default_grid_is_dense_enough(spinup_runs):
     """Doubling the grid (9 -> 17 spins) changes the residual by less than 5 %."""
     for name in ("lqr", "mpc"):
         a, b = spinup_runs[9][name]["residual_tip_max_m"], spinup_runs[17][name]["residual_tip_max_m"]
-        assert abs(b - a) < 0.05 * b, (name, a, b)                        # measured 1.3 %, 3.0 %
+        assert abs(b - a) < 0.05 * b, (name, a, b)   # measured 1.3 %, 2.8 % (5 modes: 1.3, 3.0)
 
 
 @pytest.mark.parametrize("argv, match", [
