@@ -73,7 +73,7 @@ SAMPLERS = ("lhs", "sobol", "halton", "random")
 _INTEGER_FACTORS = ("n_axial", "n_transverse", "seed")
 _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", "lqr"), "design": "base",
                "tau_max": 200.0, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
-               "solver": "daqp", "design_modes": None}
+               "solver": "daqp", "design_modes": None, "plant_modes": None}
 
 
 def _controller_list(value) -> tuple:
@@ -271,6 +271,9 @@ class StudySpec:
         MPC QP solver.
     design_modes : int or None
         Transverse modes of the design model (default: the base plant's).
+    plant_modes : int or None
+        Transverse modes of the evaluation plant (default: the rule of
+        :func:`hubbeam_ctrl.sim.evaluation.evaluation_plant`, more modes than the design).
     params : Params
         Base parameters (design, and plant where no factor changes them).
     settings : dict
@@ -294,6 +297,7 @@ class StudySpec:
     horizon: int = 50
     solver: str = "daqp"
     design_modes: int | None = None
+    plant_modes: int | None = None
     params: Params = field(default_factory=Params)
     settings: dict = field(default_factory=dict)
     grid: dict = field(default_factory=dict)

@@ -91,7 +91,7 @@ def _one_line(exc: BaseException) -> str:
 
 def _task_key(spec: StudySpec) -> tuple:
     return (spec.scenario, spec.plant, spec.tau_max, spec.t_f, spec.t_end, spec.dt, spec.horizon,
-            spec.solver, spec.design_modes)
+            spec.solver, spec.design_modes, spec.plant_modes)
 
 
 def run_case(case: dict, spec: StudySpec, cache: CaseCache | None = None) -> list:
@@ -149,11 +149,12 @@ def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
     dkey = ("design", design_p, spin, spec.dt, spec.design_modes)
     m = spec.design_modes or design_p.n_transverse
     # the same evaluation plant as compare(): the plant's physics, more modes than the design
-    pkey = ("plant", spec.plant, plant_p, design_p, spin, spec.dt, m)
+    pkey = ("plant", spec.plant, plant_p, design_p, spin, spec.dt, m, spec.plant_modes)
     return {"scenario": sc, "key": (dkey, task, design_p, w_f),
             "design": cache.get(dkey, lambda: DesignModel.build(design_p, spin, spec.dt, spec.design_modes)),
             "plant": cache.get(pkey, lambda: evaluation_plant(spec.plant, design_p, spec.dt, m, spin,
-                                                              plant_params=plant_p)),
+                                                              plant_params=plant_p,
+                                                              plant_modes=spec.plant_modes)),
             "sim": ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(seed=int(case.get("seed", 0))))}
 
 
