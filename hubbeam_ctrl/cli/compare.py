@@ -7,7 +7,7 @@ import json
 import sys
 import time
 
-from hubbeam_ctrl.cli.main import finite_float, positive_float, positive_int
+from hubbeam_ctrl.cli.main import add_backend_option, finite_float, positive_float, positive_int
 from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["add_parser", "run", "stdout_to_stderr"]
@@ -64,6 +64,7 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="controller sample time [s] (default 0.01)")
     p.add_argument("--horizon", metavar="N", type=positive_int("horizon"), default=50,
                    help="MPC horizon [samples] (default 50)")
+    add_backend_option(p)
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     p.set_defaults(func=run)
@@ -87,7 +88,8 @@ def run(args) -> int:
     with stdout_to_stderr():
         comparison = compare(args.plant, args.scenario, args.controllers, params=params,
                              tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
-                             w_f=args.wf, horizon=args.horizon, progress=not args.json)
+                             w_f=args.wf, horizon=args.horizon, progress=not args.json,
+                             backend=args.backend)
         write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:

@@ -16,10 +16,11 @@ import sys
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import Params, load_params
 
-__all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float"]
+__all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float",
+           "add_backend_option"]
 
 #: Subcommands contributed by other modules: module name -> provides add_parser/run.
-EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare")
+EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.cache")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -93,6 +94,15 @@ def finite_float(name):
     return parse
 
 
+def add_backend_option(parser) -> None:
+    """Add ``--backend {auto,compiled,vm}`` (see :mod:`hubbeam_ctrl.core.compiled`)."""
+    from hubbeam_ctrl.core.compiled import BACKENDS
+    parser.add_argument("--backend", choices=BACKENDS, default=None,
+                        help="evaluate the plant in CasADi's VM or as generated C (compiled once, "
+                             "cached; see `hubbeam cache info`); auto: compiled when a C compiler "
+                             "works (default: $HUBBEAM_BACKEND or auto)")
+
+
 def check_output_folder(option: str, path) -> None:
     """Raise :class:`ParameterError` unless the folder of ``path`` exists and is writable."""
     import os
@@ -158,7 +168,8 @@ def _cmd_simulate(args) -> int:
     else:
         maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
                                args.tf if args.tf is not None else 10.0)
-    res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json)
+    res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
+                   backend=args.backend)
     if args.out:
         res.save(args.out)
     if args.plot:
@@ -217,6 +228,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="FILE.csv|FILE.npz", help="save the time series")
     p.add_argument("--plot", metavar="FILE.png", help="save a plot")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
+    add_backend_option(p)
     p.set_defaults(func=_cmd_simulate)
 
     for name in EXTRA_COMMANDS:

@@ -167,7 +167,7 @@ def _controller_name(controller) -> str:
 
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
                          settings: ClosedLoopSettings | None = None, x0=None,
-                         reference=None) -> ClosedLoopResult:
+                         reference=None, backend=None) -> ClosedLoopResult:
     """Run a sampled controller on a nonlinear plant (zero-order hold).
 
     At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
@@ -196,6 +196,9 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     reference : tuple of callables, optional
         ``(theta_ref(t), theta_dot_ref(t))`` of arrays, stored with the result for
         metrics and plots.
+    backend : {"auto", "compiled", "vm"}, optional
+        How the plant step is evaluated (see :class:`PlantStepper`); default
+        ``$HUBBEAM_BACKEND`` or ``"auto"``.
 
     Returns
     -------
@@ -229,7 +232,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     # index map plant state [q, v] -> measurement
     idx_state = np.r_[0, 1 + n1:1 + n1 + m, n, n + 1 + n1:n + 1 + n1 + m]
     C_sens = sensor_matrix(model.params, n2, n1)
-    stepper = PlantStepper(model, settings.stepper)
+    stepper = PlantStepper(model, settings.stepper, backend)
     N = int(round(t_end / dt))
     t = dt * np.arange(N + 1)
     rng = np.random.default_rng(settings.sensors.seed)
@@ -297,6 +300,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     s_dict = dataclasses.asdict(settings)
     s_dict["t_end"] = float(t_end)
     s_dict["measurement"] = kind
+    s_dict["backend"] = stepper.backend
     return ClosedLoopResult(
         plant=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip, u_tip=u_tip,
         root_moment=root_moment, tau=taus, step_time_s=step_times, params=model.params,

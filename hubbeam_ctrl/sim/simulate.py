@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function, resolve_backend
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.progress import Progress
 from hubbeam_ctrl.plant.maneuvers import UserManeuver
@@ -31,7 +32,7 @@ from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.results import SimulationResult
 
-__all__ = ["simulate", "Integrator", "make_integrator", "SimulationSettings"]
+__all__ = ["simulate", "Integrator", "make_integrator", "SimulationSettings", "residual_function"]
 
 
 @dataclass(frozen=True)
@@ -88,9 +89,13 @@ class Integrator:
     grid : array_like
         Output times relative to the start of a call [s], starting after 0.
     settings : SimulationSettings
+    backend : {"auto", "compiled", "vm"}, optional
+        How the implicit residual and its Jacobian are evaluated (see
+        :func:`residual_function`); :attr:`backend` holds the one in use.
     """
 
-    def __init__(self, model: HubBeamModel, hub: str, maneuver, grid, settings: SimulationSettings):
+    def __init__(self, model: HubBeamModel, hub: str, maneuver, grid, settings: SimulationSettings,
+                 backend=None):
         self.model, self.hub, self.maneuver = model, hub, maneuver
         self.grid = np.asarray(grid, dtype=float)
         n = model.n_q
@@ -101,7 +106,7 @@ class Integrator:
         x = ca.MX.sym("x", self.n_x)
         z = ca.MX.sym("z", self.n_z)
         ta = t + p[0]
-        inv = model.inverse_dynamics_function
+        inv, self.backend = residual_function(model, backend)
         if hub == "free":
             tau = p[1] + (maneuver(ta) if maneuver is not None else 0)
             q, v = x[:n], x[n:]
@@ -138,12 +143,57 @@ class Integrator:
 
 
 def make_integrator(model: HubBeamModel, hub: str = "free", maneuver=None, grid=(0.01,),
-                    settings: SimulationSettings = SimulationSettings()) -> Integrator:
+                    settings: SimulationSettings = SimulationSettings(), backend=None) -> Integrator:
     """Build an :class:`Integrator` (see there)."""
-    return Integrator(model, hub, maneuver, grid, settings)
+    return Integrator(model, hub, maneuver, grid, settings, backend)
 
 
-def _cached_integrator(model, hub, maneuver, grid, settings) -> Integrator:
+def residual_function(model: HubBeamModel, backend=None) -> tuple:
+    """The model's inverse dynamics ``M(q) a + c(q, v)`` for IDAS, on a backend.
+
+    IDAS evaluates the residual at every Newton iteration and its Jacobian whenever it
+    refreshes its iteration matrix. On the compiled backend both are generated C in one
+    library: the residual at -O1, the Jacobian (``jac_inverse_dynamics``, which CasADi
+    uses when it differentiates the external function) at -O0.
+
+    Parameters
+    ----------
+    model : HubBeamModel
+    backend : {"auto", "compiled", "vm"}, optional
+
+    Returns
+    -------
+    function : casadi.Function
+        ``(q, v, a) -> f``.
+    backend : str
+        ``"compiled"`` or ``"vm"``: the one in use.
+    """
+    f = _residual_with_jacobian(model)
+    if resolve_backend(backend) == "vm":
+        return f, "vm"
+    g = compile_function(model.inverse_dynamics_function, backend, opt=OPT_HOT, jacobian=OPT_COLD)
+    return (f, "vm") if g is model.inverse_dynamics_function else (g, "compiled")
+
+
+def _residual_with_jacobian(model: HubBeamModel) -> ca.Function:
+    """The inverse dynamics differentiated through its own ``jacobian()`` (built once per model).
+
+    CasADi's AD would otherwise take directional derivatives of the VM function but the
+    Jacobian of the compiled one: the same numbers up to rounding, which an
+    error-controlled integrator turns into ~1e-7 differences. With the same Jacobian on
+    both backends the runs agree to rounding.
+    """
+    cached = model.__dict__.get("_residual_vm")
+    if cached is None:
+        f = model.inverse_dynamics_function
+        args = [ca.SX.sym(name, f.size_in(i)) for i, name in enumerate(f.name_in())]
+        cached = ca.Function(f.name(), args, f.call(args), f.name_in(), f.name_out(),
+                             {"custom_jacobian": f.jacobian(), "jac_penalty": 0})
+        model.__dict__["_residual_vm"] = cached
+    return cached
+
+
+def _cached_integrator(model, hub, maneuver, grid, settings, backend) -> Integrator:
     """Build an :class:`Integrator` once per model, hub, maneuver, grid and settings.
 
     Built-in maneuvers are frozen dataclasses and so can key the cache; user functions
@@ -151,14 +201,14 @@ def _cached_integrator(model, hub, maneuver, grid, settings) -> Integrator:
     """
     cache = model.__dict__.setdefault("_integrator_cache", {})
     try:
-        key = (hub, maneuver, len(grid), float(grid[0]), settings)
+        key = (hub, maneuver, len(grid), float(grid[0]), settings, backend)
         hash(key)
     except TypeError:
-        return Integrator(model, hub, maneuver, grid, settings)
+        return Integrator(model, hub, maneuver, grid, settings, backend)
     if key not in cache:
         if len(cache) > 16:
             cache.clear()
-        cache[key] = Integrator(model, hub, maneuver, grid, settings)
+        cache[key] = Integrator(model, hub, maneuver, grid, settings, backend)
     return cache[key]
 
 
@@ -177,7 +227,7 @@ def _full_state(model, hub, maneuver, t, xs, zs):
 
 def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params | None = None,
              hub: str | None = None, x0=None, settings: SimulationSettings | None = None,
-             progress: bool = False, **setting_overrides) -> SimulationResult:
+             progress: bool = False, backend=None, **setting_overrides) -> SimulationResult:
     """Simulate a hub-beam model.
 
     Parameters
@@ -201,6 +251,10 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     settings : SimulationSettings, optional
     progress : bool
         Print progress to stderr.
+    backend : {"auto", "compiled", "vm"}, optional
+        Evaluation of the residual and its Jacobian inside IDAS: CasADi's VM or generated
+        C (see :mod:`hubbeam_ctrl.core.compiled`); default ``$HUBBEAM_BACKEND`` or
+        ``"auto"``. Both give the same run to the integrator's tolerances.
     **setting_overrides
         Fields of :class:`SimulationSettings` (``dt``, ``rtol``, ...).
 
@@ -251,7 +305,8 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     n_out = int(round(t_end / dt))
     per_chunk = max(1, int(round(settings.chunk_s / dt)))
     grid = dt * np.arange(1, per_chunk + 1)
-    integ = _cached_integrator(m, hub, maneuver, grid, settings)
+    backend = resolve_backend(backend)
+    integ = _cached_integrator(m, hub, maneuver, grid, settings, backend)
     z0 = _initial_accelerations(m, hub, maneuver, x0)
 
     times, xs_all, zs_all = [np.array([0.0])], [x0[None, :]], []
@@ -270,7 +325,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         except RuntimeError as exc:
             if per_chunk > 10:   # retry the chunk in shorter pieces to get closer to the failure
                 per_chunk = max(10, per_chunk // 10)
-                integ = Integrator(m, hub, maneuver, dt * np.arange(1, per_chunk + 1), settings)
+                integ = Integrator(m, hub, maneuver, dt * np.arange(1, per_chunk + 1), settings, backend)
                 continue
             diverged = True
             message = (f"{m.name.upper()}: integrator failed between t = {t0:.3f} s and "
@@ -316,7 +371,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     q, v, a = _full_state(m, hub, maneuver, t, xs, zs)
     return SimulationResult.from_states(
         m, t, q, v, a, hub=hub, maneuver=maneuver, settings=settings,
-        diverged=diverged, message=message, wall_s=wall)
+        diverged=diverged, message=message, wall_s=wall, extra_settings={"backend": integ.backend})
 
 
 def _initial_accelerations(m: HubBeamModel, hub, maneuver, x0):

@@ -24,12 +24,14 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients"]
+__all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients",
+           "step_functions"]
 
 
 def _check_int(name, value, lo, hi):
@@ -95,6 +97,10 @@ class PlantStepper:
     model : HubBeamModel
         The plant (free hub, torque input).
     settings : StepperSettings, optional
+    backend : {"auto", "compiled", "vm"}, optional
+        How the step and its iteration matrix are evaluated (see
+        :mod:`hubbeam_ctrl.core.compiled`); default ``$HUBBEAM_BACKEND`` or ``"auto"``.
+        :attr:`backend` holds the one in use (``"compiled"`` or ``"vm"``).
 
     Examples
     --------
@@ -106,7 +112,7 @@ class PlantStepper:
     0.005
     """
 
-    def __init__(self, model: HubBeamModel, settings: StepperSettings | None = None):
+    def __init__(self, model: HubBeamModel, settings: StepperSettings | None = None, backend=None):
         self.model = model
         self.settings = settings or StepperSettings()
         self.n_q = model.n_q
@@ -114,9 +120,8 @@ class PlantStepper:
         self.h = self.settings.dt / self.settings.substeps
         self.fallbacks = 0
         self.jacobian_updates = 0
-        self._function = _fast_step_function(model, self.settings)
-        self._jacobian = _iteration_matrix_function(model, self.settings)
-        self._J = None
+        self._function, self._jacobian, self.backend = step_functions(model, self.settings, backend)
+        self._setup_buffers()
         self._robust = None
 
     # -- state helpers ---------------------------------------------------------
@@ -162,27 +167,48 @@ class PlantStepper:
         HubbeamError
             If neither the fast Newton iterations nor the exact rootfinder converge.
         """
-        k = self.settings.substeps
-        u = np.broadcast_to(np.asarray(tau, dtype=float), (k,)).reshape(1, k)
+        self._s_in[:] = state
+        self._u[:] = tau
         tol = self.settings.newton_tol
-        fresh = self._J is None
+        fresh = not self._J_valid
         if fresh:
-            self._refresh(state, u)
-        out, err = self._function(state, u, self._J)
-        err = float(err)
+            self._refresh()
+        self._eval_step()
+        err = self._err[0]
         if not err <= tol and not fresh:          # stale iteration matrix: refresh, retry
-            self._refresh(state, u)
-            out, err = self._function(state, u, self._J)
-            err = float(err)
+            self._refresh()
+            self._eval_step()
+            err = self._err[0]
         if err <= tol:                            # False for NaN
-            out = np.asarray(out).ravel()
             if err > 0.1 * tol:                  # converging slowly: refresh next time
-                self._J = None
-            return out
-        return self._robust_step(state, u)
+                self._J_valid = False
+            return self._s_out.copy()
+        return self._robust_step(self._s_in.copy(), self._u.reshape(1, -1).copy())
 
-    def _refresh(self, state, u):
-        self._J = self._jacobian(state, u[0, 0])
+    def _setup_buffers(self):
+        """Preallocated arrays bound to ``Function.buffer()`` calls (no argument conversion)."""
+        n, k = self.n_q, self.settings.substeps
+        self._s_in, self._u, self._Jbuf = np.zeros(4 * n), np.zeros(k), np.zeros(n * n)
+        self._s_out, self._err, self._tau0 = np.zeros(4 * n), np.zeros(1), np.zeros(1)
+        self._J_valid = False
+        self._buffers = []
+        self._eval_step = self._bind(self._function, (self._s_in, self._u, self._Jbuf),
+                                     (self._s_out, self._err))
+        self._eval_jacobian = self._bind(self._jacobian, (self._s_in, self._tau0), (self._Jbuf,))
+
+    def _bind(self, function, args, results):
+        buf, evaluate = function.buffer()
+        for i, a in enumerate(args):
+            buf.set_arg(i, memoryview(a))
+        for i, r in enumerate(results):
+            buf.set_res(i, memoryview(r))
+        self._buffers.append(buf)                 # keep the buffer alive with its arrays
+        return evaluate
+
+    def _refresh(self):
+        self._tau0[0] = self._u[0]
+        self._eval_jacobian()
+        self._J_valid = True
         self.jacobian_updates += 1
 
     def _robust_step(self, state, u) -> np.ndarray:
@@ -221,8 +247,32 @@ def _iteration_matrix_function(model: HubBeamModel, settings: StepperSettings) -
     n = model.n_q
     s, tau, a, (q1, v1, p1), force = _substep_expressions(model, settings)
     residual = model.inverse_dynamics_function(q1, v1, a) - force
-    J = ca.substitute(ca.jacobian(residual, a), a, s[2 * n:3 * n])
+    J = ca.densify(ca.substitute(ca.jacobian(residual, a), a, s[2 * n:3 * n]))
     return ca.Function("iteration_matrix", [s, tau], [J], ["s", "tau"], ["J"], {"cse": True})
+
+
+def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None) -> tuple:
+    """The plant step and its iteration matrix on a backend.
+
+    Parameters
+    ----------
+    model : HubBeamModel
+    settings : StepperSettings
+    backend : {"auto", "compiled", "vm"}, optional
+
+    Returns
+    -------
+    step : casadi.Function
+        ``(s, tau (1, substeps), J) -> (s_next, err)``, compiled at -O1 when compiled.
+    iteration_matrix : casadi.Function
+        ``(s, tau) -> J`` (dense), compiled at -O0 (refreshed only now and then).
+    backend : str
+        ``"compiled"`` or ``"vm"``: the backend the step runs on.
+    """
+    vm_step = _fast_step_function(model, settings)
+    step = compile_function(vm_step, backend, opt=OPT_HOT)
+    jac = compile_function(_iteration_matrix_function(model, settings), backend, opt=OPT_COLD)
+    return step, jac, "vm" if step is vm_step else "compiled"
 
 
 @lru_cache(maxsize=16)
@@ -273,7 +323,7 @@ def _robust_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.
 
 
 def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = None,
-                        settings: StepperSettings | None = None, x0=None) -> dict:
+                        settings: StepperSettings | None = None, x0=None, backend=None) -> dict:
     """Integrate a free-hub model under a torque profile with :class:`PlantStepper`.
 
     The torque is evaluated at the end of every substep (no zero-order hold), so the
@@ -289,6 +339,8 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     params : Params, optional
     settings : StepperSettings, optional
     x0 : array_like (2 n_q,), optional
+    backend : {"auto", "compiled", "vm"}, optional
+        See :class:`PlantStepper`.
 
     Returns
     -------
@@ -299,7 +351,7 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     model = resolve_model(plant, params)
     settings = settings or StepperSettings()
     _check_positive("t_end", t_end, "s")
-    stepper = PlantStepper(model, settings)
+    stepper = PlantStepper(model, settings, backend)
     dt, k = settings.dt, settings.substeps
     N = int(round(t_end / dt))
     t = dt * np.arange(N + 1)
@@ -318,4 +370,4 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     v_tip = np.array(model.tip_function.map(N + 1)(q.T)[0]).ravel()
     return {"t": t, "q": q, "v": v, "v_tip": v_tip, "wall_s": wall,
             "ms_per_step": 1e3 * wall / max(N, 1), "fallbacks": stepper.fallbacks,
-            "jacobian_updates": stepper.jacobian_updates}
+            "jacobian_updates": stepper.jacobian_updates, "backend": stepper.backend}

@@ -44,6 +44,7 @@ from controllers import (
     PDSettings,
     make_controller,
 )
+from hubbeam_ctrl.core.compiled import resolve_backend
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.params import Params
@@ -116,7 +117,7 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
             t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0,
             design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
             settings: dict | None = None, sim_settings: ClosedLoopSettings | None = None,
-            progress: bool = False) -> Comparison:
+            progress: bool = False, backend=None) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear plant.
 
     Parameters
@@ -144,12 +145,16 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
         Plant integration and sensor settings (its ``dt`` is replaced by ``dt``).
     progress : bool
         Print one line per controller on stderr.
+    backend : {"auto", "compiled", "vm"}, optional
+        How the plant is evaluated (see :class:`~hubbeam_ctrl.sim.stepper.PlantStepper`);
+        default ``$HUBBEAM_BACKEND`` or ``"auto"``.
 
     Returns
     -------
     Comparison
     """
     start = time.perf_counter()
+    backend = resolve_backend(backend)
     names = _parse_controllers(controllers)
     sc = make_scenario(scenario, plant=plant, params=params, tau_max=tau_max, t_f=t_f,
                        t_end=t_end, dt=dt, w_f=w_f)
@@ -172,7 +177,7 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
         st = settings.get(name) or _default_settings(name, sc, horizon, solver)
         ctrl = make_controller(name, design, st, ref)
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
-                                   reference=(ref.theta_at, ref.theta_dot_at))
+                                   reference=(ref.theta_at, ref.theta_dot_at), backend=backend)
         results[name] = res
         metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max)
         metrics[name]["scenario"] = sc.name
