@@ -12,6 +12,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.outputs import derived_outputs
 
 __all__ = ["SimulationResult", "HubStateViews", "load_result", "CSV_COLUMNS"]
 
@@ -99,15 +100,18 @@ class SimulationResult(HubStateViews):
 
     @classmethod
     def from_states(cls, model, t, q, v, a, *, hub, maneuver=None, settings=None, diverged=False,
-                    message="completed", wall_s=0.0, extra_settings=None) -> "SimulationResult":
-        """Build a result from states, evaluating the model's outputs on all samples."""
-        N = len(t)
-        Q, V, A = q.T, v.T, a.T
-        v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(N)(Q))
-        tau = np.array(model.inverse_dynamics_function.map(N)(Q, V, A))[0]
-        q_theta = np.array(model.q_theta_function.map(N)(Q, V)).ravel()
-        energy = np.array(model.energy_function.map(N)(Q, V)[2]).ravel()
-        momentum = np.array(model.momentum_function.map(N)(Q, V)).ravel()
+                    message="completed", wall_s=0.0, extra_settings=None, tau=None,
+                    backend=None) -> "SimulationResult":
+        """Build a result from states, evaluating the model's outputs on all samples.
+
+        The outputs come from one mapped call (:func:`~hubbeam_ctrl.sim.outputs.derived_outputs`
+        on ``backend``); ``tau`` [N m], when given (the applied torque of a free hub), is
+        taken as it is, else it is the torque the accelerations ``a`` take.
+        """
+        out = derived_outputs(model, q, v, a if tau is None else None, backend)
+        v_tip, u_tip, q_theta = out["v_tip"], out["u_tip"], out["q_theta"]
+        energy, momentum = out["energy"], out["angular_momentum"]
+        tau = out["tau"] if tau is None else np.broadcast_to(np.asarray(tau, dtype=float), (len(t),)).copy()
         s = {"maneuver": _describe(maneuver)}
         if settings is not None:
             s.update(dataclasses.asdict(settings))

@@ -371,7 +371,19 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     q, v, a = _full_state(m, hub, maneuver, t, xs, zs)
     return SimulationResult.from_states(
         m, t, q, v, a, hub=hub, maneuver=maneuver, settings=settings,
-        diverged=diverged, message=message, wall_s=wall, extra_settings={"backend": integ.backend})
+        diverged=diverged, message=message, wall_s=wall, extra_settings={"backend": integ.backend},
+        tau=_applied_torque(hub, maneuver, t), backend=backend)
+
+
+def _applied_torque(hub, maneuver, t):
+    """The free hub's torque from the maneuver at the samples [N m]; None for a prescribed hub."""
+    if hub != "free":
+        return None
+    if maneuver is None or len(t) == 0:
+        return np.zeros(len(t))
+    ts = ca.MX.sym("t")                  # the torque exactly as the integrator saw it
+    f = ca.Function("torque", [ts], [maneuver(ts)])
+    return np.array(f.map(len(t))(t[None, :])).ravel()
 
 
 def _initial_accelerations(m: HubBeamModel, hub, maneuver, x0):
