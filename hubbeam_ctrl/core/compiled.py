@@ -73,6 +73,9 @@ _SUFFIX = ".dll" if os.name == "nt" else ".so"
 
 #: Libraries loaded in this process, by cache key (a library is loaded once per process).
 _LOADED: dict = {}
+#: ``(id(f), opt, jacobian, compiler, folder) -> (f, loaded)``: skips generating C again for a
+#: function object already handled (``f`` is held so that its id stays unique).
+_BY_OBJECT: dict = {}
 #: Notices printed in this process (each is printed once).
 _NOTICES: set = set()
 
@@ -392,10 +395,20 @@ def _load(f: ca.Function, lib: Path) -> ca.Function:
 
 def _compiled(f: ca.Function, opt: str, jacobian: str | None) -> ca.Function:
     compiler = find_compiler()
+    memo = (id(f), opt, jacobian, tuple(compiler), str(cache_dir()))
+    hit = _BY_OBJECT.get(memo)
+    if hit is not None and hit[0] is f and _LOADED.get(hit[2]) is hit[1]:
+        return hit[1]
+    g, key = _compiled_by_source(f, opt, jacobian, compiler)
+    _BY_OBJECT[memo] = (f, g, key)
+    return g
+
+
+def _compiled_by_source(f: ca.Function, opt: str, jacobian: str | None, compiler: list) -> tuple:
     sources = _sources(f, opt, jacobian)
     key = _key(sources, compiler)
     if key in _LOADED:
-        return _LOADED[key]
+        return _LOADED[key], key
     folder = _writable_cache_dir()
     lib, meta = _entry_paths(folder, f.name(), key)
     g = None
@@ -411,7 +424,7 @@ def _compiled(f: ca.Function, opt: str, jacobian: str | None) -> ca.Function:
         except RuntimeError as exc:
             raise CompileError(f"{lib.name} could not be loaded ({str(exc).splitlines()[0][:120]})") from None
     _LOADED[key] = g
-    return g
+    return g, key
 
 
 def compile_function(f: ca.Function, backend=None, *, opt: str = OPT_HOT,

@@ -189,10 +189,11 @@ class PlantStepper:
         """Preallocated arrays bound to ``Function.buffer()`` calls (no argument conversion)."""
         n, k = self.n_q, self.settings.substeps
         self._s_in, self._u, self._Jbuf = np.zeros(4 * n), np.zeros(k), np.zeros(n * n)
+        self._Jinv = np.zeros((n, n), order="F")
         self._s_out, self._err, self._tau0 = np.zeros(4 * n), np.zeros(1), np.zeros(1)
         self._J_valid = False
         self._buffers = []
-        self._eval_step = self._bind(self._function, (self._s_in, self._u, self._Jbuf),
+        self._eval_step = self._bind(self._function, (self._s_in, self._u, self._Jinv.reshape(-1, order="F")),
                                      (self._s_out, self._err))
         self._eval_jacobian = self._bind(self._jacobian, (self._s_in, self._tau0), (self._Jbuf,))
 
@@ -208,6 +209,10 @@ class PlantStepper:
     def _refresh(self):
         self._tau0[0] = self._u[0]
         self._eval_jacobian()
+        try:
+            self._Jinv[:] = np.linalg.inv(self._Jbuf.reshape(self.n_q, self.n_q, order="F"))
+        except np.linalg.LinAlgError:          # singular: the fast step fails, the rootfinder takes over
+            self._Jinv[:] = np.nan
         self._J_valid = True
         self.jacobian_updates += 1
 
@@ -277,7 +282,7 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None)
 
 @lru_cache(maxsize=16)
 def _fast_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.Function:
-    """One sample: ``substeps`` steps of modified Newton with a given iteration matrix."""
+    """One sample: ``substeps`` steps of modified Newton with the inverse iteration matrix given."""
     n = model.n_q
     s, tau, a, (q1, v1, p1), force = _substep_expressions(model, settings)
     residual = model.inverse_dynamics_function(q1, v1, a) - force
@@ -286,11 +291,11 @@ def _fast_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.Fu
     update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)], opts)
     S = ca.MX.sym("s", 4 * n)
     T = ca.MX.sym("tau")
-    Jm = ca.MX.sym("J", n, n)
+    Jm = ca.MX.sym("J_inv", n, n)           # inverse of the iteration matrix: no factorisation per step
     A = S[2 * n:3 * n]
     delta = ca.MX.zeros(n)
     for _ in range(settings.newton_iterations):
-        delta = ca.solve(Jm, R(A, S, T), "qr")
+        delta = ca.mtimes(Jm, R(A, S, T))
         A = A - delta
     sub = ca.Function("substep", [S, T, Jm], [update(A, S), ca.norm_inf(delta)])
     k = settings.substeps
@@ -299,7 +304,7 @@ def _fast_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.Fu
     U = ca.MX.sym("u", 1, k)
     xs, errs = accum(X, U, Jm)
     return ca.Function("plant_step", [X, U, Jm], [xs[:, -1], ca.mmax(errs)],
-                       ["s", "tau", "J"], ["s_next", "err"])
+                       ["s", "tau", "J_inv"], ["s_next", "err"])
 
 
 @lru_cache(maxsize=16)
