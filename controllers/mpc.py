@@ -386,7 +386,10 @@ class DirectDAQP:
             self._lower[self._n:] = lba
             self._upper[self._n:] = uba
         if self._ready and warm_start:
-            self._model.update(f=self._f, bupper=self._upper, blower=self._lower)
+            if lba is None:
+                self._model.update(f=self._f)
+            else:
+                self._model.update(f=self._f, bupper=self._upper, blower=self._lower)
         else:
             self._model = type(self._model)()
             self._model.setup(self._H, self._f, self._A, self._upper, self._lower)
@@ -394,6 +397,7 @@ class DirectDAQP:
         self.iterations = int(info.get("iterations", 0))
         self.status = f"daqp exit flag {flag}"
         self._ready = flag > 0
-        if flag <= 0 or not np.all(np.isfinite(x)):
+        x = np.asarray(x, dtype=float)
+        if flag <= 0 or not np.isfinite(x).all():
             raise RuntimeError(f"QP failed: {self.status}")
-        return np.asarray(x, dtype=float)
+        return x
