@@ -38,6 +38,7 @@ lint: $(STAMP_TEST)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plant.py
 	$(BIN)/python benchmarks/bench_mpc.py
+	$(BIN)/python benchmarks/bench_compiled.py
 
 notebooks: $(STAMP_TEST)
 	$(BIN)/python -m pip install --quiet nbconvert

@@ -203,10 +203,10 @@ def scaling_row(name: str, n: int) -> dict:
         st = PlantStepper(model, backend="compiled")
         row["compile_wall_s"] = time.perf_counter() - w0
         row["compiled"] = st.backend == "compiled"
-    for b in BACKENDS:
-        cpu, _, res = _cpu(lambda: simulate_fixed_step(model, PULSE, T_END, backend=b))
-        row[f"run_{b}_cpu_s"] = cpu
-        row[f"step_{b}_us"] = 1e6 * cpu / 3000
+        for b in BACKENDS:
+            cpu, _, res = _cpu(lambda: simulate_fixed_step(model, PULSE, T_END, backend=b))
+            row[f"run_{b}_cpu_s"] = cpu
+            row[f"step_{b}_us"] = 1e6 * cpu / 3000
     return row
 
 
