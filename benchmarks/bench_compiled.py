@@ -17,7 +17,9 @@ even on a loaded machine (the absolute times do not: report the load beside them
    model) [us], median and p99 over 1500 steps: DAQP direct against DAQP through CasADi
    ``conic``, and do-mpc on the same QP if it is installed (optional).
 4. ``compare_cfoam``: :func:`hubbeam_ctrl.study.compare` with all five default controllers on
-   CFOAM, warm cache [s].
+   CFOAM, warm cache [s]; ``params_to_ready``: a new ``Params`` to a ready compiled CFOAM
+   stepper [ms]; ``tip_mass_sweep_cfoam_lqr``: 20 LQR slews on CFOAM, one per tip mass
+   (0 to 0.5 kg), sequentially [s].
 5. ``scaling``: for n = ``--sizes`` axial and transverse modes, FOAM and CFOAM: model and
    stepper-function build time, compile time into an empty cache, step time per sample per
    backend and the 30 s fixed-step run. Also printed as a table on stderr.
@@ -43,6 +45,7 @@ from controllers import MPC, DesignModel, MPCSettings, slew_reference
 from hubbeam_ctrl import Params, TorquePulse, build_model, simulate
 from hubbeam_ctrl.cli.compare import stdout_to_stderr
 from hubbeam_ctrl.core import compiled
+from hubbeam_ctrl.plant.models import parametric_model
 from hubbeam_ctrl.sim.stepper import (
     PlantStepper,
     StepperSettings,
@@ -131,14 +134,14 @@ def plant_step(name: str, n: int = 5, samples: int = 3000) -> dict:
         # process_time has ~1 us resolution: the mean is the honest CPU figure
         out[b] = {"cpu_us_mean": 1e6 * float(cpu.mean()), "wall_us_median": 1e6 * float(np.median(wall)),
                   "jacobian_updates": st.jacobian_updates, "backend": st.backend}
-    f = _fast_step_function(model, StepperSettings())
+    f = _fast_step_function(model.parametric, StepperSettings())
     st = PlantStepper(model, backend="vm")
     s = st.initial_state()
     J = np.array(st._jacobian(s, 0.0))
     u = np.zeros((1, StepperSettings().substeps))
     c0, w0 = time.process_time(), time.perf_counter()
     for _ in range(500):
-        f(s, u, J)
+        f(s, u, J, model.p)
     out["vm_plain_call"] = {"cpu_us_mean": 1e6 * (time.process_time() - c0) / 500,
                             "wall_us_mean": 1e6 * (time.perf_counter() - w0) / 500}
     out["speedup_cpu"] = _ratio(out, "cpu_us_mean")
@@ -188,15 +191,42 @@ def compare_cfoam() -> dict:
     return out
 
 
+# -- 4b. tip-mass sweep ---------------------------------------------------------------------------
+def tip_mass_sweep(runs: int = 20) -> dict:
+    """``runs`` LQR slews on CFOAM, one per tip mass, sequentially, warm cache [s]."""
+    from hubbeam_ctrl.study.compare import compare
+    masses = np.linspace(0.0, 0.5, runs)
+    out = {"runs": runs, "tip_masses_kg": [float(masses[0]), float(masses[-1])]}
+    for b in BACKENDS:
+        compare("cfoam", controllers="lqr", params=Params(m_t=0.77), backend=b)   # warm: build, compile
+        cpu, wall, _ = _cpu(lambda: [compare("cfoam", controllers="lqr", params=Params(m_t=float(m)), backend=b)
+                                     for m in masses])
+        out[b] = {"cpu_s": cpu, "wall_s": wall}
+    out["speedup_cpu"] = _ratio(out, "cpu_s")
+    return out
+
+
+def params_to_ready(name: str = "cfoam", runs: int = 5) -> dict:
+    """Milliseconds from a new ``Params`` to a ready compiled plant stepper (functions exist)."""
+    PlantStepper(build_model(name, Params()), backend="compiled")
+    times = []
+    for m_t in np.linspace(0.11, 0.19, runs):
+        w0 = time.perf_counter()
+        PlantStepper(build_model(name, Params(m_t=float(m_t))), backend="compiled")
+        times.append(1e3 * (time.perf_counter() - w0))
+    return {"model": name, "median_ms": float(np.median(times)), "max_ms": float(np.max(times))}
+
+
 # -- 5. scaling -----------------------------------------------------------------------------------
 def scaling_row(name: str, n: int) -> dict:
     params = Params(n_axial=n, n_transverse=n)
     build_model.cache_clear()
+    parametric_model.cache_clear()
     c0 = time.process_time()
     model = build_model(name, params)
     settings = StepperSettings()
-    _fast_step_function(model, settings)
-    _iteration_matrix_function(model, settings)
+    _fast_step_function(model.parametric, settings)
+    _iteration_matrix_function(model.parametric, settings)
     row = {"model": name, "n": n, "build_s": time.process_time() - c0}
     with _private_cache():
         w0 = time.perf_counter()
@@ -244,6 +274,12 @@ def _targets(report: dict) -> dict:
     if "compare_cfoam" in report:
         v = report["compare_cfoam"]["compiled"]["wall_s"]
         t["compare_cfoam_wall_s<=1.5"] = {"value": v, "met": v <= 1.5}
+    if "params_to_ready" in report:
+        v = report["params_to_ready"]["median_ms"]
+        t["params_to_ready_ms<=20"] = {"value": v, "met": v <= 20}
+    if "tip_mass_sweep_cfoam_lqr" in report:
+        v = report["tip_mass_sweep_cfoam_lqr"]["compiled"]["wall_s"]
+        t["tip_mass_sweep_20_runs_s<=3"] = {"value": v, "met": v <= 3}
     return t
 
 
@@ -252,7 +288,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--sizes", default="2,5,10", help="mode counts of the scaling table (empty: skip)")
     ap.add_argument("--skip", default="", help="comma-separated parts to skip: open_loop,plant_step,"
-                                               "mpc_step,compare_cfoam,scaling")
+                                               "mpc_step,compare_cfoam,sweep,scaling")
     ap.add_argument("--out", help="also write the JSON here")
     args = ap.parse_args(argv)
     skip = set(filter(None, args.skip.split(",")))
@@ -273,6 +309,9 @@ def main(argv=None) -> dict:
             report["mpc_step"] = mpc_step()
         if "compare_cfoam" not in skip:
             report["compare_cfoam"] = compare_cfoam()
+        if "sweep" not in skip:
+            report["params_to_ready"] = params_to_ready()
+            report["tip_mass_sweep_cfoam_lqr"] = tip_mass_sweep()
         sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
         if sizes and "scaling" not in skip:
             rows = []

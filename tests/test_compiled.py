@@ -278,3 +278,24 @@ def test_closed_loop_runs_compiled(fresh):
     assert out["compiled"].settings["backend"] == "compiled"
     scale = np.max(np.abs(out["vm"].v_tip))
     assert np.max(np.abs(out["compiled"].v_tip - out["vm"].v_tip)) <= 1e-9 * scale
+
+
+@needs_cc
+def test_new_tip_mass_loads_the_same_libraries(fresh):
+    runs = {}
+    for m_t in (0.1, 0.4):
+        model = build_model("cfoam", SMALL.replace(m_t=m_t))
+        before = cache_info()["libraries"]
+        st = PlantStepper(model, backend="compiled")
+        if m_t == 0.4:
+            assert cache_info()["libraries"] == before            # nothing compiled for the new mass
+        s = st.initial_state()
+        for _ in range(100):
+            s = st.step(s, 150.0)
+        vm = PlantStepper(model, backend="vm")
+        r = vm.initial_state()
+        for _ in range(100):
+            r = vm.step(r, 150.0)
+        np.testing.assert_allclose(s, r, rtol=1e-9, atol=1e-12)
+        runs[m_t] = s
+    assert abs(runs[0.1][0] - runs[0.4][0]) > 1e-4 * abs(runs[0.1][0])  # the mass does change the run

@@ -297,11 +297,14 @@ def _run_compiler(args: list, label: str, timeout: float) -> None:
 
 
 # -- sources, keys, entries --------------------------------------------------------------
-def _sources(f: ca.Function, opt: str, jacobian: str | None) -> list:
+def _sources(f: ca.Function, opt: str, jacobian: str | None, jacobian_function=None) -> list:
     """``[(function name, C source, flags)]``: ``f`` and, if asked, ``jac_<name>``."""
     funcs = [(f, opt)]
     if jacobian is not None:
-        funcs.append((f.jacobian(), jacobian))
+        jf = f.jacobian() if jacobian_function is None else jacobian_function
+        if jf.name() != f"jac_{f.name()}":
+            raise ParameterError(f"jacobian_function must be named jac_{f.name()}, got {jf.name()!r}")
+        funcs.append((jf, jacobian))
     out = []
     for g, flags in funcs:
         cg = ca.CodeGenerator(f"{g.name()}.c", {"with_header": False})
@@ -393,19 +396,20 @@ def _load(f: ca.Function, lib: Path) -> ca.Function:
     return g
 
 
-def _compiled(f: ca.Function, opt: str, jacobian: str | None) -> ca.Function:
+def _compiled(f: ca.Function, opt: str, jacobian: str | None, jacobian_function) -> ca.Function:
     compiler = find_compiler()
-    memo = (id(f), opt, jacobian, tuple(compiler), str(cache_dir()))
+    memo = (id(f), opt, jacobian, id(jacobian_function), tuple(compiler), str(cache_dir()))
     hit = _BY_OBJECT.get(memo)
-    if hit is not None and hit[0] is f and _LOADED.get(hit[2]) is hit[1]:
-        return hit[1]
-    g, key = _compiled_by_source(f, opt, jacobian, compiler)
-    _BY_OBJECT[memo] = (f, g, key)
+    if hit is not None and hit[0] is f and hit[1] is jacobian_function and _LOADED.get(hit[3]) is hit[2]:
+        return hit[2]
+    g, key = _compiled_by_source(f, opt, jacobian, jacobian_function, compiler)
+    _BY_OBJECT[memo] = (f, jacobian_function, g, key)
     return g
 
 
-def _compiled_by_source(f: ca.Function, opt: str, jacobian: str | None, compiler: list) -> tuple:
-    sources = _sources(f, opt, jacobian)
+def _compiled_by_source(f: ca.Function, opt: str, jacobian: str | None, jacobian_function,
+                        compiler: list) -> tuple:
+    sources = _sources(f, opt, jacobian, jacobian_function)
     key = _key(sources, compiler)
     if key in _LOADED:
         return _LOADED[key], key
@@ -428,7 +432,7 @@ def _compiled_by_source(f: ca.Function, opt: str, jacobian: str | None, compiler
 
 
 def compile_function(f: ca.Function, backend=None, *, opt: str = OPT_HOT,
-                     jacobian: str | None = None) -> ca.Function:
+                     jacobian: str | None = None, jacobian_function: ca.Function | None = None) -> ca.Function:
     """``f`` as generated C loaded by ``casadi.external``, or ``f`` itself on the ``vm`` backend.
 
     Parameters
@@ -445,6 +449,9 @@ def compile_function(f: ca.Function, backend=None, *, opt: str = OPT_HOT,
     jacobian : str, optional
         Also compile ``f.jacobian()`` (named ``jac_<name>``) with this flag, so that CasADi
         differentiates the external function (e.g. inside IDAS) in C as well.
+    jacobian_function : casadi.Function, optional
+        What to compile as ``jac_<name>`` instead of ``f.jacobian()`` (same inputs and
+        outputs; e.g. with the blocks of constant inputs left structurally zero).
 
     Returns
     -------
@@ -464,7 +471,7 @@ def compile_function(f: ca.Function, backend=None, *, opt: str = OPT_HOT,
     if resolve_backend(backend) == "vm":
         return f
     try:
-        return _compiled(f, opt, jacobian)
+        return _compiled(f, opt, jacobian, jacobian_function)
     except CompileError as exc:
         _notice(f"{exc}; using the CasADi VM")
         return f

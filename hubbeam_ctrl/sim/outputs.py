@@ -11,7 +11,7 @@ import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.compiled import OPT_HOT, compile_function
-from hubbeam_ctrl.plant.models import HubBeamModel
+from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel
 
 __all__ = ["OUTPUT_NAMES", "outputs_function", "derived_outputs"]
 
@@ -20,12 +20,15 @@ OUTPUT_NAMES = {"v_tip": "m", "u_tip": "m", "q_theta": "N m", "energy": "J", "an
                 "tau": "N m"}
 
 
-def outputs_function(model: HubBeamModel, with_tau: bool) -> ca.Function:
-    """``(q, v[, a]) -> [v_tip, u_tip, Q_theta, E, H(, tau)]`` of one sample (built once per model).
+def outputs_function(model: ParametricModel, with_tau: bool) -> ca.Function:
+    """``(q, v[, a], p) -> [v_tip, u_tip, Q_theta, E, H(, tau)]`` of one sample.
+
+    Built once per model family and mode counts; ``p`` is the model's parameter vector
+    (:attr:`~hubbeam_ctrl.plant.models.HubBeamModel.p`).
 
     Parameters
     ----------
-    model : HubBeamModel
+    model : ParametricModel
     with_tau : bool
         Also return the hub torque ``tau`` [N m] that produces the accelerations ``a``
         (first row of the inverse dynamics; for a prescribed hub).
@@ -33,8 +36,8 @@ def outputs_function(model: HubBeamModel, with_tau: bool) -> ca.Function:
     Returns
     -------
     casadi.Function
-        Inputs ``q``, ``v`` (and ``a``), each ``(n_q,)``; one output stacking the rows of
-        :data:`OUTPUT_NAMES` (without ``tau`` unless asked).
+        Inputs ``q``, ``v`` (and ``a``), each ``(n_q,)``, and ``p``; one output stacking the
+        rows of :data:`OUTPUT_NAMES` (without ``tau`` unless asked).
     """
     key = f"_outputs_function_{int(with_tau)}"
     cached = model.__dict__.get(key)
@@ -42,15 +45,15 @@ def outputs_function(model: HubBeamModel, with_tau: bool) -> ca.Function:
         return cached
     n = model.n_q
     q, v, a = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("a", n)
-    v_tip, u_tip = model.tip_function(q)
-    rows = [v_tip, u_tip, model.q_theta_function(q, v), model.energy_function(q, v)[2],
-            model.momentum_function(q, v)]
-    inputs = [q, v]
+    p = ca.SX.sym("p", model.n_p)
+    v_tip, u_tip = model.tip(q, p)
+    rows = [v_tip, u_tip, model.q_theta(q, v, p), model.energy(q, v, p)[2], model.momentum(q, v, p)]
+    inputs, names = [q, v], ["q", "v"]
     if with_tau:
-        rows.append(model.inverse_dynamics_function(q, v, a)[0])
+        rows.append(model.inverse_dynamics(q, v, a, p)[0])
         inputs.append(a)
-    f = ca.Function("outputs", inputs, [ca.vertcat(*rows)], ["q", "v", "a"][:len(inputs)], ["y"],
-                    {"cse": True})
+        names.append("a")
+    f = ca.Function("outputs", inputs + [p], [ca.vertcat(*rows)], names + ["p"], ["y"], {"cse": True})
     model.__dict__[key] = f
     return f
 
@@ -74,11 +77,12 @@ def derived_outputs(model: HubBeamModel, q, v, a=None, backend=None) -> dict:
         ``v_tip``, ``u_tip`` [m], ``q_theta`` [N m], ``energy`` [J], ``angular_momentum``
         [kg m^2/s] (and ``tau`` [N m]), arrays ``(N,)``.
     """
-    f = compile_function(outputs_function(model, a is not None), backend, opt=OPT_HOT)
+    f = compile_function(outputs_function(model.parametric, a is not None), backend, opt=OPT_HOT)
     N = len(q)
     names = list(OUTPUT_NAMES)[: f.size1_out(0)]
     if N == 0:
         return {k: np.zeros(0) for k in names}
     args = [np.asarray(x, dtype=float).T for x in ((q, v) if a is None else (q, v, a))]
-    y = np.array(f.map(N)(*args))
+    shared = [False] * len(args) + [True]          # p is the same for every sample: not repeated
+    y = np.array(f.map(N, shared, [False])(*args, model.p))
     return dict(zip(names, y))

@@ -106,7 +106,9 @@ class Integrator:
         x = ca.MX.sym("x", self.n_x)
         z = ca.MX.sym("z", self.n_z)
         ta = t + p[0]
-        inv, self.backend = residual_function(model, backend)
+        residual, self.backend = residual_function(model, backend)
+        p_model = ca.DM(model.p)
+        inv = lambda q_, v_, a_: residual(q_, v_, a_, p_model)   # noqa: E731
         if hub == "free":
             tau = p[1] + (maneuver(ta) if maneuver is not None else 0)
             q, v = x[:n], x[n:]
@@ -164,32 +166,48 @@ def residual_function(model: HubBeamModel, backend=None) -> tuple:
     Returns
     -------
     function : casadi.Function
-        ``(q, v, a) -> f``.
+        ``(q, v, a, p) -> f`` with ``p`` the model's parameter vector
+        (:attr:`~hubbeam_ctrl.plant.models.HubBeamModel.p`): built and compiled once per
+        model family and mode counts.
     backend : str
         ``"compiled"`` or ``"vm"``: the one in use.
     """
-    f = _residual_with_jacobian(model)
+    pm = model.parametric
+    jac = _residual_jacobian(pm)
+    f = pm.__dict__.get("_residual_vm")
+    if f is None:
+        base = pm.inverse_dynamics
+        args = [ca.SX.sym(name, base.size_in(i)) for i, name in enumerate(base.name_in())]
+        f = ca.Function(base.name(), args, base.call(args), base.name_in(), base.name_out(),
+                        {"custom_jacobian": jac, "jac_penalty": 0})
+        pm.__dict__["_residual_vm"] = f
     if resolve_backend(backend) == "vm":
         return f, "vm"
-    g = compile_function(model.inverse_dynamics_function, backend, opt=OPT_HOT, jacobian=OPT_COLD)
-    return (f, "vm") if g is model.inverse_dynamics_function else (g, "compiled")
+    g = compile_function(pm.inverse_dynamics, backend, opt=OPT_HOT, jacobian=OPT_COLD, jacobian_function=jac)
+    return (f, "vm") if g is pm.inverse_dynamics else (g, "compiled")
 
 
-def _residual_with_jacobian(model: HubBeamModel) -> ca.Function:
-    """The inverse dynamics differentiated through its own ``jacobian()`` (built once per model).
+def _residual_jacobian(pm) -> ca.Function:
+    """``jac_inverse_dynamics``: the residual's Jacobian in ``q``, ``v``, ``a`` (none in ``p``).
 
-    CasADi's AD would otherwise take directional derivatives of the VM function but the
-    Jacobian of the compiled one: the same numbers up to rounding, which an
-    error-controlled integrator turns into ~1e-7 differences. With the same Jacobian on
-    both backends the runs agree to rounding.
+    Both backends differentiate the residual through this one function: CasADi's AD would
+    otherwise take directional derivatives of the VM function but the Jacobian of the
+    compiled one, the same numbers up to rounding, which an error-controlled integrator
+    turns into ~1e-7 differences. The parameters are constants inside IDAS, so their block
+    is left structurally zero (it would be the largest and is never needed).
     """
-    cached = model.__dict__.get("_residual_vm")
+    cached = pm.__dict__.get("_residual_jacobian")
     if cached is None:
-        f = model.inverse_dynamics_function
-        args = [ca.SX.sym(name, f.size_in(i)) for i, name in enumerate(f.name_in())]
-        cached = ca.Function(f.name(), args, f.call(args), f.name_in(), f.name_out(),
-                             {"custom_jacobian": f.jacobian(), "jac_penalty": 0})
-        model.__dict__["_residual_vm"] = cached
+        f = pm.inverse_dynamics
+        q, v, a = (ca.SX.sym(k, pm.n_q) for k in ("q", "v", "a"))
+        p = ca.SX.sym("p", pm.n_p)
+        out = ca.SX.sym("out_f", pm.n_q)
+        y = f(q, v, a, p)
+        cached = ca.Function("jac_inverse_dynamics", [q, v, a, p, out],
+                             [ca.jacobian(y, q), ca.jacobian(y, v), ca.jacobian(y, a), ca.SX(pm.n_q, pm.n_p)],
+                             ["q", "v", "a", "p", "out_f"], ["jac_f_q", "jac_f_v", "jac_f_a", "jac_f_p"],
+                             {"cse": True})
+        pm.__dict__["_residual_jacobian"] = cached
     return cached
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
-from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
+from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients",
@@ -191,11 +191,13 @@ class PlantStepper:
         self._s_in, self._u, self._Jbuf = np.zeros(4 * n), np.zeros(k), np.zeros(n * n)
         self._Jinv = np.zeros((n, n), order="F")
         self._s_out, self._err, self._tau0 = np.zeros(4 * n), np.zeros(1), np.zeros(1)
+        self._p = np.array(self.model.p, dtype=float)
         self._J_valid = False
         self._buffers = []
-        self._eval_step = self._bind(self._function, (self._s_in, self._u, self._Jinv.reshape(-1, order="F")),
+        self._eval_step = self._bind(self._function,
+                                     (self._s_in, self._u, self._Jinv.reshape(-1, order="F"), self._p),
                                      (self._s_out, self._err))
-        self._eval_jacobian = self._bind(self._jacobian, (self._s_in, self._tau0), (self._Jbuf,))
+        self._eval_jacobian = self._bind(self._jacobian, (self._s_in, self._tau0, self._p), (self._Jbuf,))
 
     def _bind(self, function, args, results):
         buf, evaluate = function.buffer()
@@ -218,10 +220,10 @@ class PlantStepper:
 
     def _robust_step(self, state, u) -> np.ndarray:
         if self._robust is None:
-            self._robust = _robust_step_function(self.model, self.settings)
+            self._robust = _robust_step_function(self.model.parametric, self.settings)
         self.fallbacks += 1
         try:
-            out = np.asarray(self._robust(state, u)).ravel()
+            out = np.asarray(self._robust(state, u, self._p)).ravel()
         except RuntimeError as exc:
             raise HubbeamError(f"{self.model.name.upper()}: the implicit step did not converge "
                                f"({str(exc).splitlines()[0][:80]})") from None
@@ -230,7 +232,7 @@ class PlantStepper:
         return out
 
 
-def _substep_expressions(model: HubBeamModel, settings: StepperSettings):
+def _substep_expressions(model: ParametricModel, settings: StepperSettings):
     """Symbolic generalized-alpha update: residual and new state as functions of ``a``."""
     n = model.n_q
     h = settings.dt / settings.substeps
@@ -238,26 +240,31 @@ def _substep_expressions(model: HubBeamModel, settings: StepperSettings):
     s = ca.SX.sym("s", 4 * n)
     tau = ca.SX.sym("tau")
     a = ca.SX.sym("a", n)
+    p = ca.SX.sym("p", model.n_p)
     q0, v0, a0, p0 = s[:n], s[n:2 * n], s[2 * n:3 * n], s[3 * n:]
     p1 = ((1 - af) * a + af * a0 - am * p0) / (1 - am)
     q1 = q0 + h * v0 + h * h * (0.5 - beta) * p0 + h * h * beta * p1
     v1 = v0 + h * (1 - gamma) * p0 + h * gamma * p1
     force = ca.vertcat(tau, ca.SX.zeros(n - 1))
-    return s, tau, a, (q1, v1, p1), force
+    residual = model.inverse_dynamics(q1, v1, a, p) - force
+    return s, tau, a, p, (q1, v1, p1), residual
 
 
 @lru_cache(maxsize=16)
-def _iteration_matrix_function(model: HubBeamModel, settings: StepperSettings) -> ca.Function:
+def _iteration_matrix_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
     """Jacobian of the step residual in the new accelerations, at the predictor ``a = a_n``."""
     n = model.n_q
-    s, tau, a, (q1, v1, p1), force = _substep_expressions(model, settings)
-    residual = model.inverse_dynamics_function(q1, v1, a) - force
+    s, tau, a, p, _, residual = _substep_expressions(model, settings)
     J = ca.densify(ca.substitute(ca.jacobian(residual, a), a, s[2 * n:3 * n]))
-    return ca.Function("iteration_matrix", [s, tau], [J], ["s", "tau"], ["J"], {"cse": True})
+    return ca.Function("iteration_matrix", [s, tau, p], [J], ["s", "tau", "p"], ["J"], {"cse": True})
 
 
 def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None) -> tuple:
     """The plant step and its iteration matrix on a backend.
+
+    Both take the model's parameter vector ``p`` (:attr:`HubBeamModel.p`) as their last
+    input, so they are built (and compiled) once per model family, mode counts and
+    settings, whatever the tip mass, tip position, material or geometry.
 
     Parameters
     ----------
@@ -268,63 +275,63 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None)
     Returns
     -------
     step : casadi.Function
-        ``(s, tau (1, substeps), J) -> (s_next, err)``, compiled at -O1 when compiled.
+        ``(s, tau (1, substeps), J_inv, p) -> (s_next, err)``, compiled at -O1 when compiled.
     iteration_matrix : casadi.Function
-        ``(s, tau) -> J`` (dense), compiled at -O0 (refreshed only now and then).
+        ``(s, tau, p) -> J`` (dense), compiled at -O0 (refreshed only now and then).
     backend : str
         ``"compiled"`` or ``"vm"``: the backend the step runs on.
     """
-    vm_step = _fast_step_function(model, settings)
+    vm_step = _fast_step_function(model.parametric, settings)
     step = compile_function(vm_step, backend, opt=OPT_HOT)
-    jac = compile_function(_iteration_matrix_function(model, settings), backend, opt=OPT_COLD)
+    jac = compile_function(_iteration_matrix_function(model.parametric, settings), backend, opt=OPT_COLD)
     return step, jac, "vm" if step is vm_step else "compiled"
 
 
 @lru_cache(maxsize=16)
-def _fast_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.Function:
+def _fast_step_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
     """One sample: ``substeps`` steps of modified Newton with the inverse iteration matrix given."""
     n = model.n_q
-    s, tau, a, (q1, v1, p1), force = _substep_expressions(model, settings)
-    residual = model.inverse_dynamics_function(q1, v1, a) - force
+    s, tau, a, p, (q1, v1, p1), residual = _substep_expressions(model, settings)
     opts = {"cse": True}
-    R = ca.Function("residual", [a, s, tau], [residual], opts)
+    R = ca.Function("residual", [a, s, tau, p], [residual], opts)
     update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)], opts)
     S = ca.MX.sym("s", 4 * n)
     T = ca.MX.sym("tau")
+    P = ca.MX.sym("p", model.n_p)
     Jm = ca.MX.sym("J_inv", n, n)           # inverse of the iteration matrix: no factorisation per step
     A = S[2 * n:3 * n]
     delta = ca.MX.zeros(n)
     for _ in range(settings.newton_iterations):
-        delta = ca.mtimes(Jm, R(A, S, T))
+        delta = ca.mtimes(Jm, R(A, S, T, P))
         A = A - delta
-    sub = ca.Function("substep", [S, T, Jm], [update(A, S), ca.norm_inf(delta)])
+    sub = ca.Function("substep", [S, T, Jm, P], [update(A, S), ca.norm_inf(delta)])
     k = settings.substeps
     accum = sub.mapaccum("substeps", k)
     X = ca.MX.sym("x", 4 * n)
     U = ca.MX.sym("u", 1, k)
-    xs, errs = accum(X, U, Jm)
-    return ca.Function("plant_step", [X, U, Jm], [xs[:, -1], ca.mmax(errs)],
-                       ["s", "tau", "J_inv"], ["s_next", "err"])
+    xs, errs = accum(X, U, Jm, P)
+    return ca.Function("plant_step", [X, U, Jm, P], [xs[:, -1], ca.mmax(errs)],
+                       ["s", "tau", "J_inv", "p"], ["s_next", "err"])
 
 
 @lru_cache(maxsize=16)
-def _robust_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.Function:
+def _robust_step_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
     n = model.n_q
-    s, tau, a, (q1, v1, p1), force = _substep_expressions(model, settings)
-    residual = model.inverse_dynamics_function(q1, v1, a) - force
-    G = ca.Function("G", [a, ca.vertcat(s, tau)], [residual])
+    s, tau, a, p, (q1, v1, p1), residual = _substep_expressions(model, settings)
+    G = ca.Function("G", [a, ca.vertcat(s, tau, p)], [residual])
     rf = ca.rootfinder("rf", "newton", G, {"abstol": 1e-9, "abstolStep": 1e-13, "max_iter": 50,
                                           "line_search": False, "error_on_fail": True})
     update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)])
     S = ca.MX.sym("s", 4 * n)
     T = ca.MX.sym("tau")
-    A = rf(S[2 * n:3 * n], ca.vertcat(S, T))
-    sub = ca.Function("substep", [S, T], [update(A, S)])
+    P = ca.MX.sym("p", model.n_p)
+    A = rf(S[2 * n:3 * n], ca.vertcat(S, T, P))
+    sub = ca.Function("substep", [S, T, P], [update(A, S)])
     k = settings.substeps
     X = ca.MX.sym("x", 4 * n)
     U = ca.MX.sym("u", 1, k)
-    xs = sub.mapaccum("substeps", k)(X, U)
-    return ca.Function("plant_step_robust", [X, U], [xs[:, -1]])
+    xs = sub.mapaccum("substeps", k)(X, U, P)
+    return ca.Function("plant_step_robust", [X, U, P], [xs[:, -1]])
 
 
 def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = None,
