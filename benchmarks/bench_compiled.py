@@ -137,7 +137,7 @@ def plant_step(name: str, n: int = 5, samples: int = 3000) -> dict:
     f = _fast_step_function(model.parametric, StepperSettings())
     st = PlantStepper(model, backend="vm")
     s = st.initial_state()
-    J = np.array(st._jacobian(s, 0.0))
+    J = np.linalg.inv(np.array(st._jacobian(s, 0.0, model.p)))
     u = np.zeros((1, StepperSettings().substeps))
     c0, w0 = time.process_time(), time.perf_counter()
     for _ in range(500):
