@@ -28,7 +28,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_nonnegative, check_positive
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate",
+__all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate", "torque_limit",
            "check_positive", "check_nonnegative", "check_psd"]
 
 
@@ -60,6 +60,44 @@ def check_psd(name: str, M, n: int, definite: bool = False) -> np.ndarray:
 def saturate(tau: float, tau_max: float) -> float:
     """Clip a torque to ``[-tau_max, tau_max]`` [N m] (NaN passes through)."""
     return tau_max if tau > tau_max else (-tau_max if tau < -tau_max else tau)
+
+
+def torque_limit(tau_max, params: Params, name: str = "tau_max") -> float:
+    """The torque limit a controller saturates at: its own, or the motor's ``params.tau_max``.
+
+    Parameters
+    ----------
+    tau_max : float or None
+        The controller's setting [N m]; ``None`` means the motor's limit.
+    params : Params
+        The design model's parameters (``params.tau_max`` is the motor's limit [N m]).
+    name : str
+        The setting's name for the error message.
+
+    Returns
+    -------
+    float
+        [N m], ``0 < limit <= params.tau_max``.
+
+    Raises
+    ------
+    ParameterError
+        If ``tau_max`` is above the motor's limit (a controller cannot command more
+        torque than the motor has).
+
+    Examples
+    --------
+    >>> torque_limit(None, Params(tau_max=1.5)), torque_limit(1.0, Params(tau_max=1.5))
+    (1.5, 1.0)
+    """
+    motor = params.tau_max
+    if tau_max is None:
+        return motor
+    tau_max = check_positive(name, tau_max, "N m")
+    if tau_max > motor:
+        raise ParameterError(f"{name} must be in (0, {motor:g}] N m (the motor's Params.tau_max), "
+                             f"got {tau_max:g}")
+    return tau_max
 
 
 # -- design model -------------------------------------------------------------------------
@@ -377,6 +415,7 @@ class Controller:
         self.reference = reference
         self.dt = design.dt
         self.n_modes = design.n_modes
+        self.tau_max = torque_limit(getattr(settings, "tau_max", None), design.params)
 
     def _prepare_reference(self, elastic: bool, extra: int = 0) -> None:
         """Tabulate reference states and feedforward torques (plus ``extra`` samples)."""

@@ -25,8 +25,9 @@ class LQGSettings:
 
     weights: Weights = field(default_factory=Weights)
     """State and torque weights of the LQR part (see :class:`Weights`)."""
-    tau_max: float = 200.0
-    """Torque limit [N m], > 0."""
+    tau_max: float | None = None
+    """Torque limit [N m], 0 < tau_max <= Params.tau_max: the output is clipped to
+    +-tau_max. None (default): the motor's limit ``Params.tau_max`` of the design model."""
     feedforward: bool = True
     """Add the reference's rigid-body feedforward torque."""
     elastic_reference: bool = True
@@ -46,7 +47,8 @@ class LQGSettings:
     def __post_init__(self):
         if not isinstance(self.weights, Weights):
             raise ParameterError(f"weights must be a Weights, got {type(self.weights).__name__}")
-        check_positive("tau_max", self.tau_max, "N m")
+        if self.tau_max is not None:
+            check_positive("tau_max", self.tau_max, "N m")
         check_positive("angle_noise_rad", self.angle_noise_rad, "rad")
         check_positive("rate_noise_rad_s", self.rate_noise_rad_s, "rad/s")
         check_positive("moment_noise_nm", self.moment_noise_nm, "N m")
@@ -135,7 +137,7 @@ class LQG(Controller):
         K = self.K
         # x_hat is a deviation from the steady rotation; x_ref is absolute
         u = K @ (x_hat - xr) + K[0] * spin * t + K[self._n] * spin
-        tau = saturate(float(self._ff * tff - u), self.settings.tau_max)
+        tau = saturate(float(self._ff * tff - u), self.tau_max)
         self.x_hat = x_hat
         self.x_pred = self.design.Ad @ x_hat + self.design.Bd[:, 0] * tau
         return tau

@@ -60,8 +60,9 @@ class LQRSettings:
 
     weights: Weights = field(default_factory=Weights)
     """State and torque weights (see :class:`Weights`)."""
-    tau_max: float = 200.0
-    """Torque limit [N m], > 0: the output is clipped to +-tau_max."""
+    tau_max: float | None = None
+    """Torque limit [N m], 0 < tau_max <= Params.tau_max: the output is clipped to
+    +-tau_max. None (default): the motor's limit ``Params.tau_max`` of the design model."""
     feedforward: bool = True
     """Add the reference's rigid-body feedforward torque."""
     elastic_reference: bool = True
@@ -71,7 +72,8 @@ class LQRSettings:
     def __post_init__(self):
         if not isinstance(self.weights, Weights):
             raise ParameterError(f"weights must be a Weights, got {type(self.weights).__name__}")
-        check_positive("tau_max", self.tau_max, "N m")
+        if self.tau_max is not None:
+            check_positive("tau_max", self.tau_max, "N m")
 
 
 class LQR(Controller):
@@ -113,4 +115,4 @@ class LQR(Controller):
     def __call__(self, t: float, y) -> float:
         xr, tff = self._reference_at(int(round(t / self.dt)))
         u = self.K @ (y - xr)
-        return saturate(float(self._ff * tff - u), self.settings.tau_max)
+        return saturate(float(self._ff * tff - u), self.tau_max)

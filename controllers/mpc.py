@@ -49,8 +49,9 @@ class MPCSettings:
     """Stage weights (see :class:`Weights`); the terminal weight is the LQR Riccati solution."""
     horizon: int = 50
     """Prediction horizon N in samples, >= 1."""
-    tau_max: float = 200.0
-    """Hard torque limit [N m], > 0."""
+    tau_max: float | None = None
+    """Torque limit [N m], 0 < tau_max <= Params.tau_max: the output is clipped to
+    +-tau_max. None (default): the motor's limit ``Params.tau_max`` of the design model."""
     tip_bound: float | None = None
     """Soft bound on |v_tip| over the horizon [m], > 0; None: no bound."""
     tip_bound_weight: float = 1e8
@@ -70,7 +71,8 @@ class MPCSettings:
         if isinstance(self.horizon, bool) or not isinstance(self.horizon, (int, np.integer)) \
                 or self.horizon < 1:
             raise ParameterError(f"horizon must be an integer >= 1 [samples], got {self.horizon!r}")
-        check_positive("tau_max", self.tau_max, "N m")
+        if self.tau_max is not None:
+            check_positive("tau_max", self.tau_max, "N m")
         if self.tip_bound is not None:
             check_positive("tip_bound", self.tip_bound, "m")
         check_positive("tip_bound_weight", self.tip_bound_weight, "1/m^2")
@@ -184,8 +186,8 @@ class MPC(Controller):
         self._A = ca.DM(A)
         self._n_a = A.shape[0]
         self._nz = nz
-        lbx = np.full(nz, -s.tau_max)
-        ubx = np.full(nz, s.tau_max)
+        lbx = np.full(nz, -self.tau_max)
+        ubx = np.full(nz, self.tau_max)
         if soft:
             lbx[-1], ubx[-1] = 0.0, np.inf
         self._lbx, self._ubx = lbx, ubx
@@ -287,4 +289,4 @@ class MPC(Controller):
             self._z = np.zeros(self._nz)
             xr, tff = self._reference_at(int(round(t / self.dt)))
             tau = self._ff * tff - self.K @ (y - xr)
-        return saturate(tau, self.settings.tau_max)
+        return saturate(tau, self.tau_max)

@@ -54,8 +54,9 @@ class PDSettings:
     """Angle gain [N m/rad], >= 0; overrides the bandwidth design."""
     kd: float | None = None
     """Rate gain [N m s/rad], >= 0; overrides the bandwidth design."""
-    tau_max: float = 200.0
-    """Torque limit [N m], > 0: the output is clipped to +-tau_max."""
+    tau_max: float | None = None
+    """Torque limit [N m], 0 < tau_max <= Params.tau_max: the output is clipped to
+    +-tau_max. None (default): the motor's limit ``Params.tau_max`` of the design model."""
     feedforward: bool = True
     """Add the reference's rigid-body feedforward torque."""
 
@@ -66,7 +67,8 @@ class PDSettings:
             check_nonnegative("kp", self.kp, "N m/rad")
         if self.kd is not None:
             check_nonnegative("kd", self.kd, "N m s/rad")
-        check_positive("tau_max", self.tau_max, "N m")
+        if self.tau_max is not None:
+            check_positive("tau_max", self.tau_max, "N m")
 
 
 class PD(Controller):
@@ -103,4 +105,4 @@ class PD(Controller):
         else:
             (th,), (thd,), (tff,) = ref.window(k, 1)
         tau = self._ff * tff + self.kp * (th - y[0]) + self.kd * (thd - y[1])
-        return saturate(float(tau), self.settings.tau_max)
+        return saturate(float(tau), self.tau_max)

@@ -49,13 +49,19 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                      "hub_angle.png, torque.png and report.md to --out."))
     p.add_argument("--plant", choices=["foam", "cfoam"], required=True, help="nonlinear plant")
     p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
-                   help="slew: rest-to-rest by the Eq. 44 rigid angle (default); spinup: to --wf and hold")
+                   help="slew: rest-to-rest by --slew-angle in --tf (default); spinup: to --wf in --tf and hold")
     p.add_argument("--controllers", metavar="LIST", default="openloop,pd,lqr,lqg,mpc",
                    help="comma-separated subset of openloop,pd,lqr,lqg,mpc (default: all)")
-    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"), default=200.0,
-                   help="torque budget = Eq. 44 amplitude [N m] (default 200)")
+    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
+                   help="torque budget [N m], at most the motor's tau_max of the parameters "
+                        "(default: that limit, 200 N m in Table 1)")
+    p.add_argument("--slew-angle", metavar="RAD", type=finite_float("slew-angle"),
+                   help="slew angle [rad], not 0 (default: the rigid angle of the Eq. 44 torque with "
+                        "amplitude --tau-max in --tf); the open-loop baseline is Eq. 44 scaled to this "
+                        "angle and --tf")
     p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
-                   help="maneuver time [s] (default 10)")
+                   help="maneuver time [s] (default 10); refused, naming the shortest feasible one, "
+                        "if the task needs more torque than --tau-max")
     p.add_argument("--t-end", metavar="S", type=positive_float("t-end"), default=30.0,
                    help="simulated time [s], > tf + 5 (default 30)")
     p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), default=3.0,
@@ -78,6 +84,10 @@ def run(args) -> int:
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     params = params_from_args(args)
+    if args.slew_angle is not None and args.slew_angle == 0:
+        raise ParameterError("slew-angle must be a finite number != 0 [rad], got 0")
+    if args.slew_angle is not None and args.scenario != "slew":
+        raise ParameterError("slew-angle applies to --scenario slew only")
     out = Path(args.out)
     if not out.parent.is_dir():
         raise ParameterError(f"out: folder {out.parent} does not exist")
@@ -87,7 +97,8 @@ def run(args) -> int:
     with stdout_to_stderr():
         comparison = compare(args.plant, args.scenario, args.controllers, params=params,
                              tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
-                             w_f=args.wf, horizon=args.horizon, progress=not args.json)
+                             w_f=args.wf, slew_angle=args.slew_angle, horizon=args.horizon,
+                             progress=not args.json)
         write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:

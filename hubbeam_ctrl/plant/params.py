@@ -59,6 +59,10 @@ class Params:
     damping_ratio : float
         Modal damping ratio zeta of the non-rotating clamped modes [-], 0 <= zeta < 1.
         Default 0 (undamped, as in the paper).
+    tau_max : float
+        Torque limit of the hub motor [N m], > 0. Default 200 (the paper's Eq. 44
+        amplitude). Every controller saturates its output there, or at a smaller limit
+        its settings give; a larger one is an error.
 
     Examples
     --------
@@ -81,6 +85,7 @@ class Params:
     n_axial: int = field(default=5, metadata=_unit("-", "number of axial modes"))
     n_transverse: int = field(default=5, metadata=_unit("-", "number of transverse modes"))
     damping_ratio: float = field(default=0.0, metadata=_unit("-", "modal damping ratio"))
+    tau_max: float = field(default=200.0, metadata=_unit("N m", "hub motor torque limit", positive=True))
 
     def __post_init__(self):
         for f in fields(self):
@@ -107,7 +112,7 @@ class Params:
         if not 0.0 <= self.damping_ratio < 1.0:
             raise ParameterError(
                 f"damping_ratio must be in [0, 1), got {self.damping_ratio}")
-        for name in ("L", "rho", "A", "E", "I", "J_h", "r", "m_t", "damping_ratio"):
+        for name in ("L", "rho", "A", "E", "I", "J_h", "r", "m_t", "damping_ratio", "tau_max"):
             object.__setattr__(self, name, float(getattr(self, name)))
         if self.l is not None:
             object.__setattr__(self, "l", float(self.l))

@@ -78,7 +78,7 @@ def _parse_controllers(controllers) -> tuple:
 def _default_settings(name: str, sc: Scenario, horizon: int, solver: str):
     if name == "openloop":
         if sc.name == "slew":
-            return OpenLoopSettings("eq44", sc.tau_max, sc.t_f)
+            return OpenLoopSettings("eq44", sc.baseline_tau_m, sc.t_f)
         return OpenLoopSettings("feedforward", sc.tau_max, sc.t_f)
     if name == "pd":
         return PDSettings(tau_max=sc.tau_max)
@@ -111,9 +111,9 @@ class Comparison:
     paths: dict = field(default_factory=dict)
 
 
-def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CONTROLLERS, *,
-            params: Params | None = None, tau_max: float = 200.0, t_f: float = 10.0,
-            t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0,
+def compare(plant: str = "cfoam", scenario="slew", controllers=DEFAULT_CONTROLLERS, *,
+            params: Params | None = None, tau_max: float | None = None, t_f: float = 10.0,
+            t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
             design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
             settings: dict | None = None, sim_settings: ClosedLoopSettings | None = None,
             progress: bool = False) -> Comparison:
@@ -122,16 +122,19 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
     Parameters
     ----------
     plant : {"foam", "cfoam"}
-    scenario : {"slew", "spinup"}
+    scenario : {"slew", "spinup"} or Slew or SpinUp
+        Scenario name or task in physical terms (see :func:`make_scenario`).
     controllers : str or sequence of str
         Any of ``openloop, pd, lqr, lqg, mpc`` (comma-separated string accepted).
     params : Params, optional
-    tau_max : float
-        Torque budget [N m].
+    tau_max : float, optional
+        Torque budget [N m], at most ``params.tau_max`` (default: the motor's limit).
     t_f, t_end, dt : float
         Maneuver time, simulated time and sample time [s].
     w_f : float
         Spin-up final rate [rad/s].
+    slew_angle : float, optional
+        Slew angle [rad] (default: the Eq. 44 angle of ``tau_max`` and ``t_f``).
     design_modes : int, optional
         Transverse modes of the design model (default: the plant's).
     horizon : int
@@ -152,7 +155,7 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
     start = time.perf_counter()
     names = _parse_controllers(controllers)
     sc = make_scenario(scenario, plant=plant, params=params, tau_max=tau_max, t_f=t_f,
-                       t_end=t_end, dt=dt, w_f=w_f)
+                       t_end=t_end, dt=dt, w_f=w_f, slew_angle=slew_angle)
     if design_modes is not None and (isinstance(design_modes, bool) or not isinstance(design_modes, int)
                                      or not 1 <= design_modes <= sc.params.n_transverse):
         raise ParameterError(f"design_modes must be an integer in 1..{sc.params.n_transverse} "
