@@ -28,10 +28,10 @@ Examples
 1.1575
 >>> round(task.shortest_duration(p.total_inertia, p.tau_max), 4)
 1.0541
->>> Slew(math.pi / 2, 0.9).check_feasible(p.total_inertia, p.tau_max)
+>>> Slew(math.pi / 2, 0.9).check_feasible(p.total_inertia, p.tau_max)  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
-hubbeam_ctrl.core.errors.ParameterError: duration must be >= 1.0541 s (the shortest in which tau_max = 1.5 N m turns 1.571 rad by Eq. 44, tau_m = 2 pi J_total Theta / tf^2), got 0.9 s
+hubbeam_ctrl.core.errors.ParameterError: duration must be >= 1.0541 s (the shortest ...), got 0.9 s
 """
 
 from __future__ import annotations
