@@ -24,7 +24,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.validation import check_nonnegative, check_positive
 from hubbeam_ctrl.plant.params import Params
 
@@ -451,6 +451,45 @@ class Controller:
     def stats(self) -> dict:
         """Run statistics (e.g. QP fallbacks) since the last :meth:`reset`."""
         return {}
+
+    def feedback_matrices(self) -> tuple:
+        """``(Ac, Bc, Cc, Dc, state_names, input_names)`` of the linear feedback law.
+
+        Implemented by the linear controllers (PD, LQR, LQG); see :meth:`to_statespace`.
+
+        Raises
+        ------
+        HubbeamError
+            For a controller that is not linear and time-invariant (open loop, MPC).
+        """
+        raise HubbeamError(f"controller {self.name!r} is not a linear time-invariant feedback law; "
+                           "only PD, LQR and LQG can be given as a state-space system")
+
+    def to_statespace(self):
+        """The feedback law as a sampled python-control system with named signals.
+
+        ``xc[k+1] = Ac xc[k] + Bc e[k]``, ``u[k] = Cc xc[k] + Dc e[k]``, sample time ``dt``:
+        input ``e`` the measurement the controller reads (named like the design model's
+        states or outputs: ``theta``, ``theta_dot``, ``root_moment``...; in deviation from
+        the reference), output ``tau`` [N m] (the torque beyond the feedforward). The
+        controller's own torque is ``tau_ff + u``, clipped at :attr:`tau_max`; this system
+        is the unsaturated law, so a user can close loops and compute margins with
+        python-control (``control.feedback(plant, ctrl.to_statespace(), sign=1)`` or
+        ``control.interconnect`` by signal name).
+
+        Returns
+        -------
+        control.StateSpace
+
+        Raises
+        ------
+        HubbeamError
+            For the open loop and MPC (not linear time-invariant).
+        """
+        import control
+        Ac, Bc, Cc, Dc, states, inputs = self.feedback_matrices()
+        return control.ss(Ac, Bc, Cc, Dc, self.dt, states=list(states), inputs=list(inputs),
+                          outputs=["tau"], name=self.name)
 
     def __repr__(self):
         return f"{type(self).__name__}(dt={self.dt:g}, n_modes={self.n_modes}, settings={self.settings!r})"

@@ -129,6 +129,20 @@ class LQG(Controller):
         self.x_pred = x
         self.x_hat = x
 
+    def feedback_matrices(self) -> tuple:
+        """The filter and gain as one system, sensors -> torque (state: the prediction).
+
+        With ``x_hat = (I - L C) x_pred + L y``, ``u = -K x_hat`` and
+        ``x_pred+ = Ad x_hat + Bd u``: ``Ac = (Ad - Bd K)(I - L C)``, ``Bc = (Ad - Bd K) L``,
+        ``Cc = -K (I - L C)``, ``Dc = -K L``.
+        """
+        d = self.design
+        F = d.Ad - d.Bd @ self.K[None, :]
+        M = self._IminusLC
+        states = [f"{name}_est" for name in d.state_names]
+        return (F @ M, F @ self.L, -self.K[None, :] @ M, -self.K[None, :] @ self.L, states,
+                ["theta", "theta_dot", "root_moment"])
+
     def __call__(self, t: float, y) -> float:
         spin = self.design.spin
         xr, tff = self._reference_at(int(round(t / self.dt)))

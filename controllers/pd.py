@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from .base import Controller, DesignModel, Reference, check_nonnegative, check_positive, saturate
 
 __all__ = ["PDSettings", "PD", "pd_gains"]
@@ -96,6 +98,11 @@ class PD(Controller):
         self.kp = float(settings.kp) if settings.kp is not None else kp
         self.kd = float(settings.kd) if settings.kd is not None else kd
         self._ff = 1.0 if settings.feedforward else 0.0
+
+    def feedback_matrices(self) -> tuple:
+        """Static output feedback ``u = -kp e_theta - kd e_theta_dot``: no states."""
+        return (np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((1, 0)), np.array([[-self.kp, -self.kd]]),
+                [], ["theta", "theta_dot"])
 
     def __call__(self, t: float, y) -> float:
         ref = self.reference
