@@ -84,6 +84,9 @@ def run(args) -> int:
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     params = params_from_args(args)
+    if args.tau_max is not None and args.tau_max > params.tau_max:
+        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
+                             f"the parameters), got {args.tau_max:g}")
     if args.slew_angle is not None and args.slew_angle == 0:
         raise ParameterError("slew-angle must be a finite number != 0 [rad], got 0")
     if args.slew_angle is not None and args.scenario != "slew":

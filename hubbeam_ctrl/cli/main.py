@@ -1,4 +1,4 @@
-"""Command-line interface: ``hubbeam modes | critical-speed | simulate | linearize | compare``.
+"""Command-line interface: ``hubbeam modes | critical-speed | simulate | linearize | compare | design``.
 
 Every subcommand accepts the common options ``--tip-mass KG``, ``--tip-position M``,
 ``--n-modes N`` (both families) and ``--params FILE.toml``. Bad input prints one line on
@@ -19,7 +19,7 @@ from hubbeam_ctrl.plant.params import Params, load_params
 __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float"]
 
 #: Subcommands contributed by other modules: module name -> provides add_parser/run.
-EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare")
+EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.design")
 
 
 class _Parser(argparse.ArgumentParser):
