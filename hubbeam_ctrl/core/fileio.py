@@ -23,7 +23,7 @@ __all__ = ["atomic_write", "atomic_write_text", "json_ready", "write_npz", "read
            "check_regular_file"]
 
 
-def atomic_write(path, write, binary: bool = True, suffix: str | None = None) -> Path:
+def atomic_write(path, write, suffix: str | None = None) -> Path:
     """Write a file atomically.
 
     Parameters
@@ -32,8 +32,6 @@ def atomic_write(path, write, binary: bool = True, suffix: str | None = None) ->
         Final file name.
     write : callable
         ``write(tmp_path)`` writes the whole content to the temporary path it is given.
-    binary : bool
-        Unused, kept for symmetry with :func:`atomic_write_text`.
     suffix : str, optional
         Suffix of the temporary file (some writers insist on an extension). Defaults to
         the suffix of ``path``.
@@ -48,6 +46,9 @@ def atomic_write(path, write, binary: bool = True, suffix: str | None = None) ->
     ParameterError
         Naming the path (as option ``out``) when its folder is missing, it is a folder, or
         the system refuses the write; no file is left behind.
+    Exception
+        Whatever else ``write`` raises, unchanged; the temporary file is removed and an
+        existing file at ``path`` keeps its old content.
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")

@@ -163,6 +163,9 @@ class UserManeuver:
             out = self.func(t)
             outs = out if isinstance(out, tuple) else (out,)
             outs = tuple(ca.SX(o) if not isinstance(o, (ca.SX, ca.MX)) else o for o in outs)
+            if any(o.is_constant() and not np.all(np.isfinite(np.array(ca.evalf(o)))) for o in outs):
+                # float(SX symbol) is NaN, so math.sin(t) & co. "accept" an SX symbol silently
+                raise TypeError("the function does not accept a CasADi symbol")
             return outs if self.kind == "prescribed" else outs[0]
         except Exception:
             if self._t_end is None:

@@ -25,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.progress import Progress
+from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.plant.maneuvers import UserManeuver
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
@@ -200,7 +200,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         elastic part at rest (prescribed hub).
     settings : SimulationSettings, optional
     progress : bool
-        Print progress to stderr.
+        Show a progress bar on stderr (only when stderr is a terminal).
     **setting_overrides
         Fields of :class:`SimulationSettings` (``dt``, ``rtol``, ...).
 
@@ -261,7 +261,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     tip_map = m.tip_function
     start = time.perf_counter()
     done = 0
-    bar = Progress(n_out, f"simulate {m.name}", enabled=progress)
+    bar = progress_bar(n_out, f"simulate {m.name}", enabled=progress)
     x, z = x0, z0
     while done < n_out:
         k = min(per_chunk, n_out - done)
@@ -296,7 +296,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         xs_all.append(xs)
         zs_all.append(zs)
         done += len(xs)
-        bar.update(done)
+        bar.update(len(xs))
         if diverged:
             message = (f"{m.name.upper()} left its range at t = {tk[-1] if len(tk) else t0:.3f} s: "
                        f"|v_tip| > {settings.divergence_limit:g} L = {limit:.3g} m"
