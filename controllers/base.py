@@ -340,6 +340,9 @@ class Weights:
     modal: float = 1e4
     """Weight on every modal coordinate and rate [1/m^2, 1/(m/s)^2], >= 0 (helps
     damp the higher modes that barely move the tip)."""
+    modal_rate: float | None = None
+    """Weight on every modal rate [1/(m/s)^2], >= 0; None: ``modal`` (the rates weighted
+    like the coordinates)."""
     torque: float = 2.5e-5
     """Weight on the torque beyond the feedforward [1/(N m)^2], > 0."""
     state_matrix: np.ndarray | None = None
@@ -348,7 +351,7 @@ class Weights:
 
     def __post_init__(self):
         for f in fields(self):
-            if f.name in ("state_matrix", "torque"):
+            if f.name in ("state_matrix", "torque") or getattr(self, f.name) is None:
                 continue
             check_nonnegative(f"weights.{f.name}", getattr(self, f.name), "weight")
         check_positive("weights.torque", self.torque, "1/(N m)^2")
@@ -365,8 +368,8 @@ class Weights:
             Q[n, n] = self.rate
             c, cd = design.C_tip
             Q += self.tip * np.outer(c, c) + self.tip_rate * np.outer(cd, cd)
-            idx = np.r_[1:n, n + 1:nx]
-            Q[idx, idx] += self.modal
+            Q[np.r_[1:n], np.r_[1:n]] += self.modal
+            Q[np.r_[n + 1:nx], np.r_[n + 1:nx]] += self.modal if self.modal_rate is None else self.modal_rate
         return Q, np.array([[self.torque]])
 
 
