@@ -6,33 +6,51 @@ import math
 from dataclasses import dataclass
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.validation import check_finite
+from hubbeam_ctrl.core.settings import setting
 
-from .base import Controller, DesignModel, Reference, check_positive, saturate, torque_limit
+from .base import Controller, ControllerSettings, DesignModel, Reference, saturate, torque_limit
 
 __all__ = ["OpenLoopSettings", "OpenLoop"]
 
 
 @dataclass(frozen=True)
-class OpenLoopSettings:
+class OpenLoopSettings(ControllerSettings):
     """Settings of :class:`OpenLoop`."""
 
-    profile: str = "eq44"
-    """``"eq44"``: ``tau_m sin(2 pi t/t_f)`` for ``t <= t_f``, then 0 (the paper's Eq. 44);
-    ``"feedforward"``: the reference's rigid-body feedforward torque (clipped at the
-    motor's ``Params.tau_max``)."""
-    tau_m: float = 200.0
-    """Torque amplitude of Eq. 44 [N m], 0 < |tau_m| <= Params.tau_max of the design model
-    (negative: the slew turns the other way)."""
-    t_f: float = 10.0
-    """Maneuver time of Eq. 44 [s], > 0 (one full sine period)."""
+    profile: str = setting("eq44", choices=("eq44", "feedforward"),
+                           doc="eq44: tau_m sin(2 pi t/t_f) for t <= t_f, then 0 (the paper's Eq. 44); "
+                               "feedforward: the reference's rigid-body feedforward torque (clipped "
+                               "at the motor's Params.tau_max).")
+    tau_m: float = setting(200.0, unit="N m", doc="Torque amplitude of Eq. 44, not 0 (negative: the "
+                                                  "slew turns the other way); abs(tau_m) at most the "
+                                                  "motor's Params.tau_max of the design model.")
+    t_f: float = setting(10.0, unit="s", lo=0.0, lo_open=True,
+                         doc="Maneuver time of Eq. 44 (one full sine period).")
+
+    @classmethod
+    def for_scenario(cls, scenario, **options) -> "OpenLoopSettings":
+        """The scenario's baseline (``scenario.baseline``) with its amplitude and time.
+
+        Parameters
+        ----------
+        scenario : object
+            Read: ``baseline`` (a profile), ``baseline_tau_m`` (the Eq. 44 amplitude of a
+            slew; ``tau_max`` when None), ``t_f``.
+        **options
+            Ignored.
+
+        Returns
+        -------
+        OpenLoopSettings
+        """
+        tau_m = getattr(scenario, "baseline_tau_m", None)
+        return cls(profile=scenario.baseline, tau_m=scenario.tau_max if tau_m is None else tau_m,
+                   t_f=scenario.t_f)
 
     def __post_init__(self):
-        if self.profile not in ("eq44", "feedforward"):
-            raise ParameterError(f"profile must be 'eq44' or 'feedforward', got {self.profile!r}")
-        if check_finite("tau_m", self.tau_m, "N m") == 0.0:
+        super().__post_init__()
+        if self.tau_m == 0.0:
             raise ParameterError("tau_m must be a finite number != 0 [N m], got 0")
-        check_positive("tf", self.t_f, "s")
 
 
 class OpenLoop(Controller):
@@ -54,7 +72,6 @@ class OpenLoop(Controller):
     200.0
     """
 
-    name = "openloop"
     measurement = "state"
 
     def __init__(self, design: DesignModel, settings: OpenLoopSettings | None = None,
@@ -64,7 +81,7 @@ class OpenLoop(Controller):
             raise ParameterError("profile='feedforward' needs a reference")
         super().__init__(design, settings, reference)
         if settings.profile == "eq44":
-            torque_limit(abs(settings.tau_m), design.params, "|tau_m|")     # within the motor's limit
+            torque_limit(abs(settings.tau_m), design.params, "abs(tau_m)")   # within the motor's limit
         self._w = 2 * math.pi / settings.t_f
 
     def __call__(self, t: float, y) -> float:

@@ -98,9 +98,10 @@ def test_user_function_is_used_exactly_or_tabulated(symbol):
 
 
 @pytest.mark.parametrize("make,needle", [
-    (lambda: SpinUp(w_f=float("nan")), "wf"),
-    (lambda: SpinUp(t_f=0.0), "tf"),
-    (lambda: TorquePulse(t_f=-1.0), "tf"),
+    (lambda: SpinUp(w_f=float("nan")), "^w_f must"),
+    (lambda: SpinUp(t_f=0.0), "^t_f must"),
+    (lambda: TorquePulse(t_f=-1.0), "^t_f must"),
+    (lambda: TorquePulse(tau_m=-1.0), "^tau_m must"),
     (lambda: ConstantSpin(float("inf")), "spin"),
     (lambda: UserManeuver(lambda t: t, kind="angle"), "kind"),
     (lambda: UserManeuver(3.0), "callable"),

@@ -8,7 +8,7 @@ import pytest
 
 import hubbeam_ctrl.plots as plots
 from hubbeam_ctrl import Params, SpinUp, campbell, critical_speed_map, simulate
-from hubbeam_ctrl.plots.closedloop import CONTROLLER_COLORS, plot_hub_angle, plot_tip_deflection, plot_torque
+from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
 from hubbeam_ctrl.plots.plant import (
     plot_campbell,
     plot_critical_speed_map,
@@ -69,12 +69,12 @@ def test_closed_loop_figures_carry_the_data(closed_loop_runs, tmp_path):
     runs = closed_loop_runs
     lqr, mine = runs["lqr"], runs["mine"]
     assert not lqr.stopped and mine.stopped
-    fig = plot_tip_deflection(runs, t_f=1.0, residual_start=1.5)
+    fig = plot_tip_deflection(runs, t_f=1.0, residual_start=1.5, styles={"lqr": {"color": "tab:blue"}})
     ax1, ax2 = fig.axes
     np.testing.assert_array_equal(ax1.lines[0].get_ydata(), lqr.v_tip)
     np.testing.assert_array_equal(ax2.lines[1].get_ydata(), np.maximum(np.abs(mine.v_tip), 1e-9))
     assert [t.get_text() for t in ax1.get_legend().get_texts()] == ["lqr", "mine (stopped)"]
-    assert ax1.lines[0].get_color() == CONTROLLER_COLORS["lqr"]
+    assert ax1.lines[0].get_color() == "tab:blue"
     fig = plot_hub_angle(runs, t_f=1.0)
     ax1, ax2 = fig.axes
     # each run, and the reference drawn once

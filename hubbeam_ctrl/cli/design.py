@@ -48,7 +48,7 @@ def add_parser(subparsers, common) -> None:
 
 def _settings(name: str, tau_max):
     from controllers import CONTROLLERS
-    settings_cls = CONTROLLERS[name][1] if isinstance(CONTROLLERS[name], tuple) else CONTROLLERS[name].settings
+    settings_cls = CONTROLLERS[name].settings
     return settings_cls() if tau_max is None else settings_cls(tau_max=tau_max)
 
 

@@ -1,20 +1,9 @@
 """Closed-loop scenarios: the task (reference, torque budget, times) and its design point.
 
-Scenarios
----------
-``slew``
-    Rest-to-rest rotation by ``slew_angle`` (or a :class:`~hubbeam_ctrl.study.tasks.Slew`
-    task) in ``t_f``; without an angle, by the rigid-body angle of the paper's Eq. 44
-    profile with amplitude ``tau_max``, ``Theta = tau_max t_f^2 / (2 pi J_total)``. The
-    baseline is the open-loop Eq. 44 torque scaled to the same angle and time,
-    ``tau_m = 2 pi J_total Theta / t_f^2`` (refused if above ``tau_max``); the feedback
-    controllers follow a smooth reference (:func:`controllers.slew_reference`) designed on
-    SFOAM linearised at rest.
-``spinup``
-    Spin-up to ``w_f`` (default 3 rad/s, above TLAM's critical speed; or a
-    :class:`~hubbeam_ctrl.study.tasks.SpinUp` task) along the corrected
-    Eq. 43 profile in ``t_f``, then hold; design model linearised at ``w_f``. The baseline
-    is the rigid-body feedforward torque alone.
+Scenarios are registered once in :data:`SCENARIOS` with :func:`register_scenario`; the
+comparison and the CLI (``--scenario`` choices and help) read the registry. Built in:
+``slew`` (rest-to-rest by ``slew_angle``, by default the Eq. 44 rigid angle) and ``spinup`` (the corrected Eq. 43
+profile, then hold); their builders' docstrings say more.
 """
 
 from __future__ import annotations
@@ -29,10 +18,40 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.tasks import Slew, SpinUp
 
-__all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario"]
+__all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
 
-SCENARIOS = ("slew", "spinup")
+#: Scenario name -> builder, in registration order (see :func:`register_scenario`).
+SCENARIOS: dict = {}
+#: The nonlinear plants a scenario runs on (the models with dynamic stiffening and axial modes).
 PLANTS = ("foam", "cfoam")
+
+
+def register_scenario(name: str):
+    """Register a scenario builder under ``name`` (a decorator).
+
+    The builder is called by :func:`make_scenario` with the validated keyword arguments
+    ``params``, ``tau_max``, ``t_f``, ``dt``, ``t_ref_end`` (last reference sample [s]),
+    ``w_f``, ``flatness`` and ``task`` (the task in physical terms,
+    :mod:`hubbeam_ctrl.study.tasks`, already checked against ``tau_max``; None for a scenario
+    without one) (it takes those it needs and ``**_`` for the rest) and returns a dict with
+    ``design_spin`` [rad/s], ``target``, ``target_key`` (its name with unit in summaries),
+    ``baseline`` (the open-loop profile compared against: ``"eq44"`` or ``"feedforward"``),
+    ``reference``, ``description`` and optionally ``baseline_tau_m`` (the Eq. 44 amplitude).
+
+    Parameters
+    ----------
+    name : str
+        Scenario name.
+
+    Returns
+    -------
+    callable
+        The decorator (returns the builder unchanged).
+    """
+    def register(builder):
+        SCENARIOS[name] = builder
+        return builder
+    return register
 
 
 def _number(name, value, unit, positive=True):
@@ -49,7 +68,8 @@ class Scenario:
 
     Attributes
     ----------
-    name : {"slew", "spinup"}
+    name : str
+        Registered scenario name (:data:`SCENARIOS`).
     plant : {"foam", "cfoam"}
     params : Params
     tau_max : float
@@ -67,11 +87,16 @@ class Scenario:
     reference : controllers.Reference
         Hub reference and feedforward torque of the feedback controllers.
     description : str
-    task : Slew or SpinUp
-        The task in physical terms.
+    target_key : str
+        Name (with unit suffix) of ``target`` in :meth:`to_dict`.
+    baseline : {"eq44", "feedforward"}
+        The open-loop profile the scenario compares against
+        (:class:`controllers.OpenLoopSettings`).
     baseline_tau_m : float or None
-        Slew: amplitude of the open-loop Eq. 44 baseline [N m], ``2 pi J_total Theta / t_f^2``
-        (``tau_max`` itself for the Eq. 44 angle); None for the spin-up.
+        Amplitude of the Eq. 44 baseline [N m]: ``2 pi J_total Theta / t_f^2`` for a slew
+        (``tau_max`` itself for the Eq. 44 angle); None without an Eq. 44 baseline.
+    task : Slew or SpinUp or None
+        The task in physical terms (:mod:`hubbeam_ctrl.study.tasks`).
     """
 
     name: str
@@ -85,15 +110,17 @@ class Scenario:
     target: float
     reference: object
     description: str
-    task: object = None
+    target_key: str = "target"
+    baseline: str = "feedforward"
     baseline_tau_m: float | None = None
+    task: object = None
 
     def to_dict(self) -> dict:
         """Plain-data summary (JSON-ready)."""
         return {"scenario": self.name, "plant": self.plant, "tau_max_nm": self.tau_max,
                 "tf_s": self.t_f, "t_end_s": self.t_end, "dt_s": self.dt,
                 "design_spin_rad_s": self.design_spin,
-                ("slew_angle_rad" if self.name == "slew" else "final_rate_rad_s"): self.target,
+                self.target_key: self.target,
                 "reference": self.reference.description, "params": self.params.to_dict(),
                 "baseline_tau_m_nm": self.baseline_tau_m, "description": self.description}
 
@@ -106,10 +133,10 @@ def make_scenario(scenario="slew", *, plant: str = "cfoam", params: Params | Non
 
     Parameters
     ----------
-    scenario : {"slew", "spinup"} or Slew or SpinUp
-        The scenario's name, or a task in physical terms (:mod:`hubbeam_ctrl.study.tasks`);
-        a task gives the angle or rate and the duration (``t_f``, ``w_f`` and
-        ``slew_angle`` are then not used).
+    scenario : str or Slew or SpinUp
+        A registered scenario (:data:`SCENARIOS`: ``slew``, ``spinup``), or a task in physical
+        terms (:mod:`hubbeam_ctrl.study.tasks`) that gives the angle or rate and the duration
+        (``t_f``, ``w_f`` and ``slew_angle`` are then not used).
     plant : {"foam", "cfoam"}
     params : Params, optional
         Default: Table 1 (m_t = 0.1 kg at the tip).
@@ -141,39 +168,39 @@ def make_scenario(scenario="slew", *, plant: str = "cfoam", params: Params | Non
     ------
     ParameterError
         Among others when the task needs more torque than ``tau_max``: the message names
-        the shortest feasible ``tf`` (or ``duration`` for a task object).
+        the shortest feasible ``tf`` (``duration`` for a task object).
     """
+    if isinstance(scenario, (Slew, SpinUp)):
+        name, task, tf_name = scenario.name, scenario, "duration"
+        t_f = task.duration
+    elif isinstance(scenario, str) and scenario in SCENARIOS:
+        name, task, tf_name = scenario, None, "tf"
+    else:
+        raise ParameterError(f"scenario must be one of {', '.join(SCENARIOS)} or a Slew or SpinUp "
+                             f"task, got {scenario!r}")
     if plant not in PLANTS:
         raise ParameterError(f"plant must be one of {', '.join(PLANTS)}, got {plant!r}")
     params = params if params is not None else Params()
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
     tau_max = _budget(tau_max, params)
+    t_f = _number("tf", t_f, "s")
     t_end = _number("t_end", t_end, "s")
     dt = _number("dt", dt, "s")
-    J = params.total_inertia
-    task, tf_name = _task(scenario, tau_max, t_f, w_f, slew_angle, J)
-    t_f = task.duration
     if t_end <= t_f + 5.0:
         raise ParameterError(f"t_end must exceed tf + 5 s = {t_f + 5:g} s (the residual-vibration "
                              f"window starts there), got {t_end:g} s")
     if dt > t_f / 10:
         raise ParameterError(f"dt must be at most tf/10 = {t_f / 10:g} s, got {dt:g} s")
-    task.check_feasible(J, tau_max, tf_name)
-    horizon_end = t_end + preview_s
-    if task.name == "slew":
-        theta = task.angle
-        ref = slew_reference(theta, t_f, J, tau_max, dt, horizon_end, flatness=flatness)
-        eq44 = slew_angle is None and isinstance(scenario, str)
-        baseline = tau_max if eq44 else task.baseline_torque(J)
-        text = (f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
-                f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)") if eq44 \
-            else task.describe(J)
-        return Scenario("slew", plant, params, tau_max, t_f, t_end, dt, 0.0, theta, ref, text,
-                        task=task, baseline_tau_m=baseline)
-    ref = spinup_reference(task.rate, t_f, J, dt, horizon_end, tau_max=tau_max)
-    return Scenario("spinup", plant, params, tau_max, t_f, t_end, dt, task.rate, task.rate, ref,
-                    f"{task.describe(J)}; design model linearised at {task.rate:g} rad/s", task=task)
+    J = params.total_inertia
+    eq44 = task is None and name == "slew" and slew_angle is None
+    if task is None:
+        task = _task(name, tau_max, t_f, w_f, slew_angle, J)
+    if task is not None:
+        task.check_feasible(J, tau_max, tf_name)
+    parts = SCENARIOS[name](params=params, tau_max=tau_max, t_f=t_f, dt=dt, t_ref_end=t_end + preview_s,
+                            w_f=w_f, flatness=flatness, task=task, eq44=eq44)
+    return Scenario(name, plant, params, tau_max, t_f, t_end, dt, task=task, **parts)
 
 
 def _budget(tau_max, params: Params) -> float:
@@ -187,21 +214,52 @@ def _budget(tau_max, params: Params) -> float:
     return tau_max
 
 
-def _task(scenario, tau_max: float, t_f, w_f, slew_angle, inertia: float):
-    """``(task, name of its duration)`` from a task object or a scenario name and its options."""
-    if isinstance(scenario, (Slew, SpinUp)):
-        return scenario, "duration"
-    if scenario not in SCENARIOS:
-        raise ParameterError(f"scenario must be one of {', '.join(SCENARIOS)} or a Slew or SpinUp "
-                             f"task, got {scenario!r}")
-    t_f = _number("tf", t_f, "s")
-    if scenario == "spinup":
-        if slew_angle is not None:
-            raise ParameterError("slew_angle applies to the slew scenario only")
-        return SpinUp(_number("wf", w_f, "rad/s", positive=False), t_f), "tf"
+def _task(name: str, tau_max: float, t_f: float, w_f, slew_angle, inertia: float):
+    """The task of a built-in scenario from its options (None for other registered scenarios)."""
+    if slew_angle is not None and name != "slew":
+        raise ParameterError("slew_angle applies to the slew scenario only")
+    if name == "spinup":
+        return SpinUp(_number("wf", w_f, "rad/s", positive=False), t_f)
+    if name != "slew":
+        return None
     if slew_angle is None:
-        return Slew.eq44(tau_max, t_f, inertia), "tf"
+        return Slew.eq44(tau_max, t_f, inertia)
     angle = _number("slew_angle", slew_angle, "rad", positive=False)
     if angle == 0.0:
         raise ParameterError("slew_angle must be a finite number != 0 [rad], got 0")
-    return Slew(angle, t_f), "tf"
+    return Slew(angle, t_f)
+
+
+@register_scenario("slew")
+def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness, task=None, eq44=False, **_) -> dict:
+    """Rest-to-rest slew by ``task.angle`` in tf (default: the rigid-body angle of Eq. 44).
+
+    Without an angle, ``Theta = tau_m t_f^2 / (2 pi J_total)`` with ``tau_m = tau_max``. The
+    baseline is the open-loop Eq. 44 torque scaled to the angle and time,
+    ``tau_m = 2 pi J_total Theta / t_f^2``; the feedback controllers follow a smooth
+    reference (:func:`controllers.slew_reference`) designed on SFOAM linearised at rest.
+    """
+    J = params.total_inertia
+    if task is None:                       # called without a task: the Eq. 44 angle
+        task, eq44 = Slew.eq44(tau_max, t_f, J), True
+    theta = task.angle
+    ref = slew_reference(theta, t_f, J, tau_max, dt, t_ref_end, flatness=flatness)
+    text = (f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
+            f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)") if eq44 else task.describe(J)
+    return dict(design_spin=0.0, target=theta, target_key="slew_angle_rad", baseline="eq44", reference=ref,
+                baseline_tau_m=tau_max if eq44 else task.baseline_torque(J), description=text)
+
+
+@register_scenario("spinup")
+def _spinup(*, params, tau_max, t_f, dt, t_ref_end, w_f=3.0, task=None, **_) -> dict:
+    """Spin-up to ``task.rate`` (default wf) along the corrected Eq. 43 profile in tf, then hold.
+
+    The default ``w_f`` (3 rad/s) is above TLAM's critical speed; the design model is
+    linearised at ``w_f``. The baseline is the rigid-body feedforward torque alone.
+    """
+    w_f = task.rate if task is not None else _number("wf", w_f, "rad/s", positive=False)
+    ref = spinup_reference(w_f, t_f, params.total_inertia, dt, t_ref_end, tau_max=tau_max)
+    return dict(design_spin=w_f, target=w_f, target_key="final_rate_rad_s", baseline="feedforward",
+                reference=ref,
+                description=f"spin-up to {w_f:g} rad/s in tf = {t_f:g} s (Eq. 43), then hold; "
+                            f"design model linearised at {w_f:g} rad/s")
