@@ -375,15 +375,17 @@ class ControllerSettings(Settings):
     def for_scenario(cls, scenario, **options) -> "ControllerSettings":
         """Default settings for a closed-loop scenario.
 
-        The default fills the fields named ``tau_max`` (from ``scenario.tau_max``) and any
-        of ``options`` that the class has; subclasses override it when the scenario
+        The default fills the fields named ``tau_max`` (from ``scenario.tau_max``), those of
+        the scenario's scaled defaults (``scenario.defaults``: weights, noise levels, PD
+        bandwidth from the beam and the task, see :func:`controllers.scaling.scaled_defaults`)
+        and any of ``options`` that the class has; subclasses override it when the scenario
         decides more (e.g. :class:`~controllers.openloop.OpenLoopSettings`).
 
         Parameters
         ----------
         scenario : object
             A :class:`hubbeam_ctrl.study.scenarios.Scenario` (read: ``tau_max``, ``t_f``,
-            ``baseline``).
+            ``baseline``, ``defaults``).
         **options
             Study-wide controller options (``horizon``, ``solver``...); those the class
             has no field for are ignored.
@@ -393,7 +395,7 @@ class ControllerSettings(Settings):
         ControllerSettings
         """
         names = {f.name for f in fields(cls)}
-        given = {"tau_max": scenario.tau_max, **options}
+        given = {"tau_max": scenario.tau_max, **(getattr(scenario, "defaults", None) or {}), **options}
         return cls(**{k: v for k, v in given.items() if k in names})
 
 

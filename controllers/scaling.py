@@ -2,105 +2,130 @@
 beam and the task, not from the paper's numbers.
 
 A task (slew by ``Theta`` in ``t_f``, or spin-up to ``w_f`` in ``t_f``) on a beam (length
-``L``, design model with first flexible mode ``w_1``) with a motor (``tau_max``) has natural
-scales (:class:`TaskScales`): an angle ``Theta`` [rad] (for a spin-up, ``|w_f| t_f / 2``, the
-angle it turns while spinning up), a time ``t_f`` [s], a length ``L`` [m], a vibration
-frequency ``w_1`` [rad/s], a torque ``tau_max`` [N m], and the peaks of the reference's
-rate and of the root bending moment its acceleration causes. :class:`Tolerances` holds the
-dimensionless numbers that turn these scales into settings:
+``L``, design model with first flexible mode ``w_1``) with a torque budget ``tau_max`` has
+natural scales (:class:`TaskScales`): an angle (the slew angle; ``|w_f| t_f / 2`` for a
+spin-up, the angle it turns while spinning up) [rad], a time ``t_f`` [s], a length ``L``
+[m], a vibration frequency ``w_1`` [rad/s], a torque ``tau_max`` [N m], and the peaks of the
+reference's rate and of the root bending moment its acceleration causes quasi-statically.
+:class:`Tolerances` holds the dimensionless numbers that turn them into settings:
 
-* LQR/LQG/MPC weights by Bryson's rule (:func:`bryson_weights`), ``w = 1 / x_allowed^2``:
-  hub angle ``angle_error * Theta``, hub rate ``angle_error * Theta / (rate_time * t_f)``,
-  tip deflection ``tip_deflection * L`` and every modal coordinate half of it (a mode's tip
-  deflection is twice its coordinate), their rates those times ``w_1``, torque ``tau_max``;
+* LQR/LQG/MPC weights by Bryson's rule (:func:`bryson_weights`), ``w = 1 / allowed^2``:
+  hub angle ``angle_error * angle``, hub rate ``angle_error * angle / (rate_time * t_f)``,
+  tip deflection ``tip_deflection * L``, every modal coordinate half of that (a mode's tip
+  deflection is twice its coordinate), their rates those times ``vibration_rate * w_1``,
+  torque ``tau_max``;
 * sensor noise (:func:`sensor_noise`): the hub-angle encoder's own specification
-  ``angle_noise_rad`` (an angle is the same on any beam), the rate and root-moment sensors'
+  ``angle_noise_rad`` (an angle is the same on any beam), the rate and root-moment sensors
   relative to the ranges of their signals in the task;
-* the Kalman filter's process noise relative to ``tau_max``;
-* settling bands relative to ``Theta`` and ``L``; the residual window starting
-  ``residual_delay * t_f`` after the maneuver;
-* reference shaping (:func:`reference_shaping`): the flatness that keeps the reference's
-  feedforward within ``feedforward_share`` of ``tau_max`` when it can.
+* the Kalman filter's process noise relative to ``tau_max`` (:func:`kalman_noise`);
+* settling bands relative to the angle and ``L``, the residual-vibration window starting
+  ``residual_delay * t_f`` after the maneuver (:func:`settling_bands`);
+* reference shaping (:func:`reference_shaping`): the slew reference's acceleration
+  smoothed over ``smoothing`` first-mode periods (a moving average over one period leaves
+  no excitation at ``w_1``), as far as ``feedforward_share`` of ``tau_max`` allows;
+* the PD bandwidth ``pd_bandwidth / t_f``.
 
-A geometrically similar beam (lengths times ``k``, masses times ``k^3``, stiffnesses and
-torques consistently, times times ``k``) has the same dimensionless settings, so the same
-dimensionless closed-loop results.
+On the paper's default slew (t_f = 10 s) the residual window starts 5 s after the
+maneuver and the settling bands are 1 mm and ``1e-3 Theta``, as before. A geometrically
+similar beam (lengths times ``k``, masses times ``k^3``, stiffnesses and torques
+dimensionally consistent, times times ``k``) gets the same dimensionless settings, so the
+same dimensionless closed-loop results.
+
+Examples
+--------
+>>> from controllers import DesignModel, slew_reference
+>>> from hubbeam_ctrl import Params
+>>> p = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
+>>> d = DesignModel.build(p, n_modes=3)
+>>> ref = slew_reference(1.5708, 1.2, p.total_inertia, 1.5, 0.01, 3.0)
+>>> s = task_scales(d, ref, 1.5708, 1.2, 1.5)
+>>> round(s.first_mode / (2 * math.pi), 2)              # first flexible mode [Hz]
+4.63
+>>> w = bryson_weights(s)
+>>> bool(w.torque == 1 / 1.5 ** 2 and w.tip == 1 / (Tolerances().tip_deflection * 1.0) ** 2)
+True
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_positive
 
 from .base import DesignModel, Reference, Weights
+from .reference import slew_shape_constant
 
-__all__ = ["Tolerances", "TaskScales", "task_scales", "bryson_weights", "sensor_noise",
-           "kalman_noise", "settling_bands", "first_mode"]
+__all__ = ["Tolerances", "TaskScales", "task_scales", "first_mode", "bryson_weights", "sensor_noise",
+           "kalman_noise", "settling_bands", "reference_shaping", "scaled_defaults"]
 
 
 @dataclass(frozen=True)
-class Tolerances:
-    """Dimensionless tolerances that make the defaults of a task (see the module docstring)."""
+class Tolerances(Settings):
+    """Dimensionless tolerances that make a task's defaults (see :mod:`controllers.scaling`)."""
 
-    angle_error: float = 1e-3
-    """Allowed hub-angle error of Bryson's rule, relative to the task's angle [-], > 0."""
-    rate_time: float = 0.4
-    """Time over which the allowed angle error may build up, relative to t_f [-], > 0
-    (allowed hub-rate error = allowed angle error / (rate_time t_f))."""
-    tip_deflection: float = 2e-3
-    """Allowed tip deflection of Bryson's rule, relative to L [-], > 0."""
-    vibration_rate: float = 0.4
-    """Allowed tip and modal rates relative to the allowed deflections times the first
-    mode's frequency w_1 [-], > 0."""
-    settle_angle: float = 1e-3
-    """Settling band of the hub-angle error, relative to the task's angle [-], > 0."""
-    settle_tip: float = 1.25e-4
-    """Settling band of the tip deflection, relative to L [-], > 0 (1 mm on the paper's 8 m)."""
-    residual_delay: float = 0.5
-    """Start of the residual-vibration window after t_f, relative to t_f [-], >= 0."""
-    angle_noise_rad: float = 1e-4
-    """Hub-angle encoder noise, standard deviation [rad] (its own specification: about a
-    16-bit encoder; an angle does not scale with the beam)."""
-    rate_noise: float = 4e-4
-    """Hub-rate sensor noise relative to the task's peak reference rate [-], >= 0."""
-    moment_noise: float = 1e-3
-    """Root-moment sensor noise relative to the peak quasi-static root moment of the task [-], >= 0."""
-    torque_noise: float = 0.025
-    """Kalman filter's process noise (torque disturbance per sample) relative to tau_max [-], > 0."""
-    feedforward_share: float = 0.75
-    """Largest share of tau_max the reference's feedforward may take when the task allows
-    it (the rest is left to the feedback) [-], in (0, 1]."""
-
-    def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name in ("residual_delay", "rate_noise", "moment_noise"):
-                if not (isinstance(value, (int, float)) and not isinstance(value, bool)
-                        and math.isfinite(value) and value >= 0):
-                    raise ParameterError(f"{f.name} must be a finite number >= 0 [-], got {value!r}")
-            else:
-                check_positive(f.name, value, "-")
-        if self.feedforward_share > 1:
-            raise ParameterError(f"feedforward_share must be in (0, 1] [-], got {self.feedforward_share!r}")
+    angle_error: float = setting(1e-2, lo=0.0, lo_open=True,
+                                 doc="Allowed hub-angle error of Bryson's rule, relative to the task's angle.")
+    rate_time: float = setting(1.0, lo=0.0, lo_open=True,
+                               doc="Allowed hub-rate error = allowed angle error / (rate_time t_f).")
+    tip_deflection: float = setting(1e-3, lo=0.0, lo_open=True,
+                                    doc="Allowed tip deflection of Bryson's rule, relative to L.")
+    vibration_rate: float = setting(1.0, lo=0.0, lo_open=True,
+                                    doc="Allowed tip and modal rates = allowed deflections times "
+                                        "vibration_rate w_1 (first flexible mode).")
+    settle_angle: float = setting(1e-3, lo=0.0, lo_open=True,
+                                  doc="Settling band of the hub-angle error, relative to the task's angle.")
+    settle_tip: float = setting(1.25e-4, lo=0.0, lo_open=True,
+                                doc="Settling band of the tip deflection, relative to L (1 mm on 8 m).")
+    residual_delay: float = setting(0.5, lo=0.0,
+                                    doc="Start of the residual-vibration window after t_f, relative to t_f.")
+    angle_noise_rad: float = setting(1e-4, unit="rad", lo=0.0,
+                                     doc="Hub-angle encoder noise, standard deviation: the sensor's own "
+                                         "specification (about 16 bits; an angle does not scale with the beam).")
+    rate_noise: float = setting(4e-4, lo=0.0,
+                                doc="Hub-rate sensor noise relative to the task's peak reference rate.")
+    moment_noise: float = setting(1e-3, lo=0.0,
+                                  doc="Root-moment sensor noise relative to the task's peak quasi-static "
+                                      "root moment.")
+    torque_noise: float = setting(0.025, lo=0.0, lo_open=True,
+                                  doc="Kalman filter's process noise (hub torque per sample), relative "
+                                      "to tau_max.")
+    flatness: float = setting(3.0, lo=0.0, doc="Shape of the slew reference (controllers.slew_reference).")
+    smoothing: float = setting(0.0, lo=0.0,
+                               doc="Smoothing of the slew reference's acceleration, in first-mode periods "
+                                   "(capped by feedforward_share and 0.45 t_f).")
+    feedforward_share: float = setting(0.75, lo=0.0, hi=1.0, lo_open=True,
+                                       doc="Largest share of tau_max the smoothing may give the reference's "
+                                           "feedforward (the rest is left to the feedback).")
+    pd_bandwidth: float = setting(10.0, lo=0.0, lo_open=True,
+                                  doc="PD rigid-body bandwidth times t_f (1 rad/s on the paper's 10 s slew).")
 
 
 def first_mode(design: DesignModel) -> float:
-    """Lowest flexible natural frequency of the design model [rad/s] (free hub, design spin)."""
+    """Lowest flexible natural frequency of the design model [rad/s] (free hub, design spin).
+
+    Parameters
+    ----------
+    design : DesignModel
+
+    Returns
+    -------
+    float
+    """
     lam = np.linalg.eigvals(design.A)
-    w = np.abs(lam[np.abs(lam.imag) > 1e-9 * max(1.0, np.max(np.abs(lam)))])
-    if not w.size:
+    osc = np.abs(lam.imag) > 1e-9 * max(1.0, float(np.max(np.abs(lam))))
+    if not np.any(osc):
         raise ParameterError("the design model has no flexible mode")
-    return float(np.min(w))
+    return float(np.min(np.abs(lam[osc])))
 
 
 @dataclass(frozen=True)
 class TaskScales:
-    """The scales of a task on a beam (see the module docstring).
+    """The scales of a task on a beam (see :mod:`controllers.scaling`).
 
     Attributes
     ----------
@@ -111,13 +136,13 @@ class TaskScales:
     length : float
         Beam length L [m].
     first_mode : float
-        w_1 [rad/s].
+        First flexible mode of the design model w_1 [rad/s].
     tau_max : float
         Torque budget [N m].
     peak_rate : float
-        Peak |rate| of the reference [rad/s].
+        Peak abs(rate) of the reference [rad/s].
     peak_moment : float
-        Peak |root moment| of the reference's quasi-static deflection [N m].
+        Peak abs(root moment) of the reference's quasi-static deflection [N m].
     """
 
     angle: float
@@ -128,18 +153,25 @@ class TaskScales:
     peak_rate: float
     peak_moment: float
 
+    def to_dict(self) -> dict:
+        """Plain dictionary with units in the keys."""
+        return {"angle_rad": self.angle, "duration_s": self.duration, "length_m": self.length,
+                "first_mode_rad_s": self.first_mode, "tau_max_nm": self.tau_max,
+                "peak_rate_rad_s": self.peak_rate, "peak_moment_nm": self.peak_moment}
+
 
 def task_scales(design: DesignModel, reference: Reference, angle: float, duration: float,
                 tau_max: float) -> TaskScales:
-    """The scales of a task (its reference on the design model).
+    """The scales of a task: its reference on the design model.
 
     Parameters
     ----------
     design : DesignModel
+        The design model (gives L, w_1 and the quasi-static root moment).
     reference : Reference
-        The hub reference of the task.
+        The task's hub reference.
     angle : float
-        Task angle [rad] (slew angle; ``|w_f| t_f / 2`` for a spin-up), not 0.
+        Task angle [rad], not 0 (see :class:`TaskScales`).
     duration : float
         t_f [s], > 0.
     tau_max : float
@@ -160,18 +192,19 @@ def task_scales(design: DesignModel, reference: Reference, angle: float, duratio
                       peak_moment=abs(moment_per_acc) * float(np.max(np.abs(reference.theta_ddot))))
 
 
-def bryson_weights(scales: TaskScales, tol: Tolerances = Tolerances()) -> Weights:
+def bryson_weights(scales: TaskScales, tol: Tolerances | None = None) -> Weights:
     """LQR/LQG/MPC weights by Bryson's rule from the task (``w = 1 / allowed^2``).
 
     Parameters
     ----------
     scales : TaskScales
-    tol : Tolerances
+    tol : Tolerances, optional
 
     Returns
     -------
     Weights
     """
+    tol = tol or Tolerances()
     angle = tol.angle_error * scales.angle
     rate = angle / (tol.rate_time * scales.duration)
     tip = tol.tip_deflection * scales.length
@@ -181,39 +214,117 @@ def bryson_weights(scales: TaskScales, tol: Tolerances = Tolerances()) -> Weight
                    modal=modal ** -2, modal_rate=(modal * w1) ** -2, torque=scales.tau_max ** -2)
 
 
-def sensor_noise(scales: TaskScales, tol: Tolerances = Tolerances()) -> dict:
+def sensor_noise(scales: TaskScales, tol: Tolerances | None = None) -> dict:
     """Sensor noise standard deviations of the task (see :class:`Tolerances`).
+
+    Parameters
+    ----------
+    scales : TaskScales
+    tol : Tolerances, optional
 
     Returns
     -------
     dict
-        ``angle_noise_rad`` [rad], ``rate_noise_rad_s`` [rad/s], ``moment_noise_nm`` [N m].
+        ``angle_noise_rad`` [rad], ``rate_noise_rad_s`` [rad/s], ``moment_noise_nm`` [N m]
+        (the fields of :class:`hubbeam_ctrl.plant.sensors.SensorSettings`).
     """
+    tol = tol or Tolerances()
     return {"angle_noise_rad": tol.angle_noise_rad,
             "rate_noise_rad_s": tol.rate_noise * scales.peak_rate,
             "moment_noise_nm": tol.moment_noise * scales.peak_moment}
 
 
-def kalman_noise(scales: TaskScales, tol: Tolerances = Tolerances()) -> dict:
+def kalman_noise(scales: TaskScales, tol: Tolerances | None = None) -> dict:
     """The Kalman filter's noise model: the sensors' noise and a torque process noise.
 
+    Parameters
+    ----------
+    scales : TaskScales
+    tol : Tolerances, optional
+
     Returns
     -------
     dict
-        :func:`sensor_noise` plus ``torque_noise_nm`` [N m] and ``modal_noise`` (0: the
-        torque noise drives the modes through the model).
+        :func:`sensor_noise` (zero levels raised to a millionth of the range, since the
+        filter needs noise on every sensor) plus ``torque_noise_nm`` [N m] and
+        ``modal_noise`` 0 (the torque noise drives the modes through the model).
     """
-    return {**sensor_noise(scales, tol), "torque_noise_nm": tol.torque_noise * scales.tau_max,
-            "modal_noise": 0.0}
+    tol = tol or Tolerances()
+    floor = {"angle_noise_rad": 1e-6 * scales.angle, "rate_noise_rad_s": 1e-6 * scales.peak_rate,
+             "moment_noise_nm": 1e-6 * max(scales.peak_moment, 1e-300)}
+    noise = {k: max(v, floor[k]) for k, v in sensor_noise(scales, tol).items()}
+    return {**noise, "torque_noise_nm": tol.torque_noise * scales.tau_max, "modal_noise": 0.0}
 
 
-def settling_bands(scales: TaskScales, tol: Tolerances = Tolerances()) -> dict:
+def settling_bands(scales: TaskScales, tol: Tolerances | None = None) -> dict:
     """Settling bands and the residual window's delay of the task.
 
+    Parameters
+    ----------
+    scales : TaskScales
+    tol : Tolerances, optional
+
     Returns
     -------
     dict
-        ``settle_angle`` [rad], ``settle_tip`` [m], ``residual_delay`` [s].
+        ``settle_angle`` [rad], ``settle_tip`` [m], ``residual_delay`` [s] (keywords of
+        :func:`hubbeam_ctrl.study.metrics.closed_loop_metrics`).
     """
+    tol = tol or Tolerances()
     return {"settle_angle": tol.settle_angle * scales.angle, "settle_tip": tol.settle_tip * scales.length,
             "residual_delay": tol.residual_delay * scales.duration}
+
+
+def reference_shaping(angle: float, duration: float, inertia: float, tau_max: float, first_mode_rad_s: float,
+                      tol: Tolerances | None = None) -> dict:
+    """Flatness and smoothing of the slew reference for the beam and the task.
+
+    The smoothing is ``tol.smoothing`` first-mode periods, at most ``0.45 t_f`` and at most
+    what keeps the reference's peak feedforward ``J a_max`` within ``feedforward_share``
+    of ``tau_max`` (0 if even the unsmoothed reference needs more).
+
+    Parameters
+    ----------
+    angle : float
+        Slew angle [rad].
+    duration : float
+        t_f [s].
+    inertia : float
+        Rigid-body inertia J_total [kg m^2].
+    tau_max : float
+        Torque budget [N m].
+    first_mode_rad_s : float
+        w_1 [rad/s].
+    tol : Tolerances, optional
+
+    Returns
+    -------
+    dict
+        ``flatness`` [-] and ``smoothing`` [s] (keywords of :func:`controllers.slew_reference`).
+    """
+    tol = tol or Tolerances()
+    c = slew_shape_constant(tol.flatness)
+    # peak feedforward J |angle| / (c (T - s)^2) <= share tau_max
+    longest = duration - math.sqrt(inertia * abs(angle) / (c * tol.feedforward_share * tau_max))
+    period = 2 * math.pi / first_mode_rad_s
+    smoothing = max(0.0, min(tol.smoothing * period, 0.45 * duration, longest))
+    return {"flatness": tol.flatness, "smoothing": smoothing}
+
+
+def scaled_defaults(scales: TaskScales, tol: Tolerances | None = None) -> dict:
+    """Controller settings of the task, by field name (for ``ControllerSettings.for_scenario``).
+
+    Parameters
+    ----------
+    scales : TaskScales
+    tol : Tolerances, optional
+
+    Returns
+    -------
+    dict
+        ``weights`` (:func:`bryson_weights`), the :class:`~controllers.estimator.KalmanNoise`
+        fields (:func:`kalman_noise`) and the PD ``bandwidth`` [rad/s].
+    """
+    tol = tol or Tolerances()
+    return {"weights": bryson_weights(scales, tol), **kalman_noise(scales, tol),
+            "bandwidth": tol.pd_bandwidth / scales.duration}

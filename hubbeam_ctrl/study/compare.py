@@ -26,9 +26,11 @@ import time
 from dataclasses import dataclass, field
 
 from controllers import CONTROLLERS, DesignModel, controller_names, make_controller
+from controllers.scaling import Tolerances
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 from hubbeam_ctrl.study.report import write_outputs
@@ -95,7 +97,7 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
             t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
             design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
             settings: dict | None = None, sim_settings: ClosedLoopSettings | None = None,
-            progress: bool = False) -> Comparison:
+            tolerances: Tolerances | None = None, progress: bool = False) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear plant.
 
     Parameters
@@ -127,7 +129,12 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
         Controller name -> settings object, replacing the defaults
         (``SettingsClass.for_scenario(scenario, horizon=..., solver=...)``).
     sim_settings : ClosedLoopSettings, optional
-        Plant integration and sensor settings (its ``dt`` is replaced by ``dt``).
+        Plant integration and sensor settings (its ``dt`` is replaced by ``dt``); default:
+        the sensor noise of the task (``scenario.sensors``, relative to its signals' ranges).
+    tolerances : controllers.scaling.Tolerances, optional
+        The dimensionless tolerances that scale the default weights, noise levels, settling
+        bands, residual window and reference shaping to the beam and the task (see
+        :mod:`controllers.scaling`).
     progress : bool
         Print one line per controller on stderr.
 
@@ -138,7 +145,7 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
     start = time.perf_counter()
     names = _parse_controllers(controllers)
     sc = make_scenario(scenario, plant=plant, params=params, tau_max=tau_max, t_f=t_f,
-                       t_end=t_end, dt=dt, w_f=w_f, slew_angle=slew_angle)
+                       t_end=t_end, dt=dt, w_f=w_f, slew_angle=slew_angle, tolerances=tolerances)
     if design_modes is not None and (isinstance(design_modes, bool) or not isinstance(design_modes, int)
                                      or not 1 <= design_modes <= sc.params.n_transverse):
         raise ParameterError(f"design_modes must be an integer in 1..{sc.params.n_transverse} "
@@ -148,7 +155,7 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
     if unknown:
         raise ParameterError(f"settings given for controllers not run: {', '.join(unknown)}")
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, design_modes)
-    sim = sim_settings or ClosedLoopSettings()
+    sim = sim_settings or ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
     model = build_model(sc.plant, sc.params)
@@ -161,7 +168,7 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res
-        metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max)
+        metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
         metrics[name]["scenario"] = sc.name
         if progress:
             m = metrics[name]

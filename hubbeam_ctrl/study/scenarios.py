@@ -8,12 +8,22 @@ profile, then hold); their builders' docstrings say more.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from controllers import slew_reference, spinup_reference
+from controllers import DesignModel, slew_reference, spinup_reference
+from controllers.scaling import (
+    Tolerances,
+    first_mode,
+    reference_shaping,
+    scaled_defaults,
+    sensor_noise,
+    settling_bands,
+    task_scales,
+)
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.tasks import Slew, SpinUp
@@ -97,6 +107,18 @@ class Scenario:
         (``tau_max`` itself for the Eq. 44 angle); None without an Eq. 44 baseline.
     task : Slew or SpinUp or None
         The task in physical terms (:mod:`hubbeam_ctrl.study.tasks`).
+    tolerances : controllers.scaling.Tolerances
+        The dimensionless tolerances that made the defaults below.
+    scales : controllers.scaling.TaskScales or None
+        The task's scales (angle, time, L, first mode, torque, signal ranges).
+    defaults : dict
+        Controller settings by field name from the scales (weights, Kalman noise, PD
+        bandwidth; read by ``ControllerSettings.for_scenario``).
+    sensors : dict
+        Sensor noise levels of the evaluation (fields of
+        :class:`~hubbeam_ctrl.plant.sensors.SensorSettings`).
+    bands : dict
+        ``settle_angle`` [rad], ``settle_tip`` [m] and ``residual_delay`` [s] of the metrics.
     """
 
     name: str
@@ -114,6 +136,11 @@ class Scenario:
     baseline: str = "feedforward"
     baseline_tau_m: float | None = None
     task: object = None
+    tolerances: object = None
+    scales: object = None
+    defaults: dict = None
+    sensors: dict = None
+    bands: dict = None
 
     def to_dict(self) -> dict:
         """Plain-data summary (JSON-ready)."""
@@ -122,13 +149,17 @@ class Scenario:
                 "design_spin_rad_s": self.design_spin,
                 self.target_key: self.target,
                 "reference": self.reference.description, "params": self.params.to_dict(),
-                "baseline_tau_m_nm": self.baseline_tau_m, "description": self.description}
+                "baseline_tau_m_nm": self.baseline_tau_m, "description": self.description,
+                "scales": self.scales.to_dict() if self.scales is not None else None,
+                "tolerances": self.tolerances.to_dict() if self.tolerances is not None else None,
+                "sensors": self.sensors, "bands": self.bands}
 
 
 def make_scenario(scenario="slew", *, plant: str = "cfoam", params: Params | None = None,
                   tau_max: float | None = None, t_f: float = 10.0, t_end: float = 30.0,
                   dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
-                  flatness: float = 3.0, preview_s: float = 2.0) -> Scenario:
+                  flatness: float | None = None, smoothing: float | None = None,
+                  tolerances: Tolerances | None = None, preview_s: float = 2.0) -> Scenario:
     """Build a :class:`Scenario` (validating every setting).
 
     Parameters
@@ -147,7 +178,8 @@ def make_scenario(scenario="slew", *, plant: str = "cfoam", params: Params | Non
     t_f : float
         Maneuver time [s], > 0.
     t_end : float
-        Simulated time [s]; must exceed ``t_f + 5`` (the residual window).
+        Simulated time [s]; must exceed the start of the residual window,
+        ``t_f (1 + tolerances.residual_delay)`` (15 s for the default 10 s slew).
     dt : float
         Controller sample time [s], > 0.
     w_f : float
@@ -155,8 +187,13 @@ def make_scenario(scenario="slew", *, plant: str = "cfoam", params: Params | Non
     slew_angle : float, optional
         Slew angle [rad], finite and not 0 (slew only); default: the Eq. 44 angle
         ``tau_max t_f^2 / (2 pi J_total)``.
-    flatness : float
-        Shape of the slew reference (see :func:`controllers.slew_reference`).
+    flatness, smoothing : float, optional
+        Shape [-] and acceleration smoothing [s] of the slew reference (see
+        :func:`controllers.slew_reference`); default: from the beam and the task
+        (:func:`controllers.scaling.reference_shaping`).
+    tolerances : controllers.scaling.Tolerances, optional
+        Dimensionless tolerances that scale the defaults (weights, noise levels, settling
+        bands, residual window, reference shaping) to the beam and the task.
     preview_s : float
         Reference tabulated this long beyond ``t_end`` (MPC preview) [s].
 
@@ -187,9 +224,13 @@ def make_scenario(scenario="slew", *, plant: str = "cfoam", params: Params | Non
     t_f = _number("tf", t_f, "s")
     t_end = _number("t_end", t_end, "s")
     dt = _number("dt", dt, "s")
-    if t_end <= t_f + 5.0:
-        raise ParameterError(f"t_end must exceed tf + 5 s = {t_f + 5:g} s (the residual-vibration "
-                             f"window starts there), got {t_end:g} s")
+    tol = tolerances if tolerances is not None else Tolerances()
+    if not isinstance(tol, Tolerances):
+        raise ParameterError(f"tolerances must be a Tolerances, got {type(tol).__name__}")
+    start = t_f * (1 + tol.residual_delay)
+    if t_end <= start:
+        raise ParameterError(f"t_end must exceed tf + {tol.residual_delay:g} tf = {start:g} s (the "
+                             f"residual-vibration window starts there), got {t_end:g} s")
     if dt > t_f / 10:
         raise ParameterError(f"dt must be at most tf/10 = {t_f / 10:g} s, got {dt:g} s")
     J = params.total_inertia
@@ -199,8 +240,30 @@ def make_scenario(scenario="slew", *, plant: str = "cfoam", params: Params | Non
     if task is not None:
         task.check_feasible(J, tau_max, tf_name)
     parts = SCENARIOS[name](params=params, tau_max=tau_max, t_f=t_f, dt=dt, t_ref_end=t_end + preview_s,
-                            w_f=w_f, flatness=flatness, task=task, eq44=eq44)
-    return Scenario(name, plant, params, tau_max, t_f, t_end, dt, task=task, **parts)
+                            w_f=w_f, flatness=flatness, smoothing=smoothing, tolerances=tol, task=task,
+                            eq44=eq44)
+    return Scenario(name, plant, params, tau_max, t_f, t_end, dt, task=task, tolerances=tol,
+                    **parts, **_scaled(params, tau_max, t_f, dt, task, parts, tol))
+
+
+@functools.lru_cache(maxsize=8)
+def _design_point(params: Params, spin: float, dt: float) -> DesignModel:
+    """The design model the scales are read from (cached: the comparison builds it again)."""
+    return DesignModel.build(params, spin, dt)
+
+
+def _scaled(params: Params, tau_max: float, t_f: float, dt: float, task, parts: dict, tol: Tolerances) -> dict:
+    """Scales, scaled controller defaults, sensor noise and metric bands of a scenario."""
+    if task is None:                   # a registered scenario without a task: the paper's numbers
+        return {"scales": None, "defaults": {}, "sensors": {},
+                "bands": {"settle_angle": 1e-3, "settle_tip": 1e-3, "residual_delay": 5.0}}
+    angle = task.angle if task.name == "slew" else abs(task.rate) * t_f / 2
+    if angle == 0.0:                   # a spin-up to rest: scale by one radian
+        angle = 1.0
+    design = _design_point(params, parts["design_spin"], dt)
+    scales = task_scales(design, parts["reference"], angle, t_f, tau_max)
+    return {"scales": scales, "defaults": scaled_defaults(scales, tol), "sensors": sensor_noise(scales, tol),
+            "bands": settling_bands(scales, tol)}
 
 
 def _budget(tau_max, params: Params) -> float:
@@ -231,19 +294,26 @@ def _task(name: str, tau_max: float, t_f: float, w_f, slew_angle, inertia: float
 
 
 @register_scenario("slew")
-def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness, task=None, eq44=False, **_) -> dict:
+def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None, tolerances=None, task=None,
+          eq44=False, **_) -> dict:
     """Rest-to-rest slew by ``task.angle`` in tf (default: the rigid-body angle of Eq. 44).
 
     Without an angle, ``Theta = tau_m t_f^2 / (2 pi J_total)`` with ``tau_m = tau_max``. The
     baseline is the open-loop Eq. 44 torque scaled to the angle and time,
     ``tau_m = 2 pi J_total Theta / t_f^2``; the feedback controllers follow a smooth
-    reference (:func:`controllers.slew_reference`) designed on SFOAM linearised at rest.
+    reference (:func:`controllers.slew_reference`, shaped for the beam and the task by
+    :func:`controllers.scaling.reference_shaping` unless ``flatness``/``smoothing`` are
+    given) designed on SFOAM linearised at rest.
     """
     J = params.total_inertia
     if task is None:                       # called without a task: the Eq. 44 angle
         task, eq44 = Slew.eq44(tau_max, t_f, J), True
     theta = task.angle
-    ref = slew_reference(theta, t_f, J, tau_max, dt, t_ref_end, flatness=flatness)
+    shape = reference_shaping(theta, t_f, J, tau_max, first_mode(_design_point(params, 0.0, dt)),
+                              tolerances or Tolerances())
+    shape = {"flatness": shape["flatness"] if flatness is None else flatness,
+             "smoothing": shape["smoothing"] if smoothing is None else smoothing}
+    ref = slew_reference(theta, t_f, J, tau_max, dt, t_ref_end, **shape)
     text = (f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
             f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)") if eq44 else task.describe(J)
     return dict(design_spin=0.0, target=theta, target_key="slew_angle_rad", baseline="eq44", reference=ref,
