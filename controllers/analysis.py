@@ -39,6 +39,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
+from hubbeam_ctrl.core.errors import ParameterError
+
 __all__ = ["LoopMargins", "design_plant", "loop_transfer", "loop_matrices", "closed_loop_poles",
            "loop_margins", "frequency_grid"]
 
@@ -84,24 +86,30 @@ def design_plant(ctrl):
                       name=f"{ctrl.name}_design_plant")
 
 
-def loop_matrices(ctrl):
+def loop_matrices(ctrl, plant=None):
     """State-space matrices ``(A, B, C, D)`` of the return ratio at the plant input.
 
-    ``L = -C(z) P(z)``: plant ``P`` (design model, input tau, outputs the controller's
-    inputs) followed by the controller ``C`` and a sign change, so that the loop is
-    ``u = -L u`` (negative feedback). State ``[x_plant, x_controller]``.
+    ``L = -C(z) P(z)``: plant ``P`` (input tau, outputs the controller's inputs) followed
+    by the controller ``C`` and a sign change, so that the loop is ``u = -L u`` (negative
+    feedback). State ``[x_plant, x_controller]``.
 
     Parameters
     ----------
     ctrl : Controller
         A linear controller.
+    plant : DesignModel, optional
+        The linear plant, with the design model's states (e.g. another payload); default
+        the controller's design model.
 
     Returns
     -------
     tuple of ndarray
     """
     c = ctrl.to_statespace()
-    d = ctrl.design
+    d = ctrl.design if plant is None else plant
+    if d.n_x != ctrl.design.n_x or d.dt != ctrl.design.dt:
+        raise ParameterError(f"plant must have the design model's {ctrl.design.n_x} states and dt = "
+                             f"{ctrl.design.dt:g} s, got {d.n_x} states and dt = {d.dt:g} s")
     Ac, Bc, Cc, Dc = (np.asarray(m, dtype=float) for m in (c.A, c.B, c.C, c.D))
     Cm = _measurement_matrix(d, list(c.input_labels))
     n, nc = d.n_x, Ac.shape[0]
@@ -129,19 +137,21 @@ def loop_transfer(ctrl):
                       name=f"{ctrl.name}_loop")
 
 
-def closed_loop_poles(ctrl) -> np.ndarray:
-    """Poles (z-plane) of the controller closed with its design model.
+def closed_loop_poles(ctrl, plant=None) -> np.ndarray:
+    """Poles (z-plane) of the controller closed with its design model (or ``plant``).
 
     Parameters
     ----------
     ctrl : Controller
         A linear controller.
+    plant : DesignModel, optional
+        A linear plant with the design model's states (default: the design model).
 
     Returns
     -------
     ndarray of complex
     """
-    A, B, C, _ = loop_matrices(ctrl)
+    A, B, C, _ = loop_matrices(ctrl, plant)
     return np.linalg.eigvals(A - B @ C)
 
 
@@ -285,7 +295,7 @@ def _disk_margin_control(A, B, C, D, dt, w) -> float | None:
     return float(control.disk_margins(control.ss(A, B, C, D, dt), w, skew=0.0)[0])
 
 
-def loop_margins(ctrl, n_points: int = 3000) -> LoopMargins:
+def loop_margins(ctrl, n_points: int = 3000, plant=None) -> LoopMargins:
     """Disk, gain, phase and delay margins at the plant input on the design model.
 
     Parameters
@@ -294,12 +304,15 @@ def loop_margins(ctrl, n_points: int = 3000) -> LoopMargins:
         A linear controller (PD, LQR, LQG; :meth:`~controllers.base.Controller.to_statespace`).
     n_points : int
         Points of the logarithmic background grid (the grid adds points around each pole).
+    plant : DesignModel, optional
+        A linear plant with the design model's states (e.g. another payload); default the
+        design model.
 
     Returns
     -------
     LoopMargins
     """
-    A, B, C, D = loop_matrices(ctrl)
+    A, B, C, D = loop_matrices(ctrl, plant)
     dt = ctrl.dt
     cl = np.linalg.eigvals(A - B @ C)
     rho = float(np.max(np.abs(cl)))
