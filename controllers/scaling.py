@@ -14,9 +14,9 @@ reference's rate and of the root bending moment its acceleration causes quasi-st
   tip deflection ``tip_deflection * L``, every modal coordinate half of that (a mode's tip
   deflection is twice its coordinate), their rates those times ``vibration_rate * w_1``,
   torque ``tau_max``;
-* sensor noise (:func:`sensor_noise`): the hub-angle encoder's own specification
-  ``angle_noise_rad`` (an angle is the same on any beam), the rate and root-moment sensors
-  relative to the ranges of their signals in the task;
+* sensor noise (:func:`sensor_noise`) relative to the ranges of the signals in the task
+  (the angle, the peak reference rate, the peak quasi-static root moment), at the paper's
+  ratios (1e-4 rad, 1e-3 rad/s, 0.02 N m on its slew);
 * the Kalman filter's process noise relative to ``tau_max`` (:func:`kalman_noise`);
 * settling bands relative to the angle and ``L``, the residual-vibration window starting
   ``residual_delay * t_f`` after the maneuver (:func:`settling_bands`);
@@ -60,8 +60,9 @@ from hubbeam_ctrl.core.validation import check_positive
 from .base import DesignModel, Reference, Weights
 from .reference import slew_shape_constant
 
-__all__ = ["Tolerances", "TaskScales", "task_scales", "first_mode", "bryson_weights", "sensor_noise",
-           "kalman_noise", "settling_bands", "reference_shaping", "scaled_defaults"]
+__all__ = ["Tolerances", "HEAVY_HUB", "LIGHT_HUB", "HUB_SHARES", "SPINUP_TOLERANCES", "default_tolerances",
+           "TaskScales", "task_scales", "first_mode", "bryson_weights", "sensor_noise", "kalman_noise",
+           "settling_bands", "reference_shaping", "scaled_defaults"]
 
 
 @dataclass(frozen=True)
@@ -74,6 +75,10 @@ class Tolerances(Settings):
                                doc="Allowed hub-rate error = allowed angle error / (rate_time t_f).")
     tip_deflection: float = setting(1e-3, lo=0.0, lo_open=True,
                                     doc="Allowed tip deflection of Bryson's rule, relative to L.")
+    modal_deflection: float | None = setting(None, lo=0.0, lo_open=True, kind=float,
+                                             doc="Allowed modal coordinate, relative to L; None: half the "
+                                                 "allowed tip deflection (a mode's tip deflection is twice "
+                                                 "its coordinate).")
     vibration_rate: float = setting(1.0, lo=0.0, lo_open=True,
                                     doc="Allowed tip and modal rates = allowed deflections times "
                                         "vibration_rate w_1 (first flexible mode).")
@@ -83,19 +88,22 @@ class Tolerances(Settings):
                                 doc="Settling band of the tip deflection, relative to L (1 mm on 8 m).")
     residual_delay: float = setting(0.5, lo=0.0,
                                     doc="Start of the residual-vibration window after t_f, relative to t_f.")
-    angle_noise_rad: float = setting(1e-4, unit="rad", lo=0.0,
-                                     doc="Hub-angle encoder noise, standard deviation: the sensor's own "
-                                         "specification (about 16 bits; an angle does not scale with the beam).")
-    rate_noise: float = setting(4e-4, lo=0.0,
+    angle_noise: float = setting(7.8e-6, lo=0.0,
+                                 doc="Hub-angle sensor noise relative to the task's angle (1e-4 rad on the "
+                                     "paper's slew).")
+    rate_noise: float = setting(3.9e-4, lo=0.0,
                                 doc="Hub-rate sensor noise relative to the task's peak reference rate.")
-    moment_noise: float = setting(1e-3, lo=0.0,
+    moment_noise: float = setting(7.5e-4, lo=0.0,
                                   doc="Root-moment sensor noise relative to the task's peak quasi-static "
                                       "root moment.")
     torque_noise: float = setting(0.025, lo=0.0, lo_open=True,
                                   doc="Kalman filter's process noise (hub torque per sample), relative "
                                       "to tau_max.")
+    modal_noise: float = setting(1e-4, lo=0.0,
+                                 doc="Kalman filter's process noise on each modal coordinate, relative to "
+                                     "L (on the rates: times vibration_rate w_1).")
     flatness: float = setting(3.0, lo=0.0, doc="Shape of the slew reference (controllers.slew_reference).")
-    smoothing: float = setting(0.0, lo=0.0,
+    smoothing: float = setting(0.5, lo=0.0,
                                doc="Smoothing of the slew reference's acceleration, in first-mode periods "
                                    "(capped by feedforward_share and 0.45 t_f).")
     feedforward_share: float = setting(0.75, lo=0.0, hi=1.0, lo_open=True,
@@ -103,6 +111,60 @@ class Tolerances(Settings):
                                            "feedforward (the rest is left to the feedback).")
     pd_bandwidth: float = setting(10.0, lo=0.0, lo_open=True,
                                   doc="PD rigid-body bandwidth times t_f (1 rad/s on the paper's 10 s slew).")
+
+
+#: Design tolerances of a slew with a heavy hub (``J_h / J_total >= 0.8``): the paper's tuned
+#: weights and filter noise (before they scaled) expressed relative to its slew (Table 1's
+#: beam, the Eq. 44 angle in 10 s), to four digits; no reference smoothing.
+HEAVY_HUB = {"angle_error": 7.808e-4, "rate_time": 0.3162, "tip_deflection": 2.282e-3,
+             "modal_deflection": 1.25e-3, "vibration_rate": 0.3463, "modal_noise": 1.25e-5, "smoothing": 0.0}
+#: Design tolerances of a slew with a light hub (``J_h / J_total <= 0.1``, e.g. a lab arm): the
+#: hub moves with the first mode, so the hub-rate weight damps the beam and the hub angle is
+#: held loosely; the reference is smoothed over half a first-mode period (measured on light-hub
+#: aluminium and steel links and a long boom, see docs/controllers.md).
+LIGHT_HUB = {"angle_error": 1e-2, "rate_time": 1.0, "tip_deflection": 1e-3, "modal_deflection": 5e-4,
+             "vibration_rate": 1.0, "modal_noise": 1e-4, "smoothing": 0.5}
+#: Hub shares of the two anchors; in between, every design tolerance is interpolated
+#: geometrically (the smoothing linearly) in the hub share.
+HUB_SHARES = (0.1, 0.8)
+#: Tolerances of a spin-up: the paper's tuned spin-up defaults expressed relative to its task
+#: (3 rad/s in 10 s on Table 1's beam), to four digits.
+SPINUP_TOLERANCES = Tolerances(angle_error=6.667e-4, rate_time=0.3162, tip_deflection=2.282e-3,
+                               modal_deflection=1.25e-3, vibration_rate=0.2970, settle_angle=6.667e-5,
+                               angle_noise=6.667e-6, rate_noise=3.333e-4, moment_noise=8.284e-4,
+                               modal_noise=1.25e-5, smoothing=0.0)
+
+
+def default_tolerances(task: str, hub_share: float | None = None) -> Tolerances:
+    """The default :class:`Tolerances` of a task on a beam.
+
+    Parameters
+    ----------
+    task : {"slew", "spinup"}
+    hub_share : float, optional
+        ``J_h / J_total`` [-] of the beam (slew only; default: a heavy hub).
+
+    Returns
+    -------
+    Tolerances
+        Spin-up: :data:`SPINUP_TOLERANCES`. Slew: the design tolerances interpolated between
+        :data:`LIGHT_HUB` and :data:`HEAVY_HUB` at ``hub_share`` (see :data:`HUB_SHARES`),
+        the other fields :class:`Tolerances`' defaults.
+
+    Examples
+    --------
+    >>> default_tolerances("slew", 0.8047).angle_error      # the paper's beam: its tuned weights
+    0.0007808
+    >>> default_tolerances("slew", 0.05).angle_error        # a light hub
+    0.01
+    """
+    if task == "spinup":
+        return SPINUP_TOLERANCES
+    share = 1.0 if hub_share is None else float(hub_share)
+    g = min(1.0, max(0.0, (share - HUB_SHARES[0]) / (HUB_SHARES[1] - HUB_SHARES[0])))
+    values = {k: (LIGHT_HUB[k] + g * (HEAVY_HUB[k] - LIGHT_HUB[k]) if k == "smoothing"
+                  else LIGHT_HUB[k] ** (1 - g) * HEAVY_HUB[k] ** g) for k in LIGHT_HUB}
+    return Tolerances(**values)
 
 
 def first_mode(design: DesignModel) -> float:
@@ -208,7 +270,7 @@ def bryson_weights(scales: TaskScales, tol: Tolerances | None = None) -> Weights
     angle = tol.angle_error * scales.angle
     rate = angle / (tol.rate_time * scales.duration)
     tip = tol.tip_deflection * scales.length
-    modal = tip / 2.0                     # |f2_i(L)| = 2: a mode's tip deflection is 2 q_i
+    modal = tip / 2.0 if tol.modal_deflection is None else tol.modal_deflection * scales.length
     w1 = tol.vibration_rate * scales.first_mode
     return Weights(angle=angle ** -2, rate=rate ** -2, tip=tip ** -2, tip_rate=(tip * w1) ** -2,
                    modal=modal ** -2, modal_rate=(modal * w1) ** -2, torque=scales.tau_max ** -2)
@@ -229,7 +291,7 @@ def sensor_noise(scales: TaskScales, tol: Tolerances | None = None) -> dict:
         (the fields of :class:`hubbeam_ctrl.plant.sensors.SensorSettings`).
     """
     tol = tol or Tolerances()
-    return {"angle_noise_rad": tol.angle_noise_rad,
+    return {"angle_noise_rad": tol.angle_noise * scales.angle,
             "rate_noise_rad_s": tol.rate_noise * scales.peak_rate,
             "moment_noise_nm": tol.moment_noise * scales.peak_moment}
 
@@ -246,14 +308,16 @@ def kalman_noise(scales: TaskScales, tol: Tolerances | None = None) -> dict:
     -------
     dict
         :func:`sensor_noise` (zero levels raised to a millionth of the range, since the
-        filter needs noise on every sensor) plus ``torque_noise_nm`` [N m] and
-        ``modal_noise`` 0 (the torque noise drives the modes through the model).
+        filter needs noise on every sensor) plus ``torque_noise_nm`` [N m], ``modal_noise``
+        [m] and ``modal_rate_noise`` [m/s] (the modal noise times ``vibration_rate w_1``).
     """
     tol = tol or Tolerances()
     floor = {"angle_noise_rad": 1e-6 * scales.angle, "rate_noise_rad_s": 1e-6 * scales.peak_rate,
              "moment_noise_nm": 1e-6 * max(scales.peak_moment, 1e-300)}
     noise = {k: max(v, floor[k]) for k, v in sensor_noise(scales, tol).items()}
-    return {**noise, "torque_noise_nm": tol.torque_noise * scales.tau_max, "modal_noise": 0.0}
+    modal = tol.modal_noise * scales.length
+    return {**noise, "torque_noise_nm": tol.torque_noise * scales.tau_max, "modal_noise": modal,
+            "modal_rate_noise": modal * tol.vibration_rate * scales.first_mode}
 
 
 def settling_bands(scales: TaskScales, tol: Tolerances | None = None) -> dict:

@@ -16,6 +16,7 @@ from hubbeam_ctrl.plots.plant import (
     plot_tip_comparison,
     save_figure,
 )
+from hubbeam_ctrl.plots.shaping import plot_shaper_sensitivity
 from hubbeam_ctrl.sim import simulate_closed_loop
 
 
@@ -86,6 +87,22 @@ def test_closed_loop_figures_carry_the_data(closed_loop_runs, tmp_path):
     assert sorted(line.get_ydata()[0] for line in ax.lines[2:]) == [-25.0, 25.0]
     path = save_figure(fig, tmp_path / "torque.png")
     assert path.stat().st_size > 5000
+
+
+def test_shaper_sensitivity_figure_carries_the_data(tmp_path):
+    e = np.linspace(-0.3, 0.3, 7)
+    curves = {"zv": np.abs(e), "ei": 0.05 + 0 * e}
+    fig = plot_shaper_sensitivity(e, curves, [-0.2, 0.0], {"zv": [0.2, 0.01]}, tolerance=0.05,
+                                  styles={"zv": {"color": "tab:purple", "label": "ZV shaped"}})
+    ax = fig.axes[0]
+    zv_line, zv_points, ei_line, tol = ax.lines
+    np.testing.assert_allclose(zv_line.get_xdata(), 100 * e)
+    np.testing.assert_allclose(zv_line.get_ydata(), 100 * np.abs(e))
+    np.testing.assert_allclose(zv_points.get_ydata(), [20.0, 1.0])
+    assert (zv_line.get_color(), zv_line.get_label()) == ("tab:purple", "ZV shaped (linear)")
+    assert (ei_line.get_color(), ei_line.get_label()) == ("C1", "ei (linear)")     # no style: the cycle
+    assert tol.get_ydata()[0] == pytest.approx(5.0)
+    assert save_figure(fig, tmp_path / "s.png").stat().st_size > 5000
 
 
 def test_every_public_plot_function_is_tested_here():

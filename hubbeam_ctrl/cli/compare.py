@@ -7,7 +7,7 @@ import json
 import sys
 import time
 
-from controllers import CONTROLLERS, QP_SOLVERS, controller_names
+from controllers import CONTROLLERS, QP_SOLVERS, SHAPERS, controller_names
 from hubbeam_ctrl.cli.main import RegistryChoices, finite_float, positive_float, positive_int
 from hubbeam_ctrl.core.errors import ParameterError
 
@@ -62,6 +62,10 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="comma-separated subset of the registered controllers "
                         + ", ".join(f"{n} ({s.label})" for n, s in CONTROLLERS.items())
                         + f" (default: {default})")
+    p.add_argument("--shaping", choices=list(SHAPERS), default=None,
+                   help="filter the reference of the controllers that track one ("
+                        + ",".join(n for n, s in CONTROLLERS.items() if s.tracks_reference)
+                        + ") through this input shaper, designed on the first mode of the design model")
     p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
                    help="torque budget [N m], at most the motor's tau_max of the parameters "
                         "(default: that limit, 200 N m in Table 1)")
@@ -82,6 +86,11 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="MPC horizon [samples] (default 50)")
     p.add_argument("--solver", choices=list(QP_SOLVERS), default="daqp",
                    help="MPC QP solver: %(choices)s (default %(default)s)")
+    p.add_argument("--schedule", metavar="N", type=positive_int("schedule"), default=1,
+                   help="design the controllers with a scheduled version ("
+                        + ",".join(n for n, s in CONTROLLERS.items() if s.scheduled)
+                        + ") at N spin rates from 0 to the top reference rate and interpolate them on "
+                          "the measured rate (default 1: one design point)")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     p.set_defaults(func=run)
@@ -113,7 +122,7 @@ def run(args) -> int:
         comparison = compare(args.plant, args.scenario, args.controllers, params=params,
                              tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
                              w_f=args.wf, slew_angle=args.slew_angle, horizon=args.horizon,
-                             solver=args.solver,
+                             solver=args.solver, shaping=args.shaping, schedule=args.schedule,
                              progress=not args.json)
         write_outputs(comparison, out)
     wall = time.perf_counter() - t0

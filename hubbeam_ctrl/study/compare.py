@@ -8,7 +8,10 @@ plots and ``report.md``.
 
 The controllers come from the registry :data:`controllers.CONTROLLERS` (each with its
 default settings for a scenario, ``Settings.for_scenario``), the scenarios from
-:data:`hubbeam_ctrl.study.scenarios.SCENARIOS`.
+:data:`hubbeam_ctrl.study.scenarios.SCENARIOS`. ``shaping=`` filters the reference of the
+controllers that track one through an input shaper; ``schedule=N`` runs the registered
+gain-scheduled version of those that have one on ``N`` design spins
+(:meth:`controllers.DesignSchedule.for_scenario`).
 
 Example
 -------
@@ -25,7 +28,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from controllers import CONTROLLERS, DesignModel, controller_names, make_controller
+from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
 from controllers.scaling import Tolerances
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.models import build_model
@@ -60,6 +63,14 @@ def _parse_controllers(controllers) -> tuple:
     if len(set(names)) != len(names):
         raise ParameterError(f"controllers: each may appear once, got {','.join(names)}")
     return tuple(names)
+
+
+def _design_schedule(sc: Scenario, points, design_modes):
+    """The scenario's design schedule of ``points`` spins (None for a single design)."""
+    if isinstance(points, bool) or not isinstance(points, int) or points < 1:
+        raise ParameterError(f"schedule must be an integer >= 1 (number of spin rates; 1 = a single "
+                             f"design at the scenario's design spin), got {points!r}")
+    return None if points == 1 else DesignSchedule.for_scenario(sc, points, design_modes)
 
 
 @dataclass
@@ -97,7 +108,8 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
             t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
             design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
             settings: dict | None = None, sim_settings: ClosedLoopSettings | None = None,
-            tolerances: Tolerances | None = None, progress: bool = False) -> Comparison:
+            shaping=None, schedule: int = 1, tolerances: Tolerances | None = None,
+            progress: bool = False) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear plant.
 
     Parameters
@@ -131,6 +143,15 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
     sim_settings : ClosedLoopSettings, optional
         Plant integration and sensor settings (its ``dt`` is replaced by ``dt``); default:
         the sensor noise of the task (``scenario.sensors``, relative to its signals' ranges).
+    shaping : {"zv", "zvd", "ei"} or Shaper, optional
+        Filter the reference of the controllers that track it (pd, lqr, lqg, mpc: see
+        :attr:`controllers.ControllerSpec.tracks_reference`) through this input shaper,
+        designed on the design model's first mode.
+    schedule : int
+        Spin rates of the design schedule of the controllers with a scheduled version (lqr,
+        lqg, mpc), evenly spaced from 0 to the reference's top rate
+        (:meth:`controllers.DesignSchedule.for_scenario`); 1: a single design at the
+        scenario's design spin.
     tolerances : controllers.scaling.Tolerances, optional
         The dimensionless tolerances that scale the default weights, noise levels, settling
         bands, residual window and reference shaping to the beam and the task (see
@@ -155,6 +176,8 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
     if unknown:
         raise ParameterError(f"settings given for controllers not run: {', '.join(unknown)}")
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, design_modes)
+    shaper = None if shaping is None else as_shaper(design, shaping)
+    sched = _design_schedule(sc, schedule, design_modes)
     sim = sim_settings or ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
@@ -164,7 +187,9 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
     for name in names:
         st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
                                                                             solver=solver)
-        ctrl = make_controller(name, design, st, ref)
+        spec = CONTROLLERS[name]
+        ctrl = make_controller(name, design, st, ref, shaping=shaper if spec.tracks_reference else None,
+                               schedule=sched if spec.scheduled else None)
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res

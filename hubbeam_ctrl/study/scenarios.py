@@ -17,6 +17,7 @@ import numpy as np
 from controllers import DesignModel, slew_reference, spinup_reference
 from controllers.scaling import (
     Tolerances,
+    default_tolerances,
     first_mode,
     reference_shaping,
     scaled_defaults,
@@ -224,7 +225,8 @@ def make_scenario(scenario="slew", *, plant: str = "cfoam", params: Params | Non
     t_f = _number("tf", t_f, "s")
     t_end = _number("t_end", t_end, "s")
     dt = _number("dt", dt, "s")
-    tol = tolerances if tolerances is not None else Tolerances()
+    tol = tolerances if tolerances is not None else default_tolerances(
+        task.name if task is not None else name, params.J_h / params.total_inertia)
     if not isinstance(tol, Tolerances):
         raise ParameterError(f"tolerances must be a Tolerances, got {type(tol).__name__}")
     start = t_f * (1 + tol.residual_delay)
