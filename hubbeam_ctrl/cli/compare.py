@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 
@@ -92,9 +93,43 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                         + ") at N spin rates from 0 to the top reference rate and interpolate them on "
                           "the measured rate (default 1: one design point)")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
+    p.add_argument("--payload-range", metavar="MIN,MAX",
+                   help="tip payloads [kg] that LQR, LQG and MPC are designed for (must hold the tip mass "
+                        "of the parameters); runs the plant at MIN, the nominal tip mass and MAX and "
+                        "writes payload.json and payload_report.md")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     p.set_defaults(func=run)
     return p
+
+
+def parse_payload_range(text: str, nominal: float) -> tuple:
+    """``"MIN,MAX"`` -> ``(m_min, m_max)`` [kg], validated (one-line error naming payload-range)."""
+    from controllers.robust import check_payload_range
+    parts = [t.strip() for t in str(text).split(",")]
+    try:
+        values = tuple(float(t) for t in parts)
+    except ValueError:
+        values = None
+    if values is None or len(values) != 2 or not all(math.isfinite(v) for v in values):
+        raise ParameterError(f"payload-range must be two finite numbers MIN,MAX [kg], got {text!r}")
+    return check_payload_range(values, nominal, "payload-range")
+
+
+def _run_payload(args, params, out) -> int:
+    from hubbeam_ctrl.study.payload import payload_comparison, payload_table, write_payload_outputs
+    payload_range = parse_payload_range(args.payload_range, params.m_t)
+    with stdout_to_stderr():
+        pc = payload_comparison(args.plant, args.scenario, args.controllers, payload_range=payload_range,
+                                params=params, tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
+                                w_f=args.wf, slew_angle=args.slew_angle, horizon=args.horizon,
+                                solver=args.solver)
+        write_payload_outputs(pc, out)
+    if args.json:
+        print(json.dumps(json.loads((out / "payload.json").read_text())))
+    else:
+        print(payload_table(pc))
+        print(f"wrote {out}/payload.json, payload_report.md")
+    return 0
 
 
 def run(args) -> int:
@@ -117,6 +152,8 @@ def run(args) -> int:
         raise ParameterError(f"out: folder {out.parent} does not exist")
     if out.exists() and not out.is_dir():
         raise ParameterError(f"out: {out} exists and is not a folder")
+    if args.payload_range is not None:
+        return _run_payload(args, params, out)
     t0 = time.perf_counter()
     with stdout_to_stderr():
         comparison = compare(args.plant, args.scenario, args.controllers, params=params,

@@ -2,8 +2,11 @@
 
 Example::
 
-    hubbeam design --params arm.toml --controller lqg --out lqg.mat --json
+    hubbeam design --params arm.toml --controller lqg --slew-angle 1.5708 --tf 1.2 --out lqg.mat
 
+The controller is designed for a task (a slew by ``--slew-angle`` in ``--tf``, or a spin-up to
+``--wf``) with the defaults that scale with the beam and the task (:mod:`controllers.scaling`),
+optionally for a payload range (``--payload-range MIN,MAX``, :mod:`hubbeam_ctrl.study.payload`).
 The file holds ``Ac, Bc, Cc, Dc``, the sample time, the signal names and units and the design
 (see :mod:`controllers.export`); the command prints the loop margins at the plant input on
 the design model (:func:`controllers.analysis.loop_margins`).
@@ -32,24 +35,26 @@ def add_parser(subparsers, common) -> None:
                      "design model."))
     p.add_argument("--controller", choices=LINEAR_CONTROLLERS, required=True,
                    help="linear controller to design")
-    p.add_argument("--spin", metavar="RAD_S", type=finite_float("spin"), default=0.0,
-                   help="design spin rate [rad/s] (default 0, the slew design point)")
+    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
+                   help="the task: slew (default, design at rest) or spinup (design at --wf)")
+    p.add_argument("--slew-angle", metavar="RAD", type=finite_float("slew-angle"),
+                   help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
+    p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
+                   help="maneuver time [s] (default 10)")
+    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), default=3.0,
+                   help="spin-up final rate [rad/s] (default 3)")
+    p.add_argument("--payload-range", metavar="MIN,MAX",
+                   help="tip payloads [kg] to design LQR or LQG for (must hold the parameters' tip mass)")
     p.add_argument("--dt", metavar="S", type=positive_float("dt"), default=0.01,
                    help="sample time [s] (default 0.01)")
     p.add_argument("--design-modes", metavar="N", type=int,
                    help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
     p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
-                   help="controller torque limit [N m], at most the motor's tau_max (default: that)")
+                   help="torque budget [N m], at most the motor's tau_max (default: that)")
     p.add_argument("--out", metavar="FILE.mat|FILE.npz|FILE.json", required=True,
                    help="output file; the format follows the extension")
     p.add_argument("--json", action="store_true", help="print a JSON summary with the margins")
     p.set_defaults(func=run)
-
-
-def _settings(name: str, tau_max):
-    from controllers import CONTROLLERS
-    settings_cls = CONTROLLERS[name].settings
-    return settings_cls() if tau_max is None else settings_cls(tau_max=tau_max)
 
 
 def _finite(value):
@@ -65,11 +70,14 @@ def run(args) -> int:
     """Run ``hubbeam design``; bad input raises :class:`ParameterError`."""
     from pathlib import Path
 
-    from controllers import DesignModel, make_controller
+    from controllers import CONTROLLERS, DesignModel, make_controller
     from controllers.analysis import loop_margins
     from controllers.export import FORMATS, save_controller
+    from hubbeam_ctrl.cli.compare import parse_payload_range
     from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
     from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.payload import range_designs
+    from hubbeam_ctrl.study.scenarios import make_scenario
 
     out = Path(args.out)
     if out.suffix.lower() not in FORMATS:
@@ -82,8 +90,18 @@ def run(args) -> int:
     modes = args.design_modes if args.design_modes is not None else params.n_transverse
     if not 1 <= modes <= 20:
         raise ParameterError(f"design-modes must be an integer in 1..20, got {modes}")
-    design = DesignModel.build(params, args.spin, args.dt, modes)
-    ctrl = make_controller(args.controller, design, _settings(args.controller, args.tau_max))
+    if args.slew_angle is not None and (args.slew_angle == 0 or args.scenario != "slew"):
+        raise ParameterError("slew-angle must be a finite number != 0 [rad], for --scenario slew only")
+    sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
+                       t_end=3 * args.tf, dt=args.dt, w_f=args.wf, slew_angle=args.slew_angle)
+    design = DesignModel.build(params, sc.design_spin, args.dt, modes)
+    settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
+    if args.payload_range is not None:
+        rng = parse_payload_range(args.payload_range, params.m_t)
+        if args.controller in ("lqr", "lqg"):
+            chosen = range_designs([args.controller], sc, design, rng)[args.controller]
+            design, settings = chosen.design, chosen.settings
+    ctrl = make_controller(args.controller, design, settings, sc.reference)
     save_controller(ctrl, out)
     m = loop_margins(ctrl)
     if args.json:
@@ -93,7 +111,8 @@ def run(args) -> int:
         print(json.dumps(_finite(summary)))
         return 0
     sys = ctrl.to_statespace()
-    print(f"{ctrl.name.upper()} on SFOAM ({modes} modes) at spin {args.spin:g} rad/s, dt = {args.dt:g} s: "
+    print(f"{ctrl.name.upper()} on SFOAM ({modes} modes, m_t = {design.params.m_t:g} kg) at spin "
+          f"{sc.design_spin:g} rad/s, dt = {args.dt:g} s, for {sc.description}: "
           f"{sys.nstates} states, inputs {', '.join(sys.input_labels)}, output tau; "
           f"|tau| <= {ctrl.tau_max:g} N m")
     print(f"  closed loop on the design model: {'stable' if m.stable else 'UNSTABLE'} "

@@ -6,10 +6,11 @@ import sys as _sys  # noqa: E402
 
 from hubbeam_ctrl.study.compare import *  # noqa: F401,F403
 from hubbeam_ctrl.study.metrics import *  # noqa: F401,F403
+from hubbeam_ctrl.study.payload import *  # noqa: F401,F403
 from hubbeam_ctrl.study.report import *  # noqa: F401,F403
 from hubbeam_ctrl.study.scenarios import *  # noqa: F401,F403
 from hubbeam_ctrl.study.shaping import *  # noqa: F401,F403
 from hubbeam_ctrl.study.tasks import *  # noqa: F401,F403
 
-__all__ = [name for _m in ('metrics', 'tasks', 'scenarios', 'compare', 'report', 'shaping')
+__all__ = [name for _m in ('metrics', 'tasks', 'scenarios', 'compare', 'report', 'shaping', 'payload')
            for name in _sys.modules[f"hubbeam_ctrl.study.{_m}"].__all__]

@@ -109,6 +109,7 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
             design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
             settings: dict | None = None, sim_settings: ClosedLoopSettings | None = None,
             shaping=None, schedule: int = 1, tolerances: Tolerances | None = None,
+            plant_params: Params | None = None, payload_range=None, designs: dict | None = None,
             progress: bool = False) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear plant.
 
@@ -156,6 +157,15 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
         The dimensionless tolerances that scale the default weights, noise levels, settling
         bands, residual window and reference shaping to the beam and the task (see
         :mod:`controllers.scaling`).
+    plant_params : Params, optional
+        Parameters of the nonlinear plant when they differ from the design's ``params``
+        (e.g. another payload).
+    payload_range : tuple of float, optional
+        ``(m_min, m_max)`` [kg] that LQR, LQG and MPC are designed for
+        (:func:`controllers.robust.design_for_range`); must hold ``params.m_t``.
+    designs : dict, optional
+        Controller name -> :class:`controllers.robust.RangeDesign` (design model and
+        settings) chosen beforehand (see :func:`hubbeam_ctrl.study.payload.range_designs`).
     progress : bool
         Print one line per controller on stderr.
 
@@ -181,14 +191,23 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
     sim = sim_settings or ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
-    model = build_model(sc.plant, sc.params)
+    if plant_params is not None and not isinstance(plant_params, Params):
+        raise ParameterError(f"plant_params must be a Params, got {type(plant_params).__name__}")
+    model = build_model(sc.plant, sc.params if plant_params is None else plant_params)
     ref = sc.reference
+    designs = dict(designs or {})
+    if payload_range is not None:
+        from hubbeam_ctrl.study.payload import range_designs
+        designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
+                                   solver=solver), **designs}
     results, metrics = {}, {}
     for name in names:
         st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
                                                                             solver=solver)
         spec = CONTROLLERS[name]
-        ctrl = make_controller(name, design, st, ref, shaping=shaper if spec.tracks_reference else None,
+        d = designs[name].design if name in designs else design
+        st = designs[name].settings if name in designs else st
+        ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=sched if spec.scheduled else None)
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
