@@ -337,7 +337,7 @@ def loop_margins(ctrl, n_points: int = 3000, plant=None) -> LoopMargins:
     gains = []
     for wp in _roots(lambda x: L_at(x).imag, w, Lw.imag):
         Lp = L_at(wp)
-        if Lp.real < 0 and abs(Lp.imag) <= 1e-6 * abs(Lp):
+        if Lp.real < 0 and abs(Lp.imag) <= 1e-6 * abs(Lp) and abs(Lp) < 1e9:   # not at a pole
             gains.append(1.0 / abs(Lp))
     L_nyq = L_at(math.pi / dt)
     if L_nyq.real < 0:

@@ -29,8 +29,9 @@ import time
 from dataclasses import dataclass, field
 
 from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
+from controllers.analysis import loop_margins
 from controllers.scaling import Tolerances
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.plant.sensors import SensorSettings
@@ -92,6 +93,9 @@ class Comparison:
         Controller name -> plot style ``{"color", "label"}`` (from the registry).
     targets : tuple of str
         The controllers held to the slew's targets (the others are only reported).
+    margins : dict
+        Controller name -> :class:`controllers.analysis.LoopMargins` at the plant input on
+        its design model, for the linear controllers (PD, LQR, LQG).
     """
 
     scenario: Scenario
@@ -101,6 +105,7 @@ class Comparison:
     paths: dict = field(default_factory=dict)
     styles: dict = field(default_factory=dict)
     targets: tuple = ()
+    margins: dict = field(default_factory=dict)
 
 
 def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
@@ -200,7 +205,7 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
         from hubbeam_ctrl.study.payload import range_designs
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
                                    solver=solver), **designs}
-    results, metrics = {}, {}
+    results, metrics, margins = {}, {}, {}
     for name in names:
         st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
                                                                             solver=solver)
@@ -209,11 +214,17 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
         st = designs[name].settings if name in designs else st
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=sched if spec.scheduled else None)
+        margins[name] = _margins(ctrl)
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res
         metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
         metrics[name]["scenario"] = sc.name
+        if margins[name] is not None:
+            m = margins[name]
+            metrics[name].update(disk_margin=m.disk_margin, gain_margin_upper=m.gain_margin_upper,
+                                 gain_margin_lower=m.gain_margin_lower, phase_margin_deg=m.phase_margin_deg,
+                                 delay_margin_s=m.delay_margin_s)
         if progress:
             m = metrics[name]
             print(f"compare {sc.plant}/{sc.name}: {name:8s} residual {m['residual_tip_max_m']:.3e} m, "
@@ -226,7 +237,17 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
                                              if base and math.isfinite(base) else float("nan"))
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
-                      targets=tuple(n for n in names if CONTROLLERS[n].target))
+                      targets=tuple(n for n in names if CONTROLLERS[n].target),
+                      margins={n: m for n, m in margins.items() if m is not None})
+
+
+def _margins(ctrl):
+    """Loop margins of a linear controller on its design model (None for the others)."""
+    try:
+        ctrl.feedback_matrices()
+    except HubbeamError:
+        return None
+    return loop_margins(ctrl)
 
 
 def run_compare(plant: str = "cfoam", scenario: str = "slew", controllers=None,

@@ -47,7 +47,7 @@ def _targets(comparison) -> list:
     for name, mm in m.items():
         res_ok = (base is not None and mm["residual_tip_max_m"] <= 0.01 * base) if name != "openloop" else None
         rows.append((name, res_ok, mm.get("within_torque_limit"),
-                     abs(mm["final_angle_error_rad"]) <= 1e-3))
+                     abs(mm["final_angle_error_rad"]) <= 1e-3 * abs(comparison.scenario.target)))
     return rows
 
 
@@ -107,19 +107,23 @@ def _report(comparison) -> str:
              f"- Design model: SFOAM linearised at {sc.design_spin:g} rad/s; plant {sc.plant.upper()} "
              f"with {sc.params.n_axial} axial and {sc.params.n_transverse} transverse modes, "
              f"m_t = {sc.params.m_t:g} kg.",
-             f"- Residual vibration: |v_tip| from tf + 5 s = {sc.t_f + 5:g} s to the end. "
-             f"Settling: hub-angle error within 1 mrad and |v_tip| within 1 mm for good.",
+             f"- Residual vibration: |v_tip| from tf + {sc.bands['residual_delay']:g} s = "
+             f"{sc.t_f + sc.bands['residual_delay']:g} s to the end. Settling: hub-angle error within "
+             f"{1e3 * sc.bands['settle_angle']:.3g} mrad and |v_tip| within {1e3 * sc.bands['settle_tip']:.3g} mm "
+             f"for good (bands relative to the task's angle and L).",
              f"- Wall time of the comparison: {comparison.wall_s:.1f} s.", "",
              markdown_table(comparison.metrics), ""]
     if sc.name == "slew" and "openloop" in comparison.metrics:
         lines += ["## Targets (slew)", "",
-                  "| controller | residual <= 1 % of open loop | abs(tau) <= tau_max | final error <= 1 mrad |",
+                  "| controller | residual <= 1 % of open loop | abs(tau) <= tau_max | "
+                  "final error <= 1e-3 of the slew angle |",
                   "|---|---|---|---|"]
         yes = {True: "yes", False: "**no**", None: "-"}
         for name, r_ok, t_ok, a_ok in _targets(comparison):
             note = "" if name in comparison.targets or name == "openloop" else " (reported only)"
             lines.append(f"| {name}{note} | {yes[r_ok]} | {yes[t_ok]} | {yes[a_ok]} |")
         lines.append("")
+    lines += _margin_lines(getattr(comparison, "margins", {}))
     notes = [f"- {name}: {m['message']}" for name, m in comparison.metrics.items() if not m["completed"]]
     notes += [f"- {name}: {m['qp_fallbacks']} of {m['qp_solves']} QPs failed and fell back to LQR"
               for name, m in comparison.metrics.items() if m.get("qp_fallbacks")]
@@ -128,6 +132,27 @@ def _report(comparison) -> str:
     lines += ["## Plots", "", "![tip deflection](tip_deflection.png)", "",
               "![hub angle](hub_angle.png)", "", "![torque](torque.png)", ""]
     return "\n".join(lines)
+
+
+def _margin_lines(margins: dict) -> list:
+    """The report's section on the linear loops' margins at the plant input (design model)."""
+    if not margins:
+        return []
+    f = lambda v, fmt: "-" if v is None or not math.isfinite(v) else fmt.format(v)
+    lines = ["## Loop margins at the plant input (design model)", "",
+             "Disk margin (balanced; python-control's `disk_margins` on the same grid in brackets), "
+             "the gains and phase it guarantees together, classical gain and phase margins and the delay "
+             "margin (controllers.analysis.loop_margins).", "",
+             "| controller | stable | disk margin | disk gains | disk phase deg | gain margins | "
+             "phase margin deg | delay margin ms |", "|---|---|---|---|---|---|---|---|"]
+    for name, m in margins.items():
+        lo, hi = m.disk_gain_margin
+        lines.append(f"| {name} | {'yes' if m.stable else '**no**'} | {m.disk_margin:.3f} "
+                     f"({f(m.disk_margin_control, '{:.3f}')}) | {lo:.3f}..{f(hi, '{:.3f}')} | "
+                     f"{m.disk_phase_margin_deg:.1f} | {f(m.gain_margin_lower, '{:.3g}')} / "
+                     f"{f(m.gain_margin_upper, '{:.3g}')} | {f(m.phase_margin_deg, '{:.1f}')} | "
+                     f"{f(m.delay_margin_s * 1e3, '{:.3g}')} |")
+    return lines + [""]
 
 
 _TABLE = [
