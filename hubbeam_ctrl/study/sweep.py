@@ -150,7 +150,8 @@ def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
     return {"scenario": sc, "key": (dkey, task, design_p, w_f),
             "design": cache.get(dkey, lambda: DesignModel.build(design_p, spin, spec.dt, spec.design_modes)),
             "plant": cache.get(("plant", spec.plant, plant_p), lambda: build_model(spec.plant, plant_p)),
-            "sim": ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(seed=int(case.get("seed", 0))))}
+            "sim": ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(**(sc.sensors or {}),
+                                                                         seed=int(case.get("seed", 0))))}
 
 
 def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> dict:
@@ -161,7 +162,7 @@ def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> 
         name, ctx["design"], controller_settings(name, table, sc, spec.horizon, spec.solver), sc.reference))
     res = simulate_closed_loop(ctx["plant"], ctrl, sc.t_end, settings=ctx["sim"],
                                reference=(sc.reference.theta_at, sc.reference.theta_dot_at))
-    row = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max)
+    row = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **(sc.bands or {}))
     row.update(scenario=sc.name, verdict=row.get("verdict"), error="", sim_wall_s=row["wall_s"])
     return row
 
