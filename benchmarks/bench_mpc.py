@@ -12,7 +12,7 @@ Prints one JSON object. Run: ``.venv/bin/python benchmarks/bench_mpc.py [--pc-so
    tens of seconds per solve, so only ``--pc-solves`` solves are timed and the per-step and
    per-run times are scaled from them. Its first move and plan cost are compared with ours.
 3. The plant stepper alone (ms per 10 ms sample) on FOAM and CFOAM.
-4. The wall time of ``hubbeam compare --plant cfoam`` with the defaults (all five
+4. The wall time of ``hubbeam compare --plant foam`` with the defaults (all five
    controllers), as a subprocess (interpreter start and imports included).
 """
 
@@ -115,15 +115,15 @@ def stepper_ms(name: str, n: int = 500) -> float:
 
 def compare_wall() -> dict:
     exe = Path(sys.executable).with_name("hubbeam")
-    cmd = [str(exe) if exe.exists() else sys.executable, "compare", "--plant", "cfoam",
+    cmd = [str(exe) if exe.exists() else sys.executable, "compare", "--plant", "foam",
            "--json"]
     if not exe.exists():
-        cmd = [sys.executable, "-m", "hubbeam_ctrl.cli.main", "compare", "--plant", "cfoam", "--json"]
+        cmd = [sys.executable, "-m", "hubbeam_ctrl.cli.main", "compare", "--plant", "foam", "--json"]
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         proc = subprocess.run(cmd + ["--out", str(Path(tmp) / "cmp")], capture_output=True, text=True)
         wall = time.perf_counter() - t0
-    out = {"command": "hubbeam compare --plant cfoam --out DIR --json", "wall_s": wall,
+    out = {"command": "hubbeam compare --plant foam --out DIR --json", "wall_s": wall,
            "returncode": proc.returncode}
     if proc.returncode == 0:
         data = json.loads(proc.stdout)
@@ -177,7 +177,7 @@ def _run(args) -> dict:
                   file=sys.stderr)
     report["stepper_ms_per_sample"] = {"foam": stepper_ms("foam"), "cfoam": stepper_ms("cfoam")}
     if not args.no_compare:
-        report["hubbeam_compare_cfoam"] = compare_wall()
+        report["hubbeam_compare_foam"] = compare_wall()
     two = [r for r in report["ours"] if r["n_modes"] == 2 and r["solver"] == "daqp"]
     if two:
         report["target_met_2_modes"] = two[0]["median_ms"] <= 0.5

@@ -52,6 +52,7 @@ from .schedule import (
     ScheduledLQG,
     ScheduledLQR,
     ScheduledMPC,
+    filter_schedule,
     scheduled_lqg_iosystem,
     scheduled_lqr_iosystem,
 )
@@ -71,5 +72,5 @@ __all__ = [
     "Shaper", "SHAPERS", "as_shaper", "design_shaper", "shape_reference", "ShapedOpenLoop", "ShapedSettings",
     "ZVOpenLoop", "ZVDOpenLoop", "EIOpenLoop",
     "DesignSchedule", "ScheduledLQR", "ScheduledLQG", "ScheduledMPC",
-    "scheduled_lqr_iosystem", "scheduled_lqg_iosystem",
+    "scheduled_lqr_iosystem", "scheduled_lqg_iosystem", "filter_schedule",
 ]

@@ -44,13 +44,15 @@ class KalmanNoise(Settings):
                                       doc="Assumed hub-rate sensor noise, standard deviation.")
     moment_noise_nm: float = setting(_SENSORS.moment_noise_nm, unit="N m", lo=0.0, lo_open=True,
                                      doc="Assumed root-moment sensor noise, standard deviation.")
-    torque_noise_nm: float = setting(5.0, unit="N m", lo=0.0, lo_open=True,
+    torque_noise_nm: float = setting(1.0, unit="N m", lo=0.0, lo_open=True,
                                      doc="Process noise: white torque disturbance at the hub, standard "
                                          "deviation per sample (stands for model error: FOAM's "
-                                         "stiffening and Q_theta, the axial modes).")
-    modal_noise: float = setting(1e-4, unit="m or m/s", lo=0.0,
+                                         "stiffening and Q_theta, the axial modes). Until the residual "
+                                         "modes came, 5 N m; 1 N m halves the tip motion the sensor "
+                                         "noise causes (docs/controllers.md).")
+    modal_noise: float = setting(1e-5, unit="m or m/s", lo=0.0,
                                  doc="Process noise on each modal coordinate and rate per sample, "
-                                     "standard deviation.")
+                                     "standard deviation (until the residual modes came, 1e-4).")
     modal_rate_noise: float | None = setting(None, unit="m/s", lo=0.0, kind=float,
                                              doc="Process noise on each modal rate per sample; None: "
                                                  "modal_noise.")

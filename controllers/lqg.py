@@ -1,4 +1,9 @@
-"""LQG: the LQR gain on a steady-state Kalman filter fed by realistic hub and root sensors."""
+"""LQG: the LQR gain on a steady-state Kalman filter fed by realistic hub and root sensors.
+
+By default (``robust=True``) the filter's model carries the beam's residual modes (see
+:mod:`controllers.residual` and docs/controllers.md): a filter on the design modes alone
+destabilises the modes it leaves out through the root-moment sensor.
+"""
 
 from __future__ import annotations
 
@@ -6,20 +11,49 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hubbeam_ctrl.core.settings import setting
+from hubbeam_ctrl.plant.params import MAX_MODES
+
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
 from .estimator import KalmanEstimator, KalmanNoise
 from .lqr import dlqr_gain
+from .residual import embedding, estimator_model
 
 __all__ = ["LQGSettings", "LQG"]
 
 
 @dataclass(frozen=True)
 class LQGSettings(KalmanNoise, LQSettings):
-    """Settings of :class:`LQG`: those of LQR plus the Kalman filter's noise model.
+    """Settings of :class:`LQG`: those of LQR, the Kalman filter's noise model and its model's modes.
 
     The sensor noise levels are what the filter assumes; they default to the closed-loop
     simulator's :class:`hubbeam_ctrl.plant.sensors.SensorSettings`.
     """
+
+    robust: bool = setting(True, doc="Model the residual modes in the filter (controllers.residual); "
+                                     "False: the filter on the design model alone, which the modes it "
+                                     "leaves out destabilise.")
+    residual_modes: int | None = setting(None, kind=int, lo=1, hi=MAX_MODES,
+                                         doc="Transverse modes of the filter's model when robust (from the "
+                                             "design's modes to 20); None: every mode below the Nyquist "
+                                             "frequency and the first above it.")
+
+
+def filter_model(design: DesignModel, settings: LQGSettings) -> DesignModel:
+    """The model the Kalman filter of an LQG runs on: with residual modes if ``settings.robust``.
+
+    Parameters
+    ----------
+    design : DesignModel
+        The design model of the state feedback.
+    settings : LQGSettings
+
+    Returns
+    -------
+    DesignModel
+        :func:`controllers.residual.estimator_model` of ``design``, or ``design`` itself.
+    """
+    return estimator_model(design, settings.residual_modes) if settings.robust else design
 
 
 class LQG(Controller):
@@ -28,7 +62,9 @@ class LQG(Controller):
     The filter works in deviations from the steady rotation at the design spin ``Omega``:
     ``x - [Omega t, 0, Omega, 0]``. Each call updates the estimate with the measurement
     (after predicting with the torque applied since the last call) and returns
-    ``tau = sat(tau_ff - K (x_hat - x_ref))``.
+    ``tau = sat(tau_ff - K (x_hat - x_ref))``. With ``settings.robust`` the filter's model
+    (:attr:`filter_model`) has the residual modes of
+    :func:`controllers.residual.estimator_modes`; ``K`` acts on the design modes only.
 
     Parameters
     ----------
@@ -42,11 +78,13 @@ class LQG(Controller):
     Attributes
     ----------
     K : ndarray (nx,)
-        LQR gain.
+        LQR gain on the design model.
     P : ndarray (nx, nx)
         LQR Riccati solution.
+    filter_model : DesignModel
+        The filter's model (``design`` itself unless residual modes are added).
     estimator : KalmanEstimator
-        The state estimator (gain ``estimator.L``).
+        The state estimator on :attr:`filter_model` (gain ``estimator.L``, (nx_est, 3)).
     """
 
     measurement = "sensors"
@@ -56,20 +94,23 @@ class LQG(Controller):
         settings = settings or LQGSettings()
         super().__init__(design, settings, reference)
         self.K, self.P = dlqr_gain(design, settings.weights)
-        self.estimator = KalmanEstimator(design, settings)
+        self.filter_model = filter_model(design, settings)
+        self.estimator = KalmanEstimator(self.filter_model, settings)
+        self._E = embedding(design.n_modes, self.filter_model.n_modes)
+        self._Ke = self.K @ self._E.T
         self._ff = 1.0 if settings.feedforward else 0.0
-        self._n = design.n_x // 2
+        self._n = self.filter_model.n_x // 2
         self._prepare_reference(settings.elastic_reference)
         self.reset()
 
     @property
     def L(self) -> np.ndarray:
-        """Kalman filter gain (nx, 3) of the estimator."""
+        """Kalman filter gain (nx_est, 3) of the estimator."""
         return self.estimator.L
 
     @property
     def x_hat(self) -> np.ndarray:
-        """Current state estimate (deviation from the steady rotation)."""
+        """Current state estimate (deviation from the steady rotation, filter model's states)."""
         return self.estimator.x_hat
 
     @property
@@ -80,7 +121,7 @@ class LQG(Controller):
     def reset(self) -> None:
         """Start the estimator from the reference's first state; forget the last torque."""
         x, _ = self._reference_at(0)
-        x = x.copy()
+        x = self._E @ x
         x[self._n] -= self.design.spin
         self.estimator.reset(x)
         self._tau = None
@@ -88,15 +129,16 @@ class LQG(Controller):
     def feedback_matrices(self) -> tuple:
         """The filter and gain as one system, sensors -> torque (state: the prediction).
 
-        With ``x_hat = (I - L C) x_pred + L y``, ``u = -K x_hat`` and
-        ``x_pred+ = Ad x_hat + Bd u``: ``Ac = (Ad - Bd K)(I - L C)``, ``Bc = (Ad - Bd K) L``,
-        ``Cc = -K (I - L C)``, ``Dc = -K L``.
+        On the filter's model ``(A, B, C)`` (:attr:`filter_model`), with ``K`` the gain on its
+        states: ``x_hat = (I - L C) x_pred + L y``, ``u = -K x_hat``, ``x_pred+ = A x_hat + B u``,
+        so ``Ac = (A - B K)(I - L C)``, ``Bc = (A - B K) L``, ``Cc = -K (I - L C)``,
+        ``Dc = -K L``.
         """
-        d = self.design
-        K = self.K[None, :]
-        F = d.Ad - d.Bd @ K
-        M = np.eye(d.n_x) - self.L @ d.C_sensors
-        states = [f"{name}_est" for name in d.state_names]
+        fm = self.filter_model
+        K = self._Ke[None, :]
+        F = fm.Ad - fm.Bd @ K
+        M = np.eye(fm.n_x) - self.L @ fm.C_sensors
+        states = [f"{name}_est" for name in fm.state_names]
         return F @ M, F @ self.L, -K @ M, -K @ self.L, states, ["theta", "theta_dot", "root_moment"]
 
     def __call__(self, t: float, y) -> float:
@@ -105,8 +147,8 @@ class LQG(Controller):
         xr, tff = self._reference_at(int(round(t / self.dt)))
         yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
         x_hat = self.estimator.update(yd, self._tau)
-        K = self.K
+        K = self._Ke
         # x_hat is a deviation from the steady rotation; x_ref is absolute
-        u = K @ (x_hat - xr) + K[0] * spin * t + K[self._n] * spin
+        u = K @ (x_hat - self._E @ xr) + K[0] * spin * t + K[self._n] * spin
         self._tau = saturate(float(self._ff * tff - u), self.tau_max)
         return self._tau

@@ -8,7 +8,11 @@ linearly in the spin rate (the end values outside the grid), what they need from
 * :class:`ScheduledLQR`: the gain ``K(Omega)``;
 * :class:`ScheduledLQG`: the LQR gain, the Kalman gain and the prediction model
   ``(Ad, Bd)(Omega)``; it works in absolute coordinates (a steady rotation at any rate
-  is a solution of every linear model of the grid);
+  is a solution of every linear model of the grid). Like :class:`LQG`, with
+  ``settings.robust`` (the default) the filter's models carry the residual modes
+  (:mod:`controllers.residual`; one count for the whole grid, the largest
+  :func:`~controllers.residual.estimator_modes` of its spins) and the LQR gains act on
+  the design modes only;
 * :class:`ScheduledMPC`: the condensed QP's Hessian and gradient (the prediction model is
   held over the horizon), and the fallback LQR gain.
 
@@ -22,9 +26,10 @@ the reference rate (``"reference"``). The elastic reference (the quasi-static de
 of the reference acceleration) uses the model at the reference rate of each sample.
 
 Interpolating the gains was measured against finer grids: on the spin-up to 3 rad/s in
-10 s on FOAM, LQR leaves 0.851 %, 0.897 %, 0.909 % of the feedforward's residual with 5,
-9, 17 spins (the default 9 is within 1.5 % of the converged value); the scheduling
-variable (measured or reference rate) changes it by less than 0.2 %.
+10 s on the 5-mode FOAM, LQR leaves 0.851 %, 0.897 %, 0.909 % of the feedforward's residual
+with 5, 9, 17 spins (the default 9 is within 1.5 % of the converged value; on the 10-mode
+evaluation plant 0.890 % and 0.902 % with 9 and 17); the scheduling variable (measured or
+reference rate) changes it by less than 0.2 %.
 
 :func:`scheduled_lqr_iosystem` and :func:`scheduled_lqg_iosystem` give the same laws as
 python-control ``NonlinearIOSystem`` objects, with the conventions of
@@ -47,15 +52,16 @@ from hubbeam_ctrl.plant.params import Params
 
 from .base import DesignModel, Reference, Weights, check_positive, saturate, torque_limit
 from .estimator import KalmanNoise, kalman_gain
-from .lqg import LQG, LQGSettings
+from .lqg import LQG, LQGSettings, filter_model
 from .lqr import LQR, LQRSettings, dlqr_gain
 from .mpc import MPC, MPCSettings
+from .residual import embedding, estimator_modes
 
 if TYPE_CHECKING:
     import control as ct
 
-__all__ = ["DesignSchedule", "ScheduledKalmanEstimator", "ScheduledLQR", "ScheduledLQG", "ScheduledMPC",
-           "scheduled_lqr_iosystem", "scheduled_lqg_iosystem", "DEFAULT_SCHEDULE_POINTS", "VARIABLES"]
+__all__ = ["DesignSchedule", "ScheduledKalmanEstimator", "filter_schedule", "ScheduledLQR", "ScheduledLQG",
+           "ScheduledMPC", "scheduled_lqr_iosystem", "scheduled_lqg_iosystem", "DEFAULT_SCHEDULE_POINTS", "VARIABLES"]
 
 #: Spin rates of the default grid (0 to the top rate, evenly spaced).
 DEFAULT_SCHEDULE_POINTS = 9
@@ -237,10 +243,8 @@ class _Scheduled:
 
     def feedback_matrices(self) -> tuple:
         """Not available: a gain-scheduled controller is not time-invariant."""
-        if self.schedule.spins.size > 1:
-            raise HubbeamError(f"controller {self.name!r} is gain-scheduled over {self.schedule.spins.size} "
-                               "spin rates, not a linear time-invariant feedback law")
-        return super().feedback_matrices()
+        raise HubbeamError(f"controller {self.name!r} is gain-scheduled over spin rates, not a linear "
+                           "time-invariant feedback law")
 
     def _spin(self, k: int, measured_rate: float) -> float:
         """The scheduling variable at sample ``k`` [rad/s]."""
@@ -362,11 +366,38 @@ class ScheduledKalmanEstimator:
         return self.x_hat
 
 
+def filter_schedule(schedule: DesignSchedule, settings: LQGSettings) -> tuple:
+    """The Kalman filter's models over a schedule and the embedding of the design states in theirs.
+
+    Parameters
+    ----------
+    schedule : DesignSchedule
+    settings : LQGSettings
+        With ``robust``, every model gets the same residual modes: ``residual_modes``, or
+        the largest :func:`~controllers.residual.estimator_modes` over the grid.
+
+    Returns
+    -------
+    DesignSchedule
+        ``schedule`` itself when no mode is added.
+    E : ndarray (nx_est, nx)
+        ``x_est = E x_design`` (:func:`controllers.residual.embedding`).
+    """
+    n = settings.residual_modes
+    if settings.robust and n is None:
+        n = max(estimator_modes(d) for d in schedule.designs)
+    models = tuple(filter_model(d, settings.replace(residual_modes=n)) for d in schedule.designs)
+    if models[0] is schedule.designs[0]:
+        return schedule, np.eye(schedule.n_x)
+    return DesignSchedule(schedule.spins, models), embedding(schedule.n_modes, models[0].n_modes)
+
+
 class ScheduledLQG(_Scheduled, LQG):
     """LQG with LQR gain, Kalman gain and prediction model interpolated in the spin rate.
 
     A :class:`ScheduledKalmanEstimator` (absolute coordinates) and
-    ``tau = sat(tau_ff - K(Omega) (x_hat - x_ref))``.
+    ``tau = sat(tau_ff - K(Omega) (x_hat - x_ref))``; with ``settings.robust`` the
+    estimator's models have the residual modes of :func:`filter_schedule`.
 
     Parameters
     ----------
@@ -378,8 +409,8 @@ class ScheduledLQG(_Scheduled, LQG):
 
     Attributes
     ----------
-    gains : ndarray (S, nx)
-        LQR gain at each spin of the schedule.
+    gains : ndarray (S, nx_est)
+        LQR gain at each spin of the schedule, on the filter's states (zero on residual modes).
     estimator : ScheduledKalmanEstimator
     """
 
@@ -388,13 +419,16 @@ class ScheduledLQG(_Scheduled, LQG):
         self._init_schedule(schedule, variable)
         settings = settings or LQGSettings()
         super().__init__(schedule.designs[0], settings, reference)
-        self.estimator = ScheduledKalmanEstimator(schedule, settings)
-        self.gains = schedule.stack(lambda d: dlqr_gain(d, settings.weights)[0])
+        models, self._E = filter_schedule(schedule, settings)
+        self.filter_model = models.designs[0]
+        self.estimator = ScheduledKalmanEstimator(models, settings)
+        self.gains = schedule.stack(lambda d: dlqr_gain(d, settings.weights)[0]) @ self._E.T
+        self._Ke = self.gains[0]            # the loop at the grid's first spin (study.loop_poles)
         self.reset()
 
     def reset(self) -> None:
         """Start the estimator from the reference's first state; forget the last torque."""
-        self.estimator.reset(self._reference_at(0)[0])
+        self.estimator.reset(self._E @ self._reference_at(0)[0])
         self._tau = None
 
     def __call__(self, t: float, y) -> float:
@@ -404,7 +438,7 @@ class ScheduledLQG(_Scheduled, LQG):
         spin = self._spin(k, y[1])
         x_hat = self.estimator.update(y, self._tau, spin)
         K = self.schedule.interpolate(self.gains, spin)
-        self._tau = saturate(float(self._ff * tff - K @ (x_hat - xr)), self.tau_max)
+        self._tau = saturate(float(self._ff * tff - K @ (x_hat - self._E @ xr)), self.tau_max)
         return self._tau
 
 
@@ -522,7 +556,8 @@ def scheduled_lqg_iosystem(schedule: DesignSchedule, settings: LQGSettings = LQG
     State: the predicted state ``x_pred``. Inputs ``[xd, ud, y]`` with ``y = [theta,
     theta_dot, M_root]``; output ``u = sat(ud - K(mu) (x_hat - xd))`` with ``x_hat = x_pred +
     L(mu) (y - C x_pred)``; update ``x_pred+ = Ad(mu) x_hat + Bd(mu) u`` (as
-    :class:`ScheduledLQG`).
+    :class:`ScheduledLQG`, with the residual modes of :func:`filter_schedule` if
+    ``settings.robust``).
 
     Parameters
     ----------
@@ -540,19 +575,20 @@ def scheduled_lqg_iosystem(schedule: DesignSchedule, settings: LQGSettings = LQG
     import control as ct  # lazily: keeps the CLI's start-up light
     _check_schedule(schedule, "measured")
     d = schedule.designs[0]
-    xd, ud, x = _labels(d)
+    xd, ud, _ = _labels(d)
     inputs = xd + ud + ["y[theta]", "y[theta_dot]", "y[root_moment]"]
     (mu_index,) = _gainsched_indices(gainsched_indices, inputs, inputs.index("xd[theta_dot]"))
-    K = schedule.stack(lambda dm: dlqr_gain(dm, settings.weights)[0])
-    L = schedule.stack(lambda dm: kalman_gain(dm, settings))
-    AB = schedule.stack(lambda dm: np.hstack([dm.Ad, dm.Bd]))
-    C, nx = d.C_sensors, d.n_x
+    models, E = filter_schedule(schedule, settings)
+    K = schedule.stack(lambda dm: dlqr_gain(dm, settings.weights)[0]) @ E.T
+    L = models.stack(lambda dm: kalman_gain(dm, settings))
+    AB = models.stack(lambda dm: np.hstack([dm.Ad, dm.Bd]))
+    C, nx = models.designs[0].C_sensors, d.n_x
     tau_max = torque_limit(settings.tau_max, d.params)
 
     def law(states, u):
         mu = abs(u[mu_index])
         x_hat = states + schedule.interpolate(L, mu) @ (u[nx + 1:] - C @ states)
-        tau = saturate(float(u[nx] - schedule.interpolate(K, mu) @ (x_hat - u[:nx])), tau_max)
+        tau = saturate(float(u[nx] - schedule.interpolate(K, mu) @ (x_hat - E @ u[:nx])), tau_max)
         return x_hat, tau, mu
 
     def update(t, states, u, params):
@@ -564,4 +600,5 @@ def scheduled_lqg_iosystem(schedule: DesignSchedule, settings: LQGSettings = LQG
         return np.array([law(states, u)[1]])
 
     return ct.NonlinearIOSystem(update, output, inputs=inputs, outputs=["tau"],
-                                states=[f"xpred[{n}]" for n in x], name=name, dt=schedule.dt)
+                                states=[f"xpred[{n}]" for n in models.designs[0].state_names], name=name,
+                                dt=schedule.dt)

@@ -23,19 +23,27 @@ from hubbeam_ctrl.study.metrics import METRIC_UNITS
 
 @pytest.fixture(scope="module")
 def slew_foam():
-    """The default slew (tau_m = 200 N m, tf = 10 s, m_t = 0.1 kg, 30 s) on FOAM, all five."""
+    """The default slew (tau_m = 200 N m, tf = 10 s, m_t = 0.1 kg, 30 s) on the default
+    evaluation plant (FOAM, 10 transverse modes, no damping), all five."""
     return compare(plant="foam", scenario="slew")
 
 
+@pytest.mark.slow
 def test_slew_targets_on_foam(slew_foam):
     m = slew_foam.metrics
     assert tuple(m) == DEFAULT_CONTROLLERS
+    ev = slew_foam.plant
+    assert ev.model == "foam" and ev.modes >= 10 and ev.params.damping_ratio == 0.0
+    for name, mm in m.items():
+        assert mm["plant_modes"] == ev.modes and mm["design_modes"] == 5 and mm["substeps"] == 30
+        assert slew_foam.results[name].params.n_transverse == ev.modes
     base = m["openloop"]["residual_tip_max_m"]
     print()
     print(format_table(m))
     print(f"wall time of the comparison: {slew_foam.wall_s:.1f} s")
     assert base > 0.1          # the Eq. 44 slew leaves the beam ringing (~0.28 m)
     for name in ("lqr", "lqg", "mpc"):
+        assert m[name]["verdict"] == "settled", name
         assert m[name]["completed"], m[name]["message"]
         assert m[name]["residual_tip_max_m"] <= 0.01 * base, name
         assert abs(m[name]["final_angle_error_rad"]) <= 1e-3, name
@@ -45,10 +53,12 @@ def test_slew_targets_on_foam(slew_foam):
         res = slew_foam.results[name]
         assert np.all(np.abs(res.tau) <= 200.0 + 1e-9)
     assert m["mpc"]["qp_fallbacks"] == 0
-    # PD is only reported; it exists and completed
+    # PD is only reported; it exists and completed; the undamped open loop rings on
     assert m["pd"]["completed"]
+    assert m["openloop"]["verdict"] == "not settled" and m["pd"]["verdict"] == "not settled"
 
 
+@pytest.mark.slow
 def test_scenario_angle_is_the_rigid_eq44_angle(slew_foam):
     sc = slew_foam.scenario
     p = Params()
@@ -58,6 +68,7 @@ def test_scenario_angle_is_the_rigid_eq44_angle(slew_foam):
         assert res.t[-1] == pytest.approx(30.0)
 
 
+@pytest.mark.slow
 def test_outputs_are_written(slew_foam, tmp_path):
     paths = write_outputs(slew_foam, tmp_path / "out")
     out = tmp_path / "out"
@@ -78,13 +89,21 @@ def test_outputs_are_written(slew_foam, tmp_path):
     report = (out / "report.md").read_text()
     assert "| lqr " in report and "![tip deflection](tip_deflection.png)" in report
     assert "Targets" in report
+    assert report.splitlines()[2].startswith("Verdicts: openloop **not settled**")
+    assert "| verdict | controller |" in report and "| settled | lqg |" in report
+    assert "Evaluation plant: FOAM with 5 axial and 10 transverse modes" in report
+    assert "30 steps of 0.3333 ms per sample" in report and "0.2824 m" in report
+    assert data[3]["verdict"] == "settled" and data[3]["plant_params"]["n_transverse"] == 10
+    assert rows[3]["verdict"] == "settled" and rows[3]["substeps"] == "30"
     assert paths["report"] == out / "report.md"
 
 
+@pytest.mark.slow
 def test_print_table(slew_foam, capsys):
     print_table(slew_foam.metrics)
     text = capsys.readouterr().out
     assert text.count("\n") == 6 and "mpc" in text and "resid max m" in text
+    assert text.startswith("verdict") and text.splitlines()[3].startswith("settled")
 
 
 def test_spinup_scenario_runs(tmp_path):
@@ -112,7 +131,9 @@ def test_bad_inputs():
     with pytest.raises(ParameterError, match="unknown 'pid'"):
         compare(plant="foam", controllers="lqr,pid")
     with pytest.raises(ParameterError, match="design_modes"):
-        compare(plant="foam", controllers="lqr", design_modes=9)
+        compare(plant="foam", controllers="lqr", design_modes=21)
+    with pytest.raises(ParameterError, match="plant_modes"):
+        compare(plant="foam", controllers="lqr", design_modes=5, plant_modes=4)
 
 
 def test_cli_compare_json(tmp_path, capsys):

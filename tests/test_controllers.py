@@ -201,8 +201,9 @@ def test_mpc_falls_back_to_saturated_lqr_when_the_qp_fails(design):
 
 
 def test_kalman_filter_converges_on_the_design_model(design):
-    """LQG's estimate converges to the true state of the linear model (no noise)."""
-    ctrl = LQG(design)
+    """LQG's estimate converges to the true state of the linear model (no noise); the
+    filter on the design model alone (``robust=False``)."""
+    ctrl = LQG(design, LQGSettings(robust=False))
     ctrl.reset()
     x = np.r_[0.01, 0.02, -0.003, 0.0, 0.01, 0.0]
     err0 = np.max(np.abs(ctrl.x_pred - x))

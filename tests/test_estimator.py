@@ -7,6 +7,7 @@ import pytest
 import scipy.linalg
 
 from controllers import LQG, DesignModel, KalmanEstimator, KalmanNoise, LQGSettings, Weights, dlqr_gain, kalman_gain
+from controllers.residual import embedding, estimator_modes
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
 
@@ -69,17 +70,22 @@ def test_estimator_update_is_predict_then_correct(design):
     assert np.allclose(second, pred + est.L @ (y - design.C_sensors @ pred), rtol=1e-12, atol=1e-15)
 
 
-def test_lqg_is_the_lqr_gain_on_the_estimator(design):
+@pytest.mark.parametrize("robust", [True, False])
+def test_lqg_is_the_lqr_gain_on_the_estimator(design, robust):
     """LQG's torque is sat(tau_ff - K (x_hat - x_ref)) with x_hat from a standalone estimator fed
-    the same measurements (in deviation coordinates) and the torques LQG applied."""
-    ctrl = LQG(design, LQGSettings(tau_max=50.0))
+    the same measurements (in deviation coordinates) and the torques LQG applied; with ``robust``
+    the estimator runs on the design model with residual modes and K is zero on them."""
+    ctrl = LQG(design, LQGSettings(tau_max=50.0, robust=robust))
     K, _ = dlqr_gain(design, Weights())
     assert np.array_equal(ctrl.K, K) and ctrl.L is ctrl.estimator.L
-    est = KalmanEstimator(design, LQGSettings())
+    model = ctrl.filter_model
+    assert (model.n_modes == estimator_modes(design)) if robust else (model is design)
+    est = KalmanEstimator(model, LQGSettings())
+    Ke = K @ embedding(design.n_modes, model.n_modes).T
     ctrl.reset()
     est.reset(ctrl.x_hat)
     rng = np.random.default_rng(4)
-    w, n, tau = design.spin, design.n_x // 2, None
+    w, n, tau = design.spin, model.n_x // 2, None
     for k in range(50):
         t = k * design.dt
         y = np.r_[w * t, w, 0.0] + rng.normal(size=3) * [1e-3, 1e-2, 1.0]
@@ -87,7 +93,7 @@ def test_lqg_is_the_lqr_gain_on_the_estimator(design):
         x_abs = x_hat.copy()
         x_abs[0] += w * t
         x_abs[n] += w
-        expect = float(np.clip(-K @ x_abs, -50.0, 50.0))       # rest reference, no feedforward
+        expect = float(np.clip(-Ke @ x_abs, -50.0, 50.0))      # rest reference, no feedforward
         tau = ctrl(t, y)
         assert tau == pytest.approx(expect, rel=1e-10, abs=1e-9)
         assert np.allclose(ctrl.x_hat, x_hat, rtol=0, atol=1e-14)

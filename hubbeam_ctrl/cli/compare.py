@@ -1,4 +1,5 @@
-"""``hubbeam compare``: the controllers in closed loop on FOAM or CFOAM (see :mod:`.compare`)."""
+"""``hubbeam compare``: the controllers in closed loop on FOAM or CFOAM (see
+:mod:`hubbeam_ctrl.study.compare`)."""
 
 from __future__ import annotations
 
@@ -47,13 +48,28 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "compare", parents=[common], help="compare controllers in closed loop",
         description=(f"Design the registered controllers ({labels}) on SFOAM and compare them in "
-                     "closed loop (zero-order hold at --dt) on the nonlinear FOAM or CFOAM plant. "
+                     "closed loop (zero-order hold at --dt) on the nonlinear FOAM or CFOAM evaluation "
+                     "plant, which has every bending mode below the sampling frequency and at least "
+                     "three more than the design model. --params and the common options set both the "
+                     "design and the plant; --plant-params and --plant-tip-mass make the plant differ. "
                      "Writes metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
                      "torque.png and report.md to --out."))
     # explicit metavars: argparse would otherwise read the choices (importing the study layer)
     # when the parser is built, not only when --help is shown or a value is checked
     p.add_argument("--plant", metavar="PLANT", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "PLANTS"),
-                   required=True, help="nonlinear plant: %(choices)s")
+                   default="foam", help="nonlinear plant: %(choices)s (default %(default)s: closer to an "
+                                        "exact beam than cfoam)")
+    p.add_argument("--plant-params", metavar="FILE.toml",
+                   help="physical parameters of the plant when they differ from the design's")
+    p.add_argument("--plant-tip-mass", metavar="KG", type=float, help="tip mass of the plant [kg], >= 0")
+    p.add_argument("--design-modes", metavar="N", type=int,
+                   help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
+    p.add_argument("--plant-modes", metavar="N", type=int,
+                   help="transverse modes of the plant, design modes..20 (default: every mode "
+                        "below the sampling frequency and the first above it, >= design + 3)")
+    p.add_argument("--range-limit", metavar="FRACTION", type=positive_float("range-limit"), default=0.3,
+                   help="flag runs whose |v_tip| passes FRACTION * L (the models' validated "
+                        "range; default 0.3); only L stops a run")
     p.add_argument("--scenario", metavar="NAME", choices=RegistryChoices("hubbeam_ctrl.study.scenarios",
                                                                          "SCENARIOS"),
                    default="slew", help="registered scenario: %(choices)s (default %(default)s; see "
@@ -137,6 +153,8 @@ def run(args) -> int:
     from pathlib import Path
 
     from hubbeam_ctrl.cli.main import params_from_args
+    from hubbeam_ctrl.plant.params import MAX_MODES, load_params
+    from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     params = params_from_args(args)
@@ -147,6 +165,17 @@ def run(args) -> int:
         raise ParameterError("slew-angle must be a finite number != 0 [rad], got 0")
     if args.slew_angle is not None and args.scenario != "slew":
         raise ParameterError("slew-angle applies to --scenario slew only")
+    plant_params = load_params(args.plant_params) if args.plant_params else None
+    if args.plant_tip_mass is not None:
+        if not args.plant_tip_mass >= 0:
+            raise ParameterError(f"plant-tip-mass must be a number >= 0 [kg], got {args.plant_tip_mass}")
+        plant_params = (plant_params or params).replace(m_t=args.plant_tip_mass)
+    design_modes = args.design_modes if args.design_modes is not None else params.n_transverse
+    if not 1 <= design_modes <= MAX_MODES:
+        raise ParameterError(f"design-modes must be an integer in 1..{MAX_MODES}, got {design_modes}")
+    if args.plant_modes is not None and not design_modes <= args.plant_modes <= MAX_MODES:
+        raise ParameterError(f"plant-modes must be an integer in {design_modes}..{MAX_MODES} (at least "
+                             f"the design model's {design_modes}), got {args.plant_modes}")
     out = Path(args.out)
     if not out.parent.is_dir():
         raise ParameterError(f"out: folder {out.parent} does not exist")
@@ -157,21 +186,25 @@ def run(args) -> int:
     t0 = time.perf_counter()
     with stdout_to_stderr():
         comparison = compare(args.plant, args.scenario, args.controllers, params=params,
-                             tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
-                             w_f=args.wf, slew_angle=args.slew_angle, horizon=args.horizon,
+                             plant_params=plant_params, design_modes=design_modes,
+                             plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
+                             t_end=args.t_end, dt=args.dt, w_f=args.wf, slew_angle=args.slew_angle,
+                             horizon=args.horizon,
                              solver=args.solver, shaping=args.shaping, schedule=args.schedule,
+                             sim_settings=ClosedLoopSettings(range_limit=args.range_limit),
                              progress=not args.json)
         write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:
         print(json.dumps(_json_metrics(comparison.metrics)))
     else:
-        sc = comparison.scenario
+        sc, ev = comparison.scenario, comparison.plant
         print(f"{sc.plant.upper()}, {sc.name}: {sc.description}")
+        print(f"plant: {ev.model.upper()} with {ev.modes} transverse modes ({ev.reason})")
         print(format_table(comparison.metrics))
         print(f"wrote {out}/metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
               f"torque.png, report.md ({wall:.1f} s)")
     for name, m in comparison.metrics.items():
-        if not m["completed"]:
+        if not m["completed"] or m.get("outside_validated_range"):
             print(f"warning: {name}: {m['message']}", file=sys.stderr)
     return 0

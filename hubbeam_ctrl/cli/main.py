@@ -196,7 +196,8 @@ def _cmd_simulate(args) -> int:
     else:
         maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
                                args.tf if args.tf is not None else 10.0)
-    res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json)
+    res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
+                   range_limit=args.range_limit)
     if args.out:
         res.save(args.out)
     if args.plot:
@@ -211,7 +212,7 @@ def _cmd_simulate(args) -> int:
         for k, v in out.items():
             print(f"{k:>22}: {v}")
         print(f"{'message':>22}: {res.message}")
-    if res.diverged:
+    if res.diverged or res.outside_validated_range:
         print(f"warning: {res.message}", file=sys.stderr)
     return 0
 
@@ -255,6 +256,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--t-end", metavar="S", type=positive_float("t-end"), required=True, help="final time [s]")
     p.add_argument("--out", metavar="FILE.csv|FILE.npz", help="save the time series")
     p.add_argument("--plot", metavar="FILE.png", help="save a plot")
+    p.add_argument("--range-limit", metavar="FRACTION", type=positive_float("range-limit"), default=0.3,
+                   help="flag the run when |v_tip| passes FRACTION * L (the models' validated range; "
+                        "default 0.3); only L stops it")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=_cmd_simulate)
 

@@ -12,6 +12,7 @@ coupling to the axial modes.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -19,10 +20,10 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization
 from hubbeam_ctrl.plant.models import resolve_model
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.params import MAX_MODES, Params
 
 __all__ = ["ModalResult", "modal_analysis", "natural_frequencies", "campbell",
-           "critical_speed", "critical_speed_map"]
+           "critical_speed", "critical_speed_map", "converged_bending_hz"]
 
 #: Eigenvalues with |lambda| below this [rad/s] count as rigid-body (zero) modes.
 RIGID_TOL = 1e-6
@@ -217,3 +218,43 @@ def critical_speed_map(tip_masses, tip_positions, model="tlam", params: Params |
                 out[i, j] = np.nan if w is None else w
                 bar.update(1)
     return out
+
+
+@lru_cache(maxsize=32)
+def _converged_bending_hz(params: Params, spin: float) -> np.ndarray:
+    p = params.replace(n_transverse=MAX_MODES, n_axial=1)
+    f = modal_analysis("sfoam", spin, "free", p).bending_hz
+    f.setflags(write=False)
+    return f
+
+
+def converged_bending_hz(params: Params, spin: float = 0.0) -> np.ndarray:
+    """Bending frequencies of the free-hub beam with the most modes the basis allows [Hz].
+
+    SFOAM with :data:`~hubbeam_ctrl.plant.params.MAX_MODES` transverse modes, linearised
+    about ``spin`` (at the slew's design point, spin 0, SFOAM's bending frequencies equal
+    FOAM's and CFOAM's). Used to count the modes below a sampling frequency; cached.
+
+    Parameters
+    ----------
+    params : Params
+        Physical parameters (the mode counts are ignored).
+    spin : float
+        Spin rate [rad/s].
+
+    Returns
+    -------
+    ndarray (MAX_MODES,)
+        Ascending, read-only.
+
+    Examples
+    --------
+    >>> f = converged_bending_hz(Params())
+    >>> int((f < 100.0).sum())      # the paper's beam: nine modes below 100 Hz
+    9
+    """
+    if not isinstance(params, Params):
+        raise ParameterError(f"params must be a Params, got {type(params).__name__}")
+    if not np.isfinite(spin):
+        raise ParameterError(f"spin must be finite [rad/s], got {spin}")
+    return _converged_bending_hz(params, float(spin))

@@ -15,7 +15,9 @@ The controller is any object with
 * ``reset()``: prepare a new run;
 * ``measurement``: ``"state"`` or ``"sensors"`` (see :func:`simulate_closed_loop`);
 * optionally ``name``, ``dt`` (its sample time, checked against the simulator's),
-  ``n_modes`` (the transverse modes of its design model) and ``stats() -> dict``.
+  ``n_modes`` (the transverse modes of its design model), ``design`` (with ``params`` and
+  ``spin``: the design model's parameters and spin rate, used to choose the evaluation
+  plant and its integration step) and ``stats() -> dict``.
 
 This module is plant side: it does not import the ``controllers`` package.
 """
@@ -32,11 +34,13 @@ import numpy as np
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
-from hubbeam_ctrl.plant.models import resolve_model
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.modal import modal_analysis
+from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
+from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
+from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.sim.results import Result
-from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings
+from hubbeam_ctrl.sim.stepper import MAX_SUBSTEPS, PlantStepper, StepperSettings, substep_rule
 
 __all__ = ["ClosedLoopSettings", "simulate_closed_loop"]
 
@@ -46,26 +50,82 @@ class ClosedLoopSettings(StepperSettings):
     """Settings of :func:`simulate_closed_loop`: the plant integrator's (``dt`` is also the
     controller's sample period and the zero-order hold's), the sensors and when to stop."""
 
+    substeps: int | None = setting(None, kind=int, lo=1, hi=MAX_SUBSTEPS,
+                                   doc="Integration steps of the plant per sample; None (default): the "
+                                       "fewest that keep every bending mode of the plant within "
+                                       "frequency_tolerance of its modal-analysis frequency "
+                                       "(hubbeam_ctrl.sim.stepper.substep_rule).")
+    frequency_tolerance: float = setting(0.005, lo=0.0, lo_open=True, hi=0.1,
+                                         doc="Largest relative frequency error of any bending mode in "
+                                             "the integrator (0.5 %).")
     sensors: SensorSettings = setting(factory=SensorSettings,
                                       doc='Sensor noise for controllers that read "sensors".')
-    divergence_limit: float = setting(0.3, lo=0.0, lo_open=True,
-                                      doc="The run stops when abs(v_tip) > divergence_limit * L.")
+    range_limit: float = setting(0.3, lo=0.0, lo_open=True,
+                                 doc="Validated range of the models: a run with abs(v_tip) > range_limit * L "
+                                     "is flagged (outside_validated_range, with the time) and goes on.")
+    divergence_limit: float = setting(1.0, lo=0.0, lo_open=True,
+                                      doc="The run stops (diverged) when abs(v_tip) > divergence_limit * L.")
     max_wall_s: float = setting(600.0, unit="s", lo=0.0, lo_open=True,
                                 doc="The run stops (flagged) when it has taken longer than this.")
 
     @property
     def stepper(self) -> StepperSettings:
-        """The plant integrator's settings."""
-        return StepperSettings(**{f.name: getattr(self, f.name) for f in fields(StepperSettings)})
+        """The plant integrator's settings (``substeps`` must be given; else see :meth:`stepper_settings`)."""
+        if self.substeps is None:
+            raise ParameterError("substeps is None (chosen per plant by substep_rule); "
+                                 "use stepper_settings(substeps)")
+        return self.stepper_settings(self.substeps)
+
+    def stepper_settings(self, substeps: int) -> StepperSettings:
+        """The plant integrator's settings with ``substeps`` steps per sample (1..200)."""
+        values = {f.name: getattr(self, f.name) for f in fields(StepperSettings)}
+        return StepperSettings(**{**values, "substeps": substeps})
 
 
 def _controller_name(controller) -> str:
     return str(getattr(controller, "name", type(controller).__name__))
 
 
+def _plant_and_rule(plant, controller, params, design_params, plant_params, plant_modes, settings):
+    """The plant model, its description and the integration step of the run."""
+    spin = float(getattr(getattr(controller, "design", None), "spin", 0.0) or 0.0)
+    explicit = isinstance(plant, HubBeamModel) or params is not None
+    if isinstance(plant, EvaluationPlant):
+        if any(v is not None for v in (params, design_params, plant_params, plant_modes)):
+            raise ParameterError("an EvaluationPlant carries its parameters: give no params, "
+                                 "design_params, plant_params or plant_modes with it")
+        model = build_model(plant.model, plant.params)
+        info = {k: v for k, v in plant.to_dict().items() if k != "plant_params"}
+    elif explicit:
+        if any(v is not None for v in (design_params, plant_params, plant_modes)):
+            raise ParameterError("give either params (the exact plant) or design_params / plant_params / "
+                                 "plant_modes (the evaluation-plant rule), not both")
+        model = resolve_model(plant, params)
+        info = {"plant_model": model.name, "plant_modes": model.n_transverse,
+                "plant_axial_modes": model.n_axial, "plant_modes_reason": "as given"}
+    else:
+        design = design_params if design_params is not None else \
+            getattr(getattr(controller, "design", None), "params", None) or Params()
+        n_design = int(getattr(controller, "n_modes", None) or design.n_transverse)
+        ev = evaluation_plant(plant, design, settings.dt, min(n_design, MAX_MODES), spin,
+                              plant_params=plant_params, plant_modes=plant_modes)
+        model = build_model(ev.model, ev.params)
+        info = {k: v for k, v in ev.to_dict().items() if k != "plant_params"}
+    if settings.substeps is None:
+        f = modal_analysis(model, spin, "free").bending_hz
+        rule = substep_rule(f, settings.dt, tolerance=settings.frequency_tolerance, rho_inf=settings.rho_inf)
+        info.update(rule.to_dict())
+    else:
+        info.update({"substeps": settings.substeps, "step_s": settings.dt / settings.substeps,
+                     "step_reason": f"{settings.substeps} steps per sample as requested"})
+    info["modal_spin_rad_s"] = spin
+    return model, info
+
+
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
-                         settings: ClosedLoopSettings | None = None, x0=None,
-                         reference=None) -> Result:
+                         design_params: Params | None = None, plant_params: Params | None = None,
+                         plant_modes: int | None = None, settings: ClosedLoopSettings | None = None,
+                         x0=None, reference=None) -> Result:
     """Run a sampled controller on a nonlinear plant (zero-order hold).
 
     At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
@@ -78,16 +138,33 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     * ``"sensors"``: ``[theta, theta_dot, M_root]`` [rad, rad/s, N m] plus the noise of
       ``settings.sensors``.
 
+    The plant is, in this order: ``plant`` itself when it is a built model; the model named
+    ``plant`` with exactly ``params`` when they are given; otherwise the **evaluation plant**
+    of :func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`: the physical parameters of
+    ``plant_params`` (default ``design_params``, default the controller's design model's, default
+    Table 1) with every bending mode below the sampling frequency and at least three more
+    than the controller's design model (or ``plant_modes``). The integration step follows from
+    the plant's highest bending frequency (``settings.substeps = None``, see
+    :func:`~hubbeam_ctrl.sim.stepper.substep_rule`). ``result.settings`` says which plant and
+    which step were used, and why.
+
     Parameters
     ----------
-    plant : str or HubBeamModel
-        ``"foam"``, ``"cfoam"``, ``"tlam"``, ``"sfoam"`` or a built model (free hub).
+    plant : str, HubBeamModel or EvaluationPlant
+        ``"foam"`` or ``"cfoam"`` (also ``"tlam"``, ``"sfoam"`` with ``params``), a built
+        model (free hub), or the result of :func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`.
     controller : object
         See the module docstring. ``reset()`` is called before the run.
     t_end : float
         Final time [s], > 0.
     params : Params, optional
-        Parameters when ``plant`` is a name.
+        The exact plant parameters (no evaluation-plant rule).
+    design_params : Params, optional
+        Parameters of the controller's design model (default: ``controller.design.params``).
+    plant_params : Params, optional
+        Physical parameters of the evaluation plant when they differ from the design's.
+    plant_modes : int, optional
+        Transverse modes of the evaluation plant (design modes..20).
     settings : ClosedLoopSettings, optional
     x0 : array_like (2 n_q,), optional
         Initial plant state ``[q, v]`` (default: at rest).
@@ -106,12 +183,13 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
 
     Notes
     -----
-    A controller that returns a non-finite torque, or a plant that leaves its range
-    (``|v_tip| > divergence_limit * L``), stops the run: the result is cut there, with
+    A plant that passes ``range_limit * L`` (default 0.3 L, the models' validated range) is
+    flagged (``outside_validated_range``, ``outside_range_time_s``) and the run goes on. A
+    controller that returns a non-finite torque, an integrator failure, or a plant that
+    passes ``divergence_limit * L`` (default L) stops the run: the result is cut there, with
     ``stopped = True`` and a message naming the cause.
     """
     settings = settings or ClosedLoopSettings()
-    model = resolve_model(plant, params)
     _check_positive("t_end", t_end, "s")
     if not callable(controller) or not hasattr(controller, "reset"):
         raise ParameterError("controller must be callable as controller(t, y) and have reset()")
@@ -124,6 +202,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     kind = getattr(controller, "measurement", "state")
     if kind not in ("state", "sensors"):
         raise ParameterError(f"controller {name!r}: measurement must be 'state' or 'sensors', got {kind!r}")
+    model, plant_info = _plant_and_rule(plant, controller, params, design_params, plant_params,
+                                        plant_modes, settings)
     n = model.n_q
     n1, n2 = model.n_axial, model.n_transverse
     m = int(getattr(controller, "n_modes", None) or n2)
@@ -132,14 +212,16 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     # index map plant state [q, v] -> measurement
     idx_state = np.r_[0, 1 + n1:1 + n1 + m, n, n + 1 + n1:n + 1 + n1 + m]
     C_sens = sensor_matrix(model.params, n2, n1)
-    stepper = PlantStepper(model, settings.stepper)
+    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]))
     N = int(round(t_end / dt))
     t = dt * np.arange(N + 1)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None
     f2_tip = model.basis.f2_tip
     sl2 = model.transverse_slice
-    limit = settings.divergence_limit * model.params.L
+    L = model.params.L
+    flag_at, stop_at = settings.range_limit * L, settings.divergence_limit * L
+    outside_time = None
 
     states = np.empty((N + 1, 2 * n))
     taus = np.full(N + 1, np.nan)
@@ -175,11 +257,14 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
             stopped, message, last = True, f"{exc} at t = {t[k]:.3f} s; run stopped", k
             break
         x = s[:2 * n]
-        if not abs(f2_tip @ x[sl2]) <= limit:
+        tip = abs(f2_tip @ x[sl2])
+        if outside_time is None and not tip <= flag_at:
+            outside_time = float(t[k + 1])
+        if not tip <= stop_at:
             stopped, last = True, k + 1
             states[k + 1] = x
             message = (f"{model.name.upper()} left its range at t = {t[k + 1]:.3f} s under "
-                       f"controller {name!r}: |v_tip| > {settings.divergence_limit:g} L")
+                       f"controller {name!r}: |v_tip| > {settings.divergence_limit:g} L; run stopped")
             break
         if (k & 255) == 0 and perf() - start > settings.max_wall_s:
             stopped, last = True, k + 1
@@ -198,11 +283,16 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         theta_dot_ref = np.asarray(reference[1](t), dtype=float) * np.ones_like(t)
     stats = dict(controller.stats()) if hasattr(controller, "stats") else {}
     s_dict = dataclasses.asdict(settings)
+    s_dict.update(plant_info)
     s_dict["t_end"] = float(t_end)
     s_dict["measurement"] = kind
+    if outside_time is not None and not stopped:
+        message = (f"completed; |v_tip| passed {settings.range_limit:g} L (outside the models' validated "
+                   f"range) at t = {outside_time:.3f} s")
     return Result(
         kind="closed_loop", model=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip,
         u_tip=u_tip, root_moment=root_moment, tau=taus, step_time_s=step_times,
         params=model.params, theta_ref=theta_ref, theta_dot_ref=theta_dot_ref, settings=s_dict,
-        stats={"plant_fallbacks": stepper.fallbacks, "jacobian_updates": stepper.jacobian_updates},
+        stats={"plant_fallbacks": stepper.fallbacks, "jacobian_updates": stepper.jacobian_updates,
+               "outside_range_time_s": outside_time},
         controller_stats=stats, stopped=stopped, message=message, wall_s=wall)

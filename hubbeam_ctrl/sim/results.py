@@ -114,8 +114,10 @@ class Result:
     controller_stats : dict
         What the controller's ``stats()`` returned at the end (e.g. QP fallbacks).
     stopped : bool
-        True when the run ended early (left the model's range, integrator failure,
-        non-finite torque, time limit); ``message`` says why. Also readable as ``diverged``.
+        True when the run ended early (passed the divergence limit, by default L;
+        integrator failure, non-finite torque, time limit); ``message`` says why. Also
+        readable as ``diverged``. Passing the models' validated range (0.3 L by default) does
+        not stop a run: ``outside_validated_range`` and ``outside_range_time_s`` say when.
     message : str
         How the run ended.
     wall_s : float
@@ -223,6 +225,18 @@ class Result:
     def diverged(self) -> bool:
         """True when the run ended early (same as ``stopped``)."""
         return self.stopped
+
+    @property
+    def outside_range_time_s(self) -> float | None:
+        """When ``|v_tip|`` first passed the models' validated range (``range_limit * L``,
+        default 0.3 L) [s]; ``None`` if it never did (``stats["outside_range_time_s"]``)."""
+        value = self.stats.get("outside_range_time_s")
+        return None if value is None else float(value)
+
+    @property
+    def outside_validated_range(self) -> bool:
+        """True when the run passed the models' validated range (and went on)."""
+        return self.outside_range_time_s is not None
 
     def window(self, t_start: float, t_stop: float | None = None) -> np.ndarray:
         """Boolean mask of the samples with ``t_start <= t <= t_stop``.

@@ -9,9 +9,11 @@ instead of being resolved step by step, while the error control still resolves t
 bending modes (see ``benchmarks/bench_plant.py`` for speed and accuracy).
 
 Integration proceeds in chunks (``chunk_s``); after each chunk the tip deflection is
-checked, and a run that leaves the model's range (``|v_tip| > divergence_limit * L``,
-e.g. a TLAM above its critical speed) or whose integrator fails stops with
-``diverged = True`` and a message, returning what it computed.
+checked. A run that passes the models' validated range (``|v_tip| > range_limit * L``,
+default 0.3 L) is flagged (``outside_validated_range``, with the time) and goes on; a run
+that passes ``divergence_limit * L`` (default L, e.g. a TLAM above its critical speed) or
+whose integrator fails stops with ``diverged = True`` and a message, returning what it
+computed.
 """
 
 from __future__ import annotations
@@ -49,6 +51,8 @@ class SimulationSettings:
         5 with tight tolerances resolves them (slow, for reference runs).
     chunk_s : float
         Length of one integration chunk between divergence checks [s].
+    range_limit : float
+        The run is flagged (``outside_validated_range``) when ``|v_tip| > range_limit * L``.
     divergence_limit : float
         The run stops when ``|v_tip| > divergence_limit * L``.
     max_wall_s : float
@@ -60,11 +64,12 @@ class SimulationSettings:
     atol: float = 1e-8
     max_order: int = 2
     chunk_s: float = 10.0
-    divergence_limit: float = 0.3
+    range_limit: float = 0.3
+    divergence_limit: float = 1.0
     max_wall_s: float = 600.0
 
     def __post_init__(self):
-        for name in ("dt", "rtol", "atol", "chunk_s", "divergence_limit", "max_wall_s"):
+        for name in ("dt", "rtol", "atol", "chunk_s", "range_limit", "divergence_limit", "max_wall_s"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ParameterError(f"{name} must be a finite number > 0, got {value!r}")
@@ -258,6 +263,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     times, xs_all, zs_all = [np.array([0.0])], [x0[None, :]], []
     diverged, message = False, "completed"
     limit = settings.divergence_limit * m.params.L
+    flag_at, outside_time = settings.range_limit * m.params.L, None
     tip_map = m.tip_function
     start = time.perf_counter()
     done = 0
@@ -287,6 +293,9 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         q_full = xs[:, :n] if hub == "free" else xs[:, : n - 1]
         qt = q_full if hub == "free" else np.column_stack([np.zeros(len(xs)), q_full])
         v_tip = np.array(tip_map.map(len(xs))(qt.T)[0]).ravel() if len(xs) else np.zeros(0)
+        flagged = np.nonzero(np.abs(v_tip) > flag_at)[0]
+        if outside_time is None and flagged.size:
+            outside_time = float(tk[flagged[0]])
         over = np.nonzero(np.abs(v_tip) > limit)[0]
         if over.size:
             cut = over[0] + 1
@@ -315,12 +324,16 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     zs = np.vstack(zs_all) if zs_all else np.zeros((0, n_x // 2))
     zs = np.vstack([z0[None, :], zs])
     q, v, a = _full_state(m, hub, maneuver, t, xs, zs)
+    if outside_time is not None and not diverged:
+        message = (f"completed; |v_tip| passed {settings.range_limit:g} L = {flag_at:.3g} m (outside "
+                   f"the models' validated range) at t = {outside_time:.3f} s")
     return _open_loop_result(m, t, q, v, a, hub=hub, maneuver=maneuver, settings=settings,
-                             stopped=diverged, message=message, wall_s=wall)
+                             stopped=diverged, message=message, wall_s=wall,
+                             outside_range_time_s=outside_time)
 
 
 def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, settings, stopped,
-                      message, wall_s) -> Result:
+                      message, wall_s, outside_range_time_s=None) -> Result:
     """A :class:`Result` of kind ``"open_loop"``, the model's outputs evaluated on all samples."""
     N = len(t)
     Q, V, A = q.T, v.T, a.T
@@ -333,6 +346,7 @@ def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, setting
                   v_tip=v_tip, u_tip=u_tip, tau=tau, q_theta=q_theta, energy=energy,
                   angular_momentum=momentum, params=model.params,
                   settings={"maneuver": describe_input(maneuver), **dataclasses.asdict(settings)},
+                  stats={"outside_range_time_s": outside_range_time_s},
                   stopped=stopped, message=message, wall_s=wall_s)
 
 

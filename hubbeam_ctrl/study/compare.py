@@ -1,7 +1,8 @@
 """Closed-loop comparison of the controllers on FOAM or CFOAM (``hubbeam compare``).
 
 The top layer of the toolbox: it builds a scenario (reference, design model), designs
-each controller on SFOAM, runs it on the nonlinear plant with
+each controller on SFOAM, runs it on the nonlinear evaluation plant (more modes than the
+design model, :func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`) with
 :func:`~hubbeam_ctrl.sim.closedloop.simulate_closed_loop`, computes the metrics of
 :mod:`hubbeam_ctrl.study.metrics` and writes ``metrics.csv``, ``metrics.json``, three PNG
 plots and ``report.md``.
@@ -32,10 +33,10 @@ from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, con
 from controllers.analysis import loop_margins
 from controllers.scaling import Tolerances
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.plant.models import build_model
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
+from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
@@ -96,6 +97,8 @@ class Comparison:
     margins : dict
         Controller name -> :class:`controllers.analysis.LoopMargins` at the plant input on
         its design model, for the linear controllers (PD, LQR, LQG).
+    plant : EvaluationPlant
+        The plant the controllers were judged on, and why it has its modes.
     """
 
     scenario: Scenario
@@ -105,23 +108,39 @@ class Comparison:
     paths: dict = field(default_factory=dict)
     styles: dict = field(default_factory=dict)
     targets: tuple = ()
+    plant: EvaluationPlant | None = None
     margins: dict = field(default_factory=dict)
 
 
-def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
-            params: Params | None = None, tau_max: float | None = None, t_f: float = 10.0,
+def _design_modes(design_modes, design: Params) -> int:
+    if design_modes is None:
+        return design.n_transverse
+    if isinstance(design_modes, bool) or not isinstance(design_modes, int) or not 1 <= design_modes <= MAX_MODES:
+        raise ParameterError(f"design_modes must be an integer in 1..{MAX_MODES}, got {design_modes!r}")
+    return design_modes
+
+
+def compare(plant: str = "foam", scenario="slew", controllers=None, *,
+            params: Params | None = None, design_params: Params | None = None,
+            plant_params: Params | None = None, tau_max: float | None = None, t_f: float = 10.0,
             t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
-            design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
-            settings: dict | None = None, sim_settings: ClosedLoopSettings | None = None,
-            shaping=None, schedule: int = 1, tolerances: Tolerances | None = None,
-            plant_params: Params | None = None, payload_range=None, designs: dict | None = None,
+            design_modes: int | None = None, plant_modes: int | None = None, horizon: int = 50,
+            solver: str = "daqp", settings: dict | None = None,
+            sim_settings: ClosedLoopSettings | None = None, shaping=None, schedule: int = 1,
+            tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
             progress: bool = False) -> Comparison:
-    """Design the controllers on SFOAM and run them on the nonlinear plant.
+    """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
+
+    The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
+    ``plant`` (FOAM by default) with ``plant_params`` (default: the design's) and, unless
+    ``plant_modes`` says otherwise, every bending mode below the sampling frequency and at
+    least three more than the design (:func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`).
 
     Parameters
     ----------
     plant : {"foam", "cfoam"}
-        Nonlinear plant (:data:`~hubbeam_ctrl.study.scenarios.PLANTS`).
+        Nonlinear plant (:data:`~hubbeam_ctrl.study.scenarios.PLANTS`; default FOAM: it tracks
+        an exact beam more closely than CFOAM at large deflection, see docs/physics.md).
     scenario : str or Slew or SpinUp
         A registered scenario (``slew``, ``spinup``...) or a task in physical terms
         (:mod:`hubbeam_ctrl.study.tasks`; see :func:`make_scenario`).
@@ -129,8 +148,11 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
         Registered controllers (``openloop, pd, lqr, lqg, mpc``...; a comma-separated string
         is accepted). Default: those registered as default.
     params : Params, optional
+        Parameters of both the design and the plant (default Table 1).
+    design_params, plant_params : Params, optional
+        Override ``params`` for the design model or the plant.
     tau_max : float, optional
-        Torque budget [N m], at most ``params.tau_max`` (default: the motor's limit).
+        Torque budget [N m], at most the motor's ``Params.tau_max`` (default: that limit).
     t_f, t_end, dt : float
         Maneuver time, simulated time and sample time [s].
     w_f : float
@@ -138,7 +160,9 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
     slew_angle : float, optional
         Slew angle [rad] (default: the Eq. 44 angle of ``tau_max`` and ``t_f``).
     design_modes : int, optional
-        Transverse modes of the design model (default: the plant's).
+        Transverse modes of the design model, 1..20 (default ``design_params.n_transverse``).
+    plant_modes : int, optional
+        Transverse modes of the plant, ``design_modes..20`` (default: the rule above).
     horizon : int
         MPC horizon [samples] (passed to every controller's ``for_scenario``).
     solver : str
@@ -161,16 +185,13 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
     tolerances : controllers.scaling.Tolerances, optional
         The dimensionless tolerances that scale the default weights, noise levels, settling
         bands, residual window and reference shaping to the beam and the task (see
-        :mod:`controllers.scaling`).
-    plant_params : Params, optional
-        Parameters of the nonlinear plant when they differ from the design's ``params``
-        (e.g. another payload).
+        :mod:`controllers.scaling`; default: :func:`controllers.scaling.default_tolerances`).
     payload_range : tuple of float, optional
         ``(m_min, m_max)`` [kg] that LQR, LQG and MPC are designed for
-        (:func:`controllers.robust.design_for_range`); must hold ``params.m_t``.
+        (:func:`hubbeam_ctrl.study.payload.range_designs`); must hold the design's ``m_t``.
     designs : dict, optional
         Controller name -> :class:`controllers.robust.RangeDesign` (design model and
-        settings) chosen beforehand (see :func:`hubbeam_ctrl.study.payload.range_designs`).
+        settings) chosen beforehand.
     progress : bool
         Print one line per controller on stderr.
 
@@ -180,65 +201,63 @@ def compare(plant: str = "cfoam", scenario="slew", controllers=None, *,
     """
     start = time.perf_counter()
     names = _parse_controllers(controllers)
-    sc = make_scenario(scenario, plant=plant, params=params, tau_max=tau_max, t_f=t_f,
+    base = params if params is not None else Params()
+    design_p = design_params if design_params is not None else base
+    sc = make_scenario(scenario, plant=plant, params=design_p, tau_max=tau_max, t_f=t_f,
                        t_end=t_end, dt=dt, w_f=w_f, slew_angle=slew_angle, tolerances=tolerances)
-    if design_modes is not None and (isinstance(design_modes, bool) or not isinstance(design_modes, int)
-                                     or not 1 <= design_modes <= sc.params.n_transverse):
-        raise ParameterError(f"design_modes must be an integer in 1..{sc.params.n_transverse} "
-                             f"(the plant's transverse modes), got {design_modes!r}")
+    m = _design_modes(design_modes, sc.params)
+    ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
+                          plant_params=plant_params if plant_params is not None else params,
+                          plant_modes=plant_modes)
     settings = dict(settings or {})
     unknown = sorted(set(settings) - set(names))
     if unknown:
         raise ParameterError(f"settings given for controllers not run: {', '.join(unknown)}")
-    design = DesignModel.build(sc.params, sc.design_spin, sc.dt, design_modes)
+    design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
     shaper = None if shaping is None else as_shaper(design, shaping)
-    sched = _design_schedule(sc, schedule, design_modes)
+    sched = _design_schedule(sc, schedule, m)
     sim = sim_settings or ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
-    if plant_params is not None and not isinstance(plant_params, Params):
-        raise ParameterError(f"plant_params must be a Params, got {type(plant_params).__name__}")
-    model = build_model(sc.plant, sc.params if plant_params is None else plant_params)
     ref = sc.reference
     designs = dict(designs or {})
     if payload_range is not None:
         from hubbeam_ctrl.study.payload import range_designs
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
-                                   solver=solver), **designs}
+                                   solver=solver, sim=sim, plant_modes=plant_modes), **designs}
     results, metrics, margins = {}, {}, {}
     for name in names:
-        st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
-                                                                            solver=solver)
         spec = CONTROLLERS[name]
+        st = settings.get(name) or spec.settings.for_scenario(sc, horizon=horizon, solver=solver)
         d = designs[name].design if name in designs else design
         st = designs[name].settings if name in designs else st
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=sched if spec.scheduled else None)
         margins[name] = _margins(ctrl)
-        res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
+        res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res
         metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
         metrics[name]["scenario"] = sc.name
         if margins[name] is not None:
-            m = margins[name]
-            metrics[name].update(disk_margin=m.disk_margin, gain_margin_upper=m.gain_margin_upper,
-                                 gain_margin_lower=m.gain_margin_lower, phase_margin_deg=m.phase_margin_deg,
-                                 delay_margin_s=m.delay_margin_s)
+            lm = margins[name]
+            metrics[name].update(disk_margin=lm.disk_margin, gain_margin_upper=lm.gain_margin_upper,
+                                 gain_margin_lower=lm.gain_margin_lower, phase_margin_deg=lm.phase_margin_deg,
+                                 delay_margin_s=lm.delay_margin_s)
         if progress:
-            m = metrics[name]
-            print(f"compare {sc.plant}/{sc.name}: {name:8s} residual {m['residual_tip_max_m']:.3e} m, "
-                  f"run {res.wall_s:.1f} s" + ("" if m["completed"] else f"  [{res.message}]"),
-                  file=sys.stderr)
+            mm = metrics[name]
+            print(f"compare {sc.plant}/{sc.name}: {name:8s} {mm['verdict']:11s} residual "
+                  f"{mm['residual_tip_max_m']:.3e} m, run {res.wall_s:.1f} s"
+                  + ("" if mm["completed"] else f"  [{res.message}]"), file=sys.stderr)
     if "openloop" in metrics:
-        base = metrics["openloop"]["residual_tip_max_m"]
-        for m in metrics.values():
-            m["residual_pct_of_openloop"] = (100.0 * m["residual_tip_max_m"] / base
-                                             if base and math.isfinite(base) else float("nan"))
+        base_res = metrics["openloop"]["residual_tip_max_m"]
+        for mm in metrics.values():
+            mm["residual_pct_of_openloop"] = (100.0 * mm["residual_tip_max_m"] / base_res
+                                              if base_res and math.isfinite(base_res) else float("nan"))
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
-                      targets=tuple(n for n in names if CONTROLLERS[n].target),
-                      margins={n: m for n, m in margins.items() if m is not None})
+                      targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,
+                      margins={n: lm for n, lm in margins.items() if lm is not None})
 
 
 def _margins(ctrl):
@@ -250,14 +269,14 @@ def _margins(ctrl):
     return loop_margins(ctrl)
 
 
-def run_compare(plant: str = "cfoam", scenario: str = "slew", controllers=None,
+def run_compare(plant: str = "foam", scenario: str = "slew", controllers=None,
                 out_dir=None, **options) -> dict:
     """Run :func:`compare` and write its outputs to ``out_dir`` (if given).
 
     Parameters
     ----------
     plant : {"foam", "cfoam"}
-        Nonlinear plant.
+        Nonlinear plant (default FOAM).
     scenario : str
         A registered scenario.
     controllers : str or sequence of str, optional
@@ -265,8 +284,9 @@ def run_compare(plant: str = "cfoam", scenario: str = "slew", controllers=None,
     out_dir : str or Path, optional
         Folder for metrics.csv, metrics.json, the PNG plots and report.md.
     **options
-        Keyword arguments of :func:`compare` (``params``, ``tau_max``, ``t_f``, ``t_end``,
-        ``dt``, ``w_f``, ``design_modes``, ``horizon``, ``solver``, ``settings``...).
+        Keyword arguments of :func:`compare` (``params``, ``design_params``, ``plant_params``,
+        ``tau_max``, ``t_f``, ``t_end``, ``dt``, ``w_f``, ``design_modes``, ``plant_modes``,
+        ``horizon``, ``solver``, ``settings``, ``shaping``, ``schedule``...).
 
     Returns
     -------

@@ -36,16 +36,17 @@ __all__ = ["ROBUST_CONTROLLERS", "range_designs", "PayloadComparison", "payload_
 ROBUST_CONTROLLERS = ("lqr", "lqg", "mpc")
 
 
-def _nonlinear_score(sc, sim):
-    """``score(ctrl, payload)``: residual on the nonlinear plant with that payload over the open loop's."""
+def _nonlinear_score(sc, sim, design_modes: int, plant_modes: int | None):
+    """``score(ctrl, payload)``: residual on the evaluation plant with that payload over the open loop's."""
     from controllers import OpenLoopSettings
-    from hubbeam_ctrl.plant.models import build_model
     from hubbeam_ctrl.sim.closedloop import simulate_closed_loop
+    from hubbeam_ctrl.sim.evaluation import evaluation_plant
     from hubbeam_ctrl.study.metrics import closed_loop_metrics
     ref, open_loop = sc.reference, {}
 
     def residual(ctrl, mass):
-        model = build_model(sc.plant, sc.params.replace(m_t=mass))
+        model = evaluation_plant(sc.plant, sc.params, sc.dt, design_modes, sc.design_spin,
+                                 plant_params=sc.params.replace(m_t=mass), plant_modes=plant_modes)
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim, reference=(ref.theta_at, ref.theta_dot_at))
         m = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
         return m["residual_tip_max_m"] if m["completed"] else math.inf
@@ -59,7 +60,7 @@ def _nonlinear_score(sc, sim):
 
 
 def range_designs(names, scenario, design, payload_range, settings: dict | None = None, *,
-                  horizon: int = 50, solver: str = "daqp", sim=None) -> dict:
+                  horizon: int = 50, solver: str = "daqp", sim=None, plant_modes: int | None = None) -> dict:
     """The designs of LQR, LQG and MPC (those in ``names``) for a payload range.
 
     Candidates (:func:`controllers.robust.design_for_range`) are measured on the nonlinear
@@ -82,6 +83,9 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
         MPC options (as :func:`~hubbeam_ctrl.study.compare.compare`).
     sim : ClosedLoopSettings, optional
         Settings of the measuring runs (default: the scenario's sensors).
+    plant_modes : int, optional
+        Transverse modes of the evaluation plants (default: their rule,
+        :func:`hubbeam_ctrl.sim.evaluation.evaluation_plant`).
 
     Returns
     -------
@@ -100,7 +104,7 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
         from hubbeam_ctrl.plant.sensors import SensorSettings
         from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
         sim = ClosedLoopSettings(dt=sc.dt, sensors=SensorSettings(**(sc.sensors or {})))
-    score = _nonlinear_score(sc, sim)
+    score = _nonlinear_score(sc, sim, design.n_modes, plant_modes)
     out = {}
     for name in names:
         if name not in ROBUST_CONTROLLERS:
@@ -202,7 +206,8 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
                        **{k: options[k] for k in scenario_keys if k in options})
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, options.get("design_modes"))
     designs = range_designs(names, sc, design, (lo, hi), options.get("settings"),
-                            horizon=options.get("horizon", 50), solver=options.get("solver", "daqp"))
+                            horizon=options.get("horizon", 50), solver=options.get("solver", "daqp"),
+                            plant_modes=options.get("plant_modes"))
     comparisons = {m: compare(plant, scenario, names, params=params, plant_params=params.replace(m_t=m),
                               designs=designs, **options) for m in masses}
     return PayloadComparison((lo, hi), masses, comparisons, designs)

@@ -15,16 +15,24 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text
 from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
 from hubbeam_ctrl.plots.plant import save_figure
-from hubbeam_ctrl.study.metrics import METRIC_UNITS
+from hubbeam_ctrl.study.metrics import GROWTH_LIMIT, METRIC_UNITS, SATURATION_LIMIT
 
-__all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS"]
+__all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE"]
 
 
 # -- output -----------------------------------------------------------------------------------
 #: Columns of metrics.csv, in order.
-CSV_FIELDS = (["controller", "plant", "scenario"] + list(METRIC_UNITS)
-              + ["residual_pct_of_openloop", "within_torque_limit", "completed", "qp_solves",
-                 "qp_fallbacks", "fallback_fraction", "wall_s", "message"])
+CSV_FIELDS = (["verdict", "controller", "plant", "scenario"] + list(METRIC_UNITS)
+              + ["residual_pct_of_openloop", "within_torque_limit", "completed", "outside_validated_range",
+                 "outside_range_time_s", "plant_modes", "plant_axial_modes", "design_modes", "substeps",
+                 "step_s", "step_mode_hz", "qp_solves", "qp_fallbacks", "fallback_fraction", "wall_s",
+                 "message"])
+
+#: What the README says about the plant models against an exact beam (issue 10's figures).
+PLANT_NOTE = ("FOAM is the default plant: against a geometrically exact beam (planar ANCF, "
+              "Exudyn) the default slew's open-loop residual is 0.2747 m; FOAM gives 0.2824 m "
+              "(+2.8 %), CFOAM 0.3515 m (+28 %), so CFOAM's \"% of open loop\" figures look "
+              "better than they are at large deflection.")
 
 
 def _clean(value):
@@ -40,15 +48,42 @@ def _json_metrics(metrics: dict) -> list:
 
 
 def _targets(comparison) -> list:
-    """Rows ``(controller, residual_ok, torque_ok, angle_ok)`` of the slew targets."""
+    """Rows ``(controller, settled, residual_ok, torque_ok, angle_ok)`` of the slew targets."""
     m = comparison.metrics
     rows = []
     base = m.get("openloop", {}).get("residual_tip_max_m")
     for name, mm in m.items():
         res_ok = (base is not None and mm["residual_tip_max_m"] <= 0.01 * base) if name != "openloop" else None
-        rows.append((name, res_ok, mm.get("within_torque_limit"),
+        rows.append((name, mm["verdict"] == "settled", res_ok, mm.get("within_torque_limit"),
                      abs(mm["final_angle_error_rad"]) <= 1e-3 * abs(comparison.scenario.target)))
     return rows
+
+
+def _plant_lines(comparison) -> list:
+    """Report lines saying which plant (model, modes, parameters, step) judged the controllers."""
+    sc, ev = comparison.scenario, comparison.plant
+    p = ev.params if ev is not None else sc.params
+    first = next(iter(comparison.results.values()), None)
+    st = first.settings if first is not None else {}
+    design = sc.params
+    lines = [f"- Design model: SFOAM linearised at {sc.design_spin:g} rad/s with "
+             f"{ev.design_modes if ev else design.n_transverse} transverse modes "
+             f"(m_t = {design.m_t:g} kg, J_h = {design.J_h:g} kg m^2)."]
+    if ev is not None:
+        lines.append(f"- Evaluation plant: {ev.model.upper()} with {p.n_axial} axial and {p.n_transverse} "
+                     f"transverse modes ({ev.reason}), structural damping ratio {p.damping_ratio:g}.")
+        differs = sorted(k for k, v in p.to_dict().items()
+                         if k not in ("n_axial", "n_transverse") and v != design.to_dict()[k])
+        values = ", ".join(f"{k} = {v:g}" for k, v in p.to_dict().items()
+                           if k not in ("n_axial", "n_transverse") and v is not None)
+        lines.append(f"- Plant parameters (SI units): {values}; "
+                     + (f"{', '.join(differs)} differ from the design's." if differs
+                        else "the design's physical parameters."))
+    if "step_reason" in st:
+        lines.append(f"- Integration: generalized-alpha (rho_inf = {st.get('rho_inf', 0.9):g}), "
+                     f"{st['step_reason']}.")
+    lines.append(f"- {PLANT_NOTE}")
+    return lines
 
 
 def write_outputs(comparison, out_dir) -> dict:
@@ -79,7 +114,8 @@ def write_outputs(comparison, out_dir) -> dict:
     paths["csv"] = atomic_write_text(out / "metrics.csv", buf.getvalue())
     paths["json"] = atomic_write_text(out / "metrics.json",
                                       json.dumps(_json_metrics(metrics), indent=2) + "\n")
-    title = f"{sc.plant.upper()}, {sc.name}: "
+    modes = f" ({comparison.plant.modes} modes)" if comparison.plant is not None else ""
+    title = f"{sc.plant.upper()}{modes}, {sc.name}: "
     styles = comparison.styles
     figs = {
         "tip_deflection.png": plot_tip_deflection(results, sc.t_f, sc.t_f + 5.0,
@@ -99,32 +135,36 @@ def write_outputs(comparison, out_dir) -> dict:
 
 def _report(comparison) -> str:
     sc = comparison.scenario
+    verdicts = ", ".join(f"{name} **{m['verdict']}**" for name, m in comparison.metrics.items())
     lines = [f"# Closed-loop comparison: {sc.name} on {sc.plant.upper()}", "",
+             f"Verdicts: {verdicts}.", "",
              f"- Scenario: {sc.description}.",
              f"- Feedback reference: {sc.reference.description}.",
              f"- Torque budget tau_max = {sc.tau_max:g} N m; sample time {sc.dt * 1e3:g} ms "
-             f"(zero-order hold); t_end = {sc.t_end:g} s.",
-             f"- Design model: SFOAM linearised at {sc.design_spin:g} rad/s; plant {sc.plant.upper()} "
-             f"with {sc.params.n_axial} axial and {sc.params.n_transverse} transverse modes, "
-             f"m_t = {sc.params.m_t:g} kg.",
-             f"- Residual vibration: |v_tip| from tf + {sc.bands['residual_delay']:g} s = "
-             f"{sc.t_f + sc.bands['residual_delay']:g} s to the end. Settling: hub-angle error within "
-             f"{1e3 * sc.bands['settle_angle']:.3g} mrad and |v_tip| within {1e3 * sc.bands['settle_tip']:.3g} mm "
-             f"for good (bands relative to the task's angle and L).",
-             f"- Wall time of the comparison: {comparison.wall_s:.1f} s.", "",
-             markdown_table(comparison.metrics), ""]
+             f"(zero-order hold); t_end = {sc.t_end:g} s."]
+    lines += _plant_lines(comparison)
+    lines += [f"- Residual vibration: |v_tip| from tf + {sc.bands['residual_delay']:g} s = "
+              f"{sc.t_f + sc.bands['residual_delay']:g} s to the end. Settling: hub-angle error within "
+              f"{1e3 * sc.bands['settle_angle']:.3g} mrad and |v_tip| within {1e3 * sc.bands['settle_tip']:.3g} mm "
+              f"at the end (bands relative to the task's angle and L).",
+              f"- Verdicts: diverged (the run stopped), unstable (residual envelope grows more than "
+              f"{GROWTH_LIMIT:g}x beyond the tip band, or the torque is at its limit more than "
+              f"{100 * SATURATION_LIMIT:g} % of the residual window), settled, not settled.",
+              f"- Wall time of the comparison: {comparison.wall_s:.1f} s.", "",
+              markdown_table(comparison.metrics), ""]
     if sc.name == "slew" and "openloop" in comparison.metrics:
         lines += ["## Targets (slew)", "",
-                  "| controller | residual <= 1 % of open loop | abs(tau) <= tau_max | "
-                  "final error <= 1e-3 of the slew angle |",
-                  "|---|---|---|---|"]
+                  "| controller | settled | residual <= 1 % of open loop | abs(tau) <= tau_max "
+                  "| final error <= 1e-3 of the slew angle |",
+                  "|---|---|---|---|---|"]
         yes = {True: "yes", False: "**no**", None: "-"}
-        for name, r_ok, t_ok, a_ok in _targets(comparison):
+        for name, s_ok, r_ok, t_ok, a_ok in _targets(comparison):
             note = "" if name in comparison.targets or name == "openloop" else " (reported only)"
-            lines.append(f"| {name}{note} | {yes[r_ok]} | {yes[t_ok]} | {yes[a_ok]} |")
+            lines.append(f"| {name}{note} | {yes[s_ok]} | {yes[r_ok]} | {yes[t_ok]} | {yes[a_ok]} |")
         lines.append("")
     lines += _margin_lines(getattr(comparison, "margins", {}))
-    notes = [f"- {name}: {m['message']}" for name, m in comparison.metrics.items() if not m["completed"]]
+    notes = [f"- {name}: {m['message']}" for name, m in comparison.metrics.items()
+             if not m["completed"] or m.get("outside_validated_range")]
     notes += [f"- {name}: {m['qp_fallbacks']} of {m['qp_solves']} QPs failed and fell back to LQR"
               for name, m in comparison.metrics.items() if m.get("qp_fallbacks")]
     if notes:
@@ -156,6 +196,7 @@ def _margin_lines(margins: dict) -> list:
 
 
 _TABLE = [
+    ("verdict", "verdict", "{}"),
     ("controller", "controller", "{}"),
     ("peak_tip_m", "peak v_tip m", "{:.4f}"),
     ("residual_tip_max_m", "resid max m", "{:.2e}"),
@@ -177,9 +218,11 @@ def _cells(m: dict) -> list:
         v = _clean(m.get(key))
         cells.append("-" if v is None else (fmt.format(v) if not isinstance(v, str) else v))
     if not m.get("completed", True):
-        cells[0] += " (stopped)"
+        cells[1] += " (stopped)"
+    if m.get("outside_validated_range"):
+        cells[1] += " (>range)"
     if m.get("qp_fallbacks"):
-        cells[0] += f" [{m['qp_fallbacks']} fb]"
+        cells[1] += f" [{m['qp_fallbacks']} fb]"
     return cells
 
 

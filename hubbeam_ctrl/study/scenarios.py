@@ -27,6 +27,7 @@ from controllers.scaling import (
 )
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.evaluation import PLANT_MODELS
 from hubbeam_ctrl.study.tasks import Slew, SpinUp
 
 __all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
@@ -34,7 +35,7 @@ __all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenari
 #: Scenario name -> builder, in registration order (see :func:`register_scenario`).
 SCENARIOS: dict = {}
 #: The nonlinear plants a scenario runs on (the models with dynamic stiffening and axial modes).
-PLANTS = ("foam", "cfoam")
+PLANTS = PLANT_MODELS
 
 
 def register_scenario(name: str):
@@ -83,6 +84,7 @@ class Scenario:
         Registered scenario name (:data:`SCENARIOS`).
     plant : {"foam", "cfoam"}
     params : Params
+        Parameters of the design model (the reference uses their rigid-body inertia).
     tau_max : float
         Torque budget [N m] (= Eq. 44's tau_m in the slew).
     t_f : float
@@ -156,7 +158,7 @@ class Scenario:
                 "sensors": self.sensors, "bands": self.bands}
 
 
-def make_scenario(scenario="slew", *, plant: str = "cfoam", params: Params | None = None,
+def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None = None,
                   tau_max: float | None = None, t_f: float = 10.0, t_end: float = 30.0,
                   dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
                   flatness: float | None = None, smoothing: float | None = None,

@@ -34,9 +34,9 @@ from pathlib import Path
 from controllers import DesignModel, make_controller
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text
-from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
+from hubbeam_ctrl.sim.evaluation import evaluation_plant
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 from hubbeam_ctrl.study.report import CSV_FIELDS
 from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec
@@ -147,9 +147,13 @@ def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
     base = cache.get(("scenario", task, spec.params, spec.w_f), lambda: spec.scenario_for(spec.params))
     spin = sc.design_spin if spec.design == "matched" else base.design_spin
     dkey = ("design", design_p, spin, spec.dt, spec.design_modes)
+    m = spec.design_modes or design_p.n_transverse
+    # the same evaluation plant as compare(): the plant's physics, more modes than the design
+    pkey = ("plant", spec.plant, plant_p, design_p, spin, spec.dt, m)
     return {"scenario": sc, "key": (dkey, task, design_p, w_f),
             "design": cache.get(dkey, lambda: DesignModel.build(design_p, spin, spec.dt, spec.design_modes)),
-            "plant": cache.get(("plant", spec.plant, plant_p), lambda: build_model(spec.plant, plant_p)),
+            "plant": cache.get(pkey, lambda: evaluation_plant(spec.plant, design_p, spec.dt, m, spin,
+                                                              plant_params=plant_p)),
             "sim": ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(**(sc.sensors or {}),
                                                                          seed=int(case.get("seed", 0))))}
 
