@@ -114,16 +114,17 @@ class Tolerances(Settings):
 
 
 #: Design tolerances of a slew with a heavy hub (``J_h / J_total >= 0.8``): the paper's tuned
-#: weights and filter noise (before they scaled) expressed relative to its slew (Table 1's
-#: beam, the Eq. 44 angle in 10 s), to four digits; no reference smoothing.
+#: weights and filter noise (the residual-mode LQG's 1 N m and 1e-5) expressed relative to its
+#: slew (Table 1's beam, the Eq. 44 angle in 10 s), to four digits; no reference smoothing.
 HEAVY_HUB = {"angle_error": 7.808e-4, "rate_time": 0.3162, "tip_deflection": 2.282e-3,
-             "modal_deflection": 1.25e-3, "vibration_rate": 0.3463, "modal_noise": 1.25e-5, "smoothing": 0.0}
+             "modal_deflection": 1.25e-3, "vibration_rate": 0.3463, "modal_noise": 1.25e-6,
+             "torque_noise": 0.005, "smoothing": 0.0}
 #: Design tolerances of a slew with a light hub (``J_h / J_total <= 0.1``, e.g. a lab arm): the
 #: hub moves with the first mode, so the hub-rate weight damps the beam and the hub angle is
 #: held loosely; the reference is smoothed over half a first-mode period (measured on light-hub
 #: aluminium and steel links and a long boom, see docs/controllers.md).
 LIGHT_HUB = {"angle_error": 1e-2, "rate_time": 1.0, "tip_deflection": 1e-3, "modal_deflection": 5e-4,
-             "vibration_rate": 1.0, "modal_noise": 1e-4, "smoothing": 0.5}
+             "vibration_rate": 1.0, "modal_noise": 1e-4, "torque_noise": 0.025, "smoothing": 0.5}
 #: Hub shares of the two anchors; in between, every design tolerance is interpolated
 #: geometrically (the smoothing linearly) in the hub share.
 HUB_SHARES = (0.1, 0.8)
@@ -132,7 +133,7 @@ HUB_SHARES = (0.1, 0.8)
 SPINUP_TOLERANCES = Tolerances(angle_error=6.667e-4, rate_time=0.3162, tip_deflection=2.282e-3,
                                modal_deflection=1.25e-3, vibration_rate=0.2970, settle_angle=6.667e-5,
                                angle_noise=6.667e-6, rate_noise=3.333e-4, moment_noise=8.284e-4,
-                               modal_noise=1.25e-5, smoothing=0.0)
+                               modal_noise=1.25e-6, torque_noise=0.005, smoothing=0.0)
 
 
 def default_tolerances(task: str, hub_share: float | None = None) -> Tolerances:

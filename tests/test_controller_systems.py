@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from controllers import LQG, LQR, MPC, PD, DesignModel, MPCSettings
+from controllers import LQG, LQR, MPC, PD, DesignModel, LQGSettings, MPCSettings
 from controllers.analysis import closed_loop_poles, design_plant, loop_margins, loop_matrices
 from controllers.export import FORMATS, load_controller, save_controller
 from hubbeam_ctrl import Params
@@ -40,7 +40,9 @@ def test_statespace_has_named_signals(controllers, design):
     assert pd.input_labels == ["theta", "theta_dot"] and pd.nstates == 0
     assert lqr.input_labels == design.state_names and lqr.nstates == 0
     assert lqg.input_labels == ["theta", "theta_dot", "root_moment"]
-    assert lqg.state_labels == [f"{s}_est" for s in design.state_names]
+    # the filter runs on the design modes plus the residual modes (controllers.residual)
+    assert lqg.state_labels == [f"{s}_est" for s in controllers["lqg"].filter_model.state_names]
+    assert lqg.nstates > design.n_x
     for sys in (pd, lqr, lqg):
         assert sys.output_labels == ["tau"] and sys.dt == design.dt
 
@@ -68,8 +70,8 @@ def test_statespace_reproduces_the_controller(controllers, design, name):
     np.testing.assert_allclose(np.ravel(resp.outputs), taus, rtol=1e-9, atol=1e-9 * np.max(np.abs(taus)))
 
 
-def test_lqg_closed_loop_poles_are_regulator_and_filter_poles(controllers, design):
-    lqg = controllers["lqg"]
+def test_lqg_closed_loop_poles_are_regulator_and_filter_poles(design):
+    lqg = LQG(design, LQGSettings(robust=False))          # filter on the design model: separation
     K, L = lqg.K[None, :], lqg.L
     expected = np.concatenate([np.linalg.eigvals(design.Ad - design.Bd @ K),
                                np.linalg.eigvals(design.Ad - design.Ad @ L @ design.C_sensors)])
@@ -165,23 +167,38 @@ def test_controller_round_trip_bit_for_bit(controllers, name, fmt, tmp_path):
 def test_mat_controller_for_matlab(controllers, tmp_path):
     path = save_controller(controllers["lqg"], tmp_path / "lqg.mat")
     S = scipy.io.loadmat(path)
-    assert S["Ac"].shape == (8, 8) and S["Dc"].shape == (1, 3)
+    n = controllers["lqg"].filter_model.n_x
+    assert S["Ac"].shape == (n, n) and S["Dc"].shape == (1, 3)
     assert [str(c[0]) for c in S["input_names"].ravel()] == ["theta", "theta_dot", "root_moment"]
     assert S["dt"].item() == 0.01 and str(S["controller"][0]) == "lqg"
 
 
-def test_exported_lqg_closed_with_exported_plant_has_the_design_poles(controllers, design, tmp_path):
-    lqg = controllers["lqg"]
+def _closed_by_name(plant, ctrl):
+    """Closed by signal name: the controller reads theta, theta_dot, root_moment and drives tau;
+    an input disturbance d enters at tau."""
+    return control.interconnect([plant, ctrl], inplist=["tau"], inputs=["d"], outlist=["tip_deflection"],
+                                outputs=["tip_deflection"], check_unused=False)
+
+
+@pytest.mark.parametrize("robust", [False, True])
+def test_exported_lqg_closed_with_exported_plant_has_the_design_poles(design, tmp_path, robust):
+    lqg = LQG(design, LQGSettings(robust=robust))
     plant = load_model(save_model(design.linear_model, tmp_path / "plant.mat")).sys
     ctrl = load_controller(save_controller(lqg, tmp_path / "lqg.mat")).sys
-    # closed by signal name: the controller reads theta, theta_dot, root_moment and drives tau;
-    # an input disturbance d enters at tau
-    closed = control.interconnect([plant, ctrl], inplist=["tau"], inputs=["d"],
-                                  outlist=["tip_deflection"], outputs=["tip_deflection"], check_unused=False)
-    expected = np.concatenate([
-        np.linalg.eigvals(design.Ad - design.Bd @ lqg.K[None, :]),
-        np.linalg.eigvals(design.Ad - design.Ad @ lqg.L @ design.C_sensors)])
-    np.testing.assert_allclose(_sorted(closed.poles()), _sorted(expected), atol=1e-9)
+    closed = _closed_by_name(plant, ctrl)
+    np.testing.assert_allclose(_sorted(closed.poles()), _sorted(closed_loop_poles(lqg)), atol=1e-9)
+    assert np.max(np.abs(closed.poles())) < 1
+    if not robust:          # the filter's model is the plant: regulator and filter poles
+        expected = np.concatenate([
+            np.linalg.eigvals(design.Ad - design.Bd @ lqg.K[None, :]),
+            np.linalg.eigvals(design.Ad - design.Ad @ lqg.L @ design.C_sensors)])
+        np.testing.assert_allclose(_sorted(closed.poles()), _sorted(expected), atol=1e-9)
+    else:                   # closed with its filter's own model: the separation holds there
+        fm = lqg.filter_model
+        plant_f = load_model(save_model(fm.linear_model, tmp_path / "filter_plant.npz")).sys
+        expected = np.concatenate([np.linalg.eigvals(fm.Ad - fm.Bd @ lqg._Ke[None, :]),
+                                   np.linalg.eigvals(fm.Ad - fm.Ad @ lqg.L @ fm.C_sensors)])
+        np.testing.assert_allclose(_sorted(_closed_by_name(plant_f, ctrl).poles()), _sorted(expected), atol=1e-9)
 
 
 def test_export_bad_input(controllers, design, tmp_path):
