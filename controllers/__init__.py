@@ -2,7 +2,9 @@
 
 Every controller is built once from a linear SFOAM :class:`DesignModel`, its settings and
 a :class:`Reference`, and is then a function of time and measurement at its sample
-instants: ``tau = ctrl(t, y)``; ``ctrl.reset()`` starts a new run. The closed-loop
+instants: ``tau = ctrl(t, y)``; ``ctrl.reset()`` starts a new run. Each controller is
+registered once in :mod:`controllers.registry` (:data:`CONTROLLERS`); comparisons, the CLI
+and the plots read it. The closed-loop
 simulator (:func:`hubbeam_ctrl.sim.closedloop.simulate_closed_loop`) runs any of them on the
 nonlinear FOAM or CFOAM plant; :func:`hubbeam_ctrl.study.compare.run_compare` compares them.
 
@@ -19,50 +21,41 @@ Examples
 True
 """
 
-from .base import Controller, DesignModel, Reference, Weights, saturate
-from .lqg import LQG, LQGSettings, kalman_gain
+from .base import (
+    Controller,
+    ControllerSettings,
+    DesignModel,
+    LQSettings,
+    Reference,
+    TrackingSettings,
+    Weights,
+    saturate,
+)
+from .estimator import KalmanEstimator, KalmanNoise, kalman_gain
+from .lqg import LQG, LQGSettings
 from .lqr import LQR, LQRSettings, dlqr_gain
 from .mpc import MPC, QP_SOLVERS, MPCSettings, condensed_matrices
 from .openloop import OpenLoop, OpenLoopSettings
 from .pd import PD, PDSettings, pd_gains
 from .reference import eq44_reference, slew_reference, spinup_reference
+from .registry import (
+    CONTROLLERS,
+    ControllerSpec,
+    controller_names,
+    controller_styles,
+    make_controller,
+    register_controller,
+    unregister_controller,
+)
 
 __all__ = [
     "Controller", "DesignModel", "Reference", "Weights", "saturate",
+    "ControllerSettings", "TrackingSettings", "LQSettings",
     "OpenLoop", "OpenLoopSettings", "PD", "PDSettings", "pd_gains",
-    "LQR", "LQRSettings", "dlqr_gain", "LQG", "LQGSettings", "kalman_gain",
+    "LQR", "LQRSettings", "dlqr_gain", "LQG", "LQGSettings",
+    "KalmanEstimator", "KalmanNoise", "kalman_gain",
     "MPC", "MPCSettings", "QP_SOLVERS", "condensed_matrices",
     "slew_reference", "spinup_reference", "eq44_reference",
-    "CONTROLLERS", "make_controller",
+    "CONTROLLERS", "ControllerSpec", "register_controller", "unregister_controller",
+    "make_controller", "controller_names", "controller_styles",
 ]
-
-#: Controller name -> (class, settings class).
-CONTROLLERS = {
-    "openloop": (OpenLoop, OpenLoopSettings),
-    "pd": (PD, PDSettings),
-    "lqr": (LQR, LQRSettings),
-    "lqg": (LQG, LQGSettings),
-    "mpc": (MPC, MPCSettings),
-}
-
-
-def make_controller(name: str, design: DesignModel, settings=None, reference: Reference | None = None):
-    """Build a controller by name (``openloop``, ``pd``, ``lqr``, ``lqg``, ``mpc``).
-
-    Parameters
-    ----------
-    name : str
-    design : DesignModel
-    settings : dataclass, optional
-        The controller's settings (default: its defaults).
-    reference : Reference, optional
-
-    Returns
-    -------
-    Controller
-    """
-    from hubbeam_ctrl.core.errors import ParameterError
-    if name not in CONTROLLERS:
-        raise ParameterError(f"controllers: unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)}")
-    cls, settings_cls = CONTROLLERS[name]
-    return cls(design, settings if settings is not None else settings_cls(), reference)

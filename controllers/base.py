@@ -25,11 +25,12 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.validation import check_nonnegative, check_positive
+from hubbeam_ctrl.core.settings import Settings, setting
+from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate",
-           "check_positive", "check_nonnegative", "check_psd"]
+__all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate", "ControllerSettings",
+           "TrackingSettings", "LQSettings", "check_positive", "check_psd"]
 
 
 # -- validation helpers -----------------------------------------------------------------
@@ -283,7 +284,7 @@ class Reference:
 
 # -- weights -----------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
-class Weights:
+class Weights(Settings):
     """Quadratic weights of LQR, LQG and MPC: ``sum e'Q e + R (tau - tau_ff)^2``.
 
     ``Q = angle diag + rate diag + tip c_tip' c_tip + tip_rate c_rate' c_rate`` on the
@@ -291,29 +292,21 @@ class Weights:
     The defaults were tuned on the default slew (see the README, "Default weights").
     """
 
-    angle: float = 1e4
-    """Weight on the hub-angle error [1/rad^2], >= 0."""
-    rate: float = 1e5
-    """Weight on the hub-rate error [1/(rad/s)^2], >= 0."""
-    tip: float = 3e3
-    """Weight on the tip deflection v_tip [1/m^2], >= 0."""
-    tip_rate: float = 3e3
-    """Weight on the tip-deflection rate [1/(m/s)^2], >= 0."""
-    modal: float = 1e4
-    """Weight on every modal coordinate and rate [1/m^2, 1/(m/s)^2], >= 0 (helps
-    damp the higher modes that barely move the tip)."""
-    torque: float = 2.5e-5
-    """Weight on the torque beyond the feedforward [1/(N m)^2], > 0."""
-    state_matrix: np.ndarray | None = None
-    """Optional full state weight Q (n_x x n_x, symmetric positive semidefinite) that
-    replaces the scalar state weights above."""
+    _setting_prefix = "weights."
 
-    def __post_init__(self):
-        for f in fields(self):
-            if f.name in ("state_matrix", "torque"):
-                continue
-            check_nonnegative(f"weights.{f.name}", getattr(self, f.name), "weight")
-        check_positive("weights.torque", self.torque, "1/(N m)^2")
+    angle: float = setting(1e4, unit="1/rad^2", lo=0.0, doc="Weight on the hub-angle error.")
+    rate: float = setting(1e5, unit="1/(rad/s)^2", lo=0.0, doc="Weight on the hub-rate error.")
+    tip: float = setting(3e3, unit="1/m^2", lo=0.0, doc="Weight on the tip deflection v_tip.")
+    tip_rate: float = setting(3e3, unit="1/(m/s)^2", lo=0.0, doc="Weight on the tip-deflection rate.")
+    modal: float = setting(1e4, unit="1/m^2 or 1/(m/s)^2", lo=0.0,
+                           doc="Weight on every modal coordinate and rate (helps damp the higher "
+                               "modes that barely move the tip).")
+    torque: float = setting(2.5e-5, unit="1/(N m)^2", lo=0.0, lo_open=True,
+                            doc="Weight on the torque beyond the feedforward.")
+    state_matrix: np.ndarray | None = setting(None, kind=object,
+                                              doc="Full state weight Q (n_x x n_x, symmetric positive "
+                                                  "semidefinite) that replaces the scalar state weights; "
+                                                  "checked against the design model by matrices().")
 
     def matrices(self, design: DesignModel):
         """State and input weights ``(Q, R)`` for ``design`` (validated)."""
@@ -332,6 +325,56 @@ class Weights:
         return Q, np.array([[self.torque]])
 
 
+# -- settings shared by the controllers --------------------------------------------------------
+@dataclass(frozen=True)
+class ControllerSettings(Settings):
+    """Base of every controller's settings, with the hook that picks a scenario's defaults."""
+
+    @classmethod
+    def for_scenario(cls, scenario, **options) -> "ControllerSettings":
+        """Default settings for a closed-loop scenario.
+
+        The default fills the fields named ``tau_max`` (from ``scenario.tau_max``) and any
+        of ``options`` that the class has; subclasses override it when the scenario
+        decides more (e.g. :class:`~controllers.openloop.OpenLoopSettings`).
+
+        Parameters
+        ----------
+        scenario : object
+            A :class:`hubbeam_ctrl.study.scenarios.Scenario` (read: ``tau_max``, ``t_f``,
+            ``baseline``).
+        **options
+            Study-wide controller options (``horizon``, ``solver``...); those the class
+            has no field for are ignored.
+
+        Returns
+        -------
+        ControllerSettings
+        """
+        names = {f.name for f in fields(cls)}
+        given = {"tau_max": scenario.tau_max, **options}
+        return cls(**{k: v for k, v in given.items() if k in names})
+
+
+@dataclass(frozen=True)
+class TrackingSettings(ControllerSettings):
+    """Settings of every feedback controller that follows a reference under a torque limit."""
+
+    tau_max: float = setting(200.0, unit="N m", lo=0.0, lo_open=True,
+                             doc="Torque limit: the output never exceeds +-tau_max.")
+    feedforward: bool = setting(True, doc="Use the reference's rigid-body feedforward torque.")
+
+
+@dataclass(frozen=True)
+class LQSettings(TrackingSettings):
+    """Settings shared by the quadratic-cost designs (LQR, LQG, MPC)."""
+
+    weights: Weights = setting(factory=Weights, doc="State and torque weights (see Weights).")
+    elastic_reference: bool = setting(True, doc="Track the quasi-static deflection the reference "
+                                                "acceleration causes instead of a straight beam "
+                                                "(see DesignModel.reference_states).")
+
+
 # -- the interface ----------------------------------------------------------------------------
 class Controller:
     """Base class of every controller: ``ctrl(t, y) -> tau``, ``ctrl.reset()``.
@@ -348,7 +391,8 @@ class Controller:
     Attributes
     ----------
     name : str
-        Short name used in tables (``"lqr"``...).
+        Short name used in tables (``"lqr"``...): the registry key, set by
+        :func:`controllers.register_controller` unless the class sets its own.
     measurement : {"state", "sensors"}
         What the simulator hands over: the plant's SFOAM-ordered state, or the noisy
         sensors ``[theta, theta_dot, M_root]`` (see

@@ -2,109 +2,53 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
-from hubbeam_ctrl.core.errors import ParameterError
-
-from .base import Controller, DesignModel, Reference, Weights, check_nonnegative, check_positive, saturate
+from .base import Controller, DesignModel, LQSettings, Reference, saturate
+from .estimator import KalmanEstimator, KalmanNoise
 from .lqr import dlqr_gain
 
-__all__ = ["LQGSettings", "LQG", "kalman_gain"]
+__all__ = ["LQGSettings", "LQG"]
 
 
 @dataclass(frozen=True)
-class LQGSettings:
-    """Settings of :class:`LQG`.
+class LQGSettings(KalmanNoise, LQSettings):
+    """Settings of :class:`LQG`: those of LQR plus the Kalman filter's noise model.
 
     The sensor noise levels are what the filter assumes; they default to the closed-loop
     simulator's :class:`hubbeam_ctrl.plant.sensors.SensorSettings`.
     """
 
-    weights: Weights = field(default_factory=Weights)
-    """State and torque weights of the LQR part (see :class:`Weights`)."""
-    tau_max: float = 200.0
-    """Torque limit [N m], > 0."""
-    feedforward: bool = True
-    """Add the reference's rigid-body feedforward torque."""
-    elastic_reference: bool = True
-    """Track the quasi-static deflection of the reference acceleration (as :class:`LQR`)."""
-    angle_noise_rad: float = 1e-4
-    """Assumed hub-angle sensor noise, standard deviation [rad], > 0."""
-    rate_noise_rad_s: float = 1e-3
-    """Assumed hub-rate sensor noise, standard deviation [rad/s], > 0."""
-    moment_noise_nm: float = 0.02
-    """Assumed root-moment sensor noise, standard deviation [N m], > 0."""
-    torque_noise_nm: float = 5.0
-    """Process noise: white torque disturbance at the hub, standard deviation per sample
-    [N m], > 0 (stands for model error: FOAM's stiffening and Q_theta, the axial modes)."""
-    modal_noise: float = 1e-4
-    """Process noise on each modal coordinate and rate per sample [m, m/s], >= 0."""
-
-    def __post_init__(self):
-        if not isinstance(self.weights, Weights):
-            raise ParameterError(f"weights must be a Weights, got {type(self.weights).__name__}")
-        check_positive("tau_max", self.tau_max, "N m")
-        check_positive("angle_noise_rad", self.angle_noise_rad, "rad")
-        check_positive("rate_noise_rad_s", self.rate_noise_rad_s, "rad/s")
-        check_positive("moment_noise_nm", self.moment_noise_nm, "N m")
-        check_positive("torque_noise_nm", self.torque_noise_nm, "N m")
-        check_nonnegative("modal_noise", self.modal_noise, "m")
-
-
-def kalman_gain(design: DesignModel, settings: LQGSettings) -> np.ndarray:
-    """Steady-state Kalman filter gain (measurement update) for the three sensors.
-
-    Parameters
-    ----------
-    design : DesignModel
-    settings : LQGSettings
-
-    Returns
-    -------
-    ndarray (nx, 3)
-        ``x_hat = x_pred + L (y - C x_pred)``.
-    """
-    A, B, C = design.Ad, design.Bd, design.C_sensors
-    nx = design.n_x
-    Qn = settings.torque_noise_nm ** 2 * (B @ B.T)
-    idx = np.r_[1:nx // 2, nx // 2 + 1:nx]
-    Qn[idx, idx] += settings.modal_noise ** 2
-    Rn = np.diag([settings.angle_noise_rad ** 2, settings.rate_noise_rad_s ** 2,
-                  settings.moment_noise_nm ** 2])
-    try:
-        P = scipy.linalg.solve_discrete_are(A.T, C.T, Qn, Rn)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise ParameterError(f"the Kalman filter's Riccati equation has no solution ({exc}); "
-                             "check the noise levels") from None
-    return P @ C.T @ np.linalg.inv(C @ P @ C.T + Rn)
-
 
 class LQG(Controller):
-    """Output feedback: Kalman filter on ``[theta, theta_dot, M_root]`` plus the LQR gain.
+    """Output feedback: a :class:`KalmanEstimator` on ``[theta, theta_dot, M_root]`` and the LQR gain.
 
     The filter works in deviations from the steady rotation at the design spin ``Omega``:
-    ``x - [Omega t, 0, Omega, 0]``. Each call makes the measurement update, computes
-    ``tau = sat(tau_ff - K (x_hat - x_ref))`` and predicts the next state with the torque
-    actually applied.
+    ``x - [Omega t, 0, Omega, 0]``. Each call updates the estimate with the measurement
+    (after predicting with the torque applied since the last call) and returns
+    ``tau = sat(tau_ff - K (x_hat - x_ref))``.
 
     Parameters
     ----------
     design : DesignModel
+        Sampled SFOAM at the design spin rate.
     settings : LQGSettings, optional
+        LQR settings plus the filter's noise model.
     reference : Reference, optional
+        Hub trajectory and feedforward torque (default: rest at theta = 0).
 
     Attributes
     ----------
     K : ndarray (nx,)
         LQR gain.
-    L : ndarray (nx, 3)
-        Kalman gain.
+    P : ndarray (nx, nx)
+        LQR Riccati solution.
+    estimator : KalmanEstimator
+        The state estimator (gain ``estimator.L``).
     """
 
-    name = "lqg"
     measurement = "sensors"
 
     def __init__(self, design: DesignModel, settings: LQGSettings | None = None,
@@ -112,30 +56,43 @@ class LQG(Controller):
         settings = settings or LQGSettings()
         super().__init__(design, settings, reference)
         self.K, self.P = dlqr_gain(design, settings.weights)
-        self.L = kalman_gain(design, settings)
-        C = design.C_sensors
-        self._IminusLC = np.eye(design.n_x) - self.L @ C
+        self.estimator = KalmanEstimator(design, settings)
         self._ff = 1.0 if settings.feedforward else 0.0
         self._n = design.n_x // 2
         self._prepare_reference(settings.elastic_reference)
         self.reset()
 
+    @property
+    def L(self) -> np.ndarray:
+        """Kalman filter gain (nx, 3) of the estimator."""
+        return self.estimator.L
+
+    @property
+    def x_hat(self) -> np.ndarray:
+        """Current state estimate (deviation from the steady rotation)."""
+        return self.estimator.x_hat
+
+    @property
+    def x_pred(self) -> np.ndarray:
+        """Prediction of the state at the next sample (the initial guess after :meth:`reset`)."""
+        return self.estimator.x_pred if self._tau is None else self.estimator.predict(self._tau)
+
     def reset(self) -> None:
+        """Start the estimator from the reference's first state; forget the last torque."""
         x, _ = self._reference_at(0)
         x = x.copy()
         x[self._n] -= self.design.spin
-        self.x_pred = x
-        self.x_hat = x
+        self.estimator.reset(x)
+        self._tau = None
 
     def __call__(self, t: float, y) -> float:
+        """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
         spin = self.design.spin
         xr, tff = self._reference_at(int(round(t / self.dt)))
         yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
-        x_hat = self._IminusLC @ self.x_pred + self.L @ yd
+        x_hat = self.estimator.update(yd, self._tau)
         K = self.K
         # x_hat is a deviation from the steady rotation; x_ref is absolute
         u = K @ (x_hat - xr) + K[0] * spin * t + K[self._n] * spin
-        tau = saturate(float(self._ff * tff - u), self.settings.tau_max)
-        self.x_hat = x_hat
-        self.x_pred = self.design.Ad @ x_hat + self.design.Bd[:, 0] * tau
-        return tau
+        self._tau = saturate(float(self._ff * tff - u), self.settings.tau_max)
+        return self._tau

@@ -2,27 +2,28 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-from .base import Controller, DesignModel, Reference, Weights, check_positive, saturate
+from .base import Controller, DesignModel, LQSettings, Reference, Weights, saturate
 
 __all__ = ["LQRSettings", "LQR", "dlqr_gain"]
 
 
 def dlqr_gain(design: DesignModel, weights: Weights):
-    """Discrete LQR gain on the design model.
+    """Discrete LQR gain on the design model (:func:`control.dlqr`).
 
     Minimises ``sum e' Q e + R u^2`` for ``e[k+1] = Ad e[k] + Bd u[k]``.
 
     Parameters
     ----------
     design : DesignModel
+        Sampled design model (``Ad``, ``Bd``).
     weights : Weights
+        Gives ``Q`` and ``R`` (:meth:`Weights.matrices`).
 
     Returns
     -------
@@ -36,42 +37,34 @@ def dlqr_gain(design: DesignModel, weights: Weights):
     ParameterError
         If the weights are not positive (semi)definite or the Riccati equation has no
         stabilising solution (e.g. an undamped mode with zero weight).
+
+    Examples
+    --------
+    >>> from controllers import DesignModel, Weights
+    >>> K, P = dlqr_gain(DesignModel.build(n_modes=2), Weights())
+    >>> K.shape, P.shape
+    ((6,), (6, 6))
     """
+    import control  # lazily: keeps the CLI's start-up light
     if not isinstance(weights, Weights):
         raise ParameterError(f"weights must be a Weights, got {type(weights).__name__}")
     Q, R = weights.matrices(design)
-    A, B = design.Ad, design.Bd
     try:
-        P = scipy.linalg.solve_discrete_are(A, B, Q, R)
-    except (np.linalg.LinAlgError, ValueError) as exc:
+        K, P, poles = control.dlqr(design.Ad, design.Bd, Q, R)
+    except (np.linalg.LinAlgError, ValueError, control.ControlArgument) as exc:
         raise ParameterError(f"weights: the LQR Riccati equation has no stabilising solution "
                              f"({exc}); give weight to the hub angle and the modes") from None
-    K = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A).ravel()
-    rho = max(abs(np.linalg.eigvals(A - B @ K[None, :])))
+    K = np.asarray(K).ravel()
+    rho = np.max(np.abs(poles))
     if not np.all(np.isfinite(K)) or rho >= 1.0 - 1e-9:
         raise ParameterError(f"weights: the LQR design is not stabilising (spectral radius {rho:.6f}); "
                              "give weight to the hub angle and the modes")
-    return K, P
+    return K, np.asarray(P)
 
 
 @dataclass(frozen=True)
-class LQRSettings:
-    """Settings of :class:`LQR`."""
-
-    weights: Weights = field(default_factory=Weights)
-    """State and torque weights (see :class:`Weights`)."""
-    tau_max: float = 200.0
-    """Torque limit [N m], > 0: the output is clipped to +-tau_max."""
-    feedforward: bool = True
-    """Add the reference's rigid-body feedforward torque."""
-    elastic_reference: bool = True
-    """Track the quasi-static deflection the reference acceleration causes instead of
-    a straight beam (see :meth:`DesignModel.reference_states`)."""
-
-    def __post_init__(self):
-        if not isinstance(self.weights, Weights):
-            raise ParameterError(f"weights must be a Weights, got {type(self.weights).__name__}")
-        check_positive("tau_max", self.tau_max, "N m")
+class LQRSettings(LQSettings):
+    """Settings of :class:`LQR` (all shared with LQG and MPC, see :class:`LQSettings`)."""
 
 
 class LQR(Controller):
@@ -82,7 +75,9 @@ class LQR(Controller):
     design : DesignModel
         Sampled SFOAM at the design spin rate.
     settings : LQRSettings, optional
+        Weights, torque limit, feedforward and elastic reference.
     reference : Reference, optional
+        Hub trajectory and feedforward torque (default: rest at theta = 0).
 
     Attributes
     ----------
@@ -99,7 +94,6 @@ class LQR(Controller):
     (6,)
     """
 
-    name = "lqr"
     measurement = "state"
 
     def __init__(self, design: DesignModel, settings: LQRSettings | None = None,
@@ -111,6 +105,7 @@ class LQR(Controller):
         self._prepare_reference(settings.elastic_reference)
 
     def __call__(self, t: float, y) -> float:
+        """Hub torque [N m] at time ``t`` [s] from the SFOAM-ordered state ``y``."""
         xr, tff = self._reference_at(int(round(t / self.dt)))
         u = self.K @ (y - xr)
         return saturate(float(self._ff * tff - u), self.settings.tau_max)

@@ -18,14 +18,15 @@ A failed solve falls back to the saturated LQR torque; :meth:`MPC.stats` counts 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.settings import setting
 
-from .base import Controller, DesignModel, Reference, Weights, check_positive, saturate
+from .base import Controller, DesignModel, LQSettings, Reference, saturate
 from .lqr import dlqr_gain
 
 __all__ = ["MPCSettings", "MPC", "QP_SOLVERS", "condensed_matrices"]
@@ -42,40 +43,22 @@ QP_SOLVERS = {
 
 
 @dataclass(frozen=True)
-class MPCSettings:
-    """Settings of :class:`MPC`."""
+class MPCSettings(LQSettings):
+    """Settings of :class:`MPC`: those of LQR plus the horizon, the tip bound and the solver.
 
-    weights: Weights = field(default_factory=Weights)
-    """Stage weights (see :class:`Weights`); the terminal weight is the LQR Riccati solution."""
-    horizon: int = 50
-    """Prediction horizon N in samples, >= 1."""
-    tau_max: float = 200.0
-    """Hard torque limit [N m], > 0."""
-    tip_bound: float | None = None
-    """Soft bound on |v_tip| over the horizon [m], > 0; None: no bound."""
-    tip_bound_weight: float = 1e8
-    """Quadratic penalty on the bound's violation [1/m^2], > 0 (same scale as the weights)."""
-    solver: str = "daqp"
-    """QP solver: one of :data:`QP_SOLVERS`."""
-    warm_start: bool = True
-    """Start each QP from the previous plan, shifted by one sample."""
-    feedforward: bool = True
-    """Use the reference's feedforward torque as the torque reference of the cost."""
-    elastic_reference: bool = True
-    """Track the quasi-static deflection of the reference acceleration (as LQR)."""
+    The stage weights are ``weights``; the terminal weight is their LQR Riccati solution.
+    ``tau_max`` is a hard constraint of the QP; ``feedforward`` makes the reference's
+    feedforward torque the torque reference of the cost.
+    """
 
-    def __post_init__(self):
-        if not isinstance(self.weights, Weights):
-            raise ParameterError(f"weights must be a Weights, got {type(self.weights).__name__}")
-        if isinstance(self.horizon, bool) or not isinstance(self.horizon, (int, np.integer)) \
-                or self.horizon < 1:
-            raise ParameterError(f"horizon must be an integer >= 1 [samples], got {self.horizon!r}")
-        check_positive("tau_max", self.tau_max, "N m")
-        if self.tip_bound is not None:
-            check_positive("tip_bound", self.tip_bound, "m")
-        check_positive("tip_bound_weight", self.tip_bound_weight, "1/m^2")
-        if self.solver not in QP_SOLVERS:
-            raise ParameterError(f"solver must be one of {', '.join(QP_SOLVERS)}, got {self.solver!r}")
+    horizon: int = setting(50, unit="samples", lo=1, doc="Prediction horizon N.")
+    tip_bound: float | None = setting(None, unit="m", lo=0.0, lo_open=True, kind=float,
+                                      doc="Soft bound on abs(v_tip) over the horizon; None: no bound.")
+    tip_bound_weight: float = setting(1e8, unit="1/m^2", lo=0.0, lo_open=True,
+                                      doc="Quadratic penalty on the bound's violation (same scale as "
+                                          "the weights).")
+    solver: str = setting("daqp", choices=QP_SOLVERS, doc="QP solver of CasADi's conic (QP_SOLVERS).")
+    warm_start: bool = setting(True, doc="Start each QP from the previous plan, shifted by one sample.")
 
 
 def condensed_matrices(Ad: np.ndarray, Bd: np.ndarray, N: int):
@@ -128,7 +111,6 @@ class MPC(Controller):
     True
     """
 
-    name = "mpc"
     measurement = "state"
 
     def __init__(self, design: DesignModel, settings: MPCSettings | None = None,

@@ -6,29 +6,40 @@ import math
 from dataclasses import dataclass
 
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.settings import setting
 
-from .base import Controller, DesignModel, Reference, check_positive
+from .base import Controller, ControllerSettings, DesignModel, Reference
 
 __all__ = ["OpenLoopSettings", "OpenLoop"]
 
 
 @dataclass(frozen=True)
-class OpenLoopSettings:
+class OpenLoopSettings(ControllerSettings):
     """Settings of :class:`OpenLoop`."""
 
-    profile: str = "eq44"
-    """``"eq44"``: ``tau_m sin(2 pi t/t_f)`` for ``t <= t_f``, then 0 (the paper's Eq. 44);
-    ``"feedforward"``: the reference's rigid-body feedforward torque."""
-    tau_m: float = 200.0
-    """Torque amplitude of Eq. 44 [N m], > 0."""
-    t_f: float = 10.0
-    """Maneuver time of Eq. 44 [s], > 0 (one full sine period)."""
+    profile: str = setting("eq44", choices=("eq44", "feedforward"),
+                           doc="eq44: tau_m sin(2 pi t/t_f) for t <= t_f, then 0 (the paper's Eq. 44); "
+                               "feedforward: the reference's rigid-body feedforward torque.")
+    tau_m: float = setting(200.0, unit="N m", lo=0.0, lo_open=True, doc="Torque amplitude of Eq. 44.")
+    t_f: float = setting(10.0, unit="s", lo=0.0, lo_open=True,
+                         doc="Maneuver time of Eq. 44 (one full sine period).")
 
-    def __post_init__(self):
-        if self.profile not in ("eq44", "feedforward"):
-            raise ParameterError(f"profile must be 'eq44' or 'feedforward', got {self.profile!r}")
-        check_positive("tau_m", self.tau_m, "N m")
-        check_positive("tf", self.t_f, "s")
+    @classmethod
+    def for_scenario(cls, scenario, **options) -> "OpenLoopSettings":
+        """The scenario's baseline (``scenario.baseline``) with its torque budget and time.
+
+        Parameters
+        ----------
+        scenario : object
+            Read: ``baseline`` (a profile), ``tau_max``, ``t_f``.
+        **options
+            Ignored.
+
+        Returns
+        -------
+        OpenLoopSettings
+        """
+        return cls(profile=scenario.baseline, tau_m=scenario.tau_max, t_f=scenario.t_f)
 
 
 class OpenLoop(Controller):
@@ -50,7 +61,6 @@ class OpenLoop(Controller):
     200.0
     """
 
-    name = "openloop"
     measurement = "state"
 
     def __init__(self, design: DesignModel, settings: OpenLoopSettings | None = None,

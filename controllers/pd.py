@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .base import Controller, DesignModel, Reference, check_nonnegative, check_positive, saturate
+from hubbeam_ctrl.core.settings import setting
+
+from .base import Controller, DesignModel, Reference, TrackingSettings, check_positive, saturate
 
 __all__ = ["PDSettings", "PD", "pd_gains"]
 
@@ -43,30 +45,17 @@ def pd_gains(bandwidth: float, damping: float, inertia: float) -> tuple:
 
 
 @dataclass(frozen=True)
-class PDSettings:
+class PDSettings(TrackingSettings):
     """Settings of :class:`PD`. Gains default to :func:`pd_gains` of bandwidth and damping."""
 
-    bandwidth: float = 1.0
-    """Rigid-body closed-loop natural frequency [rad/s], > 0 (used when kp/kd are None)."""
-    damping: float = 0.9
-    """Rigid-body closed-loop damping ratio [-], > 0 (used when kp/kd are None)."""
-    kp: float | None = None
-    """Angle gain [N m/rad], >= 0; overrides the bandwidth design."""
-    kd: float | None = None
-    """Rate gain [N m s/rad], >= 0; overrides the bandwidth design."""
-    tau_max: float = 200.0
-    """Torque limit [N m], > 0: the output is clipped to +-tau_max."""
-    feedforward: bool = True
-    """Add the reference's rigid-body feedforward torque."""
-
-    def __post_init__(self):
-        check_positive("bandwidth", self.bandwidth, "rad/s")
-        check_positive("damping", self.damping, "-")
-        if self.kp is not None:
-            check_nonnegative("kp", self.kp, "N m/rad")
-        if self.kd is not None:
-            check_nonnegative("kd", self.kd, "N m s/rad")
-        check_positive("tau_max", self.tau_max, "N m")
+    bandwidth: float = setting(1.0, unit="rad/s", lo=0.0, lo_open=True,
+                               doc="Rigid-body closed-loop natural frequency (used when kp/kd are None).")
+    damping: float = setting(0.9, lo=0.0, lo_open=True,
+                             doc="Rigid-body closed-loop damping ratio (used when kp/kd are None).")
+    kp: float | None = setting(None, unit="N m/rad", lo=0.0, kind=float,
+                               doc="Angle gain; overrides the bandwidth design.")
+    kd: float | None = setting(None, unit="N m s/rad", lo=0.0, kind=float,
+                               doc="Rate gain; overrides the bandwidth design.")
 
 
 class PD(Controller):
@@ -83,7 +72,6 @@ class PD(Controller):
     reference : Reference, optional
     """
 
-    name = "pd"
     measurement = "sensors"
 
     def __init__(self, design: DesignModel, settings: PDSettings | None = None,

@@ -115,7 +115,7 @@ def test_bad_inputs(table1):
         simulate("beam", TorquePulse(), 1.0)
     with pytest.raises(ParameterError, match="hub="):
         simulate("foam", SpinUp(), 1.0, hub="free")
-    with pytest.raises(ParameterError, match="tf must be"):
+    with pytest.raises(ParameterError, match="t_f must be"):
         SpinUp(3.0, 0.0)
     with pytest.raises(ParameterError, match="unknown simulation setting.*rtoll"):
         simulate("foam", TorquePulse(), 1.0, rtoll=1e-6)

@@ -221,3 +221,20 @@ def test_poles_hz_of_plain_statespace():
     lm = linearize("sfoam", 0.0, P)
     np.testing.assert_allclose(poles_hz(lm.sys), lm.poles_hz(), rtol=1e-12)
     assert np.all(np.diff(lm.poles_hz()) > 0)
+
+
+def test_poles_hz_is_damp_without_the_rigid_poles():
+    """python-control's damp() gives the same frequencies, but it divides by |s| and so warns
+    (0/0) on the free hub's rigid-body poles at s = 0: why poles_hz keeps its own selection."""
+    import warnings
+    lm = linearize("sfoam", 1.0, Params(n_transverse=3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(RuntimeWarning):
+            lm.sys.damp()
+        f = poles_hz(lm)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        wn, zeta, p = lm.sys.damp()
+    expect = np.sort(wn[(p.imag > 0) & (wn > 1e-6)]) / (2 * np.pi)
+    assert np.allclose(f, expect, rtol=1e-12) and len(f) == 3

@@ -7,7 +7,8 @@ import json
 import sys
 import time
 
-from hubbeam_ctrl.cli.main import finite_float, positive_float, positive_int
+from controllers import CONTROLLERS, QP_SOLVERS, controller_names
+from hubbeam_ctrl.cli.main import RegistryChoices, finite_float, positive_float, positive_int
 from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["add_parser", "run", "stdout_to_stderr"]
@@ -41,17 +42,26 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
     common : argparse.ArgumentParser
         Parent parser with ``--tip-mass``, ``--tip-position``, ``--n-modes``, ``--params``.
     """
+    labels = ", ".join(spec.label for spec in CONTROLLERS.values())
     p = subparsers.add_parser(
         "compare", parents=[common], help="compare controllers in closed loop",
-        description=("Design open-loop (Eq. 44), PD, LQR, LQG and MPC controllers on SFOAM and "
-                     "compare them in closed loop (100 Hz zero-order hold) on the nonlinear FOAM "
-                     "or CFOAM plant. Writes metrics.csv, metrics.json, tip_deflection.png, "
-                     "hub_angle.png, torque.png and report.md to --out."))
-    p.add_argument("--plant", choices=["foam", "cfoam"], required=True, help="nonlinear plant")
-    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
-                   help="slew: rest-to-rest by the Eq. 44 rigid angle (default); spinup: to --wf and hold")
-    p.add_argument("--controllers", metavar="LIST", default="openloop,pd,lqr,lqg,mpc",
-                   help="comma-separated subset of openloop,pd,lqr,lqg,mpc (default: all)")
+        description=(f"Design the registered controllers ({labels}) on SFOAM and compare them in "
+                     "closed loop (zero-order hold at --dt) on the nonlinear FOAM or CFOAM plant. "
+                     "Writes metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
+                     "torque.png and report.md to --out."))
+    # explicit metavars: argparse would otherwise read the choices (importing the study layer)
+    # when the parser is built, not only when --help is shown or a value is checked
+    p.add_argument("--plant", metavar="PLANT", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "PLANTS"),
+                   required=True, help="nonlinear plant: %(choices)s")
+    p.add_argument("--scenario", metavar="NAME", choices=RegistryChoices("hubbeam_ctrl.study.scenarios",
+                                                                         "SCENARIOS"),
+                   default="slew", help="registered scenario: %(choices)s (default %(default)s; see "
+                                        "hubbeam_ctrl.study.scenarios)")
+    default = ",".join(controller_names(default=True))
+    p.add_argument("--controllers", metavar="LIST", default=default,
+                   help="comma-separated subset of the registered controllers "
+                        + ", ".join(f"{n} ({s.label})" for n, s in CONTROLLERS.items())
+                        + f" (default: {default})")
     p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"), default=200.0,
                    help="torque budget = Eq. 44 amplitude [N m] (default 200)")
     p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
@@ -64,6 +74,8 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="controller sample time [s] (default 0.01)")
     p.add_argument("--horizon", metavar="N", type=positive_int("horizon"), default=50,
                    help="MPC horizon [samples] (default 50)")
+    p.add_argument("--solver", choices=list(QP_SOLVERS), default="daqp",
+                   help="MPC QP solver: %(choices)s (default %(default)s)")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     p.set_defaults(func=run)
@@ -87,7 +99,8 @@ def run(args) -> int:
     with stdout_to_stderr():
         comparison = compare(args.plant, args.scenario, args.controllers, params=params,
                              tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
-                             w_f=args.wf, horizon=args.horizon, progress=not args.json)
+                             w_f=args.wf, horizon=args.horizon, solver=args.solver,
+                             progress=not args.json)
         write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:

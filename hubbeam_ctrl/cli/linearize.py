@@ -15,6 +15,7 @@ def add_parser(subparsers, common) -> None:
     """Add the ``linearize`` subcommand (``common`` holds the system-parameter options)."""
     from hubbeam_ctrl.cli.main import finite_float, positive_float
     from hubbeam_ctrl.linear.statespace import DEFAULT_OUTPUTS, OUTPUTS
+    from hubbeam_ctrl.plant.models import MODEL_SPECS
 
     p = subparsers.add_parser(
         "linearize", parents=[common],
@@ -25,7 +26,7 @@ def add_parser(subparsers, common) -> None:
                      "[rad], q1_i, q2_i [m] (modal coordinates; q2 is half the mode's tip "
                      "deflection), and their rates. --n-modes sets the axial and the "
                      "transverse mode count."))
-    p.add_argument("--model", choices=["sfoam", "foam", "cfoam", "tlam"], default="sfoam",
+    p.add_argument("--model", choices=list(MODEL_SPECS), default="sfoam",
                    help="source model (default sfoam, the design model)")
     p.add_argument("--spin", metavar="RAD_S", type=finite_float("spin"), default=0.0,
                    help="steady spin rate Omega [rad/s] (default 0, the slew design point)")

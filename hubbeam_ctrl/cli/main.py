@@ -12,11 +12,18 @@ import importlib
 import json
 import math
 import sys
+from collections.abc import Sequence
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.plant.models import MODEL_SPECS
 from hubbeam_ctrl.plant.params import Params, load_params
 
-__all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float"]
+__all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float",
+           "RegistryChoices"]
+
+#: Models whose bending stiffness is quadratic in the spin (``critical-speed`` needs it; CFOAM's
+#: complete foreshortening is not).
+CRITICAL_SPEED_MODELS = tuple(n for n, spec in MODEL_SPECS.items() if spec.foreshortening != "complete")
 
 #: Subcommands contributed by other modules: module name -> provides add_parser/run.
 EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare")
@@ -27,6 +34,36 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         raise ParameterError(message)
+
+
+class RegistryChoices(Sequence):
+    """argparse ``choices`` read from a registry the first time they are needed.
+
+    The registry's module is imported only when a value is checked or the help is shown, so
+    building the parser stays cheap (``hubbeam modes`` does not import the study layer).
+
+    Parameters
+    ----------
+    module : str
+        Module holding the registry (e.g. ``"hubbeam_ctrl.study.scenarios"``).
+    attr : str
+        Its name in the module (a mapping or sequence of names, e.g. ``"SCENARIOS"``).
+    """
+
+    def __init__(self, module: str, attr: str):
+        self.module, self.attr = module, attr
+
+    def _names(self) -> tuple:
+        return tuple(getattr(importlib.import_module(self.module), self.attr))
+
+    def __getitem__(self, i):
+        return self._names()[i]
+
+    def __len__(self):
+        return len(self._names())
+
+    def __contains__(self, value):
+        return value in self._names()
 
 
 def _common_parser() -> argparse.ArgumentParser:
@@ -189,7 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("modes", parents=[common], help="natural frequencies at a spin rate",
                        description="Bending (and axial) natural frequencies of a model linearised "
                                    "about steady rotation.")
-    p.add_argument("--model", choices=["tlam", "foam", "cfoam", "sfoam"], default="foam")
+    p.add_argument("--model", choices=list(MODEL_SPECS), default="foam")
     p.add_argument("--spin", metavar="RAD_S", type=finite_float("spin"), default=0.0,
                    help="spin rate [rad/s] (default 0)")
     p.add_argument("--hub", choices=["prescribed", "free"], default="prescribed",
@@ -200,19 +237,20 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("critical-speed", parents=[common],
                        help="spin rate at which the bending stiffness is lost",
                        description="Critical speed of TLAM (or FOAM, which has none).")
-    p.add_argument("--model", choices=["tlam", "foam"], default="tlam")
+    p.add_argument("--model", choices=CRITICAL_SPEED_MODELS, default="tlam")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=_cmd_critical)
 
     p = sub.add_parser("simulate", parents=[common], help="simulate a maneuver",
                        description="Simulate the Eq. 43 spin-up (prescribed hub) or the Eq. 44 "
                                    "torque pulse (free hub).")
-    p.add_argument("--model", choices=["tlam", "foam", "cfoam", "sfoam"], required=True)
+    p.add_argument("--model", choices=list(MODEL_SPECS), required=True)
     p.add_argument("--maneuver", choices=["spinup", "torque"], required=True)
     p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), help="spin-up final rate [rad/s] (default 3)")
     p.add_argument("--tf", metavar="S", type=positive_float("tf"),
                    help="maneuver time [s] (default 30 for spinup, 10 for torque)")
-    p.add_argument("--tau-max", metavar="NM", type=finite_float("tau-max"), help="torque amplitude [N m] (default 200)")
+    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
+                   help="torque amplitude [N m], > 0 (default 200)")
     p.add_argument("--t-end", metavar="S", type=positive_float("t-end"), required=True, help="final time [s]")
     p.add_argument("--out", metavar="FILE.csv|FILE.npz", help="save the time series")
     p.add_argument("--plot", metavar="FILE.png", help="save a plot")

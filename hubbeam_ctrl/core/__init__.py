@@ -1,4 +1,5 @@
-"""Common ground of every layer: errors, scalar validation, atomic file writing, progress.
+"""Common ground of every layer: errors, scalar validation, declared settings, atomic file
+writing, progress.
 """
 
 import sys as _sys  # noqa: E402
@@ -6,7 +7,8 @@ import sys as _sys  # noqa: E402
 from hubbeam_ctrl.core.errors import *  # noqa: F401,F403
 from hubbeam_ctrl.core.fileio import *  # noqa: F401,F403
 from hubbeam_ctrl.core.progress import *  # noqa: F401,F403
+from hubbeam_ctrl.core.settings import *  # noqa: F401,F403
 from hubbeam_ctrl.core.validation import *  # noqa: F401,F403
 
-__all__ = [name for _m in ('errors', 'validation', 'fileio', 'progress')
+__all__ = [name for _m in ('errors', 'validation', 'settings', 'fileio', 'progress')
            for name in _sys.modules[f"hubbeam_ctrl.core.{_m}"].__all__]

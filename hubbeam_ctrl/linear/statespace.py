@@ -39,6 +39,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization, velocity_name
 from hubbeam_ctrl.plant.models import MODEL_NAMES, HubBeamModel, build_model
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.sensors import SENSOR_NAMES, sensor_matrix
 
 __all__ = ["LinearModel", "OUTPUTS", "DEFAULT_OUTPUTS", "linearize", "discretize", "reduce",
            "poles", "continuous_poles", "poles_hz", "compare_poles", "PoleComparison"]
@@ -166,8 +167,8 @@ class LinearModel:
 
     # -- analysis ----------------------------------------------------------
     def poles(self) -> np.ndarray:
-        """Poles of the model (z-plane for a sampled model)."""
-        return np.linalg.eigvals(self.A)
+        """Poles of the model (z-plane for a sampled model), :meth:`control.StateSpace.poles`."""
+        return self.sys.poles()
 
     def poles_hz(self) -> np.ndarray:
         """Undamped natural frequencies of the oscillatory poles [Hz], ascending.
@@ -300,19 +301,16 @@ def linearize(model="sfoam", spin: float = 0.0, params: Params | None = None,
     n = hub_model.n_q
     b, pr = hub_model.basis, hub_model.params
     q2 = hub_model.transverse_slice
+    sensors = sensor_matrix(pr, hub_model.n_transverse, hub_model.n_axial)   # the simulator's rows
     rows = []
     for o in outputs:
         c = np.zeros(2 * n)
-        if o == "theta":
-            c[0] = 1.0
-        elif o == "theta_dot":
-            c[n] = 1.0
+        if o in SENSOR_NAMES:
+            c = sensors[SENSOR_NAMES.index(o)]
         elif o == "tip_deflection":
             c[q2] = b.f2_tip
         elif o == "tip_rate":
             c[n + q2.start:n + q2.stop] = b.f2_tip
-        elif o == "root_moment":
-            c[q2] = pr.EI * b.f2pp_root
         rows.append(c)
     C = np.array(rows)
     D = np.zeros((len(outputs), 1))
@@ -328,7 +326,7 @@ def linearize(model="sfoam", spin: float = 0.0, params: Params | None = None,
 def poles(lm) -> np.ndarray:
     """Poles of a :class:`LinearModel` or :class:`control.StateSpace` (z-plane if sampled)."""
     sys = lm.sys if isinstance(lm, LinearModel) else lm
-    return np.linalg.eigvals(np.asarray(sys.A))
+    return sys.poles()
 
 
 def continuous_poles(lm) -> np.ndarray:

@@ -15,8 +15,7 @@ import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.validation import check_finite as _check_finite
-from hubbeam_ctrl.core.validation import check_positive as _check_positive
+from hubbeam_ctrl.core.settings import Settings, setting
 
 __all__ = ["SpinUp", "TorquePulse", "ConstantSpin", "UserManeuver", "spinup_rate"]
 
@@ -37,30 +36,17 @@ def _cos(z, t):
     return ca.cos(z) if _is_symbolic(t) else np.cos(z)
 
 
-
-
 @dataclass(frozen=True)
-class SpinUp:
+class SpinUp(Settings):
     """Kane-Ryan-Banerjee spin-up, the paper's Eq. (43) with its lost factor ``t`` restored.
 
     ``thd = (w_f/t_f) t - (w_f/2pi) sin(2pi t/t_f)`` for ``0 <= t <= t_f``, ``w_f`` after;
     ``theta = (w_f/t_f)[t^2/2 + (t_f/2pi)^2 (cos(2pi t/t_f) - 1)]`` up to ``t_f``.
-
-    Parameters
-    ----------
-    w_f : float
-        Final hub rate [rad/s].
-    t_f : float
-        Spin-up time [s], > 0.
     """
 
-    w_f: float = 3.0
-    t_f: float = 30.0
+    w_f: float = setting(3.0, unit="rad/s", doc="Final hub rate.")
+    t_f: float = setting(30.0, unit="s", lo=0.0, lo_open=True, doc="Spin-up time.")
     kind = "prescribed"
-
-    def __post_init__(self):
-        _check_finite("wf", self.w_f, "rad/s")
-        _check_positive("tf", self.t_f, "s")
 
     def __call__(self, t):
         """Return ``(theta [rad], theta_dot [rad/s], theta_ddot [rad/s^2])`` at ``t`` [s]."""
@@ -82,27 +68,16 @@ def spinup_rate(t, w_f: float, t_f: float):
 
 
 @dataclass(frozen=True)
-class TorquePulse:
+class TorquePulse(Settings):
     """The paper's Eq. (44): ``tau = tau_m sin(2 pi t / t_f)`` for ``t <= t_f``, then 0.
 
     One full sine period (``T = t_f``): the hub starts and ends at rest after turning by
     the rigid-body angle ``tau_m t_f^2 / (2 pi J_total)``.
-
-    Parameters
-    ----------
-    tau_m : float
-        Torque amplitude [N m].
-    t_f : float
-        Maneuver time [s], > 0.
     """
 
-    tau_m: float = 200.0
-    t_f: float = 10.0
+    tau_m: float = setting(200.0, unit="N m", lo=0.0, lo_open=True, doc="Torque amplitude.")
+    t_f: float = setting(10.0, unit="s", lo=0.0, lo_open=True, doc="Maneuver time (one sine period).")
     kind = "torque"
-
-    def __post_init__(self):
-        _check_finite("tau_max", self.tau_m, "N m")
-        _check_positive("tf", self.t_f, "s")
 
     def __call__(self, t):
         """Hub torque [N m] at ``t`` [s]."""
@@ -114,16 +89,14 @@ class TorquePulse:
 
 
 @dataclass(frozen=True)
-class ConstantSpin:
-    """Hub turning at a constant rate (prescribed). ``spin`` [rad/s]."""
+class ConstantSpin(Settings):
+    """Hub turning at a constant rate (prescribed)."""
 
-    spin: float = 0.0
+    spin: float = setting(0.0, unit="rad/s", doc="Hub rate.")
     kind = "prescribed"
 
-    def __post_init__(self):
-        _check_finite("spin", self.spin, "rad/s")
-
     def __call__(self, t):
+        """Return ``(theta [rad], theta_dot [rad/s], theta_ddot [rad/s^2])`` at ``t`` [s]."""
         return self.spin * t, self.spin + 0 * t, 0 * t
 
 

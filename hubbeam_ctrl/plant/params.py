@@ -7,15 +7,14 @@ end and five axial plus five transverse assumed modes.
 
 from __future__ import annotations
 
-import dataclasses
-import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import tomllib
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.core.settings import Settings, setting
 
 __all__ = ["Params", "load_params", "save_params", "MAX_MODES"]
 
@@ -23,42 +22,9 @@ __all__ = ["Params", "load_params", "save_params", "MAX_MODES"]
 MAX_MODES = 20
 
 
-def _unit(unit: str, doc: str, positive: bool = False, nonnegative: bool = False):
-    return {"unit": unit, "doc": doc, "positive": positive, "nonnegative": nonnegative}
-
-
 @dataclass(frozen=True)
-class Params:
+class Params(Settings):
     """Parameters of the hub-beam-tip-mass system (SI units).
-
-    Parameters
-    ----------
-    L : float
-        Beam length [m], > 0. Default 8.
-    rho : float
-        Mass density [kg/m^3], > 0. Default 2766.7.
-    A : float
-        Cross-section area [m^2], > 0. Default 7.2968e-5.
-    E : float
-        Young's modulus [Pa], > 0. Default 6.8952e10.
-    I : float
-        Area moment of inertia of the cross-section [m^4], > 0. Default 8.2189e-9.
-    J_h : float
-        Hub moment of inertia about its axis [kg m^2], > 0. Default 200.
-    r : float
-        Hub radius, i.e. radius of the beam root [m], >= 0. Default 0.5.
-    m_t : float
-        Point tip mass [kg], >= 0. Default 0.1.
-    l : float or None
-        Position of the tip mass along the undeformed beam, measured from the root
-        [m], 0 <= l <= L. ``None`` (default) means the free end, l = L.
-    n_axial : int
-        Number of axial assumed modes n1, 1..20. Default 5.
-    n_transverse : int
-        Number of transverse assumed modes n2, 1..20. Default 5.
-    damping_ratio : float
-        Modal damping ratio zeta of the non-rotating clamped modes [-], 0 <= zeta < 1.
-        Default 0 (undamped, as in the paper).
 
     Examples
     --------
@@ -69,48 +35,22 @@ class Params:
     3
     """
 
-    L: float = field(default=8.0, metadata=_unit("m", "beam length", positive=True))
-    rho: float = field(default=2.7667e3, metadata=_unit("kg/m^3", "mass density", positive=True))
-    A: float = field(default=7.2968e-5, metadata=_unit("m^2", "cross-section area", positive=True))
-    E: float = field(default=6.8952e10, metadata=_unit("Pa", "Young's modulus", positive=True))
-    I: float = field(default=8.2189e-9, metadata=_unit("m^4", "area moment of inertia", positive=True))
-    J_h: float = field(default=200.0, metadata=_unit("kg m^2", "hub inertia", positive=True))
-    r: float = field(default=0.5, metadata=_unit("m", "hub radius", nonnegative=True))
-    m_t: float = field(default=0.1, metadata=_unit("kg", "tip mass", nonnegative=True))
-    l: float | None = field(default=None, metadata=_unit("m", "tip-mass position (None: at L)"))
-    n_axial: int = field(default=5, metadata=_unit("-", "number of axial modes"))
-    n_transverse: int = field(default=5, metadata=_unit("-", "number of transverse modes"))
-    damping_ratio: float = field(default=0.0, metadata=_unit("-", "modal damping ratio"))
-
-    def __post_init__(self):
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name == "l" and value is None:
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ParameterError(f"{f.name} must be a number, got {value!r}")
-            if not math.isfinite(value):
-                raise ParameterError(f"{f.name} must be finite, got {value}")
-            meta = f.metadata
-            if meta.get("positive") and not value > 0:
-                raise ParameterError(f"{f.name} must be > 0 [{meta['unit']}], got {value}")
-            if meta.get("nonnegative") and not value >= 0:
-                raise ParameterError(f"{f.name} must be >= 0 [{meta['unit']}], got {value}")
-        for name in ("n_axial", "n_transverse"):
-            value = getattr(self, name)
-            if int(value) != value or not 1 <= value <= MAX_MODES:
-                raise ParameterError(
-                    f"{name} must be an integer in 1..{MAX_MODES}, got {value}")
-            object.__setattr__(self, name, int(value))
-        if self.l is not None and not 0.0 <= self.l <= self.L:
-            raise ParameterError(f"l must be in [0, L] = [0, {self.L}] m, got {self.l}")
-        if not 0.0 <= self.damping_ratio < 1.0:
-            raise ParameterError(
-                f"damping_ratio must be in [0, 1), got {self.damping_ratio}")
-        for name in ("L", "rho", "A", "E", "I", "J_h", "r", "m_t", "damping_ratio"):
-            object.__setattr__(self, name, float(getattr(self, name)))
-        if self.l is not None:
-            object.__setattr__(self, "l", float(self.l))
+    L: float = setting(8.0, unit="m", lo=0.0, lo_open=True, doc="Beam length.")
+    rho: float = setting(2.7667e3, unit="kg/m^3", lo=0.0, lo_open=True, doc="Mass density.")
+    A: float = setting(7.2968e-5, unit="m^2", lo=0.0, lo_open=True, doc="Cross-section area.")
+    E: float = setting(6.8952e10, unit="Pa", lo=0.0, lo_open=True, doc="Young's modulus.")
+    I: float = setting(8.2189e-9, unit="m^4", lo=0.0, lo_open=True, doc="Area moment of inertia of the cross-section.")
+    J_h: float = setting(200.0, unit="kg m^2", lo=0.0, lo_open=True, doc="Hub moment of inertia about its axis.")
+    r: float = setting(0.5, unit="m", lo=0.0, doc="Hub radius, i.e. radius of the beam root.")
+    m_t: float = setting(0.1, unit="kg", lo=0.0, doc="Point tip mass.")
+    l: float | None = setting(None, unit="m", lo=0.0, hi="L", kind=float,
+                              doc="Position of the tip mass along the undeformed beam, measured from "
+                                  "the root; None means the free end, l = L.")
+    n_axial: int = setting(5, lo=1, hi=MAX_MODES, doc="Number of axial assumed modes n1.")
+    n_transverse: int = setting(5, lo=1, hi=MAX_MODES, doc="Number of transverse assumed modes n2.")
+    damping_ratio: float = setting(0.0, lo=0.0, hi=1.0, hi_open=True,
+                                   doc="Modal damping ratio zeta of the non-rotating clamped modes "
+                                       "(0: undamped, as in the paper).")
 
     # -- derived quantities -------------------------------------------------
     @property
@@ -144,19 +84,6 @@ class Params:
         r, L = self.r, self.L
         beam = self.rhoA * ((r + L) ** 3 - r ** 3) / 3.0
         return self.J_h + beam + self.m_t * (r + self.tip_position) ** 2
-
-    def replace(self, **changes) -> "Params":
-        """Return a copy with some fields changed (validated again)."""
-        return dataclasses.replace(self, **changes)
-
-    def to_dict(self) -> dict:
-        """Plain dictionary of all fields (``l`` is ``None`` when the mass is at the end)."""
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def units(cls) -> dict:
-        """Mapping field name -> unit string."""
-        return {f.name: f.metadata["unit"] for f in fields(cls)}
 
     @classmethod
     def from_dict(cls, data: dict) -> "Params":

@@ -12,34 +12,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubbeam_ctrl.core.validation import check_nonnegative as _check_nonnegative
+from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.plant.basis import modal_basis
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["SensorSettings", "sensor_matrix"]
+__all__ = ["SensorSettings", "SENSOR_NAMES", "sensor_matrix"]
+
+#: The measured signals, in the order of :func:`sensor_matrix`'s rows.
+SENSOR_NAMES = ("theta", "theta_dot", "root_moment")
 
 
 @dataclass(frozen=True)
-class SensorSettings:
+class SensorSettings(Settings):
     """Realistic hub sensors for output-feedback controllers (``measurement="sensors"``).
 
     The measurement is ``[theta, theta_dot, M_root]`` plus independent zero-mean Gaussian
     white noise of the standard deviations below, drawn afresh at each sample.
     """
 
-    angle_noise_rad: float = 1e-4
-    """Hub-angle encoder noise, standard deviation [rad] (about a 16-bit encoder)."""
-    rate_noise_rad_s: float = 1e-3
-    """Hub-rate (tachometer / gyro) noise, standard deviation [rad/s]."""
-    moment_noise_nm: float = 0.02
-    """Root bending-moment (strain gauge) noise, standard deviation [N m]."""
-    seed: int = 0
-    """Seed of the noise generator (runs are reproducible)."""
-
-    def __post_init__(self):
-        _check_nonnegative("angle_noise_rad", self.angle_noise_rad, "rad")
-        _check_nonnegative("rate_noise_rad_s", self.rate_noise_rad_s, "rad/s")
-        _check_nonnegative("moment_noise_nm", self.moment_noise_nm, "N m")
+    angle_noise_rad: float = setting(1e-4, unit="rad", lo=0.0,
+                                     doc="Hub-angle encoder noise, standard deviation (about a 16-bit "
+                                         "encoder).")
+    rate_noise_rad_s: float = setting(1e-3, unit="rad/s", lo=0.0,
+                                      doc="Hub-rate (tachometer / gyro) noise, standard deviation.")
+    moment_noise_nm: float = setting(0.02, unit="N m", lo=0.0,
+                                     doc="Root bending-moment (strain gauge) noise, standard deviation.")
+    seed: int = setting(0, lo=0, doc="Seed of the noise generator (runs are reproducible).")
 
     @property
     def std(self) -> np.ndarray:
@@ -48,7 +46,7 @@ class SensorSettings:
 
 
 def sensor_matrix(params: Params, n_modes: int, n_axial: int = 0) -> np.ndarray:
-    """Output matrix of the sensors ``[theta, theta_dot, M_root]`` on a state ``[q, v]``.
+    """Output matrix of the sensors (:data:`SENSOR_NAMES`) on a state ``[q, v]``.
 
     ``M_root = EI f2''(0) q2`` is the bending moment at the beam root [N m].
 

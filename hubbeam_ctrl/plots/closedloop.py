@@ -2,6 +2,9 @@
 
 Each function takes a mapping ``controller name -> Result`` (closed-loop runs) and returns a
 :class:`matplotlib.figure.Figure`; :func:`hubbeam_ctrl.plots.plant.save_figure` writes it.
+Colours and legend labels come from ``styles`` (``name -> {"color", "label"}``), which the
+study layer reads from the controller registry; without them, Matplotlib's colour cycle
+and the names are used.
 """
 
 from __future__ import annotations
@@ -9,23 +12,21 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-__all__ = ["plot_tip_deflection", "plot_hub_angle", "plot_torque", "CONTROLLER_COLORS"]
-
-#: Fixed colours so that every plot and report shows a controller the same way.
-CONTROLLER_COLORS = {"openloop": "0.45", "pd": "tab:orange", "lqr": "tab:blue",
-                     "lqg": "tab:green", "mpc": "tab:red"}
+__all__ = ["plot_tip_deflection", "plot_hub_angle", "plot_torque"]
 
 
-def _color(name):
-    return CONTROLLER_COLORS.get(name)
+def _colors(results, styles) -> dict:
+    """Colour of each run: its style's, else the i-th of Matplotlib's cycle."""
+    return {name: (styles or {}).get(name, {}).get("color") or f"C{i}" for i, name in enumerate(results)}
 
 
-def _label(name, res):
-    return name + ("" if not res.stopped else " (stopped)")
+def _label(name, res, styles):
+    label = (styles or {}).get(name, {}).get("label") or name
+    return label + ("" if not res.stopped else " (stopped)")
 
 
 def plot_tip_deflection(results: dict, t_f: float | None = None, residual_start: float | None = None,
-                        title: str = "") -> Figure:
+                        title: str = "", styles: dict | None = None) -> Figure:
     """Tip deflection of every run: linear scale, and ``|v_tip|`` on a log scale.
 
     Parameters
@@ -37,6 +38,8 @@ def plot_tip_deflection(results: dict, t_f: float | None = None, residual_start:
     residual_start : float, optional
         Start of the residual-vibration window [s] (shaded).
     title : str
+    styles : dict, optional
+        Controller name -> ``{"color": ..., "label": ...}``.
 
     Returns
     -------
@@ -44,9 +47,10 @@ def plot_tip_deflection(results: dict, t_f: float | None = None, residual_start:
     """
     fig = Figure(figsize=(9, 6.5), constrained_layout=True)
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    color = _colors(results, styles)
     for name, res in results.items():
-        ax1.plot(res.t, res.v_tip, color=_color(name), lw=1.2, label=_label(name, res))
-        ax2.semilogy(res.t, np.maximum(np.abs(res.v_tip), 1e-9), color=_color(name), lw=0.9)
+        ax1.plot(res.t, res.v_tip, color=color[name], lw=1.2, label=_label(name, res, styles))
+        ax2.semilogy(res.t, np.maximum(np.abs(res.v_tip), 1e-9), color=color[name], lw=0.9)
     ax1.set_ylabel("tip deflection v_tip [m]")
     ax2.set_ylabel("|v_tip| [m] (log)")
     ax2.set_xlabel("t [s]")
@@ -63,7 +67,8 @@ def plot_tip_deflection(results: dict, t_f: float | None = None, residual_start:
     return fig
 
 
-def plot_hub_angle(results: dict, t_f: float | None = None, title: str = "") -> Figure:
+def plot_hub_angle(results: dict, t_f: float | None = None, title: str = "",
+                   styles: dict | None = None) -> Figure:
     """Hub angle with the task's reference, and the angle error.
 
     Parameters
@@ -73,6 +78,8 @@ def plot_hub_angle(results: dict, t_f: float | None = None, title: str = "") -> 
     t_f : float, optional
         Maneuver time [s] (dashed line).
     title : str
+    styles : dict, optional
+        Controller name -> ``{"color": ..., "label": ...}``.
 
     Returns
     -------
@@ -81,13 +88,14 @@ def plot_hub_angle(results: dict, t_f: float | None = None, title: str = "") -> 
     fig = Figure(figsize=(9, 6.5), constrained_layout=True)
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ref_drawn = False
+    color = _colors(results, styles)
     for name, res in results.items():
-        ax1.plot(res.t, res.theta, color=_color(name), lw=1.2, label=_label(name, res))
+        ax1.plot(res.t, res.theta, color=color[name], lw=1.2, label=_label(name, res, styles))
         if res.theta_ref is not None:
             if not ref_drawn:
                 ax1.plot(res.t, res.theta_ref, "k:", lw=1.0, label="reference")
                 ref_drawn = True
-            ax2.plot(res.t, 1e3 * (res.theta - res.theta_ref), color=_color(name), lw=1.0)
+            ax2.plot(res.t, 1e3 * (res.theta - res.theta_ref), color=color[name], lw=1.0)
     ax1.set_ylabel("hub angle [rad]")
     ax2.set_ylabel("angle error [mrad]")
     ax2.set_xlabel("t [s]")
@@ -105,7 +113,8 @@ def plot_hub_angle(results: dict, t_f: float | None = None, title: str = "") -> 
     return fig
 
 
-def plot_torque(results: dict, tau_max: float | None = None, title: str = "") -> Figure:
+def plot_torque(results: dict, tau_max: float | None = None, title: str = "",
+                styles: dict | None = None) -> Figure:
     """Hub torque of every run (held between samples), with the torque limit.
 
     Parameters
@@ -115,6 +124,8 @@ def plot_torque(results: dict, tau_max: float | None = None, title: str = "") ->
     tau_max : float, optional
         Torque limit [N m] (dotted lines).
     title : str
+    styles : dict, optional
+        Controller name -> ``{"color": ..., "label": ...}``.
 
     Returns
     -------
@@ -122,8 +133,10 @@ def plot_torque(results: dict, tau_max: float | None = None, title: str = "") ->
     """
     fig = Figure(figsize=(9, 4.5), constrained_layout=True)
     ax = fig.subplots()
+    color = _colors(results, styles)
     for name, res in results.items():
-        ax.step(res.t, res.tau, where="post", color=_color(name), lw=1.0, label=_label(name, res))
+        ax.step(res.t, res.tau, where="post", color=color[name], lw=1.0,
+                label=_label(name, res, styles))
     if tau_max is not None:
         for s in (-1, 1):
             ax.axhline(s * tau_max, color="k", ls=":", lw=0.8)

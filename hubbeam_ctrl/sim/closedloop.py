@@ -25,11 +25,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import resolve_model
 from hubbeam_ctrl.plant.params import Params
@@ -41,36 +42,21 @@ __all__ = ["ClosedLoopSettings", "simulate_closed_loop"]
 
 
 @dataclass(frozen=True)
-class ClosedLoopSettings:
-    """Settings of :func:`simulate_closed_loop`."""
+class ClosedLoopSettings(StepperSettings):
+    """Settings of :func:`simulate_closed_loop`: the plant integrator's (``dt`` is also the
+    controller's sample period and the zero-order hold's), the sensors and when to stop."""
 
-    dt: float = 0.01
-    """Sample period of the controller and of the zero-order hold [s] (default 100 Hz)."""
-    substeps: int = 2
-    """Integration steps of the plant per sample (see :class:`StepperSettings`)."""
-    rho_inf: float = 0.9
-    """Numerical damping of the plant integrator, 0..1 (see :class:`StepperSettings`)."""
-    newton_iterations: int = 3
-    """Newton iterations per integration step (see :class:`StepperSettings`)."""
-    sensors: SensorSettings = field(default_factory=SensorSettings)
-    """Sensor noise for controllers that read ``"sensors"``."""
-    divergence_limit: float = 0.3
-    """The run stops when ``|v_tip| > divergence_limit * L`` [-]."""
-    max_wall_s: float = 600.0
-    """The run stops (flagged) when it has taken longer than this [s]."""
-
-    def __post_init__(self):
-        _check_positive("divergence_limit", self.divergence_limit, "-")
-        _check_positive("max_wall_s", self.max_wall_s, "s")
-        if not isinstance(self.sensors, SensorSettings):
-            raise ParameterError("sensors must be a SensorSettings")
-        self.stepper  # validates dt, substeps, rho_inf, newton_iterations
+    sensors: SensorSettings = setting(factory=SensorSettings,
+                                      doc='Sensor noise for controllers that read "sensors".')
+    divergence_limit: float = setting(0.3, lo=0.0, lo_open=True,
+                                      doc="The run stops when abs(v_tip) > divergence_limit * L.")
+    max_wall_s: float = setting(600.0, unit="s", lo=0.0, lo_open=True,
+                                doc="The run stops (flagged) when it has taken longer than this.")
 
     @property
     def stepper(self) -> StepperSettings:
         """The plant integrator's settings."""
-        return StepperSettings(dt=self.dt, substeps=self.substeps, rho_inf=self.rho_inf,
-                               newton_iterations=self.newton_iterations)
+        return StepperSettings(**{f.name: getattr(self, f.name) for f in fields(StepperSettings)})
 
 
 def _controller_name(controller) -> str:

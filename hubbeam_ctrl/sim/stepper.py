@@ -26,17 +26,13 @@ import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients"]
-
-
-def _check_int(name, value, lo, hi):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise ParameterError(f"{name} must be an integer in {lo}..{hi}, got {value!r}")
 
 
 def generalized_alpha_coefficients(rho_inf: float) -> tuple:
@@ -60,29 +56,21 @@ def generalized_alpha_coefficients(rho_inf: float) -> tuple:
 
 
 @dataclass(frozen=True)
-class StepperSettings:
+class StepperSettings(Settings):
     """Settings of the fixed-step plant integrator :class:`PlantStepper`."""
 
-    dt: float = 0.01
-    """Sample period [s]: one call of the stepper advances the plant by ``dt``."""
-    substeps: int = 2
-    """Integration steps per sample (1..100); the step is ``dt / substeps``. Two steps of
-    5 ms reproduce a tight IDAS run of the Eq. 44 slew to ~0.04 % of the peak deflection."""
-    rho_inf: float = 0.9
-    """Spectral radius at infinity of the generalized-alpha method, 0..1 [-]."""
-    newton_iterations: int = 3
-    """Newton iterations per step in the fast path (1..20)."""
-    newton_tol: float = 1e-6
-    """Largest accepted last Newton correction of the accelerations [m/s^2, rad/s^2];
-    a step above it is recomputed by the exact rootfinder."""
-
-    def __post_init__(self):
-        _check_positive("dt", self.dt, "s")
-        _check_int("substeps", self.substeps, 1, 100)
-        if not (isinstance(self.rho_inf, (int, float)) and 0.0 <= self.rho_inf <= 1.0):
-            raise ParameterError(f"rho_inf must be a number in [0, 1], got {self.rho_inf!r}")
-        _check_int("newton_iterations", self.newton_iterations, 1, 20)
-        _check_positive("newton_tol", self.newton_tol, "m/s^2")
+    dt: float = setting(0.01, unit="s", lo=0.0, lo_open=True,
+                        doc="Sample period: one call of the stepper advances the plant by dt.")
+    substeps: int = setting(2, lo=1, hi=100,
+                            doc="Integration steps per sample; the step is dt / substeps. Two steps of "
+                                "5 ms reproduce a tight IDAS run of the Eq. 44 slew to ~0.04 % of the "
+                                "peak deflection.")
+    rho_inf: float = setting(0.9, lo=0.0, hi=1.0,
+                             doc="Spectral radius at infinity of the generalized-alpha method.")
+    newton_iterations: int = setting(3, lo=1, hi=20, doc="Newton iterations per step in the fast path.")
+    newton_tol: float = setting(1e-6, unit="m/s^2, rad/s^2", lo=0.0, lo_open=True,
+                                doc="Largest accepted last Newton correction of the accelerations; a "
+                                    "step above it is recomputed by the exact rootfinder.")
 
 
 class PlantStepper:

@@ -6,18 +6,9 @@ each controller on SFOAM, runs it on the nonlinear plant with
 :mod:`hubbeam_ctrl.study.metrics` and writes ``metrics.csv``, ``metrics.json``, three PNG
 plots and ``report.md``.
 
-Scenarios
----------
-``slew``
-    Rest-to-rest rotation by the rigid-body angle of the paper's Eq. 44 profile,
-    ``Theta = tau_m t_f^2 / (2 pi J_total)``, in the same ``t_f`` and with the same torque
-    budget ``tau_max = tau_m``. The baseline is the open-loop Eq. 44 torque itself; the
-    feedback controllers follow a smooth reference (:func:`controllers.slew_reference`)
-    designed on SFOAM linearised at rest.
-``spinup``
-    Spin-up to ``w_f`` (default 3 rad/s, above TLAM's critical speed) along the corrected
-    Eq. 43 profile in ``t_f``, then hold; design model linearised at ``w_f``. The baseline
-    is the rigid-body feedforward torque alone.
+The controllers come from the registry :data:`controllers.CONTROLLERS` (each with its
+default settings for a scenario, ``Settings.for_scenario``), the scenarios from
+:data:`hubbeam_ctrl.study.scenarios.SCENARIOS`.
 
 Example
 -------
@@ -34,16 +25,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from controllers import (
-    CONTROLLERS,
-    DesignModel,
-    LQGSettings,
-    LQRSettings,
-    MPCSettings,
-    OpenLoopSettings,
-    PDSettings,
-    make_controller,
-)
+from controllers import CONTROLLERS, DesignModel, controller_names, make_controller
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.params import Params
@@ -54,12 +36,15 @@ from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
-DEFAULT_CONTROLLERS = ("openloop", "pd", "lqr", "lqg", "mpc")
-#: The controllers held to the targets of the slew (PD is only reported).
-TARGET_CONTROLLERS = ("lqr", "lqg", "mpc")
+#: The controllers a comparison runs by default (the built-ins; see :func:`controllers.controller_names`).
+DEFAULT_CONTROLLERS = controller_names(default=True)
+#: The controllers held to the targets of the slew (the others, e.g. PD, are only reported).
+TARGET_CONTROLLERS = controller_names(target=True)
 
 
 def _parse_controllers(controllers) -> tuple:
+    if controllers is None:
+        return controller_names(default=True)
     if isinstance(controllers, str):
         names = [c.strip().lower() for c in controllers.split(",") if c.strip()]
     else:
@@ -75,20 +60,6 @@ def _parse_controllers(controllers) -> tuple:
     return tuple(names)
 
 
-def _default_settings(name: str, sc: Scenario, horizon: int, solver: str):
-    if name == "openloop":
-        if sc.name == "slew":
-            return OpenLoopSettings("eq44", sc.tau_max, sc.t_f)
-        return OpenLoopSettings("feedforward", sc.tau_max, sc.t_f)
-    if name == "pd":
-        return PDSettings(tau_max=sc.tau_max)
-    if name == "lqr":
-        return LQRSettings(tau_max=sc.tau_max)
-    if name == "lqg":
-        return LQGSettings(tau_max=sc.tau_max)
-    return MPCSettings(tau_max=sc.tau_max, horizon=horizon, solver=solver)
-
-
 @dataclass
 class Comparison:
     """Everything one comparison produced.
@@ -102,6 +73,12 @@ class Comparison:
         Controller name -> metrics dictionary (see :data:`hubbeam_ctrl.study.metrics.METRIC_UNITS`).
     wall_s : float
         Wall time of the comparison (design and simulation, without writing) [s].
+    paths : dict
+        File kind -> Path, once :func:`~hubbeam_ctrl.study.report.write_outputs` wrote them.
+    styles : dict
+        Controller name -> plot style ``{"color", "label"}`` (from the registry).
+    targets : tuple of str
+        The controllers held to the slew's targets (the others are only reported).
     """
 
     scenario: Scenario
@@ -109,9 +86,11 @@ class Comparison:
     metrics: dict
     wall_s: float = 0.0
     paths: dict = field(default_factory=dict)
+    styles: dict = field(default_factory=dict)
+    targets: tuple = ()
 
 
-def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CONTROLLERS, *,
+def compare(plant: str = "cfoam", scenario: str = "slew", controllers=None, *,
             params: Params | None = None, tau_max: float = 200.0, t_f: float = 10.0,
             t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0,
             design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
@@ -122,9 +101,12 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
     Parameters
     ----------
     plant : {"foam", "cfoam"}
-    scenario : {"slew", "spinup"}
-    controllers : str or sequence of str
-        Any of ``openloop, pd, lqr, lqg, mpc`` (comma-separated string accepted).
+        Nonlinear plant (:data:`~hubbeam_ctrl.study.scenarios.PLANTS`).
+    scenario : str
+        A registered scenario (``slew``, ``spinup``...).
+    controllers : str or sequence of str, optional
+        Registered controllers (``openloop, pd, lqr, lqg, mpc``...; a comma-separated string
+        is accepted). Default: those registered as default.
     params : Params, optional
     tau_max : float
         Torque budget [N m].
@@ -135,11 +117,12 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
     design_modes : int, optional
         Transverse modes of the design model (default: the plant's).
     horizon : int
-        MPC horizon [samples].
+        MPC horizon [samples] (passed to every controller's ``for_scenario``).
     solver : str
-        MPC QP solver (see :data:`controllers.QP_SOLVERS`).
+        MPC QP solver (see :data:`controllers.QP_SOLVERS`; passed likewise).
     settings : dict, optional
-        Controller name -> settings object, replacing the defaults.
+        Controller name -> settings object, replacing the defaults
+        (``SettingsClass.for_scenario(scenario, horizon=..., solver=...)``).
     sim_settings : ClosedLoopSettings, optional
         Plant integration and sensor settings (its ``dt`` is replaced by ``dt``).
     progress : bool
@@ -169,7 +152,8 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
     ref = sc.reference
     results, metrics = {}, {}
     for name in names:
-        st = settings.get(name) or _default_settings(name, sc, horizon, solver)
+        st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
+                                                                            solver=solver)
         ctrl = make_controller(name, design, st, ref)
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
@@ -186,18 +170,23 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CO
         for m in metrics.values():
             m["residual_pct_of_openloop"] = (100.0 * m["residual_tip_max_m"] / base
                                              if base and math.isfinite(base) else float("nan"))
-    return Comparison(sc, results, metrics, time.perf_counter() - start)
+    return Comparison(sc, results, metrics, time.perf_counter() - start,
+                      styles={n: CONTROLLERS[n].style for n in names},
+                      targets=tuple(n for n in names if CONTROLLERS[n].target))
 
 
-def run_compare(plant: str = "cfoam", scenario: str = "slew", controllers=DEFAULT_CONTROLLERS,
+def run_compare(plant: str = "cfoam", scenario: str = "slew", controllers=None,
                 out_dir=None, **options) -> dict:
     """Run :func:`compare` and write its outputs to ``out_dir`` (if given).
 
     Parameters
     ----------
     plant : {"foam", "cfoam"}
-    scenario : {"slew", "spinup"}
-    controllers : str or sequence of str
+        Nonlinear plant.
+    scenario : str
+        A registered scenario.
+    controllers : str or sequence of str, optional
+        Registered controllers (default: those registered as default).
     out_dir : str or Path, optional
         Folder for metrics.csv, metrics.json, the PNG plots and report.md.
     **options

@@ -80,11 +80,15 @@ def write_outputs(comparison, out_dir) -> dict:
     paths["json"] = atomic_write_text(out / "metrics.json",
                                       json.dumps(_json_metrics(metrics), indent=2) + "\n")
     title = f"{sc.plant.upper()}, {sc.name}: "
+    styles = comparison.styles
     figs = {
         "tip_deflection.png": plot_tip_deflection(results, sc.t_f, sc.t_f + 5.0,
-                                                  title + "tip deflection (shaded: residual window)"),
-        "hub_angle.png": plot_hub_angle(results, sc.t_f, title + "hub angle and error vs reference"),
-        "torque.png": plot_torque(results, sc.tau_max, title + "hub torque (dotted: +-tau_max)"),
+                                                  title + "tip deflection (shaded: residual window)",
+                                                  styles=styles),
+        "hub_angle.png": plot_hub_angle(results, sc.t_f, title + "hub angle and error vs reference",
+                                        styles=styles),
+        "torque.png": plot_torque(results, sc.tau_max, title + "hub torque (dotted: +-tau_max)",
+                                  styles=styles),
     }
     for fname, fig in figs.items():
         paths[fname] = save_figure(fig, out / fname)
@@ -113,7 +117,7 @@ def _report(comparison) -> str:
                   "|---|---|---|---|"]
         yes = {True: "yes", False: "**no**", None: "-"}
         for name, r_ok, t_ok, a_ok in _targets(comparison):
-            note = " (reported only)" if name == "pd" else ""
+            note = "" if name in comparison.targets or name == "openloop" else " (reported only)"
             lines.append(f"| {name}{note} | {yes[r_ok]} | {yes[t_ok]} | {yes[a_ok]} |")
         lines.append("")
     notes = [f"- {name}: {m['message']}" for name, m in comparison.metrics.items() if not m["completed"]]

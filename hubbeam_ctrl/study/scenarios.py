@@ -1,17 +1,9 @@
 """Closed-loop scenarios: the task (reference, torque budget, times) and its design point.
 
-Scenarios
----------
-``slew``
-    Rest-to-rest rotation by the rigid-body angle of the paper's Eq. 44 profile,
-    ``Theta = tau_m t_f^2 / (2 pi J_total)``, in the same ``t_f`` and with the same torque
-    budget ``tau_max = tau_m``. The baseline is the open-loop Eq. 44 torque itself; the
-    feedback controllers follow a smooth reference (:func:`controllers.slew_reference`)
-    designed on SFOAM linearised at rest.
-``spinup``
-    Spin-up to ``w_f`` (default 3 rad/s, above TLAM's critical speed) along the corrected
-    Eq. 43 profile in ``t_f``, then hold; design model linearised at ``w_f``. The baseline
-    is the rigid-body feedforward torque alone.
+Scenarios are registered once in :data:`SCENARIOS` with :func:`register_scenario`; the
+comparison and the CLI (``--scenario`` choices and help) read the registry. Built in:
+``slew`` (rest-to-rest by the Eq. 44 rigid angle) and ``spinup`` (the corrected Eq. 43
+profile, then hold); their builders' docstrings say more.
 """
 
 from __future__ import annotations
@@ -25,10 +17,38 @@ from controllers import slew_reference, spinup_reference
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario"]
+__all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
 
-SCENARIOS = ("slew", "spinup")
+#: Scenario name -> builder, in registration order (see :func:`register_scenario`).
+SCENARIOS: dict = {}
+#: The nonlinear plants a scenario runs on (the models with dynamic stiffening and axial modes).
 PLANTS = ("foam", "cfoam")
+
+
+def register_scenario(name: str):
+    """Register a scenario builder under ``name`` (a decorator).
+
+    The builder is called by :func:`make_scenario` with the validated keyword arguments
+    ``params``, ``tau_max``, ``t_f``, ``dt``, ``t_ref_end`` (last reference sample [s]),
+    ``w_f`` and ``flatness`` (it takes those it needs and ``**_`` for the rest) and returns
+    a dict with ``design_spin`` [rad/s], ``target``, ``target_key`` (its name with unit in
+    summaries), ``baseline`` (the open-loop profile compared against: ``"eq44"`` or
+    ``"feedforward"``), ``reference`` and ``description``.
+
+    Parameters
+    ----------
+    name : str
+        Scenario name.
+
+    Returns
+    -------
+    callable
+        The decorator (returns the builder unchanged).
+    """
+    def register(builder):
+        SCENARIOS[name] = builder
+        return builder
+    return register
 
 
 def _number(name, value, unit, positive=True):
@@ -45,7 +65,8 @@ class Scenario:
 
     Attributes
     ----------
-    name : {"slew", "spinup"}
+    name : str
+        Registered scenario name (:data:`SCENARIOS`).
     plant : {"foam", "cfoam"}
     params : Params
     tau_max : float
@@ -63,6 +84,11 @@ class Scenario:
     reference : controllers.Reference
         Hub reference and feedforward torque of the feedback controllers.
     description : str
+    target_key : str
+        Name (with unit suffix) of ``target`` in :meth:`to_dict`.
+    baseline : {"eq44", "feedforward"}
+        The open-loop profile the scenario compares against
+        (:class:`controllers.OpenLoopSettings`).
     """
 
     name: str
@@ -76,13 +102,15 @@ class Scenario:
     target: float
     reference: object
     description: str
+    target_key: str = "target"
+    baseline: str = "feedforward"
 
     def to_dict(self) -> dict:
         """Plain-data summary (JSON-ready)."""
         return {"scenario": self.name, "plant": self.plant, "tau_max_nm": self.tau_max,
                 "tf_s": self.t_f, "t_end_s": self.t_end, "dt_s": self.dt,
                 "design_spin_rad_s": self.design_spin,
-                ("slew_angle_rad" if self.name == "slew" else "final_rate_rad_s"): self.target,
+                self.target_key: self.target,
                 "reference": self.reference.description, "params": self.params.to_dict(),
                 "description": self.description}
 
@@ -95,7 +123,8 @@ def make_scenario(scenario: str = "slew", *, plant: str = "cfoam", params: Param
 
     Parameters
     ----------
-    scenario : {"slew", "spinup"}
+    scenario : str
+        A registered scenario (:data:`SCENARIOS`: ``slew``, ``spinup``).
     plant : {"foam", "cfoam"}
     params : Params, optional
         Default: Table 1 (m_t = 0.1 kg at the tip).
@@ -134,18 +163,37 @@ def make_scenario(scenario: str = "slew", *, plant: str = "cfoam", params: Param
                              f"window starts there), got {t_end:g} s")
     if dt > t_f / 10:
         raise ParameterError(f"dt must be at most tf/10 = {t_f / 10:g} s, got {dt:g} s")
+    parts = SCENARIOS[scenario](params=params, tau_max=tau_max, t_f=t_f, dt=dt,
+                                t_ref_end=t_end + preview_s, w_f=w_f, flatness=flatness)
+    return Scenario(scenario, plant, params, tau_max, t_f, t_end, dt, **parts)
+
+
+@register_scenario("slew")
+def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness, **_) -> dict:
+    """Rest-to-rest slew by the rigid-body angle of Eq. 44 in tf, with its budget tau_max.
+
+    ``Theta = tau_m t_f^2 / (2 pi J_total)`` with ``tau_m = tau_max``. The baseline is the
+    open-loop Eq. 44 torque itself; the feedback controllers follow a smooth reference
+    (:func:`controllers.slew_reference`) designed on SFOAM linearised at rest.
+    """
     J = params.total_inertia
-    horizon_end = t_end + preview_s
-    if scenario == "slew":
-        theta = tau_max * t_f ** 2 / (2 * math.pi * J)
-        ref = slew_reference(theta, t_f, J, tau_max, dt, horizon_end, flatness=flatness)
-        return Scenario("slew", plant, params, tau_max, t_f, t_end, dt, 0.0, theta, ref,
-                        f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
-                        f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)")
+    theta = tau_max * t_f ** 2 / (2 * math.pi * J)
+    ref = slew_reference(theta, t_f, J, tau_max, dt, t_ref_end, flatness=flatness)
+    return dict(design_spin=0.0, target=theta, target_key="slew_angle_rad", baseline="eq44", reference=ref,
+                description=f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
+                            f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)")
+
+
+@register_scenario("spinup")
+def _spinup(*, params, tau_max, t_f, dt, t_ref_end, w_f, **_) -> dict:
+    """Spin-up to wf along the corrected Eq. 43 profile in tf, then hold.
+
+    The default ``w_f`` (3 rad/s) is above TLAM's critical speed; the design model is
+    linearised at ``w_f``. The baseline is the rigid-body feedforward torque alone.
+    """
     w_f = _number("wf", w_f, "rad/s", positive=False)
-    ref = spinup_reference(w_f, t_f, J, dt, horizon_end, tau_max=tau_max)
-    return Scenario("spinup", plant, params, tau_max, t_f, t_end, dt, w_f, w_f, ref,
-                    f"spin-up to {w_f:g} rad/s in tf = {t_f:g} s (Eq. 43), then hold; "
-                    f"design model linearised at {w_f:g} rad/s")
-
-
+    ref = spinup_reference(w_f, t_f, params.total_inertia, dt, t_ref_end, tau_max=tau_max)
+    return dict(design_spin=w_f, target=w_f, target_key="final_rate_rad_s", baseline="feedforward",
+                reference=ref,
+                description=f"spin-up to {w_f:g} rad/s in tf = {t_f:g} s (Eq. 43), then hold; "
+                            f"design model linearised at {w_f:g} rad/s")

@@ -1,0 +1,207 @@
+"""State estimation for output feedback: the steady-state Kalman filter as a component.
+
+:class:`KalmanEstimator` is built once from the design model and a :class:`KalmanNoise`
+model and then fed one measurement per sample::
+
+    est = KalmanEstimator(design, KalmanNoise())
+    est.reset(x0)
+    x_hat = est.update(y, u_prev)      # predict with the torque held since the last sample,
+                                       # then correct with the measurement y
+
+The gain comes from :func:`control.dlqe`'s Riccati solution (the a-priori covariance);
+the filter is written in its measurement-update form, so ``x_hat`` already uses ``y``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.settings import Settings, setting
+from hubbeam_ctrl.plant.sensors import SensorSettings
+
+from .base import DesignModel
+
+__all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain"]
+
+#: The sensors' own specification: the filter's assumed sensor noise defaults to it.
+_SENSORS = SensorSettings()
+
+
+@dataclass(frozen=True)
+class KalmanNoise(Settings):
+    """Noise model of the Kalman filter: sensor noise it assumes and process noise.
+
+    The sensor noise levels default to the simulator's sensors
+    (:class:`hubbeam_ctrl.plant.sensors.SensorSettings`).
+    """
+
+    angle_noise_rad: float = setting(_SENSORS.angle_noise_rad, unit="rad", lo=0.0, lo_open=True,
+                                     doc="Assumed hub-angle sensor noise, standard deviation.")
+    rate_noise_rad_s: float = setting(_SENSORS.rate_noise_rad_s, unit="rad/s", lo=0.0, lo_open=True,
+                                      doc="Assumed hub-rate sensor noise, standard deviation.")
+    moment_noise_nm: float = setting(_SENSORS.moment_noise_nm, unit="N m", lo=0.0, lo_open=True,
+                                     doc="Assumed root-moment sensor noise, standard deviation.")
+    torque_noise_nm: float = setting(5.0, unit="N m", lo=0.0, lo_open=True,
+                                     doc="Process noise: white torque disturbance at the hub, standard "
+                                         "deviation per sample (stands for model error: FOAM's "
+                                         "stiffening and Q_theta, the axial modes).")
+    modal_noise: float = setting(1e-4, unit="m or m/s", lo=0.0,
+                                 doc="Process noise on each modal coordinate and rate per sample, "
+                                     "standard deviation.")
+
+    def covariances(self, design: DesignModel):
+        """Process and measurement noise covariances ``(Qn, Rn)`` on ``design``.
+
+        Parameters
+        ----------
+        design : DesignModel
+
+        Returns
+        -------
+        Qn : ndarray (nx, nx)
+            ``torque_noise^2 Bd Bd'`` plus ``modal_noise^2`` on the modal coordinates and rates.
+        Rn : ndarray (3, 3)
+            Diagonal: the sensors' variances [rad^2, (rad/s)^2, (N m)^2].
+        """
+        nx = design.n_x
+        Qn = self.torque_noise_nm ** 2 * (design.Bd @ design.Bd.T)
+        idx = np.r_[1:nx // 2, nx // 2 + 1:nx]
+        Qn[idx, idx] += self.modal_noise ** 2
+        Rn = np.diag([self.angle_noise_rad ** 2, self.rate_noise_rad_s ** 2, self.moment_noise_nm ** 2])
+        return Qn, Rn
+
+
+def _kalman_design(design: DesignModel, noise: KalmanNoise):
+    """Filter gain ``L`` (measurement update) and a-priori covariance ``P`` via :func:`control.dlqe`."""
+    import control  # lazily: keeps the CLI's start-up light
+    if not isinstance(noise, KalmanNoise):
+        raise ParameterError(f"noise must be a KalmanNoise, got {type(noise).__name__}")
+    A, C = design.Ad, design.C_sensors
+    Qn, Rn = noise.covariances(design)
+    try:
+        _, P, poles = control.dlqe(A, np.eye(design.n_x), C, Qn, Rn)
+    except (np.linalg.LinAlgError, ValueError, control.ControlArgument) as exc:
+        raise ParameterError(f"the Kalman filter's Riccati equation has no solution ({exc}); "
+                             "check the noise levels") from None
+    if np.max(np.abs(poles)) >= 1.0:
+        raise ParameterError("the Kalman filter is not stable; check the noise levels")
+    # dlqe's gain A P C' (C P C' + Rn)^-1 corrects the next prediction; the filter here
+    # corrects the current estimate: P C' (C P C' + Rn)^-1 (= A^-1 times dlqe's gain)
+    L = P @ C.T @ np.linalg.inv(C @ P @ C.T + Rn)
+    return L, np.asarray(P)
+
+
+def kalman_gain(design: DesignModel, noise: KalmanNoise) -> np.ndarray:
+    """Steady-state Kalman filter gain (measurement update) for the three hub sensors.
+
+    Parameters
+    ----------
+    design : DesignModel
+        Sampled design model (``Ad``, ``Bd``, ``C_sensors``).
+    noise : KalmanNoise
+        Noise model (an :class:`~controllers.lqg.LQGSettings` is one).
+
+    Returns
+    -------
+    ndarray (nx, 3)
+        ``x_hat = x_pred + L (y - C x_pred)``.
+
+    Examples
+    --------
+    >>> from controllers import DesignModel
+    >>> kalman_gain(DesignModel.build(n_modes=2), KalmanNoise()).shape
+    (6, 3)
+    """
+    return _kalman_design(design, noise)[0]
+
+
+class KalmanEstimator:
+    """Steady-state Kalman filter on the sampled design model (deviation coordinates).
+
+    Parameters
+    ----------
+    design : DesignModel
+        Sampled design model: ``x[k+1] = Ad x[k] + Bd u[k]``, ``y = C_sensors x``.
+    noise : KalmanNoise
+        Noise model the gain is designed for.
+
+    Attributes
+    ----------
+    L : ndarray (nx, 3)
+        Filter gain (measurement update).
+    P : ndarray (nx, nx)
+        A-priori error covariance of the steady-state filter.
+    x_pred : ndarray (nx,)
+        Prediction used by the last update (the initial guess after :meth:`reset`).
+    x_hat : ndarray (nx,)
+        Current estimate.
+
+    Examples
+    --------
+    >>> from controllers import DesignModel
+    >>> d = DesignModel.build(n_modes=2)
+    >>> est = KalmanEstimator(d, KalmanNoise())
+    >>> x = np.r_[0.01, 0.001, 0, 0, 0, 0]         # 10 mrad off, first mode deflected
+    >>> for k in range(1000):                       # 10 s of measurements, no torque
+    ...     x_hat = est.update(d.C_sensors @ x, None if k == 0 else 0.0)
+    ...     err = np.max(np.abs(x_hat - x))
+    ...     x = d.Ad @ x
+    >>> bool(err < 1e-5)
+    True
+    """
+
+    def __init__(self, design: DesignModel, noise: KalmanNoise):
+        self.L, self.P = _kalman_design(design, noise)
+        self._A, self._b = design.Ad, design.Bd[:, 0]
+        self._IminusLC = np.eye(design.n_x) - self.L @ design.C_sensors
+        self.reset()
+
+    def reset(self, x0=None) -> None:
+        """Start again from a state guess, with no measurement yet.
+
+        Parameters
+        ----------
+        x0 : array_like (nx,), optional
+            Initial guess of the (deviation) state; default zero.
+        """
+        x0 = np.zeros(len(self._b)) if x0 is None else np.array(x0, dtype=float)
+        self.x_pred = x0
+        self.x_hat = x0
+
+    def predict(self, u: float) -> np.ndarray:
+        """Prediction of the next sample's state ``Ad x_hat + Bd u`` (the estimator is unchanged).
+
+        Parameters
+        ----------
+        u : float
+            Torque held over the coming sample [N m].
+
+        Returns
+        -------
+        ndarray (nx,)
+        """
+        return self._A @ self.x_hat + self._b * u
+
+    def update(self, y, u_prev: float | None) -> np.ndarray:
+        """Take one measurement and return the new estimate.
+
+        Parameters
+        ----------
+        y : ndarray (3,)
+            Measurement ``[theta, theta_dot, M_root]`` in the model's (deviation) coordinates.
+        u_prev : float or None
+            Torque held since the previous update [N m]; ``None`` for the first sample after
+            :meth:`reset` (the guess is then the prediction).
+
+        Returns
+        -------
+        ndarray (nx,)
+            ``x_hat``.
+        """
+        if u_prev is not None:
+            self.x_pred = self.predict(u_prev)
+        self.x_hat = self._IminusLC @ self.x_pred + self.L @ y
+        return self.x_hat
