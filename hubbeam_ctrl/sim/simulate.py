@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError, UserFunctionError
 from hubbeam_ctrl.core.progress import Progress
 from hubbeam_ctrl.plant.maneuvers import UserManeuver
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
@@ -115,7 +115,8 @@ class Integrator:
             alg = inv(q, v, ca.vertcat(thdd, z))[1:]
             ode = ca.vertcat(x[ne:], z)
         opts = dict(abstol=settings.atol, reltol=settings.rtol, max_order=settings.max_order,
-                    max_num_steps=5000, suppress_algebraic=True, calc_ic=False)
+                    max_num_steps=5000, suppress_algebraic=True, calc_ic=False,
+                    show_eval_warnings=False)
         self._function = ca.integrator("plant", "idas", {"x": x, "z": z, "p": p, "t": t,
                                                          "ode": ode, "alg": alg},
                                        0.0, self.grid, opts)
@@ -167,7 +168,10 @@ def _full_state(model, hub, maneuver, t, xs, zs):
     n = model.n_q
     if hub == "free":
         return xs[:, :n], xs[:, n:], zs
-    th, thd, thdd = (np.broadcast_to(np.asarray(a, dtype=float), t.shape) for a in maneuver(t))
+    values = maneuver.evaluate(t)[0] if isinstance(maneuver, UserManeuver) else maneuver(t)
+    th, thd, thdd = (np.broadcast_to(np.asarray(a, dtype=float), t.shape) for a in values)
+    if th.shape != t.shape:     # a user function that stopped early: NaN after its last good value
+        th, thd, thdd = (np.concatenate([c, np.full(len(t) - len(c), np.nan)]) for c in (th, thd, thdd))
     ne = n - 1
     q = np.column_stack([th, xs[:, :ne]])
     v = np.column_stack([thd, xs[:, ne:]])
@@ -254,6 +258,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     grid = dt * np.arange(1, per_chunk + 1)
     integ = _cached_integrator(m, hub, maneuver, grid, settings)
     z0 = _initial_accelerations(m, hub, maneuver, x0)
+    n_out, user_stop = _user_function_limit(maneuver, n_out, dt)
 
     times, xs_all, zs_all = [np.array([0.0])], [x0[None, :]], []
     diverged, message = False, "completed"
@@ -263,6 +268,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     done = 0
     bar = Progress(n_out, f"simulate {m.name}", enabled=progress)
     x, z = x0, z0
+    failure = None
     while done < n_out:
         k = min(per_chunk, n_out - done)
         t0 = done * dt
@@ -274,15 +280,18 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
                 integ = Integrator(m, hub, maneuver, dt * np.arange(1, per_chunk + 1), settings)
                 continue
             diverged = True
-            message = (f"{m.name.upper()}: integrator failed between t = {t0:.3f} s and "
-                       f"{t0 + per_chunk * dt:.3f} s ({str(exc).splitlines()[0][:100]}); "
-                       f"results end at t = {t0:.3f} s")
+            message = _named_failure(maneuver, t0, t0 + per_chunk * dt, dt) or (
+                f"{m.name.upper()}: integrator failed between t = {t0:.3f} s and "
+                f"{t0 + per_chunk * dt:.3f} s ({str(exc).splitlines()[0][:100]})")
+            message += f"; results end at t = {t0:.3f} s"
             break
         xs, zs = xs[:k], zs[:k]
         if not np.all(np.isfinite(xs)):
             bad = int(np.argmax(~np.all(np.isfinite(xs), axis=1)))
             xs, zs = xs[:bad], zs[:bad]
             diverged = True
+            failure = _named_failure(maneuver, t0, t0 + k * dt, dt) or (
+                f"{m.name.upper()}: the integrator returned a non-finite state at t = {t0 + (bad + 1) * dt:.3f} s")
         tk = t0 + dt * np.arange(1, len(xs) + 1)
         q_full = xs[:, :n] if hub == "free" else xs[:, : n - 1]
         qt = q_full if hub == "free" else np.column_stack([np.zeros(len(xs)), q_full])
@@ -297,6 +306,9 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         zs_all.append(zs)
         done += len(xs)
         bar.update(done)
+        if diverged and failure:
+            message = f"{failure}; results end at t = {tk[-1] if len(tk) else t0:.3f} s"
+            break
         if diverged:
             message = (f"{m.name.upper()} left its range at t = {tk[-1] if len(tk) else t0:.3f} s: "
                        f"|v_tip| > {settings.divergence_limit:g} L = {limit:.3g} m"
@@ -315,6 +327,12 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     zs = np.vstack(zs_all) if zs_all else np.zeros((0, n_x // 2))
     zs = np.vstack([z0[None, :], zs])
     q, v, a = _full_state(m, hub, maneuver, t, xs, zs)
+    if user_stop and not diverged:
+        diverged, message = True, f"{user_stop}; results end at t = {t[-1]:.3f} s"
+    keep, why = _finite_prefix(maneuver, t, q, v, a)
+    if keep < len(t):
+        t, q, v, a = t[:keep], q[:keep], v[:keep], a[:keep]
+        diverged, message = True, f"{why}; results end at t = {t[-1]:.3f} s"
     return _open_loop_result(m, t, q, v, a, hub=hub, maneuver=maneuver, settings=settings,
                              stopped=diverged, message=message, wall_s=wall)
 
@@ -334,6 +352,42 @@ def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, setting
                   angular_momentum=momentum, params=model.params,
                   settings={"maneuver": describe_input(maneuver), **dataclasses.asdict(settings)},
                   stopped=stopped, message=message, wall_s=wall_s)
+
+
+def _user_function_limit(maneuver, n_out: int, dt: float) -> tuple:
+    """Samples to compute, and why fewer than asked: a tabulated user function that fails
+    (raises, or returns a non-finite value) before the end stops the run where it did."""
+    stop = getattr(maneuver, "valid_until", None) if isinstance(maneuver, UserManeuver) else None
+    if stop is None or stop >= n_out * dt:
+        return n_out, None
+    k = int(math.floor(stop / dt + 1e-9))
+    if k < 1:
+        raise UserFunctionError(maneuver.failure)
+    return k, maneuver.failure
+
+
+def _named_failure(maneuver, t0: float, t1: float, dt: float) -> str | None:
+    """The message naming a user function that fails between ``t0`` and ``t1`` [s], if one does."""
+    if not isinstance(maneuver, UserManeuver):
+        return None
+    _, error = maneuver.evaluate(np.arange(t0, t1 + 0.5 * dt, dt))
+    return None if error is None else str(error)
+
+
+def _finite_prefix(maneuver, t, q, v, a) -> tuple:
+    """Number of leading samples whose ``q``, ``v``, ``a`` are all finite, and why it ends there.
+
+    A result never holds NaN or infinity: the run is cut before the first such sample and the
+    message names the cause (the user function when it returned the bad value).
+    """
+    finite = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(v), axis=1) & np.all(np.isfinite(a), axis=1)
+    if finite.all():
+        return len(t), None
+    keep = int(np.argmin(finite))
+    why = _named_failure(maneuver, t[keep], t[keep], 1.0) or f"non-finite state at t = {t[keep]:.3f} s"
+    if keep == 0:
+        raise HubbeamError(why)
+    return keep, why
 
 
 def _initial_accelerations(m: HubBeamModel, hub, maneuver, x0):
