@@ -44,8 +44,9 @@ class SpinUp(Settings):
     ``theta = (w_f/t_f)[t^2/2 + (t_f/2pi)^2 (cos(2pi t/t_f) - 1)]`` up to ``t_f``.
     """
 
-    w_f: float = setting(3.0, unit="rad/s", doc="Final hub rate.")
-    t_f: float = setting(30.0, unit="s", lo=0.0, lo_open=True, doc="Spin-up time.")
+    w_f: float = setting(3.0, unit="rad/s", lo=-1e4, hi=1e4,
+                         doc="Final hub rate; a simulation also needs abs(w_f) <= Params.max_spin.")
+    t_f: float = setting(30.0, unit="s", lo=1e-3, hi=1e6, doc="Spin-up time.")
     kind = "prescribed"
 
     def __call__(self, t):
@@ -75,8 +76,10 @@ class TorquePulse(Settings):
     the rigid-body angle ``tau_m t_f^2 / (2 pi J_total)``.
     """
 
-    tau_m: float = setting(200.0, unit="N m", lo=0.0, lo_open=True, doc="Torque amplitude.")
-    t_f: float = setting(10.0, unit="s", lo=0.0, lo_open=True, doc="Maneuver time (one sine period).")
+    tau_m: float = setting(200.0, unit="N m", lo=0.0, lo_open=True, hi=1e9,
+                           doc="Torque amplitude; a simulation also needs the peak rigid rate "
+                               "tau_m t_f / (pi J_total) <= Params.max_spin.")
+    t_f: float = setting(10.0, unit="s", lo=1e-3, hi=1e6, doc="Maneuver time (one sine period).")
     kind = "torque"
 
     def __call__(self, t):
@@ -92,7 +95,8 @@ class TorquePulse(Settings):
 class ConstantSpin(Settings):
     """Hub turning at a constant rate (prescribed)."""
 
-    spin: float = setting(0.0, unit="rad/s", doc="Hub rate.")
+    spin: float = setting(0.0, unit="rad/s", lo=-1e4, hi=1e4,
+                          doc="Hub rate; a simulation also needs abs(spin) <= Params.max_spin.")
     kind = "prescribed"
 
     def __call__(self, t):

@@ -29,9 +29,10 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from hubbeam_ctrl.core.budget import CLOSED_LOOP_SECONDS_PER_SAMPLE, check_budget
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import setting
-from hubbeam_ctrl.core.validation import check_positive as _check_positive
+from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.models import resolve_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
@@ -48,15 +49,42 @@ class ClosedLoopSettings(StepperSettings):
 
     sensors: SensorSettings = setting(factory=SensorSettings,
                                       doc='Sensor noise for controllers that read "sensors".')
-    divergence_limit: float = setting(0.3, lo=0.0, lo_open=True,
+    divergence_limit: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0,
                                       doc="The run stops when abs(v_tip) > divergence_limit * L.")
-    max_wall_s: float = setting(600.0, unit="s", lo=0.0, lo_open=True,
-                                doc="The run stops (flagged) when it has taken longer than this.")
+    max_wall_s: float = setting(600.0, unit="s", lo=1e-3, hi=1e7,
+                                doc="The run stops (flagged) when it has taken longer than this "
+                                    "(checked at every sample).")
+    max_memory_mb: float = setting(2048.0, unit="MB", lo=1.0, hi=1e9,
+                                   doc="A run whose results would need more memory than this is "
+                                       "refused before it starts.")
 
     @property
     def stepper(self) -> StepperSettings:
         """The plant integrator's settings."""
         return StepperSettings(**{f.name: getattr(self, f.name) for f in fields(StepperSettings)})
+
+
+def _torque(value) -> float:
+    """A controller's output as one float (NaN and infinity pass: the loop reports them)."""
+    arr = np.asarray(value, dtype=float)
+    if arr.size != 1:
+        raise ParameterError(f"the torque must be one number, got {arr.size} values")
+    return float(arr.reshape(()))
+
+
+def _initial_state(x0, n_x: int) -> np.ndarray:
+    """``x0`` as ``n_x`` finite floats (zeros when ``None``), or a one-line error."""
+    if x0 is None:
+        return np.zeros(n_x)
+    try:
+        x = np.asarray(x0, dtype=float).ravel()
+    except (TypeError, ValueError, OverflowError):
+        x = None
+    if x is None or x.shape != (n_x,) or not np.all(np.isfinite(x)):
+        raise ParameterError(f"x0 must hold {n_x} finite numbers [q, v] of the plant, got "
+                             + (f"shape {x.shape}" + ("" if x.shape != (n_x,) else " with NaN or infinity")
+                                if x is not None else type(x0).__name__))
+    return x
 
 
 def _controller_name(controller) -> str:
@@ -106,13 +134,17 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
 
     Notes
     -----
-    A controller that returns a non-finite torque, or a plant that leaves its range
+    A controller that returns a non-finite torque or raises, or a plant that leaves its range
     (``|v_tip| > divergence_limit * L``), stops the run: the result is cut there, with
-    ``stopped = True`` and a message naming the cause.
+    ``stopped = True`` and a message naming the cause. So does ``settings.max_wall_s``
+    (checked at every sample); a run whose samples would need more than
+    ``settings.max_memory_mb`` is refused before it starts.
     """
-    settings = settings or ClosedLoopSettings()
+    settings = ClosedLoopSettings() if settings is None else settings
+    if not isinstance(settings, ClosedLoopSettings):
+        raise ParameterError(f"settings must be a ClosedLoopSettings, got {type(settings).__name__}")
     model = resolve_model(plant, params)
-    _check_positive("t_end", t_end, "s")
+    t_end = check_in_range("t_end", t_end, "s", settings.dt, 1e9, "at least two samples: t_end >= dt")
     if not callable(controller) or not hasattr(controller, "reset"):
         raise ParameterError("controller must be callable as controller(t, y) and have reset()")
     name = _controller_name(controller)
@@ -134,6 +166,10 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     C_sens = sensor_matrix(model.params, n2, n1)
     stepper = PlantStepper(model, settings.stepper)
     N = int(round(t_end / dt))
+    check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({N + 1} samples)",
+                 memory_bytes=16.0 * (N + 1) * (2 * n + 9),
+                 seconds=N * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n / 11.0) ** 2,
+                 max_memory_mb=settings.max_memory_mb, max_wall_s=settings.max_wall_s)
     t = dt * np.arange(N + 1)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None
@@ -144,7 +180,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     states = np.empty((N + 1, 2 * n))
     taus = np.full(N + 1, np.nan)
     step_times = np.full(N + 1, np.nan)
-    x = np.zeros(2 * n) if x0 is None else np.asarray(x0, dtype=float).ravel()
+    x = _initial_state(x0, 2 * n)
     controller.reset()
     stopped, message = False, "completed"
     start = time.perf_counter()
@@ -155,9 +191,14 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         states[k] = x
         y = x[idx_state] if noise is None else C_sens @ x + noise[k]
         t0 = perf()
-        tau = controller(t[k], y)
+        try:
+            tau = _torque(controller(t[k], y))
+        except Exception as exc:      # the controller's own code: stop, name it, keep the run
+            stopped, last = True, k
+            message = (f"controller {name!r} raised {type(exc).__name__}: {str(exc)[:200]} at "
+                       f"t = {t[k]:.3f} s; run stopped")
+            break
         step_times[k] = perf() - t0
-        tau = float(tau)
         taus[k] = tau
         if not math.isfinite(tau):
             stopped = True
@@ -181,7 +222,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
             message = (f"{model.name.upper()} left its range at t = {t[k + 1]:.3f} s under "
                        f"controller {name!r}: |v_tip| > {settings.divergence_limit:g} L")
             break
-        if (k & 255) == 0 and perf() - start > settings.max_wall_s:
+        if perf() - start > settings.max_wall_s:
             stopped, last = True, k + 1
             states[k + 1] = x
             message = f"stopped after max_wall_s = {settings.max_wall_s:g} s at t = {t[k + 1]:.3f} s"

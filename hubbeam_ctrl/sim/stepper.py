@@ -59,7 +59,7 @@ def generalized_alpha_coefficients(rho_inf: float) -> tuple:
 class StepperSettings(Settings):
     """Settings of the fixed-step plant integrator :class:`PlantStepper`."""
 
-    dt: float = setting(0.01, unit="s", lo=0.0, lo_open=True,
+    dt: float = setting(0.01, unit="s", lo=1e-6, hi=10.0,
                         doc="Sample period: one call of the stepper advances the plant by dt.")
     substeps: int = setting(2, lo=1, hi=100,
                             doc="Integration steps per sample; the step is dt / substeps. Two steps of "
@@ -68,7 +68,7 @@ class StepperSettings(Settings):
     rho_inf: float = setting(0.9, lo=0.0, hi=1.0,
                              doc="Spectral radius at infinity of the generalized-alpha method.")
     newton_iterations: int = setting(3, lo=1, hi=20, doc="Newton iterations per step in the fast path.")
-    newton_tol: float = setting(1e-6, unit="m/s^2, rad/s^2", lo=0.0, lo_open=True,
+    newton_tol: float = setting(1e-6, unit="m/s^2, rad/s^2", lo=1e-14, hi=1.0,
                                 doc="Largest accepted last Newton correction of the accelerations; a "
                                     "step above it is recomputed by the exact rootfinder.")
 

@@ -26,6 +26,14 @@ import time
 from dataclasses import dataclass, field
 
 from controllers import CONTROLLERS, DesignModel, controller_names, make_controller
+from hubbeam_ctrl.core.budget import (
+    CLOSED_LOOP_SECONDS_PER_SAMPLE,
+    WallClock,
+    check_budget,
+    model_build_seconds,
+    mpc_bytes,
+    mpc_seconds,
+)
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.params import Params
@@ -144,18 +152,26 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=None, *,
     unknown = sorted(set(settings) - set(names))
     if unknown:
         raise ParameterError(f"settings given for controllers not run: {', '.join(unknown)}")
-    design = DesignModel.build(sc.params, sc.design_spin, sc.dt, design_modes)
     sim = sim_settings or ClosedLoopSettings()
+    if not isinstance(sim, ClosedLoopSettings):
+        raise ParameterError(f"sim_settings must be a ClosedLoopSettings, got {type(sim).__name__}")
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
+    chosen = {name: settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
+                                                                                   solver=solver)
+              for name in names}
+    _check_budget(sc, chosen, design_modes or sc.params.n_transverse, sim)
+    design = DesignModel.build(sc.params, sc.design_spin, sc.dt, design_modes)
     model = build_model(sc.plant, sc.params)
     ref = sc.reference
     results, metrics = {}, {}
+    clock = WallClock(sim.max_wall_s)        # the whole comparison's wall-time limit
     for name in names:
-        st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
-                                                                            solver=solver)
-        ctrl = make_controller(name, design, st, ref)
-        res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim,
+        if clock.expired():
+            break
+        ctrl = make_controller(name, design, chosen[name], ref)
+        run_sim = dataclasses.replace(sim, max_wall_s=max(1e-3, sim.max_wall_s - clock.elapsed()))
+        res = simulate_closed_loop(model, ctrl, sc.t_end, settings=run_sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res
         metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max)
@@ -173,6 +189,29 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=None, *,
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
                       targets=tuple(n for n in names if CONTROLLERS[n].target))
+
+
+def _check_budget(sc: Scenario, chosen: dict, design_modes: int, sim: ClosedLoopSettings) -> None:
+    """Refuse a comparison whose memory or time estimate exceeds ``sim``'s limits, before any
+    design work (see :mod:`hubbeam_ctrl.core.budget`)."""
+    p = sc.params
+    n_q = 1 + p.n_axial + p.n_transverse
+    steps = int(round(sc.t_end / sc.dt))
+    n_x = 2 * (1 + design_modes)
+    run_bytes = 16.0 * (steps + 1) * (2 * n_q + 9)
+    run_seconds = steps * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n_q / 11.0) ** 2
+    memory = len(chosen) * run_bytes
+    seconds = len(chosen) * run_seconds + model_build_seconds(sc.plant, p.n_transverse)
+    what = f"t_end = {sc.t_end:g} s at dt = {sc.dt:g} s ({len(chosen)} runs of {steps + 1} samples)"
+    horizons = [getattr(st, "horizon", None) for st in chosen.values()]
+    horizons = [h for h in horizons if h]
+    if horizons:
+        N = max(horizons)
+        memory += mpc_bytes(N, n_x)
+        seconds += mpc_seconds(N, n_x, steps)
+        what += f" with horizon = {N}"
+    check_budget(what, memory_bytes=memory, seconds=seconds, max_memory_mb=sim.max_memory_mb,
+                 max_wall_s=sim.max_wall_s)
 
 
 def run_compare(plant: str = "cfoam", scenario: str = "slew", controllers=None,

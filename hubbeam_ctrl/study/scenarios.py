@@ -11,11 +11,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from controllers import slew_reference, spinup_reference
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.core.validation import check_in_range
+from hubbeam_ctrl.plant.params import Params, check_spin
 
 __all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
 
@@ -49,14 +48,6 @@ def register_scenario(name: str):
         SCENARIOS[name] = builder
         return builder
     return register
-
-
-def _number(name, value, unit, positive=True):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-            or not math.isfinite(value) or (positive and not value > 0):
-        raise ParameterError(f"{name} must be a finite number{' > 0' if positive else ''} "
-                             f"[{unit}], got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,15 +120,16 @@ def make_scenario(scenario: str = "slew", *, plant: str = "cfoam", params: Param
     params : Params, optional
         Default: Table 1 (m_t = 0.1 kg at the tip).
     tau_max : float
-        Torque budget [N m], > 0 (the slew's Eq. 44 amplitude).
+        Torque budget [N m], in [1e-6, 1e9] (the slew's Eq. 44 amplitude); the slew's peak
+        rigid rate ``tau_max t_f / (pi J_total)`` must not exceed ``params.max_spin``.
     t_f : float
-        Maneuver time [s], > 0.
+        Maneuver time [s], in [1e-3, 1e6].
     t_end : float
-        Simulated time [s]; must exceed ``t_f + 5`` (the residual window).
+        Simulated time [s]; must exceed ``t_f + 5`` (the residual window), at most 1e9.
     dt : float
-        Controller sample time [s], > 0.
+        Controller sample time [s], in [1e-6, 10] and at most ``t_f / 10``.
     w_f : float
-        Spin-up final rate [rad/s] (spinup only).
+        Spin-up final rate [rad/s] (spinup only), ``|w_f| <= params.max_spin``.
     flatness : float
         Shape of the slew reference (see :func:`controllers.slew_reference`).
     preview_s : float
@@ -154,10 +146,10 @@ def make_scenario(scenario: str = "slew", *, plant: str = "cfoam", params: Param
     params = params if params is not None else Params()
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
-    tau_max = _number("tau_max", tau_max, "N m")
-    t_f = _number("tf", t_f, "s")
-    t_end = _number("t_end", t_end, "s")
-    dt = _number("dt", dt, "s")
+    tau_max = check_in_range("tau_max", tau_max, "N m", 1e-6, 1e9)
+    t_f = check_in_range("tf", t_f, "s", 1e-3, 1e6)
+    t_end = check_in_range("t_end", t_end, "s", 1e-3, 1e9)
+    dt = check_in_range("dt", dt, "s", 1e-6, 10.0)
     if t_end <= t_f + 5.0:
         raise ParameterError(f"t_end must exceed tf + 5 s = {t_f + 5:g} s (the residual-vibration "
                              f"window starts there), got {t_end:g} s")
@@ -177,6 +169,11 @@ def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness, **_) -> dict:
     (:func:`controllers.slew_reference`) designed on SFOAM linearised at rest.
     """
     J = params.total_inertia
+    peak = tau_max * t_f / (math.pi * J)
+    if peak > params.max_spin:
+        raise ParameterError(f"tau_max = {tau_max:g} N m over tf = {t_f:g} s spins the hub up to {peak:.4g} "
+                             f"rad/s (tau_max tf / (pi J_total)), above Params.max_spin = "
+                             f"{params.max_spin:.4g} rad/s (1 % centrifugal strain at the root)")
     theta = tau_max * t_f ** 2 / (2 * math.pi * J)
     ref = slew_reference(theta, t_f, J, tau_max, dt, t_ref_end, flatness=flatness)
     return dict(design_spin=0.0, target=theta, target_key="slew_angle_rad", baseline="eq44", reference=ref,
@@ -191,7 +188,7 @@ def _spinup(*, params, tau_max, t_f, dt, t_ref_end, w_f, **_) -> dict:
     The default ``w_f`` (3 rad/s) is above TLAM's critical speed; the design model is
     linearised at ``w_f``. The baseline is the rigid-body feedforward torque alone.
     """
-    w_f = _number("wf", w_f, "rad/s", positive=False)
+    w_f = check_spin("wf", w_f, params)
     ref = spinup_reference(w_f, t_f, params.total_inertia, dt, t_ref_end, tau_max=tau_max)
     return dict(design_spin=w_f, target=w_f, target_key="final_rate_rad_s", baseline="feedforward",
                 reference=ref,
