@@ -23,8 +23,11 @@ import time
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["check_budget", "format_bytes", "format_seconds", "WallClock", "SECONDS_PER_SAMPLE",
+__all__ = ["T_END_MAX", "check_budget", "format_bytes", "format_seconds", "WallClock", "SECONDS_PER_SAMPLE",
            "simulation_bytes_per_sample", "mpc_bytes", "mpc_seconds", "model_build_seconds"]
+
+#: Longest simulated time any simulator accepts [s] (the budgets usually bind long before).
+T_END_MAX = 1e9
 
 #: Lower bounds of the wall time per output sample of :func:`~hubbeam_ctrl.sim.simulate.simulate`
 #: with 5 + 5 modes [s] (measured 82, 100, 271, 819 us; divided by about 4). They scale with

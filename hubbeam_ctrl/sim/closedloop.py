@@ -29,7 +29,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from hubbeam_ctrl.core.budget import CLOSED_LOOP_SECONDS_PER_SAMPLE, check_budget
+from hubbeam_ctrl.core.budget import CLOSED_LOOP_SECONDS_PER_SAMPLE, T_END_MAX, check_budget
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.core.validation import check_in_range
@@ -144,7 +144,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     if not isinstance(settings, ClosedLoopSettings):
         raise ParameterError(f"settings must be a ClosedLoopSettings, got {type(settings).__name__}")
     model = resolve_model(plant, params)
-    t_end = check_in_range("t_end", t_end, "s", settings.dt, 1e9, "at least two samples: t_end >= dt")
+    t_end = check_in_range("t_end", t_end, "s", settings.dt, T_END_MAX, "at least two samples: t_end >= dt")
     if not callable(controller) or not hasattr(controller, "reset"):
         raise ParameterError("controller must be callable as controller(t, y) and have reset()")
     name = _controller_name(controller)

@@ -26,6 +26,7 @@ import numpy as np
 
 from hubbeam_ctrl.core.budget import (
     SECONDS_PER_SAMPLE,
+    T_END_MAX,
     WallClock,
     check_budget,
     model_build_seconds,
@@ -57,7 +58,7 @@ class SimulationSettings(Settings):
                                  "runs).")
     chunk_s: float = setting(10.0, unit="s", lo=1e-3, hi=1e4,
                              doc="Longest integration chunk between checks (divergence, wall time); "
-                                 "shortened so that a chunk takes about a second of wall time.")
+                                 "shortened so that a chunk takes a fraction of a second of wall time.")
     divergence_limit: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0,
                                       doc="The run stops when abs(v_tip) > divergence_limit * L.")
     max_wall_s: float = setting(600.0, unit="s", lo=1e-3, hi=1e7,
@@ -221,7 +222,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     """
     settings = _settings(settings, setting_overrides)
     dt = settings.dt
-    t_end = check_in_range("t_end", t_end, "s", dt, 1e9, "at least two samples: t_end >= dt")
+    t_end = check_in_range("t_end", t_end, "s", dt, T_END_MAX, "at least two samples: t_end >= dt")
     name, p, n = _model_plan(model, params)
     maneuver, hub = _maneuver_and_hub(maneuver, hub)
     _check_maneuver_spin(maneuver, p)

@@ -12,11 +12,12 @@ import math
 from dataclasses import dataclass
 
 from controllers import slew_reference, spinup_reference
+from hubbeam_ctrl.core.budget import T_END_MAX
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.params import Params, check_spin
 
-__all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
+__all__ = ["RANGES", "SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
 
 #: Scenario name -> builder, in registration order (see :func:`register_scenario`).
 SCENARIOS: dict = {}
@@ -48,6 +49,13 @@ def register_scenario(name: str):
         SCENARIOS[name] = builder
         return builder
     return register
+
+
+#: Ranges of :func:`make_scenario`'s numbers: name as in messages -> (lo, hi, unit). Also
+#: ``t_end > tf + 5``, ``dt <= tf / 10``, ``abs(wf) <= params.max_spin`` and, for the slew,
+#: ``tau_max tf / (pi J_total) <= params.max_spin``.
+RANGES = {"tau_max": (1e-6, 1e9, "N m"), "tf": (1e-3, 1e6, "s"), "t_end": (1e-3, T_END_MAX, "s"),
+          "dt": (1e-6, 10.0, "s")}
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,10 +154,9 @@ def make_scenario(scenario: str = "slew", *, plant: str = "cfoam", params: Param
     params = params if params is not None else Params()
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
-    tau_max = check_in_range("tau_max", tau_max, "N m", 1e-6, 1e9)
-    t_f = check_in_range("tf", t_f, "s", 1e-3, 1e6)
-    t_end = check_in_range("t_end", t_end, "s", 1e-3, 1e9)
-    dt = check_in_range("dt", dt, "s", 1e-6, 10.0)
+    tau_max, t_f, t_end, dt = (check_in_range(name, value, RANGES[name][2], *RANGES[name][:2])
+                               for name, value in (("tau_max", tau_max), ("tf", t_f),
+                                                   ("t_end", t_end), ("dt", dt)))
     if t_end <= t_f + 5.0:
         raise ParameterError(f"t_end must exceed tf + 5 s = {t_f + 5:g} s (the residual-vibration "
                              f"window starts there), got {t_end:g} s")
