@@ -13,11 +13,12 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import sys
 from pathlib import Path
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
+__all__ = ["stdout", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
            "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits"]
 
 #: Python names (Params fields, function arguments, settings) -> the option that sets them.
@@ -32,6 +33,13 @@ OPTION_NAMES = {
     "max_wall_s": "--max-wall", "max_memory_mb": "--allow-large", "out": "--out", "plot": "--plot",
     "params": "--params", "scenario": "--scenario", "plant": "--plant", "model": "--model",
 }
+
+def stdout(args):
+    """The stream a subcommand prints its results to: the standard output saved before the
+    run (during the run ``sys.stdout`` collects native and CasADi output, see
+    :class:`~hubbeam_ctrl.core.native.capture_native_output`)."""
+    return getattr(args, "stdout", None) or sys.stdout
+
 
 _LEADING_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?=[ :=])")
 

@@ -7,7 +7,15 @@ import sys
 import time
 
 from controllers import CONTROLLERS, QP_SOLVERS, controller_names
-from hubbeam_ctrl.cli.args import add_run_options, check_output_dir, integer, real, refuse_inapplicable, run_limits
+from hubbeam_ctrl.cli.args import (
+    add_run_options,
+    check_output_dir,
+    integer,
+    real,
+    refuse_inapplicable,
+    run_limits,
+    stdout,
+)
 from hubbeam_ctrl.cli.main import RegistryChoices
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
@@ -69,6 +77,7 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     """Run ``hubbeam compare``; returns the exit status (0)."""
+    sink = stdout(args)
     from hubbeam_ctrl.cli.main import params_from_args
     from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
     from hubbeam_ctrl.study.compare import _parse_controllers, compare
@@ -90,13 +99,13 @@ def run(args) -> int:
     write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:
-        print(strict_json(_json_metrics(comparison.metrics)))
+        print(strict_json(_json_metrics(comparison.metrics)), file=sink)
     else:
         sc = comparison.scenario
-        print(f"{sc.plant.upper()}, {sc.name}: {sc.description}")
-        print(format_table(comparison.metrics))
+        print(f"{sc.plant.upper()}, {sc.name}: {sc.description}", file=sink)
+        print(format_table(comparison.metrics), file=sink)
         print(f"wrote {out}/metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
-              f"torque.png, report.md, MANIFEST.json ({wall:.1f} s)")
+              f"torque.png, report.md, MANIFEST.json ({wall:.1f} s)", file=sink)
     for name, m in comparison.metrics.items():
         if not m["completed"]:
             print(f"warning: {name}: {m['message']}", file=sys.stderr)

@@ -23,6 +23,7 @@ from hubbeam_ctrl.cli.args import (
     refuse_inapplicable,
     rename_options,
     run_limits,
+    stdout,
 )
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.fileio import strict_json
@@ -145,6 +146,7 @@ def check_output_folder(option: str, path) -> None:
 
 # -- modes ----------------------------------------------------------------------
 def _cmd_modes(args) -> int:
+    sink = stdout(args)
     from hubbeam_ctrl.cli.linearize import UNSTABLE_NOTE
     from hubbeam_ctrl.plant.modal import modal_analysis
     params = params_from_args(args)
@@ -154,35 +156,37 @@ def _cmd_modes(args) -> int:
            "axial_frequencies_hz": [float(f) for f in res.axial_hz],
            "unstable": res.unstable}
     if args.json:
-        print(strict_json(out))
+        print(strict_json(out), file=sink)
     else:
         print(f"{args.model.upper()} at {args.spin:g} rad/s, hub {args.hub}"
-              + (UNSTABLE_NOTE if res.unstable else ""))
+              + (UNSTABLE_NOTE if res.unstable else ""), file=sink)
         for i, f in enumerate(res.bending_hz, 1):
-            print(f"  bending mode {i}: {f:10.4f} Hz")
+            print(f"  bending mode {i}: {f:10.4f} Hz", file=sink)
         for i, f in enumerate(res.axial_hz, 1):
-            print(f"  axial mode {i}:   {f:10.2f} Hz")
+            print(f"  axial mode {i}:   {f:10.2f} Hz", file=sink)
     return 0
 
 
 # -- critical speed ---------------------------------------------------------------
 def _cmd_critical(args) -> int:
+    sink = stdout(args)
     from hubbeam_ctrl.plant.modal import critical_speed
     params = params_from_args(args)
     w = critical_speed(args.model, params)
     if args.json:
-        print(strict_json({"model": args.model, "critical_speed_rad_s": w}))
+        print(strict_json({"model": args.model, "critical_speed_rad_s": w}), file=sink)
     if w is None:
         print(f"{args.model.upper()} keeps positive bending stiffness at every spin rate up to "
-              "1000 rad/s: no critical speed", file=sys.stderr if args.json else sys.stdout)
+              "1000 rad/s: no critical speed", file=sys.stderr if args.json else sink)
     elif not args.json:
         print(f"{args.model.upper()} critical speed: {w:.4f} rad/s "
-              f"(m_t = {params.m_t:g} kg at l = {params.tip_position:g} m)")
+              f"(m_t = {params.m_t:g} kg at l = {params.tip_position:g} m)", file=sink)
     return 0
 
 
 # -- simulate -----------------------------------------------------------------------
 def _cmd_simulate(args) -> int:
+    sink = stdout(args)
     from hubbeam_ctrl.plant.maneuvers import SpinUp, TorquePulse
     from hubbeam_ctrl.sim.simulate import simulate
     check_output("--out", args.out, (".csv", ".npz"))
@@ -205,11 +209,11 @@ def _cmd_simulate(args) -> int:
     out = {k: s[k] for k in ("peak_tip_m", "residual_tip_m", "peak_axial_m", "final_theta_rad",
                              "final_theta_dot_rad_s", "diverged", "wall_s")}
     if args.json:
-        print(strict_json(out))
+        print(strict_json(out), file=sink)
     else:
         for k, v in out.items():
-            print(f"{k:>22}: {v}")
-        print(f"{'message':>22}: {res.message}")
+            print(f"{k:>22}: {v}", file=sink)
+        print(f"{'message':>22}: {res.message}", file=sink)
     if res.diverged:
         print(f"warning: {res.message}", file=sys.stderr)
     return 0
@@ -310,10 +314,11 @@ def _run(func, args) -> int:
     if log is not None:
         check_output("--verbose", log)
     with capture_native_output(log) as cap:
+        args.stdout = cap.stdout              # results go here; sys.stdout is captured
         status = int(func(args) or 0)
     if cap.lines and log is None:
-        print(f"hubbeam: note: {cap.lines} lines of native solver output were suppressed "
-              "(--verbose LOG keeps them)", file=sys.stderr)
+        print(f"hubbeam: note: {cap.lines} line{'s' if cap.lines > 1 else ''} of native solver output "
+              "suppressed (--verbose LOG keeps them)", file=sys.stderr)
     return status
 
 
