@@ -59,9 +59,9 @@ class capture_native_output:
 
     File descriptors 1 and 2 go to a temporary file, and so does ``sys.stdout`` (CasADi's
     Python bindings print through it): whatever the block writes to standard output is
-    captured, so the caller prints its own results to :attr:`stdout`, or after the block. ``sys.stderr`` keeps reaching the terminal (progress lines, warnings)
-    when it is the process's descriptor 2; a stream that is not (pytest's capture) is left
-    alone.
+    captured, so the caller prints its own results to :attr:`stdout`, or after the block.
+    ``sys.stderr`` keeps reaching the terminal (progress lines, warnings) when it is the
+    process's descriptor 2; a stream that is not (pytest's capture) is left alone.
 
     Parameters
     ----------
