@@ -103,6 +103,10 @@ def real(unit: str = "-"):
 def integer():
     """argparse type: an integer (``5`` or ``5.0``; its range is checked by the library)."""
     def parse(text):
+        try:
+            return int(text)
+        except ValueError:
+            pass
         value = _number_text(text)
         if not float(value).is_integer():
             raise argparse.ArgumentTypeError(f"must be an integer, got {text[:40]}")
@@ -162,9 +166,9 @@ def check_output_dir(option: str, path) -> Path:
     if path is None or not str(path).strip():
         raise ParameterError(f"{option} must name a folder, got {path!r}")
     out = Path(path)
+    check_writable(out.parent / (out.name + ".probe"), option)   # name length, parent exists and writable
     if out.exists() and not out.is_dir():
         raise ParameterError(f"{option}: {out} exists and is not a folder")
-    check_writable(out.parent / (out.name + ".probe"), option)   # parent exists, writable, name length
     if out.is_dir():
         check_writable(out / "metrics.probe", option)               # the folder itself is writable
     return out

@@ -11,6 +11,7 @@ import argparse
 import importlib
 import re
 import sys
+import warnings
 from collections.abc import Sequence
 
 from hubbeam_ctrl.cli.args import (
@@ -313,11 +314,16 @@ def _run(func, args) -> int:
     log = getattr(args, "verbose", None)
     if log is not None:
         check_output("--verbose", log)
-    with capture_native_output(log) as cap:
+    with capture_native_output(log) as cap, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
         args.stdout = cap.stdout              # results go here; sys.stdout is captured
         status = int(func(args) or 0)
-    if cap.lines and log is None:
-        print(f"hubbeam: note: {cap.lines} line{'s' if cap.lines > 1 else ''} of native solver output "
+    if log is not None and caught:
+        with open(log, "a", encoding="utf-8") as fh:
+            fh.writelines(warnings.formatwarning(w.message, w.category, w.filename, w.lineno) for w in caught)
+    lines = cap.lines + len(caught)
+    if lines and log is None:
+        print(f"hubbeam: note: {lines} line{'s' if lines > 1 else ''} of solver output and warnings "
               "suppressed (--verbose LOG keeps them)", file=sys.stderr)
     return status
 

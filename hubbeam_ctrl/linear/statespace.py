@@ -30,6 +30,7 @@ strain gauge at the root reads). The input is the hub torque ``tau`` [N m]. ``D 
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 
 import control
@@ -411,7 +412,9 @@ def discretize(lm: LinearModel, dt: float, method: str = "zoh") -> LinearModel:
     methods = ("zoh", "foh", "impulse", "tustin", "bilinear", "euler", "backward_diff")
     if method not in methods:
         raise ParameterError(f"method must be one of {', '.join(methods)}, got {method!r}")
-    sysd = lm.sys.sample(dt, method=method, name=f"{lm.name}_d", copy_names=True)
+    with np.errstate(all="ignore"), warnings.catch_warnings():   # overflow is checked below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sysd = lm.sys.sample(dt, method=method, name=f"{lm.name}_d", copy_names=True)
     if not all(np.all(np.isfinite(np.asarray(M))) for M in (sysd.A, sysd.B, sysd.C, sysd.D)):
         growth = float(np.max(continuous_poles(lm).real))
         raise ParameterError(f"dt = {dt:g} s is too long for this model: its fastest-growing mode "

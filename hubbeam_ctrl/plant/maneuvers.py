@@ -249,7 +249,8 @@ class UserManeuver:
         """All values from one call on the whole array, or None (then element by element)."""
         try:
             parts = self._parts(self.func(t))
-            if not all(isinstance(p, _NUMERIC) and np.shape(p) in ((), t.shape) for p in parts):
+            if not all(isinstance(p, _NUMERIC) and not isinstance(p, bool) and np.asarray(p).dtype.kind in "fiu"
+                       and np.shape(p) in ((), t.shape) for p in parts):
                 return None
             cols = [np.broadcast_to(np.asarray(p, dtype=float), t.shape) for p in parts]
         except Exception:

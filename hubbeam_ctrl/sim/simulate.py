@@ -299,7 +299,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
                        f"|v_tip| > {settings.divergence_limit:g} L = {limit:.3g} m"
                        + (" (e.g. above its critical speed)" if m.name == "tlam" else ""))
             break
-        if clock.expired():
+        if done < n_out and clock.expired():
             diverged, message = True, clock.message(tk[-1])
             break
         x, z = xs[-1], zs[-1]
