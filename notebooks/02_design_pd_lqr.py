@@ -39,6 +39,7 @@ import numpy as np
 from IPython.display import display
 
 from controllers import (
+    CONTROLLERS,
     LQG,
     LQR,
     PD,
@@ -54,7 +55,7 @@ from controllers import (
     pd_gains,
 )
 from hubbeam_ctrl import Params, compare_poles, linearize, modal_analysis
-from hubbeam_ctrl.plots.closedloop import CONTROLLER_COLORS, plot_tip_deflection
+from hubbeam_ctrl.plots.closedloop import plot_tip_deflection
 from hubbeam_ctrl.sim import simulate_closed_loop
 from hubbeam_ctrl.study import make_scenario, print_table
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
@@ -224,9 +225,9 @@ display(plot_tip_deflection(results, t_f=sc.t_f, residual_start=sc.t_f + 5.0,
                             title="Slew on FOAM: tip deflection (shaded: residual window)"))
 fig, ax = plt.subplots(1, 2, figsize=(10, 3.4))
 for name, res in results.items():
-    ax[0].plot(res.t, res.tau, lw=1, color=CONTROLLER_COLORS[name], label=name)
+    ax[0].plot(res.t, res.tau, lw=1, color=CONTROLLERS[name].color, label=name)
     if name != "openloop":      # Eq. 44 follows its own rigid motion, not this reference
-        ax[1].plot(res.t, res.theta - res.theta_ref, lw=1, color=CONTROLLER_COLORS[name], label=name)
+        ax[1].plot(res.t, res.theta - res.theta_ref, lw=1, color=CONTROLLERS[name].color, label=name)
 ax[0].set(xlabel="t [s]", ylabel="tau [N m]", title="hub torque (budget 200 N m)")
 ax[1].set(xlabel="t [s]", ylabel="theta - theta_ref [rad]", title="hub-angle error")
 ax[0].legend(fontsize=8)

@@ -186,6 +186,9 @@ class LinearModel:
     def unstable(self) -> bool:
         """True when a mode grows (a pole with positive real part, or ``|z| > 1`` sampled),
         e.g. TLAM above its critical speed. The rigid-body poles at 0 (``z = 1``) do not count."""
+        if self.is_discrete:          # in the z-plane: log(z) of a huge pole loses the small ones
+            z = self.poles()
+            return bool(not np.all(np.isfinite(z)) or np.any(np.abs(z) > 1.0 + 1e-6))
         lam = continuous_poles(self)
         return bool(np.any(lam.real > 1e-9 * np.maximum(1.0, np.abs(lam)) + 1e-11 * np.abs(lam).max()))
 
@@ -344,7 +347,7 @@ def continuous_poles(lm) -> np.ndarray:
     lam = poles(sys).astype(complex)
     if sys.dt:
         dt = float(sys.dt)
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):
             lam = np.log(lam) / dt
     return lam
 
