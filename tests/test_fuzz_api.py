@@ -33,6 +33,7 @@ from hubbeam_ctrl import (
     linearize,
     load_model,
     load_params,
+    load_result,
     save_model,
     simulate,
 )
@@ -308,6 +309,17 @@ def test_c10_load_model_of_arbitrary_bytes(data, suffix):
         path.write_bytes(data)
         with pytest.raises(ParameterError) as err:
             load_model(path)
+        assert one_line(err.value)
+
+
+@FUZZ
+@given(data=st.one_of(st.binary(max_size=400), st.just(b"PK\x03\x04" + b"\x00" * 40)))
+def test_c10_load_result_of_arbitrary_bytes(data):
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "r.npz"
+        path.write_bytes(data)
+        with pytest.raises(ParameterError) as err:
+            load_result(path)
         assert one_line(err.value)
 
 

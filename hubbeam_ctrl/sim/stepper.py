@@ -18,6 +18,7 @@ correction is not small enough is recomputed with CasADi's ``rootfinder('newton'
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -25,9 +26,10 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from hubbeam_ctrl.core.budget import T_END_MAX, check_budget
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
-from hubbeam_ctrl.core.validation import check_positive as _check_positive
+from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.results import Result, describe_input
@@ -293,10 +295,13 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     """
     model = resolve_model(plant, params)
     settings = settings or StepperSettings()
-    _check_positive("t_end", t_end, "s")
-    stepper = PlantStepper(model, settings)
+    t_end = check_in_range("t_end", t_end, "s", settings.dt, T_END_MAX, "at least two samples: t_end >= dt")
     dt, k = settings.dt, settings.substeps
     N = int(round(t_end / dt))
+    check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({N + 1} samples)",
+                 memory_bytes=8.0 * (N + 1) * (k + 4 * model.n_q + 4), seconds=0.0,
+                 max_memory_mb=2048.0, max_wall_s=math.inf)
+    stepper = PlantStepper(model, settings)
     t = dt * np.arange(N + 1)
     sub = (t[:-1, None] + dt * np.arange(1, k + 1)[None, :] / k)
     u = np.asarray(torque(sub), dtype=float) * np.ones_like(sub)
