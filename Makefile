@@ -38,6 +38,7 @@ lint: $(STAMP_TEST)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plant.py
 	$(BIN)/python benchmarks/bench_mpc.py
+	$(BIN)/python benchmarks/bench_sweep.py
 
 # the notebooks' only sources are notebooks/NN_*.py (jupytext percent format): convert each to
 # build/notebooks/NN_*.ipynb, execute it there and write build/notebooks/NN_*.html with the outputs

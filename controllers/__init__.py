@@ -1,4 +1,4 @@
-"""Controllers for the rotating hub-beam: open loop (Eq. 44), PD, LQR, LQG and MPC.
+"""Controllers for the rotating hub-beam: open loop (Eq. 44), PD, LQR, LQG, MPC, input-shaped slews.
 
 Every controller is built once from a linear SFOAM :class:`DesignModel`, its settings and
 a :class:`Reference`, and is then a function of time and measurement at its sample
@@ -47,6 +47,16 @@ from .registry import (
     register_controller,
     unregister_controller,
 )
+from .schedule import (
+    DesignSchedule,
+    ScheduledLQG,
+    ScheduledLQR,
+    ScheduledMPC,
+    scheduled_lqg_iosystem,
+    scheduled_lqr_iosystem,
+)
+from .shaped import EIOpenLoop, ShapedOpenLoop, ShapedSettings, ZVDOpenLoop, ZVOpenLoop
+from .shaping import SHAPERS, Shaper, as_shaper, design_shaper, shape_reference
 
 __all__ = [
     "Controller", "DesignModel", "Reference", "Weights", "saturate",
@@ -58,4 +68,8 @@ __all__ = [
     "slew_reference", "spinup_reference", "eq44_reference",
     "CONTROLLERS", "ControllerSpec", "register_controller", "unregister_controller",
     "make_controller", "controller_names", "controller_styles",
+    "Shaper", "SHAPERS", "as_shaper", "design_shaper", "shape_reference", "ShapedOpenLoop", "ShapedSettings",
+    "ZVOpenLoop", "ZVDOpenLoop", "EIOpenLoop",
+    "DesignSchedule", "ScheduledLQR", "ScheduledLQG", "ScheduledMPC",
+    "scheduled_lqr_iosystem", "scheduled_lqg_iosystem",
 ]

@@ -428,7 +428,7 @@ class Controller:
         K = len(ref.theta) + extra + 1
         th, thd, tff = ref.window(0, K)
         X = np.zeros((K, self.design.n_x))
-        X[: len(ref.theta)] = self.design.reference_states(ref, elastic)
+        X[: len(ref.theta)] = self._reference_states(ref, elastic)
         n = self.design.n_x // 2
         X[len(ref.theta):, 0] = th[len(ref.theta):]
         X[len(ref.theta):, n] = thd[len(ref.theta):]
@@ -436,6 +436,10 @@ class Controller:
             X[len(ref.theta):, 1:n] = X[len(ref.theta) - 1, 1:n]
         self._xref = X
         self._tff = np.asarray(tff, dtype=float)
+
+    def _reference_states(self, reference: "Reference", elastic: bool) -> np.ndarray:
+        """Reference states at the reference's samples (a scheduled controller overrides it)."""
+        return self.design.reference_states(reference, elastic)
 
     def _reference_at(self, k: int):
         """``(x_ref, tau_ff)`` at sample ``k`` from the table (extended beyond its end)."""

@@ -118,19 +118,8 @@ class MPC(Controller):
         settings = settings or MPCSettings()
         super().__init__(design, settings, reference)
         s = settings
-        N, nx = s.horizon, design.n_x
-        self.K, self.P = dlqr_gain(design, s.weights)
-        Q, R = s.weights.matrices(design)
-        r = float(R[0, 0])
-        Phi, Gamma = condensed_matrices(design.Ad, design.Bd, N)
-        Qb = np.kron(np.eye(N), Q)
-        Qb[-nx:, -nx:] = self.P
-        scale = 1.0 / r                        # cost scaled so that the torque weight is 1
-        GtQ = Gamma.T @ Qb
-        H = 2 * scale * (GtQ @ Gamma + r * np.eye(N))
-        H = 0.5 * (H + H.T)
-        self._Gx = 2 * scale * (GtQ @ Phi)                      # (N, nx)
-        self._Gr = 2 * scale * GtQ                              # (N, N nx)
+        N = s.horizon
+        self.K, self.P, H, self._Gx, self._Gr, Phi, Gamma, scale = self._condensed_qp(design)
         self._ff = 1.0 if s.feedforward else 0.0
         # g = Gx x0 - ref_term[k]: the reference part of the gradient for every sample
         self._prepare_reference(s.elastic_reference, extra=N + 1)
@@ -180,23 +169,49 @@ class MPC(Controller):
                                  f"{str(exc).splitlines()[-1][:120]}") from None
         self.reset()
 
-    def _reference_terms(self) -> np.ndarray:
+    def _condensed_qp(self, design: DesignModel):
+        """LQR gain and Riccati solution, the QP's Hessian and gradient matrices for ``design``.
+
+        Returns ``(K, P, H, Gx, Gr, Phi, Gamma, scale)``: the gradient is
+        ``Gx x0 - Gr X_r - 2 U_ff`` (cost scaled by ``scale = 1/R``).
+        """
+        s = self.settings
+        N, nx = s.horizon, design.n_x
+        K, P = dlqr_gain(design, s.weights)
+        Q, R = s.weights.matrices(design)
+        r = float(R[0, 0])
+        Phi, Gamma = condensed_matrices(design.Ad, design.Bd, N)
+        Qb = np.kron(np.eye(N), Q)
+        Qb[-nx:, -nx:] = P
+        scale = 1.0 / r                        # cost scaled so that the torque weight is 1
+        GtQ = Gamma.T @ Qb
+        H = 2 * scale * (GtQ @ Gamma + r * np.eye(N))
+        H = 0.5 * (H + H.T)
+        return K, P, H, 2 * scale * (GtQ @ Phi), 2 * scale * GtQ, Phi, Gamma, scale
+
+    def _qp_data(self, k: int, y: np.ndarray):
+        """Hessian and gradient of the QP at sample ``k`` for state ``y`` (a scheduled MPC
+        interpolates them)."""
+        return self._H, self._Gx @ y - self._reference_term(k)
+
+    def _reference_terms(self, Gr: np.ndarray | None = None) -> np.ndarray:
         N, nx = self.settings.horizon, self.design.n_x
         X, U = self._xref, self._tff
         n_k = len(X) - N
-        G3 = self._Gr.reshape(N, N, nx)
+        G3 = (self._Gr if Gr is None else Gr).reshape(N, N, nx)
         win = np.lib.stride_tricks.sliding_window_view(X[1:], N, axis=0)[:n_k]   # (k, nx, N)
         term = np.einsum("ijc,kcj->ki", G3, win, optimize=True)
         uwin = np.lib.stride_tricks.sliding_window_view(U, N)[:n_k]               # (k, N)
         return term + 2.0 * self._ff * uwin
 
-    def _reference_term(self, k: int) -> np.ndarray:
-        if k < len(self._ref_term):
-            return self._ref_term[k]
+    def _reference_term(self, k: int, table: np.ndarray | None = None, Gr: np.ndarray | None = None) -> np.ndarray:
+        table = self._ref_term if table is None else table
+        if k < len(table):
+            return table[k]
         N = self.settings.horizon
         X = np.array([self._reference_at(k + 1 + i)[0] for i in range(N)])
         U = np.array([self._reference_at(k + i)[1] for i in range(N)])
-        return self._Gr @ X.ravel() + 2.0 * self._ff * U
+        return (self._Gr if Gr is None else Gr) @ X.ravel() + 2.0 * self._ff * U
 
     def reset(self) -> None:
         self._z = np.zeros(self._nz)
@@ -227,7 +242,7 @@ class MPC(Controller):
         s = self.settings
         N = s.horizon
         k = int(round(t / self.dt))
-        g = self._Gx @ y - self._reference_term(k)
+        H, g = self._qp_data(k, y)
         lba = uba = None
         if self._soft:
             g = np.append(g, 0.0)
@@ -237,7 +252,7 @@ class MPC(Controller):
             uba = np.concatenate([vmax - off, np.full(N, np.inf)])
         elif self._n_a:
             lba, uba = np.array([-np.inf]), np.array([np.inf])
-        args = {"h": self._H, "g": g, "a": self._A, "lbx": self._lbx, "ubx": self._ubx}
+        args = {"h": H, "g": g, "a": self._A, "lbx": self._lbx, "ubx": self._ubx}
         if lba is not None:
             args["lba"], args["uba"] = lba, uba
         if s.warm_start:

@@ -18,6 +18,11 @@ read :data:`CONTROLLERS`. Adding a controller is one new module plus one
 
 Its settings class's ``for_scenario`` hook (see
 :meth:`controllers.base.ControllerSettings.for_scenario`) gives its defaults in a comparison.
+Two options of :func:`make_controller` (and of the comparison) act through the registry:
+``shaping`` filters the reference of every controller that tracks one (settings derived
+from :class:`~controllers.base.TrackingSettings`) through an input shaper, and
+``schedule`` builds the controller's gain-scheduled version (its ``scheduled`` entry, e.g.
+:class:`~controllers.schedule.ScheduledLQR`) on a :class:`~controllers.schedule.DesignSchedule`.
 """
 
 from __future__ import annotations
@@ -26,12 +31,15 @@ from dataclasses import dataclass
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-from .base import Controller, ControllerSettings, DesignModel, Reference
+from .base import Controller, ControllerSettings, DesignModel, Reference, TrackingSettings
 from .lqg import LQG, LQGSettings
 from .lqr import LQR, LQRSettings
 from .mpc import MPC, MPCSettings
 from .openloop import OpenLoop, OpenLoopSettings
 from .pd import PD, PDSettings
+from .schedule import DesignSchedule, ScheduledLQG, ScheduledLQR, ScheduledMPC
+from .shaped import EIOpenLoop, ShapedSettings, ZVDOpenLoop, ZVOpenLoop
+from .shaping import as_shaper, shape_reference
 
 __all__ = ["ControllerSpec", "CONTROLLERS", "register_controller", "unregister_controller",
            "make_controller", "controller_names", "controller_styles"]
@@ -57,6 +65,9 @@ class ControllerSpec:
         Held to the slew's targets in reports (otherwise only reported).
     default : bool
         Run by a comparison when no list is given.
+    scheduled : type or None
+        Its gain-scheduled version, built as ``scheduled(schedule, settings, reference)``
+        on a :class:`~controllers.schedule.DesignSchedule` (None: no such version).
     """
 
     name: str
@@ -66,11 +77,18 @@ class ControllerSpec:
     label: str
     target: bool
     default: bool
+    scheduled: type | None = None
 
     @property
     def style(self) -> dict:
         """Plot style ``{"color": ..., "label": ...}``."""
         return {"color": self.color, "label": self.label}
+
+    @property
+    def tracks_reference(self) -> bool:
+        """Whether it follows the reference by feedback (settings a ``TrackingSettings``), so that
+        input shaping filters its reference."""
+        return issubclass(self.settings, TrackingSettings)
 
 
 #: Registered controllers by name, in registration order.
@@ -78,7 +96,8 @@ CONTROLLERS: dict = {}
 
 
 def register_controller(name: str, settings, *, controller: type | None = None, color: str | None = None,
-                        label: str | None = None, target: bool = False, default: bool = True):
+                        label: str | None = None, target: bool = False, default: bool = True,
+                        scheduled: type | None = None):
     """Register a controller class under ``name`` (a decorator, or a call with ``controller``).
 
     Parameters
@@ -97,6 +116,9 @@ def register_controller(name: str, settings, *, controller: type | None = None, 
         Held to the slew's targets in reports.
     default : bool
         Part of a comparison's default list.
+    scheduled : type, optional
+        Its gain-scheduled version (a ``controller`` subclass taking a
+        :class:`~controllers.schedule.DesignSchedule` instead of the design model).
 
     Returns
     -------
@@ -118,6 +140,8 @@ def register_controller(name: str, settings, *, controller: type | None = None, 
         raise ParameterError(f"name must be a non-empty lower-case string without commas, got {name!r}")
     if not (isinstance(settings, type) and issubclass(settings, ControllerSettings)):
         raise ParameterError(f"settings must be a ControllerSettings subclass, got {settings!r}")
+    if scheduled is not None and not (isinstance(scheduled, type) and issubclass(scheduled, Controller)):
+        raise ParameterError(f"scheduled must be a Controller subclass, got {scheduled!r}")
 
     def register(cls):
         if not (isinstance(cls, type) and issubclass(cls, Controller)):
@@ -125,10 +149,11 @@ def register_controller(name: str, settings, *, controller: type | None = None, 
         if name in CONTROLLERS and CONTROLLERS[name].controller is not cls:
             raise ParameterError(f"controller {name!r} is already registered "
                                  f"({CONTROLLERS[name].controller.__name__})")
-        if "name" not in vars(cls):
-            cls.name = name
+        for c in (cls, scheduled):
+            if c is not None and "name" not in vars(c):
+                c.name = name
         CONTROLLERS[name] = ControllerSpec(name, cls, settings, color, label or name, bool(target),
-                                           bool(default))
+                                           bool(default), scheduled)
         return cls
 
     return register if controller is None else register(controller)
@@ -152,8 +177,9 @@ def _spec(name: str) -> ControllerSpec:
     return CONTROLLERS[name]
 
 
-def make_controller(name: str, design: DesignModel, settings=None, reference: Reference | None = None):
-    """Build a registered controller by name (``openloop``, ``pd``, ``lqr``, ``lqg``, ``mpc``...).
+def make_controller(name: str, design: DesignModel, settings=None, reference: Reference | None = None, *,
+                    shaping=None, schedule: DesignSchedule | None = None):
+    """Build a registered controller by name (``openloop``, ``pd``, ``lqr``, ``lqg``, ``mpc``, ``zv``...).
 
     Parameters
     ----------
@@ -165,13 +191,44 @@ def make_controller(name: str, design: DesignModel, settings=None, reference: Re
         The controller's settings (default: its settings class's defaults).
     reference : Reference, optional
         Hub trajectory and feedforward torque.
+    shaping : {"zv", "zvd", "ei"} or Shaper, optional
+        Filter the reference (and its feedforward) through this input shaper first (a kind:
+        designed on the first mode of ``design``, see :func:`controllers.shaping.as_shaper`).
+        Only for controllers that track the reference (:attr:`ControllerSpec.tracks_reference`).
+    schedule : DesignSchedule, optional
+        Build the controller's gain-scheduled version on it (:attr:`ControllerSpec.scheduled`);
+        ``design`` then only gives the shaper.
 
     Returns
     -------
     Controller
+
+    Examples
+    --------
+    >>> from controllers import DesignModel
+    >>> from hubbeam_ctrl import Params
+    >>> ctrl = make_controller("lqr", DesignModel.build(Params(n_axial=1, n_transverse=2)), shaping="zvd")
+    >>> ctrl.reference.description
+    'rest, shaped by zvd (2.175 s)'
     """
     spec = _spec(name)
-    return spec.controller(design, settings if settings is not None else spec.settings(), reference)
+    settings = settings if settings is not None else spec.settings()
+    if shaping is not None:
+        if not spec.tracks_reference:
+            raise ParameterError(f"shaping: {name!r} does not track a reference (only the controllers "
+                                 f"with TrackingSettings do: {', '.join(_tracking_names())})")
+        reference = shape_reference(reference if reference is not None else Reference.rest(design.dt),
+                                    as_shaper(design, shaping))
+    if schedule is None:
+        return spec.controller(design, settings, reference)
+    if spec.scheduled is None:
+        raise ParameterError(f"schedule: no scheduled version of {name!r}; allowed: "
+                             f"{', '.join(n for n, s in CONTROLLERS.items() if s.scheduled)}")
+    return spec.scheduled(schedule, settings, reference)
+
+
+def _tracking_names() -> list:
+    return [n for n, s in CONTROLLERS.items() if s.tracks_reference]
 
 
 def controller_names(default: bool | None = None, target: bool | None = None) -> tuple:
@@ -211,6 +268,16 @@ def controller_styles(names=None) -> dict:
 # -- the built-in controllers (one entry each, in the order comparisons show them) ---------------
 register_controller("openloop", OpenLoopSettings, controller=OpenLoop, color="0.45", label="open loop")
 register_controller("pd", PDSettings, controller=PD, color="tab:orange", label="PD")
-register_controller("lqr", LQRSettings, controller=LQR, color="tab:blue", label="LQR", target=True)
-register_controller("lqg", LQGSettings, controller=LQG, color="tab:green", label="LQG", target=True)
-register_controller("mpc", MPCSettings, controller=MPC, color="tab:red", label="MPC", target=True)
+register_controller("lqr", LQRSettings, controller=LQR, color="tab:blue", label="LQR", target=True,
+                    scheduled=ScheduledLQR)
+register_controller("lqg", LQGSettings, controller=LQG, color="tab:green", label="LQG", target=True,
+                    scheduled=ScheduledLQG)
+register_controller("mpc", MPCSettings, controller=MPC, color="tab:red", label="MPC", target=True,
+                    scheduled=ScheduledMPC)
+# open-loop input-shaped slews (controllers.shaped), run only when asked for
+register_controller("zv", ShapedSettings, controller=ZVOpenLoop, color="tab:purple", label="ZV shaped",
+                    default=False)
+register_controller("zvd", ShapedSettings, controller=ZVDOpenLoop, color="tab:cyan", label="ZVD shaped",
+                    default=False)
+register_controller("ei", ShapedSettings, controller=EIOpenLoop, color="tab:olive", label="EI shaped",
+                    default=False)

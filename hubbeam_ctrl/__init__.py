@@ -12,27 +12,41 @@ Examples
 0.2
 """
 
-from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.linear.export import load_model, save_model
-from hubbeam_ctrl.linear.statespace import LinearModel, compare_poles, discretize, linearize, reduce
-from hubbeam_ctrl.plant.basis import ModalBasis, modal_basis
-from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization
-from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse, UserManeuver
-from hubbeam_ctrl.plant.modal import campbell, critical_speed, critical_speed_map, modal_analysis, natural_frequencies
-from hubbeam_ctrl.plant.models import MODEL_NAMES, HubBeamModel, build_model
-from hubbeam_ctrl.plant.params import Params, load_params, save_params
-from hubbeam_ctrl.sim.results import Result, SimulationResult, load_result
-from hubbeam_ctrl.sim.simulate import SimulationSettings, simulate
+import importlib
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "Params", "load_params", "save_params", "ModalBasis", "modal_basis",
-    "HubBeamModel", "build_model", "MODEL_NAMES",
-    "SpinUp", "TorquePulse", "ConstantSpin", "UserManeuver",
-    "simulate", "SimulationSettings", "Result", "SimulationResult", "load_result",
-    "modal_analysis", "natural_frequencies", "campbell", "critical_speed", "critical_speed_map",
-    "second_order_linearization", "first_order_matrices",
-    "linearize", "LinearModel", "discretize", "reduce", "compare_poles", "save_model", "load_model",
-    "HubbeamError", "ParameterError",
-]
+#: Public name -> module that defines it. The modules are imported on first use (PEP 562),
+#: so ``import hubbeam_ctrl`` (and the CLI's start-up) does not pull in python-control,
+#: SciPy's signal package or CasADi before a command needs them.
+_EXPORTS = {
+    "hubbeam_ctrl.core.errors": ("HubbeamError", "ParameterError"),
+    "hubbeam_ctrl.linear.export": ("load_model", "save_model"),
+    "hubbeam_ctrl.linear.statespace": ("LinearModel", "compare_poles", "discretize", "linearize", "reduce"),
+    "hubbeam_ctrl.plant.basis": ("ModalBasis", "modal_basis"),
+    "hubbeam_ctrl.plant.linearization": ("first_order_matrices", "second_order_linearization"),
+    "hubbeam_ctrl.plant.maneuvers": ("ConstantSpin", "SpinUp", "TorquePulse", "UserManeuver"),
+    "hubbeam_ctrl.plant.modal": ("campbell", "critical_speed", "critical_speed_map", "modal_analysis",
+                                 "natural_frequencies"),
+    "hubbeam_ctrl.plant.models": ("MODEL_NAMES", "HubBeamModel", "build_model"),
+    "hubbeam_ctrl.plant.params": ("Params", "load_params", "save_params"),
+    "hubbeam_ctrl.sim.results": ("Result", "SimulationResult", "load_result"),
+    "hubbeam_ctrl.sim.simulate": ("SimulationSettings", "simulate"),
+}
+_WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
+
+__all__ = [name for names in _EXPORTS.values() for name in names]
+
+
+def __getattr__(name):
+    """Import the module that defines the public ``name`` on first access (PEP 562)."""
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module 'hubbeam_ctrl' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

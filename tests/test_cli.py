@@ -76,3 +76,33 @@ def test_console_script_exit_status():
     assert proc.returncode == 0
     for command in ("modes", "critical-speed", "simulate", "linearize"):
         assert command in proc.stdout
+
+
+def test_cli_start_up_does_not_import_python_control():
+    """``hubbeam modes`` starts fast (about 1 s instead of 2-3 s): importing the CLI, building
+    its parser and running ``modes`` pull in neither python-control nor SciPy nor Matplotlib;
+    the layers that need them load them when a command does."""
+    code = ("import sys, hubbeam_ctrl.cli.main; heavy = ('control', 'scipy', 'matplotlib'); "
+            "print(sorted(m for m in heavy if m in sys.modules)); "
+            "sys.modules['hubbeam_ctrl.cli.main'].main(['modes', '--json']); "
+            "print(sorted(m for m in heavy if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    after_import, modes_json, after_modes = proc.stdout.splitlines()
+    assert after_import == "[]" and after_modes == "[]"
+    assert json.loads(modes_json)["frequencies_hz"][0] == pytest.approx(0.41449, rel=1e-4)
+
+
+def test_linearize_help_lists_the_outputs(capsys):
+    from hubbeam_ctrl.linear.statespace import DEFAULT_OUTPUTS, OUTPUTS
+    with pytest.raises(SystemExit):
+        main(["linearize", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert f"among {','.join(OUTPUTS)} (default {','.join(DEFAULT_OUTPUTS)})" in help_text
+
+
+def test_json_output_has_no_progress_lines(capfd, tmp_path):
+    """``--json`` keeps stdout machine-readable and stderr free of progress output."""
+    code = main(["simulate", "--model", "foam", "--maneuver", "torque", "--t-end", "2", "--n-modes", "2",
+                 "--json"])
+    out, err = capfd.readouterr()
+    assert code == 0 and json.loads(out)["diverged"] is False and err == ""

@@ -19,6 +19,7 @@ from hubbeam_ctrl.sim import (
 )
 
 
+@pytest.mark.slow
 def test_stepper_matches_tight_idas_on_foam():
     """The generalized-alpha stepper (2 x 5 ms per 10 ms sample) reproduces a tight IDAS
     run of the Eq. 44 slew: tip deflection within 0.5 % of the peak at every sample."""

@@ -7,7 +7,16 @@ from dataclasses import dataclass, fields
 
 import pytest
 
-from controllers import LQGSettings, LQRSettings, LQSettings, MPCSettings, OpenLoopSettings, PDSettings, Weights
+from controllers import (
+    LQGSettings,
+    LQRSettings,
+    LQSettings,
+    MPCSettings,
+    OpenLoopSettings,
+    PDSettings,
+    ShapedSettings,
+    Weights,
+)
 from controllers.estimator import KalmanNoise
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.settings import Settings, range_text, setting
@@ -17,7 +26,7 @@ from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim import ClosedLoopSettings, StepperSettings
 
 SETTINGS = [Params, Weights, OpenLoopSettings, PDSettings, LQRSettings, LQGSettings, MPCSettings,
-            KalmanNoise, StepperSettings, ClosedLoopSettings, SensorSettings, SpinUp, TorquePulse,
+            ShapedSettings, KalmanNoise, StepperSettings, ClosedLoopSettings, SensorSettings, SpinUp, TorquePulse,
             ConstantSpin]
 
 

@@ -11,7 +11,7 @@ Figures measured with Table 1's data (m_t = 0.1 kg at the tip, n = 5), hub free:
   (3e-8 of its non-rotating value), and a real pair appears above it.
 * tau -> theta: s^2 G(s) -> 1 / J_total = 4.0234e-3 1/(kg m^2) at Omega = 0.
 * Hub held (J_h = 1e9): SFOAM frequencies equal the prescribed-hub ones to 2e-8 and
-  lie 0.05-0.06 % below the printed Table 2 (which is 0.05 % high, see NOTES).
+  lie 0.05-0.06 % below the printed Table 2 (which is 0.05 % high, see docs/physics.md).
 """
 
 from __future__ import annotations

@@ -107,7 +107,10 @@ def integer():
             return int(text)
         except ValueError:
             pass
-        value = _number_text(text)
+        try:
+            value = _number_text(text)
+        except argparse.ArgumentTypeError:
+            raise argparse.ArgumentTypeError(f"must be an integer, got {text[:40]!r}") from None
         if not float(value).is_integer():
             raise argparse.ArgumentTypeError(f"must be an integer, got {text[:40]}")
         return int(value)

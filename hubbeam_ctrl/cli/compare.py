@@ -6,7 +6,7 @@ import argparse
 import sys
 import time
 
-from controllers import CONTROLLERS, QP_SOLVERS, controller_names
+from controllers import CONTROLLERS, QP_SOLVERS, SHAPERS, controller_names
 from hubbeam_ctrl.cli.args import (
     add_run_options,
     check_output_dir,
@@ -16,7 +16,7 @@ from hubbeam_ctrl.cli.args import (
     run_limits,
     stdout,
 )
-from hubbeam_ctrl.cli.main import RegistryChoices
+from hubbeam_ctrl.cli.main import RegistryChoices, positive_int
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
 
@@ -52,6 +52,10 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="comma-separated subset of the registered controllers "
                         + ", ".join(f"{n} ({s.label})" for n, s in CONTROLLERS.items())
                         + f" (default: {default})")
+    p.add_argument("--shaping", choices=list(SHAPERS), default=None,
+                   help="filter the reference of the controllers that track one ("
+                        + ",".join(n for n, s in CONTROLLERS.items() if s.tracks_reference)
+                        + ") through this input shaper, designed on the first mode of the design model")
     p.add_argument("--tau-max", metavar="NM", type=real("N m"), default=200.0,
                    help="torque budget = Eq. 44 amplitude [N m] (default 200)")
     p.add_argument("--tf", metavar="S", type=real("s"), default=10.0,
@@ -67,6 +71,11 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="MPC horizon [samples] (default 50; only with mpc among --controllers)")
     p.add_argument("--solver", choices=list(QP_SOLVERS),
                    help="MPC QP solver: %(choices)s (default daqp; only with mpc among --controllers)")
+    p.add_argument("--schedule", metavar="N", type=positive_int("schedule"), default=1,
+                   help="design the controllers with a scheduled version ("
+                        + ",".join(n for n, s in CONTROLLERS.items() if s.scheduled)
+                        + ") at N spin rates from 0 to the top reference rate and interpolate them on "
+                          "the measured rate (default 1: one design point)")
     p.add_argument("--out", metavar="DIR", required=True,
                    help="output folder (created if missing; MANIFEST.json, written last, marks it complete)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
@@ -94,7 +103,7 @@ def run(args) -> int:
                          tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
                          w_f=3.0 if args.wf is None else args.wf,
                          horizon=50 if args.horizon is None else args.horizon,
-                         solver=args.solver or "daqp",
+                         solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
                          sim_settings=ClosedLoopSettings(**run_limits(args)), progress=not args.json)
     write_outputs(comparison, out)
     wall = time.perf_counter() - t0

@@ -8,20 +8,32 @@ Example::
 
 from __future__ import annotations
 
+import argparse
 import sys
 
 #: What ``modes`` and ``linearize`` say about a model with a growing mode.
 UNSTABLE_NOTE = " (UNSTABLE: a mode has lost its stiffness)"
 
 
+class _OutputsHelpFormatter(argparse.HelpFormatter):
+    """Fills ``{outputs}`` and ``{default}`` in the help from :mod:`hubbeam_ctrl.linear.statespace`
+    only when the help is printed, so that building the parser does not import python-control."""
+
+    def _get_help_string(self, action):
+        text = super()._get_help_string(action)
+        if "{outputs}" in text:
+            from hubbeam_ctrl.linear.statespace import DEFAULT_OUTPUTS, OUTPUTS
+            text = text.format(outputs=",".join(OUTPUTS), default=",".join(DEFAULT_OUTPUTS))
+        return text
+
+
 def add_parser(subparsers, common) -> None:
     """Add the ``linearize`` subcommand (``common`` holds the system-parameter options)."""
     from hubbeam_ctrl.cli.args import add_verbose, real
-    from hubbeam_ctrl.linear.statespace import DEFAULT_OUTPUTS, OUTPUTS
     from hubbeam_ctrl.plant.models import MODEL_SPECS
 
     p = subparsers.add_parser(
-        "linearize", parents=[common],
+        "linearize", parents=[common], formatter_class=_OutputsHelpFormatter,
         help="linear state-space model about steady spin (.mat/.npz/.json)",
         description=("Linearise a model about steady rotation at --spin with the hub free "
                      "(input: hub torque tau [N m]) and save A, B, C, D with the state, input "
@@ -33,9 +45,8 @@ def add_parser(subparsers, common) -> None:
                    help="source model (default sfoam, the design model)")
     p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"), default=0.0,
                    help="steady spin rate Omega [rad/s] (default 0, the slew design point)")
-    p.add_argument("--outputs", metavar="NAMES", default=",".join(DEFAULT_OUTPUTS),
-                   help=f"comma-separated outputs among {','.join(OUTPUTS)} "
-                        f"(default {','.join(DEFAULT_OUTPUTS)})")
+    p.add_argument("--outputs", metavar="NAMES",
+                   help="comma-separated outputs among {outputs} (default {default})")
     p.add_argument("--dt", metavar="S", type=real("s"),
                    help="sample time [s]: discretise with a zero-order hold (default: continuous)")
     p.add_argument("--damping", metavar="ZETA", type=real("-"),
@@ -64,7 +75,8 @@ def run(args) -> int:
     params = params_from_args(args)
     if args.damping is not None:
         params = params.replace(damping_ratio=args.damping)
-    lm = linearize(args.model, args.spin, params, outputs=args.outputs)
+    outputs = {} if args.outputs is None else {"outputs": args.outputs}
+    lm = linearize(args.model, args.spin, params, **outputs)
     if args.dt is not None:
         lm = discretize(lm, args.dt)
     save_model(lm, out)

@@ -226,7 +226,7 @@ def _probe(folder: Path, option: str) -> None:
         raise ParameterError(f"{option}: cannot write to folder {folder} ({exc.strerror or exc})") from None
 
 
-def atomic_write(path, write, binary: bool = True, suffix: str | None = None) -> Path:
+def atomic_write(path, write, suffix: str | None = None) -> Path:
     """Write a file atomically.
 
     The content goes to a temporary file ``.hubbeam-tmp-<pid>-<random>-<name>`` in the target
@@ -241,11 +241,9 @@ def atomic_write(path, write, binary: bool = True, suffix: str | None = None) ->
         Final file name.
     write : callable
         ``write(tmp_path)`` writes the whole content to the temporary path it is given.
-    binary : bool
-        Unused, kept for symmetry with :func:`atomic_write_text`.
     suffix : str, optional
-        Unused (the temporary name ends with the final name, so writers that choose the
-        format by extension see the final suffix); kept for compatibility.
+        Extension the temporary file must end with (some writers insist on one); by default
+        the temporary name ends with the final name, so it has the final extension.
 
     Returns
     -------
@@ -257,6 +255,9 @@ def atomic_write(path, write, binary: bool = True, suffix: str | None = None) ->
     ParameterError
         Naming the path (as option ``out``) when its folder is missing, it is a folder, or
         the system refuses the write; no file is left behind.
+    Exception
+        Whatever else ``write`` raises, unchanged; the temporary file is removed and an
+        existing file at ``path`` keeps its old content.
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
@@ -267,7 +268,8 @@ def atomic_write(path, write, binary: bool = True, suffix: str | None = None) ->
     _check_name_length(path, "out")
     _install_cleanup()
     remove_stale_temporaries(folder)
-    tmp = str(folder / _temp_name(path.name))
+    name = path.name if not suffix or path.name.endswith(suffix) else path.name + suffix
+    tmp = str(folder / _temp_name(name))
     _LIVE.add(tmp)
     try:
         os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))

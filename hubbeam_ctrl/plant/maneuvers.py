@@ -290,8 +290,11 @@ class UserManeuver:
                 outs.append(p)
             elif isinstance(p, (ca.SX, ca.MX)) and not p.is_constant():
                 return self._tabulated(t)          # an expression of other symbols
-            else:                                  # a constant: the same at every time
-                outs.append(type(t)(self._scalar(ca.DM(p) if _is_symbolic(p) else p, 0.0)))
+            else:                                  # a constant: the same at every time...
+                try:
+                    outs.append(type(t)(self._scalar(ca.DM(p) if _is_symbolic(p) else p, 0.0)))
+                except UserFunctionError:          # ...or math.sin(SX symbol), which gives NaN:
+                    return self._tabulated(t)      # the table says which
         return tuple(outs) if self.kind == "prescribed" else outs[0]
 
     def _tabulated(self, t):

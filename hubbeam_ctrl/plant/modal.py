@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.progress import Progress
+from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params, check_spin
@@ -140,7 +140,7 @@ def campbell(model="foam", spins=np.linspace(0, 5, 26), hub: str = "prescribed",
     hub : {"prescribed", "free"}
     params : Params, optional
     progress : bool
-        Print progress to stderr.
+        Show a progress bar on stderr (only when stderr is a terminal).
 
     Returns
     -------
@@ -150,11 +150,11 @@ def campbell(model="foam", spins=np.linspace(0, 5, 26), hub: str = "prescribed",
     m = resolve_model(model, params)
     spins = np.atleast_1d(np.asarray(spins, dtype=float))
     out = np.full((len(spins), m.n_transverse), np.nan)
-    bar = Progress(len(spins), f"campbell {m.name}", enabled=progress)
-    for i, s in enumerate(spins):
-        f = modal_analysis(m, s, hub).bending_hz
-        out[i, m.n_transverse - len(f):] = f if len(f) else []
-        bar.update(i + 1)
+    with progress_bar(len(spins), f"campbell {m.name}", enabled=progress) as bar:
+        for i, s in enumerate(spins):
+            f = modal_analysis(m, s, hub).bending_hz
+            out[i, m.n_transverse - len(f):] = f if len(f) else []
+            bar.update(1)
     return out
 
 
@@ -210,6 +210,7 @@ def critical_speed_map(tip_masses, tip_positions, model="tlam", params: Params |
     params : Params, optional
         Base parameters (``m_t`` and ``l`` are replaced).
     progress : bool
+        Show a progress bar on stderr (only when stderr is a terminal).
 
     Returns
     -------
@@ -220,10 +221,10 @@ def critical_speed_map(tip_masses, tip_positions, model="tlam", params: Params |
     masses = np.atleast_1d(tip_masses)
     positions = np.atleast_1d(tip_positions)
     out = np.full((len(masses), len(positions)), np.nan)
-    bar = Progress(out.size, "critical speed map", enabled=progress)
-    for i, mt in enumerate(masses):
-        for j, pos in enumerate(positions):
-            w = critical_speed(model, base.replace(m_t=float(mt), l=float(pos)))
-            out[i, j] = np.nan if w is None else w
-            bar.update(i * len(positions) + j + 1)
+    with progress_bar(out.size, "critical speed map", enabled=progress) as bar:
+        for i, mt in enumerate(masses):
+            for j, pos in enumerate(positions):
+                w = critical_speed(model, base.replace(m_t=float(mt), l=float(pos)))
+                out[i, j] = np.nan if w is None else w
+                bar.update(1)
     return out

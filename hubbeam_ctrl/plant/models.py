@@ -1,7 +1,7 @@
 """The four hub-beam models, each defined once by its kinetic and potential energy.
 
 A point of the beam at ``x`` moves, in the hub frame, to ``(a, b)`` with
-``a = r + x + w1 + wc`` and ``b = w2``; its inertial speed squared is (NOTES.md, Eq. 8)::
+``a = r + x + w1 + wc`` and ``b = w2``; its inertial speed squared is (the paper's Eq. 8; docs/physics.md)::
 
     |r_P'|^2 = thd^2 (a^2 + b^2) + ad^2 + bd^2 + 2 thd (a bd - ad b)
 

@@ -5,6 +5,7 @@ import sys as _sys  # noqa: E402
 
 from hubbeam_ctrl.plots.closedloop import *  # noqa: F401,F403
 from hubbeam_ctrl.plots.plant import *  # noqa: F401,F403
+from hubbeam_ctrl.plots.shaping import *  # noqa: F401,F403
 
-__all__ = [name for _m in ('plant', 'closedloop')
+__all__ = [name for _m in ('plant', 'closedloop', 'shaping')
            for name in _sys.modules[f"hubbeam_ctrl.plots.{_m}"].__all__]

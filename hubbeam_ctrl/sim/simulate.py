@@ -33,7 +33,7 @@ from hubbeam_ctrl.core.budget import (
     simulation_bytes_per_sample,
 )
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError, UserFunctionError
-from hubbeam_ctrl.core.progress import Progress
+from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse, UserManeuver
@@ -201,7 +201,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         elastic part at rest (prescribed hub).
     settings : SimulationSettings, optional
     progress : bool
-        Print progress to stderr.
+        Show a progress bar on stderr (only when stderr is a terminal).
     **setting_overrides
         Fields of :class:`SimulationSettings` (``dt``, ``rtol``, ...).
 
@@ -251,7 +251,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     start = time.perf_counter()
     clock = WallClock(settings.max_wall_s)
     done = 0
-    bar = Progress(n_out, f"simulate {m.name}", enabled=progress)
+    bar = progress_bar(n_out, f"simulate {m.name}", enabled=progress)
     x, z = x0, z0
     failure = None
     while done < n_out:
@@ -290,7 +290,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         xs_all.append(xs)
         zs_all.append(zs)
         done += len(xs)
-        bar.update(done)
+        bar.update(len(xs))
         if diverged and failure:
             message = f"{failure}; results end at t = {tk[-1] if len(tk) else t0:.3f} s"
             break

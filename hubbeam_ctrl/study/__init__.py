@@ -1,5 +1,5 @@
-"""The study layer: scenarios, closed-loop comparison, metrics and reports. It may import
-``controllers`` (at module level); the layers below may not.
+"""The study layer: scenarios, closed-loop comparison, metrics, reports, robustness sweeps
+and robust tuning. It may import ``controllers`` (at module level); the layers below may not.
 """
 
 import sys as _sys  # noqa: E402
@@ -8,6 +8,12 @@ from hubbeam_ctrl.study.compare import *  # noqa: F401,F403
 from hubbeam_ctrl.study.metrics import *  # noqa: F401,F403
 from hubbeam_ctrl.study.report import *  # noqa: F401,F403
 from hubbeam_ctrl.study.scenarios import *  # noqa: F401,F403
+from hubbeam_ctrl.study.shaping import *  # noqa: F401,F403
+from hubbeam_ctrl.study.spec import *  # noqa: F401,F403
+from hubbeam_ctrl.study.sweep import *  # noqa: F401,F403
+from hubbeam_ctrl.study.sweep_report import *  # noqa: F401,F403
+from hubbeam_ctrl.study.tune import *  # noqa: F401,F403
 
-__all__ = [name for _m in ('metrics', 'scenarios', 'compare', 'report')
+__all__ = [name for _m in ('metrics', 'scenarios', 'compare', 'report', 'shaping', 'spec', 'sweep',
+                           'sweep_report', 'tune')
            for name in _sys.modules[f"hubbeam_ctrl.study.{_m}"].__all__]

@@ -8,7 +8,10 @@ plots and ``report.md``.
 
 The controllers come from the registry :data:`controllers.CONTROLLERS` (each with its
 default settings for a scenario, ``Settings.for_scenario``), the scenarios from
-:data:`hubbeam_ctrl.study.scenarios.SCENARIOS`.
+:data:`hubbeam_ctrl.study.scenarios.SCENARIOS`. ``shaping=`` filters the reference of the
+controllers that track one through an input shaper; ``schedule=N`` runs the registered
+gain-scheduled version of those that have one on ``N`` design spins
+(:meth:`controllers.DesignSchedule.for_scenario`).
 
 Example
 -------
@@ -25,7 +28,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from controllers import CONTROLLERS, DesignModel, controller_names, make_controller
+from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
 from hubbeam_ctrl.core.budget import (
     CLOSED_LOOP_SECONDS_PER_SAMPLE,
     WallClock,
@@ -68,6 +71,14 @@ def _parse_controllers(controllers) -> tuple:
     return tuple(names)
 
 
+def _design_schedule(sc: Scenario, points, design_modes):
+    """The scenario's design schedule of ``points`` spins (None for a single design)."""
+    if isinstance(points, bool) or not isinstance(points, int) or points < 1:
+        raise ParameterError(f"schedule must be an integer >= 1 (number of spin rates; 1 = a single "
+                             f"design at the scenario's design spin), got {points!r}")
+    return None if points == 1 else DesignSchedule.for_scenario(sc, points, design_modes)
+
+
 @dataclass
 class Comparison:
     """Everything one comparison produced.
@@ -103,7 +114,7 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=None, *,
             t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0,
             design_modes: int | None = None, horizon: int = 50, solver: str = "daqp",
             settings: dict | None = None, sim_settings: ClosedLoopSettings | None = None,
-            progress: bool = False) -> Comparison:
+            shaping=None, schedule: int = 1, progress: bool = False) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear plant.
 
     Parameters
@@ -133,6 +144,15 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=None, *,
         (``SettingsClass.for_scenario(scenario, horizon=..., solver=...)``).
     sim_settings : ClosedLoopSettings, optional
         Plant integration and sensor settings (its ``dt`` is replaced by ``dt``).
+    shaping : {"zv", "zvd", "ei"} or Shaper, optional
+        Filter the reference of the controllers that track it (pd, lqr, lqg, mpc: see
+        :attr:`controllers.ControllerSpec.tracks_reference`) through this input shaper,
+        designed on the design model's first mode.
+    schedule : int
+        Spin rates of the design schedule of the controllers with a scheduled version (lqr,
+        lqg, mpc), evenly spaced from 0 to the reference's top rate
+        (:meth:`controllers.DesignSchedule.for_scenario`); 1: a single design at the
+        scenario's design spin.
     progress : bool
         Print one line per controller on stderr.
 
@@ -160,8 +180,10 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=None, *,
     chosen = {name: settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
                                                                                    solver=solver)
               for name in names}
-    _check_budget(sc, chosen, design_modes or sc.params.n_transverse, sim)
+    _check_budget(sc, chosen, design_modes or sc.params.n_transverse, sim, schedule)
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, design_modes)
+    shaper = None if shaping is None else as_shaper(design, shaping)
+    sched = _design_schedule(sc, schedule, design_modes)
     model = build_model(sc.plant, sc.params)
     ref = sc.reference
     results, metrics = {}, {}
@@ -169,7 +191,9 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=None, *,
     for name in names:
         if clock.expired():
             break
-        ctrl = make_controller(name, design, chosen[name], ref)
+        spec = CONTROLLERS[name]
+        ctrl = make_controller(name, design, chosen[name], ref, shaping=shaper if spec.tracks_reference else None,
+                               schedule=sched if spec.scheduled else None)
         run_sim = dataclasses.replace(sim, max_wall_s=max(1e-3, sim.max_wall_s - clock.elapsed()))
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=run_sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
@@ -191,9 +215,12 @@ def compare(plant: str = "cfoam", scenario: str = "slew", controllers=None, *,
                       targets=tuple(n for n in names if CONTROLLERS[n].target))
 
 
-def _check_budget(sc: Scenario, chosen: dict, design_modes: int, sim: ClosedLoopSettings) -> None:
+def _check_budget(sc: Scenario, chosen: dict, design_modes: int, sim: ClosedLoopSettings,
+                  schedule=1) -> None:
     """Refuse a comparison whose memory or time estimate exceeds ``sim``'s limits, before any
-    design work (see :mod:`hubbeam_ctrl.core.budget`)."""
+    design work (see :mod:`hubbeam_ctrl.core.budget`); a scheduled MPC holds one set of
+    matrices per design point."""
+    points = schedule if isinstance(schedule, int) and not isinstance(schedule, bool) and schedule > 1 else 1
     p = sc.params
     n_q = 1 + p.n_axial + p.n_transverse
     steps = int(round(sc.t_end / sc.dt))
@@ -207,9 +234,14 @@ def _check_budget(sc: Scenario, chosen: dict, design_modes: int, sim: ClosedLoop
     horizons = [h for h in horizons if h]
     if horizons:
         N = max(horizons)
-        memory += mpc_bytes(N, n_x)
-        seconds += mpc_seconds(N, n_x, steps)
-        what += f" with horizon = {N}"
+        copies = points if any(CONTROLLERS[n].scheduled for n, st in chosen.items() if getattr(st, "horizon", None)) \
+            else 1
+        memory += copies * mpc_bytes(N, n_x)
+        seconds += mpc_seconds(N, n_x, steps) + (copies - 1) * mpc_seconds(N, n_x, 0)
+        what += f" with horizon = {N}" + (f" at {copies} design points" if copies > 1 else "")
+    elif points > 1:
+        what += f" at {points} design points"
+    seconds += 0.002 * (points - 1) * sum(bool(CONTROLLERS[n].scheduled) for n in chosen)
     check_budget(what, memory_bytes=memory, seconds=seconds, max_memory_mb=sim.max_memory_mb,
                  max_wall_s=sim.max_wall_s)
 

@@ -1,0 +1,99 @@
+"""``hubbeam sweep``: a robustness study over a plant spread (see :mod:`hubbeam_ctrl.study.sweep`).
+
+Example::
+
+    hubbeam sweep payload.toml --out payload_study --workers 2
+    hubbeam sweep payload.toml --out payload_study --resume          # after an interruption
+    hubbeam sweep payload.toml --out payload_study --scheduler tcp://10.0.0.5:8786
+"""
+
+from __future__ import annotations
+
+import time
+
+from hubbeam_ctrl.cli.main import positive_float, positive_int
+
+__all__ = ["add_parser", "run", "add_engine_options", "engine_from_args"]
+
+
+def add_engine_options(p) -> None:
+    """Options shared by ``sweep`` and ``tune``: --workers, --scheduler, --scheduler-timeout, --json."""
+    p.add_argument("--workers", metavar="N", type=positive_int("workers"),
+                   help="local worker processes (default: one per core; 1 runs in this process)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on the Dask cluster of this scheduler (e.g. tcp://host:8786) instead")
+    p.add_argument("--scheduler-timeout", metavar="S", type=positive_float("scheduler-timeout"), default=10.0,
+                   help="seconds to wait for the scheduler (default 10)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary, no progress bar")
+
+
+def engine_from_args(args):
+    """The Dask client of ``--scheduler`` (None without it); raises ParameterError if it does not answer."""
+    from hubbeam_ctrl.study.sweep import connect
+    return connect(args.scheduler, args.scheduler_timeout) if args.scheduler else None
+
+
+def add_parser(subparsers, common) -> None:
+    """Add the ``sweep`` subcommand (``common`` is not used: the spec holds the parameters)."""
+    p = subparsers.add_parser(
+        "sweep", help="robustness study: controllers over a plant spread (grid / Monte Carlo)",
+        description=("Run every controller of a study spec (TOML: [study], [params], [settings.NAME], "
+                     "[grid], [random]) on every case of its plant spread, on local worker processes "
+                     "or a Dask cluster. Writes results.csv (appended as cases finish), summary.csv, "
+                     "robustness_<factor>.png, heatmap.png, stable_region.png and report.md to --out."))
+    p.add_argument("spec", metavar="SPEC.toml", help="study spec")
+    p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
+    p.add_argument("--resume", action="store_true", help="finish an interrupted study in --out")
+    p.add_argument("--settings", metavar="FILE.toml",
+                   help="controller settings merged into the spec's [settings] (e.g. hubbeam tune's output)")
+    add_engine_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    """Run ``hubbeam sweep``; bad input raises ParameterError (exit 2)."""
+    from hubbeam_ctrl.cli.args import check_output_dir, stdout
+    from hubbeam_ctrl.cli.compare import stdout_to_stderr
+    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.study.spec import load_settings, load_spec
+    from hubbeam_ctrl.study.sweep import sweep
+    from hubbeam_ctrl.study.sweep_report import write_sweep_outputs
+
+    sink = stdout(args)
+    check_output_dir("--out", args.out)
+    spec = load_spec(args.spec)
+    if args.settings:
+        spec = load_settings(spec, args.settings)
+    client = engine_from_args(args)
+    t0 = time.perf_counter()
+    try:
+        with stdout_to_stderr():
+            df = sweep(spec, workers=args.workers, client=client, progress=not args.json,
+                       out_dir=args.out, resume=args.resume)
+            wall = time.perf_counter() - t0
+            paths = write_sweep_outputs(df, spec, args.out, wall)
+    finally:
+        if client is not None:
+            client.close()
+    summary = _summary_records(df)
+    n_cases = int(df["case"].nunique()) if len(df) else 0
+    failed = int(df.loc[df["error"].astype(str) != "", "case"].nunique())
+    if args.json:
+        print(strict_json({"out": str(args.out), "n_cases": n_cases, "n_failed": failed, "wall_s": wall,
+                          "files": sorted(p.name for p in paths.values()), "summary": summary}), file=sink)
+    else:
+        from hubbeam_ctrl.study.sweep_report import summarize
+        print(summarize(df).to_string(index=False, float_format=lambda v: f"{v:.3g}"), file=sink)
+        print(f"{n_cases} cases ({failed} with errors) in {wall:.1f} s; wrote {args.out}/results.csv, "
+              f"summary.csv, report.md and {sum(str(p).endswith('.png') for p in paths.values())} plots", file=sink)
+    return 0
+
+
+def _summary_records(df) -> list:
+    """summary.csv as JSON-ready records (full precision; NaN as None)."""
+    import math
+
+    from hubbeam_ctrl.study.sweep_report import summarize
+    clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v
+    return [{k: clean(v.item() if hasattr(v, "item") else v) for k, v in r.items()}
+            for r in summarize(df).to_dict("records")]

@@ -1,0 +1,148 @@
+"""Input shapers on the nonlinear plant: residual vibration against frequency error.
+
+:func:`controllers.shaping.shaper_sensitivity` gives each shaper's residual vibration for
+a linear mode whose frequency is off by a relative error. :func:`plant_sensitivity`
+checks it on the nonlinear plant: the plant's frequency is moved (Young's modulus scaled
+by ``(1 + e)^2``, which scales every bending frequency at rest by exactly ``1 + e``, or a
+tip mass found by modal analysis), and the residual tip vibration of the shaped open-loop
+slew is divided by that of the same base profile unshaped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.optimize
+
+from controllers import DesignModel, ShapedOpenLoop, ShapedSettings, Shaper, design_shaper
+from controllers.shaping import SHAPERS, design_modes
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.validation import check_positive
+from hubbeam_ctrl.plant.modal import modal_analysis
+from hubbeam_ctrl.plant.models import build_model
+from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
+
+__all__ = ["plant_sensitivity", "residual_after", "plant_variant", "VARIANTS"]
+
+#: How :func:`plant_variant` moves the plant's first frequency.
+VARIANTS = ("stiffness", "tip_mass")
+
+
+def _first_frequency(plant: str, params: Params) -> float:
+    return float(modal_analysis(plant, 0.0, "free", params).bending_hz[0])
+
+
+def plant_variant(params: Params, error: float, how: str = "stiffness", plant: str = "foam") -> Params:
+    """Plant parameters whose first bending frequency at rest (free hub) is ``(1 + error)`` times ``params``'.
+
+    Parameters
+    ----------
+    params : Params
+    error : float
+        Relative frequency error [-], > -1.
+    how : {"stiffness", "tip_mass"}
+        ``"stiffness"``: Young's modulus ``E (1 + error)^2`` (every bending frequency moves
+        by exactly ``1 + error``); ``"tip_mass"``: the tip mass that gives the first
+        frequency, found by modal analysis (only the first mode moves by exactly that).
+    plant : str
+        Model of the modal analysis.
+
+    Returns
+    -------
+    Params
+    """
+    if not (isinstance(error, (int, float, np.floating)) and np.isfinite(error) and error > -1):
+        raise ParameterError(f"error must be a finite relative frequency error > -1 [-], got {error!r}")
+    if how == "stiffness":
+        return params.replace(E=params.E * (1 + error) ** 2)
+    if how != "tip_mass":
+        raise ParameterError(f"how must be one of {', '.join(VARIANTS)}, got {how!r}")
+    target = (1 + error) * _first_frequency(plant, params)
+    f = lambda m: _first_frequency(plant, params.replace(m_t=m)) - target
+    hi = max(1.0, 4 * params.m_t)
+    while f(hi) > 0 and hi < 1e3 * params.beam_mass:
+        hi *= 4
+    if f(0.0) < 0 or f(hi) > 0:
+        raise ParameterError(f"error = {error:g}: no tip mass in [0, {hi:.3g}] kg moves the first "
+                             f"frequency by that much; use how='stiffness'")
+    return params.replace(m_t=scipy.optimize.brentq(f, 0.0, hi, xtol=1e-12))
+
+
+def residual_after(result, start: float) -> float:
+    """Max ``|v_tip|`` [m] from ``start`` [s] to the end of a closed-loop run (inf if it stopped)."""
+    if result.stopped:
+        return float("inf")
+    return float(np.max(np.abs(result.v_tip[result.t >= start - 1e-9])))
+
+
+def plant_sensitivity(design: DesignModel, errors=(-0.2, 0.0, 0.2), kinds=SHAPERS, *,
+                      plant: str = "foam", params: Params | None = None, tau_max: float = 50.0,
+                      base_duration: float = 8.0, modes=None, tolerance: float = 0.05,
+                      residual_window: float = 10.0, how: str = "stiffness") -> dict:
+    """Residual vibration of shaped open-loop slews on the nonlinear plant, by frequency error.
+
+    The base profile is a bang-bang slew that uses exactly ``tau_max`` in ``base_duration``
+    (its angle follows); each shaper lengthens it by its own duration. For every error
+    ``e`` the plant is :func:`plant_variant` ``(params, e, how)``.
+
+    Parameters
+    ----------
+    design : DesignModel
+        Gives the shapers (its modes at its design spin, which should be 0 here).
+    errors : sequence of float
+        Relative frequency errors [-], each > -1.
+    kinds : sequence of {"zv", "zvd", "ei"}
+    plant : str
+        Nonlinear plant model (``"foam"`` or ``"cfoam"``).
+    params : Params, optional
+        Plant parameters at ``e = 0`` (default ``design.params``).
+    tau_max : float
+        Torque of the bang-bang base profile [N m], > 0 (50 N m keeps FOAM close to linear).
+    base_duration : float
+        Length of the base profile [s], > 0.
+    modes : sequence of int, optional
+        Mode numbers shaped (default: all of the design model's).
+    tolerance : float
+        EI's allowed residual [-].
+    residual_window : float
+        The residual is taken over this long after the longest shaped profile ends [s].
+    how : {"stiffness", "tip_mass"}
+        How the plant's frequency is moved (see :func:`plant_variant`).
+
+    Returns
+    -------
+    dict
+        ``"errors"`` [-]; ``"unshaped_m"``: residual of the unshaped base profile [m] per
+        error; and per kind ``"<kind>"``: measured residual ratio [-] and
+        ``"<kind>_linear"``: the shaper's residual vibration at ``(1 + e) omega_1`` [-].
+    """
+    err = np.asarray(errors, dtype=float).ravel()
+    if err.size == 0 or not np.all(np.isfinite(err)) or np.any(err <= -1):
+        raise ParameterError("errors must be finite relative frequency errors > -1 [-]")
+    tau_max = check_positive("tau_max", tau_max, "N m")
+    T = check_positive("base_duration", base_duration, "s")
+    params = params if params is not None else design.params
+    modes = tuple(range(1, design.n_modes + 1)) if modes is None else modes
+    shapers = {k: design_shaper(design, k, modes, tolerance) for k in kinds}
+    shapers["unshaped"] = Shaper(np.zeros(1), np.ones(1), "unshaped")
+    angle = tau_max * T ** 2 / (4 * design.inertia)
+    start = T + max(s.duration for s in shapers.values())
+    sim = ClosedLoopSettings(dt=design.dt)
+    w, z = design_modes(design)
+    w1, z1 = float(w[0]), float(z[0])
+    out = {"errors": err, "unshaped_m": np.zeros(err.size)}
+    for k in kinds:
+        out[k] = np.zeros(err.size)
+        out[f"{k}_linear"] = shapers[k].residual(w1 * (1 + err), z1)
+    for i, e in enumerate(err):
+        model = build_model(plant, plant_variant(params, float(e), how, plant))
+        res = {}
+        for k, sh in shapers.items():
+            st = ShapedSettings(profile="bangbang", angle=angle, tau_max=tau_max, duration=T + sh.duration)
+            r = simulate_closed_loop(model, ShapedOpenLoop(design, st, shaper=sh), start + residual_window,
+                                     settings=sim)
+            res[k] = residual_after(r, start)
+        out["unshaped_m"][i] = res["unshaped"]
+        for k in kinds:
+            out[k][i] = res[k] / res["unshaped"]
+    return out

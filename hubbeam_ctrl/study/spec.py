@@ -1,0 +1,570 @@
+"""Study specifications: the task, the controllers, and the plant spread of a sweep.
+
+A study spec says what to run (scenario, plant model, controllers and their settings, base
+parameters) and how the **plant** varies from case to case: a full grid and/or Monte Carlo
+samples of any :class:`~hubbeam_ctrl.plant.params.Params` field, the spin-up rate ``w_f``
+and the sensor-noise ``seed``. The design stays at the base parameters unless
+``design = "matched"`` (each case redesigns on its own plant).
+
+TOML form (every key optional except where noted)::
+
+    [study]
+    scenario = "slew"                 # slew | spinup
+    plant = "foam"                    # foam | cfoam
+    controllers = ["openloop", "lqr", "mpc"]
+    design = "base"                   # base | matched
+    t_f = 10.0                        # [s]; also tau_max [N m], t_end [s], dt [s], w_f [rad/s],
+                                      # horizon, solver, design_modes
+    [params]                          # base Params fields (SI units)
+    m_t = 0.1
+    [settings.lqr]                    # controller settings replacing the defaults
+    weights = {tip = 1e4}
+    [grid]                            # full grid, factors in this order
+    m_t = [0.0, 0.1, 0.3, 0.5]
+    [random]                          # Monte Carlo, crossed with the grid
+    n = 20
+    seed = 1
+    method = "lhs"                    # lhs (default) | sobol | halton | random
+    E = {dist = "normal", mean = 6.9e10, std = 3e9}
+    rho = {dist = "uniform", low = 2600.0, high = 2800.0}
+    damping_ratio = {dist = "lognormal", median = 0.005, sigma = 0.5, high = 0.05}
+
+``normal`` and ``lognormal`` accept ``low``/``high`` to truncate (the samples stay stratified).
+Every error is a one-line :class:`~hubbeam_ctrl.core.errors.ParameterError` naming the key.
+
+Examples
+--------
+>>> spec = StudySpec.from_dict({"study": {"controllers": ["lqr"]},
+...                              "grid": {"m_t": [0.0, 0.2]}, "random": {"n": 3, "seed": 1,
+...                              "E": {"dist": "uniform", "low": 6.5e10, "high": 7.0e10}}})
+>>> [sorted(c) for c in spec.cases()][:1]
+[['E', 'm_t']]
+>>> len(spec.cases())
+6
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import tomllib
+
+from controllers import CONTROLLERS
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
+
+__all__ = ["StudySpec", "load_spec", "load_settings", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
+           "SAMPLERS", "settings_to_toml"]
+
+#: Factors beyond the Params fields: the spin-up rate [rad/s] and the sensor-noise seed.
+FACTORS_EXTRA = {"w_f": "rad/s", "seed": "-"}
+#: Distributions of ``[random]`` factors and their keys.
+DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "lognormal": ("median", "sigma")}
+#: Samplers of ``[random]``: Latin hypercube (default), scrambled Sobol and Halton, plain Monte Carlo.
+SAMPLERS = ("lhs", "sobol", "halton", "random")
+_INTEGER_FACTORS = ("n_axial", "n_transverse", "seed")
+_STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", "lqr"), "design": "base",
+               "tau_max": 200.0, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
+               "solver": "daqp", "design_modes": None}
+
+
+def _controller_list(value) -> tuple:
+    """``study.controllers`` (a list, or a comma-separated string) checked against the registry."""
+    items = value.split(",") if isinstance(value, str) else value
+    if not isinstance(items, (list, tuple)):
+        raise ParameterError(f"study.controllers must be a list of names, got {value!r}")
+    names = tuple(str(c).strip().lower() for c in items if str(c).strip())
+    bad = [n for n in names if n not in CONTROLLERS]
+    if not names or bad or len(set(names)) != len(names):
+        raise ParameterError(f"study.controllers must name each of {', '.join(CONTROLLERS)} at most once "
+                             f"(at least one), got {', '.join(map(str, items)) or 'none'}")
+    return names
+
+
+def _factor_names() -> tuple:
+    return tuple(f.name for f in dataclasses.fields(Params)) + tuple(FACTORS_EXTRA)
+
+
+def _check_factor(name: str, where: str, scenario: str) -> None:
+    if name not in _factor_names():
+        raise ParameterError(f"{where}: unknown factor {name!r}; allowed: Params fields "
+                             f"({', '.join(f.name for f in dataclasses.fields(Params))}) and "
+                             f"{', '.join(FACTORS_EXTRA)}")
+    if name == "w_f" and scenario != "spinup":
+        raise ParameterError(f"{where}.w_f: the spin rate varies only in a spinup study, "
+                             f"this one is {scenario!r}")
+
+
+def _number(where: str, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ParameterError(f"{where} must be a finite number, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """One ``[random]`` factor: ``uniform(low, high)``, ``normal(mean, std)`` or
+    ``lognormal(median, sigma)`` (``sigma`` the standard deviation of its log), optionally
+    truncated to ``[low, high]`` (normal, lognormal)."""
+
+    dist: str
+    a: float
+    b: float
+    low: float | None = None
+    high: float | None = None
+
+    @classmethod
+    def from_dict(cls, where: str, table) -> "Distribution":
+        """Validate one factor's table (``where`` names it in errors)."""
+        if not isinstance(table, dict) or table.get("dist") not in DISTRIBUTIONS:
+            raise ParameterError(f"{where} must be a table with dist = one of "
+                                 f"{', '.join(DISTRIBUTIONS)}, got {table!r}")
+        dist = table["dist"]
+        keys = DISTRIBUTIONS[dist]
+        allowed = {"dist", *keys} | ({"low", "high"} if dist != "uniform" else set())
+        extra = sorted(set(table) - allowed)
+        if extra or any(k not in table for k in keys):
+            raise ParameterError(f"{where}: a {dist} distribution takes {', '.join(sorted(allowed - {'dist'}))}"
+                                 f"{' (low/high optional)' if dist != 'uniform' else ''}, got "
+                                 f"{', '.join(sorted(set(table) - {'dist'})) or 'nothing'}")
+        a, b = (_number(f"{where}.{k}", table[k]) for k in keys)
+        low = _number(f"{where}.low", table["low"]) if "low" in table and dist != "uniform" else None
+        high = _number(f"{where}.high", table["high"]) if "high" in table and dist != "uniform" else None
+        out = cls(dist, a, b, low, high)
+        out._check(where)
+        return out
+
+    def _check(self, where: str) -> None:
+        if self.dist == "uniform" and not self.a < self.b:
+            raise ParameterError(f"{where}: uniform needs low < high, got low = {self.a:g}, high = {self.b:g}")
+        if self.dist == "normal" and not self.b > 0:
+            raise ParameterError(f"{where}: normal needs std > 0, got {self.b:g}")
+        if self.dist == "lognormal" and not (self.a > 0 and self.b > 0):
+            raise ParameterError(f"{where}: lognormal needs median > 0 and sigma > 0, got "
+                                 f"median = {self.a:g}, sigma = {self.b:g}")
+        if self.low is not None and self.high is not None and not self.low < self.high:
+            raise ParameterError(f"{where}: needs low < high, got low = {self.low:g}, high = {self.high:g}")
+        lo, hi = self._u_range()
+        if not hi > lo:
+            raise ParameterError(f"{where}: the truncation [low, high] holds no probability")
+
+    def _cdf(self, x: float) -> float:
+        from scipy.stats import norm
+        if self.dist == "normal":
+            return float(norm.cdf((x - self.a) / self.b))
+        return float(norm.cdf(math.log(x / self.a) / self.b)) if x > 0 else 0.0
+
+    def _u_range(self) -> tuple:
+        if self.dist == "uniform":
+            return 0.0, 1.0
+        lo = self._cdf(self.low) if self.low is not None else 0.0
+        hi = self._cdf(self.high) if self.high is not None else 1.0
+        return lo, hi
+
+    def ppf(self, u: np.ndarray) -> np.ndarray:
+        """Map uniform samples ``u`` in [0, 1) to this distribution (inverse CDF)."""
+        from scipy.stats import norm
+        if self.dist == "uniform":
+            return self.a + u * (self.b - self.a)
+        lo, hi = self._u_range()
+        z = norm.ppf(lo + u * (hi - lo))
+        x = self.a + self.b * z if self.dist == "normal" else self.a * np.exp(self.b * z)
+        return np.clip(x, self.low if self.low is not None else -np.inf,
+                       self.high if self.high is not None else np.inf)
+
+    def to_dict(self) -> dict:
+        """The TOML table of this distribution."""
+        out = {"dist": self.dist, **dict(zip(DISTRIBUTIONS[self.dist], (self.a, self.b)))}
+        out.update({k: v for k, v in (("low", self.low), ("high", self.high)) if v is not None})
+        return out
+
+
+def _unit_samples(method: str, d: int, n: int, seed: int) -> np.ndarray:
+    from scipy.stats import qmc
+    if method == "random":
+        return np.random.default_rng(seed).random((n, d))
+    if method == "lhs":
+        return qmc.LatinHypercube(d=d, rng=np.random.default_rng(seed)).random(n)
+    engine = qmc.Sobol if method == "sobol" else qmc.Halton
+    return engine(d=d, scramble=True, rng=np.random.default_rng(seed)).random(n)
+
+
+def _grid(where: str, table: dict, scenario: str) -> dict:
+    if not isinstance(table, dict):
+        raise ParameterError(f"{where} must be a table of factor = [values], got {table!r}")
+    out = {}
+    for name, values in table.items():
+        _check_factor(name, where, scenario)
+        if not isinstance(values, list) or not values:
+            raise ParameterError(f"{where}.{name} must be a non-empty list of values, got {values!r}")
+        if name == "l":
+            vals = [None if v == "L" else _number(f"{where}.l", v) for v in values]
+        else:
+            vals = [_number(f"{where}.{name}", v) for v in values]
+        if name in _INTEGER_FACTORS:
+            if any(v != int(v) for v in vals):
+                raise ParameterError(f"{where}.{name} must hold integers, got {values!r}")
+            vals = [int(v) for v in vals]
+        if len(set(vals)) != len(vals):
+            raise ParameterError(f"{where}.{name} repeats a value: {values!r}")
+        out[name] = vals
+    return out
+
+
+def _random(where: str, table: dict, scenario: str, grid: dict) -> tuple:
+    if not isinstance(table, dict):
+        raise ParameterError(f"{where} must be a table, got {table!r}")
+    n = table.get("n")
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ParameterError(f"{where}.n must be an integer >= 1 (number of samples), got {n!r}")
+    seed = table.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ParameterError(f"{where}.seed must be an integer >= 0, got {seed!r}")
+    method = table.get("method", "lhs")
+    if method not in SAMPLERS:
+        raise ParameterError(f"{where}.method must be one of {', '.join(SAMPLERS)}, got {method!r}")
+    dists = {}
+    for name, sub in table.items():
+        if name in ("n", "seed", "method"):
+            continue
+        _check_factor(name, where, scenario)
+        if name in _INTEGER_FACTORS:
+            raise ParameterError(f"{where}.{name}: integer factors vary only in [grid]")
+        if name in grid:
+            raise ParameterError(f"{where}.{name}: already a [grid] factor; vary it in one place")
+        dists[name] = Distribution.from_dict(f"{where}.{name}", sub)
+    if not dists:
+        raise ParameterError(f"{where} names no factor (give e.g. m_t = {{dist = \"uniform\", low = 0, high = 0.5}})")
+    return n, seed, method, dists
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """A robustness study: task, controllers and the plant spread (see the module docstring).
+
+    Attributes
+    ----------
+    scenario : {"slew", "spinup"}
+    plant : {"foam", "cfoam"}
+        Evaluation plant model.
+    controllers : tuple of str
+    design : {"base", "matched"}
+        ``base``: every controller designed once on the base parameters; ``matched``:
+        redesigned on each case's plant.
+    tau_max : float
+        Torque budget [N m].
+    t_f, t_end, dt : float
+        Maneuver time, simulated time, controller sample time [s].
+    w_f : float
+        Spin-up final rate [rad/s] (spinup).
+    horizon : int
+        MPC horizon [samples].
+    solver : str
+        MPC QP solver.
+    design_modes : int or None
+        Transverse modes of the design model (default: the base plant's).
+    params : Params
+        Base parameters (design, and plant where no factor changes them).
+    settings : dict
+        Controller name -> {setting: value} replacing its defaults (nested tables for
+        dataclass-valued settings such as ``weights``).
+    grid : dict
+        Factor -> list of values (full grid, in order).
+    random : dict or None
+        ``{"n", "seed", "method", "factors": {name: Distribution}}``.
+    """
+
+    scenario: str = "slew"
+    plant: str = "foam"
+    controllers: tuple = ("openloop", "lqr")
+    design: str = "base"
+    tau_max: float = 200.0
+    t_f: float = 10.0
+    t_end: float = 30.0
+    dt: float = 0.01
+    w_f: float = 3.0
+    horizon: int = 50
+    solver: str = "daqp"
+    design_modes: int | None = None
+    params: Params = field(default_factory=Params)
+    settings: dict = field(default_factory=dict)
+    grid: dict = field(default_factory=dict)
+    random: dict | None = None
+
+    # -- construction ------------------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, data: dict) -> "StudySpec":
+        """Build and validate a spec from its TOML tables (``study``, ``params``, ``settings``,
+        ``grid``, ``random``)."""
+        if not isinstance(data, dict):
+            raise ParameterError(f"spec must be a table, got {type(data).__name__}")
+        extra = sorted(set(data) - {"study", "params", "settings", "grid", "random", "tune"})
+        if extra:
+            raise ParameterError(f"spec: unknown table(s) {', '.join(extra)}; allowed: study, params, "
+                                 "settings, grid, random, tune")
+        study = dict(data.get("study", {}))
+        bad = sorted(set(study) - set(_STUDY_KEYS))
+        if bad:
+            raise ParameterError(f"study: unknown key(s) {', '.join(bad)}; allowed: {', '.join(_STUDY_KEYS)}")
+        kw = {k: study.get(k, v) for k, v in _STUDY_KEYS.items()}
+        kw["controllers"] = _controller_list(kw["controllers"])
+        params = Params.from_dict(dict(data.get("params", {})))
+        grid = _grid("grid", data.get("grid", {}), kw["scenario"])
+        random = None
+        if "random" in data:
+            n, seed, method, dists = _random("random", data["random"], kw["scenario"], grid)
+            random = {"n": n, "seed": seed, "method": method, "factors": dists}
+        spec = cls(params=params, settings=dict(data.get("settings", {})), grid=grid, random=random, **kw)
+        spec.validate()
+        return spec
+
+    def validate(self) -> None:
+        """Raise :class:`ParameterError` on any bad field (the constructor does not check)."""
+        if self.scenario not in SCENARIOS:
+            raise ParameterError(f"study.scenario must be one of {', '.join(SCENARIOS)}, got {self.scenario!r}")
+        if self.plant not in PLANTS:
+            raise ParameterError(f"study.plant must be one of {', '.join(PLANTS)}, got {self.plant!r}")
+        if self.design not in ("base", "matched"):
+            raise ParameterError(f"study.design must be 'base' or 'matched', got {self.design!r}")
+        if not isinstance(self.settings, dict):
+            raise ParameterError("settings must be a table of controller tables")
+        try:
+            sc = self.scenario_for(self.params)
+        except ParameterError as exc:
+            raise ParameterError(f"study: {exc}") from None
+        for name, table in self.settings.items():
+            if name not in self.controllers:
+                raise ParameterError(f"settings.{name}: not among study.controllers ({', '.join(self.controllers)})")
+            controller_settings(name, table, sc, self.horizon, self.solver)
+        for name, values in self.grid.items():     # each grid value on the base parameters
+            for v in values if name not in FACTORS_EXTRA else ():
+                try:
+                    self.params.replace(**{name: v})
+                except ParameterError as exc:
+                    raise ParameterError(f"grid.{name} = {v!r}: {exc}") from None
+
+    @property
+    def factors(self) -> tuple:
+        """Names of the varied factors, grid first, in spec order."""
+        rnd = tuple(self.random["factors"]) if self.random else ()
+        return tuple(self.grid) + rnd
+
+    # -- cases -------------------------------------------------------------------------------
+    def cases(self) -> list:
+        """Every case as a dict factor -> value: the grid points crossed with the random
+        samples (the same samples at every grid point). One empty case if nothing varies."""
+        names = list(self.grid)
+        points = [dict(zip(names, combo)) for combo in itertools.product(*self.grid.values())]
+        if not self.random:
+            return points
+        dists = self.random["factors"]
+        u = _unit_samples(self.random["method"], len(dists), self.random["n"], self.random["seed"])
+        cols = {name: d.ppf(u[:, j]) for j, (name, d) in enumerate(dists.items())}
+        samples = [{name: float(cols[name][i]) for name in dists} for i in range(self.random["n"])]
+        return [{**p, **s} for p in points for s in samples]
+
+    def plant_params(self, case: dict) -> Params:
+        """The evaluation plant's parameters of one case."""
+        changes = {k: v for k, v in case.items() if k not in FACTORS_EXTRA}
+        try:
+            return self.params.replace(**changes) if changes else self.params
+        except ParameterError as exc:
+            raise ParameterError(f"case {case}: {exc}") from None
+
+    def design_params(self, case: dict) -> Params:
+        """The design model's parameters (base, or the case's plant when ``design = "matched"``)."""
+        return self.plant_params(case) if self.design == "matched" else self.params
+
+    def scenario_for(self, params: Params, w_f: float | None = None):
+        """The scenario (reference, design spin) built on ``params`` (spin-up rate ``w_f``)."""
+        return make_scenario(self.scenario, plant=self.plant, params=params, tau_max=self.tau_max,
+                             t_f=self.t_f, t_end=self.t_end, dt=self.dt,
+                             w_f=self.w_f if w_f is None else w_f)
+
+    # -- serialisation -------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """The TOML tables of this spec (plain data; ``from_dict`` of it gives the same spec)."""
+        study = {k: getattr(self, k) for k in _STUDY_KEYS if getattr(self, k) is not None}
+        study["controllers"] = list(self.controllers)
+        out = {"study": study, "params": {k: v for k, v in self.params.to_dict().items() if v is not None}}
+        for key in ("settings", "grid"):
+            if getattr(self, key):
+                out[key] = json.loads(json.dumps(getattr(self, key), default=_plain))
+        if self.random:
+            rnd = {k: self.random[k] for k in ("n", "seed", "method")}
+            rnd.update({k: d.to_dict() for k, d in self.random["factors"].items()})
+            out["random"] = rnd
+        return out
+
+    def hash(self) -> str:
+        """SHA-256 of the canonical JSON of :meth:`to_dict` (what an output folder is keyed by)."""
+        text = json.dumps(self.to_dict(), sort_keys=True, default=_plain)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def replace(self, **changes) -> "StudySpec":
+        """A validated copy with some fields changed."""
+        out = dataclasses.replace(self, **changes)
+        out.validate()
+        return out
+
+
+def _plain(obj):
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if dataclasses.is_dataclass(obj):
+        return dataclasses.asdict(obj)
+    raise TypeError(f"{type(obj).__name__} is not plain data")
+
+
+def load_spec(spec) -> StudySpec:
+    """A :class:`StudySpec` from a TOML path, a dict of tables, or a spec passed through.
+
+    Parameters
+    ----------
+    spec : str, Path, dict or StudySpec
+
+    Returns
+    -------
+    StudySpec
+    """
+    if isinstance(spec, StudySpec):
+        spec.validate()
+        return spec
+    if isinstance(spec, dict):
+        return StudySpec.from_dict(spec)
+    path = Path(spec)
+    try:
+        data = tomllib.loads(path.read_text())
+    except (FileNotFoundError, IsADirectoryError):
+        raise ParameterError(f"spec: file {path} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"spec: {path} is not valid TOML: {exc}") from None
+    return StudySpec.from_dict(data)
+
+
+def load_settings(spec: StudySpec, path) -> StudySpec:
+    """``spec`` with the controller settings of a TOML file merged in (what ``hubbeam tune``
+    writes: ``[settings.NAME]`` tables, or ``[NAME]`` tables at top level).
+
+    Parameters
+    ----------
+    spec : StudySpec
+    path : str or Path
+
+    Returns
+    -------
+    StudySpec
+        Validated; a controller of the file that the study does not run is an error.
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except (FileNotFoundError, IsADirectoryError):
+        raise ParameterError(f"settings: file {path} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"settings: {path} is not valid TOML: {exc}") from None
+    data = data.get("settings", data)
+    merged = {name: dict(table) for name, table in spec.settings.items()}
+    for name, table in data.items():
+        if not isinstance(table, dict):
+            raise ParameterError(f"settings: {path} must hold [settings.NAME] tables, got {name} = {table!r}")
+        merged.setdefault(name, {}).update(table)
+    return spec.replace(settings=merged)
+
+
+def controller_settings(name: str, table: dict | None, scenario, horizon: int = 50, solver: str = "daqp"):
+    """A controller's settings object: the registry's defaults for ``scenario`` (its settings
+    class's ``for_scenario``, as in the comparison) with the entries of ``table`` replacing
+    them (a nested table updates a dataclass-valued setting, e.g. ``weights = {tip = 1e4}``).
+
+    This is the one place that knows how settings are built from plain data.
+
+    Parameters
+    ----------
+    name : str
+        Controller name.
+    table : dict or None
+        Setting name -> value.
+    scenario : Scenario
+    horizon : int
+        MPC horizon [samples] (default setting).
+    solver : str
+        MPC QP solver (default setting).
+
+    Returns
+    -------
+    ControllerSettings
+        The controller's settings (validated).
+    """
+    if name not in CONTROLLERS:
+        raise ParameterError(f"controllers: unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)}")
+    base = CONTROLLERS[name].settings.for_scenario(scenario, horizon=horizon, solver=solver)
+    table = dict(table or {})
+    known = {f.name: f for f in dataclasses.fields(base)}
+    bad = sorted(set(table) - set(known))
+    if bad:
+        raise ParameterError(f"settings.{name}: unknown setting(s) {', '.join(bad)}; allowed: {', '.join(known)}")
+    changes = {}
+    for key, value in table.items():
+        current = getattr(base, key)
+        if isinstance(value, dict) and dataclasses.is_dataclass(current):
+            sub = {f.name for f in dataclasses.fields(current)}
+            unknown = sorted(set(value) - sub)
+            if unknown:
+                raise ParameterError(f"settings.{name}.{key}: unknown {', '.join(unknown)}; allowed: "
+                                     f"{', '.join(sorted(sub))}")
+            value = _replaced(name, current, value)
+        changes[key] = value
+    return _replaced(name, base, changes)
+
+
+def _replaced(name: str, settings, changes: dict):
+    """``settings`` with ``changes``, its validation error prefixed by ``settings.NAME``."""
+    try:
+        return dataclasses.replace(settings, **changes)
+    except (TypeError, ParameterError) as exc:
+        raise ParameterError(f"settings.{name}: {exc}") from None
+
+
+def settings_to_toml(settings: dict) -> str:
+    """TOML text of ``{controller: {setting: value or {sub: value}}}`` (as ``[settings.NAME]``
+    tables, which :func:`load_spec` and ``hubbeam sweep`` read).
+
+    Parameters
+    ----------
+    settings : dict
+
+    Returns
+    -------
+    str
+    """
+    lines = []
+    for name, table in settings.items():
+        plain = [f"{k} = {_toml_value(v)}" for k, v in table.items() if not isinstance(v, dict) and v is not None]
+        if plain or not any(isinstance(v, dict) for v in table.values()):
+            lines += [f"[settings.{name}]", *plain, ""]
+        for key, value in table.items():
+            if isinstance(value, dict):
+                lines += [f"[settings.{name}.{key}]"]
+                lines += [f"{k} = {_toml_value(v)}" for k, v in value.items() if v is not None] + [""]
+    return "\n".join(lines)
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(float(value)) if isinstance(value, float) else str(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    raise ParameterError(f"settings: cannot write {value!r} to TOML")

@@ -1,0 +1,539 @@
+"""Robustness sweeps: every controller of a study on every plant of its spread.
+
+:func:`sweep` runs the cases of a :class:`~hubbeam_ctrl.study.spec.StudySpec` (one closed-loop
+run per case and controller) in this process (``workers=1``), on a local process pool (the
+default: one worker per core) or on a Dask cluster (``client=``), and returns one row per
+(case, controller). The engines run the same function (:func:`run_batch`) on batches of
+cases, so the numbers are the same everywhere; each worker process keeps the plant models,
+design models and controllers it has built (:class:`CaseCache`) and reuses them for the
+next case (a controller designed on the base parameters is built once per worker).
+
+With ``out_dir`` the rows are appended to ``out_dir/results.csv`` as cases finish (one
+write per batch, whole lines only); ``resume=True`` skips the cases already there. The
+folder remembers the spec's hash (``study.json``) and refuses a different spec.
+
+Example
+-------
+>>> from hubbeam_ctrl.study.sweep import sweep                       # doctest: +SKIP
+>>> df = sweep({"study": {"controllers": ["lqr"]}, "grid": {"m_t": [0.0, 0.3]}})  # doctest: +SKIP
+>>> df[["m_t", "controller", "residual_tip_max_m"]]                  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import sys
+import time
+from collections import OrderedDict
+from pathlib import Path
+
+from controllers import DesignModel, make_controller
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.plant.models import build_model
+from hubbeam_ctrl.plant.sensors import SensorSettings
+from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
+from hubbeam_ctrl.study.metrics import closed_loop_metrics
+from hubbeam_ctrl.study.report import CSV_FIELDS
+from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec
+
+__all__ = ["sweep", "run_case", "run_batch", "CaseCache", "result_columns", "read_results",
+           "connect", "plan_batches", "Engine", "TIMING_COLUMNS"]
+
+#: Columns that hold wall times (they differ from run to run; everything else is deterministic).
+TIMING_COLUMNS = ("setup_s", "wall_s", "sim_wall_s", "step_time_median_ms", "step_time_p99_ms")
+_RESULTS = "results.csv"
+_STUDY = "study.json"
+
+
+# -- one case -------------------------------------------------------------------------------
+class CaseCache:
+    """What a worker process keeps between cases: plant models, design models, scenarios
+    and controllers, keyed by everything that determines them (least recently used first
+    out beyond ``size`` entries).
+
+    Parameters
+    ----------
+    size : int
+        Entries kept.
+    """
+
+    def __init__(self, size: int = 64):
+        self.size = size
+        self._items = OrderedDict()
+        self.hits = self.misses = 0
+
+    def get(self, key, build):
+        """The entry of ``key``, built by ``build()`` on a miss."""
+        if key in self._items:
+            self._items.move_to_end(key)
+            self.hits += 1
+            return self._items[key]
+        self.misses += 1
+        value = build()
+        self._items[key] = value
+        if len(self._items) > self.size:
+            self._items.popitem(last=False)
+        return value
+
+
+_PROCESS_CACHE = CaseCache()
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0] if text else ''}".strip()
+
+
+def _task_key(spec: StudySpec) -> tuple:
+    return (spec.scenario, spec.plant, spec.tau_max, spec.t_f, spec.t_end, spec.dt, spec.horizon,
+            spec.solver, spec.design_modes)
+
+
+def run_case(case: dict, spec: StudySpec, cache: CaseCache | None = None) -> list:
+    """Run every controller of ``spec`` on one case of its plant spread.
+
+    This function and its two helpers (``_case_context``: scenario, design model, plant;
+    ``_run_controller``: controller, closed-loop run, metrics) are the only code that calls
+    the comparison API; adapt them when that API changes.
+
+    Parameters
+    ----------
+    case : dict
+        Factor -> value (one element of :meth:`StudySpec.cases`).
+    spec : StudySpec
+    cache : CaseCache, optional
+        Reused plant models, design models and controllers (default: this process's).
+
+    Returns
+    -------
+    list of dict
+        One row per controller: the metrics of
+        :func:`~hubbeam_ctrl.study.metrics.closed_loop_metrics` plus ``verdict`` (None until
+        the metrics give one), ``residual_pct_of_openloop``, ``error`` (one line, or ""),
+        ``setup_s`` (scenario, plant and design model of the case) [s], ``wall_s``
+        (controller, run and metrics) [s] and ``sim_wall_s`` (the run alone) [s].
+    """
+    cache = _PROCESS_CACHE if cache is None else cache
+    t0 = time.perf_counter()
+    try:
+        ctx = _case_context(case, spec, cache)
+    except Exception as exc:  # noqa: BLE001 - a case that cannot be set up is a row with its error
+        return [_error_row(name, spec, _one_line(exc)) for name in spec.controllers]
+    setup = time.perf_counter() - t0
+    rows = []
+    for name in spec.controllers:
+        t1 = time.perf_counter()
+        try:
+            row = _run_controller(name, ctx, spec, cache)
+        except Exception as exc:  # noqa: BLE001
+            row = _error_row(name, spec, _one_line(exc))
+        row.update(setup_s=setup, wall_s=time.perf_counter() - t1)
+        rows.append(row)
+    _percent_of_openloop(rows)
+    return rows
+
+
+def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
+    """Scenario, design model, plant model and simulator settings of one case (cached)."""
+    plant_p, design_p = spec.plant_params(case), spec.design_params(case)
+    w_f = float(case.get("w_f", spec.w_f))
+    task = _task_key(spec)
+    sc = cache.get(("scenario", task, design_p, w_f), lambda: spec.scenario_for(design_p, w_f))
+    base = cache.get(("scenario", task, spec.params, spec.w_f), lambda: spec.scenario_for(spec.params))
+    spin = sc.design_spin if spec.design == "matched" else base.design_spin
+    dkey = ("design", design_p, spin, spec.dt, spec.design_modes)
+    return {"scenario": sc, "key": (dkey, task, design_p, w_f),
+            "design": cache.get(dkey, lambda: DesignModel.build(design_p, spin, spec.dt, spec.design_modes)),
+            "plant": cache.get(("plant", spec.plant, plant_p), lambda: build_model(spec.plant, plant_p)),
+            "sim": ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(seed=int(case.get("seed", 0))))}
+
+
+def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> dict:
+    """One closed-loop run and its metrics (the controller built once per design and task)."""
+    sc, table = ctx["scenario"], spec.settings.get(name)
+    ckey = ("controller", name, json.dumps(table, sort_keys=True, default=str), *ctx["key"])
+    ctrl = cache.get(ckey, lambda: make_controller(
+        name, ctx["design"], controller_settings(name, table, sc, spec.horizon, spec.solver), sc.reference))
+    res = simulate_closed_loop(ctx["plant"], ctrl, sc.t_end, settings=ctx["sim"],
+                               reference=(sc.reference.theta_at, sc.reference.theta_dot_at))
+    row = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max)
+    row.update(scenario=sc.name, verdict=row.get("verdict"), error="", sim_wall_s=row["wall_s"])
+    return row
+
+
+def _error_row(name: str, spec: StudySpec, message: str) -> dict:
+    return {"controller": name, "plant": spec.plant, "scenario": spec.scenario, "completed": False,
+            "verdict": None, "error": message, "message": message}
+
+
+def _percent_of_openloop(rows: list) -> None:
+    base = next((r.get("residual_tip_max_m") for r in rows if r["controller"] == "openloop"), None)
+    for r in rows:
+        value = r.get("residual_tip_max_m")
+        ok = base is not None and value is not None and math.isfinite(base) and base > 0
+        r["residual_pct_of_openloop"] = 100.0 * value / base if ok else float("nan")
+
+
+def run_batch(batch: list, spec: StudySpec) -> list:
+    """Run ``[(case_id, case), ...]`` with this process's cache; rows carry ``case`` and
+    the factor values (what every engine ships to a worker).
+
+    Parameters
+    ----------
+    batch : list of (int, dict)
+    spec : StudySpec
+
+    Returns
+    -------
+    list of dict
+    """
+    out = []
+    for case_id, case in batch:
+        for row in run_case(case, spec):
+            out.append({"case": case_id, **{f: case.get(f) for f in spec.factors}, **row})
+    return out
+
+
+def _failed_batch(batch: list, spec: StudySpec, message: str) -> list:
+    return [{"case": cid, **{f: case.get(f) for f in spec.factors}, **_error_row(n, spec, message)}
+            for cid, case in batch for n in spec.controllers]
+
+
+# -- batches and engines ------------------------------------------------------------------------
+def plan_batches(cases: list, workers: int, per_worker: int = 4, cap: int = 32) -> list:
+    """Split ``[(case_id, case)]`` into batches of decreasing size (guided self-scheduling).
+
+    Cases that share a plant stay together (each worker then builds a plant once per
+    batch), the first batches are large (little scheduling overhead) and the last ones hold
+    one case each (the workers finish together).
+
+    Parameters
+    ----------
+    cases : list of (int, dict)
+    workers : int
+        Worker processes.
+    per_worker : int
+        Each batch takes ``1/(per_worker * workers)`` of the remaining cases.
+    cap : int
+        Largest batch.
+
+    Returns
+    -------
+    list of list
+    """
+    order = sorted(cases, key=lambda c: json.dumps({k: v for k, v in c[1].items() if k not in ("seed", "w_f")},
+                                                   sort_keys=True))
+    batches, i = [], 0
+    while i < len(order):
+        size = min(cap, max(1, math.ceil((len(order) - i) / (per_worker * workers))))
+        batches.append(order[i:i + size])
+        i += size
+    return batches
+
+
+def _default_workers() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def _pool_context():
+    import multiprocessing as mp
+    if "forkserver" in mp.get_all_start_methods():
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(["hubbeam_ctrl.study.sweep"])
+        return ctx
+    return mp.get_context("spawn")
+
+
+class Engine:
+    """Where batches run: this process, a local process pool, or a Dask cluster.
+
+    Use it as a context manager; the pool (and with it each worker's :class:`CaseCache`)
+    lives until the ``with`` block ends, so repeated :meth:`run` calls (a tuner's
+    generations) reuse warm workers.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Local worker processes (default: one per core); 1 runs in this process.
+    client : distributed.Client, optional
+        Run on this Dask cluster (``workers`` is then ignored).
+    retries : int
+        Dask: reruns of a task whose worker raised; a task whose worker died is rerun by the
+        scheduler (up to its ``allowed-failures``). Pool: fresh pools for batches lost with a
+        dead worker.
+    """
+
+    def __init__(self, workers: int | None = None, client=None, retries: int = 2):
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
+        self.client, self.retries = client, retries
+        self.workers = _dask_workers(client) if client is not None else (workers or _default_workers())
+        self._pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+    def close(self) -> None:
+        """Shut the local pool down (a Dask client stays open: it is the caller's)."""
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+
+    def run(self, jobs: list, sink) -> None:
+        """Run ``[(batch, spec), ...]`` with :func:`run_batch`; ``sink(batch, spec, rows)`` gets
+        each batch's rows as it finishes (in completion order)."""
+        if self.client is not None:
+            self._run_dask(jobs, sink)
+        elif self.workers == 1 or sum(len(b) for b, _ in jobs) <= 1:
+            for batch, spec in jobs:
+                sink(batch, spec, run_batch(batch, spec))
+        else:
+            self._run_pool(jobs, sink)
+
+    def _submit_pool(self, jobs):
+        from concurrent.futures import ProcessPoolExecutor
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=_pool_context())
+        return {self._pool.submit(run_batch, b, s): (b, s) for b, s in jobs}
+
+    def _run_pool(self, jobs, sink) -> None:
+        from concurrent.futures import as_completed
+        from concurrent.futures.process import BrokenProcessPool
+        for _ in range(self.retries + 1):
+            lost = []
+            futures = self._submit_pool(jobs)
+            for fut in as_completed(futures):
+                batch, spec = futures[fut]
+                try:
+                    sink(batch, spec, fut.result())
+                except BrokenProcessPool:
+                    lost.append((batch, spec))
+                except Exception as exc:  # noqa: BLE001
+                    sink(batch, spec, _failed_batch(batch, spec, _one_line(exc)))
+            if not lost:
+                return
+            self.close()
+            jobs = lost
+        for batch, spec in jobs:
+            sink(batch, spec, _failed_batch(batch, spec, "worker process died on this case"))
+
+    def _run_dask(self, jobs, sink) -> None:
+        from distributed import as_completed
+        futures = {self.client.submit(run_batch, b, s, retries=self.retries, pure=False): (b, s)
+                   for b, s in jobs}
+        for fut in as_completed(list(futures)):
+            batch, spec = futures[fut]
+            try:
+                sink(batch, spec, fut.result())
+            except Exception as exc:  # noqa: BLE001 - KilledWorker etc.: rows with the error
+                sink(batch, spec, _failed_batch(batch, spec, _one_line(exc)))
+            fut.release()
+
+
+def connect(address: str, timeout: float = 10.0):
+    """A ``dask.distributed.Client`` of the scheduler at ``address``.
+
+    Parameters
+    ----------
+    address : str
+        E.g. ``tcp://10.0.0.5:8786``.
+    timeout : float
+        Seconds to wait for the scheduler.
+
+    Returns
+    -------
+    distributed.Client
+
+    Raises
+    ------
+    ParameterError
+        If no scheduler answers within ``timeout``.
+    """
+    from distributed import Client
+    try:
+        return Client(address, timeout=timeout, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ParameterError(f"scheduler: no Dask scheduler answered at {address!r} within "
+                             f"{timeout:g} s ({type(exc).__name__})") from None
+
+
+# -- results on disk ----------------------------------------------------------------------------
+def result_columns(spec: StudySpec) -> list:
+    """Columns of ``results.csv`` (and of the returned DataFrame), in order."""
+    metrics = [c for c in CSV_FIELDS if c not in ("controller", "plant", "scenario", "wall_s", "message")]
+    head = ["case", *spec.factors, "controller", "plant", "scenario", "verdict"]
+    return head + [c for c in metrics if c not in head] + ["error", "message", "setup_s", "wall_s", "sim_wall_s"]
+
+
+def _csv_text(rows: list, columns: list, header: bool = False) -> str:
+    """CSV lines of ``rows`` (floats as ``repr``: they read back bit-exact; None as empty)."""
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=columns, extrasaction="ignore", lineterminator="\n")
+    if header:
+        writer.writeheader()
+    for r in rows:
+        writer.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in columns})
+    return buf.getvalue()
+
+
+class _ResultsFile:
+    """``results.csv`` with a fixed header; each batch is appended with one write."""
+
+    def __init__(self, path: Path, columns: list):
+        self.path, self.columns = path, columns
+        if not path.exists():
+            atomic_write_text(path, ",".join(columns) + "\n")
+        with open(path, "rb+") as fh:      # drop a line cut short by a kill
+            data = fh.read()
+            if data and not data.endswith(b"\n"):
+                fh.truncate(data.rfind(b"\n") + 1)
+        header = path.read_text().split("\n", 1)[0].split(",")
+        if header != columns:
+            raise ParameterError(f"out: {path} has other columns than this version writes; "
+                                 "choose another --out")
+
+    def append(self, rows: list) -> None:
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        try:
+            os.write(fd, _csv_text(rows, self.columns).encode())
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def _open_folder(out_dir, spec: StudySpec, resume: bool) -> Path:
+    out = Path(out_dir)
+    if not out.parent.is_dir():
+        raise ParameterError(f"out: folder {out.parent} does not exist")
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"out: {out} exists and is not a folder")
+    meta = out / _STUDY
+    if meta.exists():
+        stored = json.loads(meta.read_text()).get("spec_hash")
+        if stored != spec.hash():
+            raise ParameterError(f"out: {out} holds results of a different study spec (hash {stored[:12]}, "
+                                 f"this spec {spec.hash()[:12]}); choose another --out")
+        if not resume and (out / _RESULTS).exists():
+            raise ParameterError(f"out: {out} already holds results of this study; pass --resume to "
+                                 "finish it, or choose another --out")
+    elif (out / _RESULTS).exists():
+        raise ParameterError(f"out: {out} holds a {_RESULTS} of an unknown study; choose another --out")
+    out.mkdir(exist_ok=True)
+    atomic_write_text(meta, json.dumps({"spec_hash": spec.hash(), "n_cases": len(spec.cases()),
+                                        "spec": spec.to_dict()}, indent=2, default=str) + "\n")
+    return out
+
+
+def read_results(path, spec: StudySpec | None = None):
+    """``results.csv`` (a file or its folder) as a DataFrame, floats bit-exact.
+
+    Parameters
+    ----------
+    path : str, Path or text stream
+    spec : StudySpec, optional
+        Orders the rows by case and the spec's controller order.
+
+    Returns
+    -------
+    pandas.DataFrame
+    """
+    import pandas as pd
+    if isinstance(path, (str, Path)) and Path(path).is_dir():
+        path = Path(path) / _RESULTS
+    exact = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}  # 3.x: default
+    df = pd.read_csv(path, keep_default_na=False, na_values=[""], **exact)
+    return _tidy(df, spec)
+
+
+def _tidy(df, spec: StudySpec | None):
+    for col in ("verdict", "error", "message"):
+        if col in df:
+            df[col] = df[col].astype(object).where(df[col].notna(), "" if col != "verdict" else None)
+    if spec is not None and len(df):
+        order = {n: i for i, n in enumerate(spec.controllers)}
+        df = df.sort_values(["case", "controller"], key=lambda s: s.map(order) if s.name == "controller" else s)
+    return df.reset_index(drop=True)
+
+
+def _frame(rows: list, spec: StudySpec):
+    """Rows as the DataFrame :func:`read_results` would give for them (same types and bits)."""
+    return read_results(io.StringIO(_csv_text(rows, result_columns(spec), header=True)), spec)
+
+
+# -- the study ----------------------------------------------------------------------------------
+def sweep(spec, *, workers: int | None = None, client=None, progress: bool = True, out_dir=None,
+          resume: bool = False):
+    """Run a robustness study: every controller on every case of the plant spread.
+
+    Parameters
+    ----------
+    spec : StudySpec, dict or path of a TOML file
+    workers : int, optional
+        Local worker processes (default: one per core); 1 runs in this process. Ignored
+        with ``client``.
+    client : distributed.Client, optional
+        Run on this Dask cluster instead (see :func:`connect`).
+    progress : bool
+        tqdm bar on stderr (cases done, failed, ETA).
+    out_dir : str or Path, optional
+        Folder for ``results.csv`` (appended as cases finish) and ``study.json``.
+    resume : bool
+        Skip the cases already in ``out_dir/results.csv``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per (case, controller): ``case``, the factor values, ``controller``, the
+        metrics, ``verdict``, ``error`` (one line, empty when the run worked) and the wall
+        times ``setup_s``, ``wall_s``, ``sim_wall_s`` [s] (see :data:`TIMING_COLUMNS`).
+    """
+    from tqdm import tqdm
+    spec = load_spec(spec)
+    Engine(workers)  # validates workers before anything is written
+    cases = list(enumerate(spec.cases()))
+    results = done = None
+    if out_dir is not None:
+        folder = _open_folder(out_dir, spec, resume)
+        results = _ResultsFile(folder / _RESULTS, result_columns(spec))
+        done = set(read_results(folder)["case"].astype(int))
+        cases = [c for c in cases if c[0] not in done]
+    rows = []
+    bar = tqdm(total=len(cases), unit="case", disable=not progress, file=sys.stderr, desc="sweep")
+    failed = 0
+
+    def sink(batch, _spec, batch_rows):
+        nonlocal failed
+        if results is not None:
+            results.append(batch_rows)
+        rows.extend(batch_rows)
+        failed += len({r["case"] for r in batch_rows if r.get("error") or r.get("completed") is False})
+        bar.update(len(batch))
+        bar.set_postfix(failed=failed)
+
+    try:
+        with Engine(workers, client) as engine:
+            engine.run([(b, spec) for b in plan_batches(cases, engine.workers)], sink)
+    finally:
+        bar.close()
+    if out_dir is not None:
+        return read_results(folder, spec)
+    return _frame(rows, spec)
+
+
+def _dask_workers(client) -> int:
+    try:
+        return max(1, sum(client.nthreads().values()))
+    except Exception:  # noqa: BLE001
+        return 1
