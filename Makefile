@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 STAMP_TEST := $(VENV)/.installed-test
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-fast lint bench notebooks clean
+.PHONY: demo test test-fast lint bench bench-notebooks notebooks clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -23,12 +23,16 @@ $(STAMP_TEST): $(BIN)/python pyproject.toml
 demo: $(STAMP)
 	$(BIN)/python -m hubbeam_ctrl.cli.demo --out demo_out
 
+# the suite runs on 2 processes (pytest-xdist; PYTEST_WORKERS=1 for one): under 10 minutes on 2 cores
+PYTEST_WORKERS ?= 2
+PYTEST_PAR := -n $(PYTEST_WORKERS) --dist worksteal
+
 test: lint
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(PYTEST_PAR)
 
 # everyday tier: everything but the tests marked slow (under 2 minutes on 2 cores)
 test-fast: lint
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q $(PYTEST_PAR) -m "not slow"
 
 # ruff and the import contracts of the layers (pyproject.toml [tool.importlinter])
 lint: $(STAMP_TEST)
@@ -39,6 +43,10 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plant.py
 	$(BIN)/python benchmarks/bench_mpc.py
 	$(BIN)/python benchmarks/bench_sweep.py
+
+# the notebooks' time budget (90 s each on an idle 2-core machine): kernel vs plain script
+bench-notebooks: $(STAMP_TEST)
+	$(BIN)/python benchmarks/bench_notebooks.py --out build/bench_notebooks.json
 
 # the notebooks' only sources are notebooks/NN_*.py (jupytext percent format): convert each to
 # build/notebooks/NN_*.ipynb, execute it there and write build/notebooks/NN_*.html with the outputs

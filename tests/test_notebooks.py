@@ -5,7 +5,8 @@ The only source of a notebook is ``notebooks/NN_name.py`` in jupytext's percent 
 The fast tests check that each source parses as such a notebook. The slow test converts
 each source to a notebook in memory and executes it with nbclient in a fresh ``python3``
 kernel, with ``MPLBACKEND=Agg`` and a temporary working directory (so nothing is written
-into the repository). It fails if any cell raises or if the notebook takes 90 s or more.
+into the repository). It fails if any cell raises or hangs (per-cell timeout). The 90 s time
+budget per notebook is a benchmark, ``benchmarks/bench_notebooks.py``, not a timed test.
 """
 
 from __future__ import annotations
@@ -27,8 +28,6 @@ SOURCES = sorted(p for p in NOTEBOOK_DIR.glob("*.py") if not p.name.startswith("
 IDS = [p.stem for p in SOURCES]
 FMT = "py:percent"
 
-#: Budget for a whole notebook, kernel start included [s] (issue 5: < 90 s on 2 cores).
-MAX_NOTEBOOK_S = 90.0
 #: Per-cell timeout [s]: a hung cell fails instead of stalling the suite.
 CELL_TIMEOUT_S = 120
 
@@ -98,6 +97,5 @@ def test_notebook_executes(path, tmp_path, monkeypatch):
         plain = re.sub(r"\x1b\[[0-9;]*m", "", str(exc))      # drop the ANSI colours
         pytest.fail(f"{path.name}: a cell raised\n{plain}", pytrace=False)
     elapsed = time.perf_counter() - start
-    print(f"{path.name}: {elapsed:.1f} s")
-    assert elapsed < MAX_NOTEBOOK_S, f"{path.name} took {elapsed:.1f} s (budget {MAX_NOTEBOOK_S:g} s)"
+    print(f"{path.name}: {elapsed:.1f} s (budget: benchmarks/bench_notebooks.py)")
     assert sorted(NOTEBOOK_DIR.iterdir()) == before, "the notebook wrote into notebooks/"

@@ -24,10 +24,18 @@ ENV = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTH
        "MPLBACKEND": "Agg"}
 
 
-def small(t_end=6.5, controllers=("openloop", "lqr", "lqg"), **tables):
-    """2+2 modes, a 1 s slew, FOAM."""
-    return {"study": {"controllers": list(controllers), "t_f": 1.0, "t_end": t_end, **tables.pop("study", {})},
-            "params": {"n_axial": 2, "n_transverse": 2}, **tables}
+#: Plant modes of the engine tests: the design's 2, so that the tests of the engine (pool, cluster, resume,
+#: cache) stay fast; the sweep on the default evaluation plant (10 modes here) is checked against compare()
+#: in test_matched_rows_equal_single_comparisons, and the plant rule itself in test_evaluation.py.
+ENGINE_PLANT_MODES = 2
+
+
+def small(t_end=6.5, controllers=("openloop", "lqr", "lqg"), plant_modes=ENGINE_PLANT_MODES, **tables):
+    """2+2 modes, a 1 s slew, FOAM; evaluated on ``plant_modes`` (None: the evaluation-plant rule)."""
+    study = {"controllers": list(controllers), "t_f": 1.0, "t_end": t_end, **tables.pop("study", {})}
+    if plant_modes is not None:
+        study["plant_modes"] = plant_modes
+    return {"study": study, "params": {"n_axial": 2, "n_transverse": 2}, **tables}
 
 
 def same_numbers(a, b):
@@ -42,7 +50,7 @@ def same_numbers(a, b):
 
 
 def test_matched_rows_equal_single_comparisons():
-    spec = load_spec(small(study={"design": "matched"}, grid={"m_t": [0.0, 0.3]}))
+    spec = load_spec(small(study={"design": "matched"}, grid={"m_t": [0.0, 0.3]}, plant_modes=None))
     df = sweep(spec, workers=1, progress=False)
     assert len(df) == 6 and list(df["controller"][:3]) == ["openloop", "lqr", "lqg"]
     for m_t in (0.0, 0.3):
@@ -64,10 +72,11 @@ def test_base_design_stays_at_the_base_and_the_cache_changes_nothing():
     fresh = run_case({"m_t": 0.4, "seed": 5}, spec, CaseCache())
     assert [r["residual_tip_max_m"] for r in fresh] == [r["residual_tip_max_m"] for r in rows[(0.4, 5)]]
     # base design: at m_t = 0.1 (the base) the rows equal compare's on the base parameters
-    ref = compare("foam", "slew", "lqr", params=Params(n_axial=2, n_transverse=2), t_f=1.0, t_end=6.5).metrics
+    ref = compare("foam", "slew", "lqr", params=Params(n_axial=2, n_transverse=2), t_f=1.0, t_end=6.5,
+                  plant_modes=ENGINE_PLANT_MODES).metrics
     assert rows[(0.1, 0)][1]["residual_tip_max_m"] == ref["lqr"]["residual_tip_max_m"]
     matched = compare("foam", "slew", "lqr", params=Params(m_t=0.4, n_axial=2, n_transverse=2), t_f=1.0,
-                      t_end=6.5).metrics
+                      t_end=6.5, plant_modes=ENGINE_PLANT_MODES).metrics
     assert rows[(0.4, 0)][1]["residual_tip_max_m"] != matched["lqr"]["residual_tip_max_m"]
     # the seed moves only the sensor noise: LQG (sensors) changes, LQR (state) does not
     assert rows[(0.4, 0)][1]["residual_tip_max_m"] == rows[(0.4, 5)][1]["residual_tip_max_m"]
@@ -79,8 +88,10 @@ def test_spin_rate_factor_keeps_the_design_at_the_base_rate():
                            grid={"w_f": [2.0, 3.0]}))
     df = sweep(spec, workers=1, progress=False)
     p = Params(n_axial=2, n_transverse=2)
-    at_base = compare("foam", "spinup", "lqr", params=p, t_f=10.0, t_end=16.0, w_f=3.0).metrics["lqr"]
-    matched = compare("foam", "spinup", "lqr", params=p, t_f=10.0, t_end=16.0, w_f=2.0).metrics["lqr"]
+    at_base = compare("foam", "spinup", "lqr", params=p, t_f=10.0, t_end=16.0, w_f=3.0,
+                      plant_modes=ENGINE_PLANT_MODES).metrics["lqr"]
+    matched = compare("foam", "spinup", "lqr", params=p, t_f=10.0, t_end=16.0, w_f=2.0,
+                      plant_modes=ENGINE_PLANT_MODES).metrics["lqr"]
     assert df.loc[df["w_f"] == 3.0, "residual_tip_max_m"].item() == at_base["residual_tip_max_m"]
     # at 2 rad/s the task changes but the design stays linearised at 3 rad/s
     assert df.loc[df["w_f"] == 2.0, "residual_tip_max_m"].item() != matched["residual_tip_max_m"]
