@@ -24,12 +24,12 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate", "ControllerSettings",
+__all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate", "torque_limit", "ControllerSettings",
            "TrackingSettings", "LQSettings", "check_positive", "check_psd"]
 
 
@@ -61,6 +61,44 @@ def check_psd(name: str, M, n: int, definite: bool = False) -> np.ndarray:
 def saturate(tau: float, tau_max: float) -> float:
     """Clip a torque to ``[-tau_max, tau_max]`` [N m] (NaN passes through)."""
     return tau_max if tau > tau_max else (-tau_max if tau < -tau_max else tau)
+
+
+def torque_limit(tau_max, params: Params, name: str = "tau_max") -> float:
+    """The torque limit a controller saturates at: its own, or the motor's ``params.tau_max``.
+
+    Parameters
+    ----------
+    tau_max : float or None
+        The controller's setting [N m]; ``None`` means the motor's limit.
+    params : Params
+        The design model's parameters (``params.tau_max`` is the motor's limit [N m]).
+    name : str
+        The setting's name for the error message.
+
+    Returns
+    -------
+    float
+        [N m], ``0 < limit <= params.tau_max``.
+
+    Raises
+    ------
+    ParameterError
+        If ``tau_max`` is above the motor's limit (a controller cannot command more
+        torque than the motor has).
+
+    Examples
+    --------
+    >>> torque_limit(None, Params(tau_max=1.5)), torque_limit(1.0, Params(tau_max=1.5))
+    (1.5, 1.0)
+    """
+    motor = params.tau_max
+    if tau_max is None:
+        return motor
+    tau_max = check_positive(name, tau_max, "N m")
+    if tau_max > motor:
+        raise ParameterError(f"{name} must be in (0, {motor:g}] N m (the motor's Params.tau_max), "
+                             f"got {tau_max:g}")
+    return tau_max
 
 
 # -- design model -------------------------------------------------------------------------
@@ -301,6 +339,9 @@ class Weights(Settings):
     modal: float = setting(1e4, unit="1/m^2 or 1/(m/s)^2", lo=0.0,
                            doc="Weight on every modal coordinate and rate (helps damp the higher "
                                "modes that barely move the tip).")
+    modal_rate: float | None = setting(None, unit="1/(m/s)^2", lo=0.0, kind=float,
+                                       doc="Weight on every modal rate; None: modal (the rates weighted "
+                                           "like the coordinates).")
     torque: float = setting(2.5e-5, unit="1/(N m)^2", lo=0.0, lo_open=True,
                             doc="Weight on the torque beyond the feedforward.")
     state_matrix: np.ndarray | None = setting(None, kind=object,
@@ -320,8 +361,8 @@ class Weights(Settings):
             Q[n, n] = self.rate
             c, cd = design.C_tip
             Q += self.tip * np.outer(c, c) + self.tip_rate * np.outer(cd, cd)
-            idx = np.r_[1:n, n + 1:nx]
-            Q[idx, idx] += self.modal
+            Q[np.r_[1:n], np.r_[1:n]] += self.modal
+            Q[np.r_[n + 1:nx], np.r_[n + 1:nx]] += self.modal if self.modal_rate is None else self.modal_rate
         return Q, np.array([[self.torque]])
 
 
@@ -334,15 +375,17 @@ class ControllerSettings(Settings):
     def for_scenario(cls, scenario, **options) -> "ControllerSettings":
         """Default settings for a closed-loop scenario.
 
-        The default fills the fields named ``tau_max`` (from ``scenario.tau_max``) and any
-        of ``options`` that the class has; subclasses override it when the scenario
+        The default fills the fields named ``tau_max`` (from ``scenario.tau_max``), those of
+        the scenario's scaled defaults (``scenario.defaults``: weights, noise levels, PD
+        bandwidth from the beam and the task, see :func:`controllers.scaling.scaled_defaults`)
+        and any of ``options`` that the class has; subclasses override it when the scenario
         decides more (e.g. :class:`~controllers.openloop.OpenLoopSettings`).
 
         Parameters
         ----------
         scenario : object
             A :class:`hubbeam_ctrl.study.scenarios.Scenario` (read: ``tau_max``, ``t_f``,
-            ``baseline``).
+            ``baseline``, ``defaults``).
         **options
             Study-wide controller options (``horizon``, ``solver``...); those the class
             has no field for are ignored.
@@ -352,7 +395,7 @@ class ControllerSettings(Settings):
         ControllerSettings
         """
         names = {f.name for f in fields(cls)}
-        given = {"tau_max": scenario.tau_max, **options}
+        given = {"tau_max": scenario.tau_max, **(getattr(scenario, "defaults", None) or {}), **options}
         return cls(**{k: v for k, v in given.items() if k in names})
 
 
@@ -360,8 +403,9 @@ class ControllerSettings(Settings):
 class TrackingSettings(ControllerSettings):
     """Settings of every feedback controller that follows a reference under a torque limit."""
 
-    tau_max: float = setting(200.0, unit="N m", lo=0.0, lo_open=True,
-                             doc="Torque limit: the output never exceeds +-tau_max.")
+    tau_max: float | None = setting(None, unit="N m", lo=0.0, lo_open=True, kind=float,
+                                    doc="Torque limit: the output never exceeds +-tau_max; at most the "
+                                        "motor's Params.tau_max of the design model. None: that limit.")
     feedforward: bool = setting(True, doc="Use the reference's rigid-body feedforward torque.")
 
 
@@ -421,6 +465,7 @@ class Controller:
         self.reference = reference
         self.dt = design.dt
         self.n_modes = design.n_modes
+        self.tau_max = torque_limit(getattr(settings, "tau_max", None), design.params)
 
     def _prepare_reference(self, elastic: bool, extra: int = 0) -> None:
         """Tabulate reference states and feedforward torques (plus ``extra`` samples)."""
@@ -460,6 +505,45 @@ class Controller:
     def stats(self) -> dict:
         """Run statistics (e.g. QP fallbacks) since the last :meth:`reset`."""
         return {}
+
+    def feedback_matrices(self) -> tuple:
+        """``(Ac, Bc, Cc, Dc, state_names, input_names)`` of the linear feedback law.
+
+        Implemented by the linear controllers (PD, LQR, LQG); see :meth:`to_statespace`.
+
+        Raises
+        ------
+        HubbeamError
+            For a controller that is not linear and time-invariant (open loop, MPC).
+        """
+        raise HubbeamError(f"controller {self.name!r} is not a linear time-invariant feedback law; "
+                           "only PD, LQR and LQG can be given as a state-space system")
+
+    def to_statespace(self):
+        """The feedback law as a sampled python-control system with named signals.
+
+        ``xc[k+1] = Ac xc[k] + Bc e[k]``, ``u[k] = Cc xc[k] + Dc e[k]``, sample time ``dt``:
+        input ``e`` the measurement the controller reads (named like the design model's
+        states or outputs: ``theta``, ``theta_dot``, ``root_moment``...; in deviation from
+        the reference), output ``tau`` [N m] (the torque beyond the feedforward). The
+        controller's own torque is ``tau_ff + u``, clipped at :attr:`tau_max`; this system
+        is the unsaturated law, so a user can close loops and compute margins with
+        python-control (``control.feedback(plant, ctrl.to_statespace(), sign=1)`` or
+        ``control.interconnect`` by signal name).
+
+        Returns
+        -------
+        control.StateSpace
+
+        Raises
+        ------
+        HubbeamError
+            For the open loop and MPC (not linear time-invariant).
+        """
+        import control
+        Ac, Bc, Cc, Dc, states, inputs = self.feedback_matrices()
+        return control.ss(Ac, Bc, Cc, Dc, self.dt, states=list(states), inputs=list(inputs),
+                          outputs=["tau"], name=self.name)
 
     def __repr__(self):
         return f"{type(self).__name__}(dt={self.dt:g}, n_modes={self.n_modes}, settings={self.settings!r})"

@@ -53,6 +53,9 @@ class KalmanNoise(Settings):
     modal_noise: float = setting(1e-5, unit="m or m/s", lo=0.0,
                                  doc="Process noise on each modal coordinate and rate per sample, "
                                      "standard deviation (until the residual modes came, 1e-4).")
+    modal_rate_noise: float | None = setting(None, unit="m/s", lo=0.0, kind=float,
+                                             doc="Process noise on each modal rate per sample; None: "
+                                                 "modal_noise.")
 
     def covariances(self, design: DesignModel):
         """Process and measurement noise covariances ``(Qn, Rn)`` on ``design``.
@@ -64,14 +67,16 @@ class KalmanNoise(Settings):
         Returns
         -------
         Qn : ndarray (nx, nx)
-            ``torque_noise^2 Bd Bd'`` plus ``modal_noise^2`` on the modal coordinates and rates.
+            ``torque_noise^2 Bd Bd'`` plus ``modal_noise^2`` on the modal coordinates and
+            ``modal_rate_noise^2`` (default ``modal_noise^2``) on their rates.
         Rn : ndarray (3, 3)
             Diagonal: the sensors' variances [rad^2, (rad/s)^2, (N m)^2].
         """
         nx = design.n_x
         Qn = self.torque_noise_nm ** 2 * (design.Bd @ design.Bd.T)
-        idx = np.r_[1:nx // 2, nx // 2 + 1:nx]
-        Qn[idx, idx] += self.modal_noise ** 2
+        rate = self.modal_noise if self.modal_rate_noise is None else self.modal_rate_noise
+        Qn[np.r_[1:nx // 2], np.r_[1:nx // 2]] += self.modal_noise ** 2
+        Qn[np.r_[nx // 2 + 1:nx], np.r_[nx // 2 + 1:nx]] += rate ** 2
         Rn = np.diag([self.angle_noise_rad ** 2, self.rate_noise_rad_s ** 2, self.moment_noise_nm ** 2])
         return Qn, Rn
 

@@ -126,6 +126,21 @@ class LQG(Controller):
         self.estimator.reset(x)
         self._tau = None
 
+    def feedback_matrices(self) -> tuple:
+        """The filter and gain as one system, sensors -> torque (state: the prediction).
+
+        On the filter's model ``(A, B, C)`` (:attr:`filter_model`), with ``K`` the gain on its
+        states: ``x_hat = (I - L C) x_pred + L y``, ``u = -K x_hat``, ``x_pred+ = A x_hat + B u``,
+        so ``Ac = (A - B K)(I - L C)``, ``Bc = (A - B K) L``, ``Cc = -K (I - L C)``,
+        ``Dc = -K L``.
+        """
+        fm = self.filter_model
+        K = self._Ke[None, :]
+        F = fm.Ad - fm.Bd @ K
+        M = np.eye(fm.n_x) - self.L @ fm.C_sensors
+        states = [f"{name}_est" for name in fm.state_names]
+        return F @ M, F @ self.L, -K @ M, -K @ self.L, states, ["theta", "theta_dot", "root_moment"]
+
     def __call__(self, t: float, y) -> float:
         """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
         spin = self.design.spin
@@ -135,5 +150,5 @@ class LQG(Controller):
         K = self._Ke
         # x_hat is a deviation from the steady rotation; x_ref is absolute
         u = K @ (x_hat - self._E @ xr) + K[0] * spin * t + K[self._n] * spin
-        self._tau = saturate(float(self._ff * tff - u), self.settings.tau_max)
+        self._tau = saturate(float(self._ff * tff - u), self.tau_max)
         return self._tau

@@ -104,8 +104,14 @@ class LQR(Controller):
         self._ff = 1.0 if settings.feedforward else 0.0
         self._prepare_reference(settings.elastic_reference)
 
+    def feedback_matrices(self) -> tuple:
+        """Static state feedback ``u = -K e``: no states, inputs the design model's states."""
+        n = self.design.n_x
+        return (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((1, 0)), -self.K[None, :], [],
+                list(self.design.state_names))
+
     def __call__(self, t: float, y) -> float:
         """Hub torque [N m] at time ``t`` [s] from the SFOAM-ordered state ``y``."""
         xr, tff = self._reference_at(int(round(t / self.dt)))
         u = self.K @ (y - xr)
-        return saturate(float(self._ff * tff - u), self.settings.tau_max)
+        return saturate(float(self._ff * tff - u), self.tau_max)

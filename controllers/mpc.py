@@ -155,8 +155,8 @@ class MPC(Controller):
         self._A = ca.DM(A)
         self._n_a = A.shape[0]
         self._nz = nz
-        lbx = np.full(nz, -s.tau_max)
-        ubx = np.full(nz, s.tau_max)
+        lbx = np.full(nz, -self.tau_max)
+        ubx = np.full(nz, self.tau_max)
         if soft:
             lbx[-1], ubx[-1] = 0.0, np.inf
         self._lbx, self._ubx = lbx, ubx
@@ -284,4 +284,4 @@ class MPC(Controller):
             self._z = np.zeros(self._nz)
             xr, tff = self._reference_at(int(round(t / self.dt)))
             tau = self._ff * tff - self.K @ (y - xr)
-        return saturate(tau, self.settings.tau_max)
+        return saturate(tau, self.tau_max)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, Reference, TrackingSettings, check_positive, saturate
@@ -83,6 +85,11 @@ class PD(Controller):
         self.kd = float(settings.kd) if settings.kd is not None else kd
         self._ff = 1.0 if settings.feedforward else 0.0
 
+    def feedback_matrices(self) -> tuple:
+        """Static output feedback ``u = -kp e_theta - kd e_theta_dot``: no states."""
+        return (np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((1, 0)), np.array([[-self.kp, -self.kd]]),
+                [], ["theta", "theta_dot"])
+
     def __call__(self, t: float, y) -> float:
         ref = self.reference
         k = int(round(t / self.dt))
@@ -91,4 +98,4 @@ class PD(Controller):
         else:
             (th,), (thd,), (tff,) = ref.window(k, 1)
         tau = self._ff * tff + self.kp * (th - y[0]) + self.kd * (thd - y[1])
-        return saturate(float(tau), self.settings.tau_max)
+        return saturate(float(tau), self.tau_max)

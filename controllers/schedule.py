@@ -47,10 +47,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import Params
 
-from .base import DesignModel, Reference, Weights, check_positive, saturate
+from .base import DesignModel, Reference, Weights, check_positive, saturate, torque_limit
 from .estimator import KalmanNoise, kalman_gain
 from .lqg import LQG, LQGSettings, filter_model
 from .lqr import LQR, LQRSettings, dlqr_gain
@@ -241,6 +241,11 @@ class _Scheduled:
     def stats(self) -> dict:
         return {**super().stats(), "schedule_points": int(self.schedule.spins.size)}
 
+    def feedback_matrices(self) -> tuple:
+        """Not available: a gain-scheduled controller is not time-invariant."""
+        raise HubbeamError(f"controller {self.name!r} is gain-scheduled over spin rates, not a linear "
+                           "time-invariant feedback law")
+
     def _spin(self, k: int, measured_rate: float) -> float:
         """The scheduling variable at sample ``k`` [rad/s]."""
         if self.variable == "measured":
@@ -280,7 +285,7 @@ class ScheduledLQR(_Scheduled, LQR):
         k = int(round(t / self.dt))
         xr, tff = self._reference_at(k)
         K = self.gain(self._spin(k, y[self.design.n_x // 2]))
-        return saturate(float(self._ff * tff - K @ (y - xr)), self.settings.tau_max)
+        return saturate(float(self._ff * tff - K @ (y - xr)), self.tau_max)
 
 
 class ScheduledKalmanEstimator:
@@ -433,7 +438,7 @@ class ScheduledLQG(_Scheduled, LQG):
         spin = self._spin(k, y[1])
         x_hat = self.estimator.update(y, self._tau, spin)
         K = self.schedule.interpolate(self.gains, spin)
-        self._tau = saturate(float(self._ff * tff - K @ (x_hat - self._E @ xr)), self.settings.tau_max)
+        self._tau = saturate(float(self._ff * tff - K @ (x_hat - self._E @ xr)), self.tau_max)
         return self._tau
 
 
@@ -578,11 +583,12 @@ def scheduled_lqg_iosystem(schedule: DesignSchedule, settings: LQGSettings = LQG
     L = models.stack(lambda dm: kalman_gain(dm, settings))
     AB = models.stack(lambda dm: np.hstack([dm.Ad, dm.Bd]))
     C, nx = models.designs[0].C_sensors, d.n_x
+    tau_max = torque_limit(settings.tau_max, d.params)
 
     def law(states, u):
         mu = abs(u[mu_index])
         x_hat = states + schedule.interpolate(L, mu) @ (u[nx + 1:] - C @ states)
-        tau = saturate(float(u[nx] - schedule.interpolate(K, mu) @ (x_hat - E @ u[:nx])), settings.tau_max)
+        tau = saturate(float(u[nx] - schedule.interpolate(K, mu) @ (x_hat - E @ u[:nx])), tau_max)
         return x_hat, tau, mu
 
     def update(t, states, u, params):

@@ -141,7 +141,8 @@ def test_default_settings_come_from_the_settings_classes():
     assert OpenLoopSettings.for_scenario(spin).profile == "feedforward"
     mpc = MPCSettings.for_scenario(slew, horizon=20, solver="qrqp", unknown_option=1)
     assert (mpc.tau_max, mpc.horizon, mpc.solver) == (150.0, 20, "qrqp")
-    assert PDSettings.for_scenario(slew, horizon=20) == PDSettings(tau_max=150.0)
+    # the PD bandwidth scales with the task (controllers.scaling: pd_bandwidth / t_f = 10 / 8 rad/s)
+    assert PDSettings.for_scenario(slew, horizon=20) == PDSettings(tau_max=150.0, bandwidth=10.0 / 8.0)
 
 
 def test_scenario_registry_feeds_make_scenario_and_the_cli(tmp_path, capsys):

@@ -5,7 +5,7 @@ import pytest
 import tomllib
 from scipy.stats import norm
 
-from controllers import LQRSettings, Weights
+from controllers import LQRSettings
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec, settings_to_toml
 
@@ -79,7 +79,8 @@ def test_controller_settings_replace_the_defaults():
     sc = spec.scenario_for(spec.params)
     st = controller_settings("lqr", spec.settings["lqr"], sc)
     assert st == LQRSettings(weights=st.weights, tau_max=150.0)
-    assert (st.weights.tip, st.weights.angle) == (5e3, Weights().angle)
+    # the other weights are the scenario's scaled defaults (controllers.scaling)
+    assert (st.weights.tip, st.weights.angle) == (5e3, sc.defaults["weights"].angle)
 
 
 def test_settings_toml_round_trip(tmp_path):

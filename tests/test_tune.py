@@ -34,7 +34,7 @@ def test_scaled_defaults_are_the_defaults_on_the_paper_slew_and_scale_with_the_t
     for k in WEIGHTS:
         assert math.isclose(getattr(w, k), getattr(d, k), rel_tol=1e-12), k
     # a geometrically similar task (lengths x 2, time x 3, torque x 5): w_k s_k^2 unchanged
-    p2 = Params(L=16.0, r=1.0)
+    p2 = Params(L=16.0, r=1.0, tau_max=1000.0)             # the motor's limit is a parameter
     sc2 = make_scenario("slew", plant="foam", params=p2, tau_max=1000.0, t_f=30.0, t_end=50.0, dt=0.03)
     s1, s2, w2 = weight_scales(sc, sc.params), weight_scales(sc2, p2), scaled_default_weights(sc2, p2)
     assert s2["tip"] == 16.0 and s2["torque"] == 1000.0 and math.isclose(s2["rate"], s2["angle"] / 30.0)

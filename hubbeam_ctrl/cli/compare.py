@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 
@@ -82,10 +83,16 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="filter the reference of the controllers that track one ("
                         + ",".join(n for n, s in CONTROLLERS.items() if s.tracks_reference)
                         + ") through this input shaper, designed on the first mode of the design model")
-    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"), default=200.0,
-                   help="torque budget = Eq. 44 amplitude [N m] (default 200)")
+    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
+                   help="torque budget [N m], at most the motor's tau_max of the parameters "
+                        "(default: that limit, 200 N m in Table 1)")
+    p.add_argument("--slew-angle", metavar="RAD", type=finite_float("slew-angle"),
+                   help="slew angle [rad], not 0 (default: the rigid angle of the Eq. 44 torque with "
+                        "amplitude --tau-max in --tf); the open-loop baseline is Eq. 44 scaled to this "
+                        "angle and --tf")
     p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
-                   help="maneuver time [s] (default 10)")
+                   help="maneuver time [s] (default 10); refused, naming the shortest feasible one, "
+                        "if the task needs more torque than --tau-max")
     p.add_argument("--t-end", metavar="S", type=positive_float("t-end"), default=30.0,
                    help="simulated time [s], > tf + 5 (default 30)")
     p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), default=3.0,
@@ -102,9 +109,43 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                         + ") at N spin rates from 0 to the top reference rate and interpolate them on "
                           "the measured rate (default 1: one design point)")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
+    p.add_argument("--payload-range", metavar="MIN,MAX",
+                   help="tip payloads [kg] that LQR, LQG and MPC are designed for (must hold the tip mass "
+                        "of the parameters); runs the plant at MIN, the nominal tip mass and MAX and "
+                        "writes payload.json and payload_report.md")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     p.set_defaults(func=run)
     return p
+
+
+def parse_payload_range(text: str, nominal: float) -> tuple:
+    """``"MIN,MAX"`` -> ``(m_min, m_max)`` [kg], validated (one-line error naming payload-range)."""
+    from controllers.robust import check_payload_range
+    parts = [t.strip() for t in str(text).split(",")]
+    try:
+        values = tuple(float(t) for t in parts)
+    except ValueError:
+        values = None
+    if values is None or len(values) != 2 or not all(math.isfinite(v) for v in values):
+        raise ParameterError(f"payload-range must be two finite numbers MIN,MAX [kg], got {text!r}")
+    return check_payload_range(values, nominal, "payload-range")
+
+
+def _run_payload(args, params, out) -> int:
+    from hubbeam_ctrl.study.payload import payload_comparison, payload_table, write_payload_outputs
+    payload_range = parse_payload_range(args.payload_range, params.m_t)
+    with stdout_to_stderr():
+        pc = payload_comparison(args.plant, args.scenario, args.controllers, payload_range=payload_range,
+                                params=params, tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
+                                w_f=args.wf, slew_angle=args.slew_angle, horizon=args.horizon,
+                                solver=args.solver)
+        write_payload_outputs(pc, out)
+    if args.json:
+        print(json.dumps(json.loads((out / "payload.json").read_text())))
+    else:
+        print(payload_table(pc))
+        print(f"wrote {out}/payload.json, payload_report.md")
+    return 0
 
 
 def run(args) -> int:
@@ -117,6 +158,13 @@ def run(args) -> int:
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     params = params_from_args(args)
+    if args.tau_max is not None and args.tau_max > params.tau_max:
+        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
+                             f"the parameters), got {args.tau_max:g}")
+    if args.slew_angle is not None and args.slew_angle == 0:
+        raise ParameterError("slew-angle must be a finite number != 0 [rad], got 0")
+    if args.slew_angle is not None and args.scenario != "slew":
+        raise ParameterError("slew-angle applies to --scenario slew only")
     plant_params = load_params(args.plant_params) if args.plant_params else None
     if args.plant_tip_mass is not None:
         if not args.plant_tip_mass >= 0:
@@ -133,12 +181,15 @@ def run(args) -> int:
         raise ParameterError(f"out: folder {out.parent} does not exist")
     if out.exists() and not out.is_dir():
         raise ParameterError(f"out: {out} exists and is not a folder")
+    if args.payload_range is not None:
+        return _run_payload(args, params, out)
     t0 = time.perf_counter()
     with stdout_to_stderr():
         comparison = compare(args.plant, args.scenario, args.controllers, params=params,
                              plant_params=plant_params, design_modes=design_modes,
                              plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
-                             t_end=args.t_end, dt=args.dt, w_f=args.wf, horizon=args.horizon,
+                             t_end=args.t_end, dt=args.dt, w_f=args.wf, slew_angle=args.slew_angle,
+                             horizon=args.horizon,
                              solver=args.solver, shaping=args.shaping, schedule=args.schedule,
                              sim_settings=ClosedLoopSettings(range_limit=args.range_limit),
                              progress=not args.json)

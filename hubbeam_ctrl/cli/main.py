@@ -1,4 +1,4 @@
-"""Command-line interface: ``hubbeam modes | critical-speed | simulate | linearize | compare``.
+"""Command-line interface: ``hubbeam modes | critical-speed | simulate | linearize | compare | design``.
 
 Every subcommand accepts the common options ``--tip-mass KG``, ``--tip-position M``,
 ``--n-modes N`` (both families) and ``--params FILE.toml``. Bad input prints one line on
@@ -26,8 +26,8 @@ __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positi
 CRITICAL_SPEED_MODELS = tuple(n for n, spec in MODEL_SPECS.items() if spec.foreshortening != "complete")
 
 #: Subcommands contributed by other modules: module name -> provides add_parser/run.
-EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.sweep",
-                  "hubbeam_ctrl.cli.tune")
+EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.design",
+                  "hubbeam_ctrl.cli.sweep", "hubbeam_ctrl.cli.tune")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -40,7 +40,7 @@ from hubbeam_ctrl.core.fileio import atomic_write, check_regular_file, read_npz,
 from hubbeam_ctrl.linear.statespace import LinearModel, _make_ss
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["save_model", "load_model", "FORMATS"]
+__all__ = ["save_model", "load_model", "save_system", "load_system", "FORMATS"]
 
 #: File extensions understood by :func:`save_model` and :func:`load_model`.
 FORMATS = (".mat", ".npz", ".json")
@@ -48,6 +48,8 @@ FORMATS = (".mat", ".npz", ".json")
 _FORMAT_TAG = "hubbeam-linear-model"
 _VERSION = 1
 _MATRICES = ("A", "B", "C", "D")
+_NAME_LISTS = ("state_names", "input_names", "output_names", "state_units", "input_units",
+               "output_units")
 
 
 def _suffix(path: Path, option: str) -> str:
@@ -78,18 +80,51 @@ def save_model(model: LinearModel, path) -> Path:
     """
     if not isinstance(model, LinearModel):
         raise ParameterError(f"model must be a LinearModel, got {type(model).__name__}")
+    mats = {k: np.array(getattr(model, k), dtype=float) for k in _MATRICES}
+    return save_system(path, mats, model.metadata(), _FORMAT_TAG, _VERSION, model.params)
+
+
+def save_system(path, matrices: dict, metadata: dict, tag: str, version: int,
+                params: Params | None = None) -> Path:
+    """Write a state-space system (matrices plus metadata) in the toolbox's export layout.
+
+    The layout of :func:`save_model`, shared with the controllers' export
+    (:mod:`controllers.export`): ``.mat`` (the matrices, the name and unit lists as column
+    cell arrays, every scalar string or number of ``metadata`` as a variable, ``params``
+    and ``param_units`` as structs, the whole metadata as the JSON string
+    ``hubbeam_metadata``), ``.npz`` (the matrices and a JSON ``metadata``) or ``.json``
+    (``format``, ``version``, the matrices as lists of rows, the metadata keys).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file; the format follows the extension (:data:`FORMATS`).
+    matrices : dict
+        Name -> 2-D float array (e.g. ``A, B, C, D``); stored bit for bit.
+    metadata : dict
+        JSON-ready metadata; must hold ``state_names``, ``input_names`` and
+        ``output_names`` (they give the matrices' shapes when read back).
+    tag : str
+        Value of the JSON ``format`` key (what the file is).
+    version : int
+        Layout version.
+    params : Params, optional
+        Written to ``.mat`` files as the struct ``params`` (``l`` resolved to a number).
+
+    Returns
+    -------
+    Path
+    """
     path = Path(path)
     suffix = _suffix(path, "out")
-    meta = model.metadata()
-    mats = {k: np.array(getattr(model, k), dtype=float) for k in _MATRICES}
     if suffix == ".npz":
-        return write_npz(path, mats, meta)
+        return write_npz(path, matrices, metadata)
     if suffix == ".mat":
-        write = lambda tmp: _write_mat(tmp, mats, meta, model.params)
+        write = lambda tmp: _write_mat(tmp, matrices, metadata, params)
     else:
-        doc = {"format": _FORMAT_TAG, "version": _VERSION}
-        doc.update({k: v.tolist() for k, v in mats.items()})
-        doc.update(meta)
+        doc = {"format": tag, "version": version}
+        doc.update({k: v.tolist() for k, v in matrices.items()})
+        doc.update(metadata)
         text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
         write = lambda tmp: Path(tmp).write_text(text, encoding="utf-8")
     return atomic_write(path, write)
@@ -102,19 +137,18 @@ def _cell(strings) -> np.ndarray:
     return cell
 
 
-def _write_mat(tmp, mats, meta, params: Params):
+def _write_mat(tmp, mats, meta, params: Params | None):
     from scipy.io import savemat
     data = dict(mats)
-    for key in ("state_names", "input_names", "output_names", "state_units", "input_units",
-                "output_units"):
-        data[key] = _cell(meta[key])
-    data["dt"] = float(meta["dt"])
-    data["spin_rad_s"] = float(meta["spin_rad_s"])
-    for key in ("model", "name", "reduction", "hub"):
-        data[key] = meta[key]
-    data["params"] = {k: float(params.tip_position if v is None else v)   # l resolved
-                      for k, v in params.to_dict().items()}
-    data["param_units"] = dict(meta["param_units"])
+    for key, value in meta.items():
+        if key in _NAME_LISTS:
+            data[key] = _cell(value)
+        elif isinstance(value, (str, int, float)) and not isinstance(value, bool):
+            data[key] = float(value) if isinstance(value, (int, float)) else value
+    if params is not None:
+        data["params"] = {k: float(params.tip_position if v is None else v)   # l resolved
+                          for k, v in params.to_dict().items()}
+        data["param_units"] = dict(Params.units())
     data["hubbeam_metadata"] = json.dumps(meta)
     with open(tmp, "wb") as fh:
         savemat(fh, data, format="5", oned_as="column")
@@ -147,35 +181,63 @@ def load_model(path) -> LinearModel:
     -------
     LinearModel
     """
+    mats, meta = load_system(path, _MATRICES, _FORMAT_TAG, "hubbeam model file")
+    return _from_parts(mats, meta, Path(path))
+
+
+def load_system(path, names=_MATRICES, tag: str = _FORMAT_TAG, what: str = "hubbeam model file"):
+    """Read the matrices and metadata of a file written by :func:`save_system`.
+
+    Parameters
+    ----------
+    path : str or Path
+    names : sequence of str
+        The four matrix names, in the order ``A, B, C, D`` (e.g. ``("Ac", "Bc", "Cc", "Dc")``).
+    tag : str
+        Expected JSON ``format`` tag.
+    what : str
+        What the file should be, for error messages.
+
+    Returns
+    -------
+    matrices : dict
+        Name -> float array of the shape the name lists give (empty ones included).
+    metadata : dict
+
+    Raises
+    ------
+    ParameterError
+        One line naming the file when it is missing, unreadable or not such a file.
+    """
     path = Path(path)
     suffix = _suffix(path, "path")
     check_regular_file(path, "path")
     if suffix == ".npz":
-        mats, meta = read_npz(path, "path", "hubbeam model file")
+        mats, meta = read_npz(path, "path", what)
     try:
         if suffix == ".mat":
             from scipy.io import loadmat
             data = loadmat(path)
             meta = json.loads(str(np.asarray(data["hubbeam_metadata"]).ravel()[0]))
-            mats = {k: data[k] for k in _MATRICES}
+            mats = {k: data[k] for k in names}
         elif suffix == ".npz":
-            mats = {k: mats[k] for k in _MATRICES}
+            mats = {k: mats[k] for k in names}
         else:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-            if doc.get("format") != _FORMAT_TAG:
+            meta = json.loads(path.read_text(encoding="utf-8"))
+            if meta.get("format") != tag:
                 raise KeyError("format")
-            mats = {k: np.array(doc[k], dtype=float).reshape(_json_shape(doc, k))
-                    for k in _MATRICES}
-            meta = doc
-    except (KeyError, ValueError, OSError, IndexError) as exc:
-        raise ParameterError(f"path: {path} is not a hubbeam model file "
+            mats = {k: np.array(meta[k], dtype=float) for k in names}
+        shapes = _shapes(meta, names)
+        mats = {k: np.asarray(v, dtype=float).reshape(shapes[k]) for k, v in mats.items()}
+    except (KeyError, ValueError, OSError, IndexError, TypeError, AttributeError) as exc:
+        raise ParameterError(f"path: {path} is not a {what} "
                              f"({type(exc).__name__}: {exc})") from None
     except Exception as exc:   # scipy/numpy readers raise assorted errors on garbage
         raise ParameterError(f"path: cannot read {path}: {exc}") from None
-    return _from_parts(mats, meta, path)
+    return mats, meta
 
 
-def _json_shape(doc: dict, key: str) -> tuple:
-    """Shape of a matrix stored as a list of rows (keeps empty dimensions right)."""
-    n, m, p = len(doc["state_names"]), len(doc["input_names"]), len(doc["output_names"])
-    return {"A": (n, n), "B": (n, m), "C": (p, n), "D": (p, m)}[key]
+def _shapes(meta: dict, names) -> dict:
+    """Shapes of ``A, B, C, D`` (under ``names``) from the name lists (keeps empty dimensions)."""
+    n, m, p = len(meta["state_names"]), len(meta["input_names"]), len(meta["output_names"])
+    return dict(zip(names, ((n, n), (n, m), (p, n), (p, m))))

@@ -51,6 +51,10 @@ class Params(Settings):
     damping_ratio: float = setting(0.0, lo=0.0, hi=1.0, hi_open=True,
                                    doc="Modal damping ratio zeta of the non-rotating clamped modes "
                                        "(0: undamped, as in the paper).")
+    tau_max: float = setting(200.0, unit="N m", lo=0.0, lo_open=True,
+                             doc="Torque limit of the hub motor (default: the paper's Eq. 44 amplitude). "
+                                 "Every controller saturates its output there, or at a smaller limit its "
+                                 "settings give; a larger one is an error.")
 
     # -- derived quantities -------------------------------------------------
     @property

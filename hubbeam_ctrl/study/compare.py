@@ -30,8 +30,11 @@ import time
 from dataclasses import dataclass, field
 
 from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
-from hubbeam_ctrl.core.errors import ParameterError
+from controllers.analysis import loop_margins
+from controllers.scaling import Tolerances
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
+from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
@@ -91,6 +94,9 @@ class Comparison:
         Controller name -> plot style ``{"color", "label"}`` (from the registry).
     targets : tuple of str
         The controllers held to the slew's targets (the others are only reported).
+    margins : dict
+        Controller name -> :class:`controllers.analysis.LoopMargins` at the plant input on
+        its design model, for the linear controllers (PD, LQR, LQG).
     plant : EvaluationPlant
         The plant the controllers were judged on, and why it has its modes.
     """
@@ -103,6 +109,7 @@ class Comparison:
     styles: dict = field(default_factory=dict)
     targets: tuple = ()
     plant: EvaluationPlant | None = None
+    margins: dict = field(default_factory=dict)
 
 
 def _design_modes(design_modes, design: Params) -> int:
@@ -113,13 +120,14 @@ def _design_modes(design_modes, design: Params) -> int:
     return design_modes
 
 
-def compare(plant: str = "foam", scenario: str = "slew", controllers=None, *,
+def compare(plant: str = "foam", scenario="slew", controllers=None, *,
             params: Params | None = None, design_params: Params | None = None,
-            plant_params: Params | None = None, tau_max: float = 200.0, t_f: float = 10.0,
-            t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0,
+            plant_params: Params | None = None, tau_max: float | None = None, t_f: float = 10.0,
+            t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
             design_modes: int | None = None, plant_modes: int | None = None, horizon: int = 50,
             solver: str = "daqp", settings: dict | None = None,
             sim_settings: ClosedLoopSettings | None = None, shaping=None, schedule: int = 1,
+            tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
             progress: bool = False) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
@@ -133,8 +141,9 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=None, *,
     plant : {"foam", "cfoam"}
         Nonlinear plant (:data:`~hubbeam_ctrl.study.scenarios.PLANTS`; default FOAM: it tracks
         an exact beam more closely than CFOAM at large deflection, see docs/physics.md).
-    scenario : str
-        A registered scenario (``slew``, ``spinup``...).
+    scenario : str or Slew or SpinUp
+        A registered scenario (``slew``, ``spinup``...) or a task in physical terms
+        (:mod:`hubbeam_ctrl.study.tasks`; see :func:`make_scenario`).
     controllers : str or sequence of str, optional
         Registered controllers (``openloop, pd, lqr, lqg, mpc``...; a comma-separated string
         is accepted). Default: those registered as default.
@@ -142,12 +151,14 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=None, *,
         Parameters of both the design and the plant (default Table 1).
     design_params, plant_params : Params, optional
         Override ``params`` for the design model or the plant.
-    tau_max : float
-        Torque budget [N m].
+    tau_max : float, optional
+        Torque budget [N m], at most the motor's ``Params.tau_max`` (default: that limit).
     t_f, t_end, dt : float
         Maneuver time, simulated time and sample time [s].
     w_f : float
         Spin-up final rate [rad/s].
+    slew_angle : float, optional
+        Slew angle [rad] (default: the Eq. 44 angle of ``tau_max`` and ``t_f``).
     design_modes : int, optional
         Transverse modes of the design model, 1..20 (default ``design_params.n_transverse``).
     plant_modes : int, optional
@@ -160,7 +171,8 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=None, *,
         Controller name -> settings object, replacing the defaults
         (``SettingsClass.for_scenario(scenario, horizon=..., solver=...)``).
     sim_settings : ClosedLoopSettings, optional
-        Plant integration and sensor settings (its ``dt`` is replaced by ``dt``).
+        Plant integration and sensor settings (its ``dt`` is replaced by ``dt``); default:
+        the sensor noise of the task (``scenario.sensors``, relative to its signals' ranges).
     shaping : {"zv", "zvd", "ei"} or Shaper, optional
         Filter the reference of the controllers that track it (pd, lqr, lqg, mpc: see
         :attr:`controllers.ControllerSpec.tracks_reference`) through this input shaper,
@@ -170,6 +182,16 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=None, *,
         lqg, mpc), evenly spaced from 0 to the reference's top rate
         (:meth:`controllers.DesignSchedule.for_scenario`); 1: a single design at the
         scenario's design spin.
+    tolerances : controllers.scaling.Tolerances, optional
+        The dimensionless tolerances that scale the default weights, noise levels, settling
+        bands, residual window and reference shaping to the beam and the task (see
+        :mod:`controllers.scaling`; default: :func:`controllers.scaling.default_tolerances`).
+    payload_range : tuple of float, optional
+        ``(m_min, m_max)`` [kg] that LQR, LQG and MPC are designed for
+        (:func:`hubbeam_ctrl.study.payload.range_designs`); must hold the design's ``m_t``.
+    designs : dict, optional
+        Controller name -> :class:`controllers.robust.RangeDesign` (design model and
+        settings) chosen beforehand.
     progress : bool
         Print one line per controller on stderr.
 
@@ -182,7 +204,7 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=None, *,
     base = params if params is not None else Params()
     design_p = design_params if design_params is not None else base
     sc = make_scenario(scenario, plant=plant, params=design_p, tau_max=tau_max, t_f=t_f,
-                       t_end=t_end, dt=dt, w_f=w_f)
+                       t_end=t_end, dt=dt, w_f=w_f, slew_angle=slew_angle, tolerances=tolerances)
     m = _design_modes(design_modes, sc.params)
     ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
                           plant_params=plant_params if plant_params is not None else params,
@@ -194,21 +216,34 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=None, *,
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
     shaper = None if shaping is None else as_shaper(design, shaping)
     sched = _design_schedule(sc, schedule, m)
-    sim = sim_settings or ClosedLoopSettings()
+    sim = sim_settings or ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
     ref = sc.reference
-    results, metrics = {}, {}
+    designs = dict(designs or {})
+    if payload_range is not None:
+        from hubbeam_ctrl.study.payload import range_designs
+        designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
+                                   solver=solver, sim=sim, plant_modes=plant_modes), **designs}
+    results, metrics, margins = {}, {}, {}
     for name in names:
         spec = CONTROLLERS[name]
         st = settings.get(name) or spec.settings.for_scenario(sc, horizon=horizon, solver=solver)
-        ctrl = make_controller(name, design, st, ref, shaping=shaper if spec.tracks_reference else None,
+        d = designs[name].design if name in designs else design
+        st = designs[name].settings if name in designs else st
+        ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=sched if spec.scheduled else None)
+        margins[name] = _margins(ctrl)
         res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res
-        metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max)
+        metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
         metrics[name]["scenario"] = sc.name
+        if margins[name] is not None:
+            lm = margins[name]
+            metrics[name].update(disk_margin=lm.disk_margin, gain_margin_upper=lm.gain_margin_upper,
+                                 gain_margin_lower=lm.gain_margin_lower, phase_margin_deg=lm.phase_margin_deg,
+                                 delay_margin_s=lm.delay_margin_s)
         if progress:
             mm = metrics[name]
             print(f"compare {sc.plant}/{sc.name}: {name:8s} {mm['verdict']:11s} residual "
@@ -221,7 +256,17 @@ def compare(plant: str = "foam", scenario: str = "slew", controllers=None, *,
                                               if base_res and math.isfinite(base_res) else float("nan"))
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
-                      targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev)
+                      targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,
+                      margins={n: lm for n, lm in margins.items() if lm is not None})
+
+
+def _margins(ctrl):
+    """Loop margins of a linear controller on its design model (None for the others)."""
+    try:
+        ctrl.feedback_matrices()
+    except HubbeamError:
+        return None
+    return loop_margins(ctrl)
 
 
 def run_compare(plant: str = "foam", scenario: str = "slew", controllers=None,

@@ -2,21 +2,33 @@
 
 Scenarios are registered once in :data:`SCENARIOS` with :func:`register_scenario`; the
 comparison and the CLI (``--scenario`` choices and help) read the registry. Built in:
-``slew`` (rest-to-rest by the Eq. 44 rigid angle) and ``spinup`` (the corrected Eq. 43
+``slew`` (rest-to-rest by ``slew_angle``, by default the Eq. 44 rigid angle) and ``spinup`` (the corrected Eq. 43
 profile, then hold); their builders' docstrings say more.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from controllers import slew_reference, spinup_reference
+from controllers import DesignModel, slew_reference, spinup_reference
+from controllers.scaling import (
+    Tolerances,
+    default_tolerances,
+    first_mode,
+    reference_shaping,
+    scaled_defaults,
+    sensor_noise,
+    settling_bands,
+    task_scales,
+)
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.evaluation import PLANT_MODELS
+from hubbeam_ctrl.study.tasks import Slew, SpinUp
 
 __all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
 
@@ -31,10 +43,12 @@ def register_scenario(name: str):
 
     The builder is called by :func:`make_scenario` with the validated keyword arguments
     ``params``, ``tau_max``, ``t_f``, ``dt``, ``t_ref_end`` (last reference sample [s]),
-    ``w_f`` and ``flatness`` (it takes those it needs and ``**_`` for the rest) and returns
-    a dict with ``design_spin`` [rad/s], ``target``, ``target_key`` (its name with unit in
-    summaries), ``baseline`` (the open-loop profile compared against: ``"eq44"`` or
-    ``"feedforward"``), ``reference`` and ``description``.
+    ``w_f``, ``flatness`` and ``task`` (the task in physical terms,
+    :mod:`hubbeam_ctrl.study.tasks`, already checked against ``tau_max``; None for a scenario
+    without one) (it takes those it needs and ``**_`` for the rest) and returns a dict with
+    ``design_spin`` [rad/s], ``target``, ``target_key`` (its name with unit in summaries),
+    ``baseline`` (the open-loop profile compared against: ``"eq44"`` or ``"feedforward"``),
+    ``reference``, ``description`` and optionally ``baseline_tau_m`` (the Eq. 44 amplitude).
 
     Parameters
     ----------
@@ -91,6 +105,23 @@ class Scenario:
     baseline : {"eq44", "feedforward"}
         The open-loop profile the scenario compares against
         (:class:`controllers.OpenLoopSettings`).
+    baseline_tau_m : float or None
+        Amplitude of the Eq. 44 baseline [N m]: ``2 pi J_total Theta / t_f^2`` for a slew
+        (``tau_max`` itself for the Eq. 44 angle); None without an Eq. 44 baseline.
+    task : Slew or SpinUp or None
+        The task in physical terms (:mod:`hubbeam_ctrl.study.tasks`).
+    tolerances : controllers.scaling.Tolerances
+        The dimensionless tolerances that made the defaults below.
+    scales : controllers.scaling.TaskScales or None
+        The task's scales (angle, time, L, first mode, torque, signal ranges).
+    defaults : dict
+        Controller settings by field name from the scales (weights, Kalman noise, PD
+        bandwidth; read by ``ControllerSettings.for_scenario``).
+    sensors : dict
+        Sensor noise levels of the evaluation (fields of
+        :class:`~hubbeam_ctrl.plant.sensors.SensorSettings`).
+    bands : dict
+        ``settle_angle`` [rad], ``settle_tip`` [m] and ``residual_delay`` [s] of the metrics.
     """
 
     name: str
@@ -106,6 +137,13 @@ class Scenario:
     description: str
     target_key: str = "target"
     baseline: str = "feedforward"
+    baseline_tau_m: float | None = None
+    task: object = None
+    tolerances: object = None
+    scales: object = None
+    defaults: dict = None
+    sensors: dict = None
+    bands: dict = None
 
     def to_dict(self) -> dict:
         """Plain-data summary (JSON-ready)."""
@@ -114,86 +152,186 @@ class Scenario:
                 "design_spin_rad_s": self.design_spin,
                 self.target_key: self.target,
                 "reference": self.reference.description, "params": self.params.to_dict(),
-                "description": self.description}
+                "baseline_tau_m_nm": self.baseline_tau_m, "description": self.description,
+                "scales": self.scales.to_dict() if self.scales is not None else None,
+                "tolerances": self.tolerances.to_dict() if self.tolerances is not None else None,
+                "sensors": self.sensors, "bands": self.bands}
 
 
-def make_scenario(scenario: str = "slew", *, plant: str = "foam", params: Params | None = None,
-                  tau_max: float = 200.0, t_f: float = 10.0, t_end: float = 30.0,
-                  dt: float = 0.01, w_f: float = 3.0, flatness: float = 3.0,
-                  preview_s: float = 2.0) -> Scenario:
+def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None = None,
+                  tau_max: float | None = None, t_f: float = 10.0, t_end: float = 30.0,
+                  dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
+                  flatness: float | None = None, smoothing: float | None = None,
+                  tolerances: Tolerances | None = None, preview_s: float = 2.0) -> Scenario:
     """Build a :class:`Scenario` (validating every setting).
 
     Parameters
     ----------
-    scenario : str
-        A registered scenario (:data:`SCENARIOS`: ``slew``, ``spinup``).
+    scenario : str or Slew or SpinUp
+        A registered scenario (:data:`SCENARIOS`: ``slew``, ``spinup``), or a task in physical
+        terms (:mod:`hubbeam_ctrl.study.tasks`) that gives the angle or rate and the duration
+        (``t_f``, ``w_f`` and ``slew_angle`` are then not used).
     plant : {"foam", "cfoam"}
     params : Params, optional
         Default: Table 1 (m_t = 0.1 kg at the tip).
-    tau_max : float
-        Torque budget [N m], > 0 (the slew's Eq. 44 amplitude).
+    tau_max : float, optional
+        Torque budget [N m], 0 < tau_max <= ``params.tau_max`` (default: the motor's
+        ``params.tau_max``). Without ``slew_angle`` the slew turns by the rigid angle of
+        Eq. 44 with amplitude ``tau_max``.
     t_f : float
         Maneuver time [s], > 0.
     t_end : float
-        Simulated time [s]; must exceed ``t_f + 5`` (the residual window).
+        Simulated time [s]; must exceed the start of the residual window,
+        ``t_f (1 + tolerances.residual_delay)`` (15 s for the default 10 s slew).
     dt : float
         Controller sample time [s], > 0.
     w_f : float
         Spin-up final rate [rad/s] (spinup only).
-    flatness : float
-        Shape of the slew reference (see :func:`controllers.slew_reference`).
+    slew_angle : float, optional
+        Slew angle [rad], finite and not 0 (slew only); default: the Eq. 44 angle
+        ``tau_max t_f^2 / (2 pi J_total)``.
+    flatness, smoothing : float, optional
+        Shape [-] and acceleration smoothing [s] of the slew reference (see
+        :func:`controllers.slew_reference`); default: from the beam and the task
+        (:func:`controllers.scaling.reference_shaping`).
+    tolerances : controllers.scaling.Tolerances, optional
+        Dimensionless tolerances that scale the defaults (weights, noise levels, settling
+        bands, residual window, reference shaping) to the beam and the task.
     preview_s : float
         Reference tabulated this long beyond ``t_end`` (MPC preview) [s].
 
     Returns
     -------
     Scenario
+
+    Raises
+    ------
+    ParameterError
+        Among others when the task needs more torque than ``tau_max``: the message names
+        the shortest feasible ``tf`` (``duration`` for a task object).
     """
-    if scenario not in SCENARIOS:
-        raise ParameterError(f"scenario must be one of {', '.join(SCENARIOS)}, got {scenario!r}")
+    if isinstance(scenario, (Slew, SpinUp)):
+        name, task, tf_name = scenario.name, scenario, "duration"
+        t_f = task.duration
+    elif isinstance(scenario, str) and scenario in SCENARIOS:
+        name, task, tf_name = scenario, None, "tf"
+    else:
+        raise ParameterError(f"scenario must be one of {', '.join(SCENARIOS)} or a Slew or SpinUp "
+                             f"task, got {scenario!r}")
     if plant not in PLANTS:
         raise ParameterError(f"plant must be one of {', '.join(PLANTS)}, got {plant!r}")
     params = params if params is not None else Params()
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
-    tau_max = _number("tau_max", tau_max, "N m")
+    tau_max = _budget(tau_max, params)
     t_f = _number("tf", t_f, "s")
     t_end = _number("t_end", t_end, "s")
     dt = _number("dt", dt, "s")
-    if t_end <= t_f + 5.0:
-        raise ParameterError(f"t_end must exceed tf + 5 s = {t_f + 5:g} s (the residual-vibration "
-                             f"window starts there), got {t_end:g} s")
+    tol = tolerances if tolerances is not None else default_tolerances(
+        task.name if task is not None else name, params.J_h / params.total_inertia)
+    if not isinstance(tol, Tolerances):
+        raise ParameterError(f"tolerances must be a Tolerances, got {type(tol).__name__}")
+    start = t_f * (1 + tol.residual_delay)
+    if t_end <= start:
+        raise ParameterError(f"t_end must exceed tf + {tol.residual_delay:g} tf = {start:g} s (the "
+                             f"residual-vibration window starts there), got {t_end:g} s")
     if dt > t_f / 10:
         raise ParameterError(f"dt must be at most tf/10 = {t_f / 10:g} s, got {dt:g} s")
-    parts = SCENARIOS[scenario](params=params, tau_max=tau_max, t_f=t_f, dt=dt,
-                                t_ref_end=t_end + preview_s, w_f=w_f, flatness=flatness)
-    return Scenario(scenario, plant, params, tau_max, t_f, t_end, dt, **parts)
+    J = params.total_inertia
+    eq44 = task is None and name == "slew" and slew_angle is None
+    if task is None:
+        task = _task(name, tau_max, t_f, w_f, slew_angle, J)
+    if task is not None:
+        task.check_feasible(J, tau_max, tf_name)
+    parts = SCENARIOS[name](params=params, tau_max=tau_max, t_f=t_f, dt=dt, t_ref_end=t_end + preview_s,
+                            w_f=w_f, flatness=flatness, smoothing=smoothing, tolerances=tol, task=task,
+                            eq44=eq44)
+    return Scenario(name, plant, params, tau_max, t_f, t_end, dt, task=task, tolerances=tol,
+                    **parts, **_scaled(params, tau_max, t_f, dt, task, parts, tol))
+
+
+@functools.lru_cache(maxsize=8)
+def _design_point(params: Params, spin: float, dt: float) -> DesignModel:
+    """The design model the scales are read from (cached: the comparison builds it again)."""
+    return DesignModel.build(params, spin, dt)
+
+
+def _scaled(params: Params, tau_max: float, t_f: float, dt: float, task, parts: dict, tol: Tolerances) -> dict:
+    """Scales, scaled controller defaults, sensor noise and metric bands of a scenario."""
+    if task is None:                   # a registered scenario without a task: the paper's numbers
+        return {"scales": None, "defaults": {}, "sensors": {},
+                "bands": {"settle_angle": 1e-3, "settle_tip": 1e-3, "residual_delay": 5.0}}
+    angle = task.angle if task.name == "slew" else abs(task.rate) * t_f / 2
+    if angle == 0.0:                   # a spin-up to rest: scale by one radian
+        angle = 1.0
+    design = _design_point(params, parts["design_spin"], dt)
+    scales = task_scales(design, parts["reference"], angle, t_f, tau_max)
+    return {"scales": scales, "defaults": scaled_defaults(scales, tol), "sensors": sensor_noise(scales, tol),
+            "bands": settling_bands(scales, tol)}
+
+
+def _budget(tau_max, params: Params) -> float:
+    """The scenario's torque budget: ``tau_max`` or the motor's, never above the motor's [N m]."""
+    if tau_max is None:
+        return params.tau_max
+    tau_max = _number("tau_max", tau_max, "N m")
+    if tau_max > params.tau_max:
+        raise ParameterError(f"tau_max must be in (0, {params.tau_max:g}] N m (the motor's "
+                             f"Params.tau_max), got {tau_max:g}")
+    return tau_max
+
+
+def _task(name: str, tau_max: float, t_f: float, w_f, slew_angle, inertia: float):
+    """The task of a built-in scenario from its options (None for other registered scenarios)."""
+    if slew_angle is not None and name != "slew":
+        raise ParameterError("slew_angle applies to the slew scenario only")
+    if name == "spinup":
+        return SpinUp(_number("wf", w_f, "rad/s", positive=False), t_f)
+    if name != "slew":
+        return None
+    if slew_angle is None:
+        return Slew.eq44(tau_max, t_f, inertia)
+    angle = _number("slew_angle", slew_angle, "rad", positive=False)
+    if angle == 0.0:
+        raise ParameterError("slew_angle must be a finite number != 0 [rad], got 0")
+    return Slew(angle, t_f)
 
 
 @register_scenario("slew")
-def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness, **_) -> dict:
-    """Rest-to-rest slew by the rigid-body angle of Eq. 44 in tf, with its budget tau_max.
+def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None, tolerances=None, task=None,
+          eq44=False, **_) -> dict:
+    """Rest-to-rest slew by ``task.angle`` in tf (default: the rigid-body angle of Eq. 44).
 
-    ``Theta = tau_m t_f^2 / (2 pi J_total)`` with ``tau_m = tau_max``. The baseline is the
-    open-loop Eq. 44 torque itself; the feedback controllers follow a smooth reference
-    (:func:`controllers.slew_reference`) designed on SFOAM linearised at rest.
+    Without an angle, ``Theta = tau_m t_f^2 / (2 pi J_total)`` with ``tau_m = tau_max``. The
+    baseline is the open-loop Eq. 44 torque scaled to the angle and time,
+    ``tau_m = 2 pi J_total Theta / t_f^2``; the feedback controllers follow a smooth
+    reference (:func:`controllers.slew_reference`, shaped for the beam and the task by
+    :func:`controllers.scaling.reference_shaping` unless ``flatness``/``smoothing`` are
+    given) designed on SFOAM linearised at rest.
     """
     J = params.total_inertia
-    theta = tau_max * t_f ** 2 / (2 * math.pi * J)
-    ref = slew_reference(theta, t_f, J, tau_max, dt, t_ref_end, flatness=flatness)
+    if task is None:                       # called without a task: the Eq. 44 angle
+        task, eq44 = Slew.eq44(tau_max, t_f, J), True
+    theta = task.angle
+    shape = reference_shaping(theta, t_f, J, tau_max, first_mode(_design_point(params, 0.0, dt)),
+                              tolerances or Tolerances())
+    shape = {"flatness": shape["flatness"] if flatness is None else flatness,
+             "smoothing": shape["smoothing"] if smoothing is None else smoothing}
+    ref = slew_reference(theta, t_f, J, tau_max, dt, t_ref_end, **shape)
+    text = (f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
+            f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)") if eq44 else task.describe(J)
     return dict(design_spin=0.0, target=theta, target_key="slew_angle_rad", baseline="eq44", reference=ref,
-                description=f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
-                            f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)")
+                baseline_tau_m=tau_max if eq44 else task.baseline_torque(J), description=text)
 
 
 @register_scenario("spinup")
-def _spinup(*, params, tau_max, t_f, dt, t_ref_end, w_f, **_) -> dict:
-    """Spin-up to wf along the corrected Eq. 43 profile in tf, then hold.
+def _spinup(*, params, tau_max, t_f, dt, t_ref_end, w_f=3.0, task=None, **_) -> dict:
+    """Spin-up to ``task.rate`` (default wf) along the corrected Eq. 43 profile in tf, then hold.
 
     The default ``w_f`` (3 rad/s) is above TLAM's critical speed; the design model is
     linearised at ``w_f``. The baseline is the rigid-body feedforward torque alone.
     """
-    w_f = _number("wf", w_f, "rad/s", positive=False)
+    w_f = task.rate if task is not None else _number("wf", w_f, "rad/s", positive=False)
     ref = spinup_reference(w_f, t_f, params.total_inertia, dt, t_ref_end, tau_max=tau_max)
     return dict(design_spin=w_f, target=w_f, target_key="final_rate_rad_s", baseline="feedforward",
                 reference=ref,

@@ -155,7 +155,8 @@ def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
             "plant": cache.get(pkey, lambda: evaluation_plant(spec.plant, design_p, spec.dt, m, spin,
                                                               plant_params=plant_p,
                                                               plant_modes=spec.plant_modes)),
-            "sim": ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(seed=int(case.get("seed", 0))))}
+            "sim": ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(**(sc.sensors or {}),
+                                                                         seed=int(case.get("seed", 0))))}
 
 
 def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> dict:
@@ -166,7 +167,7 @@ def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> 
         name, ctx["design"], controller_settings(name, table, sc, spec.horizon, spec.solver), sc.reference))
     res = simulate_closed_loop(ctx["plant"], ctrl, sc.t_end, settings=ctx["sim"],
                                reference=(sc.reference.theta_at, sc.reference.theta_dot_at))
-    row = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max)
+    row = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **(sc.bands or {}))
     row.update(scenario=sc.name, verdict=row.get("verdict"), error="", sim_wall_s=row["wall_s"])
     return row
 

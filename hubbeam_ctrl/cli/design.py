@@ -1,0 +1,125 @@
+"""``hubbeam design``: design a linear controller on SFOAM and save it as a state-space system.
+
+Example::
+
+    hubbeam design --params arm.toml --controller lqg --slew-angle 1.5708 --tf 1.2 --out lqg.mat
+
+The controller is designed for a task (a slew by ``--slew-angle`` in ``--tf``, or a spin-up to
+``--wf``) with the defaults that scale with the beam and the task (:mod:`controllers.scaling`),
+optionally for a payload range (``--payload-range MIN,MAX``, :mod:`hubbeam_ctrl.study.payload`).
+The file holds ``Ac, Bc, Cc, Dc``, the sample time, the signal names and units and the design
+(see :mod:`controllers.export`); the command prints the loop margins at the plant input on
+the design model (:func:`controllers.analysis.loop_margins`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+#: The controllers that are linear systems (MPC and the open loop are not).
+LINEAR_CONTROLLERS = ("pd", "lqr", "lqg")
+
+
+def add_parser(subparsers, common) -> None:
+    """Add the ``design`` subcommand (``common`` holds the system-parameter options)."""
+    from hubbeam_ctrl.cli.main import finite_float, positive_float
+
+    p = subparsers.add_parser(
+        "design", parents=[common], help="design a linear controller and save it (.mat/.npz/.json)",
+        description=("Design PD, LQR or LQG on the sampled SFOAM model linearised at --spin and "
+                     "save it as a discrete state-space system (Ac, Bc, Cc, Dc, dt, signal names "
+                     "and units): input the measured deviation from the reference, output the "
+                     "torque beyond the feedforward [N m]. Prints the closed-loop spectral radius "
+                     "and the disk, gain, phase and delay margins at the plant input on the "
+                     "design model."))
+    p.add_argument("--controller", choices=LINEAR_CONTROLLERS, required=True,
+                   help="linear controller to design")
+    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
+                   help="the task: slew (default, design at rest) or spinup (design at --wf)")
+    p.add_argument("--slew-angle", metavar="RAD", type=finite_float("slew-angle"),
+                   help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
+    p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
+                   help="maneuver time [s] (default 10)")
+    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), default=3.0,
+                   help="spin-up final rate [rad/s] (default 3)")
+    p.add_argument("--payload-range", metavar="MIN,MAX",
+                   help="tip payloads [kg] to design LQR or LQG for (must hold the parameters' tip mass)")
+    p.add_argument("--dt", metavar="S", type=positive_float("dt"), default=0.01,
+                   help="sample time [s] (default 0.01)")
+    p.add_argument("--design-modes", metavar="N", type=int,
+                   help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
+    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
+                   help="torque budget [N m], at most the motor's tau_max (default: that)")
+    p.add_argument("--out", metavar="FILE.mat|FILE.npz|FILE.json", required=True,
+                   help="output file; the format follows the extension")
+    p.add_argument("--json", action="store_true", help="print a JSON summary with the margins")
+    p.set_defaults(func=run)
+
+
+def _finite(value):
+    """``value`` with every non-finite float replaced by None (strict JSON)."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def run(args) -> int:
+    """Run ``hubbeam design``; bad input raises :class:`ParameterError`."""
+    from pathlib import Path
+
+    from controllers import CONTROLLERS, DesignModel, make_controller
+    from controllers.analysis import loop_margins
+    from controllers.export import FORMATS, save_controller
+    from hubbeam_ctrl.cli.compare import parse_payload_range
+    from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.payload import range_designs
+    from hubbeam_ctrl.study.scenarios import make_scenario
+
+    out = Path(args.out)
+    if out.suffix.lower() not in FORMATS:
+        raise ParameterError(f"out must end in {', '.join(FORMATS)}, got {args.out!r}")
+    check_output_folder("out", out)
+    params = params_from_args(args)
+    if args.tau_max is not None and args.tau_max > params.tau_max:
+        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
+                             f"the parameters), got {args.tau_max:g}")
+    modes = args.design_modes if args.design_modes is not None else params.n_transverse
+    if not 1 <= modes <= 20:
+        raise ParameterError(f"design-modes must be an integer in 1..20, got {modes}")
+    if args.slew_angle is not None and (args.slew_angle == 0 or args.scenario != "slew"):
+        raise ParameterError("slew-angle must be a finite number != 0 [rad], for --scenario slew only")
+    sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
+                       t_end=3 * args.tf, dt=args.dt, w_f=args.wf, slew_angle=args.slew_angle)
+    design = DesignModel.build(params, sc.design_spin, args.dt, modes)
+    settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
+    if args.payload_range is not None:
+        rng = parse_payload_range(args.payload_range, params.m_t)
+        if args.controller in ("lqr", "lqg"):
+            chosen = range_designs([args.controller], sc, design, rng)[args.controller]
+            design, settings = chosen.design, chosen.settings
+    ctrl = make_controller(args.controller, design, settings, sc.reference)
+    save_controller(ctrl, out)
+    m = loop_margins(ctrl)
+    if args.json:
+        summary = {"controller": ctrl.name, "n_states": int(ctrl.to_statespace().nstates),
+                   "inputs": list(ctrl.to_statespace().input_labels), "dt": ctrl.dt,
+                   "tau_max_nm": ctrl.tau_max, "margins": m.to_dict(), "out": str(out)}
+        print(json.dumps(_finite(summary)))
+        return 0
+    sys = ctrl.to_statespace()
+    print(f"{ctrl.name.upper()} on SFOAM ({modes} modes, m_t = {design.params.m_t:g} kg) at spin "
+          f"{sc.design_spin:g} rad/s, dt = {args.dt:g} s, for {sc.description}: "
+          f"{sys.nstates} states, inputs {', '.join(sys.input_labels)}, output tau; "
+          f"|tau| <= {ctrl.tau_max:g} N m")
+    print(f"  closed loop on the design model: {'stable' if m.stable else 'UNSTABLE'} "
+          f"(spectral radius {m.spectral_radius:.6f})")
+    print(f"  disk margin {m.disk_margin:.3f} (gain {m.disk_gain_margin[0]:.3f}..{m.disk_gain_margin[1]:.3f}, "
+          f"phase {m.disk_phase_margin_deg:.1f} deg); gain margins {m.gain_margin_lower:.3g} / "
+          f"{m.gain_margin_upper:.3g}; phase margin {m.phase_margin_deg:.1f} deg at "
+          f"{m.crossover_rad_s:.4g} rad/s; delay margin {m.delay_margin_s * 1e3:.3g} ms")
+    print(f"  saved to {out}")
+    return 0

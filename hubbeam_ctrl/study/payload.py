@@ -1,0 +1,277 @@
+"""Designs for a payload range and the report over it (``hubbeam compare --payload-range``).
+
+:func:`range_designs` gives LQR, LQG and MPC the design chosen for a payload range
+(:func:`controllers.robust.design_for_range`: the nominal design verified and retuned on
+linear models over the range); :func:`payload_comparison` runs every controller on the
+nonlinear plant at ``m_min``, the nominal payload and ``m_max`` (or any payloads asked for)
+and judges each run against the open loop on the same plant, with a verdict.
+
+Example
+-------
+>>> from hubbeam_ctrl.study import payload_comparison, payload_table
+>>> pc = payload_comparison("foam", "slew", "openloop,lqr", payload_range=(0.0, 0.5))  # doctest: +SKIP
+>>> print(payload_table(pc))                                                           # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from controllers import CONTROLLERS, make_controller
+from controllers.robust import check_payload_range, design_for_range
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.plant.params import Params
+
+__all__ = ["ROBUST_CONTROLLERS", "range_designs", "PayloadComparison", "payload_comparison", "payload_verdict",
+           "payload_table", "write_payload_outputs"]
+
+#: Controllers designed for a payload range (the others run their nominal design).
+ROBUST_CONTROLLERS = ("lqr", "lqg", "mpc")
+
+
+def _nonlinear_score(sc, sim, design_modes: int, plant_modes: int | None):
+    """``score(ctrl, payload)``: residual on the evaluation plant with that payload over the open loop's."""
+    from controllers import OpenLoopSettings
+    from hubbeam_ctrl.sim.closedloop import simulate_closed_loop
+    from hubbeam_ctrl.sim.evaluation import evaluation_plant
+    from hubbeam_ctrl.study.metrics import closed_loop_metrics
+    ref, open_loop = sc.reference, {}
+
+    def residual(ctrl, mass):
+        model = evaluation_plant(sc.plant, sc.params, sc.dt, design_modes, sc.design_spin,
+                                 plant_params=sc.params.replace(m_t=mass), plant_modes=plant_modes)
+        res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim, reference=(ref.theta_at, ref.theta_dot_at))
+        m = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
+        return m["residual_tip_max_m"] if m["completed"] else math.inf
+
+    def score(ctrl, mass):
+        if mass not in open_loop:
+            ol = make_controller("openloop", ctrl.design, OpenLoopSettings.for_scenario(sc), ref)
+            open_loop[mass] = residual(ol, mass)
+        return residual(ctrl, mass) / open_loop[mass]
+    return score
+
+
+def range_designs(names, scenario, design, payload_range, settings: dict | None = None, *,
+                  horizon: int = 50, solver: str = "daqp", sim=None, plant_modes: int | None = None) -> dict:
+    """The designs of LQR, LQG and MPC (those in ``names``) for a payload range.
+
+    Candidates (:func:`controllers.robust.design_for_range`) are measured on the nonlinear
+    plant of the scenario at ``m_min``, the nominal payload and ``m_max`` (after the linear
+    loops at those payloads have been checked for stability); MPC takes LQR's choice.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Controllers of the comparison.
+    scenario : Scenario
+        The task on the nominal beam (``scenario.params.m_t`` is the nominal payload).
+    design : DesignModel
+        The nominal design model.
+    payload_range : tuple of float
+        ``(m_min, m_max)`` [kg].
+    settings : dict, optional
+        Controller name -> settings replacing the scenario's defaults.
+    horizon, solver
+        MPC options (as :func:`~hubbeam_ctrl.study.compare.compare`).
+    sim : ClosedLoopSettings, optional
+        Settings of the measuring runs (default: the scenario's sensors).
+    plant_modes : int, optional
+        Transverse modes of the evaluation plants (default: their rule,
+        :func:`hubbeam_ctrl.sim.evaluation.evaluation_plant`).
+
+    Returns
+    -------
+    dict
+        Controller name -> :class:`controllers.robust.RangeDesign`.
+    """
+    payload_range = check_payload_range(payload_range, scenario.params.m_t)
+    settings = settings or {}
+    sc = scenario
+    if sc.baseline_tau_m is not None:
+        w = 2 * math.pi / sc.t_f
+        baseline = lambda t: np.where(t <= sc.t_f, sc.baseline_tau_m * np.sin(w * t), 0.0)
+    else:
+        baseline = lambda t: sc.reference.at(t)[2]
+    if sim is None:
+        from hubbeam_ctrl.plant.sensors import SensorSettings
+        from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
+        sim = ClosedLoopSettings(dt=sc.dt, sensors=SensorSettings(**(sc.sensors or {})))
+    score = _nonlinear_score(sc, sim, design.n_modes, plant_modes)
+    out = {}
+    for name in names:
+        if name not in ROBUST_CONTROLLERS:
+            continue
+        st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon, solver=solver)
+        if name == "mpc" and "lqr" in out:        # MPC takes the design LQR measured for its weights
+            out[name] = dataclasses.replace(out["lqr"], settings=st.replace(weights=out["lqr"].settings.weights))
+            continue
+        out[name] = design_for_range(name, make_controller, design, st, sc.reference, payload_range,
+                                     t_f=sc.t_f, t_end=sc.t_end, delay=sc.bands["residual_delay"],
+                                     baseline=baseline, score=score)
+    return out
+
+
+def payload_verdict(m: dict) -> str:
+    """``"diverged"`` (run stopped), ``"settled"`` or ``"not settled"`` (or the metrics' own verdict)."""
+    if "verdict" in m:
+        return m["verdict"]
+    if not m.get("completed", True):
+        return "diverged"
+    return "settled" if m.get("settling_time_s") is not None else "not settled"
+
+
+@dataclass
+class PayloadComparison:
+    """A comparison over a payload range.
+
+    Attributes
+    ----------
+    payload_range : tuple of float
+        ``(m_min, m_max)`` the controllers were designed for [kg].
+    masses : tuple of float
+        Payloads of the plants run [kg].
+    comparisons : dict
+        Payload -> :class:`~hubbeam_ctrl.study.compare.Comparison` on that plant.
+    designs : dict
+        Controller name -> :class:`controllers.robust.RangeDesign`.
+    paths : dict
+        Files written by :func:`write_payload_outputs`.
+    """
+
+    payload_range: tuple
+    masses: tuple
+    comparisons: dict
+    designs: dict
+    paths: dict = field(default_factory=dict)
+
+    def rows(self) -> list:
+        """One dictionary per (payload, controller): residual and its share of the open loop's,
+        verdict, final angle error, peak torque."""
+        rows = []
+        for m, comp in self.comparisons.items():
+            for name, mm in comp.metrics.items():
+                rd = self.designs.get(name)
+                rows.append({"payload_kg": m, "controller": name, "verdict": payload_verdict(mm),
+                             "residual_tip_max_m": mm["residual_tip_max_m"],
+                             "residual_pct_of_openloop": mm.get("residual_pct_of_openloop"),
+                             "final_angle_error_rad": mm["final_angle_error_rad"],
+                             "peak_torque_nm": mm["peak_torque_nm"],
+                             "design_mass_kg": rd.design_mass if rd else comp.scenario.params.m_t,
+                             "design": rd.choice if rd else "nominal"})
+        return rows
+
+
+def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *, payload_range,
+                       params: Params | None = None, masses=None, **options) -> PayloadComparison:
+    """Design for a payload range and run every controller at ``m_min``, nominal and ``m_max``.
+
+    Parameters
+    ----------
+    plant : {"foam", "cfoam"}
+    scenario : str or Slew or SpinUp
+    controllers : str or sequence of str, optional
+    payload_range : tuple of float
+        ``(m_min, m_max)`` [kg], ``0 <= m_min <= m_max``, holding ``params.m_t`` (the nominal).
+    params : Params, optional
+        The nominal beam (default Table 1, 0.1 kg at the tip).
+    masses : sequence of float, optional
+        Plant payloads [kg] (default ``m_min``, nominal, ``m_max``), each in the range.
+    **options
+        Keyword arguments of :func:`~hubbeam_ctrl.study.compare.compare`.
+
+    Returns
+    -------
+    PayloadComparison
+    """
+    from controllers import DesignModel
+    from hubbeam_ctrl.study.compare import _parse_controllers, compare
+    from hubbeam_ctrl.study.scenarios import make_scenario
+    params = params if params is not None else Params()
+    lo, hi = check_payload_range(payload_range, params.m_t)
+    masses = tuple(sorted({lo, params.m_t, hi})) if masses is None else tuple(masses)
+    for m in masses:
+        if not (isinstance(m, (int, float)) and lo <= m <= hi):
+            raise ParameterError(f"masses must lie in the payload range [{lo:g}, {hi:g}] kg, got {m!r}")
+    names = _parse_controllers(controllers)
+    scenario_keys = ("tau_max", "t_f", "t_end", "dt", "w_f", "slew_angle", "tolerances")
+    sc = make_scenario(scenario, plant=plant, params=params,
+                       **{k: options[k] for k in scenario_keys if k in options})
+    design = DesignModel.build(sc.params, sc.design_spin, sc.dt, options.get("design_modes"))
+    designs = range_designs(names, sc, design, (lo, hi), options.get("settings"),
+                            horizon=options.get("horizon", 50), solver=options.get("solver", "daqp"),
+                            plant_modes=options.get("plant_modes"))
+    comparisons = {m: compare(plant, scenario, names, params=params, plant_params=params.replace(m_t=m),
+                              designs=designs, **options) for m in masses}
+    return PayloadComparison((lo, hi), masses, comparisons, designs)
+
+
+_COLUMNS = (("payload_kg", "payload kg", "{:g}"), ("controller", "controller", "{}"),
+            ("verdict", "verdict", "{}"), ("residual_pct_of_openloop", "% of OL", "{:.3g}"),
+            ("residual_tip_max_m", "resid max m", "{:.2e}"), ("final_angle_error_rad", "err(end) rad", "{:.2e}"),
+            ("peak_torque_nm", "peak tau Nm", "{:.4g}"), ("design_mass_kg", "design kg", "{:g}"))
+
+
+def _cell(value, fmt) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "-"
+    return fmt.format(value)
+
+
+def payload_table(pc: PayloadComparison, markdown: bool = False) -> str:
+    """The rows of a :class:`PayloadComparison` as a plain-text (or Markdown) table."""
+    head = [h for _, h, _ in _COLUMNS]
+    body = [[_cell(r[k], f) for k, _, f in _COLUMNS] for r in pc.rows()]
+    if markdown:
+        return "\n".join(["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+                         + ["| " + " | ".join(r) + " |" for r in body])
+    widths = [max(len(x[i]) for x in [head] + body) for i in range(len(head))]
+    return "\n".join("  ".join(c.rjust(w) for c, w in zip(r, widths)) for r in [head] + body)
+
+
+def write_payload_outputs(pc: PayloadComparison, out_dir) -> dict:
+    """Write ``payload.json`` (the rows and the designs' scores) and ``payload_report.md``.
+
+    Parameters
+    ----------
+    pc : PayloadComparison
+    out_dir : str or Path
+        Created if missing (its parent must exist).
+
+    Returns
+    -------
+    dict
+        File kind -> Path.
+    """
+    out = Path(out_dir)
+    if not out.parent.is_dir():
+        raise ParameterError(f"out: folder {out.parent} does not exist")
+    out.mkdir(exist_ok=True)
+    designs = {n: {"design_mass_kg": d.design_mass, "choice": d.choice, "score": d.score,
+                   "candidates": d.scores, "payloads_verified_kg": list(d.grid)} for n, d in pc.designs.items()}
+    clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v
+    doc = {"payload_range_kg": list(pc.payload_range), "masses_kg": list(pc.masses),
+           "rows": [{k: clean(v) for k, v in r.items()} for r in pc.rows()],
+           "designs": {n: {k: ({kk: clean(vv) for kk, vv in v.items()} if isinstance(v, dict) else clean(v))
+                           for k, v in d.items()} for n, d in designs.items()}}
+    sc = next(iter(pc.comparisons.values())).scenario
+    lines = [f"# Payload range {pc.payload_range[0]:g}-{pc.payload_range[1]:g} kg: {sc.name} on {sc.plant.upper()}",
+             "", f"- Task: {sc.description}.",
+             f"- Designs chosen on linear models at {', '.join(f'{m:g}' for m in next(iter(pc.designs.values())).grid)}"
+             " kg (controllers.robust.design_for_range):" if pc.designs else "- No range designs.", ""]
+    for n, d in pc.designs.items():
+        lines.append(f"  - {n}: {d.choice}; worst linear score {d.score:.3g} (residual relative to the "
+                     "open loop's; for a spin-up, the spectral radius)")
+    lines += ["", "Each plant is judged against the open loop (Eq. 44 baseline) on the same plant.", "",
+              payload_table(pc, markdown=True), ""]
+    paths = {"json": atomic_write_text(out / "payload.json", json.dumps(doc, indent=1) + "\n"),
+             "report": atomic_write_text(out / "payload_report.md", "\n".join(lines))}
+    pc.paths = paths
+    return paths

@@ -1,0 +1,230 @@
+"""Tasks in physical terms: what the hub must do, independent of how a controller does it.
+
+A task names the motion and the time allowed for it; the scenario
+(:func:`hubbeam_ctrl.study.scenarios.make_scenario`) turns it into a reference, a design
+point and an open-loop baseline for a given beam and motor (``Params.tau_max``).
+
+``Slew(angle, duration)``
+    Rest-to-rest rotation of the hub by ``angle`` [rad] in ``duration`` [s]. Its open-loop
+    baseline is the paper's Eq. 44 torque scaled to that angle and time,
+    ``tau_m = 2 pi J_total Theta / t_f^2`` (one sine period: the rigid body starts and ends
+    at rest after turning by ``Theta``).
+``SpinUp(rate, duration)``
+    Spin-up from rest to ``rate`` [rad/s] along the corrected Eq. 43 profile in
+    ``duration`` [s], then hold; its rigid-body torque peaks at ``2 J_total w_f / t_f``.
+
+Both say whether the motor can do them (:meth:`Slew.check_feasible`): a task that needs more
+torque than the motor has is refused with one line naming the shortest feasible duration.
+
+These task objects are not the plant-side maneuvers of :mod:`hubbeam_ctrl.plant.maneuvers`
+(a prescribed hub motion or an applied torque for the open-loop simulator).
+
+Examples
+--------
+>>> from hubbeam_ctrl import Params
+>>> p = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
+>>> task = Slew(angle=math.pi / 2, duration=1.2)
+>>> round(task.baseline_torque(p.total_inertia), 4)      # Eq. 44 amplitude [N m]
+1.1575
+>>> round(task.shortest_duration(p.total_inertia, p.tau_max), 4)
+1.0541
+>>> Slew(math.pi / 2, 0.9).check_feasible(p.total_inertia, p.tau_max)  # doctest: +ELLIPSIS
+Traceback (most recent call last):
+...
+hubbeam_ctrl.core.errors.ParameterError: duration must be >= 1.0541 s (the shortest ...), got 0.9 s
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.validation import check_finite, check_positive
+
+__all__ = ["Slew", "SpinUp", "TASKS"]
+
+
+def _shortest_message(name: str, t_min: float, what: str, got: float) -> str:
+    return f"{name} must be >= {t_min:.5g} s (the shortest in which {what}), got {got:g} s"
+
+
+@dataclass(frozen=True)
+class Slew:
+    """Rest-to-rest slew of the hub by ``angle`` in ``duration``.
+
+    Parameters
+    ----------
+    angle : float
+        Rotation Theta [rad], finite and not 0 (negative: the other way).
+    duration : float
+        Maneuver time t_f [s], > 0.
+    """
+
+    angle: float
+    duration: float
+    #: Scenario name of the task.
+    name: ClassVar[str] = "slew"
+
+    def __post_init__(self):
+        angle = check_finite("angle", self.angle, "rad")
+        if angle == 0.0:
+            raise ParameterError("angle must be a finite number != 0 [rad], got 0")
+        object.__setattr__(self, "angle", angle)
+        object.__setattr__(self, "duration", check_positive("duration", self.duration, "s"))
+
+    @property
+    def target(self) -> float:
+        """The slew angle [rad]."""
+        return self.angle
+
+    @classmethod
+    def eq44(cls, tau_m: float, duration: float, inertia: float) -> "Slew":
+        """The slew that the paper's Eq. 44 torque ``tau_m sin(2 pi t/t_f)`` makes.
+
+        Parameters
+        ----------
+        tau_m : float
+            Torque amplitude [N m], > 0.
+        duration : float
+            t_f [s], > 0.
+        inertia : float
+            Rigid-body inertia J_total [kg m^2], > 0.
+
+        Returns
+        -------
+        Slew
+            With ``angle = tau_m t_f^2 / (2 pi J_total)``.
+        """
+        tau_m = check_positive("tau_max", tau_m, "N m")
+        t_f = check_positive("tf", duration, "s")
+        J = check_positive("inertia", inertia, "kg m^2")
+        return cls(tau_m * t_f ** 2 / (2 * math.pi * J), t_f)
+
+    def baseline_torque(self, inertia: float) -> float:
+        """Amplitude of the Eq. 44 torque that makes this slew [N m] (signed like ``angle``).
+
+        ``tau_m = 2 pi J_total Theta / t_f^2``.
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia J_total [kg m^2].
+
+        Returns
+        -------
+        float
+        """
+        return 2 * math.pi * inertia * self.angle / self.duration ** 2
+
+    def shortest_duration(self, inertia: float, tau_max: float) -> float:
+        """Shortest t_f in which ``tau_max`` makes this slew by Eq. 44 [s].
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia J_total [kg m^2].
+        tau_max : float
+            Motor torque limit [N m].
+
+        Returns
+        -------
+        float
+            ``sqrt(2 pi J_total |Theta| / tau_max)``.
+        """
+        return math.sqrt(2 * math.pi * inertia * abs(self.angle) / tau_max)
+
+    def check_feasible(self, inertia: float, tau_max: float, name: str = "duration") -> None:
+        """Raise unless the Eq. 44 baseline stays within ``tau_max``.
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia J_total [kg m^2].
+        tau_max : float
+            Motor torque limit [N m].
+        name : str
+            The duration's name as the caller spelled it (``"tf"`` on the command line).
+
+        Raises
+        ------
+        ParameterError
+            One line naming ``name`` and the shortest feasible duration.
+        """
+        if abs(self.baseline_torque(inertia)) > tau_max * (1 + 1e-12):
+            raise ParameterError(_shortest_message(
+                name, self.shortest_duration(inertia, tau_max),
+                f"tau_max = {tau_max:g} N m turns {abs(self.angle):.4g} rad by Eq. 44, "
+                f"tau_m = 2 pi J_total Theta / tf^2", self.duration))
+
+    def describe(self, inertia: float) -> str:
+        """One line for reports."""
+        return (f"rest-to-rest slew by Theta = {self.angle:.4f} rad in tf = {self.duration:g} s "
+                f"(J_total = {inertia:.4g} kg m^2; Eq. 44 baseline amplitude "
+                f"{self.baseline_torque(inertia):.4g} N m)")
+
+
+@dataclass(frozen=True)
+class SpinUp:
+    """Spin-up of the hub from rest to ``rate`` in ``duration`` (corrected Eq. 43), then hold.
+
+    Parameters
+    ----------
+    rate : float
+        Final hub rate w_f [rad/s], finite.
+    duration : float
+        Spin-up time t_f [s], > 0.
+    """
+
+    rate: float
+    duration: float
+    #: Scenario name of the task.
+    name: ClassVar[str] = "spinup"
+
+    def __post_init__(self):
+        object.__setattr__(self, "rate", check_finite("rate", self.rate, "rad/s"))
+        object.__setattr__(self, "duration", check_positive("duration", self.duration, "s"))
+
+    @property
+    def target(self) -> float:
+        """The final rate [rad/s]."""
+        return self.rate
+
+    def peak_torque(self, inertia: float) -> float:
+        """Peak rigid-body torque of the profile, ``2 J_total |w_f| / t_f`` [N m]."""
+        return 2 * inertia * abs(self.rate) / self.duration
+
+    def shortest_duration(self, inertia: float, tau_max: float) -> float:
+        """Shortest t_f whose rigid-body torque stays within ``tau_max`` [s]."""
+        return 2 * inertia * abs(self.rate) / tau_max
+
+    def check_feasible(self, inertia: float, tau_max: float, name: str = "duration") -> None:
+        """Raise unless the rigid-body torque of the profile stays within ``tau_max``.
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia J_total [kg m^2].
+        tau_max : float
+            Motor torque limit [N m].
+        name : str
+            The duration's name as the caller spelled it.
+
+        Raises
+        ------
+        ParameterError
+            One line naming ``name`` and the shortest feasible duration.
+        """
+        if self.peak_torque(inertia) > tau_max * (1 + 1e-12):
+            raise ParameterError(_shortest_message(
+                name, self.shortest_duration(inertia, tau_max),
+                f"tau_max = {tau_max:g} N m spins the hub up to {self.rate:g} rad/s", self.duration))
+
+    def describe(self, inertia: float) -> str:
+        """One line for reports."""
+        return f"spin-up to {self.rate:g} rad/s in tf = {self.duration:g} s (Eq. 43), then hold"
+
+
+#: Scenario name -> task class.
+TASKS = {cls.name: cls for cls in (Slew, SpinUp)}
