@@ -36,7 +36,7 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import json_ready
-from hubbeam_ctrl.linear.export import FORMATS, load_system, save_system
+from hubbeam_ctrl.linear.export import FORMATS, _real_matrix, load_system, save_system
 from hubbeam_ctrl.linear.statespace import OUTPUTS, _state_unit
 from hubbeam_ctrl.plant.params import Params
 
@@ -205,7 +205,7 @@ def load_controller(path) -> ControllerModel:
     import control
     mats, meta = load_system(path, _MATRICES, _TAG, "hubbeam controller file")
     try:
-        sys = control.ss(*(mats[k] for k in _MATRICES), float(meta["dt"]),
+        sys = control.ss(*(_real_matrix(k, mats[k]) for k in _MATRICES), float(meta["dt"]),
                          states=list(meta["state_names"]), inputs=list(meta["input_names"]),
                          outputs=list(meta["output_names"]), name=meta["name"])
         Params(**meta["params"])

@@ -52,7 +52,7 @@ def test_simulate_diverging_tlam_is_flagged(capsys):
 @pytest.mark.parametrize("argv,needle", [
     (["modes", "--spin", "fast"], "spin"),
     (["modes", "--tip-mass", "-1"], "m_t"),
-    (["modes", "--tip-position", "9"], "l must be in"),
+    (["modes", "--tip-position", "9"], "--tip-position (l) must be in"),
     (["modes", "--n-modes", "0"], "n_axial"),
     (["modes", "--model", "beam"], "--model"),
     (["simulate", "--model", "foam", "--maneuver", "spinup", "--t-end", "-3"], "t-end"),
@@ -70,7 +70,7 @@ def test_bad_input_exit_2_one_line(capsys, argv, needle):
 def test_console_script_exit_status():
     proc = subprocess.run([sys.executable, "-m", "hubbeam_ctrl.cli.main", "modes", "--n-modes", "30"],
                           capture_output=True, text=True)
-    assert proc.returncode == 2 and "n_axial must be an integer in 1..20" in proc.stderr
+    assert proc.returncode == 2 and "--n-modes (n_axial) must be an integer in 1..20" in proc.stderr
     assert "Traceback" not in proc.stderr
     proc = subprocess.run([sys.executable, "-m", "hubbeam_ctrl.cli.main", "--help"], capture_output=True, text=True)
     assert proc.returncode == 0

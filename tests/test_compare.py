@@ -151,7 +151,7 @@ def test_cli_compare_json(tmp_path, capsys):
     (["--tau-max", "0"], "tau-max"),
     (["--tau-max", "-3"], "tau-max"),
     (["--controllers", "lqr,pid"], "pid"),
-    (["--t-end", "12"], "t_end"),
+    (["--t-end", "12"], "--t-end must exceed"),
     (["--tf", "nan"], "tf"),
     (["--horizon", "0"], "horizon"),
 ])

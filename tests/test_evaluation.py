@@ -142,7 +142,7 @@ def test_too_many_substeps_names_the_mode_and_the_options(capsys, tmp_path):
     toml = tmp_path / "lab.toml"
     toml.write_text("\n".join(f"{k} = {v}" for k, v in LAB_ARM.to_dict().items() if v is not None))
     rc = main(["compare", "--params", str(toml), "--plant-modes", "20", "--controllers", "lqr",
-               "--t-end", "16", "--out", str(tmp_path / "out")])
+               "--t-end", "16", "--tau-max", "1.5", "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and "mode 20" in err
 

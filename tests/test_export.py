@@ -182,7 +182,7 @@ def test_cli_json_and_file(tmp_path, capsys):
                    "--out", str(out), "--json"])
     assert cli_linearize.run(args) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert set(doc) == {"model", "spin_rad_s", "n_states", "poles_hz", "out"}
+    assert set(doc) == {"model", "spin_rad_s", "n_states", "poles_hz", "unstable", "out"} and doc["unstable"] is False
     assert doc["model"] == "foam" and doc["spin_rad_s"] == 1.0 and doc["n_states"] == 14
     assert doc["out"] == str(out) and doc["poles_hz"] == sorted(doc["poles_hz"])
     assert doc["poles_hz"][0] == pytest.approx(0.4692, abs=1e-3)

@@ -16,9 +16,10 @@ def test_write_lands_under_the_final_name(tmp_path):
 
     path = atomic_write(tmp_path / "data.npz", write)
     assert path == tmp_path / "data.npz" and path.read_bytes() == b"\x00payload"
-    # the temporary file was a hidden sibling with the target's extension (np.savez insists)
+    # the temporary file was a hidden sibling with the fixed prefix and the target's extension
+    # (np.savez insists)
     tmp = seen[0]
-    assert str(tmp).startswith(str(tmp_path / ".data.npz.")) and str(tmp).endswith(".npz")
+    assert str(tmp).startswith(str(tmp_path / ".hubbeam-tmp-")) and str(tmp).endswith("-data.npz")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data.npz"]
 
 

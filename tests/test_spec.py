@@ -95,7 +95,7 @@ def test_settings_toml_round_trip(tmp_path):
     ({"grid": {"mt": [0.1]}}, ["unknown factor 'mt'", "m_t"]),
     ({"grid": {"m_t": []}}, ["grid.m_t", "non-empty"]),
     ({"grid": {"m_t": [0.1, 0.1]}}, ["grid.m_t", "repeats"]),
-    ({"grid": {"m_t": [-0.1]}}, ["grid.m_t", ">= 0"]),
+    ({"grid": {"m_t": [-0.1]}}, ["grid.m_t", "m_t must be in [0, "]),
     ({"grid": {"w_f": [1.0]}}, ["w_f", "spinup"]),
     ({"grid": {"n_axial": [1.5]}}, ["grid.n_axial", "integers"]),
     ({"random": {"n": 0, "m_t": {"dist": "uniform", "low": 0, "high": 1}}}, ["random.n", ">= 1"]),

@@ -10,29 +10,22 @@ import sys
 import time
 
 from controllers import CONTROLLERS, QP_SOLVERS, SHAPERS, controller_names
-from hubbeam_ctrl.cli.main import RegistryChoices, finite_float, positive_float, positive_int
+from hubbeam_ctrl.cli.args import (
+    add_run_options,
+    check_output_dir,
+    integer,
+    nonempty,
+    real,
+    refuse_inapplicable,
+    run_limits,
+    stdout,
+)
+from hubbeam_ctrl.cli.main import RegistryChoices, positive_int
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.fileio import strict_json
+from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
 
 __all__ = ["add_parser", "run", "stdout_to_stderr"]
-
-
-class stdout_to_stderr:
-    """Send file descriptor 1 to stderr for a while (native libraries such as qpOASES
-    print banners with printf; ``--json`` output must stay clean)."""
-
-    def __enter__(self):
-        import os
-        sys.stdout.flush()
-        self._saved = os.dup(1)
-        os.dup2(2, 1)
-        return self
-
-    def __exit__(self, *exc):
-        import os
-        sys.stdout.flush()
-        os.dup2(self._saved, 1)
-        os.close(self._saved)
-        return False
 
 
 def add_parser(subparsers, common) -> argparse.ArgumentParser:
@@ -59,15 +52,15 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
     p.add_argument("--plant", metavar="PLANT", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "PLANTS"),
                    default="foam", help="nonlinear plant: %(choices)s (default %(default)s: closer to an "
                                         "exact beam than cfoam)")
-    p.add_argument("--plant-params", metavar="FILE.toml",
+    p.add_argument("--plant-params", metavar="FILE.toml", type=nonempty("file"),
                    help="physical parameters of the plant when they differ from the design's")
-    p.add_argument("--plant-tip-mass", metavar="KG", type=float, help="tip mass of the plant [kg], >= 0")
-    p.add_argument("--design-modes", metavar="N", type=int,
+    p.add_argument("--plant-tip-mass", metavar="KG", type=real("kg"), help="tip mass of the plant [kg], >= 0")
+    p.add_argument("--design-modes", metavar="N", type=integer(),
                    help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
-    p.add_argument("--plant-modes", metavar="N", type=int,
+    p.add_argument("--plant-modes", metavar="N", type=integer(),
                    help="transverse modes of the plant, design modes..20 (default: every mode "
                         "below the sampling frequency and the first above it, >= design + 3)")
-    p.add_argument("--range-limit", metavar="FRACTION", type=positive_float("range-limit"), default=0.3,
+    p.add_argument("--range-limit", metavar="FRACTION", type=real("-"), default=0.3,
                    help="flag runs whose |v_tip| passes FRACTION * L (the models' validated "
                         "range; default 0.3); only L stops a run")
     p.add_argument("--scenario", metavar="NAME", choices=RegistryChoices("hubbeam_ctrl.study.scenarios",
@@ -83,37 +76,40 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="filter the reference of the controllers that track one ("
                         + ",".join(n for n, s in CONTROLLERS.items() if s.tracks_reference)
                         + ") through this input shaper, designed on the first mode of the design model")
-    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
+    p.add_argument("--tau-max", metavar="NM", type=real("N m"),
                    help="torque budget [N m], at most the motor's tau_max of the parameters "
                         "(default: that limit, 200 N m in Table 1)")
-    p.add_argument("--slew-angle", metavar="RAD", type=finite_float("slew-angle"),
+    p.add_argument("--slew-angle", metavar="RAD", type=real("rad"),
                    help="slew angle [rad], not 0 (default: the rigid angle of the Eq. 44 torque with "
                         "amplitude --tau-max in --tf); the open-loop baseline is Eq. 44 scaled to this "
                         "angle and --tf")
-    p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
+    p.add_argument("--tf", metavar="S", type=real("s"), default=10.0,
                    help="maneuver time [s] (default 10); refused, naming the shortest feasible one, "
                         "if the task needs more torque than --tau-max")
-    p.add_argument("--t-end", metavar="S", type=positive_float("t-end"), default=30.0,
+    p.add_argument("--t-end", metavar="S", type=real("s"), default=30.0,
                    help="simulated time [s], > tf + 5 (default 30)")
-    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), default=3.0,
-                   help="spin-up final rate [rad/s] (default 3, above TLAM's critical speed)")
-    p.add_argument("--dt", metavar="S", type=positive_float("dt"), default=0.01,
+    p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
+                   help="spin-up final rate [rad/s] (default 3, above TLAM's critical speed; "
+                        "--scenario spinup only)")
+    p.add_argument("--dt", metavar="S", type=real("s"), default=0.01,
                    help="controller sample time [s] (default 0.01)")
-    p.add_argument("--horizon", metavar="N", type=positive_int("horizon"), default=50,
-                   help="MPC horizon [samples] (default 50)")
-    p.add_argument("--solver", choices=list(QP_SOLVERS), default="daqp",
-                   help="MPC QP solver: %(choices)s (default %(default)s)")
+    p.add_argument("--horizon", metavar="N", type=integer(),
+                   help="MPC horizon [samples] (default 50; only with mpc among --controllers)")
+    p.add_argument("--solver", choices=list(QP_SOLVERS),
+                   help="MPC QP solver: %(choices)s (default daqp; only with mpc among --controllers)")
     p.add_argument("--schedule", metavar="N", type=positive_int("schedule"), default=1,
                    help="design the controllers with a scheduled version ("
                         + ",".join(n for n, s in CONTROLLERS.items() if s.scheduled)
                         + ") at N spin rates from 0 to the top reference rate and interpolate them on "
                           "the measured rate (default 1: one design point)")
-    p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
+    p.add_argument("--out", metavar="DIR", required=True,
+                   help="output folder (created if missing; MANIFEST.json, written last, marks it complete)")
     p.add_argument("--payload-range", metavar="MIN,MAX",
                    help="tip payloads [kg] that LQR, LQG and MPC are designed for (must hold the tip mass "
                         "of the parameters); runs the plant at MIN, the nominal tip mass and MAX and "
                         "writes payload.json and payload_report.md")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
+    add_run_options(p)
     p.set_defaults(func=run)
     return p
 
@@ -131,80 +127,94 @@ def parse_payload_range(text: str, nominal: float) -> tuple:
     return check_payload_range(values, nominal, "payload-range")
 
 
-def _run_payload(args, params, out) -> int:
+def _run_payload(args, params, out, sink) -> int:
     from hubbeam_ctrl.study.payload import payload_comparison, payload_table, write_payload_outputs
     payload_range = parse_payload_range(args.payload_range, params.m_t)
-    with stdout_to_stderr():
-        pc = payload_comparison(args.plant, args.scenario, args.controllers, payload_range=payload_range,
-                                params=params, tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
-                                w_f=args.wf, slew_angle=args.slew_angle, horizon=args.horizon,
-                                solver=args.solver)
-        write_payload_outputs(pc, out)
+    pc = payload_comparison(args.plant, args.scenario, args.controllers, payload_range=payload_range,
+                            params=params, tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
+                            w_f=3.0 if args.wf is None else args.wf, slew_angle=args.slew_angle,
+                            horizon=50 if args.horizon is None else args.horizon, solver=args.solver or "daqp")
+    write_payload_outputs(pc, out)
     if args.json:
-        print(json.dumps(json.loads((out / "payload.json").read_text())))
+        print(strict_json(json.loads((out / "payload.json").read_text())), file=sink)
     else:
-        print(payload_table(pc))
-        print(f"wrote {out}/payload.json, payload_report.md")
+        print(payload_table(pc), file=sink)
+        print(f"wrote {out}/payload.json, payload_report.md", file=sink)
     return 0
 
 
 def run(args) -> int:
     """Run ``hubbeam compare``; returns the exit status (0)."""
-    from pathlib import Path
-
+    sink = stdout(args)
     from hubbeam_ctrl.cli.main import params_from_args
-    from hubbeam_ctrl.plant.params import MAX_MODES, load_params
+    from hubbeam_ctrl.plant.params import MAX_MODES
     from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
-    from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.compare import _parse_controllers, compare
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
+    out = check_output_dir("--out", args.out)
+    names = _parse_controllers(args.controllers)
+    refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",)})
+    if "mpc" not in names:
+        refuse_inapplicable(args, "--controllers " + ",".join(names), {"--horizon": ("mpc",),
+                                                                       "--solver": ("mpc",)})
     params = params_from_args(args)
     if args.tau_max is not None and args.tau_max > params.tau_max:
-        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
+        raise ParameterError(f"--tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
                              f"the parameters), got {args.tau_max:g}")
     if args.slew_angle is not None and args.slew_angle == 0:
-        raise ParameterError("slew-angle must be a finite number != 0 [rad], got 0")
+        raise ParameterError("--slew-angle must be a finite number != 0 [rad], got 0")
     if args.slew_angle is not None and args.scenario != "slew":
-        raise ParameterError("slew-angle applies to --scenario slew only")
-    plant_params = load_params(args.plant_params) if args.plant_params else None
-    if args.plant_tip_mass is not None:
-        if not args.plant_tip_mass >= 0:
-            raise ParameterError(f"plant-tip-mass must be a number >= 0 [kg], got {args.plant_tip_mass}")
-        plant_params = (plant_params or params).replace(m_t=args.plant_tip_mass)
+        raise ParameterError("--slew-angle applies to --scenario slew only")
+    plant_params = _plant_params(args, params)
     design_modes = args.design_modes if args.design_modes is not None else params.n_transverse
     if not 1 <= design_modes <= MAX_MODES:
-        raise ParameterError(f"design-modes must be an integer in 1..{MAX_MODES}, got {design_modes}")
+        raise ParameterError(f"--design-modes must be an integer in 1..{MAX_MODES}, got {design_modes}")
     if args.plant_modes is not None and not design_modes <= args.plant_modes <= MAX_MODES:
-        raise ParameterError(f"plant-modes must be an integer in {design_modes}..{MAX_MODES} (at least "
+        raise ParameterError(f"--plant-modes must be an integer in {design_modes}..{MAX_MODES} (at least "
                              f"the design model's {design_modes}), got {args.plant_modes}")
-    out = Path(args.out)
-    if not out.parent.is_dir():
-        raise ParameterError(f"out: folder {out.parent} does not exist")
-    if out.exists() and not out.is_dir():
-        raise ParameterError(f"out: {out} exists and is not a folder")
     if args.payload_range is not None:
-        return _run_payload(args, params, out)
+        return _run_payload(args, params, out, sink)
     t0 = time.perf_counter()
-    with stdout_to_stderr():
-        comparison = compare(args.plant, args.scenario, args.controllers, params=params,
-                             plant_params=plant_params, design_modes=design_modes,
-                             plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
-                             t_end=args.t_end, dt=args.dt, w_f=args.wf, slew_angle=args.slew_angle,
-                             horizon=args.horizon,
-                             solver=args.solver, shaping=args.shaping, schedule=args.schedule,
-                             sim_settings=ClosedLoopSettings(range_limit=args.range_limit),
-                             progress=not args.json)
-        write_outputs(comparison, out)
+    comparison = compare(args.plant, args.scenario, names, params=params,
+                         plant_params=plant_params, design_modes=design_modes,
+                         plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
+                         t_end=args.t_end, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,
+                         slew_angle=args.slew_angle,
+                         horizon=50 if args.horizon is None else args.horizon,
+                         solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
+                         sim_settings=ClosedLoopSettings(range_limit=args.range_limit, **run_limits(args)),
+                         progress=not args.json)
+    write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:
-        print(json.dumps(_json_metrics(comparison.metrics)))
+        print(strict_json(_json_metrics(comparison.metrics)), file=sink)
     else:
         sc, ev = comparison.scenario, comparison.plant
-        print(f"{sc.plant.upper()}, {sc.name}: {sc.description}")
-        print(f"plant: {ev.model.upper()} with {ev.modes} transverse modes ({ev.reason})")
-        print(format_table(comparison.metrics))
+        print(f"{sc.plant.upper()}, {sc.name}: {sc.description}", file=sink)
+        print(f"plant: {ev.model.upper()} with {ev.modes} transverse modes ({ev.reason})", file=sink)
+        print(format_table(comparison.metrics), file=sink)
         print(f"wrote {out}/metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
-              f"torque.png, report.md ({wall:.1f} s)")
+              f"torque.png, report.md, MANIFEST.json ({wall:.1f} s)", file=sink)
     for name, m in comparison.metrics.items():
         if not m["completed"] or m.get("outside_validated_range"):
             print(f"warning: {name}: {m['message']}", file=sys.stderr)
+    skipped = [n for n in names if n not in comparison.metrics]
+    if skipped:
+        print(f"warning: not run (the wall-time limit was reached): {', '.join(skipped)}", file=sys.stderr)
     return 0
+
+
+def _plant_params(args, params):
+    """The plant's parameters from ``--plant-params`` and ``--plant-tip-mass`` (None: the design's);
+    errors name those options, not the design's."""
+    from hubbeam_ctrl.plant.params import load_params
+    try:
+        plant_params = load_params(args.plant_params) if args.plant_params is not None else None
+    except ParameterError as exc:
+        raise ParameterError(f"--plant-{exc}") from None   # "params file X ..." -> "--plant-params file X ..."
+    if args.plant_tip_mass is None:
+        return plant_params
+    try:
+        return (plant_params or params).replace(m_t=args.plant_tip_mass)
+    except ParameterError as exc:
+        raise ParameterError(f"--plant-tip-mass: {exc}") from None

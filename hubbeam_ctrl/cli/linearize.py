@@ -9,7 +9,10 @@ Example::
 from __future__ import annotations
 
 import argparse
-import json
+import sys
+
+#: What ``modes`` and ``linearize`` say about a model with a growing mode.
+UNSTABLE_NOTE = " (UNSTABLE: a mode has lost its stiffness)"
 
 
 class _OutputsHelpFormatter(argparse.HelpFormatter):
@@ -26,7 +29,7 @@ class _OutputsHelpFormatter(argparse.HelpFormatter):
 
 def add_parser(subparsers, common) -> None:
     """Add the ``linearize`` subcommand (``common`` holds the system-parameter options)."""
-    from hubbeam_ctrl.cli.main import finite_float, positive_float
+    from hubbeam_ctrl.cli.args import add_verbose, real
     from hubbeam_ctrl.plant.models import MODEL_SPECS
 
     p = subparsers.add_parser(
@@ -40,34 +43,35 @@ def add_parser(subparsers, common) -> None:
                      "transverse mode count."))
     p.add_argument("--model", choices=list(MODEL_SPECS), default="sfoam",
                    help="source model (default sfoam, the design model)")
-    p.add_argument("--spin", metavar="RAD_S", type=finite_float("spin"), default=0.0,
+    p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"), default=0.0,
                    help="steady spin rate Omega [rad/s] (default 0, the slew design point)")
     p.add_argument("--outputs", metavar="NAMES",
                    help="comma-separated outputs among {outputs} (default {default})")
-    p.add_argument("--dt", metavar="S", type=positive_float("dt"),
+    p.add_argument("--dt", metavar="S", type=real("s"),
                    help="sample time [s]: discretise with a zero-order hold (default: continuous)")
-    p.add_argument("--damping", metavar="ZETA", type=finite_float("damping"),
+    p.add_argument("--damping", metavar="ZETA", type=real("-"),
                    help="modal damping ratio of the clamped modes, 0 <= ZETA < 1 (default 0)")
     p.add_argument("--out", metavar="FILE.mat|FILE.npz|FILE.json", required=True,
                    help="output file; the format follows the extension")
     p.add_argument("--json", action="store_true",
-                   help='print {"model", "spin_rad_s", "n_states", "poles_hz", "out"} as JSON')
+                   help='print {"model", "spin_rad_s", "n_states", "poles_hz", "unstable", "out"} as JSON')
+    add_verbose(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     """Run ``hubbeam linearize``; bad input raises :class:`ParameterError`."""
-    from pathlib import Path
-
-    from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
-    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.cli.args import check_output, stdout
+    from hubbeam_ctrl.cli.main import params_from_args
+    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.core.validation import check_in_range
     from hubbeam_ctrl.linear.export import FORMATS, save_model
-    from hubbeam_ctrl.linear.statespace import discretize, linearize
+    from hubbeam_ctrl.linear.statespace import DT_RANGE, discretize, linearize
 
-    out = Path(args.out)
-    if out.suffix.lower() not in FORMATS:
-        raise ParameterError(f"out must end in {', '.join(FORMATS)}, got {args.out!r}")
-    check_output_folder("out", out)
+    sink = stdout(args)
+    out = check_output("--out", args.out, FORMATS)
+    if args.dt is not None:
+        check_in_range("dt", args.dt, "s", *DT_RANGE)
     params = params_from_args(args)
     if args.damping is not None:
         params = params.replace(damping_ratio=args.damping)
@@ -77,13 +81,16 @@ def run(args) -> int:
         lm = discretize(lm, args.dt)
     save_model(lm, out)
     poles = [float(f) for f in lm.poles_hz()]
+    note = UNSTABLE_NOTE if lm.unstable else ""
     if args.json:
-        print(json.dumps({"model": lm.model, "spin_rad_s": lm.spin, "n_states": lm.n_states,
-                          "poles_hz": poles, "out": str(out)}))
+        print(strict_json({"model": lm.model, "spin_rad_s": lm.spin, "n_states": lm.n_states,
+                           "poles_hz": poles, "unstable": lm.unstable, "out": str(out)}), file=sink)
     else:
         kind = f"sampled at dt = {lm.dt:g} s (zero-order hold)" if lm.is_discrete else "continuous"
         print(f"{lm.model.upper()} linearised at spin {lm.spin:g} rad/s: {lm.n_states} states, "
-              f"input tau, outputs {', '.join(lm.output_names)}; {kind}")
-        print("  oscillatory poles [Hz]: " + ", ".join(f"{f:.4f}" for f in poles))
-        print(f"  saved to {out}")
+              f"input tau, outputs {', '.join(lm.output_names)}; {kind}{note}", file=sink)
+        print("  oscillatory poles [Hz]: " + ", ".join(f"{f:.4f}" for f in poles), file=sink)
+        print(f"  saved to {out}" + (" (marked unstable)" if note else ""), file=sink)
+    if note:
+        print(f"warning: {lm.model.upper()} at {lm.spin:g} rad/s{note}", file=sys.stderr)
     return 0

@@ -9,12 +9,26 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
-import math
+import re
 import sys
+import warnings
 from collections.abc import Sequence
 
+from hubbeam_ctrl.cli.args import (
+    add_run_options,
+    add_verbose,
+    check_output,
+    integer,
+    nonempty,
+    real,
+    refuse_inapplicable,
+    rename_options,
+    run_limits,
+    stdout,
+)
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.fileio import strict_json
+from hubbeam_ctrl.core.native import capture_native_output
 from hubbeam_ctrl.plant.models import MODEL_SPECS
 from hubbeam_ctrl.plant.params import Params, load_params
 
@@ -31,9 +45,16 @@ EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hub
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that raises instead of printing usage, so errors are one line."""
+    """argparse that raises instead of printing usage, so errors are one line.
+
+    ``argument --t-end: must be a number, got 'x'`` becomes ``--t-end must be a number, got 'x'``.
+    """
 
     def error(self, message):
+        match = re.match(r"^argument (-[-\w]+)(?:/-[-\w]+)*: (.*)$", message, re.S)
+        if match:
+            option, text = match.groups()
+            message = f"{option} {text}" if text.startswith("must ") else f"{option}: {text}"
         raise ParameterError(message)
 
 
@@ -70,18 +91,20 @@ class RegistryChoices(Sequence):
 def _common_parser() -> argparse.ArgumentParser:
     common = _Parser(add_help=False)
     g = common.add_argument_group("system parameters (default: the paper's Table 1)")
-    g.add_argument("--params", metavar="FILE.toml", help="TOML file with Params fields (SI units)")
-    g.add_argument("--tip-mass", metavar="KG", type=float, help="tip mass m_t [kg], >= 0")
-    g.add_argument("--tip-position", metavar="M", type=float,
+    g.add_argument("--params", metavar="FILE.toml", type=nonempty("file"),
+                   help="TOML file with Params fields (SI units)")
+    g.add_argument("--tip-mass", metavar="KG", type=real("kg"),
+                   help="tip mass m_t [kg], 0..1000 x the beam mass")
+    g.add_argument("--tip-position", metavar="M", type=real("m"),
                    help="tip-mass position l along the beam [m], 0..L (default L)")
-    g.add_argument("--n-modes", metavar="N", type=int,
+    g.add_argument("--n-modes", metavar="N", type=integer(),
                    help="number of axial and of transverse modes, 1..20 (default 5)")
     return common
 
 
 def params_from_args(args) -> Params:
     """Build :class:`Params` from the common options (file first, then flags)."""
-    base = load_params(args.params) if getattr(args, "params", None) else Params()
+    base = load_params(args.params) if getattr(args, "params", None) is not None else Params()
     changes = {}
     if getattr(args, "tip_mass", None) is not None:
         changes["m_t"] = args.tip_mass
@@ -93,57 +116,40 @@ def params_from_args(args) -> Params:
 
 
 def positive_float(name):
-    """argparse type: a finite number > 0, errors naming ``name``."""
+    """argparse type: a finite number > 0 (its upper range is checked by the library)."""
     def parse(text):
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
-        if not (math.isfinite(value) and value > 0):
-            raise argparse.ArgumentTypeError(f"{name} must be a finite number > 0, got {text}")
+        value = real()(text)
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text[:40]}")
         return value
     return parse
 
 
 def positive_int(name):
-    """argparse type: an integer > 0, errors naming ``name``."""
+    """argparse type: an integer > 0 (its upper range is checked by the library)."""
     def parse(text):
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
+        value = integer()(text)
         if value <= 0:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer > 0, got {text}")
+            raise argparse.ArgumentTypeError(f"must be an integer > 0, got {text[:40]}")
         return value
     return parse
 
 
 def finite_float(name):
-    """argparse type: a finite number, errors naming ``name``."""
-    def parse(text):
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text}")
-        return value
-    return parse
+    """argparse type: a finite number (its range is checked by the library)."""
+    return real()
 
 
 def check_output_folder(option: str, path) -> None:
-    """Raise :class:`ParameterError` unless the folder of ``path`` exists and is writable."""
-    import os
-    from pathlib import Path
-    folder = Path(path).parent
-    if not folder.is_dir():
-        raise ParameterError(f"{option}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise ParameterError(f"{option}: folder {folder} is not writable")
+    """Raise :class:`ParameterError` unless a file can be written at ``path`` (see
+    :func:`hubbeam_ctrl.cli.args.check_output`)."""
+    check_output(option, path)
 
 
 # -- modes ----------------------------------------------------------------------
 def _cmd_modes(args) -> int:
+    sink = stdout(args)
+    from hubbeam_ctrl.cli.linearize import UNSTABLE_NOTE
     from hubbeam_ctrl.plant.modal import modal_analysis
     params = params_from_args(args)
     res = modal_analysis(args.model, args.spin, args.hub, params)
@@ -152,52 +158,50 @@ def _cmd_modes(args) -> int:
            "axial_frequencies_hz": [float(f) for f in res.axial_hz],
            "unstable": res.unstable}
     if args.json:
-        print(json.dumps(out))
+        print(strict_json(out), file=sink)
     else:
         print(f"{args.model.upper()} at {args.spin:g} rad/s, hub {args.hub}"
-              + (" (UNSTABLE: a mode has lost its stiffness)" if res.unstable else ""))
+              + (UNSTABLE_NOTE if res.unstable else ""), file=sink)
         for i, f in enumerate(res.bending_hz, 1):
-            print(f"  bending mode {i}: {f:10.4f} Hz")
+            print(f"  bending mode {i}: {f:10.4f} Hz", file=sink)
         for i, f in enumerate(res.axial_hz, 1):
-            print(f"  axial mode {i}:   {f:10.2f} Hz")
+            print(f"  axial mode {i}:   {f:10.2f} Hz", file=sink)
     return 0
 
 
 # -- critical speed ---------------------------------------------------------------
 def _cmd_critical(args) -> int:
+    sink = stdout(args)
     from hubbeam_ctrl.plant.modal import critical_speed
     params = params_from_args(args)
     w = critical_speed(args.model, params)
     if args.json:
-        print(json.dumps({"model": args.model, "critical_speed_rad_s": w}))
+        print(strict_json({"model": args.model, "critical_speed_rad_s": w}), file=sink)
     if w is None:
         print(f"{args.model.upper()} keeps positive bending stiffness at every spin rate up to "
-              "1000 rad/s: no critical speed", file=sys.stderr if args.json else sys.stdout)
+              "1000 rad/s: no critical speed", file=sys.stderr if args.json else sink)
     elif not args.json:
         print(f"{args.model.upper()} critical speed: {w:.4f} rad/s "
-              f"(m_t = {params.m_t:g} kg at l = {params.tip_position:g} m)")
+              f"(m_t = {params.m_t:g} kg at l = {params.tip_position:g} m)", file=sink)
     return 0
 
 
 # -- simulate -----------------------------------------------------------------------
 def _cmd_simulate(args) -> int:
+    sink = stdout(args)
     from hubbeam_ctrl.plant.maneuvers import SpinUp, TorquePulse
     from hubbeam_ctrl.sim.simulate import simulate
+    check_output("--out", args.out, (".csv", ".npz"))
+    check_output("--plot", args.plot, (".png",))
+    refuse_inapplicable(args, f"--maneuver {args.maneuver}", {"--wf": ("spinup",), "--tau-max": ("torque",)})
     params = params_from_args(args)
-    if args.out and not args.out.lower().endswith((".csv", ".npz")):
-        raise ParameterError(f"out must end in .csv or .npz, got {args.out!r}")
-    if args.plot and not args.plot.lower().endswith(".png"):
-        raise ParameterError(f"plot must end in .png, got {args.plot!r}")
-    for option, path in (("out", args.out), ("plot", args.plot)):
-        if path:
-            check_output_folder(option, path)
     if args.maneuver == "spinup":
         maneuver = SpinUp(args.wf if args.wf is not None else 3.0, args.tf if args.tf is not None else 30.0)
     else:
         maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
                                args.tf if args.tf is not None else 10.0)
     res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
-                   range_limit=args.range_limit)
+                   range_limit=args.range_limit, **run_limits(args))
     if args.out:
         res.save(args.out)
     if args.plot:
@@ -207,11 +211,11 @@ def _cmd_simulate(args) -> int:
     out = {k: s[k] for k in ("peak_tip_m", "residual_tip_m", "peak_axial_m", "final_theta_rad",
                              "final_theta_dot_rad_s", "diverged", "wall_s")}
     if args.json:
-        print(json.dumps(out))
+        print(strict_json(out), file=sink)
     else:
         for k, v in out.items():
-            print(f"{k:>22}: {v}")
-        print(f"{'message':>22}: {res.message}")
+            print(f"{k:>22}: {v}", file=sink)
+        print(f"{'message':>22}: {res.message}", file=sink)
     if res.diverged or res.outside_validated_range:
         print(f"warning: {res.message}", file=sys.stderr)
     return 0
@@ -229,11 +233,12 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Bending (and axial) natural frequencies of a model linearised "
                                    "about steady rotation.")
     p.add_argument("--model", choices=list(MODEL_SPECS), default="foam")
-    p.add_argument("--spin", metavar="RAD_S", type=finite_float("spin"), default=0.0,
-                   help="spin rate [rad/s] (default 0)")
+    p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"), default=0.0,
+                   help="spin rate [rad/s], at most the 1 %% root-strain spin Params.max_spin (default 0)")
     p.add_argument("--hub", choices=["prescribed", "free"], default="prescribed",
                    help="prescribed: clamped root turning at --spin (Table 2); free: hub free")
     p.add_argument("--json", action="store_true", help="print JSON")
+    add_verbose(p)
     p.set_defaults(func=_cmd_modes)
 
     p = sub.add_parser("critical-speed", parents=[common],
@@ -241,6 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Critical speed of TLAM (or FOAM, which has none).")
     p.add_argument("--model", choices=CRITICAL_SPEED_MODELS, default="tlam")
     p.add_argument("--json", action="store_true", help="print JSON")
+    add_verbose(p)
     p.set_defaults(func=_cmd_critical)
 
     p = sub.add_parser("simulate", parents=[common], help="simulate a maneuver",
@@ -248,18 +254,21 @@ def build_parser() -> argparse.ArgumentParser:
                                    "torque pulse (free hub).")
     p.add_argument("--model", choices=list(MODEL_SPECS), required=True)
     p.add_argument("--maneuver", choices=["spinup", "torque"], required=True)
-    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), help="spin-up final rate [rad/s] (default 3)")
-    p.add_argument("--tf", metavar="S", type=positive_float("tf"),
+    p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
+                   help="spin-up final rate [rad/s] (default 3; --maneuver spinup only)")
+    p.add_argument("--tf", metavar="S", type=real("s"),
                    help="maneuver time [s] (default 30 for spinup, 10 for torque)")
-    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
-                   help="torque amplitude [N m], > 0 (default 200)")
-    p.add_argument("--t-end", metavar="S", type=positive_float("t-end"), required=True, help="final time [s]")
+    p.add_argument("--tau-max", metavar="NM", type=real("N m"),
+                   help="torque amplitude [N m], > 0 (default 200; --maneuver torque only)")
+    p.add_argument("--t-end", metavar="S", type=real("s"), required=True,
+                   help="final time [s], at least one sample (0.01 s)")
     p.add_argument("--out", metavar="FILE.csv|FILE.npz", help="save the time series")
     p.add_argument("--plot", metavar="FILE.png", help="save a plot")
-    p.add_argument("--range-limit", metavar="FRACTION", type=positive_float("range-limit"), default=0.3,
+    p.add_argument("--range-limit", metavar="FRACTION", type=real("-"), default=0.3,
                    help="flag the run when |v_tip| passes FRACTION * L (the models' validated range; "
                         "default 0.3); only L stops it")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
+    add_run_options(p)
     p.set_defaults(func=_cmd_simulate)
 
     for name in EXTRA_COMMANDS:
@@ -274,24 +283,80 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    """Entry point of the ``hubbeam`` console script. Returns the exit status."""
+    """Entry point of the ``hubbeam`` console script. Returns the exit status.
+
+    0: done (warnings, e.g. a run that stopped early, on stderr); 2: bad input, one line on
+    stderr naming the option, nothing written; 1: the run failed (one line; the details in
+    the ``--verbose`` log); 130: interrupted.
+    """
     parser = build_parser()
+    args, options = None, set()
     try:
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
             parser.print_help()
             return 2
+        options = _options_of(parser, args.command)
         func = getattr(args, "func", None)
         if func is None:
             module = importlib.import_module(f"hubbeam_ctrl.cli.{args.command}")
             func = module.run
-        return int(func(args) or 0)
+        return _run(func, args)
     except (ParameterError, HubbeamError) as exc:
-        print(f"hubbeam: error: {exc}", file=sys.stderr)
-        return 2
+        return _fail(2, rename_options(_one_line(exc), options))
     except KeyboardInterrupt:
         print("hubbeam: interrupted", file=sys.stderr)
         return 130
+    except MemoryError:
+        return _fail(1, "out of memory (lower --t-end, --horizon or --n-modes)", args)
+    except Exception as exc:      # a failure inside the run: one line here, the traceback in the log
+        return _fail(1, f"{type(exc).__name__}: {_one_line(exc)}", args, exc)
+
+
+def _run(func, args) -> int:
+    """Run a subcommand with native output captured (to the ``--verbose`` log, if given)."""
+    log = getattr(args, "verbose", None)
+    if log is not None:
+        check_output("--verbose", log)
+    with capture_native_output(log) as cap, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        args.stdout = cap.stdout              # results go here; sys.stdout is captured
+        status = int(func(args) or 0)
+    if log is not None and caught:
+        with open(log, "a", encoding="utf-8") as fh:
+            fh.writelines(warnings.formatwarning(w.message, w.category, w.filename, w.lineno) for w in caught)
+    lines = cap.lines + len(caught)
+    if lines and log is None:
+        print(f"hubbeam: note: {lines} line{'s' if lines > 1 else ''} of solver output and warnings "
+              "suppressed (--verbose LOG keeps them)", file=sys.stderr)
+    return status
+
+
+def _options_of(parser, command: str) -> set:
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return {o for action in sub.choices[command]._actions for o in action.option_strings}
+
+
+def _one_line(exc) -> str:
+    text = " ".join(str(exc).split())
+    return text if len(text) <= 500 else text[:497] + "..."
+
+
+def _fail(status: int, message: str, args=None, exc=None) -> int:
+    """Print ``hubbeam: error: message`` on stderr; write the traceback to the log if any."""
+    log = getattr(args, "verbose", None) if args is not None else None
+    if exc is not None and log is not None:
+        import traceback
+        try:
+            with open(log, "a", encoding="utf-8") as fh:
+                fh.write("".join(traceback.format_exception(exc)))
+            message += f" (details in {log})"
+        except OSError:
+            pass
+    elif exc is not None:
+        message += " (--verbose LOG for details)"
+    print(f"hubbeam: error: {message}", file=sys.stderr)
+    return status
 
 
 if __name__ == "__main__":

@@ -9,7 +9,6 @@ Example::
 
 from __future__ import annotations
 
-import json
 import time
 
 from hubbeam_ctrl.cli.main import positive_float, positive_int
@@ -53,11 +52,15 @@ def add_parser(subparsers, common) -> None:
 
 def run(args) -> int:
     """Run ``hubbeam sweep``; bad input raises ParameterError (exit 2)."""
+    from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
+    from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.study.spec import load_settings, load_spec
     from hubbeam_ctrl.study.sweep import sweep
     from hubbeam_ctrl.study.sweep_report import write_sweep_outputs
 
+    sink = stdout(args)
+    check_output_dir("--out", args.out)
     spec = load_spec(args.spec)
     if args.settings:
         spec = load_settings(spec, args.settings)
@@ -76,13 +79,13 @@ def run(args) -> int:
     n_cases = int(df["case"].nunique()) if len(df) else 0
     failed = int(df.loc[df["error"].astype(str) != "", "case"].nunique())
     if args.json:
-        print(json.dumps({"out": str(args.out), "n_cases": n_cases, "n_failed": failed, "wall_s": wall,
-                          "files": sorted(p.name for p in paths.values()), "summary": summary}))
+        print(strict_json({"out": str(args.out), "n_cases": n_cases, "n_failed": failed, "wall_s": wall,
+                          "files": sorted(p.name for p in paths.values()), "summary": summary}), file=sink)
     else:
         from hubbeam_ctrl.study.sweep_report import summarize
-        print(summarize(df).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+        print(summarize(df).to_string(index=False, float_format=lambda v: f"{v:.3g}"), file=sink)
         print(f"{n_cases} cases ({failed} with errors) in {wall:.1f} s; wrote {args.out}/results.csv, "
-              f"summary.csv, report.md and {sum(str(p).endswith('.png') for p in paths.values())} plots")
+              f"summary.csv, report.md and {sum(str(p).endswith('.png') for p in paths.values())} plots", file=sink)
     return 0
 
 

@@ -9,8 +9,6 @@ Example::
 
 from __future__ import annotations
 
-import json
-
 from hubbeam_ctrl.cli.main import finite_float, positive_int
 
 __all__ = ["add_parser", "run"]
@@ -60,14 +58,16 @@ def run(args) -> int:
 
     import tomllib
 
+    from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
-    from hubbeam_ctrl.cli.main import check_output_folder
     from hubbeam_ctrl.cli.sweep import engine_from_args
+    from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.study.spec import load_spec
     from hubbeam_ctrl.study.tune import TuneOptions, tune, write_tune_outputs
 
+    sink = stdout(args)
+    check_output_dir("--out", args.out)
     spec = load_spec(args.spec)
-    check_output_folder("out", args.out)
     table = dict(tomllib.loads(Path(args.spec).read_text()).get("tune", {}))
     for key in ("objective", "maxiter", "popsize", "decades", "seed"):
         if getattr(args, key) is not None:
@@ -88,12 +88,13 @@ def run(args) -> int:
            "weights": result.settings_table()[result.controller]["weights"], "n_runs": result.n_runs,
            "wall_s": result.wall_s, "files": sorted(p.name for p in paths.values())}
     if args.json:
-        print(json.dumps(out))
+        print(strict_json(out), file=sink)
     else:
         r = result
         print(f"{r.controller}: objective {r.objective:.4f} (scaled defaults {r.default_objective:.4f}); "
-              f"worst residual {r.worst_residual_m:.3e} m (scaled defaults {r.default_worst_residual_m:.3e} m)")
-        print("weights: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["weights"].items()))
+              f"worst residual {r.worst_residual_m:.3e} m (scaled defaults {r.default_worst_residual_m:.3e} m)",
+              file=sink)
+        print("weights: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["weights"].items()), file=sink)
         print(f"{result.n_runs} closed-loop runs in {result.wall_s:.1f} s; wrote {args.out}/tuned_settings.toml, "
-              "tune.json, convergence.png")
+              "tune.json, convergence.png", file=sink)
     return 0

@@ -148,16 +148,31 @@ def _check_number(name: str, value, meta, owner):
     what = "an integer" + (f" {rng}" if rng else "") if integer else rng
     if isinstance(value, bool) or not isinstance(value, _NUMBER):
         raise ParameterError(f"{name} must be {'an integer' if integer else 'a number'}"
-                             f"{(' ' + rng) if rng and integer else ''}{_unit_text(meta)}, got {value!r}")
+                             f"{(' ' + rng) if rng and integer else ''}{_unit_text(meta)}, got {_short(repr(value))}")
+    shown = _short(value)
     if integer:
-        if not (math.isfinite(value) and float(value).is_integer() and _in_range(value, meta, owner)):
-            raise ParameterError(f"{name} must be {what}{_unit_text(meta)}, got {value}")
+        if not (_finite(value) and float(value).is_integer() and _in_range(value, meta, owner)):
+            raise ParameterError(f"{name} must be {what}{_unit_text(meta)}, got {shown}")
         return int(value)
-    if not math.isfinite(value):
-        raise ParameterError(f"{name} must be finite{_unit_text(meta)}, got {value}")
+    if not _finite(value):
+        raise ParameterError(f"{name} must be finite{_unit_text(meta)}, got {shown}")
     if not _in_range(value, meta, owner):
-        raise ParameterError(f"{name} must be {what}{_unit_text(meta)}, got {value}")
+        raise ParameterError(f"{name} must be {what}{_unit_text(meta)}, got {shown}")
     return float(value)
+
+
+def _finite(value) -> bool:
+    """``math.isfinite`` that says False for integers too large for a float (``10**400``)."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
+def _short(value) -> str:
+    """A number as shown in messages: at most 40 characters (``10**400`` is not printed whole)."""
+    text = str(value)
+    return text if len(text) <= 40 else f"{text[:12]}...({len(text)} digits)"
 
 
 def check_value(name: str, value, meta, owner=None):
@@ -192,12 +207,12 @@ def check_value(name: str, value, meta, owner=None):
             ok = False
         if not ok:
             raise ParameterError(f"{name} must be one of {', '.join(map(repr, meta['choices']))}, "
-                                 f"got {value!r}")
+                                 f"got {_short(repr(value))}")
         return value
     kind = meta["kind"]
     if kind is bool:
         if not isinstance(value, (bool, np.bool_)):
-            raise ParameterError(f"{name} must be True or False, got {value!r}")
+            raise ParameterError(f"{name} must be True or False, got {_short(repr(value))}")
         return bool(value)
     if kind in (int, float):
         return _check_number(name, value, meta, owner)

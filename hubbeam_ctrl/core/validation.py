@@ -11,31 +11,73 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["check_positive", "check_nonnegative", "check_finite"]
+__all__ = ["check_positive", "check_nonnegative", "check_finite", "check_in_range"]
 
 _NUMBER = (int, float, np.floating, np.integer)
 
 
+def _shown(value) -> str:
+    """``value`` as shown in a message: floats with ``%g``, anything else by ``repr``, <= 40 chars."""
+    text = f"{value:g}" if isinstance(value, float) else repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def _is_number(value) -> bool:
-    return not isinstance(value, bool) and isinstance(value, _NUMBER) and math.isfinite(value)
+    if isinstance(value, bool) or not isinstance(value, _NUMBER):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:          # an int beyond the float range, e.g. 10**400
+        return False
 
 
 def check_positive(name: str, value, unit: str) -> float:
     """Return ``float(value)``; raise unless it is a finite number > 0 [``unit``]."""
     if not (_is_number(value) and value > 0):
-        raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {value!r}")
+        raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {_shown(value)}")
     return float(value)
 
 
 def check_nonnegative(name: str, value, unit: str) -> float:
     """Return ``float(value)``; raise unless it is a finite number >= 0 [``unit``]."""
     if not (_is_number(value) and value >= 0):
-        raise ParameterError(f"{name} must be a finite number >= 0 [{unit}], got {value!r}")
+        raise ParameterError(f"{name} must be a finite number >= 0 [{unit}], got {_shown(value)}")
     return float(value)
 
 
 def check_finite(name: str, value, unit: str) -> float:
     """Return ``float(value)``; raise unless it is a finite number [``unit``]."""
     if not _is_number(value):
-        raise ParameterError(f"{name} must be a finite number [{unit}], got {value!r}")
+        raise ParameterError(f"{name} must be a finite number [{unit}], got {_shown(value)}")
+    return float(value)
+
+
+def check_in_range(name: str, value, unit: str, lo: float, hi: float, why: str = "") -> float:
+    """Return ``float(value)``; raise unless it is a real number with ``lo <= value <= hi``.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name as the caller spelled it (starts the message).
+    value : object
+    unit : str
+    lo, hi : float
+        Inclusive bounds.
+    why : str, optional
+        What the bounds stand for, added to the message in parentheses.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> check_in_range("t_end", 0.004, "s", 0.01, 1e9, "at least two samples")
+    Traceback (most recent call last):
+    ...
+    hubbeam_ctrl.core.errors.ParameterError: t_end must be in [0.01, 1e+09] [s] (at least two samples), got 0.004
+    """
+    note = f" ({why})" if why else ""
+    if not _is_number(value) or not lo <= value <= hi:
+        raise ParameterError(f"{name} must be in [{lo:g}, {hi:g}] [{unit}]{note}, got {_shown(value)}")
     return float(value)

@@ -31,14 +31,16 @@ Writes are atomic (temporary file in the target folder, then a rename); errors a
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write, check_regular_file, read_npz, write_npz
-from hubbeam_ctrl.linear.statespace import LinearModel, _make_ss
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.linear.statespace import DT_RANGE, LinearModel, _make_ss
+from hubbeam_ctrl.plant.models import MODEL_NAMES
+from hubbeam_ctrl.plant.params import Params, check_spin
 
 __all__ = ["save_model", "load_model", "save_system", "load_system", "FORMATS"]
 
@@ -155,17 +157,73 @@ def _write_mat(tmp, mats, meta, params: Params | None):
 
 
 def _from_parts(mats: dict, meta: dict, path: Path) -> LinearModel:
+    def bad(reason):
+        return ParameterError(f"path: {path} is not a valid hubbeam model file ({reason})")
+    if not isinstance(meta, dict):
+        raise bad("its metadata is not an object")
     try:
-        params = Params(**meta["params"])
-        sys = _make_ss(*(np.asarray(mats[k], dtype=float) for k in _MATRICES), meta["dt"],
-                       meta["state_names"], meta["output_names"], meta["name"])
-        lm = LinearModel(sys=sys, model=meta["model"], spin=float(meta["spin_rad_s"]),
-                         params=params, reduction=meta["reduction"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ParameterError(f"path: {path} is not a valid hubbeam model file ({exc})") from None
-    if lm.input_names != list(meta["input_names"]):
-        raise ParameterError(f"path: {path} has inputs {meta['input_names']}, expected ['tau']")
-    return lm
+        params = Params.from_dict(meta["params"])
+        A, B, C, D = (_real_matrix(k, mats[k]) for k in _MATRICES)
+        states, outputs = _names(meta, "state_names"), _names(meta, "output_names")
+        _check_shapes(A, B, C, D, states, outputs)
+        if list(meta["input_names"]) != ["tau"]:
+            raise ValueError(f"inputs {str(meta['input_names'])[:60]}, expected ['tau']")
+        model, reduction, name = meta["model"], meta["reduction"], meta["name"]
+        if model not in MODEL_NAMES:
+            raise ValueError(f"model {str(model)[:40]!r} is not one of {', '.join(MODEL_NAMES)}")
+        if not isinstance(reduction, str) or not _REDUCTION.match(reduction):
+            raise ValueError(f"reduction {str(reduction)[:40]!r} is not none, modal:K or balanced:K")
+        if not isinstance(name, str) or not name or "." in name:
+            raise ValueError(f"name {str(name)[:40]!r} is not a non-empty string without '.'")
+        dt = meta["dt"]
+        lo, hi = DT_RANGE
+        if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (dt == 0 or lo <= dt <= hi):
+            raise ValueError(f"dt {str(dt)[:40]} is not 0 or in [{DT_RANGE[0]:g}, {DT_RANGE[1]:g}] s")
+        spin = check_spin("spin_rad_s", meta["spin_rad_s"], params)
+        sys = _make_ss(A, B, C, D, dt, states, outputs, name)
+        return LinearModel(sys=sys, model=model, spin=spin, params=params, reduction=reduction)
+    except KeyError as exc:
+        raise bad(f"no {exc}") from None
+    except (TypeError, ValueError) as exc:    # ParameterError too
+        raise bad(" ".join(str(exc).split())[:200]) from None
+
+
+_REDUCTION = re.compile(r"^(none|modal:[1-9][0-9]*|balanced:[1-9][0-9]*)$")
+
+
+def _real_matrix(name: str, value) -> np.ndarray:
+    """A stored matrix as a float array, refusing complex, boolean, text and non-finite entries."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "fiu":
+        raise ValueError(f"{name} holds {arr.dtype} values, not real numbers")
+    if arr.ndim != 2:
+        raise ValueError(f"{name} has {arr.ndim} dimensions, not 2")
+    arr = arr.astype(float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} holds NaN or infinity")
+    return arr
+
+
+def _names(meta: dict, key: str) -> list:
+    names = meta[key]
+    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) and n for n in names):
+        raise ValueError(f"{key} is not a list of non-empty strings")
+    if len(set(names)) != len(names):
+        raise ValueError(f"{key} repeats a name")
+    return list(names)
+
+
+def _check_shapes(A, B, C, D, states: list, outputs: list) -> None:
+    n, p = len(states), len(outputs)
+    want = {"A": (n, n), "B": (n, 1), "C": (p, n), "D": (p, 1)}
+    for key, M in zip(_MATRICES, (A, B, C, D)):
+        if M.shape != want[key]:
+            raise ValueError(f"{key} has shape {M.shape}, expected {want[key]} for {n} states and "
+                             f"{p} outputs")
+
+
+#: Largest model file read [bytes].
+MAX_MODEL_FILE_BYTES = 200_000_000
 
 
 def load_model(path) -> LinearModel:
@@ -212,6 +270,8 @@ def load_system(path, names=_MATRICES, tag: str = _FORMAT_TAG, what: str = "hubb
     path = Path(path)
     suffix = _suffix(path, "path")
     check_regular_file(path, "path")
+    if path.stat().st_size > MAX_MODEL_FILE_BYTES:
+        raise ParameterError(f"path: {path} is larger than {MAX_MODEL_FILE_BYTES} bytes")
     if suffix == ".npz":
         mats, meta = read_npz(path, "path", what)
     try:
@@ -226,14 +286,18 @@ def load_system(path, names=_MATRICES, tag: str = _FORMAT_TAG, what: str = "hubb
             meta = json.loads(path.read_text(encoding="utf-8"))
             if meta.get("format") != tag:
                 raise KeyError("format")
-            mats = {k: np.array(meta[k], dtype=float) for k in names}
+            mats = {k: np.array(meta[k]) for k in names}
         shapes = _shapes(meta, names)
-        mats = {k: np.asarray(v, dtype=float).reshape(shapes[k]) for k, v in mats.items()}
+        # the formats lose the dimensions of empty matrices: restore them from the name lists;
+        # the values are checked by the caller (real, finite, shapes: ``_real_matrix``)
+        mats = {k: v.reshape(shapes[k]) if v.size == 0 and np.prod(shapes[k]) == 0 else v
+                for k, v in ((k, np.asarray(v)) for k, v in mats.items())}
     except (KeyError, ValueError, OSError, IndexError, TypeError, AttributeError) as exc:
         raise ParameterError(f"path: {path} is not a {what} "
-                             f"({type(exc).__name__}: {exc})") from None
+                             f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]})") from None
     except Exception as exc:   # scipy/numpy readers raise assorted errors on garbage
-        raise ParameterError(f"path: cannot read {path}: {exc}") from None
+        raise ParameterError(f"path: cannot read {path}: {type(exc).__name__}: "
+                             f"{' '.join(str(exc).split())[:200]}") from None
     return mats, meta
 
 

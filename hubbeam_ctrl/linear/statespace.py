@@ -30,16 +30,21 @@ strain gauge at the root reads). The input is the hub torque ``tau`` [N m]. ``D 
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 
 import control
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization, velocity_name
 from hubbeam_ctrl.plant.models import MODEL_NAMES, HubBeamModel, build_model
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.plant.sensors import SENSOR_NAMES, sensor_matrix
+
+#: Allowed sample times of :func:`discretize` [s].
+DT_RANGE = (1e-6, 10.0)
 
 __all__ = ["LinearModel", "OUTPUTS", "DEFAULT_OUTPUTS", "linearize", "discretize", "reduce",
            "poles", "continuous_poles", "poles_hz", "compare_poles", "PoleComparison"]
@@ -177,11 +182,21 @@ class LinearModel:
         """
         return poles_hz(self)
 
+    @property
+    def unstable(self) -> bool:
+        """True when a mode grows (a pole with positive real part, or ``|z| > 1`` sampled),
+        e.g. TLAM above its critical speed. The rigid-body poles at 0 (``z = 1``) do not count."""
+        if self.is_discrete:          # in the z-plane: log(z) of a huge pole loses the small ones
+            z = self.poles()
+            return bool(not np.all(np.isfinite(z)) or np.any(np.abs(z) > 1.0 + 1e-6))
+        lam = continuous_poles(self)
+        return bool(np.any(lam.real > 1e-9 * np.maximum(1.0, np.abs(lam)) + 1e-11 * np.abs(lam).max()))
+
     def metadata(self) -> dict:
         """Everything but the matrices, as plain JSON-able values."""
         return {
             "model": self.model, "spin_rad_s": self.spin, "dt": self.dt, "name": self.name,
-            "reduction": self.reduction, "hub": "free",
+            "reduction": self.reduction, "hub": "free", "unstable": self.unstable,
             "state_names": self.state_names, "input_names": self.input_names,
             "output_names": self.output_names, "state_units": self.state_units,
             "input_units": ["N m"], "output_units": self.output_units,
@@ -235,7 +250,8 @@ def linearize(model="sfoam", spin: float = 0.0, params: Params | None = None,
     model : {"sfoam", "foam", "cfoam", "tlam"} or HubBeamModel
         Source model (default SFOAM, the paper's design model).
     spin : float
-        Steady hub rate Omega [rad/s] (default 0, the slew design point).
+        Steady hub rate Omega [rad/s] (default 0, the slew design point), a number with
+        ``|spin| <= params.max_spin``.
     params : Params, optional
         System parameters (default: the paper's Table 1). Ignored for a HubBeamModel.
     outputs : sequence of str or comma-separated str
@@ -287,13 +303,9 @@ def linearize(model="sfoam", spin: float = 0.0, params: Params | None = None,
             changes["damping_ratio"] = damping
         if changes:
             p = p.replace(**changes)
+        check_spin("spin", spin, p)            # before the (costly) model build
         hub_model = build_model(model.lower(), p)
-    try:
-        spin = float(spin)
-    except (TypeError, ValueError):
-        raise ParameterError(f"spin must be a finite number [rad/s], got {spin!r}") from None
-    if not np.isfinite(spin):
-        raise ParameterError(f"spin must be a finite number [rad/s], got {spin}")
+    spin = check_spin("spin", spin, hub_model.params)
     outputs = _parse_outputs(outputs)
 
     lin = second_order_linearization(hub_model, spin, "free")
@@ -335,7 +347,7 @@ def continuous_poles(lm) -> np.ndarray:
     lam = poles(sys).astype(complex)
     if sys.dt:
         dt = float(sys.dt)
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):
             lam = np.log(lam) / dt
     return lam
 
@@ -385,7 +397,8 @@ def discretize(lm: LinearModel, dt: float, method: str = "zoh") -> LinearModel:
     lm : LinearModel
         Continuous-time model.
     dt : float
-        Sample time [s], > 0.
+        Sample time [s], in [1e-6, 10]; refused when a growing mode overflows the sampled
+        matrices.
     method : {"zoh", "foh", "impulse", "tustin", "bilinear", "euler", "backward_diff"}
         Passed to :meth:`control.StateSpace.sample` (default zero-order hold).
 
@@ -396,18 +409,19 @@ def discretize(lm: LinearModel, dt: float, method: str = "zoh") -> LinearModel:
     """
     if not isinstance(lm, LinearModel):
         raise ParameterError(f"model must be a LinearModel, got {type(lm).__name__}")
-    try:
-        dt = float(dt)
-    except (TypeError, ValueError):
-        raise ParameterError(f"dt must be a number > 0 [s], got {dt!r}") from None
-    if not (np.isfinite(dt) and dt > 0):
-        raise ParameterError(f"dt must be a finite number > 0 [s], got {dt}")
+    dt = check_in_range("dt", dt, "s", DT_RANGE[0], DT_RANGE[1])
     if lm.is_discrete:
         raise ParameterError(f"model must be continuous-time to discretize, it has dt = {lm.dt}")
     methods = ("zoh", "foh", "impulse", "tustin", "bilinear", "euler", "backward_diff")
     if method not in methods:
         raise ParameterError(f"method must be one of {', '.join(methods)}, got {method!r}")
-    sysd = lm.sys.sample(dt, method=method, name=f"{lm.name}_d", copy_names=True)
+    with np.errstate(all="ignore"), warnings.catch_warnings():   # overflow is checked below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sysd = lm.sys.sample(dt, method=method, name=f"{lm.name}_d", copy_names=True)
+    if not all(np.all(np.isfinite(np.asarray(M))) for M in (sysd.A, sysd.B, sysd.C, sysd.D)):
+        growth = float(np.max(continuous_poles(lm).real))
+        raise ParameterError(f"dt = {dt:g} s is too long for this model: its fastest-growing mode "
+                             f"(real part {growth:.4g} 1/s) overflows the sampled matrices")
     sysd = _make_ss(sysd.A, sysd.B, sysd.C, sysd.D, dt, lm.state_names, lm.output_names, sysd.name)
     return dataclasses.replace(lm, sys=sysd)
 

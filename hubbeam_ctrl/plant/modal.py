@@ -19,8 +19,8 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization
-from hubbeam_ctrl.plant.models import resolve_model
-from hubbeam_ctrl.plant.params import MAX_MODES, Params
+from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
+from hubbeam_ctrl.plant.params import MAX_MODES, Params, check_spin
 
 __all__ = ["ModalResult", "modal_analysis", "natural_frequencies", "campbell",
            "critical_speed", "critical_speed_map", "converged_bending_hz"]
@@ -66,7 +66,7 @@ def modal_analysis(model="foam", spin: float = 0.0, hub: str = "prescribed",
     ----------
     model : str or HubBeamModel
     spin : float
-        Spin rate [rad/s].
+        Spin rate [rad/s], ``|spin| <= params.max_spin``.
     hub : {"prescribed", "free"}
         ``prescribed``: clamped root turning at ``spin`` (Table 2); ``free``: the hub is
         free to turn (its inertia takes part; one rigid mode at zero).
@@ -83,13 +83,15 @@ def modal_analysis(model="foam", spin: float = 0.0, hub: str = "prescribed",
     >>> [round(float(f), 3) for f in r.bending_hz[:2]]
     [0.471, 2.929]
     """
+    spin = check_spin("spin", spin, _params_of(model, params))   # before the model is built
     m = resolve_model(model, params)
     lin = second_order_linearization(m, spin, hub)
     A, _, _ = first_order_matrices(lin)
     lam, vec = np.linalg.eig(A)
     n = lin.M.shape[0]
     rigid = np.abs(lam) < RIGID_TOL * max(1.0, np.abs(lam).max() * 1e-6)
-    unstable = bool(np.any(lam.real > 1e-9 * np.maximum(1.0, np.abs(lam))))
+    # rounding puts real parts of order eps * max|lambda| on every eigenvalue: not instability
+    unstable = bool(np.any(lam.real > 1e-9 * np.maximum(1.0, np.abs(lam)) + 1e-11 * np.abs(lam).max()))
     names = lin.coordinate_names
     is_axial_coord = np.array([c.startswith("q1_") for c in names])
     bending, axial, zetas = [], [], []
@@ -110,6 +112,15 @@ def modal_analysis(model="foam", spin: float = 0.0, hub: str = "prescribed",
                        bending_hz=np.array(bending)[order], axial_hz=np.sort(axial),
                        damping_ratios=np.array(zetas)[order], unstable=unstable,
                        n_rigid=int(rigid.sum()))
+
+
+def _params_of(model, params) -> Params:
+    """The parameters a model will be built with (without building it)."""
+    if isinstance(model, HubBeamModel):
+        return model.params
+    if params is not None and not isinstance(params, Params):
+        raise ParameterError(f"params must be a Params, got {type(params).__name__}")
+    return params if params is not None else Params()
 
 
 def natural_frequencies(model="foam", spin: float = 0.0, hub: str = "prescribed",

@@ -30,14 +30,14 @@ class SensorSettings(Settings):
     white noise of the standard deviations below, drawn afresh at each sample.
     """
 
-    angle_noise_rad: float = setting(1e-4, unit="rad", lo=0.0,
+    angle_noise_rad: float = setting(1e-4, unit="rad", lo=0.0, hi=1.0,
                                      doc="Hub-angle encoder noise, standard deviation (about a 16-bit "
                                          "encoder).")
-    rate_noise_rad_s: float = setting(1e-3, unit="rad/s", lo=0.0,
+    rate_noise_rad_s: float = setting(1e-3, unit="rad/s", lo=0.0, hi=10.0,
                                       doc="Hub-rate (tachometer / gyro) noise, standard deviation.")
-    moment_noise_nm: float = setting(0.02, unit="N m", lo=0.0,
+    moment_noise_nm: float = setting(0.02, unit="N m", lo=0.0, hi=1e6,
                                      doc="Root bending-moment (strain gauge) noise, standard deviation.")
-    seed: int = setting(0, lo=0, doc="Seed of the noise generator (runs are reproducible).")
+    seed: int = setting(0, lo=0, hi=2**63 - 1, doc="Seed of the noise generator (runs are reproducible).")
 
     @property
     def std(self) -> np.ndarray:

@@ -31,9 +31,10 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from hubbeam_ctrl.core.budget import CLOSED_LOOP_SECONDS_PER_SAMPLE, T_END_MAX, check_budget
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import setting
-from hubbeam_ctrl.core.validation import check_positive as _check_positive
+from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
@@ -60,13 +61,17 @@ class ClosedLoopSettings(StepperSettings):
                                              "the integrator (0.5 %).")
     sensors: SensorSettings = setting(factory=SensorSettings,
                                       doc='Sensor noise for controllers that read "sensors".')
-    range_limit: float = setting(0.3, lo=0.0, lo_open=True,
+    range_limit: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0,
                                  doc="Validated range of the models: a run with abs(v_tip) > range_limit * L "
                                      "is flagged (outside_validated_range, with the time) and goes on.")
-    divergence_limit: float = setting(1.0, lo=0.0, lo_open=True,
+    divergence_limit: float = setting(1.0, lo=0.0, lo_open=True, hi=10.0,
                                       doc="The run stops (diverged) when abs(v_tip) > divergence_limit * L.")
-    max_wall_s: float = setting(600.0, unit="s", lo=0.0, lo_open=True,
-                                doc="The run stops (flagged) when it has taken longer than this.")
+    max_wall_s: float = setting(600.0, unit="s", lo=1e-3, hi=1e7,
+                                doc="The run stops (flagged) when it has taken longer than this "
+                                    "(checked at every sample).")
+    max_memory_mb: float = setting(2048.0, unit="MB", lo=1.0, hi=1e9,
+                                   doc="A run whose results would need more memory than this is "
+                                       "refused before it starts.")
 
     @property
     def stepper(self) -> StepperSettings:
@@ -80,6 +85,29 @@ class ClosedLoopSettings(StepperSettings):
         """The plant integrator's settings with ``substeps`` steps per sample (1..200)."""
         values = {f.name: getattr(self, f.name) for f in fields(StepperSettings)}
         return StepperSettings(**{**values, "substeps": substeps})
+
+
+def _torque(value) -> float:
+    """A controller's output as one float (NaN and infinity pass: the loop reports them)."""
+    arr = np.asarray(value, dtype=float)
+    if arr.size != 1:
+        raise ParameterError(f"the torque must be one number, got {arr.size} values")
+    return float(arr.reshape(()))
+
+
+def _initial_state(x0, n_x: int) -> np.ndarray:
+    """``x0`` as ``n_x`` finite floats (zeros when ``None``), or a one-line error."""
+    if x0 is None:
+        return np.zeros(n_x)
+    try:
+        x = np.asarray(x0, dtype=float).ravel()
+    except (TypeError, ValueError, OverflowError):
+        x = None
+    if x is None or x.shape != (n_x,) or not np.all(np.isfinite(x)):
+        raise ParameterError(f"x0 must hold {n_x} finite numbers [q, v] of the plant, got "
+                             + (f"shape {x.shape}" + ("" if x.shape != (n_x,) else " with NaN or infinity")
+                                if x is not None else type(x0).__name__))
+    return x
 
 
 def _controller_name(controller) -> str:
@@ -185,12 +213,16 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     -----
     A plant that passes ``range_limit * L`` (default 0.3 L, the models' validated range) is
     flagged (``outside_validated_range``, ``outside_range_time_s``) and the run goes on. A
-    controller that returns a non-finite torque, an integrator failure, or a plant that
-    passes ``divergence_limit * L`` (default L) stops the run: the result is cut there, with
-    ``stopped = True`` and a message naming the cause.
+    controller that returns a non-finite torque or raises, an integrator failure, or a plant
+    that passes ``divergence_limit * L`` (default L) stops the run: the result is cut there,
+    with ``stopped = True`` and a message naming the cause. So does ``settings.max_wall_s``
+    (checked at every sample); a run whose samples would need more than
+    ``settings.max_memory_mb`` is refused before it starts.
     """
-    settings = settings or ClosedLoopSettings()
-    _check_positive("t_end", t_end, "s")
+    settings = ClosedLoopSettings() if settings is None else settings
+    if not isinstance(settings, ClosedLoopSettings):
+        raise ParameterError(f"settings must be a ClosedLoopSettings, got {type(settings).__name__}")
+    t_end = check_in_range("t_end", t_end, "s", settings.dt, T_END_MAX, "at least two samples: t_end >= dt")
     if not callable(controller) or not hasattr(controller, "reset"):
         raise ParameterError("controller must be callable as controller(t, y) and have reset()")
     name = _controller_name(controller)
@@ -212,8 +244,13 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     # index map plant state [q, v] -> measurement
     idx_state = np.r_[0, 1 + n1:1 + n1 + m, n, n + 1 + n1:n + 1 + n1 + m]
     C_sens = sensor_matrix(model.params, n2, n1)
-    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]))
     N = int(round(t_end / dt))
+    check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({N + 1} samples)",
+                 memory_bytes=16.0 * (N + 1) * (2 * n + 9),
+                 seconds=N * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n / 11.0) ** 2,
+                 max_memory_mb=settings.max_memory_mb, max_wall_s=settings.max_wall_s)
+    x = _initial_state(x0, 2 * n)
+    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]))
     t = dt * np.arange(N + 1)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None
@@ -226,7 +263,6 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     states = np.empty((N + 1, 2 * n))
     taus = np.full(N + 1, np.nan)
     step_times = np.full(N + 1, np.nan)
-    x = np.zeros(2 * n) if x0 is None else np.asarray(x0, dtype=float).ravel()
     controller.reset()
     stopped, message = False, "completed"
     start = time.perf_counter()
@@ -237,9 +273,14 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         states[k] = x
         y = x[idx_state] if noise is None else C_sens @ x + noise[k]
         t0 = perf()
-        tau = controller(t[k], y)
+        try:
+            tau = _torque(controller(t[k], y))
+        except Exception as exc:      # the controller's own code: stop, name it, keep the run
+            stopped, last = True, k
+            message = (f"controller {name!r} raised {type(exc).__name__}: {str(exc)[:200]} at "
+                       f"t = {t[k]:.3f} s; run stopped")
+            break
         step_times[k] = perf() - t0
-        tau = float(tau)
         taus[k] = tau
         if not math.isfinite(tau):
             stopped = True
@@ -266,7 +307,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
             message = (f"{model.name.upper()} left its range at t = {t[k + 1]:.3f} s under "
                        f"controller {name!r}: |v_tip| > {settings.divergence_limit:g} L; run stopped")
             break
-        if (k & 255) == 0 and perf() - start > settings.max_wall_s:
+        if perf() - start > settings.max_wall_s:
             stopped, last = True, k + 1
             states[k + 1] = x
             message = f"stopped after max_wall_s = {settings.max_wall_s:g} s at t = {t[k + 1]:.3f} s"

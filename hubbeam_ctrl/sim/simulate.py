@@ -26,55 +26,52 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.budget import (
+    SECONDS_PER_SAMPLE,
+    T_END_MAX,
+    WallClock,
+    check_budget,
+    model_build_seconds,
+    simulation_bytes_per_sample,
+)
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError, UserFunctionError
 from hubbeam_ctrl.core.progress import progress_bar
-from hubbeam_ctrl.plant.maneuvers import UserManeuver
-from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.core.settings import Settings, setting
+from hubbeam_ctrl.core.validation import check_in_range
+from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse, UserManeuver
+from hubbeam_ctrl.plant.models import MODEL_SPECS, HubBeamModel, resolve_model
+from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["simulate", "Integrator", "make_integrator", "SimulationSettings"]
 
 
 @dataclass(frozen=True)
-class SimulationSettings:
-    """Integrator settings.
+class SimulationSettings(Settings):
+    """Settings of :func:`simulate` (IDAS, output grid, when to stop)."""
 
-    Attributes
-    ----------
-    dt : float
-        Output sample period [s].
-    rtol, atol : float
-        Relative and absolute tolerances of IDAS (absolute in m, rad, m/s, rad/s).
-    max_order : int
-        Largest BDF order (1..5). 2 keeps the method A-stable for the stiff axial modes;
-        5 with tight tolerances resolves them (slow, for reference runs).
-    chunk_s : float
-        Length of one integration chunk between divergence checks [s].
-    range_limit : float
-        The run is flagged (``outside_validated_range``) when ``|v_tip| > range_limit * L``.
-    divergence_limit : float
-        The run stops when ``|v_tip| > divergence_limit * L``.
-    max_wall_s : float
-        The run stops (flagged) when it has taken longer than this [s].
-    """
-
-    dt: float = 0.01
-    rtol: float = 1e-8
-    atol: float = 1e-8
-    max_order: int = 2
-    chunk_s: float = 10.0
-    range_limit: float = 0.3
-    divergence_limit: float = 1.0
-    max_wall_s: float = 600.0
-
-    def __post_init__(self):
-        for name in ("dt", "rtol", "atol", "chunk_s", "range_limit", "divergence_limit", "max_wall_s"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ParameterError(f"{name} must be a finite number > 0, got {value!r}")
-        if self.max_order not in (1, 2, 3, 4, 5):
-            raise ParameterError(f"max_order must be an integer in 1..5, got {self.max_order!r}")
+    dt: float = setting(0.01, unit="s", lo=1e-6, hi=10.0, doc="Output sample period.")
+    rtol: float = setting(1e-8, lo=1e-12, hi=1e-2, doc="Relative tolerance of IDAS.")
+    atol: float = setting(1e-8, unit="m, rad, m/s, rad/s", lo=1e-14, hi=1.0,
+                          doc="Absolute tolerance of IDAS.")
+    max_order: int = setting(2, lo=1, hi=5,
+                             doc="Largest BDF order. 2 keeps the method A-stable for the stiff axial "
+                                 "modes; 5 with tight tolerances resolves them (slow, for reference "
+                                 "runs).")
+    chunk_s: float = setting(10.0, unit="s", lo=1e-3, hi=1e4,
+                             doc="Longest integration chunk between checks (divergence, wall time); "
+                                 "shortened so that a chunk takes a fraction of a second of wall time.")
+    range_limit: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0,
+                                 doc="The run is flagged (outside_validated_range) when "
+                                     "abs(v_tip) > range_limit * L, and goes on.")
+    divergence_limit: float = setting(1.0, lo=0.0, lo_open=True, hi=10.0,
+                                      doc="The run stops when abs(v_tip) > divergence_limit * L.")
+    max_wall_s: float = setting(600.0, unit="s", lo=1e-3, hi=1e7,
+                                doc="The run stops (flagged) when it has taken longer than this; a "
+                                    "run estimated to take longer is refused before it starts.")
+    max_memory_mb: float = setting(2048.0, unit="MB", lo=1.0, hi=1e9,
+                                   doc="A run whose results would need more memory than this is "
+                                       "refused before it starts.")
 
 
 class Integrator:
@@ -120,7 +117,8 @@ class Integrator:
             alg = inv(q, v, ca.vertcat(thdd, z))[1:]
             ode = ca.vertcat(x[ne:], z)
         opts = dict(abstol=settings.atol, reltol=settings.rtol, max_order=settings.max_order,
-                    max_num_steps=5000, suppress_algebraic=True, calc_ic=False)
+                    max_num_steps=5000, suppress_algebraic=True, calc_ic=False,
+                    show_eval_warnings=False)
         self._function = ca.integrator("plant", "idas", {"x": x, "z": z, "p": p, "t": t,
                                                          "ode": ode, "alg": alg},
                                        0.0, self.grid, opts)
@@ -172,7 +170,10 @@ def _full_state(model, hub, maneuver, t, xs, zs):
     n = model.n_q
     if hub == "free":
         return xs[:, :n], xs[:, n:], zs
-    th, thd, thdd = (np.broadcast_to(np.asarray(a, dtype=float), t.shape) for a in maneuver(t))
+    values = maneuver.evaluate(t)[0] if isinstance(maneuver, UserManeuver) else maneuver(t)
+    th, thd, thdd = (np.broadcast_to(np.asarray(a, dtype=float), t.shape) for a in values)
+    if th.shape != t.shape:     # a user function that stopped early: NaN after its last good value
+        th, thd, thdd = (np.concatenate([c, np.full(len(t) - len(c), np.nan)]) for c in (th, thd, thdd))
     ne = n - 1
     q = np.column_stack([th, xs[:, :ne]])
     v = np.column_stack([thd, xs[:, ne:]])
@@ -224,41 +225,29 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     >>> res.diverged
     False
     """
+    settings = _settings(settings, setting_overrides)
+    dt = settings.dt
+    t_end = check_in_range("t_end", t_end, "s", dt, T_END_MAX, "at least two samples: t_end >= dt")
+    name, p, n = _model_plan(model, params)
+    maneuver, hub = _maneuver_and_hub(maneuver, hub)
+    _check_maneuver_spin(maneuver, p)
+    n_out = int(round(t_end / dt))
+    cost = SECONDS_PER_SAMPLE[name] * (n / 11.0) ** 2
+    check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({n_out + 1} samples of {name.upper()})",
+                 memory_bytes=(n_out + 1) * simulation_bytes_per_sample(n),
+                 seconds=n_out * cost + model_build_seconds(name, p.n_transverse),
+                 max_memory_mb=settings.max_memory_mb, max_wall_s=settings.max_wall_s)
+    x0 = _initial_state(x0, 2 * n if hub == "free" else 2 * (n - 1), hub)
     m = resolve_model(model, params)
-    settings = settings or SimulationSettings()
-    if setting_overrides:
-        unknown = sorted(set(setting_overrides) - set(SimulationSettings.__dataclass_fields__))
-        if unknown:
-            raise ParameterError(f"unknown simulation setting(s) {', '.join(unknown)}; allowed: "
-                                 f"{', '.join(SimulationSettings.__dataclass_fields__)}")
-        settings = dataclasses.replace(settings, **setting_overrides)
-    if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
-        raise ParameterError(f"t_end must be a finite number > 0 [s], got {t_end!r}")
-    if maneuver is not None and not hasattr(maneuver, "kind"):
-        maneuver = UserManeuver(maneuver, "torque")
-    kind = maneuver.kind if maneuver is not None else "torque"
-    hub = hub or ("prescribed" if kind == "prescribed" else "free")
-    if hub not in ("free", "prescribed"):
-        raise ParameterError(f"hub must be 'free' or 'prescribed', got {hub!r}")
-    if (hub == "prescribed") != (kind == "prescribed"):
-        raise ParameterError(f"hub={hub!r} does not fit a maneuver of kind {kind!r}")
     if isinstance(maneuver, UserManeuver):
         maneuver.bind(t_end)
 
-    n = m.n_q
-    n_x = 2 * n if hub == "free" else 2 * (n - 1)
-    if x0 is None:
-        x0 = np.zeros(n_x)
-    x0 = np.asarray(x0, dtype=float).ravel()
-    if x0.shape != (n_x,) or not np.all(np.isfinite(x0)):
-        raise ParameterError(f"x0 must hold {n_x} finite numbers for hub={hub!r}, got shape {x0.shape}")
-
-    dt = settings.dt
-    n_out = int(round(t_end / dt))
-    per_chunk = max(1, int(round(settings.chunk_s / dt)))
+    # chunks of about 0.3 s of wall time (4 x the low estimate), so max_wall_s is checked often
+    per_chunk = int(max(1, min(round(settings.chunk_s / dt), 0.3 / (4 * cost))))
     grid = dt * np.arange(1, per_chunk + 1)
     integ = _cached_integrator(m, hub, maneuver, grid, settings)
     z0 = _initial_accelerations(m, hub, maneuver, x0)
+    n_out, user_stop = _user_function_limit(maneuver, n_out, dt)
 
     times, xs_all, zs_all = [np.array([0.0])], [x0[None, :]], []
     diverged, message = False, "completed"
@@ -266,9 +255,11 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     flag_at, outside_time = settings.range_limit * m.params.L, None
     tip_map = m.tip_function
     start = time.perf_counter()
+    clock = WallClock(settings.max_wall_s)
     done = 0
     bar = progress_bar(n_out, f"simulate {m.name}", enabled=progress)
     x, z = x0, z0
+    failure = None
     while done < n_out:
         k = min(per_chunk, n_out - done)
         t0 = done * dt
@@ -280,15 +271,18 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
                 integ = Integrator(m, hub, maneuver, dt * np.arange(1, per_chunk + 1), settings)
                 continue
             diverged = True
-            message = (f"{m.name.upper()}: integrator failed between t = {t0:.3f} s and "
-                       f"{t0 + per_chunk * dt:.3f} s ({str(exc).splitlines()[0][:100]}); "
-                       f"results end at t = {t0:.3f} s")
+            message = _named_failure(maneuver, t0, t0 + per_chunk * dt, dt) or (
+                f"{m.name.upper()}: integrator failed between t = {t0:.3f} s and "
+                f"{t0 + per_chunk * dt:.3f} s ({str(exc).splitlines()[0][:100]})")
+            message += f"; results end at t = {t0:.3f} s"
             break
         xs, zs = xs[:k], zs[:k]
         if not np.all(np.isfinite(xs)):
             bad = int(np.argmax(~np.all(np.isfinite(xs), axis=1)))
             xs, zs = xs[:bad], zs[:bad]
             diverged = True
+            failure = _named_failure(maneuver, t0, t0 + k * dt, dt) or (
+                f"{m.name.upper()}: the integrator returned a non-finite state at t = {t0 + (bad + 1) * dt:.3f} s")
         tk = t0 + dt * np.arange(1, len(xs) + 1)
         q_full = xs[:, :n] if hub == "free" else xs[:, : n - 1]
         qt = q_full if hub == "free" else np.column_stack([np.zeros(len(xs)), q_full])
@@ -306,14 +300,16 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         zs_all.append(zs)
         done += len(xs)
         bar.update(len(xs))
+        if diverged and failure:
+            message = f"{failure}; results end at t = {tk[-1] if len(tk) else t0:.3f} s"
+            break
         if diverged:
             message = (f"{m.name.upper()} left its range at t = {tk[-1] if len(tk) else t0:.3f} s: "
                        f"|v_tip| > {settings.divergence_limit:g} L = {limit:.3g} m"
                        + (" (e.g. above its critical speed)" if m.name == "tlam" else ""))
             break
-        if time.perf_counter() - start > settings.max_wall_s:
-            diverged = True
-            message = f"stopped after max_wall_s = {settings.max_wall_s:g} s at t = {tk[-1]:.3f} s"
+        if done < n_out and clock.expired():
+            diverged, message = True, clock.message(tk[-1])
             break
         x, z = xs[-1], zs[-1]
     bar.close()
@@ -321,9 +317,15 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
 
     t = np.concatenate(times)
     xs = np.vstack(xs_all)
-    zs = np.vstack(zs_all) if zs_all else np.zeros((0, n_x // 2))
+    zs = np.vstack(zs_all) if zs_all else np.zeros((0, len(x0) // 2))
     zs = np.vstack([z0[None, :], zs])
     q, v, a = _full_state(m, hub, maneuver, t, xs, zs)
+    if user_stop and not diverged:
+        diverged, message = True, f"{user_stop}; results end at t = {t[-1]:.3f} s"
+    keep, why = _finite_prefix(maneuver, t, q, v, a)
+    if keep < len(t):
+        t, q, v, a = t[:keep], q[:keep], v[:keep], a[:keep]
+        diverged, message = True, f"{why}; results end at t = {t[-1]:.3f} s"
     if outside_time is not None and not diverged:
         message = (f"completed; |v_tip| passed {settings.range_limit:g} L = {flag_at:.3g} m (outside "
                    f"the models' validated range) at t = {outside_time:.3f} s")
@@ -348,6 +350,117 @@ def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, setting
                   settings={"maneuver": describe_input(maneuver), **dataclasses.asdict(settings)},
                   stats={"outside_range_time_s": outside_range_time_s},
                   stopped=stopped, message=message, wall_s=wall_s)
+
+
+def _settings(settings, overrides: dict) -> SimulationSettings:
+    """The run's settings: ``settings`` (default) with ``overrides`` applied, validated."""
+    settings = SimulationSettings() if settings is None else settings
+    if not isinstance(settings, SimulationSettings):
+        raise ParameterError(f"settings must be a SimulationSettings, got {type(settings).__name__}")
+    if overrides:
+        unknown = sorted(set(overrides) - set(SimulationSettings.__dataclass_fields__))
+        if unknown:
+            raise ParameterError(f"unknown simulation setting(s) {', '.join(unknown)[:200]}; allowed: "
+                                 f"{', '.join(SimulationSettings.__dataclass_fields__)}")
+        settings = dataclasses.replace(settings, **overrides)
+    return settings
+
+
+def _model_plan(model, params) -> tuple:
+    """``(name, params, n_q)`` of the model to simulate, without building it (checks come first)."""
+    if isinstance(model, HubBeamModel):
+        if params is not None and params != model.params:
+            raise ParameterError("params differ from the model's own; pass one or the other")
+        return model.name, model.params, model.n_q
+    if isinstance(model, str) and model.lower() in MODEL_SPECS:
+        p = params if params is not None else Params()
+        if not isinstance(p, Params):
+            raise ParameterError(f"params must be a Params, got {type(p).__name__}")
+        spec = MODEL_SPECS[model.lower()]
+        return model.lower(), p, 1 + (p.n_axial if spec.axial else 0) + p.n_transverse
+    m = resolve_model(model, params)          # raises the one-line error for a bad model
+    return m.name, m.params, m.n_q
+
+
+def _maneuver_and_hub(maneuver, hub) -> tuple:
+    """The maneuver (a plain callable becomes a torque :class:`UserManeuver`) and the hub."""
+    if maneuver is not None and not hasattr(maneuver, "kind"):
+        if not callable(maneuver):
+            raise ParameterError(f"maneuver must be a maneuver or a function of time, got "
+                                 f"{type(maneuver).__name__}")
+        maneuver = UserManeuver(maneuver, "torque")
+    kind = maneuver.kind if maneuver is not None else "torque"
+    hub = hub or ("prescribed" if kind == "prescribed" else "free")
+    if hub not in ("free", "prescribed"):
+        raise ParameterError(f"hub must be 'free' or 'prescribed', got {hub!r}"[:200])
+    if (hub == "prescribed") != (kind == "prescribed"):
+        raise ParameterError(f"hub={hub!r} does not fit a maneuver of kind {kind!r}")
+    return maneuver, hub
+
+
+def _check_maneuver_spin(maneuver, params: Params) -> None:
+    """Refuse a built-in maneuver that spins the hub beyond ``params.max_spin``."""
+    if isinstance(maneuver, SpinUp):
+        check_spin("w_f", maneuver.w_f, params)
+    elif isinstance(maneuver, ConstantSpin):
+        check_spin("spin", maneuver.spin, params)
+    elif isinstance(maneuver, TorquePulse):
+        peak = maneuver.tau_m * maneuver.t_f / (math.pi * params.total_inertia)
+        if peak > params.max_spin:
+            raise ParameterError(
+                f"tau_m = {maneuver.tau_m:g} N m over t_f = {maneuver.t_f:g} s spins the hub up to "
+                f"{peak:.4g} rad/s (tau_m t_f / (pi J_total)), above Params.max_spin = "
+                f"{params.max_spin:.4g} rad/s (1 % centrifugal strain at the root)")
+
+
+def _initial_state(x0, n_x: int, hub: str) -> np.ndarray:
+    """``x0`` as a float array of ``n_x`` finite numbers (zeros when ``None``)."""
+    if x0 is None:
+        return np.zeros(n_x)
+    try:
+        x = np.asarray(x0, dtype=float).ravel()
+    except (TypeError, ValueError, OverflowError):
+        x = None
+    if x is None or x.shape != (n_x,) or not np.all(np.isfinite(x)):
+        raise ParameterError(f"x0 must hold {n_x} finite numbers for hub={hub!r}, got "
+                             f"{'shape ' + str(x.shape) if x is not None else type(x0).__name__}")
+    return x
+
+
+def _user_function_limit(maneuver, n_out: int, dt: float) -> tuple:
+    """Samples to compute, and why fewer than asked: a tabulated user function that fails
+    (raises, or returns a non-finite value) before the end stops the run where it did."""
+    stop = getattr(maneuver, "valid_until", None) if isinstance(maneuver, UserManeuver) else None
+    if stop is None or stop >= n_out * dt:
+        return n_out, None
+    k = int(math.floor(stop / dt + 1e-9))
+    if k < 1:
+        raise UserFunctionError(maneuver.failure)
+    return k, maneuver.failure
+
+
+def _named_failure(maneuver, t0: float, t1: float, dt: float) -> str | None:
+    """The message naming a user function that fails between ``t0`` and ``t1`` [s], if one does."""
+    if not isinstance(maneuver, UserManeuver):
+        return None
+    _, error = maneuver.evaluate(np.arange(t0, t1 + 0.5 * dt, dt))
+    return None if error is None else str(error)
+
+
+def _finite_prefix(maneuver, t, q, v, a) -> tuple:
+    """Number of leading samples whose ``q``, ``v``, ``a`` are all finite, and why it ends there.
+
+    A result never holds NaN or infinity: the run is cut before the first such sample and the
+    message names the cause (the user function when it returned the bad value).
+    """
+    finite = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(v), axis=1) & np.all(np.isfinite(a), axis=1)
+    if finite.all():
+        return len(t), None
+    keep = int(np.argmin(finite))
+    why = _named_failure(maneuver, t[keep], t[keep], 1.0) or f"non-finite state at t = {t[keep]:.3f} s"
+    if keep == 0:
+        raise HubbeamError(why)
+    return keep, why
 
 
 def _initial_accelerations(m: HubBeamModel, hub, maneuver, x0):

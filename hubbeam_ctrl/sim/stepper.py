@@ -18,6 +18,7 @@ correction is not small enough is recomputed with CasADi's ``rootfinder('newton'
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -25,8 +26,10 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from hubbeam_ctrl.core.budget import T_END_MAX, check_budget
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
+from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
@@ -242,7 +245,7 @@ def substep_rule(frequencies_hz, dt: float, *, tolerance: float = 0.005, rho_inf
 class StepperSettings(Settings):
     """Settings of the fixed-step plant integrator :class:`PlantStepper`."""
 
-    dt: float = setting(0.01, unit="s", lo=0.0, lo_open=True,
+    dt: float = setting(0.01, unit="s", lo=1e-6, hi=10.0,
                         doc="Sample period: one call of the stepper advances the plant by dt.")
     substeps: int = setting(2, lo=1, hi=MAX_SUBSTEPS,
                             doc="Integration steps per sample; the step is dt / substeps. Two steps of "
@@ -252,7 +255,7 @@ class StepperSettings(Settings):
     rho_inf: float = setting(0.9, lo=0.0, hi=1.0,
                              doc="Spectral radius at infinity of the generalized-alpha method.")
     newton_iterations: int = setting(3, lo=1, hi=20, doc="Newton iterations per step in the fast path.")
-    newton_tol: float = setting(1e-6, unit="m/s^2, rad/s^2", lo=0.0, lo_open=True,
+    newton_tol: float = setting(1e-6, unit="m/s^2, rad/s^2", lo=1e-14, hi=1.0,
                                 doc="Largest accepted last Newton correction of the accelerations; a "
                                     "step above it is recomputed by the exact rootfinder.")
 
@@ -477,10 +480,13 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     """
     model = resolve_model(plant, params)
     settings = settings or StepperSettings()
-    _check_positive("t_end", t_end, "s")
-    stepper = PlantStepper(model, settings)
+    t_end = check_in_range("t_end", t_end, "s", settings.dt, T_END_MAX, "at least two samples: t_end >= dt")
     dt, k = settings.dt, settings.substeps
     N = int(round(t_end / dt))
+    check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({N + 1} samples)",
+                 memory_bytes=8.0 * (N + 1) * (k + 4 * model.n_q + 4), seconds=0.0,
+                 max_memory_mb=2048.0, max_wall_s=math.inf)
+    stepper = PlantStepper(model, settings)
     t = dt * np.arange(N + 1)
     sub = (t[:-1, None] + dt * np.arange(1, k + 1)[None, :] / k)
     u = np.asarray(torque(sub), dtype=float) * np.ones_like(sub)

@@ -32,6 +32,14 @@ from dataclasses import dataclass, field
 from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
 from controllers.analysis import loop_margins
 from controllers.scaling import Tolerances
+from hubbeam_ctrl.core.budget import (
+    CLOSED_LOOP_SECONDS_PER_SAMPLE,
+    WallClock,
+    check_budget,
+    model_build_seconds,
+    mpc_bytes,
+    mpc_seconds,
+)
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings
@@ -213,12 +221,18 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     unknown = sorted(set(settings) - set(names))
     if unknown:
         raise ParameterError(f"settings given for controllers not run: {', '.join(unknown)}")
+    sim = sim_settings or ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
+    if not isinstance(sim, ClosedLoopSettings):
+        raise ParameterError(f"sim_settings must be a ClosedLoopSettings, got {type(sim).__name__}")
+    if sim.dt != sc.dt:
+        sim = dataclasses.replace(sim, dt=sc.dt)
+    chosen = {name: settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
+                                                                                   solver=solver)
+              for name in names}
+    _check_budget(sc, ev, chosen, m, sim, schedule)
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
     shaper = None if shaping is None else as_shaper(design, shaping)
     sched = _design_schedule(sc, schedule, m)
-    sim = sim_settings or ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
-    if sim.dt != sc.dt:
-        sim = dataclasses.replace(sim, dt=sc.dt)
     ref = sc.reference
     designs = dict(designs or {})
     if payload_range is not None:
@@ -226,15 +240,18 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
                                    solver=solver, sim=sim, plant_modes=plant_modes), **designs}
     results, metrics, margins = {}, {}, {}
+    clock = WallClock(sim.max_wall_s)        # the whole comparison's wall-time limit
     for name in names:
+        if clock.expired():
+            break
         spec = CONTROLLERS[name]
-        st = settings.get(name) or spec.settings.for_scenario(sc, horizon=horizon, solver=solver)
         d = designs[name].design if name in designs else design
-        st = designs[name].settings if name in designs else st
+        st = designs[name].settings if name in designs else chosen[name]
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=sched if spec.scheduled else None)
         margins[name] = _margins(ctrl)
-        res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=sim,
+        run_sim = dataclasses.replace(sim, max_wall_s=max(1e-3, sim.max_wall_s - clock.elapsed()))
+        res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=run_sim,
                                    reference=(ref.theta_at, ref.theta_dot_at))
         results[name] = res
         metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
@@ -267,6 +284,37 @@ def _margins(ctrl):
     except HubbeamError:
         return None
     return loop_margins(ctrl)
+
+
+def _check_budget(sc: Scenario, ev, chosen: dict, design_modes: int, sim: ClosedLoopSettings,
+                  schedule=1) -> None:
+    """Refuse a comparison whose memory or time estimate exceeds ``sim``'s limits, before any
+    design work (see :mod:`hubbeam_ctrl.core.budget`); a scheduled MPC holds one set of
+    matrices per design point."""
+    points = schedule if isinstance(schedule, int) and not isinstance(schedule, bool) and schedule > 1 else 1
+    p = ev.params                            # the evaluation plant's
+    n_q = 1 + p.n_axial + p.n_transverse
+    steps = int(round(sc.t_end / sc.dt))
+    n_x = 2 * (1 + design_modes)
+    run_bytes = 16.0 * (steps + 1) * (2 * n_q + 9)
+    run_seconds = steps * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n_q / 11.0) ** 2
+    memory = len(chosen) * run_bytes
+    seconds = len(chosen) * run_seconds + model_build_seconds(ev.model, p.n_transverse)
+    what = f"t_end = {sc.t_end:g} s at dt = {sc.dt:g} s ({len(chosen)} runs of {steps + 1} samples)"
+    horizons = [getattr(st, "horizon", None) for st in chosen.values()]
+    horizons = [h for h in horizons if h]
+    if horizons:
+        N = max(horizons)
+        copies = points if any(CONTROLLERS[n].scheduled for n, st in chosen.items() if getattr(st, "horizon", None)) \
+            else 1
+        memory += copies * mpc_bytes(N, n_x)
+        seconds += mpc_seconds(N, n_x, steps) + (copies - 1) * mpc_seconds(N, n_x, 0)
+        what += f" with horizon = {N}" + (f" at {copies} design points" if copies > 1 else "")
+    elif points > 1:
+        what += f" at {points} design points"
+    seconds += 0.002 * (points - 1) * sum(bool(CONTROLLERS[n].scheduled) for n in chosen)
+    check_budget(what, memory_bytes=memory, seconds=seconds, max_memory_mb=sim.max_memory_mb,
+                 max_wall_s=sim.max_wall_s)
 
 
 def run_compare(plant: str = "foam", scenario: str = "slew", controllers=None,

@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json, write_folder
 from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
 from hubbeam_ctrl.plots.plant import save_figure
 from hubbeam_ctrl.study.metrics import GROWTH_LIMIT, METRIC_UNITS, SATURATION_LIMIT
@@ -89,6 +87,10 @@ def _plant_lines(comparison) -> list:
 def write_outputs(comparison, out_dir) -> dict:
     """Write metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, torque.png, report.md.
 
+    The files go through :func:`~hubbeam_ctrl.core.fileio.write_folder`: a new folder appears
+    complete in one rename, an existing one is updated file by file, and ``MANIFEST.json``
+    (written last) tells a finished folder from an interrupted one.
+
     Parameters
     ----------
     comparison : Comparison
@@ -98,22 +100,27 @@ def write_outputs(comparison, out_dir) -> dict:
     Returns
     -------
     dict
-        File kind -> Path.
+        File kind -> Path (in ``out_dir``).
     """
     out = Path(out_dir)
-    if not out.parent.is_dir():
-        raise ParameterError(f"out: folder {out.parent} does not exist")
-    out.mkdir(exist_ok=True)
+    names = {"csv": "metrics.csv", "json": "metrics.json", "tip_deflection.png": "tip_deflection.png",
+             "hub_angle.png": "hub_angle.png", "torque.png": "torque.png", "report": "report.md"}
+    write_folder(out, lambda folder: _write_files(comparison, Path(folder), names))
+    paths = {kind: out / name for kind, name in names.items()}
+    comparison.paths = paths
+    return paths
+
+
+def _write_files(comparison, out: Path, names: dict) -> None:
+    """The files of :func:`write_outputs`, written into ``out``."""
     sc, metrics, results = comparison.scenario, comparison.metrics, comparison.results
-    paths = {}
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=CSV_FIELDS, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
     for m in metrics.values():
         writer.writerow({k: ("" if _clean(m.get(k)) is None else _clean(m.get(k))) for k in CSV_FIELDS})
-    paths["csv"] = atomic_write_text(out / "metrics.csv", buf.getvalue())
-    paths["json"] = atomic_write_text(out / "metrics.json",
-                                      json.dumps(_json_metrics(metrics), indent=2) + "\n")
+    atomic_write_text(out / names["csv"], buf.getvalue())
+    atomic_write_text(out / names["json"], strict_json(_json_metrics(metrics), indent=2) + "\n")
     modes = f" ({comparison.plant.modes} modes)" if comparison.plant is not None else ""
     title = f"{sc.plant.upper()}{modes}, {sc.name}: "
     styles = comparison.styles
@@ -127,10 +134,8 @@ def write_outputs(comparison, out_dir) -> dict:
                                   styles=styles),
     }
     for fname, fig in figs.items():
-        paths[fname] = save_figure(fig, out / fname)
-    paths["report"] = atomic_write_text(out / "report.md", _report(comparison))
-    comparison.paths = paths
-    return paths
+        save_figure(fig, out / names[fname])
+    atomic_write_text(out / names["report"], _report(comparison))
 
 
 def _report(comparison) -> str:

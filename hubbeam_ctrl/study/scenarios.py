@@ -25,12 +25,14 @@ from controllers.scaling import (
     settling_bands,
     task_scales,
 )
+from hubbeam_ctrl.core.budget import T_END_MAX
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.core.validation import check_in_range
+from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.sim.evaluation import PLANT_MODELS
 from hubbeam_ctrl.study.tasks import Slew, SpinUp
 
-__all__ = ["SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
+__all__ = ["RANGES", "SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
 
 #: Scenario name -> builder, in registration order (see :func:`register_scenario`).
 SCENARIOS: dict = {}
@@ -64,6 +66,13 @@ def register_scenario(name: str):
         SCENARIOS[name] = builder
         return builder
     return register
+
+
+#: Ranges of :func:`make_scenario`'s numbers: name as in messages -> (lo, hi, unit). Also
+#: ``t_end > tf + 5``, ``dt <= tf / 10``, ``abs(wf) <= params.max_spin`` and, for the slew,
+#: ``tau_max tf / (pi J_total) <= params.max_spin``.
+RANGES = {"tau_max": (1e-6, 1e9, "N m"), "tf": (1e-3, 1e6, "s"), "t_end": (1e-3, T_END_MAX, "s"),
+          "dt": (1e-6, 10.0, "s")}
 
 
 def _number(name, value, unit, positive=True):
@@ -175,18 +184,19 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
     params : Params, optional
         Default: Table 1 (m_t = 0.1 kg at the tip).
     tau_max : float, optional
-        Torque budget [N m], 0 < tau_max <= ``params.tau_max`` (default: the motor's
-        ``params.tau_max``). Without ``slew_angle`` the slew turns by the rigid angle of
-        Eq. 44 with amplitude ``tau_max``.
+        Torque budget [N m], in [1e-6, 1e9] and at most ``params.tau_max`` (default: the
+        motor's ``params.tau_max``). Without ``slew_angle`` the slew turns by the rigid angle
+        of Eq. 44 with amplitude ``tau_max``; the slew's peak rigid rate ``2 Theta / t_f``
+        must not exceed ``params.max_spin``.
     t_f : float
-        Maneuver time [s], > 0.
+        Maneuver time [s], in [1e-3, 1e6].
     t_end : float
-        Simulated time [s]; must exceed the start of the residual window,
+        Simulated time [s], at most 1e9; must exceed the start of the residual window,
         ``t_f (1 + tolerances.residual_delay)`` (15 s for the default 10 s slew).
     dt : float
-        Controller sample time [s], > 0.
+        Controller sample time [s], in [1e-6, 10] and at most ``t_f / 10``.
     w_f : float
-        Spin-up final rate [rad/s] (spinup only).
+        Spin-up final rate [rad/s] (spinup only), ``|w_f| <= params.max_spin``.
     slew_angle : float, optional
         Slew angle [rad], finite and not 0 (slew only); default: the Eq. 44 angle
         ``tau_max t_f^2 / (2 pi J_total)``.
@@ -224,9 +234,8 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
     tau_max = _budget(tau_max, params)
-    t_f = _number("tf", t_f, "s")
-    t_end = _number("t_end", t_end, "s")
-    dt = _number("dt", dt, "s")
+    t_f, t_end, dt = (check_in_range(key, value, RANGES[key][2], *RANGES[key][:2])
+                      for key, value in (("tf", t_f), ("t_end", t_end), ("dt", dt)))
     tol = tolerances if tolerances is not None else default_tolerances(
         task.name if task is not None else name, params.J_h / params.total_inertia)
     if not isinstance(tol, Tolerances):
@@ -240,7 +249,7 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
     J = params.total_inertia
     eq44 = task is None and name == "slew" and slew_angle is None
     if task is None:
-        task = _task(name, tau_max, t_f, w_f, slew_angle, J)
+        task = _task(name, tau_max, t_f, w_f, slew_angle, params)
     if task is not None:
         task.check_feasible(J, tau_max, tf_name)
     parts = SCENARIOS[name](params=params, tau_max=tau_max, t_f=t_f, dt=dt, t_ref_end=t_end + preview_s,
@@ -274,23 +283,23 @@ def _budget(tau_max, params: Params) -> float:
     """The scenario's torque budget: ``tau_max`` or the motor's, never above the motor's [N m]."""
     if tau_max is None:
         return params.tau_max
-    tau_max = _number("tau_max", tau_max, "N m")
+    tau_max = check_in_range("tau_max", tau_max, RANGES["tau_max"][2], *RANGES["tau_max"][:2])
     if tau_max > params.tau_max:
         raise ParameterError(f"tau_max must be in (0, {params.tau_max:g}] N m (the motor's "
                              f"Params.tau_max), got {tau_max:g}")
     return tau_max
 
 
-def _task(name: str, tau_max: float, t_f: float, w_f, slew_angle, inertia: float):
+def _task(name: str, tau_max: float, t_f: float, w_f, slew_angle, params: Params):
     """The task of a built-in scenario from its options (None for other registered scenarios)."""
     if slew_angle is not None and name != "slew":
         raise ParameterError("slew_angle applies to the slew scenario only")
     if name == "spinup":
-        return SpinUp(_number("wf", w_f, "rad/s", positive=False), t_f)
+        return SpinUp(check_spin("wf", w_f, params), t_f)
     if name != "slew":
         return None
     if slew_angle is None:
-        return Slew.eq44(tau_max, t_f, inertia)
+        return Slew.eq44(tau_max, t_f, params.total_inertia)
     angle = _number("slew_angle", slew_angle, "rad", positive=False)
     if angle == 0.0:
         raise ParameterError("slew_angle must be a finite number != 0 [rad], got 0")
@@ -313,6 +322,11 @@ def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None,
     if task is None:                       # called without a task: the Eq. 44 angle
         task, eq44 = Slew.eq44(tau_max, t_f, J), True
     theta = task.angle
+    peak = 2 * abs(theta) / t_f            # the Eq. 44 profile's peak rigid rate for this angle
+    if peak > params.max_spin:
+        what = f"tau_max = {tau_max:g} N m over tf = {t_f:g} s" if eq44 else f"a slew by {theta:g} rad in {t_f:g} s"
+        raise ParameterError(f"{what} spins the hub up to {peak:.4g} rad/s (2 Theta / tf), above "
+                             f"Params.max_spin = {params.max_spin:.4g} rad/s (1 % centrifugal strain at the root)")
     shape = reference_shaping(theta, t_f, J, tau_max, first_mode(_design_point(params, 0.0, dt)),
                               tolerances or Tolerances())
     shape = {"flatness": shape["flatness"] if flatness is None else flatness,
@@ -331,7 +345,7 @@ def _spinup(*, params, tau_max, t_f, dt, t_ref_end, w_f=3.0, task=None, **_) -> 
     The default ``w_f`` (3 rad/s) is above TLAM's critical speed; the design model is
     linearised at ``w_f``. The baseline is the rigid-body feedforward torque alone.
     """
-    w_f = task.rate if task is not None else _number("wf", w_f, "rad/s", positive=False)
+    w_f = check_spin("wf", task.rate if task is not None else w_f, params)
     ref = spinup_reference(w_f, t_f, params.total_inertia, dt, t_ref_end, tau_max=tau_max)
     return dict(design_spin=w_f, target=w_f, target_key="final_rate_rad_s", baseline="feedforward",
                 reference=ref,

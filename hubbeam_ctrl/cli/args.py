@@ -1,0 +1,231 @@
+"""Option handling shared by the subcommands: value types, option names, output checks.
+
+Ranges live in one place, the library (field metadata of the settings and the checks of the
+public functions); the command line only parses numbers and paths and then renames, in the
+one-line error the library raises, the Python name to the option the user typed
+(:data:`OPTION_NAMES`, :func:`rename_options`)::
+
+    m_t must be in [0, 1e+06] [kg], got -1   ->   --tip-mass (m_t) must be in [0, 1e+06] [kg], got -1
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+from pathlib import Path
+
+from hubbeam_ctrl.core.errors import ParameterError
+
+__all__ = ["stdout", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
+           "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits"]
+
+#: Python names (Params fields, function arguments, settings) -> the option that sets them.
+#: Used to rename the library's messages; a name is renamed only on a subcommand that has
+#: the option.
+OPTION_NAMES = {
+    "m_t": "--tip-mass", "l": "--tip-position", "n_axial": "--n-modes", "n_transverse": "--n-modes",
+    "damping_ratio": "--damping", "damping": "--damping", "spin": "--spin",
+    "w_f": "--wf", "wf": "--wf", "t_f": "--tf", "tf": "--tf", "tau_m": "--tau-max",
+    "tau_max": "--tau-max", "t_end": "--t-end", "dt": "--dt", "horizon": "--horizon",
+    "solver": "--solver", "controllers": "--controllers", "outputs": "--outputs",
+    "max_wall_s": "--max-wall", "max_memory_mb": "--allow-large", "out": "--out", "plot": "--plot",
+    "params": "--params", "scenario": "--scenario", "plant": "--plant", "model": "--model",
+    "range_limit": "--range-limit", "design_modes": "--design-modes", "plant_modes": "--plant-modes",
+    "schedule": "--schedule", "shaping": "--shaping",
+}
+
+def stdout(args):
+    """The stream a subcommand prints its results to: the standard output saved before the
+    run (during the run ``sys.stdout`` collects native and CasADi output, see
+    :class:`~hubbeam_ctrl.core.native.capture_native_output`)."""
+    return getattr(args, "stdout", None) or sys.stdout
+
+
+_LEADING_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?=[ :=])")
+
+
+def rename_options(message: str, options) -> str:
+    """Put the option the user typed in front of the Python name that starts ``message``.
+
+    Parameters
+    ----------
+    message : str
+        A one-line error of the library (``"m_t must be ..."``, ``"out: folder ..."``).
+    options : collection of str
+        The options of the subcommand that ran (``{"--tip-mass", ...}``).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> rename_options("m_t must be in [0, 1e+06] [kg], got -1", {"--tip-mass"})
+    '--tip-mass (m_t) must be in [0, 1e+06] [kg], got -1'
+    >>> rename_options("out: folder /no does not exist", {"--out"})
+    '--out: folder /no does not exist'
+    """
+    match = _LEADING_NAME.match(message)
+    if not match:
+        return message
+    name = match.group(1)
+    option = OPTION_NAMES.get(name)
+    if option is None or option not in options:
+        return message
+    label = option if option.lstrip("-").replace("-", "_") == name else f"{option} ({name})"
+    return label + message[match.end():]
+
+
+def _number_text(text: str):
+    try:
+        value = float(text)
+    except (TypeError, ValueError, OverflowError):
+        raise argparse.ArgumentTypeError(f"must be a number, got {text[:40]!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text[:40]}")
+    return value
+
+
+def real(unit: str = "-"):
+    """argparse type: a finite number (its range is checked by the library, before any work).
+
+    Parameters
+    ----------
+    unit : str
+        Unit, for the help text only.
+    """
+    def parse(text):
+        return _number_text(text)
+    parse.unit = unit
+    return parse
+
+
+def integer():
+    """argparse type: an integer (``5`` or ``5.0``; its range is checked by the library)."""
+    def parse(text):
+        try:
+            return int(text)
+        except ValueError:
+            pass
+        try:
+            value = _number_text(text)
+        except argparse.ArgumentTypeError:
+            raise argparse.ArgumentTypeError(f"must be an integer, got {text[:40]!r}") from None
+        if not float(value).is_integer():
+            raise argparse.ArgumentTypeError(f"must be an integer, got {text[:40]}")
+        return int(value)
+    return parse
+
+
+def nonempty(what: str = "file"):
+    """argparse type: a non-empty path (an empty ``--params ''`` is an error, not "none")."""
+    def parse(text):
+        if not text.strip():
+            raise argparse.ArgumentTypeError(f"must name a {what}, got {text!r}")
+        if "\x00" in text:
+            raise argparse.ArgumentTypeError(f"must name a {what}, got a name with a NUL byte")
+        return text
+    return parse
+
+
+def check_output(option: str, path, suffixes=None) -> Path | None:
+    """Check an output file option before any work (see :func:`~hubbeam_ctrl.core.fileio.check_writable`).
+
+    Parameters
+    ----------
+    option : str
+        The option as typed (``"--out"``).
+    path : str or None
+        Its value (``None``: not given, nothing to check).
+    suffixes : sequence of str, optional
+        Allowed extensions (lower case, with the dot).
+
+    Returns
+    -------
+    Path or None
+    """
+    from hubbeam_ctrl.core.fileio import check_writable
+    if path is None:
+        return None
+    if suffixes and not str(path).lower().endswith(tuple(suffixes)):
+        raise ParameterError(f"{option} must end in {', '.join(suffixes)}, got {str(path)[:80]!r}")
+    return check_writable(path, option)
+
+
+def check_output_dir(option: str, path) -> Path:
+    """Check an output folder option before any work: a non-empty name, an existing and
+    writable parent folder, not an existing file, a name the system takes.
+
+    Parameters
+    ----------
+    option : str
+    path : str
+
+    Returns
+    -------
+    Path
+    """
+    from hubbeam_ctrl.core.fileio import check_writable
+    if path is None or not str(path).strip():
+        raise ParameterError(f"{option} must name a folder, got {path!r}")
+    out = Path(path)
+    check_writable(out.parent / (out.name + ".probe"), option)   # name length, parent exists and writable
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"{option}: {out} exists and is not a folder")
+    if out.is_dir():
+        check_writable(out / "metrics.probe", option)               # the folder itself is writable
+    return out
+
+
+def refuse_inapplicable(args, chosen: str, applies: dict) -> None:
+    """Refuse options given for a choice they do not apply to.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+    chosen : str
+        The choice made (e.g. the maneuver, ``"torque"``), as ``--option value`` text.
+    applies : dict
+        Option (as typed) -> the choices it applies to; its value is read from ``args`` by
+        the option's name (``--tau-max`` -> ``tau_max``) and counts as given unless ``None``.
+
+    Raises
+    ------
+    ParameterError
+        ``--wf does not apply to --maneuver torque (only to spinup)``.
+    """
+    for option, choices in applies.items():
+        value = getattr(args, option.lstrip("-").replace("-", "_"), None)
+        if value is not None and chosen.split()[-1] not in choices:
+            raise ParameterError(f"{option} does not apply to {chosen} (only to {', '.join(choices)})")
+
+
+def add_run_options(parser) -> None:
+    """Add ``--max-wall``, ``--allow-large`` and ``--verbose`` to a long-running subcommand."""
+    parser.add_argument("--max-wall", metavar="S", type=real("s"),
+                        help="wall-time limit of the run [s] (default 600): a run estimated to take "
+                             "longer is refused, a run that takes longer stops, flagged, keeping its "
+                             "results; checked at least once per second")
+    parser.add_argument("--allow-large", action="store_true",
+                        help="lift the memory limit (default 2048 MB) on runs whose results or "
+                             "matrices would need more")
+    add_verbose(parser)
+
+
+def add_verbose(parser) -> None:
+    """Add ``--verbose [LOG]``: native solver output and failure details go to a log file."""
+    parser.add_argument("--verbose", metavar="LOG", nargs="?", const="hubbeam.log", type=nonempty("file"),
+                        help="write native solver output and the details of failures to LOG "
+                             "(default hubbeam.log); without it they are summarised in one line")
+
+
+def run_limits(args) -> dict:
+    """``max_wall_s`` and ``max_memory_mb`` settings from ``--max-wall`` and ``--allow-large``."""
+    limits = {}
+    if getattr(args, "max_wall", None) is not None:
+        limits["max_wall_s"] = args.max_wall
+    if getattr(args, "allow_large", False):
+        limits["max_memory_mb"] = 1e9
+    return limits
