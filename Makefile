@@ -43,6 +43,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plant.py
 	$(BIN)/python benchmarks/bench_mpc.py
 	$(BIN)/python benchmarks/bench_sweep.py
+	$(BIN)/python benchmarks/bench_compiled.py
 
 # the notebooks' time budget (90 s each on an idle 2-core machine): kernel vs plain script
 bench-notebooks: $(STAMP_TEST)

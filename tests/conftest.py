@@ -3,6 +3,9 @@
 import os
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# The normal suite runs on CasADi's VM (no compiler needed, nothing compiled per parameter
+# set); tests/test_compiled.py runs the compiled backend where a compiler exists.
+os.environ.setdefault("HUBBEAM_BACKEND", "vm")
 
 import pytest  # noqa: E402
 

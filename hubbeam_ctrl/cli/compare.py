@@ -20,7 +20,7 @@ from hubbeam_ctrl.cli.args import (
     run_limits,
     stdout,
 )
-from hubbeam_ctrl.cli.main import RegistryChoices, positive_int
+from hubbeam_ctrl.cli.main import RegistryChoices, add_backend_option, positive_int
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
@@ -108,6 +108,7 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="tip payloads [kg] that LQR, LQG and MPC are designed for (must hold the tip mass "
                         "of the parameters); runs the plant at MIN, the nominal tip mass and MAX and "
                         "writes payload.json and payload_report.md")
+    add_backend_option(p)
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     add_run_options(p)
     p.set_defaults(func=run)
@@ -183,7 +184,7 @@ def run(args) -> int:
                          horizon=50 if args.horizon is None else args.horizon,
                          solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
                          sim_settings=ClosedLoopSettings(range_limit=args.range_limit, **run_limits(args)),
-                         progress=not args.json)
+                         progress=not args.json, backend=args.backend)
     write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:

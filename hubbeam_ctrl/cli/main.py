@@ -33,7 +33,7 @@ from hubbeam_ctrl.plant.models import MODEL_SPECS
 from hubbeam_ctrl.plant.params import Params, load_params
 
 __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float",
-           "RegistryChoices"]
+           "RegistryChoices", "add_backend_option"]
 
 #: Models whose bending stiffness is quadratic in the spin (``critical-speed`` needs it; CFOAM's
 #: complete foreshortening is not).
@@ -41,7 +41,7 @@ CRITICAL_SPEED_MODELS = tuple(n for n, spec in MODEL_SPECS.items() if spec.fores
 
 #: Subcommands contributed by other modules: module name -> provides add_parser/run.
 EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.design",
-                  "hubbeam_ctrl.cli.sweep", "hubbeam_ctrl.cli.tune")
+                  "hubbeam_ctrl.cli.sweep", "hubbeam_ctrl.cli.tune", "hubbeam_ctrl.cli.cache")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -140,6 +140,15 @@ def finite_float(name):
     return real()
 
 
+def add_backend_option(parser) -> None:
+    """Add ``--backend {auto,compiled,vm}`` (see :mod:`hubbeam_ctrl.core.compiled`)."""
+    from hubbeam_ctrl.core.compiled import BACKENDS
+    parser.add_argument("--backend", choices=BACKENDS, default=None,
+                        help="evaluate the plant in CasADi's VM or as generated C (compiled once, "
+                             "cached; see `hubbeam cache info`); auto: compiled when a C compiler "
+                             "works (default: $HUBBEAM_BACKEND or auto)")
+
+
 def check_output_folder(option: str, path) -> None:
     """Raise :class:`ParameterError` unless a file can be written at ``path`` (see
     :func:`hubbeam_ctrl.cli.args.check_output`)."""
@@ -201,7 +210,7 @@ def _cmd_simulate(args) -> int:
         maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
                                args.tf if args.tf is not None else 10.0)
     res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
-                   range_limit=args.range_limit, **run_limits(args))
+                   range_limit=args.range_limit, **run_limits(args), backend=args.backend)
     if args.out:
         res.save(args.out)
     if args.plot:
@@ -269,6 +278,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "default 0.3); only L stops it")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     add_run_options(p)
+    add_backend_option(p)
     p.set_defaults(func=_cmd_simulate)
 
     for name in EXTRA_COMMANDS:

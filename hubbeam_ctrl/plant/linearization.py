@@ -54,11 +54,13 @@ class SecondOrderLinearization:
 
 
 @lru_cache(maxsize=None)
-def _jacobian_functions(model: HubBeamModel):
+def _jacobian_functions(model):
+    """``(q, v, p) -> (dc/dq, dc/dv)`` of a :class:`ParametricModel` (once per family and size)."""
     q = ca.SX.sym("q", model.n_q)
     v = ca.SX.sym("v", model.n_q)
-    c = model.bias_function(q, v)
-    return ca.Function("dc", [q, v], [ca.jacobian(c, q), ca.jacobian(c, v)])
+    p = ca.SX.sym("p", model.n_p)
+    c = model.bias(q, v, p)
+    return ca.Function("dc", [q, v, p], [ca.jacobian(c, q), ca.jacobian(c, v)])
 
 
 def second_order_linearization(model: HubBeamModel, spin: float = 0.0,
@@ -83,7 +85,7 @@ def second_order_linearization(model: HubBeamModel, spin: float = 0.0,
     x = model.steady_state(spin)
     q, v = x[: model.n_q], x[model.n_q:]
     M = model.mass_matrix(q)
-    Kf, Gf = (np.array(a) for a in _jacobian_functions(model)(q, v))
+    Kf, Gf = (np.array(a) for a in _jacobian_functions(model.parametric)(q, v, model.p))
     B = np.zeros(model.n_q)
     B[0] = 1.0
     names = model.coordinate_names

@@ -36,7 +36,8 @@ from hubbeam_ctrl.plant.basis import modal_basis
 from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["MODEL_NAMES", "ModelSpec", "MODEL_SPECS", "HubBeamModel", "build_model", "resolve_model",
-           "kinetic_energy", "potential_energy"]
+           "kinetic_energy", "potential_energy", "ParametricModel", "parametric_model", "parameter_layout",
+           "reduced_foreshortening", "pair_map"]
 
 MODEL_NAMES = ("cfoam", "foam", "tlam", "sfoam")
 
@@ -76,19 +77,68 @@ MODEL_SPECS = {
 }
 
 
+def _as_ca(A):
+    """A CasADi matrix from a NumPy array (symbolic matrices pass through)."""
+    return A if isinstance(A, (ca.SX, ca.MX, ca.DM)) else ca.DM(np.asarray(A, dtype=float))
+
+
 def _quad(A, u, v=None):
-    """``u' A v`` for numeric matrix ``A`` and CasADi vectors."""
+    """``u' A v`` for a numeric or symbolic matrix ``A`` and CasADi vectors."""
     v = u if v is None else v
-    return ca.dot(u, ca.mtimes(ca.DM(A), v))
+    return ca.dot(u, ca.mtimes(_as_ca(A), v))
 
 
-def _foreshortening_factors(F):
-    """Eigen-factors ``F = U diag(lam) U'`` of the quartic moment (as an n2^2 square)."""
-    n2 = F.shape[0]
-    Fm = F.reshape(n2 * n2, n2 * n2)
-    lam, U = np.linalg.eigh(0.5 * (Fm + Fm.T))
-    keep = lam > 1e-13 * max(lam.max(), 1e-300)
-    return ca.DM(lam[keep]), U[:, keep]
+def _pairs(n2: int) -> list:
+    """Index pairs ``(i, j)``, ``i <= j``, of the independent entries of a symmetric n2 x n2 matrix."""
+    return [(i, j) for i in range(n2) for j in range(i, n2)]
+
+
+def pair_map(n2: int) -> np.ndarray:
+    """``W`` (n2^2, n2 (n2+1)/2) with ``vec(A) = W z`` for symmetric ``A``, ``z_k = A_ij`` of pair k.
+
+    ``vec`` is row-major (NumPy's ``reshape``), as the moments ``E``, ``G``, ``F`` are stored.
+    """
+    pairs = _pairs(n2)
+    W = np.zeros((n2 * n2, len(pairs)))
+    for k, (i, j) in enumerate(pairs):
+        W[i * n2 + j, k] = 1.0
+        W[j * n2 + i, k] = 1.0
+    return W
+
+
+def reduced_foreshortening(m) -> dict:
+    """The foreshortening moments on the independent pairs: ``E_r``, ``G_r``, ``F_r``.
+
+    Every term with ``E``, ``G`` or ``F`` contracts them with ``vec(q2 q2')`` or
+    ``vec(q2 q2d')``, and they are symmetric in the index pair of ``S``; so with
+    ``y_k = q2_i q2_j`` and ``yd_k = (q2_i q2d_j + q2_j q2d_i) / 2`` over the pairs ``i <= j``
+    (:func:`pair_map`), ``E_r = E W``, ``G_r = W' G`` and ``F_r = W' F W`` carry them exactly.
+    The quartic term becomes a dense ``r x r`` form (``r = n2 (n2+1)/2``) whose structure
+    does not depend on the parameters.
+
+    Parameters
+    ----------
+    m : MassMoments
+
+    Returns
+    -------
+    dict
+        ``E_r`` (n1, r) [kg/m], ``G_r`` (r, n2) [kg/m], ``F_r`` (r, r) [kg/m^2].
+    """
+    n2 = m.M2.shape[0]
+    W = pair_map(n2)
+    n1 = m.E.shape[0]
+    return {"E_r": m.E.reshape(n1, n2 * n2) @ W, "G_r": W.T @ m.G.reshape(n2 * n2, n2),
+            "F_r": W.T @ m.F.reshape(n2 * n2, n2 * n2) @ W}
+
+
+def _pair_products(q2, q2d):
+    """``y = [q2_i q2_j]`` and ``yd = [(q2_i q2d_j + q2_j q2d_i) / 2]`` over the pairs ``i <= j``."""
+    pairs = _pairs(q2.shape[0])
+    y = ca.vertcat(*[q2[i] * q2[j] for i, j in pairs])
+    yd = ca.vertcat(*[q2[i] * q2d[i] if i == j else 0.5 * (q2[i] * q2d[j] + q2[j] * q2d[i])
+                      for i, j in pairs])
+    return y, yd
 
 
 def kinetic_energy(spec: ModelSpec, m, J_h, thd, q1, q2, q1d, q2d):
@@ -98,9 +148,11 @@ def kinetic_energy(spec: ModelSpec, m, J_h, thd, q1, q2, q1d, q2d):
     ----------
     spec : ModelSpec
         Which terms to keep.
-    m : MassMoments
-        Inertia integrals of beam plus tip mass.
-    J_h : float
+    m : MassMoments or mapping
+        Inertia integrals of beam plus tip mass: a :class:`MassMoments` (numbers), or a
+        mapping with ``J, V1, V2, M1, M2, R, D`` and, for complete foreshortening,
+        ``E_r, G_r, F_r`` (see :func:`reduced_foreshortening`), numeric or symbolic.
+    J_h : float or casadi scalar
         Hub inertia [kg m^2].
     thd : casadi scalar
         Hub rate [rad/s].
@@ -112,36 +164,37 @@ def kinetic_energy(spec: ModelSpec, m, J_h, thd, q1, q2, q1d, q2d):
     casadi expression
         ``1/2 J_h thd^2 + 1/2 int |r_P'|^2 dmu``.
     """
-    n2 = q2.shape[0]
+    if not isinstance(m, dict):
+        fields = {k: getattr(m, k) for k in ("J", "V1", "V2", "M1", "M2", "R", "D")}
+        if spec.foreshortening == "complete":
+            fields.update(reduced_foreshortening(m))
+        m = fields
     full = spec.foreshortening == "complete"
     has_wc = spec.foreshortening != "none"
+    V1, V2, R = _as_ca(m["V1"]), _as_ca(m["V2"]), _as_ca(m["R"])
     # int a^2, with a = r + x + w1 + wc
-    int_a2 = m.J + 2 * ca.dot(ca.DM(m.V1), q1) + _quad(m.M1, q1)
-    int_ad2 = _quad(m.M1, q1d)                          # int ad^2, ad = w1d + wcd
-    int_a_bd = ca.dot(ca.DM(m.V2), q2d) + ca.dot(q1, ca.mtimes(ca.DM(m.R), q2d))
-    int_ad_b = ca.dot(q1d, ca.mtimes(ca.DM(m.R), q2))
+    int_a2 = m["J"] + 2 * ca.dot(V1, q1) + _quad(m["M1"], q1)
+    int_ad2 = _quad(m["M1"], q1d)                          # int ad^2, ad = w1d + wcd
+    int_a_bd = ca.dot(V2, q2d) + ca.dot(q1, ca.mtimes(R, q2d))
+    int_ad_b = ca.dot(q1d, ca.mtimes(R, q2))
     if has_wc:
-        int_a2 += -_quad(m.D, q2)                       # 2 (r+x) wc
+        int_a2 += -_quad(m["D"], q2)                       # 2 (r+x) wc
     if full:
-        # The quartic and cubic foreshortening terms all contract q2 q2' (or q2 q2d')
-        # with F, E or G, whose rows lie in the span of vec(S(x)). With F = U diag(lam) U'
-        # (rank <= n2 (n2+1)/2), y = U' vec(q2 q2') and yd = U' vec(q2 q2d') carry them
-        # all, which keeps the derivative expressions small.
-        lam, U = _foreshortening_factors(m.F)
-        P = [ca.DM(U[:, k].reshape(n2, n2)) for k in range(U.shape[1])]
-        y = ca.vertcat(*[_quad(Pk, q2) for Pk in P])
-        yd = ca.vertcat(*[_quad(Pk, q2, q2d) for Pk in P])
+        # The quartic and cubic foreshortening terms all contract q2 q2' (or q2 q2d') with
+        # E, G or F, which are symmetric in the index pair of S: on the independent pairs
+        # (y, yd) they are dense products with E_r, G_r, F_r (reduced_foreshortening).
+        y, yd = _pair_products(q2, q2d)
+        F_r, G_r = _as_ca(m["F_r"]), _as_ca(m["G_r"])
         if q1.shape[0]:
-            E = ca.DM(m.E.reshape(m.E.shape[0], n2 * n2) @ U)
-            int_a2 += -ca.dot(q1, ca.mtimes(E, y))         # 2 w1 wc
-            int_ad2 += -2 * ca.dot(q1d, ca.mtimes(E, yd))  # 2 w1d wcd
-        G = ca.DM(U.T @ m.G.reshape(n2 * n2, n2))
-        int_a2 += 0.25 * ca.dot(y, lam * y)                # wc^2
-        int_ad2 += ca.dot(yd, lam * yd)                    # wcd^2
-        int_a_bd += -0.5 * ca.dot(y, ca.mtimes(G, q2d))    # wc w2d
-        int_ad_b += -ca.dot(yd, ca.mtimes(G, q2))          # wcd w2
-    int_b2 = _quad(m.M2, q2)
-    int_bd2 = _quad(m.M2, q2d)
+            E_r = _as_ca(m["E_r"])
+            int_a2 += -ca.dot(q1, ca.mtimes(E_r, y))           # 2 w1 wc
+            int_ad2 += -2 * ca.dot(q1d, ca.mtimes(E_r, yd))    # 2 w1d wcd
+        int_a2 += 0.25 * _quad(F_r, y)                         # wc^2
+        int_ad2 += _quad(F_r, yd)                              # wcd^2
+        int_a_bd += -0.5 * ca.dot(y, ca.mtimes(G_r, q2d))      # wc w2d
+        int_ad_b += -ca.dot(yd, ca.mtimes(G_r, q2))            # wcd w2
+    int_b2 = _quad(m["M2"], q2)
+    int_bd2 = _quad(m["M2"], q2d)
     beam = thd ** 2 * (int_a2 + int_b2) + int_ad2 + int_bd2 + 2 * thd * (int_a_bd - int_ad_b)
     return 0.5 * J_h * thd ** 2 + 0.5 * beam
 
@@ -210,68 +263,95 @@ class HubBeamModel:
         """Return ``(theta, q1, q2)`` views of a coordinate vector (NumPy or CasADi)."""
         return q[0], q[self.axial_slice], q[self.transverse_slice]
 
-    # -- symbolic construction -------------------------------------------------
+    # -- parameters and functions ----------------------------------------------
     def _build(self):
-        p, spec = self.params, self.spec
-        nq = self.n_q
-        q = ca.SX.sym("q", nq)
-        v = ca.SX.sym("v", nq)
-        _, q1, q2 = self.split(q)
-        _, q1d, q2d = self.split(v)
-        T = kinetic_energy(spec, self._moments(), p.J_h, v[0], q1, q2, q1d, q2d)
-        K1 = self.basis.K1 if spec.axial else np.zeros((0, 0))
-        U = potential_energy(K1, self.basis.K2, q1, q2)
-        M = ca.hessian(T, v)[0]
-        dT_dv = ca.gradient(T, v)
-        inertial = ca.jtimes(dT_dv, q, v) - ca.gradient(T, q)   # velocity terms
-        q_theta = -inertial[0]
-        if not spec.hub_velocity_terms:
-            inertial[0] = 0
-        bias = inertial + ca.gradient(U, q) + ca.mtimes(ca.DM(self._damping_matrix()), v)
-        a = ca.SX.sym("a", nq)
-        generalized_force = ca.jtimes(dT_dv, v, a) + bias     # M(q) a + c(q, v)
-        tip = self._tip_outputs(q1, q2)
-        self._sym = dict(q=q, v=v, T=T, U=U, M=M, bias=bias)
-        opts = {"cse": True}
-        self.mass_matrix_function = ca.Function("M", [q], [M], ["q"], ["M"], opts)
-        self.bias_function = ca.Function("c", [q, v], [bias], ["q", "v"], ["c"], opts)
-        self.inverse_dynamics_function = ca.Function(
-            "inverse_dynamics", [q, v, a], [generalized_force], ["q", "v", "a"], ["f"], opts)
-        self.energy_function = ca.Function("energy", [q, v], [T, U, T + U], ["q", "v"],
-                                           ["T", "U", "E"], opts)
-        self.momentum_function = ca.Function("momentum", [q, v], [dT_dv[0]], ["q", "v"], ["H"], opts)
-        self.q_theta_function = ca.Function("q_theta", [q, v], [q_theta], ["q", "v"], ["Q_theta"], opts)
-        self.tip_function = ca.Function("tip", [q], list(tip), ["q"], ["v_tip", "u_tip"], opts)
+        self.parametric = parametric_model(self.name, self.n_axial, self.n_transverse)
+        self.p = self.parametric.values(self._parameter_fields())
 
-    def _moments(self):
-        m = self.basis.total
-        if self.spec.axial:
-            return m
-        # drop the axial family: zero-size arrays keep the energy expression unchanged
-        n2 = self.n_transverse
-        return type(m)(J=m.J, V1=np.zeros(0), V2=m.V2, M1=np.zeros((0, 0)), M2=m.M2,
-                       R=np.zeros((0, n2)), D=m.D, E=np.zeros((0, n2, n2)), G=m.G, F=m.F)
+    def _parameter_fields(self) -> dict:
+        """Every parameter-dependent number of the equations, by the names of the layout."""
+        b, m = self.basis, self.basis.total
+        n1 = self.n_axial
+        fields = {"J_h": self.params.J_h, "J": m.J, "V1": m.V1[:n1], "V2": m.V2,
+                  "M1": m.M1[:n1, :n1], "M2": m.M2, "R": m.R[:n1], "D": m.D,
+                  "K1": b.K1[:n1, :n1], "K2": b.K2, "C": self._damping_diagonal(),
+                  "f1_tip": b.f1_tip[:n1], "f2_tip": b.f2_tip, "S_tip": b.S_tip}
+        if self.spec.foreshortening == "complete":
+            red = reduced_foreshortening(m)
+            fields.update(E_r=red["E_r"][:n1], G_r=red["G_r"], F_r=red["F_r"])
+        return fields
+
+    def _damping_diagonal(self) -> np.ndarray:
+        """Modal damping ``2 zeta sqrt(K_ii M_ii)`` of the clamped modes, ``[q1, q2]`` [N s/m]."""
+        zeta = self.params.damping_ratio
+        b = self.basis
+        out = []
+        for n, K, Mm in ((self.n_axial, b.K1, b.beam.M1), (self.n_transverse, b.K2, b.beam.M2)):
+            out.append(2 * zeta * np.sqrt(np.diag(K)[:n] * np.diag(Mm)[:n]))
+        return np.concatenate(out)
 
     def _damping_matrix(self) -> np.ndarray:
         """Modal damping ``C = 2 zeta sqrt(K M)`` of the non-rotating clamped modes [N s/m]."""
-        zeta = self.params.damping_ratio
-        C = np.zeros((self.n_q, self.n_q))
-        if zeta == 0:
-            return C
-        b = self.basis
-        for sl, K, Mm in ((self.axial_slice, b.K1, b.beam.M1), (self.transverse_slice, b.K2, b.beam.M2)):
-            if sl.start == sl.stop:  # SFOAM has no axial modes
-                continue
-            C[sl, sl] = np.diag(2 * zeta * np.sqrt(np.diag(K) * np.diag(Mm)))
-        return C
+        return np.diag(np.concatenate([[0.0], self._damping_diagonal()]))
 
-    def _tip_outputs(self, q1, q2):
-        b = self.basis
-        v_tip = ca.dot(ca.DM(b.f2_tip), q2)
-        u_tip = ca.dot(ca.DM(b.f1_tip[: self.n_axial]), q1) if self.n_axial else 0 * v_tip
-        if self.spec.foreshortening != "none":
-            u_tip = u_tip - 0.5 * _quad(b.S_tip, q2)
-        return v_tip, u_tip
+    def bind(self, function: ca.Function) -> ca.Function:
+        """A parametric function (last input ``p``) with this model's parameters built in.
+
+        Parameters
+        ----------
+        function : casadi.Function
+            One of :attr:`parametric`'s functions.
+
+        Returns
+        -------
+        casadi.Function
+            The same function without the input ``p`` (SX, callable on SX, MX or numbers).
+        """
+        names = function.name_in()[:-1]
+        args = [ca.SX.sym(n, function.sparsity_in(i)) for i, n in enumerate(names)]
+        outs = function.call(args + [ca.SX(ca.DM(self.p))])
+        return ca.Function(function.name(), args, outs, names, function.name_out(), {"cse": True})
+
+    @property
+    def mass_matrix_function(self) -> ca.Function:
+        """``M(q)``: the mass matrix (built on first use)."""
+        return self._bound("mass_matrix")
+
+    @property
+    def bias_function(self) -> ca.Function:
+        """``c(q, v)``: velocity, stiffness and damping terms (built on first use)."""
+        return self._bound("bias")
+
+    @property
+    def inverse_dynamics_function(self) -> ca.Function:
+        """``f(q, v, a) = M(q) a + c(q, v)`` (built on first use)."""
+        return self._bound("inverse_dynamics")
+
+    @property
+    def energy_function(self) -> ca.Function:
+        """``(q, v) -> (T, U, E)`` [J] (built on first use)."""
+        return self._bound("energy")
+
+    @property
+    def momentum_function(self) -> ca.Function:
+        """``(q, v) -> H``, the angular momentum [kg m^2/s] (built on first use)."""
+        return self._bound("momentum")
+
+    @property
+    def q_theta_function(self) -> ca.Function:
+        """``(q, v) -> Q_theta`` [N m] (built on first use)."""
+        return self._bound("q_theta")
+
+    @property
+    def tip_function(self) -> ca.Function:
+        """``q -> (v_tip, u_tip)`` [m] (built on first use)."""
+        return self._bound("tip")
+
+    def _bound(self, name: str) -> ca.Function:
+        cache = self.__dict__.setdefault("_bound_functions", {})
+        if name not in cache:
+            cache[name] = self.bind(getattr(self.parametric, name))
+        return cache[name]
 
     # -- symbolic access for integrators / linearisation ------------------------
     def acceleration_expr(self, q, v, tau):
@@ -284,11 +364,11 @@ class HubBeamModel:
     # -- numeric conveniences -----------------------------------------------------
     def mass_matrix(self, q) -> np.ndarray:
         """Mass matrix ``M(q)`` [kg, kg m, kg m^2 blocks]."""
-        return np.array(self.mass_matrix_function(q))
+        return np.array(self.parametric.mass_matrix(q, self.p))
 
     def bias(self, q, v) -> np.ndarray:
         """Bias vector ``c(q, v)`` (velocity, stiffness and damping terms) [N m, N]."""
-        return np.array(self.bias_function(q, v)).ravel()
+        return np.array(self.parametric.bias(q, v, self.p)).ravel()
 
     def accelerations(self, q, v, tau: float = 0.0) -> np.ndarray:
         """Free-hub accelerations ``M^-1 (B tau - c)`` [rad/s^2, m/s^2]."""
@@ -320,23 +400,23 @@ class HubBeamModel:
         With the hub prescribed this is the torque the motion takes (the first row of the
         inverse dynamics ``M(q) a + c(q, v)``).
         """
-        return float(self.inverse_dynamics_function(q, v, a)[0])
+        return float(self.parametric.inverse_dynamics(q, v, a, self.p)[0])
 
     def energy(self, q, v) -> float:
         """Total energy ``T + U`` [J]."""
-        return float(self.energy_function(q, v)[2])
+        return float(self.parametric.energy(q, v, self.p)[2])
 
     def angular_momentum(self, q, v) -> float:
         """Angular momentum about the hub axis ``dT/d thd`` [kg m^2/s]."""
-        return float(self.momentum_function(q, v))
+        return float(self.parametric.momentum(q, v, self.p))
 
     def q_theta(self, q, v) -> float:
         """The paper's inertia force on the hub ``Q_theta`` [N m]."""
-        return float(self.q_theta_function(q, v))
+        return float(self.parametric.q_theta(q, v, self.p))
 
     def tip(self, q) -> tuple:
         """Tip displacements ``(v_tip, u_tip)`` in the hub frame [m]."""
-        v_tip, u_tip = self.tip_function(q)
+        v_tip, u_tip = self.parametric.tip(q, self.p)
         return float(v_tip), float(u_tip)
 
     def static_axial_stretch(self, spin: float) -> np.ndarray:
@@ -361,6 +441,130 @@ class HubBeamModel:
     def __repr__(self):
         return (f"HubBeamModel({self.name!r}, n_axial={self.n_axial}, "
                 f"n_transverse={self.n_transverse}, m_t={self.params.m_t})")
+
+
+def parameter_layout(name: str, n_axial: int, n_transverse: int) -> tuple:
+    """Names and shapes of the parameter vector ``p`` of a model family and size.
+
+    ``p`` holds every number of the equations that depends on :class:`Params` (the modal
+    mass moments of beam plus tip mass, the hub inertia, the stiffness and damping, the
+    tip shape values), each matrix flattened column by column, in this order.
+
+    Parameters
+    ----------
+    name : {"cfoam", "foam", "tlam", "sfoam"}
+    n_axial, n_transverse : int
+        Mode counts (``n_axial`` is 0 for SFOAM).
+
+    Returns
+    -------
+    tuple of (str, (rows, cols))
+    """
+    n1, n2 = n_axial, n_transverse
+    r = n2 * (n2 + 1) // 2
+    layout = [("J_h", (1, 1)), ("J", (1, 1)), ("V1", (n1, 1)), ("V2", (n2, 1)), ("M1", (n1, n1)),
+              ("M2", (n2, n2)), ("R", (n1, n2)), ("D", (n2, n2)), ("K1", (n1, n1)), ("K2", (n2, n2)),
+              ("C", (n1 + n2, 1)), ("f1_tip", (n1, 1)), ("f2_tip", (n2, 1)), ("S_tip", (n2, n2))]
+    if MODEL_SPECS[name].foreshortening == "complete":
+        layout += [("E_r", (n1, r)), ("G_r", (r, n2)), ("F_r", (r, r))]
+    return tuple(layout)
+
+
+class ParametricModel:
+    """A model family's equations of motion with the parameters as an input vector.
+
+    Built once per ``(name, n_axial, n_transverse)`` (:func:`parametric_model`) and valid
+    for any tip mass, tip position, material or geometry: a :class:`HubBeamModel` only
+    computes its parameter vector :attr:`HubBeamModel.p` and passes it as the last input.
+    Every function is SX with common subexpressions shared:
+
+    ``mass_matrix(q, p)``, ``bias(q, v, p)``, ``inverse_dynamics(q, v, a, p)``,
+    ``energy(q, v, p) -> (T, U, E)``, ``momentum(q, v, p)``, ``q_theta(q, v, p)`` and
+    ``tip(q, p) -> (v_tip, u_tip)``.
+
+    Attributes
+    ----------
+    name : str
+    n_axial, n_transverse, n_q, n_p : int
+    layout : tuple
+        See :func:`parameter_layout`.
+    """
+
+    def __init__(self, name: str, n_axial: int, n_transverse: int):
+        self.name, self.spec = name, MODEL_SPECS[name]
+        self.n_axial, self.n_transverse = n_axial, n_transverse
+        self.n_q = 1 + n_axial + n_transverse
+        self.layout = parameter_layout(name, n_axial, n_transverse)
+        self.n_p = sum(r * c for _, (r, c) in self.layout)
+        self._build()
+
+    def values(self, fields: dict) -> np.ndarray:
+        """The parameter vector from numbers named as in :attr:`layout`."""
+        parts = []
+        for key, shape in self.layout:
+            a = np.asarray(fields[key], dtype=float)
+            if a.size != shape[0] * shape[1]:
+                raise ParameterError(f"parameter {key} must have shape {shape}, got {a.shape}")
+            parts.append(a.reshape(shape).ravel(order="F"))
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def _unpack(self, p) -> dict:
+        out, k = {}, 0
+        for key, (r, c) in self.layout:
+            out[key] = ca.reshape(p[k:k + r * c], r, c)
+            k += r * c
+        return out
+
+    def _build(self):
+        n1, nq, spec = self.n_axial, self.n_q, self.spec
+        q, v, a = ca.SX.sym("q", nq), ca.SX.sym("v", nq), ca.SX.sym("a", nq)
+        p = ca.SX.sym("p", self.n_p)
+        f = self._unpack(p)
+        q1, q2 = q[1:1 + n1], q[1 + n1:]
+        q1d, q2d = v[1:1 + n1], v[1 + n1:]
+        T = kinetic_energy(spec, f, f["J_h"], v[0], q1, q2, q1d, q2d)
+        U = potential_energy(f["K1"], f["K2"], q1, q2)
+        M = ca.hessian(T, v)[0]
+        dT_dv = ca.gradient(T, v)
+        inertial = ca.jtimes(dT_dv, q, v) - ca.gradient(T, q)   # velocity terms
+        q_theta = -inertial[0]
+        if not spec.hub_velocity_terms:
+            inertial[0] = 0
+        bias = inertial + ca.gradient(U, q) + ca.vertcat(0, f["C"] * v[1:])
+        generalized_force = ca.jtimes(dT_dv, v, a) + bias     # M(q) a + c(q, v)
+        v_tip = ca.dot(f["f2_tip"], q2)
+        u_tip = ca.dot(f["f1_tip"], q1) if n1 else 0 * v_tip
+        if spec.foreshortening != "none":
+            u_tip = u_tip - 0.5 * _quad(f["S_tip"], q2)
+        opts = {"cse": True}
+        self.mass_matrix = ca.Function("M", [q, p], [M], ["q", "p"], ["M"], opts)
+        self.bias = ca.Function("c", [q, v, p], [bias], ["q", "v", "p"], ["c"], opts)
+        self.inverse_dynamics = ca.Function("inverse_dynamics", [q, v, a, p], [generalized_force],
+                                            ["q", "v", "a", "p"], ["f"], opts)
+        self.energy = ca.Function("energy", [q, v, p], [T, U, T + U], ["q", "v", "p"], ["T", "U", "E"], opts)
+        self.momentum = ca.Function("momentum", [q, v, p], [dT_dv[0]], ["q", "v", "p"], ["H"], opts)
+        self.q_theta = ca.Function("q_theta", [q, v, p], [q_theta], ["q", "v", "p"], ["Q_theta"], opts)
+        self.tip = ca.Function("tip", [q, p], [v_tip, u_tip], ["q", "p"], ["v_tip", "u_tip"], opts)
+
+    def __repr__(self):
+        return f"ParametricModel({self.name!r}, n_axial={self.n_axial}, n_transverse={self.n_transverse})"
+
+
+@lru_cache(maxsize=32)
+def parametric_model(name: str, n_axial: int, n_transverse: int) -> ParametricModel:
+    """Build (and cache) a model family's parametric equations (see :class:`ParametricModel`).
+
+    Parameters
+    ----------
+    name : {"cfoam", "foam", "tlam", "sfoam"}
+    n_axial, n_transverse : int
+        Mode counts (``n_axial`` 0 for SFOAM).
+
+    Returns
+    -------
+    ParametricModel
+    """
+    return ParametricModel(name, n_axial, n_transverse)
 
 
 @lru_cache(maxsize=32)

@@ -153,7 +153,7 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
                          design_params: Params | None = None, plant_params: Params | None = None,
                          plant_modes: int | None = None, settings: ClosedLoopSettings | None = None,
-                         x0=None, reference=None) -> Result:
+                         x0=None, reference=None, backend=None) -> Result:
     """Run a sampled controller on a nonlinear plant (zero-order hold).
 
     At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
@@ -199,6 +199,9 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     reference : tuple of callables, optional
         ``(theta_ref(t), theta_dot_ref(t))`` of arrays, stored with the result for
         metrics and plots.
+    backend : {"auto", "compiled", "vm"}, optional
+        How the plant step is evaluated (see :class:`PlantStepper`); default
+        ``$HUBBEAM_BACKEND`` or ``"auto"``.
 
     Returns
     -------
@@ -250,7 +253,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                  seconds=N * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n / 11.0) ** 2,
                  max_memory_mb=settings.max_memory_mb, max_wall_s=settings.max_wall_s)
     x = _initial_state(x0, 2 * n)
-    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]))
+    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend)
     t = dt * np.arange(N + 1)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None
@@ -330,6 +333,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     if outside_time is not None and not stopped:
         message = (f"completed; |v_tip| passed {settings.range_limit:g} L (outside the models' validated "
                    f"range) at t = {outside_time:.3f} s")
+    s_dict["backend"] = stepper.backend
     return Result(
         kind="closed_loop", model=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip,
         u_tip=u_tip, root_moment=root_moment, tau=taus, step_time_s=step_times,

@@ -34,6 +34,7 @@ from hubbeam_ctrl.core.budget import (
     model_build_seconds,
     simulation_bytes_per_sample,
 )
+from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function, resolve_backend
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError, UserFunctionError
 from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.core.settings import Settings, setting
@@ -43,7 +44,7 @@ from hubbeam_ctrl.plant.models import MODEL_SPECS, HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.sim.results import Result, describe_input
 
-__all__ = ["simulate", "Integrator", "make_integrator", "SimulationSettings"]
+__all__ = ["simulate", "Integrator", "make_integrator", "SimulationSettings", "residual_function"]
 
 
 @dataclass(frozen=True)
@@ -90,9 +91,13 @@ class Integrator:
     grid : array_like
         Output times relative to the start of a call [s], starting after 0.
     settings : SimulationSettings
+    backend : {"auto", "compiled", "vm"}, optional
+        How the implicit residual and its Jacobian are evaluated (see
+        :func:`residual_function`); :attr:`backend` holds the one in use.
     """
 
-    def __init__(self, model: HubBeamModel, hub: str, maneuver, grid, settings: SimulationSettings):
+    def __init__(self, model: HubBeamModel, hub: str, maneuver, grid, settings: SimulationSettings,
+                 backend=None):
         self.model, self.hub, self.maneuver = model, hub, maneuver
         self.grid = np.asarray(grid, dtype=float)
         n = model.n_q
@@ -103,7 +108,9 @@ class Integrator:
         x = ca.MX.sym("x", self.n_x)
         z = ca.MX.sym("z", self.n_z)
         ta = t + p[0]
-        inv = model.inverse_dynamics_function
+        residual, self.backend = residual_function(model, backend)
+        p_model = ca.DM(model.p)
+        inv = lambda q_, v_, a_: residual(q_, v_, a_, p_model)   # noqa: E731
         if hub == "free":
             tau = p[1] + (maneuver(ta) if maneuver is not None else 0)
             q, v = x[:n], x[n:]
@@ -141,12 +148,73 @@ class Integrator:
 
 
 def make_integrator(model: HubBeamModel, hub: str = "free", maneuver=None, grid=(0.01,),
-                    settings: SimulationSettings = SimulationSettings()) -> Integrator:
+                    settings: SimulationSettings = SimulationSettings(), backend=None) -> Integrator:
     """Build an :class:`Integrator` (see there)."""
-    return Integrator(model, hub, maneuver, grid, settings)
+    return Integrator(model, hub, maneuver, grid, settings, backend)
 
 
-def _cached_integrator(model, hub, maneuver, grid, settings) -> Integrator:
+def residual_function(model: HubBeamModel, backend=None) -> tuple:
+    """The model's inverse dynamics ``M(q) a + c(q, v)`` for IDAS, on a backend.
+
+    IDAS evaluates the residual at every Newton iteration and its Jacobian whenever it
+    refreshes its iteration matrix. On the compiled backend both are generated C in one
+    library: the residual at -O1, the Jacobian (``jac_inverse_dynamics``, which CasADi
+    uses when it differentiates the external function) at -O0.
+
+    Parameters
+    ----------
+    model : HubBeamModel
+    backend : {"auto", "compiled", "vm"}, optional
+
+    Returns
+    -------
+    function : casadi.Function
+        ``(q, v, a, p) -> f`` with ``p`` the model's parameter vector
+        (:attr:`~hubbeam_ctrl.plant.models.HubBeamModel.p`): built and compiled once per
+        model family and mode counts.
+    backend : str
+        ``"compiled"`` or ``"vm"``: the one in use.
+    """
+    pm = model.parametric
+    jac = _residual_jacobian(pm)
+    f = pm.__dict__.get("_residual_vm")
+    if f is None:
+        base = pm.inverse_dynamics
+        args = [ca.SX.sym(name, base.size_in(i)) for i, name in enumerate(base.name_in())]
+        f = ca.Function(base.name(), args, base.call(args), base.name_in(), base.name_out(),
+                        {"custom_jacobian": jac, "jac_penalty": 0})
+        pm.__dict__["_residual_vm"] = f
+    if resolve_backend(backend) == "vm":
+        return f, "vm"
+    g = compile_function(pm.inverse_dynamics, backend, opt=OPT_HOT, jacobian=OPT_COLD, jacobian_function=jac)
+    return (f, "vm") if g is pm.inverse_dynamics else (g, "compiled")
+
+
+def _residual_jacobian(pm) -> ca.Function:
+    """``jac_inverse_dynamics``: the residual's Jacobian in ``q``, ``v``, ``a`` (none in ``p``).
+
+    Both backends differentiate the residual through this one function: CasADi's AD would
+    otherwise take directional derivatives of the VM function but the Jacobian of the
+    compiled one, the same numbers up to rounding, which an error-controlled integrator
+    turns into ~1e-7 differences. The parameters are constants inside IDAS, so their block
+    is left structurally zero (it would be the largest and is never needed).
+    """
+    cached = pm.__dict__.get("_residual_jacobian")
+    if cached is None:
+        f = pm.inverse_dynamics
+        q, v, a = (ca.SX.sym(k, pm.n_q) for k in ("q", "v", "a"))
+        p = ca.SX.sym("p", pm.n_p)
+        out = ca.SX.sym("out_f", pm.n_q)
+        y = f(q, v, a, p)
+        cached = ca.Function("jac_inverse_dynamics", [q, v, a, p, out],
+                             [ca.jacobian(y, q), ca.jacobian(y, v), ca.jacobian(y, a), ca.SX(pm.n_q, pm.n_p)],
+                             ["q", "v", "a", "p", "out_f"], ["jac_f_q", "jac_f_v", "jac_f_a", "jac_f_p"],
+                             {"cse": True})
+        pm.__dict__["_residual_jacobian"] = cached
+    return cached
+
+
+def _cached_integrator(model, hub, maneuver, grid, settings, backend) -> Integrator:
     """Build an :class:`Integrator` once per model, hub, maneuver, grid and settings.
 
     Built-in maneuvers are frozen dataclasses and so can key the cache; user functions
@@ -154,14 +222,14 @@ def _cached_integrator(model, hub, maneuver, grid, settings) -> Integrator:
     """
     cache = model.__dict__.setdefault("_integrator_cache", {})
     try:
-        key = (hub, maneuver, len(grid), float(grid[0]), settings)
+        key = (hub, maneuver, len(grid), float(grid[0]), settings, backend)
         hash(key)
     except TypeError:
-        return Integrator(model, hub, maneuver, grid, settings)
+        return Integrator(model, hub, maneuver, grid, settings, backend)
     if key not in cache:
         if len(cache) > 16:
             cache.clear()
-        cache[key] = Integrator(model, hub, maneuver, grid, settings)
+        cache[key] = Integrator(model, hub, maneuver, grid, settings, backend)
     return cache[key]
 
 
@@ -183,7 +251,7 @@ def _full_state(model, hub, maneuver, t, xs, zs):
 
 def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params | None = None,
              hub: str | None = None, x0=None, settings: SimulationSettings | None = None,
-             progress: bool = False, **setting_overrides) -> Result:
+             progress: bool = False, backend=None, **setting_overrides) -> Result:
     """Simulate a hub-beam model.
 
     Parameters
@@ -207,6 +275,10 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     settings : SimulationSettings, optional
     progress : bool
         Show a progress bar on stderr (only when stderr is a terminal).
+    backend : {"auto", "compiled", "vm"}, optional
+        Evaluation of the residual and its Jacobian inside IDAS: CasADi's VM or generated
+        C (see :mod:`hubbeam_ctrl.core.compiled`); default ``$HUBBEAM_BACKEND`` or
+        ``"auto"``. Both give the same run to the integrator's tolerances.
     **setting_overrides
         Fields of :class:`SimulationSettings` (``dt``, ``rtol``, ...).
 
@@ -245,7 +317,8 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     # chunks of about 0.3 s of wall time (4 x the low estimate), so max_wall_s is checked often
     per_chunk = int(max(1, min(round(settings.chunk_s / dt), 0.3 / (4 * cost))))
     grid = dt * np.arange(1, per_chunk + 1)
-    integ = _cached_integrator(m, hub, maneuver, grid, settings)
+    backend = resolve_backend(backend)
+    integ = _cached_integrator(m, hub, maneuver, grid, settings, backend)
     z0 = _initial_accelerations(m, hub, maneuver, x0)
     n_out, user_stop = _user_function_limit(maneuver, n_out, dt)
 
@@ -268,7 +341,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         except RuntimeError as exc:
             if per_chunk > 10:   # retry the chunk in shorter pieces to get closer to the failure
                 per_chunk = max(10, per_chunk // 10)
-                integ = Integrator(m, hub, maneuver, dt * np.arange(1, per_chunk + 1), settings)
+                integ = Integrator(m, hub, maneuver, dt * np.arange(1, per_chunk + 1), settings, backend)
                 continue
             diverged = True
             message = _named_failure(maneuver, t0, t0 + per_chunk * dt, dt) or (
@@ -331,11 +404,11 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
                    f"the models' validated range) at t = {outside_time:.3f} s")
     return _open_loop_result(m, t, q, v, a, hub=hub, maneuver=maneuver, settings=settings,
                              stopped=diverged, message=message, wall_s=wall,
-                             outside_range_time_s=outside_time)
+                             outside_range_time_s=outside_time, backend=integ.backend)
 
 
 def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, settings, stopped,
-                      message, wall_s, outside_range_time_s=None) -> Result:
+                      message, wall_s, outside_range_time_s=None, backend=None) -> Result:
     """A :class:`Result` of kind ``"open_loop"``, the model's outputs evaluated on all samples."""
     N = len(t)
     Q, V, A = q.T, v.T, a.T
@@ -347,7 +420,8 @@ def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, setting
     return Result(kind="open_loop", model=model.name, hub=hub, t=t, q=q, v=v, a=a,
                   v_tip=v_tip, u_tip=u_tip, tau=tau, q_theta=q_theta, energy=energy,
                   angular_momentum=momentum, params=model.params,
-                  settings={"maneuver": describe_input(maneuver), **dataclasses.asdict(settings)},
+                  settings={"maneuver": describe_input(maneuver), **dataclasses.asdict(settings),
+                            "backend": backend},
                   stats={"outside_range_time_s": outside_range_time_s},
                   stopped=stopped, message=message, wall_s=wall_s)
 

@@ -27,16 +27,18 @@ import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.budget import T_END_MAX, check_budget
+from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
-from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
+from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients",
-           "period_error", "max_step_for_frequency", "SubstepRule", "substep_rule", "MAX_SUBSTEPS"]
+           "period_error", "max_step_for_frequency", "SubstepRule", "substep_rule", "MAX_SUBSTEPS",
+           "step_functions"]
 
 #: Largest number of integration steps per sample that :func:`substep_rule` accepts.
 MAX_SUBSTEPS = 200
@@ -272,6 +274,10 @@ class PlantStepper:
     model : HubBeamModel
         The plant (free hub, torque input).
     settings : StepperSettings, optional
+    backend : {"auto", "compiled", "vm"}, optional
+        How the step and its iteration matrix are evaluated (see
+        :mod:`hubbeam_ctrl.core.compiled`); default ``$HUBBEAM_BACKEND`` or ``"auto"``.
+        :attr:`backend` holds the one in use (``"compiled"`` or ``"vm"``).
 
     Examples
     --------
@@ -283,7 +289,7 @@ class PlantStepper:
     0.005
     """
 
-    def __init__(self, model: HubBeamModel, settings: StepperSettings | None = None):
+    def __init__(self, model: HubBeamModel, settings: StepperSettings | None = None, backend=None):
         self.model = model
         self.settings = settings or StepperSettings()
         self.n_q = model.n_q
@@ -291,9 +297,8 @@ class PlantStepper:
         self.h = self.settings.dt / self.settings.substeps
         self.fallbacks = 0
         self.jacobian_updates = 0
-        self._function = _fast_step_function(model, self.settings)
-        self._jacobian = _iteration_matrix_function(model, self.settings)
-        self._J = None
+        self._function, self._jacobian, self.backend = step_functions(model, self.settings, backend)
+        self._setup_buffers()
         self._robust = None
 
     # -- state helpers ---------------------------------------------------------
@@ -339,35 +344,63 @@ class PlantStepper:
         HubbeamError
             If neither the fast Newton iterations nor the exact rootfinder converge.
         """
-        k = self.settings.substeps
-        u = np.broadcast_to(np.asarray(tau, dtype=float), (k,)).reshape(1, k)
+        self._s_in[:] = state
+        self._u[:] = tau
         tol = self.settings.newton_tol
-        fresh = self._J is None
+        fresh = not self._J_valid
         if fresh:
-            self._refresh(state, u)
-        out, err = self._function(state, u, self._J)
-        err = float(err)
+            self._refresh()
+        self._eval_step()
+        err = self._err[0]
         if not err <= tol and not fresh:          # stale iteration matrix: refresh, retry
-            self._refresh(state, u)
-            out, err = self._function(state, u, self._J)
-            err = float(err)
+            self._refresh()
+            self._eval_step()
+            err = self._err[0]
         if err <= tol:                            # False for NaN
-            out = np.asarray(out).ravel()
             if err > 0.1 * tol:                  # converging slowly: refresh next time
-                self._J = None
-            return out
-        return self._robust_step(state, u)
+                self._J_valid = False
+            return self._s_out.copy()
+        return self._robust_step(self._s_in.copy(), self._u.reshape(1, -1).copy())
 
-    def _refresh(self, state, u):
-        self._J = self._jacobian(state, u[0, 0])
+    def _setup_buffers(self):
+        """Preallocated arrays bound to ``Function.buffer()`` calls (no argument conversion)."""
+        n, k = self.n_q, self.settings.substeps
+        self._s_in, self._u, self._Jbuf = np.zeros(4 * n), np.zeros(k), np.zeros(n * n)
+        self._Jinv = np.zeros((n, n), order="F")
+        self._s_out, self._err, self._tau0 = np.zeros(4 * n), np.zeros(1), np.zeros(1)
+        self._p = np.array(self.model.p, dtype=float)
+        self._J_valid = False
+        self._buffers = []
+        self._eval_step = self._bind(self._function,
+                                     (self._s_in, self._u, self._Jinv.reshape(-1, order="F"), self._p),
+                                     (self._s_out, self._err))
+        self._eval_jacobian = self._bind(self._jacobian, (self._s_in, self._tau0, self._p), (self._Jbuf,))
+
+    def _bind(self, function, args, results):
+        buf, evaluate = function.buffer()
+        for i, a in enumerate(args):
+            buf.set_arg(i, memoryview(a))
+        for i, r in enumerate(results):
+            buf.set_res(i, memoryview(r))
+        self._buffers.append(buf)                 # keep the buffer alive with its arrays
+        return evaluate
+
+    def _refresh(self):
+        self._tau0[0] = self._u[0]
+        self._eval_jacobian()
+        try:
+            self._Jinv[:] = np.linalg.inv(self._Jbuf.reshape(self.n_q, self.n_q, order="F"))
+        except np.linalg.LinAlgError:          # singular: the fast step fails, the rootfinder takes over
+            self._Jinv[:] = np.nan
+        self._J_valid = True
         self.jacobian_updates += 1
 
     def _robust_step(self, state, u) -> np.ndarray:
         if self._robust is None:
-            self._robust = _robust_step_function(self.model, self.settings)
+            self._robust = _robust_step_function(self.model.parametric, self.settings)
         self.fallbacks += 1
         try:
-            out = np.asarray(self._robust(state, u)).ravel()
+            out = np.asarray(self._robust(state, u, self._p)).ravel()
         except RuntimeError as exc:
             raise HubbeamError(f"{self.model.name.upper()}: the implicit step did not converge "
                                f"({str(exc).splitlines()[0][:80]})") from None
@@ -376,7 +409,7 @@ class PlantStepper:
         return out
 
 
-def _substep_expressions(model: HubBeamModel, settings: StepperSettings):
+def _substep_expressions(model: ParametricModel, settings: StepperSettings):
     """Symbolic generalized-alpha update: residual and new state as functions of ``a``."""
     n = model.n_q
     h = settings.dt / settings.substeps
@@ -384,73 +417,102 @@ def _substep_expressions(model: HubBeamModel, settings: StepperSettings):
     s = ca.SX.sym("s", 4 * n)
     tau = ca.SX.sym("tau")
     a = ca.SX.sym("a", n)
+    p = ca.SX.sym("p", model.n_p)
     q0, v0, a0, p0 = s[:n], s[n:2 * n], s[2 * n:3 * n], s[3 * n:]
     p1 = ((1 - af) * a + af * a0 - am * p0) / (1 - am)
     q1 = q0 + h * v0 + h * h * (0.5 - beta) * p0 + h * h * beta * p1
     v1 = v0 + h * (1 - gamma) * p0 + h * gamma * p1
     force = ca.vertcat(tau, ca.SX.zeros(n - 1))
-    return s, tau, a, (q1, v1, p1), force
+    residual = model.inverse_dynamics(q1, v1, a, p) - force
+    return s, tau, a, p, (q1, v1, p1), residual
 
 
 @lru_cache(maxsize=16)
-def _iteration_matrix_function(model: HubBeamModel, settings: StepperSettings) -> ca.Function:
+def _iteration_matrix_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
     """Jacobian of the step residual in the new accelerations, at the predictor ``a = a_n``."""
     n = model.n_q
-    s, tau, a, (q1, v1, p1), force = _substep_expressions(model, settings)
-    residual = model.inverse_dynamics_function(q1, v1, a) - force
-    J = ca.substitute(ca.jacobian(residual, a), a, s[2 * n:3 * n])
-    return ca.Function("iteration_matrix", [s, tau], [J], ["s", "tau"], ["J"], {"cse": True})
+    s, tau, a, p, _, residual = _substep_expressions(model, settings)
+    J = ca.densify(ca.substitute(ca.jacobian(residual, a), a, s[2 * n:3 * n]))
+    return ca.Function("iteration_matrix", [s, tau, p], [J], ["s", "tau", "p"], ["J"], {"cse": True})
+
+
+def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None) -> tuple:
+    """The plant step and its iteration matrix on a backend.
+
+    Both take the model's parameter vector ``p`` (:attr:`HubBeamModel.p`) as their last
+    input, so they are built (and compiled) once per model family, mode counts and
+    settings, whatever the tip mass, tip position, material or geometry.
+
+    Parameters
+    ----------
+    model : HubBeamModel
+    settings : StepperSettings
+    backend : {"auto", "compiled", "vm"}, optional
+
+    Returns
+    -------
+    step : casadi.Function
+        ``(s, tau (1, substeps), J_inv, p) -> (s_next, err)``, compiled at -O1 when compiled.
+    iteration_matrix : casadi.Function
+        ``(s, tau, p) -> J`` (dense), compiled at -O0 (refreshed only now and then).
+    backend : str
+        ``"compiled"`` or ``"vm"``: the backend the step runs on.
+    """
+    vm_step = _fast_step_function(model.parametric, settings)
+    step = compile_function(vm_step, backend, opt=OPT_HOT)
+    jac = compile_function(_iteration_matrix_function(model.parametric, settings), backend, opt=OPT_COLD)
+    return step, jac, "vm" if step is vm_step else "compiled"
 
 
 @lru_cache(maxsize=16)
-def _fast_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.Function:
-    """One sample: ``substeps`` steps of modified Newton with a given iteration matrix."""
+def _fast_step_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
+    """One sample: ``substeps`` steps of modified Newton with the inverse iteration matrix given."""
     n = model.n_q
-    s, tau, a, (q1, v1, p1), force = _substep_expressions(model, settings)
-    residual = model.inverse_dynamics_function(q1, v1, a) - force
+    s, tau, a, p, (q1, v1, p1), residual = _substep_expressions(model, settings)
     opts = {"cse": True}
-    R = ca.Function("residual", [a, s, tau], [residual], opts)
+    R = ca.Function("residual", [a, s, tau, p], [residual], opts)
     update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)], opts)
     S = ca.MX.sym("s", 4 * n)
     T = ca.MX.sym("tau")
-    Jm = ca.MX.sym("J", n, n)
+    P = ca.MX.sym("p", model.n_p)
+    Jm = ca.MX.sym("J_inv", n, n)           # inverse of the iteration matrix: no factorisation per step
     A = S[2 * n:3 * n]
     delta = ca.MX.zeros(n)
     for _ in range(settings.newton_iterations):
-        delta = ca.solve(Jm, R(A, S, T), "qr")
+        delta = ca.mtimes(Jm, R(A, S, T, P))
         A = A - delta
-    sub = ca.Function("substep", [S, T, Jm], [update(A, S), ca.norm_inf(delta)])
+    sub = ca.Function("substep", [S, T, Jm, P], [update(A, S), ca.norm_inf(delta)])
     k = settings.substeps
     accum = sub.mapaccum("substeps", k)
     X = ca.MX.sym("x", 4 * n)
     U = ca.MX.sym("u", 1, k)
-    xs, errs = accum(X, U, Jm)
-    return ca.Function("plant_step", [X, U, Jm], [xs[:, -1], ca.mmax(errs)],
-                       ["s", "tau", "J"], ["s_next", "err"])
+    xs, errs = accum(X, U, Jm, P)
+    return ca.Function("plant_step", [X, U, Jm, P], [xs[:, -1], ca.mmax(errs)],
+                       ["s", "tau", "J_inv", "p"], ["s_next", "err"])
 
 
 @lru_cache(maxsize=16)
-def _robust_step_function(model: HubBeamModel, settings: StepperSettings) -> ca.Function:
+def _robust_step_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
     n = model.n_q
-    s, tau, a, (q1, v1, p1), force = _substep_expressions(model, settings)
-    residual = model.inverse_dynamics_function(q1, v1, a) - force
-    G = ca.Function("G", [a, ca.vertcat(s, tau)], [residual])
+    s, tau, a, p, (q1, v1, p1), residual = _substep_expressions(model, settings)
+    G = ca.Function("G", [a, ca.vertcat(s, tau, p)], [residual])
     rf = ca.rootfinder("rf", "newton", G, {"abstol": 1e-9, "abstolStep": 1e-13, "max_iter": 50,
                                           "line_search": False, "error_on_fail": True})
     update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)])
     S = ca.MX.sym("s", 4 * n)
     T = ca.MX.sym("tau")
-    A = rf(S[2 * n:3 * n], ca.vertcat(S, T))
-    sub = ca.Function("substep", [S, T], [update(A, S)])
+    P = ca.MX.sym("p", model.n_p)
+    A = rf(S[2 * n:3 * n], ca.vertcat(S, T, P))
+    sub = ca.Function("substep", [S, T, P], [update(A, S)])
     k = settings.substeps
     X = ca.MX.sym("x", 4 * n)
     U = ca.MX.sym("u", 1, k)
-    xs = sub.mapaccum("substeps", k)(X, U)
-    return ca.Function("plant_step_robust", [X, U], [xs[:, -1]])
+    xs = sub.mapaccum("substeps", k)(X, U, P)
+    return ca.Function("plant_step_robust", [X, U, P], [xs[:, -1]])
 
 
 def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = None,
-                        settings: StepperSettings | None = None, x0=None) -> Result:
+                        settings: StepperSettings | None = None, x0=None, backend=None) -> Result:
     """Integrate a free-hub model under a torque profile with :class:`PlantStepper`.
 
     The torque is evaluated at the end of every substep (no zero-order hold), so the
@@ -469,6 +531,8 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     settings : StepperSettings, optional
     x0 : array_like (2 n_q,), optional
         Initial state ``[q, v]`` (default: at rest).
+    backend : {"auto", "compiled", "vm"}, optional
+        See :class:`PlantStepper`.
 
     Returns
     -------
@@ -486,7 +550,7 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({N + 1} samples)",
                  memory_bytes=8.0 * (N + 1) * (k + 4 * model.n_q + 4), seconds=0.0,
                  max_memory_mb=2048.0, max_wall_s=math.inf)
-    stepper = PlantStepper(model, settings)
+    stepper = PlantStepper(model, settings, backend)
     t = dt * np.arange(N + 1)
     sub = (t[:-1, None] + dt * np.arange(1, k + 1)[None, :] / k)
     u = np.asarray(torque(sub), dtype=float) * np.ones_like(sub)
@@ -504,7 +568,7 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(N + 1)(q.T))
     tau = np.concatenate([[tau0], u[:, -1]])
     stats = {"ms_per_step": 1e3 * wall / max(N, 1), "fallbacks": stepper.fallbacks,
-             "jacobian_updates": stepper.jacobian_updates}
+             "jacobian_updates": stepper.jacobian_updates, "backend": stepper.backend}
     return Result(kind="fixed_step", model=model.name, t=t, q=q, v=v, a=a, v_tip=v_tip,
                   u_tip=u_tip, tau=tau, params=model.params,
                   settings={"torque": describe_input(torque), "t_end": float(t_end),

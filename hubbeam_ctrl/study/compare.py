@@ -40,6 +40,7 @@ from hubbeam_ctrl.core.budget import (
     mpc_bytes,
     mpc_seconds,
 )
+from hubbeam_ctrl.core.compiled import resolve_backend
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings
@@ -136,7 +137,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
             solver: str = "daqp", settings: dict | None = None,
             sim_settings: ClosedLoopSettings | None = None, shaping=None, schedule: int = 1,
             tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
-            progress: bool = False) -> Comparison:
+            progress: bool = False, backend=None) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
@@ -202,12 +203,16 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         settings) chosen beforehand.
     progress : bool
         Print one line per controller on stderr.
+    backend : {"auto", "compiled", "vm"}, optional
+        How the plant is evaluated (see :class:`~hubbeam_ctrl.sim.stepper.PlantStepper`);
+        default ``$HUBBEAM_BACKEND`` or ``"auto"``.
 
     Returns
     -------
     Comparison
     """
     start = time.perf_counter()
+    backend = resolve_backend(backend)
     names = _parse_controllers(controllers)
     base = params if params is not None else Params()
     design_p = design_params if design_params is not None else base
@@ -252,7 +257,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         margins[name] = _margins(ctrl)
         run_sim = dataclasses.replace(sim, max_wall_s=max(1e-3, sim.max_wall_s - clock.elapsed()))
         res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=run_sim,
-                                   reference=(ref.theta_at, ref.theta_dot_at))
+                                   reference=(ref.theta_at, ref.theta_dot_at), backend=backend)
         results[name] = res
         metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
         metrics[name]["scenario"] = sc.name
