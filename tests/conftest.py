@@ -6,6 +6,9 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 # The normal suite runs on CasADi's VM (no compiler needed, nothing compiled per parameter
 # set); tests/test_compiled.py runs the compiled backend where a compiler exists.
 os.environ.setdefault("HUBBEAM_BACKEND", "vm")
+# compiled functions of the tests that use them go to build/, not to the user's cache folder
+os.environ.setdefault("HUBBEAM_CACHE_DIR", os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(
+    __file__))), "build", "hubbeam-cache"))
 
 import pytest  # noqa: E402
 
@@ -22,3 +25,26 @@ def no_tip():
 def table1():
     """Table 1 with 0.1 kg at the tip."""
     return Params()
+
+
+#: Backend of the long closed-loop target tests on FOAM: compiled where a C compiler works,
+#: else the VM (``auto`` falls back with one line). The two agree to 1e-9 relative
+#: (tests/test_compiled.py), and compiling FOAM's plant step takes a few seconds, so these
+#: tests run 3-4x faster with a compiler and still run without one. CFOAM stays on the VM
+#: (its 10-mode functions take minutes to compile).
+FAST_BACKEND = "auto"
+
+
+@pytest.fixture
+def fast_backend(monkeypatch):
+    """Run the test (and the processes it starts) on :data:`FAST_BACKEND`."""
+    monkeypatch.setenv("HUBBEAM_BACKEND", FAST_BACKEND)
+    return FAST_BACKEND
+
+
+@pytest.fixture(scope="module")
+def fast_backend_module():
+    """:func:`fast_backend` for module-scoped fixtures."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("HUBBEAM_BACKEND", FAST_BACKEND)
+        yield FAST_BACKEND

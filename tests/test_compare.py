@@ -22,7 +22,7 @@ from hubbeam_ctrl.study.metrics import METRIC_UNITS
 
 
 @pytest.fixture(scope="module")
-def slew_foam():
+def slew_foam(fast_backend_module):
     """The default slew (tau_m = 200 N m, tf = 10 s, m_t = 0.1 kg, 30 s) on the default
     evaluation plant (FOAM, 10 transverse modes, no damping), all five."""
     return compare(plant="foam", scenario="slew")

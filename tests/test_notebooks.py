@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import FAST_BACKEND
 
 jupytext = pytest.importorskip("jupytext")
 nbclient = pytest.importorskip("nbclient")
@@ -84,6 +85,8 @@ def test_source_is_percent_notebook(path):
 @pytest.mark.parametrize("path", SOURCES, ids=IDS)
 def test_notebook_executes(path, tmp_path, monkeypatch):
     monkeypatch.setenv("MPLBACKEND", "Agg")          # inherited by the kernel process
+    if "cfoam" not in path.read_text(encoding="utf-8").lower():
+        monkeypatch.setenv("HUBBEAM_BACKEND", FAST_BACKEND)  # FOAM only: see tests/conftest.py
     monkeypatch.chdir(tmp_path)
     before = sorted(NOTEBOOK_DIR.iterdir())
     nb = read_source(path)

@@ -56,7 +56,7 @@ def test_design_for_range_on_linear_models():
 
 
 @pytest.mark.slow
-def test_paper_beam_designed_for_0_to_half_a_kilo(tmp_path):
+def test_paper_beam_designed_for_0_to_half_a_kilo(tmp_path, fast_backend):
     """Table 1's beam, LQR designed for 0-0.5 kg; plants at the ends of the range.
 
     The whole target (LQR, LQG and MPC, plants at 0, 0.1, 0.3, 0.5 kg) is measured in

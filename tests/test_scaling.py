@@ -115,7 +115,7 @@ def test_a_geometrically_similar_beam_gives_the_same_dimensionless_results():
 
 
 @pytest.mark.slow
-def test_lab_arm_target_all_defaults():
+def test_lab_arm_target_all_defaults(fast_backend):
     """The issue's lab arm, 90 degrees in 1.2 s with its 1.5 N m motor, every default."""
     c = compare("foam", Slew(math.pi / 2, 1.2), "openloop,lqr,lqg,mpc", params=LAB, t_end=8.0)
     m = c.metrics

@@ -182,7 +182,7 @@ def test_bad_scheduled_input_is_one_line(sched, call, match):
 
 # == the spin-up on FOAM (slow) =================================================================
 @pytest.fixture(scope="module")
-def spinup_runs():
+def spinup_runs(fast_backend_module):
     """Spin-up to 3 rad/s in 10 s on FOAM: fixed design at 3 rad/s, and schedules of 9 and 17 spins."""
     runs = {1: compare("foam", "spinup", "openloop,lqr,mpc").metrics}
     for n in (9, 17):

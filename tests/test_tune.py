@@ -100,7 +100,7 @@ def test_cli_tune_bad_input(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_lab_arm_tuned_worst_case_is_half_the_scaled_defaults():
+def test_lab_arm_tuned_worst_case_is_half_the_scaled_defaults(fast_backend):
     """Issue target: lab arm, payload 0-0.2 kg, 1.5 N m, slew in t_f = 1.2 s (3+3 modes).
 
     The plant has 4 bending modes, one more than the design (the default rule would take 6 and
