@@ -39,6 +39,17 @@ __all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate", "tor
 def check_psd(name: str, M, n: int, definite: bool = False) -> np.ndarray:
     """Check that ``M`` is a symmetric positive (semi)definite ``n x n`` matrix.
 
+    Parameters
+    ----------
+    name : str
+        The matrix's name as the caller spelled it (starts the message).
+    M : array_like (n, n)
+        The matrix.
+    n : int
+        Required size.
+    definite : bool
+        Require positive definite (default: semidefinite).
+
     Raises
     ------
     ParameterError
@@ -59,7 +70,15 @@ def check_psd(name: str, M, n: int, definite: bool = False) -> np.ndarray:
 
 
 def saturate(tau: float, tau_max: float) -> float:
-    """Clip a torque to ``[-tau_max, tau_max]`` [N m] (NaN passes through)."""
+    """Clip a torque to ``[-tau_max, tau_max]`` [N m] (NaN passes through).
+
+    Parameters
+    ----------
+    tau : float
+        Torque [N m].
+    tau_max : float
+        Limit [N m], > 0.
+    """
     return tau_max if tau > tau_max else (-tau_max if tau < -tau_max else tau)
 
 
@@ -269,7 +288,20 @@ class Reference:
 
     @classmethod
     def from_profile(cls, profile, dt: float, t_end: float, description: str = "") -> "Reference":
-        """Sample ``profile(t) -> (theta, theta_dot, theta_ddot, torque)`` on ``0..t_end``."""
+        """Sample ``profile(t) -> (theta, theta_dot, theta_ddot, torque)`` on ``0..t_end``.
+
+        Parameters
+        ----------
+        profile : callable
+            ``profile(t)`` of an array of times [s] -> ``(theta, theta_dot, theta_ddot, torque)``
+            [rad, rad/s, rad/s^2, N m].
+        dt : float
+            Sample time [s], > 0.
+        t_end : float
+            Last sample [s].
+        description : str
+            What the reference is (for reports).
+        """
         dt = check_positive("dt", dt, "s")
         t = dt * np.arange(int(round(t_end / dt)) + 1)
         th, thd, thdd, tau = (np.asarray(a, dtype=float) * np.ones_like(t) for a in profile(t))
@@ -277,7 +309,15 @@ class Reference:
 
     @classmethod
     def rest(cls, dt: float, theta: float = 0.0) -> "Reference":
-        """Stay at rest at ``theta`` [rad]."""
+        """Stay at rest at ``theta`` [rad].
+
+        Parameters
+        ----------
+        dt : float
+            Sample time [s].
+        theta : float
+            Hub angle to hold [rad].
+        """
         z = np.zeros(1)
         return cls(dt, z + theta, z, z, z, "rest")
 
@@ -287,11 +327,25 @@ class Reference:
         return self.dt * np.arange(len(self.theta))
 
     def index(self, t: float) -> int:
-        """Sample index of time ``t`` [s] (rounded)."""
+        """Sample index of time ``t`` [s] (rounded).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        """
         return int(round(t / self.dt))
 
     def window(self, k: int, n: int):
-        """Reference at samples ``k..k+n-1``: ``(theta, theta_dot, torque)`` arrays."""
+        """Reference at samples ``k..k+n-1``: ``(theta, theta_dot, torque)`` arrays.
+
+        Parameters
+        ----------
+        k : int
+            First sample.
+        n : int
+            Number of samples (the last value is held beyond the table).
+        """
         K = len(self.theta)
         if k + n <= K:
             return self.theta[k:k + n], self.theta_dot[k:k + n], self.torque[k:k + n]
@@ -302,7 +356,13 @@ class Reference:
                 self.torque[inside])
 
     def at(self, t):
-        """``(theta, theta_dot, torque)`` at time(s) ``t`` [s] (nearest sample)."""
+        """``(theta, theta_dot, torque)`` at time(s) ``t`` [s] (nearest sample).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+        """
         t = np.asarray(t, dtype=float)
         K = len(self.theta)
         k = np.rint(t / self.dt).astype(int)
@@ -312,11 +372,23 @@ class Reference:
                 self.torque[inside])
 
     def theta_at(self, t):
-        """Reference hub angle at ``t`` [rad]."""
+        """Reference hub angle at ``t`` [rad].
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+        """
         return self.at(t)[0]
 
     def theta_dot_at(self, t):
-        """Reference hub rate at ``t`` [rad/s]."""
+        """Reference hub rate at ``t`` [rad/s].
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+        """
         return self.at(t)[1]
 
 
@@ -350,7 +422,13 @@ class Weights(Settings):
                                                   "checked against the design model by matrices().")
 
     def matrices(self, design: DesignModel):
-        """State and input weights ``(Q, R)`` for ``design`` (validated)."""
+        """State and input weights ``(Q, R)`` for ``design`` (validated).
+
+        Parameters
+        ----------
+        design : DesignModel
+            The design model the weights are for (its state size and rows).
+        """
         nx = design.n_x
         if self.state_matrix is not None:
             Q = check_psd("weights.state_matrix", self.state_matrix, nx)

@@ -73,6 +73,15 @@ class MPCSettings(LQSettings):
 def condensed_matrices(Ad: np.ndarray, Bd: np.ndarray, N: int):
     """Prediction matrices of ``X = Phi x0 + Gamma U`` over ``N`` steps.
 
+    Parameters
+    ----------
+    Ad : ndarray (nx, nx)
+        Discrete state matrix.
+    Bd : ndarray (nx, 1)
+        Discrete input matrix [per N m].
+    N : int
+        Horizon [samples], >= 1.
+
     Returns
     -------
     Phi : ndarray (N nx, nx)
@@ -230,6 +239,7 @@ class MPC(Controller):
         return (self._Gr if Gr is None else Gr) @ X.ravel() + 2.0 * self._ff * U
 
     def reset(self) -> None:
+        """Forget the previous plan and multipliers (the next solve starts cold) and the counters."""
         self._z = np.zeros(self._nz)
         self._lam_x = np.zeros(self._nz)
         self._lam_a = np.zeros(self._n_a)
@@ -245,12 +255,20 @@ class MPC(Controller):
         return float(self._z[-1] / self._sigma) if self._soft else 0.0
 
     def stats(self) -> dict:
+        """Counters of the run: QP solves, fallbacks to LQR and their fraction, solver status."""
         return {"qp_solves": self.n_solves, "qp_fallbacks": self.n_fallbacks,
                 "fallback_fraction": self.n_fallbacks / self.n_solves if self.n_solves else 0.0,
                 "solver": self.settings.solver, "horizon": self.settings.horizon}
 
     def plan(self, t: float, y) -> np.ndarray:
         """Solve the QP at time ``t`` [s] for state ``y``; return the planned torques [N m].
+
+        Parameters
+        ----------
+        t : float
+            Time [s] (selects the reference window).
+        y : ndarray (nx,)
+            Measured (or estimated) design-model state.
 
         Raises
         ------

@@ -30,6 +30,11 @@ def slew_shape_constant(flatness: float) -> float:
     """``c`` with rest-to-rest angle ``= c a_max T^2`` for the shape of :func:`slew_reference`.
 
     ``c = 1/(2 pi)`` for a sine (``flatness = 0``), tending to ``1/4`` (bang-bang).
+
+    Parameters
+    ----------
+    flatness : float
+        Shape of the acceleration profile [-], in [0, 1) (0: a sine).
     """
     u = np.linspace(0.0, 1.0, 20001)
     s = _shape(u, flatness)

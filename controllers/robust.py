@@ -81,7 +81,15 @@ def check_payload_range(payload_range, nominal: float | None = None, name: str =
 
 
 def payload_grid(payload_range, nominal: float) -> tuple:
-    """Payloads [kg] a design is verified at: the ends of the range and the nominal payload."""
+    """Payloads [kg] a design is verified at: the ends of the range and the nominal payload.
+
+    Parameters
+    ----------
+    payload_range : tuple of float
+        ``(m_min, m_max)`` [kg].
+    nominal : float
+        Nominal tip mass [kg].
+    """
     lo, hi = payload_range
     return tuple(sorted({lo, nominal, hi}))
 

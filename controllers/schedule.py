@@ -188,7 +188,13 @@ class DesignSchedule:
         return self.designs[0].n_modes
 
     def locate(self, spin: float) -> tuple:
-        """``(i, w)`` with ``value(spin) = (1 - w) table[i] + w table[i + 1]`` (clamped to the grid)."""
+        """``(i, w)`` with ``value(spin) = (1 - w) table[i] + w table[i + 1]`` (clamped to the grid).
+
+        Parameters
+        ----------
+        spin : float
+            Spin rate [rad/s].
+        """
         g = self._grid
         if not spin > g[0]:                 # also NaN -> the first point
             return 0, 0.0
@@ -198,17 +204,39 @@ class DesignSchedule:
         return i, (spin - g[i]) / (g[i + 1] - g[i])
 
     def interpolate(self, table: np.ndarray, spin: float) -> np.ndarray:
-        """Linear interpolation of ``table`` (first axis: the spins) at ``spin`` [rad/s]."""
+        """Linear interpolation of ``table`` (first axis: the spins) at ``spin`` [rad/s].
+
+        Parameters
+        ----------
+        table : ndarray
+            Values per design spin (first axis).
+        spin : float
+            Spin rate [rad/s].
+        """
         i, w = self.locate(float(spin))
         return table[i] if w == 0.0 else (1.0 - w) * table[i] + w * table[i + 1]
 
     def stack(self, f) -> np.ndarray:
-        """``np.array([f(d) for d in designs])``."""
+        """``np.array([f(d) for d in designs])``.
+
+        Parameters
+        ----------
+        f : callable
+            ``f(design) -> array`` for one :class:`DesignModel`.
+        """
         return np.array([f(d) for d in self.designs])
 
     def reference_states(self, reference: Reference, elastic: bool = True) -> np.ndarray:
         """Reference states as :meth:`DesignModel.reference_states`, with the quasi-static gain
-        of the model at each sample's reference rate."""
+        of the model at each sample's reference rate.
+
+        Parameters
+        ----------
+        reference : Reference
+            Hub reference of the task.
+        elastic : bool
+            Include the quasi-static elastic states (else rigid only).
+        """
         X = self.designs[0].reference_states(reference, elastic=False)
         if elastic and len(reference.theta) > 1:
             n = self.n_x // 2
@@ -278,7 +306,13 @@ class ScheduledLQR(_Scheduled, LQR):
         self.gains = schedule.stack(lambda d: dlqr_gain(d, settings.weights)[0])
 
     def gain(self, spin: float) -> np.ndarray:
-        """Interpolated gain at ``spin`` [rad/s]."""
+        """Interpolated gain at ``spin`` [rad/s].
+
+        Parameters
+        ----------
+        spin : float
+            Spin rate [rad/s].
+        """
         return self.schedule.interpolate(self.gains, spin)
 
     def __call__(self, t: float, y) -> float:
@@ -321,7 +355,13 @@ class ScheduledKalmanEstimator:
         self.reset()
 
     def reset(self, x0=None) -> None:
-        """Start again from a state guess (default zero), with no measurement yet."""
+        """Start again from a state guess (default zero), with no measurement yet.
+
+        Parameters
+        ----------
+        x0 : array_like (nx,), optional
+            Initial guess of the (deviation) state; default zero.
+        """
         x0 = np.zeros(self.schedule.n_x) if x0 is None else np.array(x0, dtype=float)
         self.x_pred = x0
         self.x_hat = x0

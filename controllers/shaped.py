@@ -126,7 +126,13 @@ class ShapedProfile:
         return self.base_duration + self.shaper.duration
 
     def rate(self, t) -> np.ndarray:
-        """Rigid-body rate of the shaped profile at ``t`` [rad/s]."""
+        """Rigid-body rate of the shaped profile at ``t`` [rad/s].
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+        """
         return self.shaper.apply(self.base_rate, t)
 
     def held_torques(self, dt: float, t_end: float) -> np.ndarray:
@@ -134,6 +140,13 @@ class ShapedProfile:
 
         The exact average of the shaped torque over each sample: ``J (rate(t_{k+1}) -
         rate(t_k)) / dt``.
+
+        Parameters
+        ----------
+        dt : float
+            Sample time [s].
+        t_end : float
+            Last sample [s].
         """
         t = dt * np.arange(int(round(t_end / dt)) + 2)
         return self.inertia * np.diff(self.rate(t)) / dt

@@ -123,6 +123,13 @@ class Shaper:
         """Percentage residual vibration (as a fraction) for modes at ``frequency``.
 
         See :func:`residual_vibration`.
+
+        Parameters
+        ----------
+        frequency : float or array_like
+            Natural frequency of the mode(s) [rad/s].
+        damping : float
+            Damping ratio [-], 0 <= zeta < 1.
         """
         return residual_vibration(self, frequency, damping)
 

@@ -39,7 +39,13 @@ OPTION_NAMES = {
 def stdout(args):
     """The stream a subcommand prints its results to: the standard output saved before the
     run (during the run ``sys.stdout`` collects native and CasADi output, see
-    :class:`~hubbeam_ctrl.core.native.capture_native_output`)."""
+    :class:`~hubbeam_ctrl.core.native.capture_native_output`).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     return getattr(args, "stdout", None) or sys.stdout
 
 
@@ -120,7 +126,13 @@ def integer():
 
 
 def nonempty(what: str = "file"):
-    """argparse type: a non-empty path (an empty ``--params ''`` is an error, not "none")."""
+    """argparse type: a non-empty path (an empty ``--params ''`` is an error, not "none").
+
+    Parameters
+    ----------
+    what : str
+        What the path names (for the message).
+    """
     def parse(text):
         if not text.strip():
             raise argparse.ArgumentTypeError(f"must name a {what}, got {text!r}")
@@ -203,7 +215,13 @@ def refuse_inapplicable(args, chosen: str, applies: dict) -> None:
 
 
 def add_run_options(parser) -> None:
-    """Add ``--max-wall``, ``--allow-large`` and ``--verbose`` to a long-running subcommand."""
+    """Add ``--max-wall``, ``--allow-large`` and ``--verbose`` to a long-running subcommand.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     parser.add_argument("--max-wall", metavar="S", type=real("s"),
                         help="wall-time limit of the run [s] (default 600): a run estimated to take "
                              "longer is refused, a run that takes longer stops, flagged, keeping its "
@@ -215,14 +233,26 @@ def add_run_options(parser) -> None:
 
 
 def add_verbose(parser) -> None:
-    """Add ``--verbose [LOG]``: native solver output and failure details go to a log file."""
+    """Add ``--verbose [LOG]``: native solver output and failure details go to a log file.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     parser.add_argument("--verbose", metavar="LOG", nargs="?", const="hubbeam.log", type=nonempty("file"),
                         help="write native solver output and the details of failures to LOG "
                              "(default hubbeam.log); without it they are summarised in one line")
 
 
 def run_limits(args) -> dict:
-    """``max_wall_s`` and ``max_memory_mb`` settings from ``--max-wall`` and ``--allow-large``."""
+    """``max_wall_s`` and ``max_memory_mb`` settings from ``--max-wall`` and ``--allow-large``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     limits = {}
     if getattr(args, "max_wall", None) is not None:
         limits["max_wall_s"] = args.max_wall

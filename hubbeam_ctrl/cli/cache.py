@@ -14,7 +14,15 @@ __all__ = ["add_parser", "run"]
 
 
 def add_parser(subparsers, common) -> None:
-    """Add the ``cache`` subcommand (``common`` is not used: the cache has no parameters)."""
+    """Add the ``cache`` subcommand (``common`` is not used: the cache has no parameters).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``hubbeam`` subcommands to add to.
+    common : argparse.ArgumentParser
+        Parent parser with the common plant options.
+    """
     p = subparsers.add_parser(
         "cache", help="show or clear the build cache of the compiled backend",
         description=("The compiled backend keeps the shared libraries it builds in a cache "
@@ -27,7 +35,13 @@ def add_parser(subparsers, common) -> None:
 
 
 def run(args) -> int:
-    """Run ``hubbeam cache``; returns the exit status (0)."""
+    """Run ``hubbeam cache``; returns the exit status (0).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.core.compiled import cache_info, clear_cache, find_compiler
     from hubbeam_ctrl.core.errors import HubbeamError

@@ -116,7 +116,15 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
 
 
 def parse_payload_range(text: str, nominal: float) -> tuple:
-    """``"MIN,MAX"`` -> ``(m_min, m_max)`` [kg], validated (one-line error naming payload-range)."""
+    """``"MIN,MAX"`` -> ``(m_min, m_max)`` [kg], validated (one-line error naming payload-range).
+
+    Parameters
+    ----------
+    text : str
+        ``MIN,MAX`` [kg] as typed.
+    nominal : float
+        Nominal tip mass [kg] (must lie in the range).
+    """
     from controllers.robust import check_payload_range
     parts = [t.strip() for t in str(text).split(",")]
     try:
@@ -145,7 +153,13 @@ def _run_payload(args, params, out, sink) -> int:
 
 
 def run(args) -> int:
-    """Run ``hubbeam compare``; returns the exit status (0)."""
+    """Run ``hubbeam compare``; returns the exit status (0).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     sink = stdout(args)
     from hubbeam_ctrl.cli.main import params_from_args
     from hubbeam_ctrl.plant.params import MAX_MODES

@@ -65,7 +65,13 @@ def spinup_comparison(out_dir, w_f: float = 2.8, t_f: float = 30.0, t_end: float
 
 
 def main(argv=None) -> int:
-    """Run the demo; print its tables."""
+    """Run the demo; print its tables.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (default: ``sys.argv[1:]``).
+    """
     parser = argparse.ArgumentParser(prog="python -m hubbeam_ctrl.cli.demo")
     parser.add_argument("--out", default="demo_out", help="output folder")
     args = parser.parse_args(argv)

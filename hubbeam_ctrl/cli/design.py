@@ -22,7 +22,15 @@ LINEAR_CONTROLLERS = ("pd", "lqr", "lqg")
 
 
 def add_parser(subparsers, common) -> None:
-    """Add the ``design`` subcommand (``common`` holds the system-parameter options)."""
+    """Add the ``design`` subcommand (``common`` holds the system-parameter options).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``hubbeam`` subcommands to add to.
+    common : argparse.ArgumentParser
+        Parent parser with the common plant options.
+    """
     from hubbeam_ctrl.cli.main import finite_float, positive_float
 
     p = subparsers.add_parser(
@@ -67,7 +75,13 @@ def _finite(value):
 
 
 def run(args) -> int:
-    """Run ``hubbeam design``; bad input raises :class:`ParameterError`."""
+    """Run ``hubbeam design``; bad input raises :class:`ParameterError`.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from pathlib import Path
 
     from controllers import CONTROLLERS, DesignModel, make_controller

@@ -28,7 +28,15 @@ class _OutputsHelpFormatter(argparse.HelpFormatter):
 
 
 def add_parser(subparsers, common) -> None:
-    """Add the ``linearize`` subcommand (``common`` holds the system-parameter options)."""
+    """Add the ``linearize`` subcommand (``common`` holds the system-parameter options).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``hubbeam`` subcommands to add to.
+    common : argparse.ArgumentParser
+        Parent parser with the common plant options.
+    """
     from hubbeam_ctrl.cli.args import add_verbose, real
     from hubbeam_ctrl.plant.models import MODEL_SPECS
 
@@ -60,7 +68,13 @@ def add_parser(subparsers, common) -> None:
 
 
 def run(args) -> int:
-    """Run ``hubbeam linearize``; bad input raises :class:`ParameterError`."""
+    """Run ``hubbeam linearize``; bad input raises :class:`ParameterError`.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from hubbeam_ctrl.cli.args import check_output, stdout
     from hubbeam_ctrl.cli.main import params_from_args
     from hubbeam_ctrl.core.fileio import strict_json

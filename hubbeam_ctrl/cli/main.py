@@ -103,7 +103,13 @@ def _common_parser() -> argparse.ArgumentParser:
 
 
 def params_from_args(args) -> Params:
-    """Build :class:`Params` from the common options (file first, then flags)."""
+    """Build :class:`Params` from the common options (file first, then flags).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     base = load_params(args.params) if getattr(args, "params", None) is not None else Params()
     changes = {}
     if getattr(args, "tip_mass", None) is not None:
@@ -116,7 +122,13 @@ def params_from_args(args) -> Params:
 
 
 def positive_float(name):
-    """argparse type: a finite number > 0 (its upper range is checked by the library)."""
+    """argparse type: a finite number > 0 (its upper range is checked by the library).
+
+    Parameters
+    ----------
+    name : str
+        The option's name (for the message).
+    """
     def parse(text):
         value = real()(text)
         if not value > 0:
@@ -126,7 +138,13 @@ def positive_float(name):
 
 
 def positive_int(name):
-    """argparse type: an integer > 0 (its upper range is checked by the library)."""
+    """argparse type: an integer > 0 (its upper range is checked by the library).
+
+    Parameters
+    ----------
+    name : str
+        The option's name (for the message).
+    """
     def parse(text):
         value = integer()(text)
         if value <= 0:
@@ -136,12 +154,24 @@ def positive_int(name):
 
 
 def finite_float(name):
-    """argparse type: a finite number (its range is checked by the library)."""
+    """argparse type: a finite number (its range is checked by the library).
+
+    Parameters
+    ----------
+    name : str
+        The option's name (kept for the callers; the message names the option).
+    """
     return real()
 
 
 def add_backend_option(parser) -> None:
-    """Add ``--backend {auto,compiled,vm}`` (see :mod:`hubbeam_ctrl.core.compiled`)."""
+    """Add ``--backend {auto,compiled,vm}`` (see :mod:`hubbeam_ctrl.core.compiled`).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     from hubbeam_ctrl.core.compiled import BACKENDS
     parser.add_argument("--backend", choices=BACKENDS, default=None,
                         help="evaluate the plant in CasADi's VM or as generated C (compiled once, "
@@ -151,7 +181,15 @@ def add_backend_option(parser) -> None:
 
 def check_output_folder(option: str, path) -> None:
     """Raise :class:`ParameterError` unless a file can be written at ``path`` (see
-    :func:`hubbeam_ctrl.cli.args.check_output`)."""
+    :func:`hubbeam_ctrl.cli.args.check_output`).
+
+    Parameters
+    ----------
+    option : str
+        The option as typed (``--out``).
+    path : str or Path
+        The file to be written.
+    """
     check_output(option, path)
 
 
@@ -298,6 +336,11 @@ def main(argv=None) -> int:
     0: done (warnings, e.g. a run that stopped early, on stderr); 2: bad input, one line on
     stderr naming the option, nothing written; 1: the run failed (one line; the details in
     the ``--verbose`` log); 130: interrupted.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (default: ``sys.argv[1:]``).
     """
     parser = build_parser()
     args, options = None, set()

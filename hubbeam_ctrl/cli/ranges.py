@@ -157,7 +157,13 @@ def ranges_markdown() -> str:
 
 
 def main(argv=None) -> int:
-    """Write the table to the file named in ``argv`` (default: print it)."""
+    """Write the table to the file named in ``argv`` (default: print it).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (default: ``sys.argv[1:]``).
+    """
     argv = sys.argv[1:] if argv is None else argv
     text = ranges_markdown()
     if argv:

@@ -17,7 +17,13 @@ __all__ = ["add_parser", "run", "add_engine_options", "engine_from_args"]
 
 
 def add_engine_options(p) -> None:
-    """Options shared by ``sweep`` and ``tune``: --workers, --scheduler, --scheduler-timeout, --json."""
+    """Options shared by ``sweep`` and ``tune``: --workers, --scheduler, --scheduler-timeout, --json.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     p.add_argument("--workers", metavar="N", type=positive_int("workers"),
                    help="local worker processes (default: one per core; 1 runs in this process)")
     p.add_argument("--scheduler", metavar="ADDRESS",
@@ -28,13 +34,27 @@ def add_engine_options(p) -> None:
 
 
 def engine_from_args(args):
-    """The Dask client of ``--scheduler`` (None without it); raises ParameterError if it does not answer."""
+    """The Dask client of ``--scheduler`` (None without it); raises ParameterError if it does not answer.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from hubbeam_ctrl.study.sweep import connect
     return connect(args.scheduler, args.scheduler_timeout) if args.scheduler else None
 
 
 def add_parser(subparsers, common) -> None:
-    """Add the ``sweep`` subcommand (``common`` is not used: the spec holds the parameters)."""
+    """Add the ``sweep`` subcommand (``common`` is not used: the spec holds the parameters).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``hubbeam`` subcommands to add to.
+    common : argparse.ArgumentParser
+        Parent parser with the common plant options.
+    """
     p = subparsers.add_parser(
         "sweep", help="robustness study: controllers over a plant spread (grid / Monte Carlo)",
         description=("Run every controller of a study spec (TOML: [study], [params], [settings.NAME], "
@@ -51,7 +71,13 @@ def add_parser(subparsers, common) -> None:
 
 
 def run(args) -> int:
-    """Run ``hubbeam sweep``; bad input raises ParameterError (exit 2)."""
+    """Run ``hubbeam sweep``; bad input raises ParameterError (exit 2).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
     from hubbeam_ctrl.core.fileio import strict_json

@@ -28,7 +28,15 @@ def _objective(text):
 
 
 def add_parser(subparsers, common) -> None:
-    """Add the ``tune`` subcommand (``common`` is not used: the spec holds the parameters)."""
+    """Add the ``tune`` subcommand (``common`` is not used: the spec holds the parameters).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``hubbeam`` subcommands to add to.
+    common : argparse.ArgumentParser
+        Parent parser with the common plant options.
+    """
     from hubbeam_ctrl.cli.sweep import add_engine_options
     p = subparsers.add_parser(
         "tune", help="robust LQR/LQG/MPC weights over a study's plant spread",
@@ -53,7 +61,13 @@ def add_parser(subparsers, common) -> None:
 
 
 def run(args) -> int:
-    """Run ``hubbeam tune``; bad input raises ParameterError (exit 2)."""
+    """Run ``hubbeam tune``; bad input raises ParameterError (exit 2).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
     from pathlib import Path
 
     import tomllib

@@ -97,7 +97,13 @@ def mpc_seconds(horizon: int, n_x: int, steps: int) -> float:
 
 
 def format_bytes(n: float) -> str:
-    """``n`` bytes as ``"12 MB"``, ``"3.4 GB"`` (powers of 1000)."""
+    """``n`` bytes as ``"12 MB"``, ``"3.4 GB"`` (powers of 1000).
+
+    Parameters
+    ----------
+    n : float
+        A size [bytes].
+    """
     for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if n >= size:
             return f"{n / size:.2g} {unit}" if n / size < 10 else f"{n / size:.0f} {unit}"
@@ -105,7 +111,13 @@ def format_bytes(n: float) -> str:
 
 
 def format_seconds(s: float) -> str:
-    """``s`` seconds as ``"40 s"``, ``"12 min"``, ``"3.1 h"``, ``"2.0 days"``."""
+    """``s`` seconds as ``"40 s"``, ``"12 min"``, ``"3.1 h"``, ``"2.0 days"``.
+
+    Parameters
+    ----------
+    s : float
+        A duration [s].
+    """
     if s < 120:
         return f"{s:.0f} s"
     if s < 7200:
@@ -172,9 +184,21 @@ class WallClock:
         return time.perf_counter() - self.start
 
     def expired(self, now: float | None = None) -> bool:
-        """True once the limit has passed (``now``: a ``time.perf_counter()`` reading to reuse)."""
+        """True once the limit has passed (``now``: a ``time.perf_counter()`` reading to reuse).
+
+        Parameters
+        ----------
+        now : float, optional
+            A ``time.perf_counter()`` reading [s] to reuse.
+        """
         return ((time.perf_counter() if now is None else now) - self.start) > self.max_wall_s
 
     def message(self, t: float) -> str:
-        """``"stopped after max_wall_s = ... s at t = ... s"`` for a run stopped at sim time ``t``."""
+        """``"stopped after max_wall_s = ... s at t = ... s"`` for a run stopped at sim time ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Simulated time where the run stopped [s].
+        """
         return f"stopped after max_wall_s = {self.max_wall_s:g} s at t = {t:.3f} s"

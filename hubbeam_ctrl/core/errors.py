@@ -16,6 +16,13 @@ class UserFunctionError(HubbeamError):
 
     The message names the function and the time; ``t`` holds that time [s] (``None`` when
     it is not known) and ``__cause__`` the caller's own exception, if there was one.
+
+    Parameters
+    ----------
+    message : str
+        One line naming the function and the time.
+    t : float, optional
+        Time where it failed [s].
     """
 
     def __init__(self, message: str, t: float | None = None):

@@ -32,21 +32,51 @@ def _is_number(value) -> bool:
 
 
 def check_positive(name: str, value, unit: str) -> float:
-    """Return ``float(value)``; raise unless it is a finite number > 0 [``unit``]."""
+    """Return ``float(value)``; raise unless it is a finite number > 0 [``unit``].
+
+    Parameters
+    ----------
+    name : str
+        The argument's name as the caller spelled it (starts the message).
+    value : float
+        The value.
+    unit : str
+        Its unit (for the message).
+    """
     if not (_is_number(value) and value > 0):
         raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {_shown(value)}")
     return float(value)
 
 
 def check_nonnegative(name: str, value, unit: str) -> float:
-    """Return ``float(value)``; raise unless it is a finite number >= 0 [``unit``]."""
+    """Return ``float(value)``; raise unless it is a finite number >= 0 [``unit``].
+
+    Parameters
+    ----------
+    name : str
+        The argument's name as the caller spelled it (starts the message).
+    value : float
+        The value.
+    unit : str
+        Its unit (for the message).
+    """
     if not (_is_number(value) and value >= 0):
         raise ParameterError(f"{name} must be a finite number >= 0 [{unit}], got {_shown(value)}")
     return float(value)
 
 
 def check_finite(name: str, value, unit: str) -> float:
-    """Return ``float(value)``; raise unless it is a finite number [``unit``]."""
+    """Return ``float(value)``; raise unless it is a finite number [``unit``].
+
+    Parameters
+    ----------
+    name : str
+        The argument's name as the caller spelled it (starts the message).
+    value : float
+        The value.
+    unit : str
+        Its unit (for the message).
+    """
     if not _is_number(value):
         raise ParameterError(f"{name} must be a finite number [{unit}], got {_shown(value)}")
     return float(value)

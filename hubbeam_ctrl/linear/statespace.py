@@ -336,13 +336,25 @@ def linearize(model="sfoam", spin: float = 0.0, params: Params | None = None,
 
 # -- poles ------------------------------------------------------------------------
 def poles(lm) -> np.ndarray:
-    """Poles of a :class:`LinearModel` or :class:`control.StateSpace` (z-plane if sampled)."""
+    """Poles of a :class:`LinearModel` or :class:`control.StateSpace` (z-plane if sampled).
+
+    Parameters
+    ----------
+    lm : LinearModel or control.StateSpace
+        The model.
+    """
     sys = lm.sys if isinstance(lm, LinearModel) else lm
     return sys.poles()
 
 
 def continuous_poles(lm) -> np.ndarray:
-    """Poles in the s-plane [rad/s]; a sampled model's ``z`` are mapped by ``log(z)/dt``."""
+    """Poles in the s-plane [rad/s]; a sampled model's ``z`` are mapped by ``log(z)/dt``.
+
+    Parameters
+    ----------
+    lm : LinearModel or control.StateSpace
+        The model (continuous or sampled).
+    """
     sys = lm.sys if isinstance(lm, LinearModel) else lm
     lam = poles(sys).astype(complex)
     if sys.dt:

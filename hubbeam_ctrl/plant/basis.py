@@ -142,6 +142,17 @@ def _gauss_nodes(L: float, n_modes: int, refine: int = 1):
 def foreshortening_matrices(x, n: int, L: float, refine: int = 1) -> np.ndarray:
     """``S(x) = int_0^x f2'(xi)^T f2'(xi) dxi`` at points ``x``.
 
+    Parameters
+    ----------
+    x : float or array_like
+        Positions along the beam [m], in [0, L].
+    n : int
+        Transverse modes.
+    L : float
+        Beam length [m].
+    refine : int
+        Subdivisions of each quadrature segment (accuracy checks).
+
     Returns
     -------
     ndarray, shape (len(x), n, n)
@@ -182,6 +193,29 @@ class MassMoments:
     ``G``     ``int S_ij f2_k dmu`` (n2, n2, n2)     [kg/m]
     ``F``     ``int S_ij S_kl dmu`` (n2,n2,n2,n2)    [kg/m^2]
     ========  =====================================  ==================
+
+    Attributes
+    ----------
+    J : float
+        ``int s^2 dmu`` [kg m^2].
+    V1 : ndarray (n1,)
+        ``int s f1 dmu`` [kg m].
+    V2 : ndarray (n2,)
+        ``int s f2 dmu`` [kg m].
+    M1 : ndarray (n1, n1)
+        ``int f1^T f1 dmu`` [kg].
+    M2 : ndarray (n2, n2)
+        ``int f2^T f2 dmu`` [kg].
+    R : ndarray (n1, n2)
+        ``int f1^T f2 dmu`` [kg].
+    D : ndarray (n2, n2)
+        ``int s S dmu`` [kg].
+    E : ndarray (n1, n2, n2)
+        ``int f1_i S_jk dmu`` [kg/m].
+    G : ndarray (n2, n2, n2)
+        ``int S_ij f2_k dmu`` [kg/m].
+    F : ndarray (n2, n2, n2, n2)
+        ``int S_ij S_kl dmu`` [kg/m^2].
     """
 
     J: float
@@ -259,7 +293,13 @@ class ModalBasis:
         return self.beam.J
 
     def S(self, x) -> np.ndarray:
-        """Foreshortening matrix ``S(x)`` [1/m] at positions ``x`` [m], shape (len(x), n2, n2)."""
+        """Foreshortening matrix ``S(x)`` [1/m] at positions ``x`` [m], shape (len(x), n2, n2).
+
+        Parameters
+        ----------
+        x : float or array_like
+            Positions along the beam [m].
+        """
         p = self.params
         return foreshortening_matrices(x, p.n_transverse, p.L)
 

@@ -99,6 +99,11 @@ def second_order_linearization(model: HubBeamModel, spin: float = 0.0,
 def first_order_matrices(lin: SecondOrderLinearization):
     """State matrices of ``d/dt [dq, dv] = A [dq, dv] + B dtau``.
 
+    Parameters
+    ----------
+    lin : SecondOrderLinearization
+        ``M``, ``G``, ``K``, ``B`` of the second-order model.
+
     Returns
     -------
     A : ndarray (2n, 2n)
@@ -115,7 +120,13 @@ def first_order_matrices(lin: SecondOrderLinearization):
 
 
 def velocity_name(coordinate: str) -> str:
-    """Name of a coordinate's rate: ``theta -> theta_dot``, ``q2_3 -> q2_dot_3``."""
+    """Name of a coordinate's rate: ``theta -> theta_dot``, ``q2_3 -> q2_dot_3``.
+
+    Parameters
+    ----------
+    coordinate : str
+        A coordinate's name (``theta``, ``q1_2``, ``q2_3``).
+    """
     if "_" in coordinate and coordinate.rsplit("_", 1)[1].isdigit():
         base, index = coordinate.rsplit("_", 1)
         return f"{base}_dot_{index}"

@@ -64,7 +64,17 @@ class SpinUp(Settings):
 
 
 def spinup_rate(t, w_f: float, t_f: float):
-    """Hub rate of the corrected Eq. (43) spin-up [rad/s] at times ``t`` [s]."""
+    """Hub rate of the corrected Eq. (43) spin-up [rad/s] at times ``t`` [s].
+
+    Parameters
+    ----------
+    t : float or array_like
+        Time(s) [s].
+    w_f : float
+        Final rate [rad/s].
+    t_f : float
+        Spin-up time [s].
+    """
     return SpinUp(w_f, t_f)(np.asarray(t, dtype=float))[1]
 
 
@@ -87,7 +97,13 @@ class TorquePulse(Settings):
         return _where(t <= self.t_f, self.tau_m * _sin(2 * math.pi * t / self.t_f, t), 0 * t, t)
 
     def rigid_angle(self, total_inertia: float) -> float:
-        """Rest-to-rest rigid-body rotation ``tau_m t_f^2 / (2 pi J)`` [rad]."""
+        """Rest-to-rest rigid-body rotation ``tau_m t_f^2 / (2 pi J)`` [rad].
+
+        Parameters
+        ----------
+        total_inertia : float
+            Rigid-body inertia about the hub axis ``J_total`` [kg m^2].
+        """
         return self.tau_m * self.t_f ** 2 / (2 * math.pi * total_inertia)
 
 
@@ -270,7 +286,13 @@ class UserManeuver:
 
     # -- symbolic use in the integrators -------------------------------------------
     def bind(self, t_end: float):
-        """Prepare tabulation up to ``t_end`` [s] if the function is not symbolic."""
+        """Prepare tabulation up to ``t_end`` [s] if the function is not symbolic.
+
+        Parameters
+        ----------
+        t_end : float
+            End of the run [s].
+        """
         self._t_end = float(t_end)
         self.valid_until = self.failure = None
         return self

@@ -125,7 +125,19 @@ def _params_of(model, params) -> Params:
 
 def natural_frequencies(model="foam", spin: float = 0.0, hub: str = "prescribed",
                         params: Params | None = None) -> np.ndarray:
-    """Bending natural frequencies [Hz] at ``spin`` [rad/s] (see :func:`modal_analysis`)."""
+    """Bending natural frequencies [Hz] at ``spin`` [rad/s] (see :func:`modal_analysis`).
+
+    Parameters
+    ----------
+    model : str
+        ``tlam``, ``foam``, ``cfoam`` or ``sfoam``.
+    spin : float
+        Spin rate [rad/s].
+    hub : {"prescribed", "free"}
+        Hub held at the spin rate, or free (its inertia takes part).
+    params : Params, optional
+        Default: Table 1.
+    """
     return modal_analysis(model, spin, hub, params).bending_hz
 
 

@@ -56,6 +56,8 @@ class ModelSpec:
         (FOAM, SFOAM); ``complete``: every term (CFOAM).
     hub_velocity_terms : bool
         ``False`` drops the velocity-dependent terms of the hub equation (SFOAM).
+    description : str
+        One line on what the model keeps (for help texts and docs).
     """
 
     name: str
@@ -97,6 +99,11 @@ def pair_map(n2: int) -> np.ndarray:
     """``W`` (n2^2, n2 (n2+1)/2) with ``vec(A) = W z`` for symmetric ``A``, ``z_k = A_ij`` of pair k.
 
     ``vec`` is row-major (NumPy's ``reshape``), as the moments ``E``, ``G``, ``F`` are stored.
+
+    Parameters
+    ----------
+    n2 : int
+        Transverse modes.
     """
     pairs = _pairs(n2)
     W = np.zeros((n2 * n2, len(pairs)))
@@ -260,7 +267,13 @@ class HubBeamModel:
                 + [f"q2_{i + 1}" for i in range(self.n_transverse)])
 
     def split(self, q):
-        """Return ``(theta, q1, q2)`` views of a coordinate vector (NumPy or CasADi)."""
+        """Return ``(theta, q1, q2)`` views of a coordinate vector (NumPy or CasADi).
+
+        Parameters
+        ----------
+        q : array_like (n_q,)
+            Coordinates ``[theta, q1, q2]`` [rad, m].
+        """
         return q[0], q[self.axial_slice], q[self.transverse_slice]
 
     # -- parameters and functions ----------------------------------------------
@@ -355,7 +368,17 @@ class HubBeamModel:
 
     # -- symbolic access for integrators / linearisation ------------------------
     def acceleration_expr(self, q, v, tau):
-        """Accelerations of the free-hub model as an MX expression (numeric solve of ``M``)."""
+        """Accelerations of the free-hub model as an MX expression (numeric solve of ``M``).
+
+        Parameters
+        ----------
+        q : casadi.MX
+            Coordinates.
+        v : casadi.MX
+            Velocities.
+        tau : casadi.MX
+            Hub torque [N m].
+        """
         M = self.mass_matrix_function(q)
         rhs = -self.bias_function(q, v)
         rhs[0] += tau
@@ -363,15 +386,39 @@ class HubBeamModel:
 
     # -- numeric conveniences -----------------------------------------------------
     def mass_matrix(self, q) -> np.ndarray:
-        """Mass matrix ``M(q)`` [kg, kg m, kg m^2 blocks]."""
+        """Mass matrix ``M(q)`` [kg, kg m, kg m^2 blocks].
+
+        Parameters
+        ----------
+        q : array_like (n_q,)
+            Coordinates ``[theta, q1, q2]`` [rad, m].
+        """
         return np.array(self.parametric.mass_matrix(q, self.p))
 
     def bias(self, q, v) -> np.ndarray:
-        """Bias vector ``c(q, v)`` (velocity, stiffness and damping terms) [N m, N]."""
+        """Bias vector ``c(q, v)`` (velocity, stiffness and damping terms) [N m, N].
+
+        Parameters
+        ----------
+        q : array_like (n_q,)
+            Coordinates ``[theta, q1, q2]`` [rad, m].
+        v : array_like (n_q,)
+            Velocities [rad/s, m/s].
+        """
         return np.array(self.parametric.bias(q, v, self.p)).ravel()
 
     def accelerations(self, q, v, tau: float = 0.0) -> np.ndarray:
-        """Free-hub accelerations ``M^-1 (B tau - c)`` [rad/s^2, m/s^2]."""
+        """Free-hub accelerations ``M^-1 (B tau - c)`` [rad/s^2, m/s^2].
+
+        Parameters
+        ----------
+        q : array_like (n_q,)
+            Coordinates ``[theta, q1, q2]`` [rad, m].
+        v : array_like (n_q,)
+            Velocities [rad/s, m/s].
+        tau : float
+            Hub torque [N m].
+        """
         rhs = -self.bias(q, v)
         rhs[0] += tau
         return np.linalg.solve(self.mass_matrix(q), rhs)
@@ -399,23 +446,62 @@ class HubBeamModel:
 
         With the hub prescribed this is the torque the motion takes (the first row of the
         inverse dynamics ``M(q) a + c(q, v)``).
+
+        Parameters
+        ----------
+        q : array_like (n_q,)
+            Coordinates ``[theta, q1, q2]`` [rad, m].
+        v : array_like (n_q,)
+            Velocities [rad/s, m/s].
+        a : array_like (n_q,)
+            Accelerations [rad/s^2, m/s^2].
         """
         return float(self.parametric.inverse_dynamics(q, v, a, self.p)[0])
 
     def energy(self, q, v) -> float:
-        """Total energy ``T + U`` [J]."""
+        """Total energy ``T + U`` [J].
+
+        Parameters
+        ----------
+        q : array_like (n_q,)
+            Coordinates ``[theta, q1, q2]`` [rad, m].
+        v : array_like (n_q,)
+            Velocities [rad/s, m/s].
+        """
         return float(self.parametric.energy(q, v, self.p)[2])
 
     def angular_momentum(self, q, v) -> float:
-        """Angular momentum about the hub axis ``dT/d thd`` [kg m^2/s]."""
+        """Angular momentum about the hub axis ``dT/d thd`` [kg m^2/s].
+
+        Parameters
+        ----------
+        q : array_like (n_q,)
+            Coordinates ``[theta, q1, q2]`` [rad, m].
+        v : array_like (n_q,)
+            Velocities [rad/s, m/s].
+        """
         return float(self.parametric.momentum(q, v, self.p))
 
     def q_theta(self, q, v) -> float:
-        """The paper's inertia force on the hub ``Q_theta`` [N m]."""
+        """The paper's inertia force on the hub ``Q_theta`` [N m].
+
+        Parameters
+        ----------
+        q : array_like (n_q,)
+            Coordinates ``[theta, q1, q2]`` [rad, m].
+        v : array_like (n_q,)
+            Velocities [rad/s, m/s].
+        """
         return float(self.parametric.q_theta(q, v, self.p))
 
     def tip(self, q) -> tuple:
-        """Tip displacements ``(v_tip, u_tip)`` in the hub frame [m]."""
+        """Tip displacements ``(v_tip, u_tip)`` in the hub frame [m].
+
+        Parameters
+        ----------
+        q : array_like (n_q,)
+            Coordinates ``[theta, q1, q2]`` [rad, m].
+        """
         v_tip, u_tip = self.parametric.tip(q, self.p)
         return float(v_tip), float(u_tip)
 
@@ -424,6 +510,11 @@ class HubBeamModel:
 
         Solves ``(K1 - spin^2 M1) q1 = spin^2 V1`` (exact for FOAM, CFOAM and TLAM at
         ``q2 = 0``). Empty for SFOAM.
+
+        Parameters
+        ----------
+        spin : float
+            Spin rate [rad/s].
         """
         if not self.n_axial:
             return np.zeros(0)
@@ -431,7 +522,15 @@ class HubBeamModel:
         return np.linalg.solve(self.basis.K1 - spin ** 2 * m.M1, spin ** 2 * m.V1)
 
     def steady_state(self, spin: float, theta: float = 0.0) -> np.ndarray:
-        """State ``[q, v]`` of steady rotation at ``spin`` [rad/s] with the beam undeflected."""
+        """State ``[q, v]`` of steady rotation at ``spin`` [rad/s] with the beam undeflected.
+
+        Parameters
+        ----------
+        spin : float
+            Spin rate [rad/s].
+        theta : float
+            Hub angle [rad].
+        """
         x = np.zeros(2 * self.n_q)
         x[0] = theta
         x[self.axial_slice] = self.static_axial_stretch(spin)
@@ -499,7 +598,13 @@ class ParametricModel:
         self._build()
 
     def values(self, fields: dict) -> np.ndarray:
-        """The parameter vector from numbers named as in :attr:`layout`."""
+        """The parameter vector from numbers named as in :attr:`layout`.
+
+        Parameters
+        ----------
+        fields : dict
+            Name -> value of every entry of :attr:`layout` (SI units).
+        """
         parts = []
         for key, shape in self.layout:
             a = np.asarray(fields[key], dtype=float)

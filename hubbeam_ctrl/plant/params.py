@@ -130,7 +130,13 @@ class Params(Settings):
 
     @classmethod
     def from_dict(cls, data: dict) -> "Params":
-        """Build from a mapping; unknown keys raise :class:`ParameterError`."""
+        """Build from a mapping; unknown keys raise :class:`ParameterError`.
+
+        Parameters
+        ----------
+        data : dict
+            Field name -> value (SI units, as in a TOML file).
+        """
         if not isinstance(data, dict):
             raise ParameterError(f"params must be a mapping of field names to values, got "
                                  f"{type(data).__name__}")
@@ -170,7 +176,13 @@ class Relation:
     why: str
 
     def check(self, p: "Params") -> None:
-        """Raise :class:`ParameterError` naming the field unless ``p`` satisfies the bound."""
+        """Raise :class:`ParameterError` naming the field unless ``p`` satisfies the bound.
+
+        Parameters
+        ----------
+        p : Params
+            The parameters to check.
+        """
         value = getattr(p, self.name)
         lo = self.lo(p) if self.lo else None
         hi = self.hi(p) if self.hi else None

@@ -83,7 +83,17 @@ def plot_tip_comparison(results: dict, title: str = "") -> Figure:
 
 
 def save_figure(fig: Figure, path, dpi: int = 120):
-    """Save a figure atomically (PNG by the file's extension)."""
+    """Save a figure atomically (PNG by the file's extension).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or Path
+        Output file (the extension sets the format).
+    dpi : int
+        Resolution [dots per inch].
+    """
     return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
 
 

@@ -25,7 +25,13 @@ ROBUSTNESS_METRICS = {
 
 
 def unstable_mask(df) -> np.ndarray:
-    """Boolean array: rows whose run was unstable, diverged or failed (see module docstring)."""
+    """Boolean array: rows whose run was unstable, diverged or failed (see module docstring).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Sweep results (:func:`hubbeam_ctrl.study.sweep.sweep`).
+    """
     verdict = df["verdict"].astype(object) if "verdict" in df else None
     failed = (df["error"].astype(str) != "") | (~df["completed"].astype(bool))
     if verdict is None:

@@ -82,7 +82,13 @@ class ClosedLoopSettings(StepperSettings):
         return self.stepper_settings(self.substeps)
 
     def stepper_settings(self, substeps: int) -> StepperSettings:
-        """The plant integrator's settings with ``substeps`` steps per sample (1..200)."""
+        """The plant integrator's settings with ``substeps`` steps per sample (1..200).
+
+        Parameters
+        ----------
+        substeps : int
+            Integration steps per sample, 1..200.
+        """
         values = {f.name: getattr(self, f.name) for f in fields(StepperSettings)}
         return StepperSettings(**{**values, "substeps": substeps})
 

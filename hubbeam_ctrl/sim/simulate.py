@@ -133,6 +133,17 @@ class Integrator:
     def step(self, x0, z0, t0: float, u: float = 0.0):
         """Integrate from absolute time ``t0`` with held torque ``u`` [N m].
 
+        Parameters
+        ----------
+        x0 : ndarray
+            Differential state ``[q, v]`` at ``t0`` (prescribed hub: without the hub).
+        z0 : ndarray
+            Algebraic state (accelerations) at ``t0`` [rad/s^2, m/s^2].
+        t0 : float
+            Absolute start time [s] (the maneuver is evaluated from there).
+        u : float
+            Held hub torque [N m] when the maneuver does not give one.
+
         Returns
         -------
         xs : ndarray (len(grid), n_x)
@@ -149,7 +160,23 @@ class Integrator:
 
 def make_integrator(model: HubBeamModel, hub: str = "free", maneuver=None, grid=(0.01,),
                     settings: SimulationSettings = SimulationSettings(), backend=None) -> Integrator:
-    """Build an :class:`Integrator` (see there)."""
+    """Build an :class:`Integrator` (see there).
+
+    Parameters
+    ----------
+    model : HubBeamModel
+        The model.
+    hub : {"free", "prescribed"}
+        Hub condition.
+    maneuver : maneuver or None
+        Torque or prescribed-rate profile.
+    grid : sequence of float
+        Output times after the start [s].
+    settings : SimulationSettings
+        Tolerances and limits.
+    backend : {"auto", "compiled", "vm"}, optional
+        Evaluation of the residual (see :func:`residual_function`).
+    """
     return Integrator(model, hub, maneuver, grid, settings, backend)
 
 

@@ -104,7 +104,15 @@ def residual_growth(v_tip) -> float:
 
 
 def saturated_fraction(tau, tau_max: float) -> float:
-    """Fraction of torque samples at the limit, ``|tau| >= (1 - 1e-6) tau_max`` [-] (NaN if empty)."""
+    """Fraction of torque samples at the limit, ``|tau| >= (1 - 1e-6) tau_max`` [-] (NaN if empty).
+
+    Parameters
+    ----------
+    tau : array_like
+        Torque samples [N m].
+    tau_max : float
+        Limit [N m].
+    """
     tau = np.asarray(tau, dtype=float)
     if not tau.size:
         return float("nan")

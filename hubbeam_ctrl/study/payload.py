@@ -120,7 +120,13 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
 
 
 def payload_verdict(m: dict) -> str:
-    """``"diverged"`` (run stopped), ``"settled"`` or ``"not settled"`` (or the metrics' own verdict)."""
+    """``"diverged"`` (run stopped), ``"settled"`` or ``"not settled"`` (or the metrics' own verdict).
+
+    Parameters
+    ----------
+    m : dict
+        Metrics of one run (:func:`~hubbeam_ctrl.study.metrics.closed_loop_metrics`).
+    """
     if "verdict" in m:
         return m["verdict"]
     if not m.get("completed", True):
@@ -226,7 +232,15 @@ def _cell(value, fmt) -> str:
 
 
 def payload_table(pc: PayloadComparison, markdown: bool = False) -> str:
-    """The rows of a :class:`PayloadComparison` as a plain-text (or Markdown) table."""
+    """The rows of a :class:`PayloadComparison` as a plain-text (or Markdown) table.
+
+    Parameters
+    ----------
+    pc : PayloadComparison
+        The runs over the payload range.
+    markdown : bool
+        Markdown instead of plain text.
+    """
     head = [h for _, h, _ in _COLUMNS]
     body = [[_cell(r[k], f) for k, _, f in _COLUMNS] for r in pc.rows()]
     if markdown:

@@ -232,7 +232,13 @@ def _cells(m: dict) -> list:
 
 
 def format_table(metrics: dict) -> str:
-    """The metrics as an aligned plain-text table."""
+    """The metrics as an aligned plain-text table.
+
+    Parameters
+    ----------
+    metrics : dict
+        Controller name -> metrics.
+    """
     rows = [[h for _, h, _ in _TABLE]] + [_cells(m) for m in metrics.values()]
     widths = [max(len(r[i]) for r in rows) for i in range(len(_TABLE))]
     return "\n".join("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths)))
@@ -240,7 +246,13 @@ def format_table(metrics: dict) -> str:
 
 
 def markdown_table(metrics: dict) -> str:
-    """The metrics as a Markdown table."""
+    """The metrics as a Markdown table.
+
+    Parameters
+    ----------
+    metrics : dict
+        Controller name -> metrics.
+    """
     head = [h for _, h, _ in _TABLE]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(_cells(m)) + " |" for m in metrics.values()]
@@ -248,7 +260,15 @@ def markdown_table(metrics: dict) -> str:
 
 
 def print_table(metrics, file=None) -> None:
-    """Print the metrics of :func:`run_compare` (or a :class:`Comparison`) as a table."""
+    """Print the metrics of :func:`run_compare` (or a :class:`Comparison`) as a table.
+
+    Parameters
+    ----------
+    metrics : dict or Comparison
+        Controller name -> metrics, or a comparison.
+    file : file-like, optional
+        Where to print (default ``sys.stdout``).
+    """
     if hasattr(metrics, "metrics"):
         metrics = metrics.metrics
     print(format_table(metrics), file=file or sys.stdout)

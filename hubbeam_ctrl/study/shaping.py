@@ -69,7 +69,15 @@ def plant_variant(params: Params, error: float, how: str = "stiffness", plant: s
 
 
 def residual_after(result, start: float) -> float:
-    """Max ``|v_tip|`` [m] from ``start`` [s] to the end of a closed-loop run (inf if it stopped)."""
+    """Max ``|v_tip|`` [m] from ``start`` [s] to the end of a closed-loop run (inf if it stopped).
+
+    Parameters
+    ----------
+    result : Result
+        A closed-loop run.
+    start : float
+        Start of the window [s].
+    """
     if result.stopped:
         return float("inf")
     return float(np.max(np.abs(result.v_tip[result.t >= start - 1e-9])))

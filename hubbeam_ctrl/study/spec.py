@@ -113,7 +113,21 @@ def _number(where: str, value) -> float:
 class Distribution:
     """One ``[random]`` factor: ``uniform(low, high)``, ``normal(mean, std)`` or
     ``lognormal(median, sigma)`` (``sigma`` the standard deviation of its log), optionally
-    truncated to ``[low, high]`` (normal, lognormal)."""
+    truncated to ``[low, high]`` (normal, lognormal).
+
+    Attributes
+    ----------
+    dist : {"uniform", "normal", "lognormal"}
+        The distribution.
+    a : float
+        ``low`` (uniform), ``mean`` (normal) or ``median`` (lognormal), in the factor's unit.
+    b : float
+        ``high`` (uniform), ``std`` (normal) or the log-space ``sigma`` (lognormal).
+    low : float, optional
+        Truncation below (normal, lognormal).
+    high : float, optional
+        Truncation above.
+    """
 
     dist: str
     a: float
@@ -123,7 +137,15 @@ class Distribution:
 
     @classmethod
     def from_dict(cls, where: str, table) -> "Distribution":
-        """Validate one factor's table (``where`` names it in errors)."""
+        """Validate one factor's table (``where`` names it in errors).
+
+        Parameters
+        ----------
+        where : str
+            The factor's name in the spec (``random.m_t``), for messages.
+        table : dict
+            The factor's TOML table (``dist`` and its parameters).
+        """
         if not isinstance(table, dict) or table.get("dist") not in DISTRIBUTIONS:
             raise ParameterError(f"{where} must be a table with dist = one of "
                                  f"{', '.join(DISTRIBUTIONS)}, got {table!r}")
@@ -170,7 +192,13 @@ class Distribution:
         return lo, hi
 
     def ppf(self, u: np.ndarray) -> np.ndarray:
-        """Map uniform samples ``u`` in [0, 1) to this distribution (inverse CDF)."""
+        """Map uniform samples ``u`` in [0, 1) to this distribution (inverse CDF).
+
+        Parameters
+        ----------
+        u : ndarray
+            Uniform samples in [0, 1).
+        """
         from scipy.stats import norm
         if self.dist == "uniform":
             return self.a + u * (self.b - self.a)
@@ -307,7 +335,13 @@ class StudySpec:
     @classmethod
     def from_dict(cls, data: dict) -> "StudySpec":
         """Build and validate a spec from its TOML tables (``study``, ``params``, ``settings``,
-        ``grid``, ``random``)."""
+        ``grid``, ``random``).
+
+        Parameters
+        ----------
+        data : dict
+            The spec's TOML tables.
+        """
         if not isinstance(data, dict):
             raise ParameterError(f"spec must be a table, got {type(data).__name__}")
         extra = sorted(set(data) - {"study", "params", "settings", "grid", "random", "tune"})
@@ -376,7 +410,13 @@ class StudySpec:
         return [{**p, **s} for p in points for s in samples]
 
     def plant_params(self, case: dict) -> Params:
-        """The evaluation plant's parameters of one case."""
+        """The evaluation plant's parameters of one case.
+
+        Parameters
+        ----------
+        case : dict
+            Factor name -> value of one case.
+        """
         changes = {k: v for k, v in case.items() if k not in FACTORS_EXTRA}
         try:
             return self.params.replace(**changes) if changes else self.params
@@ -384,11 +424,25 @@ class StudySpec:
             raise ParameterError(f"case {case}: {exc}") from None
 
     def design_params(self, case: dict) -> Params:
-        """The design model's parameters (base, or the case's plant when ``design = "matched"``)."""
+        """The design model's parameters (base, or the case's plant when ``design = "matched"``).
+
+        Parameters
+        ----------
+        case : dict
+            Factor name -> value of one case.
+        """
         return self.plant_params(case) if self.design == "matched" else self.params
 
     def scenario_for(self, params: Params, w_f: float | None = None):
-        """The scenario (reference, design spin) built on ``params`` (spin-up rate ``w_f``)."""
+        """The scenario (reference, design spin) built on ``params`` (spin-up rate ``w_f``).
+
+        Parameters
+        ----------
+        params : Params
+            Parameters the scenario is built on.
+        w_f : float, optional
+            Spin-up final rate [rad/s] (default: the spec's).
+        """
         return make_scenario(self.scenario, plant=self.plant, params=params, tau_max=self.tau_max,
                              t_f=self.t_f, t_end=self.t_end, dt=self.dt,
                              w_f=self.w_f if w_f is None else w_f)

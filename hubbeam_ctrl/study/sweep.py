@@ -68,7 +68,15 @@ class CaseCache:
         self.hits = self.misses = 0
 
     def get(self, key, build):
-        """The entry of ``key``, built by ``build()`` on a miss."""
+        """The entry of ``key``, built by ``build()`` on a miss.
+
+        Parameters
+        ----------
+        key : hashable
+            What the entry is (model, parameters, ...).
+        build : callable
+            Makes the entry on a miss.
+        """
         if key in self._items:
             self._items.move_to_end(key)
             self.hits += 1
@@ -299,7 +307,15 @@ class Engine:
 
     def run(self, jobs: list, sink) -> None:
         """Run ``[(batch, spec), ...]`` with :func:`run_batch`; ``sink(batch, spec, rows)`` gets
-        each batch's rows as it finishes (in completion order)."""
+        each batch's rows as it finishes (in completion order).
+
+        Parameters
+        ----------
+        jobs : list
+            ``[(batch, spec), ...]``.
+        sink : callable
+            ``sink(batch, spec, rows)``, called as each batch finishes.
+        """
         if self.client is not None:
             self._run_dask(jobs, sink)
         elif self.workers == 1 or sum(len(b) for b, _ in jobs) <= 1:
@@ -377,7 +393,13 @@ def connect(address: str, timeout: float = 10.0):
 
 # -- results on disk ----------------------------------------------------------------------------
 def result_columns(spec: StudySpec) -> list:
-    """Columns of ``results.csv`` (and of the returned DataFrame), in order."""
+    """Columns of ``results.csv`` (and of the returned DataFrame), in order.
+
+    Parameters
+    ----------
+    spec : StudySpec
+        The study (its factors become columns).
+    """
     metrics = [c for c in CSV_FIELDS if c not in ("controller", "plant", "scenario", "wall_s", "message")]
     head = ["case", *spec.factors, "controller", "plant", "scenario", "verdict"]
     return head + [c for c in metrics if c not in head] + ["error", "message", "setup_s", "wall_s", "sim_wall_s"]

@@ -159,7 +159,13 @@ class Slew:
                 f"tau_m = 2 pi J_total Theta / tf^2", self.duration))
 
     def describe(self, inertia: float) -> str:
-        """One line for reports."""
+        """One line for reports.
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia ``J_total`` [kg m^2].
+        """
         return (f"rest-to-rest slew by Theta = {self.angle:.4f} rad in tf = {self.duration:g} s "
                 f"(J_total = {inertia:.4g} kg m^2; Eq. 44 baseline amplitude "
                 f"{self.baseline_torque(inertia):.4g} N m)")
@@ -192,11 +198,25 @@ class SpinUp:
         return self.rate
 
     def peak_torque(self, inertia: float) -> float:
-        """Peak rigid-body torque of the profile, ``2 J_total |w_f| / t_f`` [N m]."""
+        """Peak rigid-body torque of the profile, ``2 J_total |w_f| / t_f`` [N m].
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia ``J_total`` [kg m^2].
+        """
         return 2 * inertia * abs(self.rate) / self.duration
 
     def shortest_duration(self, inertia: float, tau_max: float) -> float:
-        """Shortest t_f whose rigid-body torque stays within ``tau_max`` [s]."""
+        """Shortest t_f whose rigid-body torque stays within ``tau_max`` [s].
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia ``J_total`` [kg m^2].
+        tau_max : float
+            Torque limit [N m].
+        """
         return 2 * inertia * abs(self.rate) / tau_max
 
     def check_feasible(self, inertia: float, tau_max: float, name: str = "duration") -> None:
@@ -222,7 +242,13 @@ class SpinUp:
                 f"tau_max = {tau_max:g} N m spins the hub up to {self.rate:g} rad/s", self.duration))
 
     def describe(self, inertia: float) -> str:
-        """One line for reports."""
+        """One line for reports.
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia ``J_total`` [kg m^2].
+        """
         return f"spin-up to {self.rate:g} rad/s in tf = {self.duration:g} s (Eq. 43), then hold"
 
 

@@ -51,26 +51,39 @@ FAILED_OBJECTIVE = 1.0
 
 @dataclass(frozen=True)
 class TuneOptions:
-    """Settings of :func:`tune` (the spec's ``[tune]`` table)."""
+    """Settings of :func:`tune` (the spec's ``[tune]`` table).
+
+    Attributes
+    ----------
+    objective : str or float
+        ``"worst"`` (the largest objective over the cases) or a quantile in (0, 1].
+    effort_weight : float
+        Penalty per unit of ``int tau^2 dt / (tau_max^2 t_f)`` [decades], >= 0.
+    settling_weight : float
+        Penalty per unit of ``settling time / t_end`` (1 when not settled) [decades], >= 0.
+    angle_weight : float
+        Penalty per unit of ``|final angle error| / angle scale`` [decades], >= 0.
+    decades : float
+        Search ``x_k`` within this many decades of the scaled defaults, > 0.
+    maxiter : int
+        Generations of differential evolution, >= 1.
+    popsize : int
+        Population per searched weight (SciPy's ``popsize``), >= 1.
+    seed : int
+        Seed of the optimiser.
+    tol : float
+        Relative convergence tolerance of the population's objective spread, > 0.
+    """
 
     objective: str | float = "worst"
-    """``"worst"`` (the largest objective over the cases) or a quantile in (0, 1]."""
     effort_weight: float = 0.1
-    """Penalty per unit of ``int tau^2 dt / (tau_max^2 t_f)`` [decades], >= 0."""
     settling_weight: float = 0.1
-    """Penalty per unit of ``settling time / t_end`` (1 when not settled) [decades], >= 0."""
     angle_weight: float = 10.0
-    """Penalty per unit of ``|final angle error| / angle scale`` [decades], >= 0."""
     decades: float = 2.0
-    """Search ``x_k`` within this many decades of the scaled defaults, > 0."""
     maxiter: int = 8
-    """Generations of differential evolution, >= 1."""
     popsize: int = 4
-    """Population per searched weight (SciPy's ``popsize``), >= 1."""
     seed: int = 0
-    """Seed of the optimiser."""
     tol: float = 0.01
-    """Relative convergence tolerance of the population's objective spread, > 0."""
 
     def __post_init__(self):
         if not (self.objective == "worst" or (isinstance(self.objective, (int, float))
@@ -94,7 +107,13 @@ class TuneOptions:
 
     @classmethod
     def from_dict(cls, table: dict | None) -> "TuneOptions":
-        """From the ``[tune]`` table (unknown keys are an error)."""
+        """From the ``[tune]`` table (unknown keys are an error).
+
+        Parameters
+        ----------
+        table : dict or None
+            The spec's ``[tune]`` table.
+        """
         table = dict(table or {})
         known = {f.name for f in dataclasses.fields(cls)}
         bad = sorted(set(table) - known)
@@ -159,7 +178,15 @@ def scaled_weights(x: dict, scenario, params: Params) -> Weights:
 
 
 def scaled_default_weights(scenario, params: Params) -> Weights:
-    """The default weights carried to this beam and task through :func:`weight_scales`."""
+    """The default weights carried to this beam and task through :func:`weight_scales`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The task (its scales).
+    params : Params
+        The beam.
+    """
     return scaled_weights({}, scenario, params)
 
 
