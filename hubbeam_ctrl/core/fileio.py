@@ -31,7 +31,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
-           "check_regular_file", "check_writable", "write_folder", "read_manifest",
+           "check_regular_file", "check_writable", "output_folder", "write_folder", "read_manifest",
            "remove_stale_temporaries", "remove_temporaries", "TEMP_PREFIX", "MANIFEST"]
 
 
@@ -528,6 +528,37 @@ def write_npz(path, arrays: dict, metadata: dict) -> Path:
         with open(tmp, "wb") as fh:
             np.savez(fh, metadata=np.array(text), **arrays)
     return atomic_write(path, write)
+
+
+def output_folder(out_dir, option: str = "out", create: bool = True) -> Path:
+    """An output folder: its parent must exist and it must not be a file; created if missing.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The folder.
+    option : str
+        How the caller spells the argument (starts the messages).
+    create : bool
+        Create the folder (else only check that it can be).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ParameterError
+        One line naming ``option`` when the parent is missing or the path is a file.
+    """
+    out = Path(out_dir)
+    if not out.parent.is_dir():
+        raise ParameterError(f"{option}: folder {out.parent} does not exist")
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"{option}: {out} exists and is not a folder")
+    if create:
+        out.mkdir(exist_ok=True)
+    return out
 
 
 def check_regular_file(path, option: str = "path") -> Path:

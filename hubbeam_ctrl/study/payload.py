@@ -19,14 +19,13 @@ import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from controllers import CONTROLLERS, make_controller
 from controllers.robust import check_payload_range, design_for_range
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["ROBUST_CONTROLLERS", "range_designs", "PayloadComparison", "payload_comparison", "payload_verdict",
@@ -264,10 +263,7 @@ def write_payload_outputs(pc: PayloadComparison, out_dir) -> dict:
     dict
         File kind -> Path.
     """
-    out = Path(out_dir)
-    if not out.parent.is_dir():
-        raise ParameterError(f"out: folder {out.parent} does not exist")
-    out.mkdir(exist_ok=True)
+    out = output_folder(out_dir)
     designs = {n: {"design_mass_kg": d.design_mass, "choice": d.choice, "score": d.score,
                    "candidates": d.scores, "payloads_verified_kg": list(d.grid)} for n, d in pc.designs.items()}
     clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v

@@ -33,7 +33,7 @@ from pathlib import Path
 
 from controllers import DesignModel, make_controller
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import evaluation_plant
@@ -442,11 +442,7 @@ class _ResultsFile:
 
 
 def _open_folder(out_dir, spec: StudySpec, resume: bool) -> Path:
-    out = Path(out_dir)
-    if not out.parent.is_dir():
-        raise ParameterError(f"out: folder {out.parent} does not exist")
-    if out.exists() and not out.is_dir():
-        raise ParameterError(f"out: {out} exists and is not a folder")
+    out = output_folder(out_dir, create=False)
     meta = out / _STUDY
     if meta.exists():
         stored = json.loads(meta.read_text()).get("spec_hash")

@@ -31,7 +31,7 @@ import numpy as np
 
 from controllers import Weights
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.scenarios import make_scenario
 from hubbeam_ctrl.study.spec import StudySpec, load_spec, settings_to_toml
@@ -395,10 +395,7 @@ def write_tune_outputs(result: TuneResult, out_dir) -> dict:
     """
     from hubbeam_ctrl.plots.plant import save_figure
     from hubbeam_ctrl.plots.study import plot_convergence
-    out = Path(out_dir)
-    if not out.parent.is_dir():
-        raise ParameterError(f"out: folder {out.parent} does not exist")
-    out.mkdir(exist_ok=True)
+    out = output_folder(out_dir)
     head = (f"# hubbeam tune: {result.controller} weights, objective {result.objective:.4f} "
             f"(scaled defaults {result.default_objective:.4f}); worst residual {result.worst_residual_m:.3e} m "
             f"(scaled defaults {result.default_worst_residual_m:.3e} m)\n")
