@@ -157,3 +157,15 @@ def test_state_derivative_and_hub_torque(table1):
     xdot = model.state_derivative(np.r_[q, v], tau=12.0)
     np.testing.assert_array_equal(xdot[:11], v)
     assert model.hub_torque(q, v, xdot[11:]) == pytest.approx(12.0, rel=1e-9)
+
+
+@pytest.mark.parametrize("name", ["tlam", "foam", "cfoam", "sfoam"])
+def test_tip_series_is_the_tip_function_on_every_sample(name):
+    """The closed loop's vectorised NumPy tip equals the CasADi tip function sample by sample."""
+    model = build_model(name, Params(n_axial=3, n_transverse=4, m_t=0.2))
+    q = 0.05 * np.random.default_rng(7).normal(size=(50, model.n_q))
+    v_tip, u_tip = model.tip_series(q)
+    ref = np.array([model.tip(row) for row in q])
+    np.testing.assert_allclose(v_tip, ref[:, 0], rtol=1e-13, atol=1e-16)
+    np.testing.assert_allclose(u_tip, ref[:, 1], rtol=1e-12, atol=1e-16)
+    assert np.ptp(u_tip) > 0 and np.ptp(v_tip) > 0

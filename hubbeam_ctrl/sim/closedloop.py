@@ -28,6 +28,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, fields
+from functools import lru_cache
 
 import numpy as np
 
@@ -120,6 +121,13 @@ def _controller_name(controller) -> str:
     return str(getattr(controller, "name", type(controller).__name__))
 
 
+@lru_cache(maxsize=64)
+def _substep_info(model: str, params: Params, spin: float, dt: float, tolerance: float, rho_inf: float) -> dict:
+    """The substep rule of a plant (its free-hub modal analysis), once per plant and settings."""
+    f = modal_analysis(build_model(model, params), spin, "free").bending_hz
+    return substep_rule(f, dt, tolerance=tolerance, rho_inf=rho_inf).to_dict()
+
+
 def _plant_and_rule(plant, controller, params, design_params, plant_params, plant_modes, settings):
     """The plant model, its description and the integration step of the run."""
     spin = float(getattr(getattr(controller, "design", None), "spin", 0.0) or 0.0)
@@ -146,9 +154,8 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
         model = build_model(ev.model, ev.params)
         info = {k: v for k, v in ev.to_dict().items() if k != "plant_params"}
     if settings.substeps is None:
-        f = modal_analysis(model, spin, "free").bending_hz
-        rule = substep_rule(f, settings.dt, tolerance=settings.frequency_tolerance, rho_inf=settings.rho_inf)
-        info.update(rule.to_dict())
+        info.update(_substep_info(model.name, model.params, spin, settings.dt, settings.frequency_tolerance,
+                                  settings.rho_inf))
     else:
         info.update({"substeps": settings.substeps, "step_s": settings.dt / settings.substeps,
                      "step_reason": f"{settings.substeps} steps per sample as requested"})
@@ -325,7 +332,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     keep = slice(0, last + 1)
     t, states, taus, step_times = t[keep], states[keep], taus[keep], step_times[keep]
     q, v = states[:, :n], states[:, n:]
-    v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(len(t))(q.T))
+    v_tip, u_tip = model.tip_series(q)
     root_moment = states @ C_sens[2]
     theta_ref = theta_dot_ref = None
     if reference is not None:
