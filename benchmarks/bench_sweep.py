@@ -16,7 +16,12 @@ new plant, so every case builds its plant functions).
    with warm caches (the same 5 tip masses run again in this process).
    ``busy_fraction`` (time inside cases / (workers x wall)) separates engine overhead from a
    machine too loaded to give two cores.
-3. The load of the machine (``os.getloadavg``) before and after, since the 2 cores may be shared.
+3. The machine's own ceiling (the named alternative): a fixed single-threaded NumPy workload
+   timed alone and as two processes at once. ``machine_two_process_efficiency`` is
+   ``T_alone / T_concurrent``: two busy cores that slow each other (shared caches, SMT,
+   a virtual machine's CPU share) cap any 2-worker engine there, and
+   ``parallel_efficiency_of_machine_ceiling`` is the engine's efficiency relative to it.
+4. The load of the machine (``os.getloadavg``) before and after, since the 2 cores may be shared.
 """
 
 from __future__ import annotations
@@ -74,6 +79,27 @@ def warm_overhead(t_end: float) -> dict:
             "warm_controller_sim_metrics_outside_loop_ms_median": float(np.median(inside))}
 
 
+def _workload(_=None) -> float:
+    """A fixed single-threaded CPU workload (small matrix products) [s of wall time]."""
+    a = np.random.default_rng(0).normal(size=(60, 60))
+    t0 = time.perf_counter()
+    s = 0.0
+    for _ in range(200_000):
+        s += float(np.linalg.norm(a @ a[:, 0]))
+    return time.perf_counter() - t0
+
+
+def machine_ceiling() -> dict:
+    """The workload alone, then in two processes at once: the machine's 2-process efficiency."""
+    import multiprocessing as mp
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(2) as pool:
+        alone = float(np.median([pool.apply(_workload) for _ in range(3)]))
+        both = float(np.median(pool.map(_workload, range(4), chunksize=1)))
+    return {"workload_alone_s": alone, "workload_two_at_once_s": both,
+            "machine_two_process_efficiency": alone / both}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=100)
@@ -103,6 +129,9 @@ def main() -> None:
             "overhead_vs_pool": td / t2 - 1, "overhead_vs_pool_with_startup": (td + start) / t2 - 1,
             **overheads(dask_df, td, 2)}
     out.update(warm_overhead(args.t_end))
+    out["machine"] = {"arch": out["machine"], **machine_ceiling()}
+    out["parallel_efficiency_of_machine_ceiling"] = (out["parallel_efficiency"]
+                                                     / out["machine"]["machine_two_process_efficiency"])
     out["load_avg_before_after"] = [load_before[0], os.getloadavg()[0]]
     print(json.dumps(out, indent=1))
 
