@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 STAMP_TEST := $(VENV)/.installed-test
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-fast lint bench bench-notebooks notebooks clean
+.PHONY: demo test test-fast lint coverage bench bench-notebooks notebooks clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,12 @@ test: lint
 # everyday tier: everything but the tests marked slow (under 2 minutes on 2 cores)
 test-fast: lint
 	$(BIN)/python -m pytest -q $(PYTEST_PAR) -m "not slow"
+
+# the whole suite with line coverage of hubbeam_ctrl and controllers (report in build/coverage.json);
+# functions that no test runs are candidates for removal (CLI code run in subprocesses is not counted)
+coverage: $(STAMP_TEST)
+	$(BIN)/python -m pytest -q $(PYTEST_PAR) --cov=hubbeam_ctrl --cov=controllers \
+		--cov-report=term:skip-covered --cov-report=json:build/coverage.json
 
 # ruff and the import contracts of the layers (pyproject.toml [tool.importlinter])
 lint: $(STAMP_TEST)

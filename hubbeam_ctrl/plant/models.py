@@ -303,10 +303,6 @@ class HubBeamModel:
             out.append(2 * zeta * np.sqrt(np.diag(K)[:n] * np.diag(Mm)[:n]))
         return np.concatenate(out)
 
-    def _damping_matrix(self) -> np.ndarray:
-        """Modal damping ``C = 2 zeta sqrt(K M)`` of the non-rotating clamped modes [N s/m]."""
-        return np.diag(np.concatenate([[0.0], self._damping_diagonal()]))
-
     def bind(self, function: ca.Function) -> ca.Function:
         """A parametric function (last input ``p``) with this model's parameters built in.
 
@@ -367,22 +363,6 @@ class HubBeamModel:
         return cache[name]
 
     # -- symbolic access for integrators / linearisation ------------------------
-    def acceleration_expr(self, q, v, tau):
-        """Accelerations of the free-hub model as an MX expression (numeric solve of ``M``).
-
-        Parameters
-        ----------
-        q : casadi.MX
-            Coordinates.
-        v : casadi.MX
-            Velocities.
-        tau : casadi.MX
-            Hub torque [N m].
-        """
-        M = self.mass_matrix_function(q)
-        rhs = -self.bias_function(q, v)
-        rhs[0] += tau
-        return ca.solve(M, rhs)
 
     # -- numeric conveniences -----------------------------------------------------
     def mass_matrix(self, q) -> np.ndarray:

@@ -44,7 +44,7 @@ from hubbeam_ctrl.plant.models import MODEL_SPECS, HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.sim.results import Result, describe_input
 
-__all__ = ["simulate", "Integrator", "make_integrator", "SimulationSettings", "residual_function"]
+__all__ = ["simulate", "Integrator", "SimulationSettings", "residual_function"]
 
 
 @dataclass(frozen=True)
@@ -156,28 +156,6 @@ class Integrator:
     def stats(self) -> dict:
         """Integrator statistics of the last call (steps, evaluations, times)."""
         return {k: v for k, v in self._function.stats().items() if not isinstance(v, dict)}
-
-
-def make_integrator(model: HubBeamModel, hub: str = "free", maneuver=None, grid=(0.01,),
-                    settings: SimulationSettings = SimulationSettings(), backend=None) -> Integrator:
-    """Build an :class:`Integrator` (see there).
-
-    Parameters
-    ----------
-    model : HubBeamModel
-        The model.
-    hub : {"free", "prescribed"}
-        Hub condition.
-    maneuver : maneuver or None
-        Torque or prescribed-rate profile.
-    grid : sequence of float
-        Output times after the start [s].
-    settings : SimulationSettings
-        Tolerances and limits.
-    backend : {"auto", "compiled", "vm"}, optional
-        Evaluation of the residual (see :func:`residual_function`).
-    """
-    return Integrator(model, hub, maneuver, grid, settings, backend)
 
 
 def residual_function(model: HubBeamModel, backend=None) -> tuple:

@@ -56,12 +56,6 @@ class LoopPoles:
         z = self.poles[np.argmax(np.abs(self.poles))]
         return float(abs(np.angle(z)) / (2 * np.pi * self.dt))
 
-    @property
-    def e_folding_s(self) -> float:
-        """Time in which the worst pole grows (> 0) or decays (< 0) by a factor e [s]."""
-        return float(self.dt / np.log(self.spectral_radius))
-
-
 def feedback_realization(controller: Controller):
     """The controller's feedback as a discrete state space from its measurement to ``tau``.
 
