@@ -110,7 +110,7 @@ def open_loop(name: str, repeats: int) -> dict:
                     return simulate_fixed_step(model, PULSE, T_END, backend=b)
             run()                                                   # warm: build, compile, load
             cpu, wall, res = _cpu(run, repeats)
-            v_tip = res.v_tip if kind == "idas" else res["v_tip"]
+            v_tip = res.v_tip
             row[b] = {"cpu_s": cpu, "wall_s": wall,
                       "tip_error_rel_peak": float(np.max(np.abs(v_tip - ref.v_tip)) / peak)}
         row["speedup_cpu"] = _ratio(row, "cpu_s")
