@@ -52,14 +52,22 @@ def run_in_kernel(path: Path) -> float:
         return time.perf_counter() - start
 
 
-def run_as_script(path: Path) -> float:
-    """Wall time [s] of ``python path`` in a temporary folder."""
+def run_as_script(path: Path) -> tuple:
+    """Wall time [s] of ``python path`` in a temporary folder, and its error (None if it ran).
+
+    A notebook need not run as a plain script (e.g. one that starts a process pool, whose
+    workers re-import an unguarded ``__main__``): then the time is None and the error says why.
+    """
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT)}
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        subprocess.run([sys.executable, str(path)], cwd=tmp, env=env, check=True,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        return time.perf_counter() - start
+        proc = subprocess.run([sys.executable, str(path)], cwd=tmp, env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        wall = time.perf_counter() - start
+    if proc.returncode:
+        last = (proc.stderr.strip().splitlines() or ["?"])[-1]
+        return None, f"exit {proc.returncode}: {last[:200]}"
+    return wall, None
 
 
 def main(argv=None) -> dict:
@@ -72,8 +80,9 @@ def main(argv=None) -> dict:
     rows = []
     for path in sources(args.only):
         kernel_s = run_in_kernel(path)
-        script_s = run_as_script(path)
-        rows.append({"notebook": path.name, "kernel_s": round(kernel_s, 2), "script_s": round(script_s, 2),
+        script_s, script_error = run_as_script(path)
+        rows.append({"notebook": path.name, "kernel_s": round(kernel_s, 2),
+                     "script_s": None if script_s is None else round(script_s, 2), "script_error": script_error,
                      "budget_s": BUDGET_S, "within_budget": kernel_s < BUDGET_S})
     report = {"benchmark": "notebooks", "machine": platform.processor() or platform.machine(),
               "cpus": os.cpu_count(), "load_before": load_before, "load_after": os.getloadavg(),
