@@ -331,7 +331,6 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     diverged, message = False, "completed"
     limit = settings.divergence_limit * m.params.L
     flag_at, outside_time = settings.range_limit * m.params.L, None
-    tip_map = m.tip_function
     start = time.perf_counter()
     clock = WallClock(settings.max_wall_s)
     done = 0
@@ -364,7 +363,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         tk = t0 + dt * np.arange(1, len(xs) + 1)
         q_full = xs[:, :n] if hub == "free" else xs[:, : n - 1]
         qt = q_full if hub == "free" else np.column_stack([np.zeros(len(xs)), q_full])
-        v_tip = np.array(tip_map.map(len(xs))(qt.T)[0]).ravel() if len(xs) else np.zeros(0)
+        v_tip = m.tip_series(qt)[0]
         flagged = np.nonzero(np.abs(v_tip) > flag_at)[0]
         if outside_time is None and flagged.size:
             outside_time = float(tk[flagged[0]])
@@ -417,7 +416,7 @@ def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, setting
     """A :class:`Result` of kind ``"open_loop"``, the model's outputs evaluated on all samples."""
     N = len(t)
     Q, V, A = q.T, v.T, a.T
-    v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(N)(Q))
+    v_tip, u_tip = model.tip_series(q)
     tau = np.array(model.inverse_dynamics_function.map(N)(Q, V, A))[0]
     q_theta = np.array(model.q_theta_function.map(N)(Q, V)).ravel()
     energy = np.array(model.energy_function.map(N)(Q, V)[2]).ravel()
