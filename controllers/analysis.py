@@ -98,8 +98,8 @@ def loop_matrices(ctrl, plant=None):
     ctrl : Controller
         A linear controller.
     plant : DesignModel, optional
-        The linear plant, with the design model's states (e.g. another payload); default
-        the controller's design model.
+        The linear plant, with the design model's sample time and at least its modes
+        (e.g. another payload, or residual modes); default the controller's design model.
 
     Returns
     -------
@@ -107,9 +107,10 @@ def loop_matrices(ctrl, plant=None):
     """
     c = ctrl.to_statespace()
     d = ctrl.design if plant is None else plant
-    if d.n_x != ctrl.design.n_x or d.dt != ctrl.design.dt:
-        raise ParameterError(f"plant must have the design model's {ctrl.design.n_x} states and dt = "
-                             f"{ctrl.design.dt:g} s, got {d.n_x} states and dt = {d.dt:g} s")
+    missing = [n for n in c.input_labels if n not in _SENSOR_ROWS and n not in d.state_names]
+    if d.dt != ctrl.design.dt or missing:
+        raise ParameterError(f"plant must have dt = {ctrl.design.dt:g} s and the signals the controller reads "
+                             f"(at least the design model's modes), got dt = {d.dt:g} s and {d.n_modes} modes")
     Ac, Bc, Cc, Dc = (np.asarray(m, dtype=float) for m in (c.A, c.B, c.C, c.D))
     Cm = _measurement_matrix(d, list(c.input_labels))
     n, nc = d.n_x, Ac.shape[0]
@@ -145,7 +146,8 @@ def closed_loop_poles(ctrl, plant=None) -> np.ndarray:
     ctrl : Controller
         A linear controller.
     plant : DesignModel, optional
-        A linear plant with the design model's states (default: the design model).
+        A linear plant with the design model's sample time and at least its modes
+        (default: the design model).
 
     Returns
     -------

@@ -22,7 +22,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.plant.sensors import SensorSettings
 
-from .base import DesignModel
+from .base import DesignModel, check_psd
 
 __all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain"]
 
@@ -56,6 +56,11 @@ class KalmanNoise(Settings):
     modal_rate_noise: float | None = setting(None, unit="m/s", lo=0.0, kind=float,
                                              doc="Process noise on each modal rate per sample; None: "
                                                  "modal_noise.")
+    model_error: np.ndarray | None = setting(None, kind=object,
+                                             doc="Extra process-noise covariance for model error (n_x x n_x "
+                                                 "of the filter's model, symmetric positive semidefinite), "
+                                                 "e.g. the spread of the models over a payload range "
+                                                 "(controllers.robust.model_error_covariance); None: none.")
 
     def covariances(self, design: DesignModel):
         """Process and measurement noise covariances ``(Qn, Rn)`` on ``design``.
@@ -68,7 +73,8 @@ class KalmanNoise(Settings):
         -------
         Qn : ndarray (nx, nx)
             ``torque_noise^2 Bd Bd'`` plus ``modal_noise^2`` on the modal coordinates and
-            ``modal_rate_noise^2`` (default ``modal_noise^2``) on their rates.
+            ``modal_rate_noise^2`` (default ``modal_noise^2``) on their rates, plus
+            :attr:`model_error` if given.
         Rn : ndarray (3, 3)
             Diagonal: the sensors' variances [rad^2, (rad/s)^2, (N m)^2].
         """
@@ -77,6 +83,8 @@ class KalmanNoise(Settings):
         rate = self.modal_noise if self.modal_rate_noise is None else self.modal_rate_noise
         Qn[np.r_[1:nx // 2], np.r_[1:nx // 2]] += self.modal_noise ** 2
         Qn[np.r_[nx // 2 + 1:nx], np.r_[nx // 2 + 1:nx]] += rate ** 2
+        if self.model_error is not None:
+            Qn = Qn + check_psd("model_error", self.model_error, nx)
         Rn = np.diag([self.angle_noise_rad ** 2, self.rate_noise_rad_s ** 2, self.moment_noise_nm ** 2])
         return Qn, Rn
 

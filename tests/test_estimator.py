@@ -105,3 +105,15 @@ def test_bad_noise_model_is_refused(design):
         KalmanEstimator(design, Weights())
     with pytest.raises(ParameterError, match="torque_noise_nm must be > 0"):
         KalmanNoise(torque_noise_nm=0.0)
+
+
+def test_model_error_adds_to_the_process_noise(design):
+    """``model_error`` is added to Qn as given; a wrong shape or an indefinite matrix is refused."""
+    extra = np.diag(np.arange(1.0, design.n_x + 1)) * 1e-6
+    Qn0, Rn0 = KalmanNoise().covariances(design)
+    Qn, Rn = KalmanNoise(model_error=extra).covariances(design)
+    assert np.array_equal(Qn - Qn0, extra) and np.array_equal(Rn, Rn0)
+    with pytest.raises(ParameterError, match=f"model_error must be a finite {design.n_x} x {design.n_x} matrix"):
+        KalmanNoise(model_error=np.eye(design.n_x + 2)).covariances(design)
+    with pytest.raises(ParameterError, match="model_error must be positive semidefinite"):
+        KalmanNoise(model_error=-np.eye(design.n_x)).covariances(design)

@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from controllers import LQR, DesignModel, make_controller
-from controllers.robust import check_payload_range, design_for_range, linear_openloop_residual, payload_grid
+from controllers.robust import (
+    REFINE_STEPS,
+    check_payload_range,
+    design_for_range,
+    linear_openloop_residual,
+    payload_grid,
+)
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.cli.main import main
 from hubbeam_ctrl.core.errors import ParameterError
@@ -49,7 +55,8 @@ def test_design_for_range_on_linear_models():
     rd = design_for_range("lqr", make_controller, base, LQR(base).settings, sc.reference, (0.0, 0.5),
                           t_f=sc.t_f, t_end=sc.t_end, delay=5.0, baseline=eq44)
     assert rd.grid == payload_grid((0.0, 0.5), 0.1) == (0.0, 0.1, 0.5)
-    assert set(rd.scores) == {"m=0 kg", "m=0.1 kg", "m=0.25 kg", "m=0.5 kg"}
+    first = {f"m={m} kg{w}" for m in ("0", "0.1", "0.25", "0.5") for w in ("", ", rates")}
+    assert first <= set(rd.scores) and len(rd.scores) == len(first) + REFINE_STEPS   # + the bisection
     assert rd.score == min(rd.scores.values()) and rd.design.params.m_t == rd.design_mass
     assert 0 < rd.score < 1                      # better than the open loop on every payload
     assert linear_openloop_residual(base, eq44, sc.t_f, sc.t_end, 5.0) > 0.1
@@ -57,10 +64,11 @@ def test_design_for_range_on_linear_models():
 
 @pytest.mark.slow
 def test_paper_beam_designed_for_0_to_half_a_kilo(tmp_path, fast_backend):
-    """Table 1's beam, LQR designed for 0-0.5 kg; plants at the ends of the range.
+    """Table 1's beam, LQR designed for 0-0.5 kg; plants at the ends of the range: <= 2 % of
+    each plant's open-loop residual (issue target; measured 1.91 % and 1.30 %).
 
     The whole target (LQR, LQG and MPC, plants at 0, 0.1, 0.3, 0.5 kg) is measured in
-    docs/controllers.md; LQR alone keeps this test near two minutes.
+    docs/controllers.md; LQR alone keeps this test near a minute.
     """
     pc = payload_comparison("foam", "slew", "openloop,lqr", payload_range=(0.0, 0.5), masses=(0.0, 0.5))
     print()
@@ -70,7 +78,7 @@ def test_paper_beam_designed_for_0_to_half_a_kilo(tmp_path, fast_backend):
     assert rd.grid == (0.0, 0.1, 0.5) and rd.score == min(rd.scores.values())
     for m in (0.0, 0.5):
         assert rows[(m, "lqr")]["verdict"] == "settled", m
-        assert rows[(m, "lqr")]["residual_pct_of_openloop"] <= 5.0, m     # measured 1.92, 3.72 %
+        assert rows[(m, "lqr")]["residual_pct_of_openloop"] <= 2.0, m     # measured 1.91, 1.30 %
         assert rows[(m, "lqr")]["design_mass_kg"] == rd.design_mass
     paths = write_payload_outputs(pc, tmp_path / "out")
     doc = json.loads(paths["json"].read_text())

@@ -15,7 +15,6 @@ Example
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
@@ -48,7 +47,7 @@ def _nonlinear_score(sc, sim, design_modes: int, plant_modes: int | None):
                                  plant_params=sc.params.replace(m_t=mass), plant_modes=plant_modes)
         res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim, reference=(ref.theta_at, ref.theta_dot_at))
         m = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
-        return m["residual_tip_max_m"] if m["completed"] else math.inf
+        return m["residual_tip_max_m"] if m["completed"] and m["verdict"] != "unstable" else math.inf
 
     def score(ctrl, mass):
         if mass not in open_loop:
@@ -64,7 +63,7 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
 
     Candidates (:func:`controllers.robust.design_for_range`) are measured on the nonlinear
     plant of the scenario at ``m_min``, the nominal payload and ``m_max`` (after the linear
-    loops at those payloads have been checked for stability); MPC takes LQR's choice.
+    loops at those payloads have been checked for stability).
 
     Parameters
     ----------
@@ -109,9 +108,6 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
         if name not in ROBUST_CONTROLLERS:
             continue
         st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon, solver=solver)
-        if name == "mpc" and "lqr" in out:        # MPC takes the design LQR measured for its weights
-            out[name] = dataclasses.replace(out["lqr"], settings=st.replace(weights=out["lqr"].settings.weights))
-            continue
         out[name] = design_for_range(name, make_controller, design, st, sc.reference, payload_range,
                                      t_f=sc.t_f, t_end=sc.t_end, delay=sc.bands["residual_delay"],
                                      baseline=baseline, score=score)
