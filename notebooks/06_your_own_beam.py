@@ -116,9 +116,11 @@ for name, c in ctrls.items():
 
 # %% [markdown]
 # ## 6. A payload range
-# LQR, LQG and MPC can be designed for a range of tip payloads: the nominal design is verified on
-# linear models over the range and retuned (design payload, vibration weights, filter noise);
-# the report runs the nonlinear plant at the ends of the range and the nominal payload.
+# LQR, LQG and MPC can be designed for a range of tip payloads: candidate designs (design
+# payload, deflections weighted or only their rates, LQG's multi-model Kalman filter) are checked
+# on linear models and measured on the nonlinear plant at the ends of the range and the nominal
+# payload; the best one's design payload is refined by bisection (docs/controllers.md). The
+# report runs the nonlinear plant at those payloads.
 
 # %%
 pc = payload_comparison("foam", task, "openloop,lqr", payload_range=(0.0, 0.1), params=p, t_end=5.0)

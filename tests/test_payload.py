@@ -17,6 +17,7 @@ from controllers.robust import (
 )
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.cli.main import main
+from hubbeam_ctrl.core.compiled import find_compiler
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study import make_scenario, payload_comparison, payload_table, write_payload_outputs
 
@@ -64,23 +65,27 @@ def test_design_for_range_on_linear_models():
 
 @pytest.mark.slow
 def test_paper_beam_designed_for_0_to_half_a_kilo(tmp_path, fast_backend):
-    """Table 1's beam, LQR designed for 0-0.5 kg; plants at the ends of the range: <= 2 % of
-    each plant's open-loop residual (issue target; measured 1.91 % and 1.30 %).
+    """Issue target: Table 1's beam, LQR, LQG and MPC designed for 0-0.5 kg, FOAM evaluation
+    plants at 0, 0.1, 0.3 and 0.5 kg: every loop settled and <= 2 % of that plant's open-loop
+    residual. Measured (% of the open loop at 0 / 0.1 / 0.3 / 0.5 kg): LQR 1.83/1.06/1.33/1.56,
+    LQG 1.02/0.77/1.13/0.98, MPC 1.89/1.00/0.90/1.97 (about 3 min with a C compiler).
 
-    The whole target (LQR, LQG and MPC, plants at 0, 0.1, 0.3, 0.5 kg) is measured in
-    docs/controllers.md; LQR alone keeps this test near a minute.
+    Without a C compiler (the VM is several times slower) LQR alone at the ends of the range.
     """
-    pc = payload_comparison("foam", "slew", "openloop,lqr", payload_range=(0.0, 0.5), masses=(0.0, 0.5))
+    compiled = bool(find_compiler())
+    names, masses = ("openloop,lqr,lqg,mpc", (0.0, 0.1, 0.3, 0.5)) if compiled else ("openloop,lqr", (0.0, 0.5))
+    pc = payload_comparison("foam", "slew", names, payload_range=(0.0, 0.5), masses=masses)
     print()
     print(payload_table(pc))
     rows = {(r["payload_kg"], r["controller"]): r for r in pc.rows()}
-    rd = pc.designs["lqr"]
-    assert rd.grid == (0.0, 0.1, 0.5) and rd.score == min(rd.scores.values())
-    for m in (0.0, 0.5):
-        assert rows[(m, "lqr")]["verdict"] == "settled", m
-        assert rows[(m, "lqr")]["residual_pct_of_openloop"] <= 2.0, m     # measured 1.91, 1.30 %
-        assert rows[(m, "lqr")]["design_mass_kg"] == rd.design_mass
+    for name, rd in pc.designs.items():
+        assert rd.grid == (0.0, 0.1, 0.5) and rd.score == min(rd.scores.values()), name
+        for m in masses:
+            row = rows[(m, name)]
+            assert row["verdict"] == "settled", (name, m)
+            assert row["residual_pct_of_openloop"] <= 2.0, (name, m, row["residual_pct_of_openloop"])
+            assert row["design_mass_kg"] == rd.design_mass and row["peak_torque_nm"] <= 200.0 + 1e-9
     paths = write_payload_outputs(pc, tmp_path / "out")
     doc = json.loads(paths["json"].read_text())
-    assert doc["payload_range_kg"] == [0.0, 0.5] and len(doc["rows"]) == 4
+    assert doc["payload_range_kg"] == [0.0, 0.5] and len(doc["rows"]) == len(rows)
     assert "| payload kg |" in paths["report"].read_text()
