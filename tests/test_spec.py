@@ -7,6 +7,7 @@ from scipy.stats import norm
 
 from controllers import LQRSettings
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec, settings_to_toml
 
 SMALL = {"study": {"controllers": ["openloop", "lqr"], "t_f": 1.0, "t_end": 6.5},
@@ -117,6 +118,15 @@ def test_settings_toml_round_trip(tmp_path):
      ["settings.lqr.weights", "tipp"]),
     ({"study": {"controllers": ["lqr"]}, "settings": {"mpc": {"horizon": 10}}}, ["settings.mpc", "not among"]),
     ({"sweep": {}}, ["unknown table", "sweep"]),
+    ({"study": {"shaping": "zz"}}, ["study.shaping must be one of zv, zvd, ei", "'zz'"]),
+    ({"study": {"schedule": 0}}, ["study.schedule must be an integer >= 1"]),
+    ({"study": {"schedule": True}}, ["study.schedule must be an integer >= 1"]),
+    ({"study": {"backend": "gpu"}}, ["study.backend must be one of auto, compiled, vm"]),
+    ({"study": {"tolerances": {"angel_error": 1e-3}}}, ["study.tolerances: unknown field(s) angel_error",
+                                                        "angle_error"]),
+    ({"study": {"tolerances": {"angle_error": -1.0}}}, ["study.tolerances", "angle_error must be > 0"]),
+    ({"study": {"tolerances": 3}}, ["study.tolerances must be a table"]),
+    ({"study": {"slew_angle": 0.0}}, ["study", "slew_angle must be a finite number != 0 [rad]"]),
 ])
 def test_bad_specs_are_one_line_errors(data, words):
     with pytest.raises(ParameterError) as info:
@@ -134,3 +144,20 @@ def test_missing_and_broken_files(tmp_path):
     bad.write_text("[grid\nm_t = 1")
     with pytest.raises(ParameterError, match="not valid TOML"):
         load_spec(bad)
+
+
+def test_task_keys_round_trip_and_change_the_hash():
+    """slew_angle, shaping, schedule, tolerances and backend survive to_dict/from_dict, and each
+    changes the spec's hash (an output folder of one is not resumed with another)."""
+    base = StudySpec.from_dict({"study": {"controllers": ["lqr"]}})
+    keys = {"slew_angle": 1.5, "shaping": "zvd", "schedule": 3, "tolerances": {"angle_error": 5e-4},
+            "backend": "vm"}
+    hashes = {base.hash()}
+    for key, value in keys.items():
+        spec = StudySpec.from_dict({"study": {"controllers": ["lqr"], key: value}})
+        assert getattr(spec, key) == value
+        assert StudySpec.from_dict(spec.to_dict()) == spec and spec.to_dict()["study"][key] == value
+        hashes.add(spec.hash())
+    assert len(hashes) == 1 + len(keys)
+    tol = StudySpec.from_dict({"study": {"tolerances": {"angle_error": 5e-4}}}).scenario_for(Params()).tolerances
+    assert tol.angle_error == 5e-4 and tol.rate_time == base.scenario_for(Params()).tolerances.rate_time

@@ -64,6 +64,23 @@ def test_matched_rows_equal_single_comparisons():
             assert row["error"] == "" and row["verdict"] == m.get("verdict")
 
 
+def test_task_keys_give_the_numbers_of_compare():
+    """A sweep with a slew angle, an input shaper, a design schedule and tolerances gives the
+    numbers of compare() with the same options, bit for bit (same code path, same backend)."""
+    tol = {"angle_error": 5e-4, "residual_delay": 1.0}
+    spec = load_spec(small(controllers=("openloop", "lqr", "mpc"), study={"slew_angle": 0.1, "shaping": "zv",
+                                                                      "schedule": 2, "tolerances": tol}))
+    df = sweep(spec, workers=1, progress=False)
+    ref = compare("foam", "slew", "openloop,lqr,mpc", params=Params(n_axial=2, n_transverse=2), t_f=1.0,
+                  t_end=6.5, slew_angle=0.1, shaping="zv", schedule=2, plant_modes=ENGINE_PLANT_MODES,
+                  tolerances=spec.scenario_for(spec.params).tolerances).metrics
+    for name, m in ref.items():
+        row = df[df["controller"] == name].iloc[0]
+        for key in ("peak_tip_m", "residual_tip_max_m", "final_angle_error_rad", "residual_pct_of_openloop"):
+            assert row[key] == m[key], (name, key)
+    assert abs(df[df["controller"] == "lqr"].iloc[0]["final_angle_error_rad"]) < 0.05 * 0.1
+
+
 def test_base_design_stays_at_the_base_and_the_cache_changes_nothing():
     spec = load_spec(small(grid={"m_t": [0.1, 0.4], "seed": [0, 5]}))
     cache = CaseCache()

@@ -14,7 +14,12 @@ TOML form (every key optional except where noted)::
     controllers = ["openloop", "lqr", "mpc"]
     design = "base"                   # base | matched
     t_f = 10.0                        # [s]; also tau_max [N m], t_end [s], dt [s], w_f [rad/s],
-                                      # horizon, solver, design_modes
+                                      # horizon, solver, design_modes, plant_modes
+    slew_angle = 1.5708               # [rad] (slew; default the Eq. 44 angle)
+    shaping = "zvd"                   # zv | zvd | ei: input shaper of the tracked reference
+    schedule = 3                      # spin rates of the design schedule (1: one design)
+    backend = "auto"                  # auto | compiled | vm (default $HUBBEAM_BACKEND)
+    tolerances = {angle_error = 5e-4} # controllers.scaling.Tolerances fields over the defaults
     [params]                          # base Params fields (SI units)
     m_t = 0.1
     [settings.lqr]                    # controller settings replacing the defaults
@@ -56,7 +61,9 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
-from controllers import CONTROLLERS
+from controllers import CONTROLLERS, SHAPERS
+from controllers.scaling import Tolerances, default_tolerances
+from hubbeam_ctrl.core.compiled import check_backend
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
@@ -73,7 +80,8 @@ SAMPLERS = ("lhs", "sobol", "halton", "random")
 _INTEGER_FACTORS = ("n_axial", "n_transverse", "seed")
 _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", "lqr"), "design": "base",
                "tau_max": 200.0, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
-               "solver": "daqp", "design_modes": None, "plant_modes": None}
+               "solver": "daqp", "design_modes": None, "plant_modes": None, "slew_angle": None,
+               "shaping": None, "schedule": 1, "tolerances": None, "backend": None}
 
 
 def _controller_list(value) -> tuple:
@@ -302,6 +310,19 @@ class StudySpec:
     plant_modes : int or None
         Transverse modes of the evaluation plant (default: the rule of
         :func:`hubbeam_ctrl.sim.evaluation.evaluation_plant`, more modes than the design).
+    slew_angle : float or None
+        Slew angle [rad] (default: the Eq. 44 angle of ``tau_max`` and ``t_f``).
+    shaping : {"zv", "zvd", "ei"} or None
+        Input shaper of the reference of the controllers that track it, designed on the
+        design model's first mode (as :func:`~hubbeam_ctrl.study.compare.compare`).
+    schedule : int
+        Spin rates of the design schedule of the scheduled controllers (1: one design).
+    tolerances : dict or None
+        :class:`controllers.scaling.Tolerances` fields [-] replacing those of the task's
+        defaults (:func:`controllers.scaling.default_tolerances`).
+    backend : {"auto", "compiled", "vm"} or None
+        How the plant is evaluated (default ``$HUBBEAM_BACKEND`` or ``"auto"``); the
+        results agree to 1e-9 relative, not bit for bit, across backends.
     params : Params
         Base parameters (design, and plant where no factor changes them).
     settings : dict
@@ -326,6 +347,11 @@ class StudySpec:
     solver: str = "daqp"
     design_modes: int | None = None
     plant_modes: int | None = None
+    slew_angle: float | None = None
+    shaping: str | None = None
+    schedule: int = 1
+    tolerances: dict | None = None
+    backend: str | None = None
     params: Params = field(default_factory=Params)
     settings: dict = field(default_factory=dict)
     grid: dict = field(default_factory=dict)
@@ -374,10 +400,25 @@ class StudySpec:
             raise ParameterError(f"study.design must be 'base' or 'matched', got {self.design!r}")
         if not isinstance(self.settings, dict):
             raise ParameterError("settings must be a table of controller tables")
+        if self.shaping is not None and self.shaping not in SHAPERS:
+            raise ParameterError(f"study.shaping must be one of {', '.join(SHAPERS)}, got {self.shaping!r}")
+        if isinstance(self.schedule, bool) or not isinstance(self.schedule, int) or self.schedule < 1:
+            raise ParameterError(f"study.schedule must be an integer >= 1 (spin rates of the design schedule; "
+                                 f"1 = a single design), got {self.schedule!r}")
+        if self.backend is not None:
+            check_backend(self.backend, "study.backend")
+        if self.tolerances is not None:
+            allowed = [f.name for f in dataclasses.fields(Tolerances)]
+            if not isinstance(self.tolerances, dict):
+                raise ParameterError(f"study.tolerances must be a table of Tolerances fields, got {self.tolerances!r}")
+            unknown = sorted(set(self.tolerances) - set(allowed))
+            if unknown:
+                raise ParameterError(f"study.tolerances: unknown field(s) {', '.join(unknown)}; allowed: "
+                                     f"{', '.join(allowed)}")
         try:
             sc = self.scenario_for(self.params)
         except ParameterError as exc:
-            raise ParameterError(f"study: {exc}") from None
+            raise ParameterError(str(exc) if str(exc).startswith("study.") else f"study: {exc}") from None
         for name, table in self.settings.items():
             if name not in self.controllers:
                 raise ParameterError(f"settings.{name}: not among study.controllers ({', '.join(self.controllers)})")
@@ -443,9 +484,16 @@ class StudySpec:
         w_f : float, optional
             Spin-up final rate [rad/s] (default: the spec's).
         """
+        tol = None
+        if self.tolerances:
+            try:
+                tol = default_tolerances(self.scenario, params.J_h / params.total_inertia).replace(**self.tolerances)
+            except (ParameterError, TypeError) as exc:
+                raise ParameterError(f"study.tolerances: {_one_line(exc)}") from None
         return make_scenario(self.scenario, plant=self.plant, params=params, tau_max=self.tau_max,
                              t_f=self.t_f, t_end=self.t_end, dt=self.dt,
-                             w_f=self.w_f if w_f is None else w_f)
+                             w_f=self.w_f if w_f is None else w_f,
+                             slew_angle=self.slew_angle if self.scenario == "slew" else None, tolerances=tol)
 
     # -- serialisation -------------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -472,6 +520,10 @@ class StudySpec:
         out = dataclasses.replace(self, **changes)
         out.validate()
         return out
+
+
+def _one_line(exc: BaseException) -> str:
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def _plain(obj):

@@ -31,12 +31,13 @@ import time
 from collections import OrderedDict
 from pathlib import Path
 
-from controllers import DesignModel, make_controller
+from controllers import CONTROLLERS, DesignModel, as_shaper, make_controller
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import evaluation_plant
+from hubbeam_ctrl.study.compare import _design_schedule
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 from hubbeam_ctrl.study.report import CSV_FIELDS
 from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec
@@ -99,7 +100,8 @@ def _one_line(exc: BaseException) -> str:
 
 def _task_key(spec: StudySpec) -> tuple:
     return (spec.scenario, spec.plant, spec.tau_max, spec.t_f, spec.t_end, spec.dt, spec.horizon,
-            spec.solver, spec.design_modes, spec.plant_modes)
+            spec.solver, spec.design_modes, spec.plant_modes, spec.slew_angle, spec.shaping, spec.schedule,
+            json.dumps(spec.tolerances, sort_keys=True))
 
 
 def run_case(case: dict, spec: StudySpec, cache: CaseCache | None = None) -> list:
@@ -169,12 +171,18 @@ def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
 
 def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> dict:
     """One closed-loop run and its metrics (the controller built once per design and task)."""
-    sc, table = ctx["scenario"], spec.settings.get(name)
+    sc, table, cspec = ctx["scenario"], spec.settings.get(name), CONTROLLERS[name]
     ckey = ("controller", name, json.dumps(table, sort_keys=True, default=str), *ctx["key"])
-    ctrl = cache.get(ckey, lambda: make_controller(
-        name, ctx["design"], controller_settings(name, table, sc, spec.horizon, spec.solver), sc.reference))
+
+    def build():
+        design = ctx["design"]
+        shaper = as_shaper(design, spec.shaping) if spec.shaping and cspec.tracks_reference else None
+        sched = _design_schedule(sc, spec.schedule, design.n_modes) if cspec.scheduled else None
+        return make_controller(name, design, controller_settings(name, table, sc, spec.horizon, spec.solver),
+                               sc.reference, shaping=shaper, schedule=sched)
+    ctrl = cache.get(ckey, build)
     res = simulate_closed_loop(ctx["plant"], ctrl, sc.t_end, settings=ctx["sim"],
-                               reference=(sc.reference.theta_at, sc.reference.theta_dot_at))
+                               reference=(sc.reference.theta_at, sc.reference.theta_dot_at), backend=spec.backend)
     row = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **(sc.bands or {}))
     row.update(scenario=sc.name, verdict=row.get("verdict"), error="", sim_wall_s=row["wall_s"])
     return row
