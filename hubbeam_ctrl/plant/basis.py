@@ -233,7 +233,13 @@ class MassMoments:
         return MassMoments(*(getattr(self, k) + getattr(other, k) for k in self.__dataclass_fields__))
 
     def scaled(self, factor: float) -> "MassMoments":
-        """Every moment times ``factor`` (moments per unit mass per length -> of a beam)."""
+        """Every moment times ``factor`` (moments per unit mass per length -> of a beam).
+
+        Parameters
+        ----------
+        factor : float
+            Multiplier, e.g. ``rho A`` [kg/m].
+        """
         return MassMoments(*(factor * getattr(self, k) for k in self.__dataclass_fields__))
 
 
