@@ -105,7 +105,7 @@ def test_failing_compiler_falls_back_naming_the_reason(fresh, monkeypatch, capsy
     assert compile_function(f, "compiled") is f
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
-    assert "C compiler fakecc failed on twice_sin (-O1): fatal: no space left on device" in err[0]
+    assert f"C compiler fakecc failed on twice_sin ({compiled.OPT_HOT}): fatal: no space left on device" in err[0]
     assert err[0].endswith("using the CasADi VM")
     assert not list(fresh.glob("*.so"))        # nothing half-built left in the cache
 
@@ -117,7 +117,7 @@ def test_compiler_that_hangs_times_out(fresh, monkeypatch, capsys, tmp_path):
     f = _function()
     assert compile_function(f, "auto") is f
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "timed out after 0.5 s on twice_sin (-O1)" in err[0]
+    assert len(err) == 1 and f"timed out after 0.5 s on twice_sin ({compiled.OPT_HOT})" in err[0]
     monkeypatch.setenv("HUBBEAM_CC_TIMEOUT", "-3")
     with pytest.raises(ParameterError, match="HUBBEAM_CC_TIMEOUT must be a number of seconds > 0"):
         compile_function(_function("other"), "auto")
@@ -145,6 +145,18 @@ def test_cache_cli_on_an_empty_cache(fresh, capsys):
 
 # -- with a compiler ---------------------------------------------------------------------------------
 @needs_cc
+def test_large_sources_get_the_cheaper_flag(fresh, monkeypatch):
+    """A hot function whose C is longer than OPT_HOT_MAX_CHARS is compiled with OPT_HOT_LARGE;
+    another flag asked for explicitly is kept."""
+    assert compiled.OPT_HOT == "-O3" and compiled.OPT_HOT_LARGE == "-O1"
+    monkeypatch.setattr(compiled, "OPT_HOT_MAX_CHARS", 10)
+    f = _function("large")
+    compile_function(f, "compiled", opt=compiled.OPT_HOT, jacobian="-O2")
+    meta = json.loads(next(fresh.glob("large-*.so")).with_suffix(".json").read_text())
+    assert meta["flags"] == ["-O1", "-O2"]
+
+
+@needs_cc
 def test_compiled_function_is_cached_and_reloaded(fresh, capsys):
     f = _function()
     g = compile_function(f, "compiled", jacobian="-O0")
@@ -158,7 +170,7 @@ def test_compiled_function_is_cached_and_reloaded(fresh, capsys):
     libs = list(fresh.glob("twice_sin-*.so"))
     assert len(libs) == 1
     meta = json.loads(libs[0].with_suffix(".json").read_text())
-    assert meta["functions"] == ["twice_sin", "jac_twice_sin"] and meta["flags"] == ["-O1", "-O0"]
+    assert meta["functions"] == ["twice_sin", "jac_twice_sin"] and meta["flags"] == [compiled.OPT_HOT, "-O0"]
     stamp = libs[0].stat().st_mtime_ns
     # another process loads the library instead of compiling it
     code = textwrap.dedent("""
