@@ -54,9 +54,9 @@ import casadi as ca
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 
-__all__ = ["BACKENDS", "OPT_HOT", "OPT_HOT_MAX_CHARS", "OPT_HOT_LARGE", "OPT_COLD",
-            "check_backend", "resolve_backend", "cache_dir",
-           "find_compiler", "compile_function", "cache_info", "clear_cache", "CompileError"]
+__all__ = ["BACKENDS", "OPT_HOT", "OPT_HOT_MAX_CHARS", "OPT_HOT_LARGE", "OPT_COLD", "check_backend",
+           "resolve_backend", "cache_dir", "find_compiler", "compile_function", "cache_info", "clear_cache",
+           "CompileError"]
 
 #: Accepted values of every ``backend`` argument.
 BACKENDS = ("auto", "compiled", "vm")
