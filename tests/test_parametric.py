@@ -87,3 +87,14 @@ def test_parameter_layout_and_bad_values():
     fields["M2"] = np.zeros((2, 2))
     with pytest.raises(ParameterError, match=r"parameter M2 must have shape \(3, 3\)"):
         pm.values(fields)
+
+
+def test_functions_are_built_on_first_use():
+    """A family's functions are built when first used, once; an unknown name is an AttributeError."""
+    from hubbeam_ctrl.plant.models import ParametricModel
+    pm = ParametricModel("foam", 1, 2)
+    assert not any(name in pm.__dict__ for name in ParametricModel.FUNCTIONS)
+    f = pm.energy
+    assert f is pm.energy and f.name() == "energy" and "energy" in pm.__dict__ and "bias" not in pm.__dict__
+    with pytest.raises(AttributeError, match="no attribute 'energi'"):
+        pm.energi

@@ -584,7 +584,7 @@ class ParametricModel:
 
     ``mass_matrix(q, p)``, ``bias(q, v, p)``, ``inverse_dynamics(q, v, a, p)``,
     ``energy(q, v, p) -> (T, U, E)``, ``momentum(q, v, p)``, ``q_theta(q, v, p)`` and
-    ``tip(q, p) -> (v_tip, u_tip)``.
+    ``tip(q, p) -> (v_tip, u_tip)`` (:attr:`FUNCTIONS`), each built on first use.
 
     Attributes
     ----------
@@ -593,6 +593,9 @@ class ParametricModel:
     layout : tuple
         See :func:`parameter_layout`.
     """
+
+    #: The functions, by attribute name.
+    FUNCTIONS = ("mass_matrix", "bias", "inverse_dynamics", "energy", "momentum", "q_theta", "tip")
 
     def __init__(self, name: str, n_axial: int, n_transverse: int):
         self.name, self.spec = name, MODEL_SPECS[name]
@@ -646,15 +649,28 @@ class ParametricModel:
         u_tip = ca.dot(f["f1_tip"], q1) if n1 else 0 * v_tip
         if spec.foreshortening != "none":
             u_tip = u_tip - 0.5 * _quad(f["S_tip"], q2)
-        opts = {"cse": True}
-        self.mass_matrix = ca.Function("M", [q, p], [M], ["q", "p"], ["M"], opts)
-        self.bias = ca.Function("c", [q, v, p], [bias], ["q", "v", "p"], ["c"], opts)
-        self.inverse_dynamics = ca.Function("inverse_dynamics", [q, v, a, p], [generalized_force],
-                                            ["q", "v", "a", "p"], ["f"], opts)
-        self.energy = ca.Function("energy", [q, v, p], [T, U, T + U], ["q", "v", "p"], ["T", "U", "E"], opts)
-        self.momentum = ca.Function("momentum", [q, v, p], [dT_dv[0]], ["q", "v", "p"], ["H"], opts)
-        self.q_theta = ca.Function("q_theta", [q, v, p], [q_theta], ["q", "v", "p"], ["Q_theta"], opts)
-        self.tip = ca.Function("tip", [q, p], [v_tip, u_tip], ["q", "p"], ["v_tip", "u_tip"], opts)
+        # the expressions are built here; each Function on first use (creating one costs about as
+        # much as the expression graph is large: 0.3-0.9 s each for CFOAM 10+10, and the plant step
+        # needs only inverse_dynamics)
+        self._definitions = {
+            "mass_matrix": ("M", [q, p], [M], ["q", "p"], ["M"]),
+            "bias": ("c", [q, v, p], [bias], ["q", "v", "p"], ["c"]),
+            "inverse_dynamics": ("inverse_dynamics", [q, v, a, p], [generalized_force],
+                                 ["q", "v", "a", "p"], ["f"]),
+            "energy": ("energy", [q, v, p], [T, U, T + U], ["q", "v", "p"], ["T", "U", "E"]),
+            "momentum": ("momentum", [q, v, p], [dT_dv[0]], ["q", "v", "p"], ["H"]),
+            "q_theta": ("q_theta", [q, v, p], [q_theta], ["q", "v", "p"], ["Q_theta"]),
+            "tip": ("tip", [q, p], [v_tip, u_tip], ["q", "p"], ["v_tip", "u_tip"]),
+        }
+
+    def __getattr__(self, name: str):
+        """Build one of the functions (:attr:`FUNCTIONS`) on first use and keep it."""
+        definitions = self.__dict__.get("_definitions", {})
+        if name not in definitions:
+            raise AttributeError(f"{type(self).__name__!s} has no attribute {name!r}")
+        f = ca.Function(*definitions[name], {"cse": True})
+        setattr(self, name, f)
+        return f
 
     def __repr__(self):
         return f"ParametricModel({self.name!r}, n_axial={self.n_axial}, n_transverse={self.n_transverse})"
