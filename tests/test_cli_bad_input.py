@@ -126,6 +126,8 @@ SPECIFIC = [
     ("c8", "critical-speed", ["--model", "cfoam"], "--model: invalid choice: 'cfoam'"),
     ("c8", "modes", ["--spin", "fast"], "--spin must be a number, got 'fast'"),
     ("c8", "simulate", ["--t-end", "-3"], "--t-end must be in [0.01, 1e+09] [s]"),
+    ("c8", "simulate", ["--axial", "quasi-static"], "--axial = 'quasi-static' needs a model with axial modes"),
+    ("c8", "simulate", ["--axial", "static"], "--axial: invalid choice: 'static'"),
 ]
 
 CASES = ([pytest.param(c, cmd, argv, words, id=f"{c}-{cmd}-{' '.join(argv)[:40]}") for c, argv, words in COMMON

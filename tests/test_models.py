@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from hubbeam_ctrl import Params, build_model, simulate
+from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.basis import axial_shapes, foreshortening_matrices, transverse_shapes
 
 
@@ -111,8 +112,8 @@ def _deflected_spinning_state(model, spin=2.0):
     return x0
 
 
-def _check_conservation(name, params, t_end):
-    model = build_model(name, params)
+def _check_conservation(name, params, t_end, axial="dynamic"):
+    model = build_model(name, params, axial)
     res = simulate(model, None, t_end, x0=_deflected_spinning_state(model), rtol=1e-8, atol=1e-8)
     assert not res.diverged
     E, H = res.energy, res.angular_momentum
@@ -126,6 +127,58 @@ def _check_conservation(name, params, t_end):
 def test_free_unforced_conserves_energy_and_momentum_small(name):
     """Fast tier: 2 + 2 modes for 10 s (measured drift <= 1.4e-8 of T + U)."""
     _check_conservation(name, Params(n_axial=2, n_transverse=2), 10.0)
+
+
+@pytest.mark.parametrize("name", ["tlam", "foam", "cfoam"])
+def test_quasi_static_axial_conserves_energy_and_momentum(name):
+    """The condensed Lagrangian (axial coordinates from their static balance) is still a
+    Lagrangian: Jacobi's energy and the angular momentum stay constant (fast tier, 2 + 2 modes)."""
+    _check_conservation(name, Params(n_axial=2, n_transverse=2), 10.0, axial="quasi-static")
+
+
+@pytest.mark.parametrize("name", ["tlam", "foam", "cfoam"])
+def test_quasi_static_axial_solves_the_static_balance(name):
+    """q1* makes dL/dq1 = 0 of the dynamic model's Lagrangian with the axial rates zero (central
+    differences of T - U), and at a steady spin it is the static stretch."""
+    params = Params(n_axial=3, n_transverse=4, m_t=0.2, l=6.5)
+    qs, dyn = build_model(name, params, "quasi-static"), build_model(name, params)
+    assert qs.n_q == 1 + 4 and dyn.n_q == 1 + 3 + 4
+    rng = np.random.default_rng(11)
+    q, v = 0.05 * rng.normal(size=qs.n_q), rng.normal(size=qs.n_q)
+    v[0] = 4.0
+    q1 = qs.axial_coordinates(q, v)
+
+    def lagrangian(q1_):
+        qf, vf = np.r_[q[0], q1_, q[1:]], np.r_[v[0], np.zeros(3), v[1:]]
+        T, U, _ = (float(x) for x in dyn.parametric.energy(qf, vf, dyn.p))
+        return T - U
+
+    def gradient(q1_, h=1e-7):
+        return np.array([(lagrangian(q1_ + h * e) - lagrangian(q1_ - h * e)) / (2 * h) for e in np.eye(3)])
+
+    assert np.max(np.abs(gradient(q1))) < 1e-6 * np.max(np.abs(gradient(0 * q1)))
+    x = qs.steady_state(7.0)
+    np.testing.assert_allclose(qs.axial_coordinates(x[:qs.n_q], x[qs.n_q:]), dyn.static_axial_stretch(7.0),
+                               rtol=1e-12)
+    # the tip sees the stretch: u_tip = f1(l) q1* - q2' S(l) q2 / 2
+    v_tip, u_tip = qs.tip(q, v)
+    ref = dyn.tip(np.r_[q[0], q1, q[1:]])
+    assert (v_tip, u_tip) == pytest.approx(ref, rel=1e-12)
+    Q, V = 0.05 * rng.normal(size=(20, qs.n_q)), rng.normal(size=(20, qs.n_q))
+    series = qs.tip_series(Q, V)
+    np.testing.assert_allclose(np.array([qs.tip(a, b) for a, b in zip(Q, V)]).T, series, rtol=1e-12, atol=1e-16)
+
+
+def test_quasi_static_axial_refuses_bad_input():
+    with pytest.raises(ParameterError, match=r"^axial must be one of dynamic, quasi-static, got 'static'$"):
+        build_model("foam", Params(), "static")
+    with pytest.raises(ParameterError, match=r"^axial = 'quasi-static' needs a model with axial modes"):
+        build_model("sfoam", Params(), "quasi-static")
+    qs = build_model("foam", Params(n_axial=2, n_transverse=2), "quasi-static")
+    with pytest.raises(ParameterError, match=r"^v \(the velocities\) is needed"):
+        qs.tip(np.zeros(qs.n_q))
+    with pytest.raises(ParameterError, match=r"^axial = 'dynamic' differs from the model's own"):
+        simulate(qs, None, 1.0, axial="dynamic")
 
 
 @pytest.mark.slow

@@ -29,7 +29,7 @@ from hubbeam_ctrl.cli.args import (
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import capture_native_output
-from hubbeam_ctrl.plant.models import MODEL_SPECS
+from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, MODEL_SPECS
 from hubbeam_ctrl.plant.params import Params, load_params
 
 __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float",
@@ -248,7 +248,7 @@ def _cmd_simulate(args) -> int:
         maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
                                args.tf if args.tf is not None else 10.0)
     res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
-                   range_limit=args.range_limit, **run_limits(args), backend=args.backend)
+                   range_limit=args.range_limit, **run_limits(args), backend=args.backend, axial=args.axial)
     if args.out:
         res.save(args.out)
     if args.plot:
@@ -315,6 +315,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="flag the run when |v_tip| passes FRACTION * L (the models' validated range; "
                         "default 0.3); only L stops it")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.add_argument("--axial", choices=AXIAL_TREATMENTS, default="dynamic",
+                   help="dynamic: integrate the axial modes (default); quasi-static: solve them from "
+                        "their static balance at every instant (cfoam, foam, tlam; no stiff modes)")
     add_run_options(p)
     add_backend_option(p)
     p.set_defaults(func=_cmd_simulate)

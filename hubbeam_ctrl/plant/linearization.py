@@ -84,7 +84,7 @@ def second_order_linearization(model: HubBeamModel, spin: float = 0.0,
         raise ParameterError(f"spin must be finite [rad/s], got {spin}")
     x = model.steady_state(spin)
     q, v = x[: model.n_q], x[model.n_q:]
-    M = model.mass_matrix(q)
+    M = model.mass_matrix(q, v)
     Kf, Gf = (np.array(a) for a in _jacobian_functions(model.parametric)(q, v, model.p))
     B = np.zeros(model.n_q)
     B[0] = 1.0

@@ -37,9 +37,13 @@ from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["MODEL_NAMES", "ModelSpec", "MODEL_SPECS", "HubBeamModel", "build_model", "resolve_model",
            "kinetic_energy", "potential_energy", "ParametricModel", "parametric_model", "parameter_layout",
-           "reduced_foreshortening", "pair_map"]
+           "reduced_foreshortening", "pair_map", "AXIAL_TREATMENTS", "check_axial"]
 
 MODEL_NAMES = ("cfoam", "foam", "tlam", "sfoam")
+
+#: How the axial coordinates move: integrated with their inertia, or condensed out by their
+#: static balance at every instant (see :meth:`ParametricModel._build_quasi_static`).
+AXIAL_TREATMENTS = ("dynamic", "quasi-static")
 
 
 @dataclass(frozen=True)
@@ -77,6 +81,49 @@ MODEL_SPECS = {
     "sfoam": ModelSpec("sfoam", False, "first", False,
                        "simplified FOAM: no axial modes, no Q_theta (design model)"),
 }
+
+
+def check_axial(axial, model: str, n_axial: int) -> str:
+    """``axial`` checked: one of :data:`AXIAL_TREATMENTS`, and quasi-static only with axial modes.
+
+    Parameters
+    ----------
+    axial : str
+        ``"dynamic"`` or ``"quasi-static"``.
+    model : str
+        Model name (SFOAM has no axial coordinates).
+    n_axial : int
+        Number of axial modes.
+    """
+    if axial not in AXIAL_TREATMENTS:
+        raise ParameterError(f"axial must be one of {', '.join(AXIAL_TREATMENTS)}, got {axial!r}")
+    if axial == "quasi-static" and (not MODEL_SPECS[model].axial or n_axial < 1):
+        raise ParameterError(f"axial = 'quasi-static' needs a model with axial modes "
+                             f"(cfoam, foam, tlam and n_axial >= 1), got {model} with {n_axial}")
+    return axial
+
+
+def axial_modes(K1, M1) -> tuple:
+    """Axial modes of the clamped beam with its tip mass: ``K1 Phi = M1 Phi diag(lam)``.
+
+    Parameters
+    ----------
+    K1 : ndarray (n1, n1)
+        Axial stiffness [N/m].
+    M1 : ndarray (n1, n1)
+        Axial mass [kg].
+
+    Returns
+    -------
+    lam : ndarray (n1,)
+        Squared natural frequencies [1/s^2], ascending.
+    Phi : ndarray (n1, n1)
+        Mode shapes (columns), ``Phi' M1 Phi = I`` [1/sqrt(kg)].
+    """
+    Lc = np.linalg.cholesky(np.asarray(M1, dtype=float))
+    Li = np.linalg.inv(Lc)
+    lam, Y = np.linalg.eigh(Li @ np.asarray(K1, dtype=float) @ Li.T)
+    return lam, Li.T @ Y
 
 
 def _as_ca(A):
@@ -222,29 +269,45 @@ def potential_energy(K1, K2, q1, q2):
 class HubBeamModel:
     """A hub-beam model with its equations of motion, built by automatic differentiation.
 
-    Generalised coordinates ``q = [theta, q1 (n1), q2 (n2)]`` (SFOAM: ``[theta, q2]``),
-    velocities ``v = dq/dt``; the state is ``x = [q, v]``. Units: rad, m; rad/s, m/s.
+    Generalised coordinates ``q = [theta, q1 (n1), q2 (n2)]`` (SFOAM, or quasi-static axial
+    coordinates: ``[theta, q2]``), velocities ``v = dq/dt``; the state is ``x = [q, v]``.
+    Units: rad, m; rad/s, m/s.
 
     Use :func:`build_model` (cached) rather than the constructor.
+
+    Parameters
+    ----------
+    name : {"cfoam", "foam", "tlam", "sfoam"}
+    params : Params
+    axial : {"dynamic", "quasi-static"}
+        See :func:`build_model`.
 
     Attributes
     ----------
     name : str
     params : Params
     basis : ModalBasis
+    axial : str
+        ``"dynamic"`` or ``"quasi-static"``.
     n_q : int
         Number of generalised coordinates.
     n_axial, n_transverse : int
+        Axial and transverse coordinates in ``q`` (``n_axial`` is 0 with quasi-static axial
+        coordinates).
+    n_axial_modes : int
+        Axial modes of the model (in ``q`` or condensed).
     """
 
-    def __init__(self, name: str, params: Params):
+    def __init__(self, name: str, params: Params, axial: str = "dynamic"):
         if name not in MODEL_SPECS:
             raise ParameterError(f"model must be one of {', '.join(MODEL_NAMES)}, got {name!r}")
         self.name = name
         self.spec = MODEL_SPECS[name]
         self.params = params
         self.basis = modal_basis(params)
-        self.n_axial = params.n_axial if self.spec.axial else 0
+        self.n_axial_modes = params.n_axial if self.spec.axial else 0
+        self.axial = check_axial(axial, name, self.n_axial_modes)
+        self.n_axial = self.n_axial_modes if self.axial == "dynamic" else 0
         self.n_transverse = params.n_transverse
         self.n_q = 1 + self.n_axial + self.n_transverse
         self._build()
@@ -278,13 +341,13 @@ class HubBeamModel:
 
     # -- parameters and functions ----------------------------------------------
     def _build(self):
-        self.parametric = parametric_model(self.name, self.n_axial, self.n_transverse)
+        self.parametric = parametric_model(self.name, self.n_axial_modes, self.n_transverse, self.axial)
         self.p = self.parametric.values(self._parameter_fields())
 
     def _parameter_fields(self) -> dict:
         """Every parameter-dependent number of the equations, by the names of the layout."""
         b, m = self.basis, self.basis.total
-        n1 = self.n_axial
+        n1 = self.n_axial_modes
         fields = {"J_h": self.params.J_h, "J": m.J, "V1": m.V1[:n1], "V2": m.V2,
                   "M1": m.M1[:n1, :n1], "M2": m.M2, "R": m.R[:n1], "D": m.D,
                   "K1": b.K1[:n1, :n1], "K2": b.K2, "C": self._damping_diagonal(),
@@ -292,6 +355,8 @@ class HubBeamModel:
         if self.spec.foreshortening == "complete":
             red = reduced_foreshortening(m)
             fields.update(E_r=red["E_r"][:n1], G_r=red["G_r"], F_r=red["F_r"])
+        if self.axial == "quasi-static":
+            fields.update(zip(("lam1", "Phi1"), axial_modes(fields["K1"], fields["M1"])))
         return fields
 
     def _damping_diagonal(self) -> np.ndarray:
@@ -299,7 +364,7 @@ class HubBeamModel:
         zeta = self.params.damping_ratio
         b = self.basis
         out = []
-        for n, K, Mm in ((self.n_axial, b.K1, b.beam.M1), (self.n_transverse, b.K2, b.beam.M2)):
+        for n, K, Mm in ((self.n_axial_modes, b.K1, b.beam.M1), (self.n_transverse, b.K2, b.beam.M2)):
             out.append(2 * zeta * np.sqrt(np.diag(K)[:n] * np.diag(Mm)[:n]))
         return np.concatenate(out)
 
@@ -323,7 +388,7 @@ class HubBeamModel:
 
     @property
     def mass_matrix_function(self) -> ca.Function:
-        """``M(q)``: the mass matrix (built on first use)."""
+        """``M(q)``: the mass matrix (quasi-static axial: ``M(q, v)``; built on first use)."""
         return self._bound("mass_matrix")
 
     @property
@@ -353,7 +418,7 @@ class HubBeamModel:
 
     @property
     def tip_function(self) -> ca.Function:
-        """``q -> (v_tip, u_tip)`` [m] (built on first use)."""
+        """``q -> (v_tip, u_tip)`` [m] (quasi-static axial: ``(q, v) -> ...``; built on first use)."""
         return self._bound("tip")
 
     def _bound(self, name: str) -> ca.Function:
@@ -365,14 +430,19 @@ class HubBeamModel:
     # -- symbolic access for integrators / linearisation ------------------------
 
     # -- numeric conveniences -----------------------------------------------------
-    def mass_matrix(self, q) -> np.ndarray:
+    def mass_matrix(self, q, v=None) -> np.ndarray:
         """Mass matrix ``M(q)`` [kg, kg m, kg m^2 blocks].
 
         Parameters
         ----------
         q : array_like (n_q,)
             Coordinates ``[theta, q1, q2]`` [rad, m].
+        v : array_like (n_q,), optional
+            Velocities [rad/s, m/s]: needed with quasi-static axial coordinates, whose
+            condensed Lagrangian is not quadratic in the velocities (``M(q, v)``).
         """
+        if self.axial == "quasi-static":
+            return np.array(self.parametric.mass_matrix(q, self._velocities(v, 1), self.p))
         return np.array(self.parametric.mass_matrix(q, self.p))
 
     def bias(self, q, v) -> np.ndarray:
@@ -401,7 +471,7 @@ class HubBeamModel:
         """
         rhs = -self.bias(q, v)
         rhs[0] += tau
-        return np.linalg.solve(self.mass_matrix(q), rhs)
+        return np.linalg.solve(self.mass_matrix(q, v), rhs)
 
     def state_derivative(self, x, tau: float = 0.0) -> np.ndarray:
         """Free-hub state derivative ``d/dt [q, v] = [v, M^-1 (B tau - c)]``.
@@ -474,18 +544,58 @@ class HubBeamModel:
         """
         return float(self.parametric.q_theta(q, v, self.p))
 
-    def tip(self, q) -> tuple:
+    def tip(self, q, v=None) -> tuple:
         """Tip displacements ``(v_tip, u_tip)`` in the hub frame [m].
 
         Parameters
         ----------
         q : array_like (n_q,)
             Coordinates ``[theta, q1, q2]`` [rad, m].
+        v : array_like (n_q,), optional
+            Velocities [rad/s, m/s]; needed with quasi-static axial coordinates, whose
+            stretch depends on the spin and the bending rates.
         """
-        v_tip, u_tip = self.parametric.tip(q, self.p)
+        if self.axial == "quasi-static":
+            v_tip, u_tip = self.parametric.tip(q, self._velocities(v, 1), self.p)
+        else:
+            v_tip, u_tip = self.parametric.tip(q, self.p)
         return float(v_tip), float(u_tip)
 
-    def tip_series(self, q) -> tuple:
+    def _velocities(self, v, samples: int) -> np.ndarray:
+        if v is None:
+            raise ParameterError("v (the velocities) is needed for the tip and axial coordinates "
+                                 "of a model with quasi-static axial coordinates")
+        v = np.asarray(v, dtype=float)
+        if v.size != samples * self.n_q:
+            raise ParameterError(f"v must hold {samples} x {self.n_q} velocities, got shape {v.shape}")
+        return v
+
+    def axial_coordinates(self, q, v=None) -> np.ndarray:
+        """Axial coordinates ``q1`` [m] of one or many samples.
+
+        With dynamic axial coordinates they are part of ``q``; with quasi-static ones they
+        solve the static balance at ``(q, v)`` (:meth:`ParametricModel._build_quasi_static`).
+
+        Parameters
+        ----------
+        q : array_like (n_q,) or (N, n_q)
+            Coordinates [rad, m].
+        v : array_like, same shape as ``q``, optional
+            Velocities [rad/s, m/s] (needed with quasi-static axial coordinates).
+
+        Returns
+        -------
+        ndarray (n_axial_modes,) or (N, n_axial_modes)
+        """
+        q = np.asarray(q, dtype=float)
+        if self.axial == "dynamic":
+            return q[..., self.axial_slice].copy()
+        rows = np.atleast_2d(q)
+        v = self._velocities(v, len(rows)).reshape(rows.shape)
+        out = np.array(self._bound("axial_coordinates").map(len(rows))(rows.T, v.T)).T
+        return out if q.ndim == 2 else out[0]
+
+    def tip_series(self, q, v=None) -> tuple:
         """Tip displacements of many samples at once, in NumPy (the same formulas as :meth:`tip`).
 
         ``v_tip = f2(l) q2`` and ``u_tip = f1(l) q1 - q2' S(l) q2 / 2`` (without the second
@@ -495,6 +605,8 @@ class HubBeamModel:
         ----------
         q : array_like (N, n_q)
             Coordinates ``[theta, q1, q2]`` [rad, m], one row per sample.
+        v : array_like (N, n_q), optional
+            Velocities [rad/s, m/s] (needed with quasi-static axial coordinates).
 
         Returns
         -------
@@ -503,9 +615,9 @@ class HubBeamModel:
         """
         q = np.asarray(q, dtype=float)
         b = self.basis
-        q1, q2 = q[:, self.axial_slice], q[:, self.transverse_slice]
+        q1, q2 = self.axial_coordinates(q, v), q[:, self.transverse_slice]
         v_tip = q2 @ b.f2_tip
-        u_tip = q1 @ b.f1_tip[:self.n_axial] if self.n_axial else np.zeros(len(q))
+        u_tip = q1 @ b.f1_tip[:self.n_axial_modes] if self.n_axial_modes else np.zeros(len(q))
         if self.spec.foreshortening != "none":
             u_tip = u_tip - 0.5 * np.einsum("ki,ij,kj->k", q2, b.S_tip, q2)
         return v_tip, u_tip
@@ -543,11 +655,12 @@ class HubBeamModel:
         return x
 
     def __repr__(self):
-        return (f"HubBeamModel({self.name!r}, n_axial={self.n_axial}, "
-                f"n_transverse={self.n_transverse}, m_t={self.params.m_t})")
+        axial = "" if self.axial == "dynamic" else f", axial={self.axial!r}"
+        return (f"HubBeamModel({self.name!r}, n_axial={self.n_axial_modes}, "
+                f"n_transverse={self.n_transverse}, m_t={self.params.m_t}{axial})")
 
 
-def parameter_layout(name: str, n_axial: int, n_transverse: int) -> tuple:
+def parameter_layout(name: str, n_axial: int, n_transverse: int, axial: str = "dynamic") -> tuple:
     """Names and shapes of the parameter vector ``p`` of a model family and size.
 
     ``p`` holds every number of the equations that depends on :class:`Params` (the modal
@@ -559,6 +672,9 @@ def parameter_layout(name: str, n_axial: int, n_transverse: int) -> tuple:
     name : {"cfoam", "foam", "tlam", "sfoam"}
     n_axial, n_transverse : int
         Mode counts (``n_axial`` is 0 for SFOAM).
+    axial : {"dynamic", "quasi-static"}
+        Quasi-static axial coordinates add the axial modes ``Phi1`` (n1, n1) [1/sqrt(kg)]
+        and their squared frequencies ``lam1`` (n1,) [1/s^2].
 
     Returns
     -------
@@ -571,6 +687,8 @@ def parameter_layout(name: str, n_axial: int, n_transverse: int) -> tuple:
               ("C", (n1 + n2, 1)), ("f1_tip", (n1, 1)), ("f2_tip", (n2, 1)), ("S_tip", (n2, n2))]
     if MODEL_SPECS[name].foreshortening == "complete":
         layout += [("E_r", (n1, r)), ("G_r", (r, n2)), ("F_r", (r, r))]
+    if axial == "quasi-static":
+        layout += [("Phi1", (n1, n1)), ("lam1", (n1, 1))]
     return tuple(layout)
 
 
@@ -584,26 +702,47 @@ class ParametricModel:
 
     ``mass_matrix(q, p)``, ``bias(q, v, p)``, ``inverse_dynamics(q, v, a, p)``,
     ``energy(q, v, p) -> (T, U, E)``, ``momentum(q, v, p)``, ``q_theta(q, v, p)`` and
-    ``tip(q, p) -> (v_tip, u_tip)`` (:attr:`FUNCTIONS`), each built on first use.
+    ``tip(q, p) -> (v_tip, u_tip)`` (:attr:`FUNCTIONS`), each built on first use. With
+    ``axial="quasi-static"`` (:meth:`_build_quasi_static`) ``mass_matrix`` and ``tip`` also
+    take ``v`` after ``q``, and ``axial_coordinates(q, v, p) -> q1`` gives the condensed
+    coordinates.
+
+    Parameters
+    ----------
+    name : {"cfoam", "foam", "tlam", "sfoam"}
+    n_axial, n_transverse : int
+        Axial and transverse modes.
+    axial : {"dynamic", "quasi-static"}
+        How the axial coordinates move (:data:`AXIAL_TREATMENTS`).
 
     Attributes
     ----------
     name : str
+    axial : str
     n_axial, n_transverse, n_q, n_p : int
+        ``n_axial`` counts the axial coordinates in ``q`` (0 when quasi-static).
+    n_axial_modes : int
     layout : tuple
         See :func:`parameter_layout`.
     """
 
-    #: The functions, by attribute name.
-    FUNCTIONS = ("mass_matrix", "bias", "inverse_dynamics", "energy", "momentum", "q_theta", "tip")
+    #: The functions, by attribute name (``axial`` only for ``axial="quasi-static"``).
+    FUNCTIONS = ("mass_matrix", "bias", "inverse_dynamics", "energy", "momentum", "q_theta", "tip",
+                 "axial_coordinates")
 
-    def __init__(self, name: str, n_axial: int, n_transverse: int):
+    def __init__(self, name: str, n_axial: int, n_transverse: int, axial: str = "dynamic"):
         self.name, self.spec = name, MODEL_SPECS[name]
-        self.n_axial, self.n_transverse = n_axial, n_transverse
-        self.n_q = 1 + n_axial + n_transverse
-        self.layout = parameter_layout(name, n_axial, n_transverse)
+        self.axial = check_axial(axial, name, n_axial)
+        self.n_axial_modes = n_axial
+        self.n_axial = n_axial if self.axial == "dynamic" else 0
+        self.n_transverse = n_transverse
+        self.n_q = 1 + self.n_axial + n_transverse
+        self.layout = parameter_layout(name, n_axial, n_transverse, self.axial)
         self.n_p = sum(r * c for _, (r, c) in self.layout)
-        self._build()
+        if self.axial == "dynamic":
+            self._build()
+        else:
+            self._build_quasi_static()
 
     def values(self, fields: dict) -> np.ndarray:
         """The parameter vector from numbers named as in :attr:`layout`.
@@ -670,6 +809,58 @@ class ParametricModel:
             "tip": ("tip", [q, p], [v_tip, u_tip], ["q", "p"], ["v_tip", "u_tip"]),
         }
 
+    def _build_quasi_static(self):
+        """Equations with the axial coordinates condensed out by their static balance.
+
+        Without the axial velocities in ``T`` the Lagrangian ``L = T - U`` is quadratic in
+        ``q1`` and ``dL/dq1 = 0`` gives ``q1*(q, v) = -H^-1 g`` with ``H = d2L/dq1^2`` and
+        ``g = dL/dq1`` at ``q1 = 0`` (both by AD). Substituting ``q1*`` leaves a Lagrangian
+        ``L*(q, v)`` of ``q = [theta, q2]`` alone whose Euler-Lagrange equations are those of
+        the quasi-static system (``dL/dq1 = 0`` at ``q1*``, so the chain rule adds nothing).
+        ``L*`` is not quadratic in the velocities: the conserved energy is Jacobi's
+        ``h = v dL*/dv - L*``, returned as ``E``; ``U`` is the strain energy at ``q1*`` and
+        ``T = h - U``.
+
+        ``H = thd^2 M1 - K1`` is inverted through the axial modes of the clamped beam with its
+        tip mass (parameters ``Phi1``, ``lam1``: ``K1 Phi1 = M1 Phi1 diag(lam1)``,
+        ``Phi1' M1 Phi1 = I``): ``H^-1 = Phi1 diag(1 / (thd^2 - lam1)) Phi1'``, so the
+        condensation costs two small products instead of a symbolic factorisation.
+        """
+        n1, nq, spec = self.n_axial_modes, self.n_q, self.spec
+        q, v, a = ca.SX.sym("q", nq), ca.SX.sym("v", nq), ca.SX.sym("a", nq)
+        p = ca.SX.sym("p", self.n_p)
+        f = self._unpack(p)
+        q2, q2d = q[1:], v[1:]
+        s1, none = ca.SX.sym("q1", n1), ca.SX.zeros(n1)
+        L_s = (kinetic_energy(spec, f, f["J_h"], v[0], s1, q2, none, q2d)
+               - potential_energy(f["K1"], f["K2"], s1, q2))
+        g = ca.substitute(ca.gradient(L_s, s1), s1, none)
+        modal = ca.mtimes(f["Phi1"].T, g) / (v[0] ** 2 - f["lam1"])
+        q1 = -ca.mtimes(f["Phi1"], modal)                        # -H^-1 g, H = d2L/dq1^2
+        U = potential_energy(f["K1"], f["K2"], q1, q2)
+        L = ca.substitute(L_s, s1, q1)
+        dL_dv, dL_dq = ca.gradient(L, v), ca.gradient(L, q)
+        M = ca.hessian(L, v)[0]
+        inertial = ca.jtimes(dL_dv, q, v) - dL_dq               # velocity and elastic terms
+        damping = ca.vertcat(0, f["C"][n1:] * q2d)
+        generalized_force = ca.jtimes(dL_dv, ca.vertcat(q, v), ca.vertcat(v, a)) - dL_dq + damping
+        h = ca.dot(v, dL_dv) - L
+        v_tip = ca.dot(f["f2_tip"], q2)
+        u_tip = ca.dot(f["f1_tip"], q1)
+        if spec.foreshortening != "none":
+            u_tip = u_tip - 0.5 * _quad(f["S_tip"], q2)
+        self._definitions = {
+            "mass_matrix": ("M", [q, v, p], [M], ["q", "v", "p"], ["M"]),
+            "bias": ("c", [q, v, p], [inertial + damping], ["q", "v", "p"], ["c"]),
+            "inverse_dynamics": ("inverse_dynamics", [q, v, a, p], [generalized_force],
+                                 ["q", "v", "a", "p"], ["f"]),
+            "energy": ("energy", [q, v, p], [h - U, U, h], ["q", "v", "p"], ["T", "U", "E"]),
+            "momentum": ("momentum", [q, v, p], [dL_dv[0]], ["q", "v", "p"], ["H"]),
+            "q_theta": ("q_theta", [q, v, p], [-inertial[0]], ["q", "v", "p"], ["Q_theta"]),
+            "tip": ("tip", [q, v, p], [v_tip, u_tip], ["q", "v", "p"], ["v_tip", "u_tip"]),
+            "axial_coordinates": ("axial_coordinates", [q, v, p], [q1], ["q", "v", "p"], ["q1"]),
+        }
+
     def __getattr__(self, name: str):
         """Build one of the functions (:attr:`FUNCTIONS`) on first use and keep it."""
         definitions = self.__dict__.get("_definitions", {})
@@ -683,8 +874,7 @@ class ParametricModel:
         return f"ParametricModel({self.name!r}, n_axial={self.n_axial}, n_transverse={self.n_transverse})"
 
 
-@lru_cache(maxsize=32)
-def parametric_model(name: str, n_axial: int, n_transverse: int) -> ParametricModel:
+def parametric_model(name: str, n_axial: int, n_transverse: int, axial: str = "dynamic") -> ParametricModel:
     """Build (and cache) a model family's parametric equations (see :class:`ParametricModel`).
 
     Parameters
@@ -692,16 +882,22 @@ def parametric_model(name: str, n_axial: int, n_transverse: int) -> ParametricMo
     name : {"cfoam", "foam", "tlam", "sfoam"}
     n_axial, n_transverse : int
         Mode counts (``n_axial`` 0 for SFOAM).
+    axial : {"dynamic", "quasi-static"}
+        How the axial coordinates move (:data:`AXIAL_TREATMENTS`).
 
     Returns
     -------
     ParametricModel
     """
-    return ParametricModel(name, n_axial, n_transverse)
+    return _parametric_model(name, n_axial, n_transverse, axial)
 
 
 @lru_cache(maxsize=32)
-def build_model(name: str, params: Params = Params()) -> HubBeamModel:
+def _parametric_model(name: str, n_axial: int, n_transverse: int, axial: str) -> ParametricModel:
+    return ParametricModel(name, n_axial, n_transverse, axial)
+
+
+def build_model(name: str, params: Params = Params(), axial: str = "dynamic") -> HubBeamModel:
     """Build (and cache) a model's equations of motion.
 
     Parameters
@@ -710,6 +906,10 @@ def build_model(name: str, params: Params = Params()) -> HubBeamModel:
         Which model (see :data:`MODEL_SPECS`).
     params : Params
         System parameters.
+    axial : {"dynamic", "quasi-static"}
+        ``"dynamic"`` integrates the axial coordinates with their inertia;
+        ``"quasi-static"`` solves them from their static balance at every instant (CFOAM,
+        FOAM, TLAM), which removes the stiff axial modes from the state.
 
     Returns
     -------
@@ -723,10 +923,16 @@ def build_model(name: str, params: Params = Params()) -> HubBeamModel:
     """
     if not isinstance(name, str) or name.lower() not in MODEL_SPECS:
         raise ParameterError(f"model must be one of {', '.join(MODEL_NAMES)}, got {name!r}")
-    return HubBeamModel(name.lower(), params)
+    return _build_model(name.lower(), params, axial)
 
 
-def resolve_model(model, params: Params | None = None) -> HubBeamModel:
+@lru_cache(maxsize=32)
+def _build_model(name: str, params: Params, axial: str) -> HubBeamModel:
+    """The cache of :func:`build_model`, keyed by all three arguments however they were passed."""
+    return HubBeamModel(name, params, axial)
+
+
+def resolve_model(model, params: Params | None = None, axial: str | None = None) -> HubBeamModel:
     """A built model from a name plus parameters, or a model passed through.
 
     Parameters
@@ -735,6 +941,9 @@ def resolve_model(model, params: Params | None = None) -> HubBeamModel:
     params : Params, optional
         With a name: the parameters (default Table 1). With a model: must be ``None`` or
         equal to the model's own.
+    axial : {"dynamic", "quasi-static"}, optional
+        With a name: how the axial coordinates move (default dynamic). With a model: must
+        be ``None`` or the model's own.
 
     Returns
     -------
@@ -743,7 +952,9 @@ def resolve_model(model, params: Params | None = None) -> HubBeamModel:
     if isinstance(model, HubBeamModel):
         if params is not None and params != model.params:
             raise ParameterError("params differ from the model's own; pass one or the other")
+        if axial is not None and axial != model.axial:
+            raise ParameterError(f"axial = {axial!r} differs from the model's own ({model.axial!r})")
         return model
     if params is not None and not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
-    return build_model(model, params if params is not None else Params())
+    return build_model(model, params if params is not None else Params(), axial or "dynamic")

@@ -332,7 +332,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     keep = slice(0, last + 1)
     t, states, taus, step_times = t[keep], states[keep], taus[keep], step_times[keep]
     q, v = states[:, :n], states[:, n:]
-    v_tip, u_tip = model.tip_series(q)
+    v_tip, u_tip = model.tip_series(q, v)
     root_moment = states @ C_sens[2]
     theta_ref = theta_dot_ref = None
     if reference is not None:

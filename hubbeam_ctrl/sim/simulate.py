@@ -40,7 +40,7 @@ from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse, UserManeuver
-from hubbeam_ctrl.plant.models import MODEL_SPECS, HubBeamModel, resolve_model
+from hubbeam_ctrl.plant.models import MODEL_SPECS, HubBeamModel, check_axial, resolve_model
 from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.sim.results import Result, describe_input
 
@@ -256,7 +256,8 @@ def _full_state(model, hub, maneuver, t, xs, zs):
 
 def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params | None = None,
              hub: str | None = None, x0=None, settings: SimulationSettings | None = None,
-             progress: bool = False, backend=None, **setting_overrides) -> Result:
+             progress: bool = False, backend=None, axial: str | None = None,
+             **setting_overrides) -> Result:
     """Simulate a hub-beam model.
 
     Parameters
@@ -284,6 +285,11 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         Evaluation of the residual and its Jacobian inside IDAS: CasADi's VM or generated
         C (see :mod:`hubbeam_ctrl.core.compiled`); default ``$HUBBEAM_BACKEND`` or
         ``"auto"``. Both give the same run to the integrator's tolerances.
+    axial : {"dynamic", "quasi-static"}, optional
+        With a model name: integrate the axial coordinates (default) or solve them from
+        their static balance at every instant (no stiff axial modes in the state; ``q`` and
+        ``v`` then hold the hub and bending coordinates only, and
+        :meth:`~hubbeam_ctrl.plant.models.HubBeamModel.axial_coordinates` gives ``q1``).
     **setting_overrides
         Fields of :class:`SimulationSettings` (``dt``, ``rtol``, ...).
 
@@ -305,7 +311,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
     settings = _settings(settings, setting_overrides)
     dt = settings.dt
     t_end = check_in_range("t_end", t_end, "s", dt, T_END_MAX, "at least two samples: t_end >= dt")
-    name, p, n = _model_plan(model, params)
+    name, p, n = _model_plan(model, params, axial)
     maneuver, hub = _maneuver_and_hub(maneuver, hub)
     _check_maneuver_spin(maneuver, p)
     n_out = int(round(t_end / dt))
@@ -315,7 +321,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
                  seconds=n_out * cost + model_build_seconds(name, p.n_transverse),
                  max_memory_mb=settings.max_memory_mb, max_wall_s=settings.max_wall_s)
     x0 = _initial_state(x0, 2 * n if hub == "free" else 2 * (n - 1), hub)
-    m = resolve_model(model, params)
+    m = resolve_model(model, params, axial)
     if isinstance(maneuver, UserManeuver):
         maneuver.bind(t_end)
 
@@ -363,7 +369,7 @@ def simulate(model="foam", maneuver=None, t_end: float = 30.0, *, params: Params
         tk = t0 + dt * np.arange(1, len(xs) + 1)
         q_full = xs[:, :n] if hub == "free" else xs[:, : n - 1]
         qt = q_full if hub == "free" else np.column_stack([np.zeros(len(xs)), q_full])
-        v_tip = m.tip_series(qt)[0]
+        v_tip = qt[:, m.transverse_slice] @ m.basis.f2_tip
         flagged = np.nonzero(np.abs(v_tip) > flag_at)[0]
         if outside_time is None and flagged.size:
             outside_time = float(tk[flagged[0]])
@@ -416,7 +422,7 @@ def _open_loop_result(model: HubBeamModel, t, q, v, a, *, hub, maneuver, setting
     """A :class:`Result` of kind ``"open_loop"``, the model's outputs evaluated on all samples."""
     N = len(t)
     Q, V, A = q.T, v.T, a.T
-    v_tip, u_tip = model.tip_series(q)
+    v_tip, u_tip = model.tip_series(q, v)
     tau = np.array(model.inverse_dynamics_function.map(N)(Q, V, A))[0]
     q_theta = np.array(model.q_theta_function.map(N)(Q, V)).ravel()
     energy = np.array(model.energy_function.map(N)(Q, V)[2]).ravel()
@@ -444,19 +450,21 @@ def _settings(settings, overrides: dict) -> SimulationSettings:
     return settings
 
 
-def _model_plan(model, params) -> tuple:
+def _model_plan(model, params, axial=None) -> tuple:
     """``(name, params, n_q)`` of the model to simulate, without building it (checks come first)."""
     if isinstance(model, HubBeamModel):
-        if params is not None and params != model.params:
-            raise ParameterError("params differ from the model's own; pass one or the other")
+        resolve_model(model, params, axial)    # the one-line errors for a mismatch
         return model.name, model.params, model.n_q
     if isinstance(model, str) and model.lower() in MODEL_SPECS:
         p = params if params is not None else Params()
         if not isinstance(p, Params):
             raise ParameterError(f"params must be a Params, got {type(p).__name__}")
         spec = MODEL_SPECS[model.lower()]
-        return model.lower(), p, 1 + (p.n_axial if spec.axial else 0) + p.n_transverse
-    m = resolve_model(model, params)          # raises the one-line error for a bad model
+        n_axial = p.n_axial if spec.axial else 0
+        if check_axial(axial or "dynamic", model.lower(), n_axial) == "quasi-static":
+            n_axial = 0
+        return model.lower(), p, 1 + n_axial + p.n_transverse
+    m = resolve_model(model, params, axial)   # raises the one-line error for a bad model
     return m.name, m.params, m.n_q
 
 
@@ -550,7 +558,7 @@ def _initial_accelerations(m: HubBeamModel, hub, maneuver, x0):
     ne = n - 1
     q = np.concatenate([[th], x0[:ne]])
     v = np.concatenate([[thd], x0[ne:]])
-    M = m.mass_matrix(q)
+    M = m.mass_matrix(q, v)
     rhs = -m.bias(q, v)[1:] - M[1:, 0] * thdd
     return np.linalg.solve(M[1:, 1:], rhs)
 

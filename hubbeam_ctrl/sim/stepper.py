@@ -513,7 +513,8 @@ def _robust_step_function(model: ParametricModel, settings: StepperSettings) -> 
 
 
 def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = None,
-                        settings: StepperSettings | None = None, x0=None, backend=None) -> Result:
+                        settings: StepperSettings | None = None, x0=None, backend=None,
+                        axial: str | None = None) -> Result:
     """Integrate a free-hub model under a torque profile with :class:`PlantStepper`.
 
     The torque is evaluated at the end of every substep (no zero-order hold), so the
@@ -534,6 +535,9 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
         Initial state ``[q, v]`` (default: at rest).
     backend : {"auto", "compiled", "vm"}, optional
         See :class:`PlantStepper`.
+    axial : {"dynamic", "quasi-static"}, optional
+        With a model name: how the axial coordinates move (see
+        :func:`~hubbeam_ctrl.plant.models.build_model`).
 
     Returns
     -------
@@ -543,7 +547,7 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
         ``stats`` with ``ms_per_step`` (wall time per sample), ``fallbacks`` and
         ``jacobian_updates``.
     """
-    model = resolve_model(plant, params)
+    model = resolve_model(plant, params, axial)
     settings = settings or StepperSettings()
     t_end = check_in_range("t_end", t_end, "s", settings.dt, T_END_MAX, "at least two samples: t_end >= dt")
     dt, k = settings.dt, settings.substeps
@@ -566,7 +570,7 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
         out[i + 1] = s[:3 * n]
     wall = time.perf_counter() - start
     q, v, a = out[:, :n], out[:, n:2 * n], out[:, 2 * n:]
-    v_tip, u_tip = (np.array(o).ravel() for o in model.tip_function.map(N + 1)(q.T))
+    v_tip, u_tip = model.tip_series(q, v)
     tau = np.concatenate([[tau0], u[:, -1]])
     stats = {"ms_per_step": 1e3 * wall / max(N, 1), "fallbacks": stepper.fallbacks,
              "jacobian_updates": stepper.jacobian_updates, "backend": stepper.backend}
