@@ -9,7 +9,9 @@ even on a loaded machine (the absolute times do not: report the load beside them
    10 ms) on FOAM and CFOAM, warm cache, CPU seconds (median of ``--repeats``):
    ``simulate`` (IDAS, variable step, error control) and ``simulate_fixed_step`` (the closed
    loop's generalized-alpha stepper, 2 x 5 ms per sample), each with its tip error against a
-   tight IDAS run (rtol = atol = 1e-11, BDF order 5) relative to the peak.
+   tight IDAS run (rtol = atol = 1e-11, BDF order 5) relative to the peak; and
+   ``idas_quasi_static``, the IDAS run of the model with quasi-static axial coordinates
+   (``axial="quasi-static"``), with its speed-up against the dynamic model on the VM.
 2. ``plant_step``: one 10 ms closed-loop sample of :class:`PlantStepper` [us], CPU and wall,
    median over 3000 samples of a 200 N m slew torque; ``vm_plain_call`` is the same VM
    function called the pre-buffer way (NumPy arguments converted at every call).
@@ -19,7 +21,9 @@ even on a loaded machine (the absolute times do not: report the load beside them
 4. ``compare_cfoam``: :func:`hubbeam_ctrl.study.compare` with all five default controllers on
    CFOAM, warm cache [s]; ``params_to_ready``: a new ``Params`` to a ready compiled CFOAM
    stepper [ms]; ``tip_mass_sweep_cfoam_lqr``: 20 LQR slews on CFOAM, one per tip mass
-   (0 to 0.5 kg), sequentially [s].
+   (0 to 0.5 kg), by the study engine in one process [s]. Both on a 5 + 5 CFOAM plant, the
+   size the issue's targets were set for (``--cfoam-plant-modes rule``: the evaluation-plant
+   rule, 10 + 10 modes with 30 substeps per sample).
 5. ``scaling``: for n = ``--sizes`` axial and transverse modes, FOAM and CFOAM: model and
    stepper-function build time, compile time into an empty cache, step time per sample per
    backend and the 30 s fixed-step run. Also printed as a table on stderr.
@@ -99,15 +103,18 @@ def open_loop(name: str, repeats: int) -> dict:
     ref = simulate(model, PULSE, T_END, rtol=1e-11, atol=1e-11, max_order=5, backend="compiled")
     peak = float(np.max(np.abs(ref.v_tip)))
     out = {"peak_tip_m": peak, "tight_reference_wall_s": ref.wall_s}
-    for kind in ("idas", "fixed_step"):
+    for kind in ("idas", "fixed_step", "idas_quasi_static"):
         row = {}
         for b in BACKENDS:
             if kind == "idas":
                 def run():
                     return simulate(model, PULSE, T_END, backend=b)
-            else:
+            elif kind == "fixed_step":
                 def run():
                     return simulate_fixed_step(model, PULSE, T_END, backend=b)
+            else:
+                def run():
+                    return simulate(name, PULSE, T_END, axial="quasi-static", backend=b)
             run()                                                   # warm: build, compile, load
             cpu, wall, res = _cpu(run, repeats)
             v_tip = res.v_tip
@@ -115,6 +122,9 @@ def open_loop(name: str, repeats: int) -> dict:
                       "tip_error_rel_peak": float(np.max(np.abs(v_tip - ref.v_tip)) / peak)}
         row["speedup_cpu"] = _ratio(row, "cpu_s")
         out[kind] = row
+    # the quasi-static model on the compiled backend against today's default run (dynamic, vm)
+    out["idas_quasi_static"]["speedup_cpu_vs_dynamic_vm"] = (
+        out["idas"]["vm"]["cpu_s"] / out["idas_quasi_static"]["compiled"]["cpu_s"])
     return out
 
 
@@ -180,28 +190,35 @@ def mpc_step(steps: int = 1500, n_modes: int = 5) -> dict:
 
 
 # -- 4. compare -----------------------------------------------------------------------------------
-def compare_cfoam() -> dict:
+def compare_cfoam(plant_modes: int | None) -> dict:
+    """``compare("cfoam")``, all five default controllers, warm [s]: on a CFOAM plant of
+    ``plant_modes`` axial and transverse modes (None: the evaluation-plant rule, 10 + 10 at the
+    default 10 ms sample with 30 substeps)."""
     from hubbeam_ctrl.study.compare import compare
-    out = {}
+    out = {"plant_modes": plant_modes}
     for b in BACKENDS:
-        compare("cfoam", backend=b)                        # warm: design, build, compile
-        cpu, wall, _ = _cpu(lambda: compare("cfoam", backend=b))
+        compare("cfoam", plant_modes=plant_modes, backend=b)          # warm: design, build, compile
+        cpu, wall, _ = _cpu(lambda: compare("cfoam", plant_modes=plant_modes, backend=b))
         out[b] = {"cpu_s": cpu, "wall_s": wall}
     out["speedup_cpu"] = _ratio(out, "cpu_s")
     return out
 
 
 # -- 4b. tip-mass sweep ---------------------------------------------------------------------------
-def tip_mass_sweep(runs: int = 20) -> dict:
-    """``runs`` LQR slews on CFOAM, one per tip mass, sequentially, warm cache [s]."""
-    from hubbeam_ctrl.study.compare import compare
-    masses = np.linspace(0.0, 0.5, runs)
-    out = {"runs": runs, "tip_masses_kg": [float(masses[0]), float(masses[-1])]}
+def tip_mass_sweep(plant_modes: int | None, runs: int = 20) -> dict:
+    """``runs`` LQR slews on CFOAM, one per tip mass, by the study engine
+    (:func:`hubbeam_ctrl.study.sweep.sweep`) in this process (``workers=1``), warm cache [s]."""
+    from hubbeam_ctrl.study.sweep import sweep
+    masses = [float(m) for m in np.linspace(0.0, 0.5, runs)]
+    out = {"runs": runs, "plant_modes": plant_modes, "tip_masses_kg": [masses[0], masses[-1]]}
     for b in BACKENDS:
-        compare("cfoam", controllers="lqr", params=Params(m_t=0.77), backend=b)   # warm: build, compile
-        cpu, wall, _ = _cpu(lambda: [compare("cfoam", controllers="lqr", params=Params(m_t=float(m)), backend=b)
-                                     for m in masses])
-        out[b] = {"cpu_s": cpu, "wall_s": wall}
+        study = {"plant": "cfoam", "controllers": ["lqr"], "backend": b}
+        if plant_modes is not None:
+            study["plant_modes"] = plant_modes
+        sweep({"study": study, "grid": {"m_t": [0.77]}}, workers=1, progress=False)   # warm: build, compile
+        cpu, wall, df = _cpu(lambda: sweep({"study": study, "grid": {"m_t": masses}}, workers=1, progress=False))
+        out[b] = {"cpu_s": cpu, "wall_s": wall, "sim_wall_s_sum": float(df["sim_wall_s"].sum()),
+                  "verdicts": {str(k): int(v) for k, v in df["verdict"].value_counts().items()}}
     out["speedup_cpu"] = _ratio(out, "cpu_s")
     return out
 
@@ -290,6 +307,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--skip", default="", help="comma-separated parts to skip: open_loop,plant_step,"
                                                "mpc_step,compare_cfoam,sweep,scaling")
     ap.add_argument("--out", help="also write the JSON here")
+    ap.add_argument("--cfoam-plant-modes", default="5",
+                    help="modes of the CFOAM plant of compare_cfoam and sweep (the issue's targets were "
+                         "set for 5 + 5; 'rule': the evaluation-plant rule, 10 + 10 with 30 substeps)")
     args = ap.parse_args(argv)
     skip = set(filter(None, args.skip.split(",")))
     try:
@@ -307,11 +327,12 @@ def main(argv=None) -> dict:
             report["plant_step"] = {name: plant_step(name) for name in ("foam", "cfoam")}
         if "mpc_step" not in skip:
             report["mpc_step"] = mpc_step()
+        plant_modes = None if args.cfoam_plant_modes == "rule" else int(args.cfoam_plant_modes)
         if "compare_cfoam" not in skip:
-            report["compare_cfoam"] = compare_cfoam()
+            report["compare_cfoam"] = compare_cfoam(plant_modes)
         if "sweep" not in skip:
             report["params_to_ready"] = params_to_ready()
-            report["tip_mass_sweep_cfoam_lqr"] = tip_mass_sweep()
+            report["tip_mass_sweep_cfoam_lqr"] = tip_mass_sweep(plant_modes)
         sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
         if sizes and "scaling" not in skip:
             rows = []

@@ -932,6 +932,11 @@ def _build_model(name: str, params: Params, axial: str) -> HubBeamModel:
     return HubBeamModel(name, params, axial)
 
 
+# the caches behind the two factories, as functools would expose them
+parametric_model.cache_clear, parametric_model.cache_info = _parametric_model.cache_clear, _parametric_model.cache_info
+build_model.cache_clear, build_model.cache_info = _build_model.cache_clear, _build_model.cache_info
+
+
 def resolve_model(model, params: Params | None = None, axial: str | None = None) -> HubBeamModel:
     """A built model from a name plus parameters, or a model passed through.
 
