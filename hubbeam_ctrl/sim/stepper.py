@@ -346,6 +346,37 @@ class PlantStepper:
         """
         self._s_in[:] = state
         self._u[:] = tau
+        return self._advance().copy()
+
+    def run(self, state, taus) -> np.ndarray:
+        """Advance over many samples of known torques (an open-loop run), in one loop.
+
+        Each sample is exactly :meth:`step`; the loop only saves the per-call copies.
+
+        Parameters
+        ----------
+        state : ndarray (4 n_q,)
+            Integrator state at the start [see :meth:`initial_state`].
+        taus : array_like (N, substeps)
+            Hub torque [N m] at the end of each substep of each sample.
+
+        Returns
+        -------
+        ndarray (N, 4 n_q)
+            State at the end of every sample.
+        """
+        taus = np.asarray(taus, dtype=float).reshape(-1, self.settings.substeps)
+        out = np.empty((len(taus), self.n_s))
+        s_in, u = self._s_in, self._u
+        s_in[:] = state
+        for i in range(len(taus)):
+            u[:] = taus[i]
+            out[i] = self._advance()
+            s_in[:] = out[i]
+        return out
+
+    def _advance(self) -> np.ndarray:
+        """One sample from the state and torques in the input buffers (a buffer: copy to keep)."""
         tol = self.settings.newton_tol
         fresh = not self._J_valid
         if fresh:
@@ -359,7 +390,7 @@ class PlantStepper:
         if err <= tol:                            # False for NaN
             if err > 0.1 * tol:                  # converging slowly: refresh next time
                 self._J_valid = False
-            return self._s_out.copy()
+            return self._s_out
         return self._robust_step(self._s_in.copy(), self._u.reshape(1, -1).copy())
 
     def _setup_buffers(self):
@@ -565,9 +596,7 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     out = np.empty((N + 1, 3 * n))
     out[0] = s[:3 * n]
     start = time.perf_counter()
-    for i in range(N):
-        s = stepper.step(s, u[i])
-        out[i + 1] = s[:3 * n]
+    out[1:] = stepper.run(s, u)[:, :3 * n]
     wall = time.perf_counter() - start
     q, v, a = out[:, :n], out[:, n:2 * n], out[:, 2 * n:]
     v_tip, u_tip = model.tip_series(q, v)
