@@ -27,6 +27,7 @@ from hubbeam_ctrl.core.compiled import (
     resolve_backend,
 )
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.models import MX_FROM_TRANSVERSE
 from hubbeam_ctrl.sim.closedloop import simulate_closed_loop
 from hubbeam_ctrl.sim.stepper import PlantStepper
 
@@ -252,10 +253,14 @@ def test_two_processes_building_the_same_entry(fresh):
     assert cache_info()["libraries"] == 0
 
 
+#: CFOAM on MX symbols (MX_FROM_TRANSVERSE transverse modes): compact generated code
+LARGE_CFOAM = Params(n_axial=2, n_transverse=MX_FROM_TRANSVERSE)
+
+
 @needs_cc
-@pytest.mark.parametrize("name", ["foam", "cfoam"])
-def test_stepper_backends_agree(fresh, name):
-    model = build_model(name, SMALL)
+@pytest.mark.parametrize("name, params", [("foam", SMALL), ("cfoam", SMALL), ("cfoam", LARGE_CFOAM)])
+def test_stepper_backends_agree(fresh, name, params):
+    model = build_model(name, params)
     taus = 200.0 * np.sin(np.linspace(0.0, np.pi, 150)) ** 2
     runs = {}
     for backend in ("vm", "compiled"):
@@ -273,9 +278,9 @@ def test_stepper_backends_agree(fresh, name):
 
 
 @needs_cc
-@pytest.mark.parametrize("name", ["foam", "cfoam"])
-def test_idas_backends_agree(fresh, name):
-    model = build_model(name, SMALL)
+@pytest.mark.parametrize("name, params", [("foam", SMALL), ("cfoam", SMALL), ("cfoam", LARGE_CFOAM)])
+def test_idas_backends_agree(fresh, name, params):
+    model = build_model(name, params)
     pulse = TorquePulse(200.0, 2.0)
     res = {b: simulate(model, pulse, 3.0, backend=b) for b in ("vm", "compiled")}
     assert res["compiled"].settings["backend"] == "compiled"

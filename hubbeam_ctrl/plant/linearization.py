@@ -56,9 +56,9 @@ class SecondOrderLinearization:
 @lru_cache(maxsize=None)
 def _jacobian_functions(model):
     """``(q, v, p) -> (dc/dq, dc/dv)`` of a :class:`ParametricModel` (once per family and size)."""
-    q = ca.SX.sym("q", model.n_q)
-    v = ca.SX.sym("v", model.n_q)
-    p = ca.SX.sym("p", model.n_p)
+    q = model.sym.sym("q", model.n_q)
+    v = model.sym.sym("v", model.n_q)
+    p = model.sym.sym("p", model.n_p)
     c = model.bias(q, v, p)
     return ca.Function("dc", [q, v, p], [ca.jacobian(c, q), ca.jacobian(c, v)])
 

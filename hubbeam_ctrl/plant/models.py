@@ -37,9 +37,15 @@ from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["MODEL_NAMES", "ModelSpec", "MODEL_SPECS", "HubBeamModel", "build_model", "resolve_model",
            "kinetic_energy", "potential_energy", "ParametricModel", "parametric_model", "parameter_layout",
-           "reduced_foreshortening", "pair_map", "AXIAL_TREATMENTS", "check_axial"]
+           "reduced_foreshortening", "pair_map", "AXIAL_TREATMENTS", "check_axial", "symbol_type",
+           "jacobian_columns", "MX_FROM_TRANSVERSE"]
 
 MODEL_NAMES = ("cfoam", "foam", "tlam", "sfoam")
+
+#: CFOAM with at least this many transverse modes is built on MX (see :class:`ParametricModel`):
+#: its SX graph grows as n^4 (67k instructions for the residual at 10 + 10, half a minute to
+#: compile), the MX graph not at all; below it the SX code is the faster one.
+MX_FROM_TRANSVERSE = 8
 
 #: How the axial coordinates move: integrated with their inertia, or condensed out by their
 #: static balance at every instant (see :meth:`ParametricModel._build_quasi_static`).
@@ -81,6 +87,49 @@ MODEL_SPECS = {
     "sfoam": ModelSpec("sfoam", False, "first", False,
                        "simplified FOAM: no axial modes, no Q_theta (design model)"),
 }
+
+
+def symbol_type(function: ca.Function):
+    """``casadi.MX`` for a function built on MX symbols, else ``casadi.SX``: the symbols to call
+    it with when composing expressions (an MX function called on SX is expanded to scalars).
+
+    Parameters
+    ----------
+    function : casadi.Function
+    """
+    return ca.MX if function.is_a("MXFunction") else ca.SX
+
+
+def jacobian_columns(function: ca.Function, args: list, wrt: int, out: int = 0):
+    """Jacobian of output ``out`` in input ``wrt`` at ``args``, one forward derivative per column.
+
+    For MX functions: CasADi's ``jacobian`` of an MX graph copies it once per direction (1 MB
+    of C for CFOAM 10+10); this calls the one forward-derivative function ``n`` times instead
+    (exact, 94 kB).
+
+    Parameters
+    ----------
+    function : casadi.Function
+    args : list
+        Symbolic arguments, one per input.
+    wrt, out : int
+        Input and output indices.
+
+    Returns
+    -------
+    casadi.MX or casadi.SX
+        With the structural zeros of the derivatives.
+    """
+    forward = function.forward(1)
+    nominal = function.call(args)
+    zero = [ca.DM.zeros(function.sparsity_in(i)) for i in range(function.n_in())]
+    eye = ca.DM.eye(function.nnz_in(wrt))
+    columns = []
+    for j in range(function.nnz_in(wrt)):
+        seeds = list(zero)
+        seeds[wrt] = eye[:, j]
+        columns.append(forward.call(list(args) + nominal + seeds)[out])
+    return ca.horzcat(*columns)
 
 
 def check_axial(axial, model: str, n_axial: int) -> str:
@@ -187,8 +236,16 @@ def reduced_foreshortening(m) -> dict:
 
 
 def _pair_products(q2, q2d):
-    """``y = [q2_i q2_j]`` and ``yd = [(q2_i q2d_j + q2_j q2d_i) / 2]`` over the pairs ``i <= j``."""
+    """``y = [q2_i q2_j]`` and ``yd = [(q2_i q2d_j + q2_j q2d_i) / 2]`` over the pairs ``i <= j``.
+
+    MX: two outer products and one selection (a graph whose size does not grow with the
+    modes); SX: one scalar product per pair. The same numbers either way.
+    """
     pairs = _pairs(q2.shape[0])
+    if isinstance(q2, ca.MX):
+        index = [j * q2.shape[0] + i for i, j in pairs]      # column-major position of (i, j)
+        outer = ca.mtimes(q2, q2d.T)
+        return ca.vec(ca.mtimes(q2, q2.T))[index], ca.vec(0.5 * (outer + outer.T))[index]
     y = ca.vertcat(*[q2[i] * q2[j] for i, j in pairs])
     yd = ca.vertcat(*[q2[i] * q2d[i] if i == j else 0.5 * (q2[i] * q2d[j] + q2[j] * q2d[i])
                       for i, j in pairs])
@@ -379,11 +436,13 @@ class HubBeamModel:
         Returns
         -------
         casadi.Function
-            The same function without the input ``p`` (SX, callable on SX, MX or numbers).
+            The same function without the input ``p`` (SX or MX as ``function``; callable on
+            symbols of its type or on numbers).
         """
         names = function.name_in()[:-1]
-        args = [ca.SX.sym(n, function.sparsity_in(i)) for i, n in enumerate(names)]
-        outs = function.call(args + [ca.SX(ca.DM(self.p))])
+        sym = symbol_type(function)
+        args = [sym.sym(n, function.sparsity_in(i)) for i, n in enumerate(names)]
+        outs = function.call(args + [sym(ca.DM(self.p))])
         return ca.Function(function.name(), args, outs, names, function.name_out(), {"cse": True})
 
     @property
@@ -698,7 +757,10 @@ class ParametricModel:
     Built once per ``(name, n_axial, n_transverse)`` (:func:`parametric_model`) and valid
     for any tip mass, tip position, material or geometry: a :class:`HubBeamModel` only
     computes its parameter vector :attr:`HubBeamModel.p` and passes it as the last input.
-    Every function is SX with common subexpressions shared:
+    Every function has its common subexpressions shared. CFOAM's from
+    :data:`MX_FROM_TRANSVERSE` transverse modes on are MX (:attr:`sym`), so that the quartic
+    foreshortening terms stay dense matrix products on the pair moments (the graph, its build
+    and its generated C do not grow with the modes); the others are SX:
 
     ``mass_matrix(q, p)``, ``bias(q, v, p)``, ``inverse_dynamics(q, v, a, p)``,
     ``energy(q, v, p) -> (T, U, E)``, ``momentum(q, v, p)``, ``q_theta(q, v, p)`` and
@@ -714,6 +776,9 @@ class ParametricModel:
         Axial and transverse modes.
     axial : {"dynamic", "quasi-static"}
         How the axial coordinates move (:data:`AXIAL_TREATMENTS`).
+    symbols : {"SX", "MX"}, optional
+        Force the symbol type (default: MX for CFOAM from :data:`MX_FROM_TRANSVERSE` transverse
+        modes on, else SX).
 
     Attributes
     ----------
@@ -724,19 +789,28 @@ class ParametricModel:
     n_axial_modes : int
     layout : tuple
         See :func:`parameter_layout`.
+    sym : type
+        ``casadi.MX`` (CFOAM) or ``casadi.SX``: the symbols to compose its functions with.
     """
 
     #: The functions, by attribute name (``axial`` only for ``axial="quasi-static"``).
     FUNCTIONS = ("mass_matrix", "bias", "inverse_dynamics", "energy", "momentum", "q_theta", "tip",
                  "axial_coordinates")
 
-    def __init__(self, name: str, n_axial: int, n_transverse: int, axial: str = "dynamic"):
+    def __init__(self, name: str, n_axial: int, n_transverse: int, axial: str = "dynamic",
+                 symbols: str | None = None):
         self.name, self.spec = name, MODEL_SPECS[name]
         self.axial = check_axial(axial, name, n_axial)
         self.n_axial_modes = n_axial
         self.n_axial = n_axial if self.axial == "dynamic" else 0
         self.n_transverse = n_transverse
         self.n_q = 1 + self.n_axial + n_transverse
+        if symbols is None:
+            large = self.spec.foreshortening == "complete" and n_transverse >= MX_FROM_TRANSVERSE
+            symbols = "MX" if large else "SX"
+        if symbols not in ("SX", "MX"):
+            raise ParameterError(f"symbols must be 'SX' or 'MX', got {symbols!r}")
+        self.sym = ca.MX if symbols == "MX" else ca.SX
         self.layout = parameter_layout(name, n_axial, n_transverse, self.axial)
         self.n_p = sum(r * c for _, (r, c) in self.layout)
         if self.axial == "dynamic":
@@ -769,8 +843,8 @@ class ParametricModel:
 
     def _build(self):
         n1, nq, spec = self.n_axial, self.n_q, self.spec
-        q, v, a = ca.SX.sym("q", nq), ca.SX.sym("v", nq), ca.SX.sym("a", nq)
-        p = ca.SX.sym("p", self.n_p)
+        q, v, a = self.sym.sym("q", nq), self.sym.sym("v", nq), self.sym.sym("a", nq)
+        p = self.sym.sym("p", self.n_p)
         f = self._unpack(p)
         q1, q2 = q[1:1 + n1], q[1 + n1:]
         q1d, q2d = v[1:1 + n1], v[1 + n1:]
@@ -827,11 +901,11 @@ class ParametricModel:
         condensation costs two small products instead of a symbolic factorisation.
         """
         n1, nq, spec = self.n_axial_modes, self.n_q, self.spec
-        q, v, a = ca.SX.sym("q", nq), ca.SX.sym("v", nq), ca.SX.sym("a", nq)
-        p = ca.SX.sym("p", self.n_p)
+        q, v, a = self.sym.sym("q", nq), self.sym.sym("v", nq), self.sym.sym("a", nq)
+        p = self.sym.sym("p", self.n_p)
         f = self._unpack(p)
         q2, q2d = q[1:], v[1:]
-        s1, none = ca.SX.sym("q1", n1), ca.SX.zeros(n1)
+        s1, none = self.sym.sym("q1", n1), self.sym.zeros(n1)
         L_s = (kinetic_energy(spec, f, f["J_h"], v[0], s1, q2, none, q2d)
                - potential_energy(f["K1"], f["K2"], s1, q2))
         g = ca.substitute(ca.gradient(L_s, s1), s1, none)

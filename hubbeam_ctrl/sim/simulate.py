@@ -40,7 +40,7 @@ from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse, UserManeuver
-from hubbeam_ctrl.plant.models import MODEL_SPECS, HubBeamModel, check_axial, resolve_model
+from hubbeam_ctrl.plant.models import MODEL_SPECS, HubBeamModel, check_axial, jacobian_columns, resolve_model
 from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.sim.results import Result, describe_input
 
@@ -185,13 +185,15 @@ def residual_function(model: HubBeamModel, backend=None) -> tuple:
     f = pm.__dict__.get("_residual_vm")
     if f is None:
         base = pm.inverse_dynamics
-        args = [ca.SX.sym(name, base.size_in(i)) for i, name in enumerate(base.name_in())]
+        args = [pm.sym.sym(name, base.size_in(i)) for i, name in enumerate(base.name_in())]
         f = ca.Function(base.name(), args, base.call(args), base.name_in(), base.name_out(),
-                        {"custom_jacobian": jac, "jac_penalty": 0})
+                        {"custom_jacobian": jac, "jac_penalty": 0,
+                         "enable_forward": False, "enable_reverse": False})
         pm.__dict__["_residual_vm"] = f
     if resolve_backend(backend) == "vm":
         return f, "vm"
-    g = compile_function(pm.inverse_dynamics, backend, opt=OPT_HOT, jacobian=OPT_COLD, jacobian_function=jac)
+    jac_opt = OPT_HOT if pm.sym is ca.MX else OPT_COLD    # MX: compact code, worth optimising
+    g = compile_function(pm.inverse_dynamics, backend, opt=OPT_HOT, jacobian=jac_opt, jacobian_function=jac)
     return (f, "vm") if g is pm.inverse_dynamics else (g, "compiled")
 
 
@@ -207,12 +209,17 @@ def _residual_jacobian(pm) -> ca.Function:
     cached = pm.__dict__.get("_residual_jacobian")
     if cached is None:
         f = pm.inverse_dynamics
-        q, v, a = (ca.SX.sym(k, pm.n_q) for k in ("q", "v", "a"))
-        p = ca.SX.sym("p", pm.n_p)
-        out = ca.SX.sym("out_f", pm.n_q)
-        y = f(q, v, a, p)
-        cached = ca.Function("jac_inverse_dynamics", [q, v, a, p, out],
-                             [ca.jacobian(y, q), ca.jacobian(y, v), ca.jacobian(y, a), ca.SX(pm.n_q, pm.n_p)],
+        q, v, a = (pm.sym.sym(k, pm.n_q) for k in ("q", "v", "a"))
+        p = pm.sym.sym("p", pm.n_p)
+        out = pm.sym.sym("out_f", pm.n_q)
+        if pm.sym is ca.MX:      # column by column: an MX graph's jacobian copies it per direction
+            # on the structural pattern CasADi finds for the VM function, so that both backends
+            # hand IDAS the same sparse matrices
+            blocks = [ca.project(jacobian_columns(f, [q, v, a, p], i), f.sparsity_jac(i, 0)) for i in range(3)]
+        else:
+            y = f(q, v, a, p)
+            blocks = [ca.jacobian(y, q), ca.jacobian(y, v), ca.jacobian(y, a)]
+        cached = ca.Function("jac_inverse_dynamics", [q, v, a, p, out], blocks + [pm.sym(pm.n_q, pm.n_p)],
                              ["q", "v", "a", "p", "out_f"], ["jac_f_q", "jac_f_v", "jac_f_a", "jac_f_p"],
                              {"cse": True})
         pm.__dict__["_residual_jacobian"] = cached

@@ -32,7 +32,7 @@ from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
-from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, resolve_model
+from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, jacobian_columns, resolve_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.results import Result, describe_input
 
@@ -445,15 +445,16 @@ def _substep_expressions(model: ParametricModel, settings: StepperSettings):
     n = model.n_q
     h = settings.dt / settings.substeps
     am, af, gamma, beta = generalized_alpha_coefficients(settings.rho_inf)
-    s = ca.SX.sym("s", 4 * n)
-    tau = ca.SX.sym("tau")
-    a = ca.SX.sym("a", n)
-    p = ca.SX.sym("p", model.n_p)
+    sym = model.sym                      # MX for CFOAM (see ParametricModel), else SX
+    s = sym.sym("s", 4 * n)
+    tau = sym.sym("tau")
+    a = sym.sym("a", n)
+    p = sym.sym("p", model.n_p)
     q0, v0, a0, p0 = s[:n], s[n:2 * n], s[2 * n:3 * n], s[3 * n:]
     p1 = ((1 - af) * a + af * a0 - am * p0) / (1 - am)
     q1 = q0 + h * v0 + h * h * (0.5 - beta) * p0 + h * h * beta * p1
     v1 = v0 + h * (1 - gamma) * p0 + h * gamma * p1
-    force = ca.vertcat(tau, ca.SX.zeros(n - 1))
+    force = ca.vertcat(tau, sym.zeros(n - 1))
     residual = model.inverse_dynamics(q1, v1, a, p) - force
     return s, tau, a, p, (q1, v1, p1), residual
 
@@ -463,7 +464,11 @@ def _iteration_matrix_function(model: ParametricModel, settings: StepperSettings
     """Jacobian of the step residual in the new accelerations, at the predictor ``a = a_n``."""
     n = model.n_q
     s, tau, a, p, _, residual = _substep_expressions(model, settings)
-    J = ca.densify(ca.substitute(ca.jacobian(residual, a), a, s[2 * n:3 * n]))
+    if model.sym is ca.MX:
+        R = ca.Function("residual", [a, s, tau, p], [residual])
+        J = ca.densify(jacobian_columns(R, [s[2 * n:3 * n], s, tau, p], 0))
+    else:
+        J = ca.densify(ca.substitute(ca.jacobian(residual, a), a, s[2 * n:3 * n]))
     # no common-subexpression pass: it found 2 % on CFOAM 10+10 and took 2.6 s of its 8.4 s build
     return ca.Function("iteration_matrix", [s, tau, p], [J], ["s", "tau", "p"], ["J"])
 
@@ -486,13 +491,16 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None)
     step : casadi.Function
         ``(s, tau (1, substeps), J_inv, p) -> (s_next, err)``, compiled at -O1 when compiled.
     iteration_matrix : casadi.Function
-        ``(s, tau, p) -> J`` (dense), compiled at -O0 (refreshed only now and then).
+        ``(s, tau, p) -> J`` (dense), compiled at -O0 (refreshed only now and then; MX models,
+        whose code is compact, at the hot functions' level).
     backend : str
         ``"compiled"`` or ``"vm"``: the backend the step runs on.
     """
     vm_step = _fast_step_function(model.parametric, settings)
     step = compile_function(vm_step, backend, opt=OPT_HOT)
-    jac = compile_function(_iteration_matrix_function(model.parametric, settings), backend, opt=OPT_COLD)
+    # SX: a large scalar graph, rarely called (-O0); MX: compact code whose products are worth -O3
+    jac_opt = OPT_HOT if model.parametric.sym is ca.MX else OPT_COLD
+    jac = compile_function(_iteration_matrix_function(model.parametric, settings), backend, opt=jac_opt)
     return step, jac, "vm" if step is vm_step else "compiled"
 
 
@@ -527,7 +535,9 @@ def _fast_step_function(model: ParametricModel, settings: StepperSettings) -> ca
 def _robust_step_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
     n = model.n_q
     s, tau, a, p, (q1, v1, p1), residual = _substep_expressions(model, settings)
-    G = ca.Function("G", [a, ca.vertcat(s, tau, p)], [residual])
+    R = ca.Function("R", [a, s, tau, p], [residual])
+    A_, W = ca.MX.sym("a", n), ca.MX.sym("w", 4 * n + 1 + model.n_p)   # an MX input must be one symbol
+    G = ca.Function("G", [A_, W], [R(A_, W[:4 * n], W[4 * n], W[4 * n + 1:])])
     rf = ca.rootfinder("rf", "newton", G, {"abstol": 1e-9, "abstolStep": 1e-13, "max_iter": 50,
                                           "line_search": False, "error_on_fail": True})
     update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)])
