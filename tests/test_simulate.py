@@ -43,17 +43,19 @@ def test_quasi_static_axial_matches_exact_beam_reference(no_tip):
     assert np.max(np.abs(res.u_tip)) == pytest.approx(np.max(np.abs(ref[:, 4])), rel=0.02)
 
 
-TIGHT = dict(rtol=1e-11, atol=1e-11, max_order=5)
+# tight enough to resolve the stiff axial modes (order 5): 4e-7 of the peak against 1e-11; on
+# the compiled backend where a compiler works (the dynamic CFOAM run takes a minute on the VM)
+TIGHT = dict(rtol=1e-9, atol=1e-9, max_order=5, backend="auto")
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name, maneuver, t_end, m_t", [
-    ("cfoam", SpinUp(5.0, 30.0), 50.0, 0.0),            # Fig. 6
+    ("foam", SpinUp(5.0, 30.0), 50.0, 0.0),             # Fig. 6
     ("foam", TorquePulse(200.0, 10.0), 30.0, 0.1),      # Eq. 44
     ("cfoam", TorquePulse(200.0, 10.0), 30.0, 0.1)])
 def test_quasi_static_axial_within_1e_4_of_the_peak(name, maneuver, t_end, m_t):
     """Axial coordinates from their static balance against integrated ones, both run tight:
-    measured 0.7-2.7e-5 of the peak over the whole curve (u_tip within 6e-5), while the tight
+    measured 2.0-2.7e-5 of the peak over the whole curve (u_tip within 6e-5), while the tight
     run is 12-30x faster without the stiff axial modes. The fixed-step stepper on the condensed
     model stays within its 1e-3."""
     params = Params(m_t=m_t)
