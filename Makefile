@@ -4,6 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 STAMP_TEST := $(VENV)/.installed-test
+STAMP_BENCH := $(VENV)/.installed-bench
 export MPLBACKEND := Agg
 
 .PHONY: demo test test-fast lint coverage bench bench-notebooks notebooks clean
@@ -18,6 +19,10 @@ $(STAMP): $(BIN)/python pyproject.toml
 
 $(STAMP_TEST): $(BIN)/python pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $@ $(STAMP)
+
+$(STAMP_BENCH): $(BIN)/python pyproject.toml
+	$(BIN)/python -m pip install --quiet -e ".[bench]"
 	touch $@ $(STAMP)
 
 demo: $(STAMP)
@@ -45,7 +50,7 @@ lint: $(STAMP_TEST)
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports --no-cache
 
-bench: $(STAMP)
+bench: $(STAMP_BENCH)
 	$(BIN)/python benchmarks/bench_plant.py
 	$(BIN)/python benchmarks/bench_mpc.py
 	$(BIN)/python benchmarks/bench_sweep.py

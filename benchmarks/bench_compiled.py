@@ -17,7 +17,8 @@ even on a loaded machine (the absolute times do not: report the load beside them
    function called the pre-buffer way (NumPy arguments converted at every call).
 3. ``mpc_step``: one MPC call (horizon 50, 5 modes, slew reference, on the sampled design
    model) [us], median and p99 over 1500 steps: DAQP direct against DAQP through CasADi
-   ``conic``, and do-mpc on the same QP if it is installed (optional).
+   ``conic``, and do-mpc on the same QP at the first 300 states if it is installed (optional
+   dependency of this benchmark only: ``pip install do-mpc``), with its first moves compared.
 4. ``compare_cfoam``: :func:`hubbeam_ctrl.study.compare` with all five default controllers on
    CFOAM, warm cache [s]; ``params_to_ready``: a new ``Params`` to a ready compiled CFOAM
    stepper [ms]; ``tip_mass_sweep_cfoam_lqr``: 20 LQR slews on CFOAM, one per tip mass
@@ -43,6 +44,7 @@ import tempfile
 import time
 from contextlib import contextmanager
 
+import casadi as ca
 import numpy as np
 
 from controllers import MPC, DesignModel, MPCSettings, slew_reference
@@ -159,19 +161,22 @@ def plant_step(name: str, n: int = 5, samples: int = 3000) -> dict:
 
 
 # -- 3. MPC step -------------------------------------------------------------------------------------
-def mpc_step(steps: int = 1500, n_modes: int = 5) -> dict:
+def mpc_step(steps: int = 1500, n_modes: int = 5, do_mpc_steps: int = 300) -> dict:
     p = Params(n_transverse=n_modes)
     dt, tau_max = 0.01, 200.0
     design = DesignModel.build(p, 0.0, dt)
     J = p.total_inertia
     ref = slew_reference(tau_max * 100.0 / (2 * math.pi * J), 10.0, J, tau_max, dt, steps * dt + 1.0)
     out, moves = {}, {}
+    states = np.empty((steps, design.n_x))
     for solver in ("daqp", "daqp-casadi"):
         mpc = MPC(design, MPCSettings(horizon=50, solver=solver, tau_max=tau_max), ref)
         mpc.reset()
         x = np.zeros(design.n_x)
         ts, us = np.empty(steps), np.empty(steps)
         for k in range(steps):
+            if solver == "daqp":
+                states[k] = x
             t0 = time.perf_counter()
             us[k] = mpc(k * dt, x)
             ts[k] = time.perf_counter() - t0
@@ -181,12 +186,69 @@ def mpc_step(steps: int = 1500, n_modes: int = 5) -> dict:
                        "qp_fallbacks": mpc.stats()["qp_fallbacks"]}
     out["first_move_max_diff_nm"] = float(np.max(np.abs(moves["daqp"] - moves["daqp-casadi"])))
     out["speedup_median"] = out["daqp-casadi"]["median_us"] / out["daqp"]["median_us"]
-    try:
-        import do_mpc  # noqa: F401
-        out["do_mpc"] = "installed but not wired into this benchmark"
-    except ImportError:
-        out["do_mpc"] = "not installed (optional: pip install do-mpc)"
+    out["do_mpc"] = do_mpc_step(mpc, design, states[:do_mpc_steps], moves["daqp"][:do_mpc_steps])
+    if "median_us" in out["do_mpc"]:
+        out["speedup_median_vs_do_mpc"] = out["do_mpc"]["median_us"] / out["daqp"]["median_us"]
     return out
+
+
+def do_mpc_step(mpc, design, states, moves) -> dict:
+    """do-mpc (optional dependency of this benchmark only) on the same QP, at the same states.
+
+    The same discrete model, stage weight ``Q`` on ``x_1..x_{N-1}``, terminal weight ``P`` (the
+    LQR Riccati solution) on ``x_N``, torque weight ``R`` on ``u - u_ff``, the same reference and
+    the same torque bounds; do-mpc solves it with its default NLP solver (IPOPT). Its first move
+    is compared with the direct DAQP one at each state.
+    """
+    try:
+        import do_mpc
+    except ImportError:
+        return {"status": "not installed (optional: pip install do-mpc)"}
+    from controllers.lqr import dlqr_gain
+    s = mpc.settings
+    N, nx, dt = s.horizon, design.n_x, design.dt
+    Q, R = s.weights.matrices(design)
+    _, P = dlqr_gain(design, s.weights)
+    model = do_mpc.model.Model("discrete")
+    x = model.set_variable("_x", "x", (nx, 1))
+    u = model.set_variable("_u", "tau")
+    xr = model.set_variable("_tvp", "x_ref", (nx, 1))
+    ur = model.set_variable("_tvp", "u_ref")
+    model.set_rhs("x", ca.mtimes(ca.DM(design.Ad), x) + ca.DM(design.Bd[:, 0]) * u)
+    model.setup()
+    ctrl = do_mpc.controller.MPC(model)
+    ctrl.settings.n_horizon, ctrl.settings.t_step = N, dt
+    ctrl.settings.store_full_solution = False
+    ctrl.settings.nlpsol_opts = {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes"}
+    e = x - xr
+    ctrl.set_objective(lterm=ca.bilin(ca.DM(Q), e, e) + float(R[0, 0]) * (u - ur) ** 2,
+                       mterm=ca.bilin(ca.DM(P), e, e))
+    ctrl.set_rterm(tau=0.0)
+    ctrl.bounds["lower", "_u", "tau"], ctrl.bounds["upper", "_u", "tau"] = -s.tau_max, s.tau_max
+    template = ctrl.get_tvp_template()
+    X, U = mpc._xref, mpc._ff * mpc._tff
+    clock = {"k": 0}
+
+    def tvp(_t):
+        k = clock["k"]
+        for j in range(N + 1):
+            i = min(k + j, len(U) - 1)
+            template["_tvp", j, "x_ref"] = X[min(k + j, len(X) - 1)]
+            template["_tvp", j, "u_ref"] = U[i]
+        return template
+
+    ctrl.set_tvp_fun(tvp)
+    with stdout_to_stderr():
+        ctrl.setup()
+        ts, first = np.empty(len(states)), np.empty(len(states))
+        for k, xk in enumerate(states):
+            clock["k"] = k
+            t0 = time.perf_counter()
+            first[k] = float(np.asarray(ctrl.make_step(xk.reshape(-1, 1))).ravel()[0])
+            ts[k] = time.perf_counter() - t0
+    return {"version": do_mpc.__version__, "solver": "ipopt", "steps": len(states),
+            "median_us": 1e6 * float(np.median(ts)), "p99_us": 1e6 * float(np.percentile(ts, 99)),
+            "first_move_max_diff_nm": float(np.max(np.abs(first - moves)))}
 
 
 # -- 4. compare -----------------------------------------------------------------------------------
