@@ -37,7 +37,7 @@ from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["MODEL_NAMES", "ModelSpec", "MODEL_SPECS", "HubBeamModel", "build_model", "resolve_model",
            "kinetic_energy", "potential_energy", "ParametricModel", "parametric_model", "parameter_layout",
-           "reduced_foreshortening", "pair_map", "AXIAL_TREATMENTS", "check_axial", "symbol_type",
+           "reduced_foreshortening", "pair_map", "AXIAL_TREATMENTS", "check_axial",
            "jacobian_columns", "MX_FROM_TRANSVERSE"]
 
 MODEL_NAMES = ("cfoam", "foam", "tlam", "sfoam")
@@ -48,7 +48,7 @@ MODEL_NAMES = ("cfoam", "foam", "tlam", "sfoam")
 MX_FROM_TRANSVERSE = 8
 
 #: How the axial coordinates move: integrated with their inertia, or condensed out by their
-#: static balance at every instant (see :meth:`ParametricModel._build_quasi_static`).
+#: static balance at every instant (see :meth:`ParametricModel._condensed_axial`).
 AXIAL_TREATMENTS = ("dynamic", "quasi-static")
 
 
@@ -87,17 +87,6 @@ MODEL_SPECS = {
     "sfoam": ModelSpec("sfoam", False, "first", False,
                        "simplified FOAM: no axial modes, no Q_theta (design model)"),
 }
-
-
-def symbol_type(function: ca.Function):
-    """``casadi.MX`` for a function built on MX symbols, else ``casadi.SX``: the symbols to call
-    it with when composing expressions (an MX function called on SX is expanded to scalars).
-
-    Parameters
-    ----------
-    function : casadi.Function
-    """
-    return ca.MX if function.is_a("MXFunction") else ca.SX
 
 
 def jacobian_columns(function: ca.Function, args: list, wrt: int, out: int = 0):
@@ -440,7 +429,7 @@ class HubBeamModel:
             symbols of its type or on numbers).
         """
         names = function.name_in()[:-1]
-        sym = symbol_type(function)
+        sym = self.parametric.sym
         args = [sym.sym(n, function.sparsity_in(i)) for i, n in enumerate(names)]
         outs = function.call(args + [sym(ca.DM(self.p))])
         return ca.Function(function.name(), args, outs, names, function.name_out(), {"cse": True})
@@ -633,7 +622,7 @@ class HubBeamModel:
         """Axial coordinates ``q1`` [m] of one or many samples.
 
         With dynamic axial coordinates they are part of ``q``; with quasi-static ones they
-        solve the static balance at ``(q, v)`` (:meth:`ParametricModel._build_quasi_static`).
+        solve the static balance at ``(q, v)`` (:meth:`ParametricModel._condensed_axial`).
 
         Parameters
         ----------
@@ -765,7 +754,7 @@ class ParametricModel:
     ``mass_matrix(q, p)``, ``bias(q, v, p)``, ``inverse_dynamics(q, v, a, p)``,
     ``energy(q, v, p) -> (T, U, E)``, ``momentum(q, v, p)``, ``q_theta(q, v, p)`` and
     ``tip(q, p) -> (v_tip, u_tip)`` (:attr:`FUNCTIONS`), each built on first use. With
-    ``axial="quasi-static"`` (:meth:`_build_quasi_static`) ``mass_matrix`` and ``tip`` also
+    ``axial="quasi-static"`` (:meth:`_condensed_axial`) ``mass_matrix`` and ``tip`` also
     take ``v`` after ``q``, and ``axial_coordinates(q, v, p) -> q1`` gives the condensed
     coordinates.
 
@@ -813,10 +802,7 @@ class ParametricModel:
         self.sym = ca.MX if symbols == "MX" else ca.SX
         self.layout = parameter_layout(name, n_axial, n_transverse, self.axial)
         self.n_p = sum(r * c for _, (r, c) in self.layout)
-        if self.axial == "dynamic":
-            self._build()
-        else:
-            self._build_quasi_static()
+        self._build()
 
     def values(self, fields: dict) -> np.ndarray:
         """The parameter vector from numbers named as in :attr:`layout`.
@@ -842,49 +828,64 @@ class ParametricModel:
         return out
 
     def _build(self):
-        n1, nq, spec = self.n_axial, self.n_q, self.spec
+        """Lagrange's equations of ``L = T - U`` by AD, with the axial coordinates integrated
+        or condensed (:meth:`_condensed_axial`); each CasADi function is created on first use."""
+        nq, spec = self.n_q, self.spec
         q, v, a = self.sym.sym("q", nq), self.sym.sym("v", nq), self.sym.sym("a", nq)
         p = self.sym.sym("p", self.n_p)
         f = self._unpack(p)
-        q1, q2 = q[1:1 + n1], q[1 + n1:]
-        q1d, q2d = v[1:1 + n1], v[1 + n1:]
-        T = kinetic_energy(spec, f, f["J_h"], v[0], q1, q2, q1d, q2d)
+        n1 = self.n_axial
+        q2, q2d = q[1 + n1:], v[1 + n1:]
+        if self.axial == "dynamic":
+            q1 = q[1:1 + n1]
+            T = kinetic_energy(spec, f, f["J_h"], v[0], q1, q2, v[1:1 + n1], q2d)
+        else:
+            q1, T = self._condensed_axial(f, v[0], q2, q2d)
         U = potential_energy(f["K1"], f["K2"], q1, q2)
-        M = ca.hessian(T, v)[0]
-        dT_dv = ca.gradient(T, v)
-        dT_dq = ca.gradient(T, q)
-        inertial = ca.jtimes(dT_dv, q, v) - dT_dq               # velocity terms
+        L = T - U
+        M = ca.hessian(L, v)[0]
+        dL_dv, dL_dq = ca.gradient(L, v), ca.gradient(L, q)
+        inertial = ca.jtimes(dL_dv, q, v) - dL_dq               # velocity and elastic terms
         q_theta = -inertial[0]
         if not spec.hub_velocity_terms:
             inertial[0] = 0
-        elastic = ca.gradient(U, q) + ca.vertcat(0, f["C"] * v[1:])
-        bias = inertial + elastic
-        # d/dt dT/dv - dT/dq in one forward sweep over (q, v) in the direction (v, a): the
+        damping = ca.vertcat(0, f["C"][self.n_axial_modes - n1:] * v[1:])
+        # d/dt dL/dv - dL/dq in one forward sweep over (q, v) in the direction (v, a): the
         # foreshortening products are differentiated once, not once per direction (18 % fewer
         # instructions for CFOAM 10+10 than M a + c as two sweeps)
-        generalized_force = ca.jtimes(dT_dv, ca.vertcat(q, v), ca.vertcat(v, a)) - dT_dq + elastic
+        generalized_force = ca.jtimes(dL_dv, ca.vertcat(q, v), ca.vertcat(v, a)) - dL_dq + damping
         if not spec.hub_velocity_terms:                         # SFOAM: the hub row keeps M a only
-            generalized_force[0] = ca.jtimes(dT_dv[0], v, a)
+            generalized_force[0] = ca.jtimes(dL_dv[0], v, a)
+        if self.axial == "dynamic":
+            energies = [T, U, T + U]
+        else:                       # L is not quadratic in v: Jacobi's energy is the conserved one
+            h = ca.dot(v, dL_dv) - L
+            energies = [h - U, U, h]
         v_tip = ca.dot(f["f2_tip"], q2)
-        u_tip = ca.dot(f["f1_tip"], q1) if n1 else 0 * v_tip
+        u_tip = ca.dot(f["f1_tip"], q1) if self.n_axial_modes else 0 * v_tip
         if spec.foreshortening != "none":
             u_tip = u_tip - 0.5 * _quad(f["S_tip"], q2)
+        # condensed axial coordinates depend on the velocities: so do M and the tip
+        state, names = ([q], ["q"]) if self.axial == "dynamic" else ([q, v], ["q", "v"])
         # the expressions are built here; each Function on first use (creating one costs about as
         # much as the expression graph is large: 0.3-0.9 s each for CFOAM 10+10, and the plant step
         # needs only inverse_dynamics)
         self._definitions = {
-            "mass_matrix": ("M", [q, p], [M], ["q", "p"], ["M"]),
-            "bias": ("c", [q, v, p], [bias], ["q", "v", "p"], ["c"]),
+            "mass_matrix": ("M", state + [p], [M], names + ["p"], ["M"]),
+            "bias": ("c", [q, v, p], [inertial + damping], ["q", "v", "p"], ["c"]),
             "inverse_dynamics": ("inverse_dynamics", [q, v, a, p], [generalized_force],
                                  ["q", "v", "a", "p"], ["f"]),
-            "energy": ("energy", [q, v, p], [T, U, T + U], ["q", "v", "p"], ["T", "U", "E"]),
-            "momentum": ("momentum", [q, v, p], [dT_dv[0]], ["q", "v", "p"], ["H"]),
+            "energy": ("energy", [q, v, p], energies, ["q", "v", "p"], ["T", "U", "E"]),
+            "momentum": ("momentum", [q, v, p], [dL_dv[0]], ["q", "v", "p"], ["H"]),
             "q_theta": ("q_theta", [q, v, p], [q_theta], ["q", "v", "p"], ["Q_theta"]),
-            "tip": ("tip", [q, p], [v_tip, u_tip], ["q", "p"], ["v_tip", "u_tip"]),
+            "tip": ("tip", state + [p], [v_tip, u_tip], names + ["p"], ["v_tip", "u_tip"]),
         }
+        if self.axial == "quasi-static":
+            self._definitions["axial_coordinates"] = ("axial_coordinates", [q, v, p], [q1],
+                                                      ["q", "v", "p"], ["q1"])
 
-    def _build_quasi_static(self):
-        """Equations with the axial coordinates condensed out by their static balance.
+    def _condensed_axial(self, f: dict, thd, q2, q2d) -> tuple:
+        """``(q1*, T(q1*))``: the axial coordinates from their static balance, and ``T`` there.
 
         Without the axial velocities in ``T`` the Lagrangian ``L = T - U`` is quadratic in
         ``q1`` and ``dL/dq1 = 0`` gives ``q1*(q, v) = -H^-1 g`` with ``H = d2L/dq1^2`` and
@@ -900,40 +901,12 @@ class ParametricModel:
         ``Phi1' M1 Phi1 = I``): ``H^-1 = Phi1 diag(1 / (thd^2 - lam1)) Phi1'``, so the
         condensation costs two small products instead of a symbolic factorisation.
         """
-        n1, nq, spec = self.n_axial_modes, self.n_q, self.spec
-        q, v, a = self.sym.sym("q", nq), self.sym.sym("v", nq), self.sym.sym("a", nq)
-        p = self.sym.sym("p", self.n_p)
-        f = self._unpack(p)
-        q2, q2d = q[1:], v[1:]
+        n1 = self.n_axial_modes
         s1, none = self.sym.sym("q1", n1), self.sym.zeros(n1)
-        L_s = (kinetic_energy(spec, f, f["J_h"], v[0], s1, q2, none, q2d)
-               - potential_energy(f["K1"], f["K2"], s1, q2))
-        g = ca.substitute(ca.gradient(L_s, s1), s1, none)
-        modal = ca.mtimes(f["Phi1"].T, g) / (v[0] ** 2 - f["lam1"])
-        q1 = -ca.mtimes(f["Phi1"], modal)                        # -H^-1 g, H = d2L/dq1^2
-        U = potential_energy(f["K1"], f["K2"], q1, q2)
-        L = ca.substitute(L_s, s1, q1)
-        dL_dv, dL_dq = ca.gradient(L, v), ca.gradient(L, q)
-        M = ca.hessian(L, v)[0]
-        inertial = ca.jtimes(dL_dv, q, v) - dL_dq               # velocity and elastic terms
-        damping = ca.vertcat(0, f["C"][n1:] * q2d)
-        generalized_force = ca.jtimes(dL_dv, ca.vertcat(q, v), ca.vertcat(v, a)) - dL_dq + damping
-        h = ca.dot(v, dL_dv) - L
-        v_tip = ca.dot(f["f2_tip"], q2)
-        u_tip = ca.dot(f["f1_tip"], q1)
-        if spec.foreshortening != "none":
-            u_tip = u_tip - 0.5 * _quad(f["S_tip"], q2)
-        self._definitions = {
-            "mass_matrix": ("M", [q, v, p], [M], ["q", "v", "p"], ["M"]),
-            "bias": ("c", [q, v, p], [inertial + damping], ["q", "v", "p"], ["c"]),
-            "inverse_dynamics": ("inverse_dynamics", [q, v, a, p], [generalized_force],
-                                 ["q", "v", "a", "p"], ["f"]),
-            "energy": ("energy", [q, v, p], [h - U, U, h], ["q", "v", "p"], ["T", "U", "E"]),
-            "momentum": ("momentum", [q, v, p], [dL_dv[0]], ["q", "v", "p"], ["H"]),
-            "q_theta": ("q_theta", [q, v, p], [-inertial[0]], ["q", "v", "p"], ["Q_theta"]),
-            "tip": ("tip", [q, v, p], [v_tip, u_tip], ["q", "v", "p"], ["v_tip", "u_tip"]),
-            "axial_coordinates": ("axial_coordinates", [q, v, p], [q1], ["q", "v", "p"], ["q1"]),
-        }
+        T_s = kinetic_energy(self.spec, f, f["J_h"], thd, s1, q2, none, q2d)
+        g = ca.substitute(ca.gradient(T_s - potential_energy(f["K1"], f["K2"], s1, q2), s1), s1, none)
+        q1 = -ca.mtimes(f["Phi1"], ca.mtimes(f["Phi1"].T, g) / (thd ** 2 - f["lam1"]))   # -H^-1 g
+        return q1, ca.substitute(T_s, s1, q1)
 
     def __getattr__(self, name: str):
         """Build one of the functions (:attr:`FUNCTIONS`) on first use and keep it."""

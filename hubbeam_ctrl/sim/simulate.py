@@ -187,8 +187,7 @@ def residual_function(model: HubBeamModel, backend=None) -> tuple:
         base = pm.inverse_dynamics
         args = [pm.sym.sym(name, base.size_in(i)) for i, name in enumerate(base.name_in())]
         f = ca.Function(base.name(), args, base.call(args), base.name_in(), base.name_out(),
-                        {"custom_jacobian": jac, "jac_penalty": 0,
-                         "enable_forward": False, "enable_reverse": False})
+                        {"custom_jacobian": jac, "jac_penalty": 0})
         pm.__dict__["_residual_vm"] = f
     if resolve_backend(backend) == "vm":
         return f, "vm"
