@@ -489,9 +489,7 @@ class HubBeamModel:
             Velocities [rad/s, m/s]: needed with quasi-static axial coordinates, whose
             condensed Lagrangian is not quadratic in the velocities (``M(q, v)``).
         """
-        if self.axial == "quasi-static":
-            return np.array(self.parametric.mass_matrix(q, self._velocities(v, 1), self.p))
-        return np.array(self.parametric.mass_matrix(q, self.p))
+        return np.array(self.parametric.mass_matrix(*self._state(q, v), self.p))
 
     def bias(self, q, v) -> np.ndarray:
         """Bias vector ``c(q, v)`` (velocity, stiffness and damping terms) [N m, N].
@@ -603,11 +601,13 @@ class HubBeamModel:
             Velocities [rad/s, m/s]; needed with quasi-static axial coordinates, whose
             stretch depends on the spin and the bending rates.
         """
-        if self.axial == "quasi-static":
-            v_tip, u_tip = self.parametric.tip(q, self._velocities(v, 1), self.p)
-        else:
-            v_tip, u_tip = self.parametric.tip(q, self.p)
+        v_tip, u_tip = self.parametric.tip(*self._state(q, v), self.p)
         return float(v_tip), float(u_tip)
+
+    def _state(self, q, v) -> list:
+        """The arguments before ``p`` of ``mass_matrix`` and ``tip``: ``q``, and ``v`` when the
+        axial coordinates are condensed (they depend on the velocities)."""
+        return [q] if self.axial == "dynamic" else [q, self._velocities(v, 1)]
 
     def _velocities(self, v, samples: int) -> np.ndarray:
         if v is None:
