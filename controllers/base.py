@@ -27,7 +27,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_positive
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.params import MAX_MODES, Params
 
 __all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate", "torque_limit", "ControllerSettings",
            "TrackingSettings", "LQSettings", "check_positive", "check_psd"]
@@ -495,6 +495,38 @@ class LQSettings(TrackingSettings):
     elastic_reference: bool = setting(True, doc="Track the quasi-static deflection the reference "
                                                 "acceleration causes instead of a straight beam "
                                                 "(see DesignModel.reference_states).")
+    residual_control: bool = setting(False, doc="Compute the gain (and the MPC's plan) on the design model "
+                                                "with the default evaluation plant's residual modes and the "
+                                                "design's weights (controllers.residual.residual_design), "
+                                                "so the sampled loop is stable on every mode it models "
+                                                "(the default of for_scenario, i.e. of compare, sweeps and "
+                                                "the CLI); False: on the design modes alone (LQG: the "
+                                                "design's gain padded with zeros), which the residual "
+                                                "modes' spillover destabilises (issue 27). Gain-scheduled "
+                                                "designs ignore it.")
+
+    residual_modes: int | None = setting(None, kind=int, lo=1, hi=MAX_MODES,
+                                         doc="Transverse modes of the model with residual modes (the LQG's "
+                                             "filter when robust; the gain's with residual_control), from "
+                                             "the design's modes to 20; None: those of the default "
+                                             "evaluation plant (every mode below the sampling frequency, "
+                                             "the first above it, at least three more than the design). "
+                                             "compare() and sweeps set it to the evaluation plant's modes.")
+
+    @classmethod
+    def for_scenario(cls, scenario, **options) -> "LQSettings":
+        """The scenario's defaults (see :meth:`ControllerSettings.for_scenario`) with
+        ``residual_control = True``: the default designs are stable on the default evaluation
+        plant's modes (issue 27).
+
+        Parameters
+        ----------
+        scenario : object
+            A :class:`hubbeam_ctrl.study.scenarios.Scenario`.
+        **options
+            Study-wide controller options (``horizon``, ``solver``...).
+        """
+        return super().for_scenario(scenario, **{"residual_control": True, **options})
 
 
 # -- the interface ----------------------------------------------------------------------------
@@ -522,7 +554,10 @@ class Controller:
     dt : float
         Sample time [s].
     n_modes : int
-        Transverse modes read from the plant (``measurement="state"``).
+        Transverse modes of the design model (the evaluation plant's rule counts from them).
+    state_modes : int
+        Transverse modes read from the plant with ``measurement="state"`` (the design's, or
+        those of the model with residual modes the gain was computed on).
     """
 
     name = "controller"
@@ -543,6 +578,7 @@ class Controller:
         self.reference = reference
         self.dt = design.dt
         self.n_modes = design.n_modes
+        self.state_modes = design.n_modes
         self.tau_max = torque_limit(getattr(settings, "tau_max", None), design.params)
 
     def _prepare_reference(self, elastic: bool, extra: int = 0) -> None:
@@ -587,7 +623,8 @@ class Controller:
     def feedback_matrices(self) -> tuple:
         """``(Ac, Bc, Cc, Dc, state_names, input_names)`` of the linear feedback law.
 
-        Implemented by the linear controllers (PD, LQR, LQG); see :meth:`to_statespace`.
+        Implemented by the linear controllers (PD, LQR, LQG; MPC gives its unconstrained law);
+        see :meth:`to_statespace`.
 
         Raises
         ------
@@ -595,7 +632,7 @@ class Controller:
             For a controller that is not linear and time-invariant (open loop, MPC).
         """
         raise HubbeamError(f"controller {self.name!r} is not a linear time-invariant feedback law; "
-                           "only PD, LQR and LQG can be given as a state-space system")
+                           "only PD, LQR, LQG and (unconstrained) MPC can be given as a state-space system")
 
     def to_statespace(self):
         """The feedback law as a sampled python-control system with named signals.
@@ -616,7 +653,7 @@ class Controller:
         Raises
         ------
         HubbeamError
-            For the open loop and MPC (not linear time-invariant).
+            For the open loop and the shaped profiles (no feedback law).
         """
         import control
         Ac, Bc, Cc, Dc, states, inputs = self.feedback_matrices()

@@ -23,7 +23,7 @@ Examples
 >>> path = pathlib.Path(tempfile.mkdtemp()) / "lqg.npz"
 >>> back = load_controller(save_controller(ctrl, path))
 >>> back.input_names, back.output_names, back.n_states     # the filter carries residual modes
-(['theta', 'theta_dot', 'root_moment'], ['tau'], 16)
+(['theta', 'theta_dot', 'root_moment'], ['tau'], 22)
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.fileio import json_ready
 from hubbeam_ctrl.linear.export import FORMATS, _real_matrix, load_system, save_system
 from hubbeam_ctrl.linear.statespace import OUTPUTS, _state_unit
@@ -146,6 +146,10 @@ def controller_model(ctrl: Controller) -> ControllerModel:
     """
     if not isinstance(ctrl, Controller):
         raise ParameterError(f"controller must be a Controller, got {type(ctrl).__name__}")
+    if getattr(ctrl, "settings", None) is not None and hasattr(ctrl.settings, "horizon"):
+        raise HubbeamError(f"controller {ctrl.name!r} is not a linear time-invariant feedback law: an MPC "
+                           "solves a constrained QP at every sample (its unconstrained law, "
+                           "ctrl.to_statespace(), is for analysis only)")
     sys = ctrl.to_statespace()
     d = ctrl.design
     states, inputs = list(sys.state_labels), list(sys.input_labels)

@@ -12,12 +12,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubbeam_ctrl.core.settings import setting
-from hubbeam_ctrl.plant.params import MAX_MODES
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
 from .estimator import KalmanEstimator, KalmanNoise
 from .lqr import dlqr_gain
-from .residual import embedding, estimator_model
+from .residual import embedding, estimator_model, residual_design
 
 __all__ = ["LQGSettings", "LQG"]
 
@@ -33,10 +32,6 @@ class LQGSettings(KalmanNoise, LQSettings):
     robust: bool = setting(True, doc="Model the residual modes in the filter (controllers.residual); "
                                      "False: the filter on the design model alone, which the modes it "
                                      "leaves out destabilise.")
-    residual_modes: int | None = setting(None, kind=int, lo=1, hi=MAX_MODES,
-                                         doc="Transverse modes of the filter's model when robust (from the "
-                                             "design's modes to 20); None: every mode below the Nyquist "
-                                             "frequency and the first above it.")
 
 
 def filter_model(design: DesignModel, settings: LQGSettings) -> DesignModel:
@@ -64,7 +59,9 @@ class LQG(Controller):
     (after predicting with the torque applied since the last call) and returns
     ``tau = sat(tau_ff - K (x_hat - x_ref))``. With ``settings.robust`` the filter's model
     (:attr:`filter_model`) has the residual modes of
-    :func:`controllers.residual.estimator_modes`; ``K`` acts on the design modes only.
+    :func:`controllers.residual.estimator_modes` and, with ``settings.residual_control``, the
+    gain acting on the estimate is the LQR gain of that model (:attr:`K` stays the design
+    model's, for reports).
 
     Parameters
     ----------
@@ -95,12 +92,18 @@ class LQG(Controller):
         super().__init__(design, settings, reference)
         self.K, self.P = dlqr_gain(design, settings.weights)
         self.filter_model = filter_model(design, settings)
-        self.estimator = KalmanEstimator(self.filter_model, settings)
+        self.estimator = KalmanEstimator(self.filter_model, settings, design.n_modes)
         self._E = embedding(design.n_modes, self.filter_model.n_modes)
-        self._Ke = self.K @ self._E.T
         self._ff = 1.0 if settings.feedforward else 0.0
         self._n = self.filter_model.n_x // 2
         self._prepare_reference(settings.elastic_reference)
+        self._Ke = self.K @ self._E.T
+        self._xref_filter = None
+        if settings.residual_control and self.filter_model is not design:
+            model, weights = residual_design(design, settings.weights, self.filter_model.n_modes)
+            self._Ke = dlqr_gain(model, weights)[0]
+            # the residual modes' own quasi-static deflection along the reference
+            self._xref_filter = self.filter_model.reference_states(self.reference, settings.elastic_reference)
         self.reset()
 
     @property
@@ -144,11 +147,14 @@ class LQG(Controller):
     def __call__(self, t: float, y) -> float:
         """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
         spin = self.design.spin
-        xr, tff = self._reference_at(int(round(t / self.dt)))
+        k = int(round(t / self.dt))
+        xr, tff = self._reference_at(k)
         yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
         x_hat = self.estimator.update(yd, self._tau)
         K = self._Ke
+        table = self._xref_filter
+        xr = table[k] if table is not None and k < len(table) else self._E @ xr
         # x_hat is a deviation from the steady rotation; x_ref is absolute
-        u = K @ (x_hat - self._E @ xr) + K[0] * spin * t + K[self._n] * spin
+        u = K @ (x_hat - xr) + K[0] * spin * t + K[self._n] * spin
         self._tau = saturate(float(self._ff * tff - u), self.tau_max)
         return self._tau

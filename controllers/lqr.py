@@ -9,6 +9,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, LQSettings, Reference, Weights, saturate
+from .residual import residual_design
 
 __all__ = ["LQRSettings", "LQR", "dlqr_gain"]
 
@@ -99,8 +100,12 @@ class LQR(Controller):
     def __init__(self, design: DesignModel, settings: LQRSettings | None = None,
                  reference: Reference | None = None):
         settings = settings or LQRSettings()
-        super().__init__(design, settings, reference)
-        self.K, self.P = dlqr_gain(design, settings.weights)
+        model, weights = residual_design(design, settings.weights, settings.residual_modes) \
+            if settings.residual_control \
+            else (design, settings.weights)
+        super().__init__(model, settings, reference)
+        self.n_modes = design.n_modes           # the design's; the gain reads model.n_modes
+        self.K, self.P = dlqr_gain(model, weights)
         self._ff = 1.0 if settings.feedforward else 0.0
         self._prepare_reference(settings.elastic_reference)
 

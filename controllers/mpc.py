@@ -32,6 +32,7 @@ from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
 from .lqr import dlqr_gain
+from .residual import residual_design
 
 __all__ = ["MPCSettings", "MPC", "QP_SOLVERS", "condensed_matrices", "DirectDAQP"]
 
@@ -135,7 +136,12 @@ class MPC(Controller):
     def __init__(self, design: DesignModel, settings: MPCSettings | None = None,
                  reference: Reference | None = None):
         settings = settings or MPCSettings()
-        super().__init__(design, settings, reference)
+        model, self._weights = residual_design(design, settings.weights, settings.residual_modes) \
+            if settings.residual_control \
+            else (design, settings.weights)
+        super().__init__(model, settings, reference)
+        self.n_modes = design.n_modes           # the design's; the plan runs on model.n_modes
+        design = model
         s = settings
         N = s.horizon
         self.K, self.P, H, self._Gx, self._Gr, Phi, Gamma, scale = self._condensed_qp(design)
@@ -185,6 +191,19 @@ class MPC(Controller):
             self.solver = self._conic_solver(s.solver)
         self.reset()
 
+    def feedback_matrices(self) -> tuple:
+        """The unconstrained law as static state feedback ``u = -K_mpc e`` (no states).
+
+        Without active bounds the plan's first move is ``-(H^-1 G_x)[0] x`` plus reference
+        and feedforward terms; with the Riccati solution as terminal weight ``K_mpc`` equals
+        the LQR gain. The torque limit and the soft tip bound are not part of it.
+        """
+        N, n = self.settings.horizon, self.design.n_x
+        H = np.asarray(self._H.full(), dtype=float)[:N, :N]
+        K = np.linalg.solve(H, self._Gx)[0]
+        return (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((1, 0)), -K[None, :], [],
+                list(self.design.state_names))
+
     def _conic_solver(self, name: str) -> ca.Function:
         """CasADi ``conic`` solver of the QP's sparsity (built once)."""
         try:
@@ -202,8 +221,8 @@ class MPC(Controller):
         """
         s = self.settings
         N, nx = s.horizon, design.n_x
-        K, P = dlqr_gain(design, s.weights)
-        Q, R = s.weights.matrices(design)
+        K, P = dlqr_gain(design, self._weights)
+        Q, R = self._weights.matrices(design)
         r = float(R[0, 0])
         Phi, Gamma = condensed_matrices(design.Ad, design.Bd, N)
         Qb = np.kron(np.eye(N), Q)

@@ -7,13 +7,14 @@ signal too; the filter misreads them as modes 4-5 and the feedback, acting on th
 estimate, pumps energy into them: with no structural damping the loop grows by 1.4 % per
 sample at 48 Hz (docs/controllers.md).
 
-The cure measured best: the estimator's model carries **residual modes**, every bending
-mode below the Nyquist frequency plus the first above it (the first mode the sampling
-folds back), so the filter can tell them apart; the state-feedback gain stays the design
-model's, padded with zeros, so the controller does not try to control them. Modes further
-up fold onto the low modes (the paper's mode 9, 90.6 Hz, lands at 9.4 Hz beside mode 3)
-and make the filter ill-conditioned, and their share of the root moment falls off, so
-they are left out.
+The cure measured best (issue 27): the estimator's model carries **residual modes**, the
+same modes as the default evaluation plant (every bending mode below the *sampling*
+frequency, the first above it, and at least three more than the design model: modes the
+zero-order hold folds back are modelled, not guessed), and the state-feedback gain is
+computed on that model (:class:`controllers.LQGSettings` ``residual_control``), so the
+sampled loop is stable on every mode the filter models. The earlier rule (modes below the
+Nyquist frequency plus one, the gain padded with zeros) left the paper's mode 8 (70 Hz,
+folded to 30 Hz) unmodelled, and the loop grew by 0.04 % per sample there.
 """
 
 from __future__ import annotations
@@ -21,16 +22,20 @@ from __future__ import annotations
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.plant.modal import converged_bending_hz
 from hubbeam_ctrl.plant.params import MAX_MODES
+from hubbeam_ctrl.sim.evaluation import default_plant_modes
 
 from .base import DesignModel
 
-__all__ = ["estimator_modes", "estimator_model", "embedding"]
+__all__ = ["estimator_modes", "estimator_model", "embedding", "residual_design"]
 
 
 def estimator_modes(design: DesignModel) -> int:
-    """Transverse modes of the estimator: every mode below Nyquist and the first above it.
+    """Transverse modes of the estimator: those of the default evaluation plant.
+
+    Every bending mode below the sampling frequency ``1/dt``, the first above it, and at
+    least three more than the design model, at most 20
+    (:func:`hubbeam_ctrl.sim.evaluation.default_plant_modes` at the design spin).
 
     Parameters
     ----------
@@ -43,12 +48,10 @@ def estimator_modes(design: DesignModel) -> int:
 
     Examples
     --------
-    >>> estimator_modes(DesignModel.build())     # the paper's beam at 100 Hz: modes 1-7
-    7
+    >>> estimator_modes(DesignModel.build())     # the paper's beam at 100 Hz: modes 1-10
+    10
     """
-    f = converged_bending_hz(design.params, design.spin)
-    below = int(np.sum(f < 0.5 / design.dt))
-    return int(min(MAX_MODES, max(design.n_modes, below + 1)))
+    return int(default_plant_modes(design.params, design.dt, design.n_modes, design.spin)[0])
 
 
 def estimator_model(design: DesignModel, n_modes: int | None = None) -> DesignModel:
@@ -98,3 +101,44 @@ def embedding(n_design: int, n_estimator: int) -> np.ndarray:
     E[:a, :a] = np.eye(a)
     E[b:b + a, a:] = np.eye(a)
     return E
+
+
+def residual_design(design: DesignModel, weights, n_modes: int | None = None) -> tuple:
+    """The design model with residual modes and the design's weights embedded in it.
+
+    A state feedback (LQR, MPC, LQG's gain) computed on the returned pair weighs exactly
+    what the design asked for (the state weight is the design's on the design modes and
+    zero on the residual modes) while its Riccati solution keeps the residual modes stable,
+    so the sampled loop is stable on every mode the model carries instead of pumping
+    energy into the ones a gain padded with zeros ignores.
+
+    Parameters
+    ----------
+    design : DesignModel
+    weights : Weights
+        The design's weights.
+    n_modes : int, optional
+        Transverse modes of the model (default :func:`estimator_modes`).
+
+    Returns
+    -------
+    tuple
+        ``(model, weights)``: the :class:`DesignModel` with residual modes (``design``
+        itself when none are added) and a :class:`~controllers.Weights` whose
+        ``state_matrix`` is the embedded state weight (``weights`` itself when none are
+        added).
+
+    Examples
+    --------
+    >>> from controllers import Weights
+    >>> d = DesignModel.build(n_modes=2)
+    >>> model, w = residual_design(d, Weights(), 4)
+    >>> model.n_modes, w.state_matrix.shape
+    (4, (10, 10))
+    """
+    model = estimator_model(design, n_modes)
+    if model is design:
+        return design, weights
+    E = embedding(design.n_modes, model.n_modes)
+    Qd, _ = weights.matrices(design)
+    return model, weights.replace(state_matrix=E @ Qd @ E.T)

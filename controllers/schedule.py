@@ -51,7 +51,7 @@ from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import Params
 
 from .base import DesignModel, Reference, Weights, check_positive, saturate, torque_limit
-from .estimator import KalmanNoise, kalman_gain
+from .estimator import KalmanEstimator, KalmanNoise
 from .lqg import LQG, LQGSettings, filter_model
 from .lqr import LQR, LQRSettings, dlqr_gain
 from .mpc import MPC, MPCSettings
@@ -301,7 +301,7 @@ class ScheduledLQR(_Scheduled, LQR):
     def __init__(self, schedule: DesignSchedule, settings: LQRSettings | None = None,
                  reference: Reference | None = None, variable: str = "measured"):
         self._init_schedule(schedule, variable)
-        settings = settings or LQRSettings()
+        settings = (settings or LQRSettings()).replace(residual_control=False)   # per-point designs
         super().__init__(schedule.designs[0], settings, reference)
         self.gains = schedule.stack(lambda d: dlqr_gain(d, settings.weights)[0])
 
@@ -336,6 +336,9 @@ class ScheduledKalmanEstimator:
     schedule : DesignSchedule
     noise : KalmanNoise
         Noise model of every design of the grid.
+    design_modes : int, optional
+        Transverse modes of the design models when the grid's models carry residual modes
+        (see :meth:`~controllers.estimator.KalmanNoise.covariances`).
 
     Attributes
     ----------
@@ -347,9 +350,9 @@ class ScheduledKalmanEstimator:
         Prediction used by the last update, and the current estimate.
     """
 
-    def __init__(self, schedule: "DesignSchedule", noise: KalmanNoise):
+    def __init__(self, schedule: "DesignSchedule", noise: KalmanNoise, design_modes: int | None = None):
         self.schedule = schedule
-        self.L = schedule.stack(lambda d: kalman_gain(d, noise))
+        self.L = schedule.stack(lambda d: KalmanEstimator(d, noise, design_modes).L)
         self.models = schedule.stack(lambda d: np.hstack([d.Ad, d.Bd]))
         self._C = schedule.designs[0].C_sensors
         self.reset()
@@ -457,11 +460,11 @@ class ScheduledLQG(_Scheduled, LQG):
     def __init__(self, schedule: DesignSchedule, settings: LQGSettings | None = None,
                  reference: Reference | None = None, variable: str = "measured"):
         self._init_schedule(schedule, variable)
-        settings = settings or LQGSettings()
+        settings = (settings or LQGSettings()).replace(residual_control=False)   # per-point designs
         super().__init__(schedule.designs[0], settings, reference)
         models, self._E = filter_schedule(schedule, settings)
         self.filter_model = models.designs[0]
-        self.estimator = ScheduledKalmanEstimator(models, settings)
+        self.estimator = ScheduledKalmanEstimator(models, settings, schedule.n_modes)
         self.gains = schedule.stack(lambda d: dlqr_gain(d, settings.weights)[0]) @ self._E.T
         self._Ke = self.gains[0]            # the loop at the grid's first spin (study.loop_poles)
         self.reset()
@@ -499,7 +502,7 @@ class ScheduledMPC(_Scheduled, MPC):
     def __init__(self, schedule: DesignSchedule, settings: MPCSettings | None = None,
                  reference: Reference | None = None, variable: str = "measured"):
         self._init_schedule(schedule, variable)
-        settings = settings or MPCSettings()
+        settings = (settings or MPCSettings()).replace(residual_control=False)   # per-point designs
         if settings.tip_bound is not None:
             raise ParameterError("tip_bound is not available with a schedule; set it to None")
         super().__init__(schedule.designs[0], settings, reference)
@@ -620,7 +623,7 @@ def scheduled_lqg_iosystem(schedule: DesignSchedule, settings: LQGSettings = LQG
     (mu_index,) = _gainsched_indices(gainsched_indices, inputs, inputs.index("xd[theta_dot]"))
     models, E = filter_schedule(schedule, settings)
     K = schedule.stack(lambda dm: dlqr_gain(dm, settings.weights)[0]) @ E.T
-    L = models.stack(lambda dm: kalman_gain(dm, settings))
+    L = models.stack(lambda dm: KalmanEstimator(dm, settings, schedule.n_modes).L)
     AB = models.stack(lambda dm: np.hstack([dm.Ad, dm.Bd]))
     C, nx = models.designs[0].C_sensors, d.n_x
     tau_max = torque_limit(settings.tau_max, d.params)

@@ -80,9 +80,16 @@ def test_lqg_closed_loop_poles_are_regulator_and_filter_poles(design):
     np.testing.assert_allclose(_sorted(closed.poles()), _sorted(expected), atol=1e-9)
 
 
-def test_mpc_and_openloop_are_not_linear_systems(design):
+def test_mpc_linear_form_is_the_lqr_gain_and_openloop_has_none(design):
+    """Unconstrained, the MPC's first move is -(H^-1 Gx)[0] x; with the Riccati solution as
+    terminal weight that is the LQR gain at any horizon (issue 27: the MPC gets a certificate)."""
+    from controllers import OpenLoop
+    lqr = LQR(design)
+    for horizon in (5, 50):
+        D = MPC(design, MPCSettings(horizon=horizon)).to_statespace().D
+        np.testing.assert_allclose(np.ravel(D), -lqr.K, rtol=1e-7, atol=1e-9 * np.max(np.abs(lqr.K)))
     with pytest.raises(HubbeamError, match="not a linear time-invariant"):
-        MPC(design, MPCSettings(horizon=5)).to_statespace()
+        OpenLoop(design).to_statespace()
 
 
 def _spectral_radius(ctrl, gain: float) -> float:

@@ -80,7 +80,7 @@ def test_lqg_is_the_lqr_gain_on_the_estimator(design, robust):
     assert np.array_equal(ctrl.K, K) and ctrl.L is ctrl.estimator.L
     model = ctrl.filter_model
     assert (model.n_modes == estimator_modes(design)) if robust else (model is design)
-    est = KalmanEstimator(model, LQGSettings())
+    est = KalmanEstimator(model, LQGSettings(), design.n_modes)   # residual modes' noise scaled
     Ke = K @ embedding(design.n_modes, model.n_modes).T
     ctrl.reset()
     est.reset(ctrl.x_hat)

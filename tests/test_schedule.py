@@ -24,6 +24,7 @@ from controllers import (
     scheduled_lqr_iosystem,
     spinup_reference,
 )
+from controllers.estimator import KalmanEstimator
 from controllers.residual import embedding
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
@@ -105,8 +106,8 @@ def test_lqg_iosystem_matches_the_controller(sched, ref):
     # the Kalman gains of the schedule are those of its filter's models: the designs with the
     # residual modes (robust, the default), or the designs themselves
     models, E = filter_schedule(sched, settings)
-    assert models.n_modes == 7 and E.shape == (16, 6) and ctrl.gains.shape == (4, 16)
-    assert np.allclose(kalman_gain(models.designs[0], settings), ctrl.L[0])
+    assert models.n_modes == 10 and E.shape == (22, 6) and ctrl.gains.shape == (4, 22)
+    assert np.allclose(KalmanEstimator(models.designs[0], settings, 2).L, ctrl.L[0])
     plain = ScheduledLQG(sched, LQGSettings(robust=False), ref)
     assert np.allclose(kalman_gain(sched.designs[0], settings), plain.estimator.L[0])
 

@@ -163,7 +163,6 @@ def run(args) -> int:
     sink = stdout(args)
     from hubbeam_ctrl.cli.main import params_from_args
     from hubbeam_ctrl.plant.params import MAX_MODES
-    from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
     from hubbeam_ctrl.study.compare import _parse_controllers, compare
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     out = check_output_dir("--out", args.out)
@@ -197,7 +196,7 @@ def run(args) -> int:
                          slew_angle=args.slew_angle,
                          horizon=50 if args.horizon is None else args.horizon,
                          solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
-                         sim_settings=ClosedLoopSettings(range_limit=args.range_limit, **run_limits(args)),
+                         sim_settings={"range_limit": args.range_limit, **run_limits(args)},
                          progress=not args.json, backend=args.backend)
     write_outputs(comparison, out)
     wall = time.perf_counter() - t0

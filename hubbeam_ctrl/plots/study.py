@@ -37,7 +37,7 @@ def unstable_mask(df) -> np.ndarray:
     if verdict is None:
         return failed.to_numpy()
     has = verdict.notna() & (verdict.astype(str) != "")
-    bad = verdict.isin(["unstable", "diverged"])
+    bad = verdict.isin(["unstable", "diverged", "failed"])
     return np.where(has.to_numpy(), bad.to_numpy(), failed.to_numpy())
 
 

@@ -15,7 +15,8 @@ The controller is any object with
 * ``reset()``: prepare a new run;
 * ``measurement``: ``"state"`` or ``"sensors"`` (see :func:`simulate_closed_loop`);
 * optionally ``name``, ``dt`` (its sample time, checked against the simulator's),
-  ``n_modes`` (the transverse modes of its design model), ``design`` (with ``params`` and
+  ``n_modes`` (the transverse modes of its design model), ``state_modes`` (those it reads
+  with ``measurement="state"``, default ``n_modes``), ``design`` (with ``params`` and
   ``spin``: the design model's parameters and spin rate, used to choose the evaluation
   plant and its integration step) and ``stats() -> dict``.
 
@@ -175,7 +176,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
 
     * ``"state"``: the plant's own coordinates in SFOAM order
       ``[theta, q2_1..q2_m, theta_dot, q2_dot_1..q2_dot_m]`` with ``m`` the controller's
-      ``n_modes`` (default all the plant's transverse modes); the axial ``q1`` is not given;
+      ``state_modes`` (or ``n_modes``; default all the plant's transverse modes); the axial
+      ``q1`` is not given;
     * ``"sensors"``: ``[theta, theta_dot, M_root]`` [rad, rad/s, N m] plus the noise of
       ``settings.sensors``.
 
@@ -231,7 +233,9 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     flagged (``outside_validated_range``, ``outside_range_time_s``) and the run goes on. A
     controller that returns a non-finite torque or raises, an integrator failure, or a plant
     that passes ``divergence_limit * L`` (default L) stops the run: the result is cut there,
-    with ``stopped = True`` and a message naming the cause. So does ``settings.max_wall_s``
+    with ``stopped = True``, a message naming the cause and ``stats["stop_cause"]`` (one of
+    ``"controller"``, ``"integrator"``, ``"diverged"``, ``"wall_clock"``; None for a run that
+    completed). So does ``settings.max_wall_s``
     (checked at every sample); a run whose samples would need more than
     ``settings.max_memory_mb`` is refused before it starts.
     """
@@ -254,8 +258,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                                         plant_modes, settings)
     n = model.n_q
     n1, n2 = model.n_axial, model.n_transverse
-    m = int(getattr(controller, "n_modes", None) or n2)
-    if not 1 <= m <= n2:
+    m = int(getattr(controller, "state_modes", None) or getattr(controller, "n_modes", None) or n2)
+    if kind == "state" and not 1 <= m <= n2:
         raise ParameterError(f"controller {name!r} reads {m} transverse modes but the plant has {n2}")
     # index map plant state [q, v] -> measurement
     idx_state = np.r_[0, 1 + n1:1 + n1 + m, n, n + 1 + n1:n + 1 + n1 + m]
@@ -280,7 +284,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     taus = np.full(N + 1, np.nan)
     step_times = np.full(N + 1, np.nan)
     controller.reset()
-    stopped, message = False, "completed"
+    stopped, message, cause = False, "completed", None
     start = time.perf_counter()
     s = None
     last = N
@@ -292,14 +296,14 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         try:
             tau = _torque(controller(t[k], y))
         except Exception as exc:      # the controller's own code: stop, name it, keep the run
-            stopped, last = True, k
+            stopped, last, cause = True, k, "controller"
             message = (f"controller {name!r} raised {type(exc).__name__}: {str(exc)[:200]} at "
                        f"t = {t[k]:.3f} s; run stopped")
             break
         step_times[k] = perf() - t0
         taus[k] = tau
         if not math.isfinite(tau):
-            stopped = True
+            stopped, cause = True, "controller"
             message = (f"controller {name!r} returned a non-finite torque ({tau}) at "
                        f"t = {t[k]:.3f} s; run stopped")
             last = k
@@ -311,20 +315,20 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         try:
             s = stepper.step(s, tau)
         except HubbeamError as exc:
-            stopped, message, last = True, f"{exc} at t = {t[k]:.3f} s; run stopped", k
+            stopped, message, last, cause = True, f"{exc} at t = {t[k]:.3f} s; run stopped", k, "integrator"
             break
         x = s[:2 * n]
         tip = abs(f2_tip @ x[sl2])
         if outside_time is None and not tip <= flag_at:
             outside_time = float(t[k + 1])
         if not tip <= stop_at:
-            stopped, last = True, k + 1
+            stopped, last, cause = True, k + 1, "diverged"
             states[k + 1] = x
             message = (f"{model.name.upper()} left its range at t = {t[k + 1]:.3f} s under "
                        f"controller {name!r}: |v_tip| > {settings.divergence_limit:g} L; run stopped")
             break
         if perf() - start > settings.max_wall_s:
-            stopped, last = True, k + 1
+            stopped, last, cause = True, k + 1, "wall_clock"
             states[k + 1] = x
             message = f"stopped after max_wall_s = {settings.max_wall_s:g} s at t = {t[k + 1]:.3f} s"
             break
@@ -352,5 +356,5 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         u_tip=u_tip, root_moment=root_moment, tau=taus, step_time_s=step_times,
         params=model.params, theta_ref=theta_ref, theta_dot_ref=theta_dot_ref, settings=s_dict,
         stats={"plant_fallbacks": stepper.fallbacks, "jacobian_updates": stepper.jacobian_updates,
-               "outside_range_time_s": outside_time},
+               "outside_range_time_s": outside_time, "stop_cause": cause},
         controller_stats=stats, stopped=stopped, message=message, wall_s=wall)

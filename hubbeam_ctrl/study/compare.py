@@ -46,7 +46,7 @@ from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
-from hubbeam_ctrl.study.metrics import closed_loop_metrics
+from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
 
@@ -108,6 +108,9 @@ class Comparison:
         its design model, for the linear controllers (PD, LQR, LQG).
     plant : EvaluationPlant
         The plant the controllers were judged on, and why it has its modes.
+    certificates : dict
+        Controller name -> :class:`~hubbeam_ctrl.study.certificate.Certificate`: the sampled
+        linear loop on the evaluation plant's modes (empty for the open loop).
     """
 
     scenario: Scenario
@@ -119,6 +122,23 @@ class Comparison:
     targets: tuple = ()
     plant: EvaluationPlant | None = None
     margins: dict = field(default_factory=dict)
+    certificates: dict = field(default_factory=dict)
+
+
+def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
+    """The closed loop's settings: the caller's, or the scenario's default with overrides."""
+    default = ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
+    if sim_settings is None:
+        return default
+    if isinstance(sim_settings, dict):
+        unknown = sorted(set(sim_settings) - {f.name for f in dataclasses.fields(ClosedLoopSettings)})
+        if unknown:
+            raise ParameterError(f"sim_settings: unknown field(s) {', '.join(unknown)} of ClosedLoopSettings")
+        return dataclasses.replace(default, **sim_settings)
+    if not isinstance(sim_settings, ClosedLoopSettings):
+        raise ParameterError(f"sim_settings must be a ClosedLoopSettings or a dict, got "
+                             f"{type(sim_settings).__name__}")
+    return sim_settings
 
 
 def _design_modes(design_modes, design: Params) -> int:
@@ -179,9 +199,12 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     settings : dict, optional
         Controller name -> settings object, replacing the defaults
         (``SettingsClass.for_scenario(scenario, horizon=..., solver=...)``).
-    sim_settings : ClosedLoopSettings, optional
+    sim_settings : ClosedLoopSettings or dict, optional
         Plant integration and sensor settings (its ``dt`` is replaced by ``dt``); default:
         the sensor noise of the task (``scenario.sensors``, relative to its signals' ranges).
+        A dict gives fields of :class:`ClosedLoopSettings` that replace those of the default
+        (the CLI passes ``range_limit`` and its run limits this way, so ``hubbeam compare``
+        runs exactly what ``compare()`` runs).
     shaping : {"zv", "zvd", "ei"} or Shaper, optional
         Filter the reference of the controllers that track it (pd, lqr, lqg, mpc: see
         :attr:`controllers.ControllerSpec.tracks_reference`) through this input shaper,
@@ -226,14 +249,13 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     unknown = sorted(set(settings) - set(names))
     if unknown:
         raise ParameterError(f"settings given for controllers not run: {', '.join(unknown)}")
-    sim = sim_settings or ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
-    if not isinstance(sim, ClosedLoopSettings):
-        raise ParameterError(f"sim_settings must be a ClosedLoopSettings, got {type(sim).__name__}")
+    sim = _sim_settings(sim_settings, sc)
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
     chosen = {name: settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
                                                                                    solver=solver)
               for name in names}
+    chosen = {name: residual_modes_for(st, ev.modes) for name, st in chosen.items()}
     _check_budget(sc, ev, chosen, m, sim, schedule)
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
     shaper = None if shaping is None else as_shaper(design, shaping)
@@ -244,7 +266,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         from hubbeam_ctrl.study.payload import range_designs
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
                                    solver=solver, sim=sim, plant_modes=plant_modes), **designs}
-    results, metrics, margins = {}, {}, {}
+    results, metrics, margins, certificates = {}, {}, {}, {}
     clock = WallClock(sim.max_wall_s)        # the whole comparison's wall-time limit
     for name in names:
         if clock.expired():
@@ -259,7 +281,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=run_sim,
                                    reference=(ref.theta_at, ref.theta_dot_at), backend=backend)
         results[name] = res
-        metrics[name] = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
+        metrics[name], certificates[name] = judge(res, ctrl, sc, ev.params, name)
         metrics[name]["scenario"] = sc.name
         if margins[name] is not None:
             lm = margins[name]
@@ -279,7 +301,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
                       targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,
-                      margins={n: lm for n, lm in margins.items() if lm is not None})
+                      margins={n: lm for n, lm in margins.items() if lm is not None},
+                      certificates=certificates)
 
 
 def _margins(ctrl):

@@ -8,18 +8,29 @@ in ``metrics.json`` only).
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive
 
-__all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time", "VERDICTS", "verdict",
-           "residual_growth", "saturated_fraction", "GROWTH_LIMIT", "SATURATION_LIMIT"]
+__all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time", "VERDICTS", "verdict", "Evidence",
+           "residual_growth", "saturated_fraction", "GROWTH_LIMIT", "SATURATION_LIMIT", "GrowthFit",
+           "envelope_growth", "GROWTH_RESOLUTION", "STOP_CAUSES"]
 
 #: The verdicts of a closed-loop run, in the order they are tested (see :func:`verdict`).
-VERDICTS = ("diverged", "unstable", "settled", "not settled")
-#: A run whose residual-window envelope grows by more than this factor is unstable [-].
+VERDICTS = ("failed", "diverged", "unstable", "settled", "not settled")
+#: Why a run stopped early (``result.stats["stop_cause"]``): ``"diverged"`` is the plant
+#: leaving its range; the others are failures of the run, not of the loop's stability.
+STOP_CAUSES = ("diverged", "integrator", "controller", "wall_clock")
+#: The residual-window envelope growth that the old quarter-ratio rule called unstable; kept
+#: as the metric ``residual_growth`` (the verdict uses :func:`envelope_growth`) [-].
 GROWTH_LIMIT = 2.0
+#: An envelope that grows by less than this factor over the fitted span is not resolved
+#: as growth (block maxima of a steady or noisy oscillation scatter by tens of %) [-].
+GROWTH_RESOLUTION = 1.5
 #: A run whose torque sits at its limit for more than this fraction of the residual window
 #: is in a saturation limit cycle, i.e. unstable [-].
 SATURATION_LIMIT = 0.25
@@ -37,6 +48,17 @@ METRIC_UNITS = {
     "torque_squared_integral_n2m2s": ("N^2 m^2 s", "integral of tau^2 (held torque)"),
     "torque_saturated_fraction": ("-", "fraction of the residual window with |tau| at tau_max"),
     "residual_growth": ("-", "max |v_tip| in the last quarter of the residual window over the first quarter"),
+    "tip_growth_rate_per_s": ("1/s", "growth rate of the |v_tip| envelope over the last half of the residual window"),
+    "torque_growth_rate_per_s": ("1/s", "growth rate of the envelope of the torque's sample-to-sample ripple"),
+    "angle_growth_rate_per_s": ("1/s", "growth rate of the |hub-angle error| envelope"),
+    "growth_resolution_per_s": ("1/s", "smallest tip growth rate the window resolves (ln 1.5 over the fitted "
+                                       "span, or twice the slope's standard error)"),
+    "loop_spectral_radius": ("-", "largest |z| of the sampled linear loop on the evaluation plant's modes"),
+    "loop_worst_hz": ("Hz", "frequency of that pole as seen in the samples (aliased into 0..fs/2)"),
+    "loop_worst_mode_hz": ("Hz", "true frequency of the plant mode it comes from"),
+    "loop_growth_time_s": ("s", "time constant of a growing linear loop (None: it does not grow)"),
+    "loop_damping_needed": ("-", "modal damping ratio in every mode that makes a growing loop stable"),
+    "loop_design_modes_radius": ("-", "largest |z| of the loop poles of the rigid body and the design modes"),
     "step_time_median_ms": ("ms", "median wall time of one controller call"),
     "step_time_p99_ms": ("ms", "99th percentile of the controller call time"),
 }
@@ -119,48 +141,164 @@ def saturated_fraction(tau, tau_max: float) -> float:
     return float(np.mean(np.abs(tau) >= (1 - 1e-6) * tau_max))
 
 
-def verdict(stopped: bool, growth: float, residual_end_m: float, saturated: float,
-            settled: bool, tip_band: float) -> str:
+@dataclass(frozen=True)
+class GrowthFit:
+    """The fitted growth of a signal's envelope.
+
+    Attributes
+    ----------
+    rate_per_s : float
+        Least-squares slope of ``ln`` of the block maxima of ``|x|`` [1/s] (NaN: too few
+        blocks).
+    resolution_per_s : float
+        The larger of ``ln(GROWTH_RESOLUTION)`` over the fitted span and twice the standard
+        error of the fitted slope (four blocks or more) [1/s]: slower growth is not resolved.
+    final : float
+        The last block's maximum of ``|x|`` (units of ``x``).
+    """
+
+    rate_per_s: float
+    resolution_per_s: float
+    final: float
+
+    def grows(self, floor: float) -> bool:
+        """Resolved growth of an envelope that ends above ``floor`` (units of ``x``).
+
+        Parameters
+        ----------
+        floor : float
+            Level below which growth does not matter (numerical noise).
+        """
+        return bool(self.rate_per_s > self.resolution_per_s and self.final > floor)
+
+
+def envelope_growth(t, x, block_s: float) -> GrowthFit:
+    """Growth rate of the envelope of ``x`` over the last half of ``t``.
+
+    The last half of the window is cut into blocks of at least ``block_s`` (and at least
+    four samples, at most twelve blocks); the block maxima of ``|x|`` are fitted by
+    ``ln max = a + rate t`` in the least-squares sense. Fitting the last half, not the
+    whole window, lets a growing component show through the decay of the maneuver's
+    transient.
+
+    Parameters
+    ----------
+    t : ndarray
+        Times [s] (uniform).
+    x : ndarray
+        The signal (tip deflection, torque ripple, angle error).
+    block_s : float
+        Shortest block [s], e.g. one period of the slowest oscillation expected.
+
+    Returns
+    -------
+    GrowthFit
+
+    Examples
+    --------
+    >>> t = np.linspace(0, 20, 2001)
+    >>> round(envelope_growth(t, 1e-3 * np.exp(0.1 * t) * np.sin(20 * t), 0.5).rate_per_s, 2)
+    0.1
+    >>> envelope_growth(t, np.sin(20 * t), 0.5).rate_per_s < envelope_growth(t, np.sin(20 * t), 0.5).resolution_per_s
+    True
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.abs(np.asarray(x, dtype=float))
+    half = t.size // 2
+    t, x = t[half:], x[half:]
+    nan = float("nan")
+    if t.size < 8:
+        return GrowthFit(nan, nan, float(np.max(x)) if x.size else nan)
+    span = float(t[-1] - t[0])
+    dt = span / max(t.size - 1, 1)
+    per = max(4, int(math.ceil(block_s / dt)) if block_s > 0 else 4, t.size // 12)
+    n_blocks = t.size // per
+    if n_blocks < 3:
+        return GrowthFit(nan, nan, float(np.max(x)))
+    start = t.size - n_blocks * per           # whole blocks, ending at the last sample
+    xb = x[start:].reshape(n_blocks, per)
+    tb = t[start:].reshape(n_blocks, per).mean(axis=1)
+    peaks = np.max(xb, axis=1)
+    final = float(peaks[-1])
+    tiny = np.finfo(float).tiny
+    if not np.all(np.isfinite(peaks)):
+        return GrowthFit(math.inf, 0.0, final)
+    y = np.log(np.maximum(peaks, tiny))
+    (rate, offset) = np.polyfit(tb, y, 1)
+    resolution = math.log(GROWTH_RESOLUTION) / max(float(tb[-1] - tb[0]), dt)
+    if n_blocks >= 4:          # and twice the slope's standard error: scatter is not growth
+        sxx = float(np.sum((tb - tb.mean()) ** 2))
+        stderr = math.sqrt(float(np.sum((y - (rate * tb + offset)) ** 2)) / (n_blocks - 2) / sxx)
+        resolution = max(resolution, 2.0 * stderr)
+    return GrowthFit(float(rate), float(resolution), final)
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What a verdict is decided from.
+
+    Attributes
+    ----------
+    stop_cause : str or None
+        Why the run stopped early (:data:`STOP_CAUSES`), None if it completed.
+    growing : tuple of str
+        Signals whose envelope grows (``"tip"``, ``"torque"``, ``"angle"``).
+    saturated : float
+        :func:`saturated_fraction` of the residual window [-] (NaN: no torque limit).
+    settled : bool
+        Inside the settling bands at the end.
+    certificate_grows : bool or None
+        The linear certificate's loop grows (None: no certificate).
+    """
+
+    stop_cause: str | None
+    growing: tuple
+    saturated: float
+    settled: bool
+    certificate_grows: bool | None = None
+
+
+def verdict(evidence: Evidence) -> str:
     """The verdict of a closed-loop run (:data:`VERDICTS`), tested in this order.
 
-    * ``"diverged"``: the run stopped early (it passed the divergence limit, by default L,
-      or the integrator or the controller failed);
-    * ``"unstable"``: in the residual window the vibration grows (its last quarter's peak
-      exceeds :data:`GROWTH_LIMIT` times its first quarter's and the tip band), or the torque
-      sits at its limit for more than :data:`SATURATION_LIMIT` of the window (a saturation
-      limit cycle);
+    * ``"failed"``: the run stopped because the integrator or the controller failed, or
+      the wall-clock limit ended it (the loop's stability is unknown);
+    * ``"diverged"``: the run stopped because the plant passed the divergence limit (L);
+    * ``"unstable"``: the linear certificate's loop grows (spectral radius above
+      ``1 + RADIUS_TOLERANCE``), or the envelope of the tip deflection, of the torque's
+      ripple or of the hub-angle error grows at a resolved rate in the residual window
+      (:func:`envelope_growth`), or the torque sits at its limit for more than
+      :data:`SATURATION_LIMIT` of the window (a saturation limit cycle);
     * ``"settled"``: hub-angle error and tip deflection are inside their settling bands at
       the end;
     * ``"not settled"``: anything else (e.g. the undamped open loop, which rings on).
 
     Parameters
     ----------
-    stopped : bool
-    growth : float
-        :func:`residual_growth` of the residual window [-].
-    residual_end_m : float
-        Peak ``|v_tip|`` in the last quarter of the residual window [m].
-    saturated : float
-        :func:`saturated_fraction` of the residual window [-] (NaN: no torque limit).
-    settled : bool
-        Inside the settling bands at the end.
-    tip_band : float
-        Settling band of the tip deflection [m].
+    evidence : Evidence
 
     Returns
     -------
     str
+
+    Examples
+    --------
+    >>> verdict(Evidence(None, ("torque",), 0.0, True))      # a quiet tip and a growing torque
+    'unstable'
+    >>> verdict(Evidence("integrator", (), 0.0, False))
+    'failed'
     """
-    if stopped:
-        return "diverged"
-    if (growth > GROWTH_LIMIT and residual_end_m > tip_band) or saturated > SATURATION_LIMIT:
+    if evidence.stop_cause is not None:
+        return "diverged" if evidence.stop_cause == "diverged" else "failed"
+    if evidence.certificate_grows or evidence.growing or evidence.saturated > SATURATION_LIMIT:
         return "unstable"
-    return "settled" if settled else "not settled"
+    return "settled" if evidence.settled else "not settled"
 
 
 def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
                         settle_angle: float = 1e-3, settle_tip: float = 1e-3,
-                        tau_max: float | None = None) -> dict:
+                        tau_max: float | None = None, block_s: float | None = None,
+                        certificate=None) -> dict:
     """Metrics of one closed-loop run.
 
     Parameters
@@ -179,11 +317,18 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         Settling band of the tip deflection [m] (default 1 mm).
     tau_max : float, optional
         Torque limit [N m]; adds ``within_torque_limit`` (and the saturated fraction).
+    block_s : float, optional
+        Shortest block of the envelope fits [s] (:func:`envelope_growth`), e.g. one period of
+        the first bending mode; default a twelfth of the fitted span.
+    certificate : hubbeam_ctrl.study.certificate.Certificate, optional
+        The linear certificate of the controller on the evaluation plant: a growing loop is
+        ``"unstable"`` whatever the window shows, and its ``loop_*`` entries join the metrics.
 
     Returns
     -------
     dict
-        ``verdict`` (:func:`verdict`), the :data:`METRIC_UNITS` entries plus ``controller``,
+        ``verdict`` (:func:`verdict`), ``verdict_reason`` (one sentence), the
+        :data:`METRIC_UNITS` entries plus ``controller``,
         ``plant``, the plant's description (``plant_modes``, ``design_modes``, ``substeps``,
         ``step_s``, ...), ``completed``, ``outside_validated_range``,
         ``outside_range_time_s``, ``message``, ``wall_s``, the controller's own statistics
@@ -222,8 +367,23 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
     growth = residual_growth(res)
     saturated = saturated_fraction(tau[window], tau_max) if tau_max is not None else nan
     settle = settling_time(t, err, v_tip, settle_angle, settle_tip)
-    end_peak = float(np.max(np.abs(res[-max(1, res.size // 4):]))) if res.size else nan
-    out["verdict"] = verdict(result.stopped, growth, end_peak, saturated, settle is not None, settle_tip)
+    t_w = t[window]
+    block = float(block_s) if block_s is not None else 0.0
+    fits = {"tip": envelope_growth(t_w, res, block),        # the ripple is fast: short blocks
+            "torque": envelope_growth(t_w[1:], np.diff(tau[window]), 0.0),
+            "angle": envelope_growth(t_w, err[window], block)}
+    torque_floor = 1e-6 * (tau_max if tau_max is not None else max(1.0, float(np.nanmax(np.abs(tau)))))
+    # below its settling band a noise-driven tip or angle envelope cannot be told from growth
+    # over a few blocks; the torque's ripple (many short blocks) and the certificate see there
+    floors = {"tip": settle_tip, "torque": torque_floor, "angle": settle_angle}
+    growing = tuple(k for k, f in fits.items() if f.grows(floors[k]))
+    cause = result.stats.get("stop_cause") if result.stopped else None
+    if result.stopped and cause is None:     # a run saved before stop causes were recorded
+        cause = "diverged" if "left its range" in result.message else "failed"
+    cert_grows = certificate.grows if certificate is not None and certificate.available else None
+    evidence = Evidence(cause, growing, saturated, settle is not None, cert_grows)
+    out["verdict"] = verdict(evidence)
+    out["verdict_reason"] = _reason(evidence, fits, certificate, result.message)
     out.update({
         "peak_tip_m": float(np.max(np.abs(v_tip))),
         "residual_tip_rms_m": float(np.sqrt(np.mean(res ** 2))) if res.size else nan,
@@ -235,12 +395,26 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         "torque_squared_integral_n2m2s": float(np.sum(applied[np.isfinite(applied)] ** 2) * dt),
         "torque_saturated_fraction": saturated,
         "residual_growth": growth,
+        "tip_growth_rate_per_s": fits["tip"].rate_per_s,
+        "torque_growth_rate_per_s": fits["torque"].rate_per_s,
+        "angle_growth_rate_per_s": fits["angle"].rate_per_s,
+        "growth_resolution_per_s": fits["tip"].resolution_per_s,
         "step_time_median_ms": float(np.median(steps) * 1e3) if steps.size else nan,
         "step_time_p99_ms": float(np.percentile(steps, 99) * 1e3) if steps.size else nan,
     })
     if tau_max is not None:
         out["within_torque_limit"] = bool(out["peak_torque_nm"] <= tau_max * (1 + 1e-9))
+    for key in METRIC_UNITS:            # the loop_* entries: None without a certificate
+        out.setdefault(key, None)
+    if certificate is not None:
+        out.update(certificate.metrics())
+        w = certificate.worst
+        if w is not None and w.growth_time_s is not None:
+            span = float(t_w[-1] - t_w[0]) / 2 if t_w.size > 1 else 0.0
+            # the fitted half-window sees the growth if it spans one growth time constant
+            out["window_resolves_loop"] = bool(span >= w.growth_time_s)
     out["completed"] = not result.stopped
+    out["stop_cause"] = cause
     out["outside_validated_range"] = bool(getattr(result, "outside_validated_range", False))
     out["outside_range_time_s"] = getattr(result, "outside_range_time_s", None)
     for key in _PLANT_KEYS:
@@ -253,3 +427,28 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         if isinstance(value, (int, float, str, bool)):
             out[key] = value
     return out
+
+
+def _reason(evidence: Evidence, fits: dict, certificate, message: str) -> str:
+    """One sentence saying what decided the verdict."""
+    if evidence.stop_cause is not None:
+        return message
+    parts = []
+    if evidence.certificate_grows:
+        parts.append(certificate.describe())
+    for name in evidence.growing:
+        parts.append(f"the {name} envelope grows at {fits[name].rate_per_s:.3g} 1/s "
+                     f"(resolution {fits[name].resolution_per_s:.2g} 1/s)")
+    if evidence.saturated > SATURATION_LIMIT:
+        parts.append(f"the torque sits at its limit {100 * evidence.saturated:.0f} % of the residual window")
+    if parts:
+        if evidence.certificate_grows is False:
+            parts.append("the linear certificate says stable: the growth is nonlinear (saturation, "
+                         "large deflection) or the plant differs from its linear model")
+        return "; ".join(parts)
+    if evidence.certificate_grows is None:
+        lead = "no growth in the run (no linear certificate)"
+    else:
+        lead = "no growth in the run or in the linear certificate"
+    return lead + ("; inside the settling bands at the end" if evidence.settled
+                   else "; outside the settling bands at the end")

@@ -38,7 +38,7 @@ from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import evaluation_plant
 from hubbeam_ctrl.study.compare import _design_schedule
-from hubbeam_ctrl.study.metrics import closed_loop_metrics
+from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import CSV_FIELDS
 from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec
 
@@ -172,18 +172,19 @@ def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
 def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> dict:
     """One closed-loop run and its metrics (the controller built once per design and task)."""
     sc, table, cspec = ctx["scenario"], spec.settings.get(name), CONTROLLERS[name]
-    ckey = ("controller", name, json.dumps(table, sort_keys=True, default=str), *ctx["key"])
+    ckey = ("controller", name, json.dumps(table, sort_keys=True, default=str), *ctx["key"], ctx["plant"].modes)
 
     def build():
         design = ctx["design"]
         shaper = as_shaper(design, spec.shaping) if spec.shaping and cspec.tracks_reference else None
         sched = _design_schedule(sc, spec.schedule, design.n_modes) if cspec.scheduled else None
-        return make_controller(name, design, controller_settings(name, table, sc, spec.horizon, spec.solver),
-                               sc.reference, shaping=shaper, schedule=sched)
+        st = residual_modes_for(controller_settings(name, table, sc, spec.horizon, spec.solver),
+                                ctx["plant"].modes)
+        return make_controller(name, design, st, sc.reference, shaping=shaper, schedule=sched)
     ctrl = cache.get(ckey, build)
     res = simulate_closed_loop(ctx["plant"], ctrl, sc.t_end, settings=ctx["sim"],
                                reference=(sc.reference.theta_at, sc.reference.theta_dot_at), backend=spec.backend)
-    row = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **(sc.bands or {}))
+    row, _ = judge(res, ctrl, sc, ctx["plant"].params, name)
     row.update(scenario=sc.name, verdict=row.get("verdict"), error="", sim_wall_s=row["wall_s"])
     return row
 

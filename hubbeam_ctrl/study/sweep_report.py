@@ -14,7 +14,6 @@ from hubbeam_ctrl.plots.study import (
     plot_heatmap,
     plot_robustness_curves,
     plot_stable_region,
-    unstable_mask,
 )
 from hubbeam_ctrl.study.spec import StudySpec
 
@@ -23,7 +22,8 @@ __all__ = ["summarize", "write_sweep_outputs", "SUMMARY_COLUMNS"]
 #: Columns of summary.csv, one row per controller.
 SUMMARY_COLUMNS = ("controller", "n_cases", "n_errors", "residual_tip_max_m_worst", "residual_tip_max_m_median",
                    "residual_pct_of_openloop_worst", "peak_tip_m_worst", "abs_final_angle_error_rad_worst",
-                   "peak_torque_nm_worst", "settling_time_s_worst", "fraction_settled", "fraction_unstable")
+                   "peak_torque_nm_worst", "settling_time_s_worst", "fraction_settled", "fraction_unstable",
+                   "fraction_failed")
 
 
 def _worst(values) -> float:
@@ -32,9 +32,12 @@ def _worst(values) -> float:
 
 
 def summarize(df):
-    """Per controller: worst case and median over the cases, fractions settled and unstable.
+    """Per controller: worst case and median over the cases, fractions settled, unstable and failed.
 
-    Worst cases are taken over the cases that ran (a failed case counts as unstable);
+    ``fraction_unstable`` counts the verdicts ``unstable`` and ``diverged``;
+    ``fraction_failed`` the runs whose integrator or controller failed (verdict ``failed``)
+    and the cases that raised: a failed run says nothing about the loop's stability.
+    Worst cases are taken over the cases that ran;
     ``settling_time_s_worst`` is NaN when any case did not settle. Settled means the
     verdict says so or, without a verdict, a finite settling time.
 
@@ -49,7 +52,6 @@ def summarize(df):
         Columns :data:`SUMMARY_COLUMNS`.
     """
     import pandas as pd
-    bad = unstable_mask(df)
     rows = []
     for name in dict.fromkeys(df["controller"]):
         sel = (df["controller"] == name).to_numpy()
@@ -57,6 +59,10 @@ def summarize(df):
         settle = sub["settling_time_s"].to_numpy(dtype=float)
         verdict = sub["verdict"].astype(object).where(sub["verdict"].notna(), "").astype(str)
         settled = np.where(verdict != "", verdict == "settled", np.isfinite(settle))
+        errors = (sub["error"].astype(str) != "").to_numpy()
+        failed = (verdict == "failed").to_numpy() | errors
+        unstable = verdict.isin(["unstable", "diverged"]).to_numpy() | \
+            ((verdict == "").to_numpy() & ~errors & ~sub["completed"].astype(bool).to_numpy())
         rows.append({
             "controller": name, "n_cases": int(sel.sum()), "n_errors": int((sub["error"].astype(str) != "").sum()),
             "residual_tip_max_m_worst": _worst(sub["residual_tip_max_m"]),
@@ -67,7 +73,8 @@ def summarize(df):
             "abs_final_angle_error_rad_worst": _worst(sub["final_angle_error_rad"]),
             "peak_torque_nm_worst": _worst(sub["peak_torque_nm"]),
             "settling_time_s_worst": float(np.max(settle)) if np.all(np.isfinite(settle)) else math.nan,
-            "fraction_settled": float(np.mean(settled)), "fraction_unstable": float(np.mean(bad[sel])),
+            "fraction_settled": float(np.mean(settled)), "fraction_unstable": float(np.mean(unstable)),
+            "fraction_failed": float(np.mean(failed)),
         })
     return pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
 

@@ -1,0 +1,74 @@
+"""One verdict for one run: the nonlinear run's metrics with the linear certificate.
+
+:func:`judge` is what :func:`~hubbeam_ctrl.study.compare.compare` and the sweep engine
+(:mod:`hubbeam_ctrl.study.sweep`) call for every closed-loop run, so a comparison, a
+sweep case and the CLI judge a run the same way: the metrics of
+:func:`~hubbeam_ctrl.study.metrics.closed_loop_metrics` (envelope growth of tip, torque and
+angle error fitted over the residual window in blocks of half a period of the design's
+first bending mode: |x| peaks twice a period), decided together with the controller's sampled linear loop on the
+evaluation plant's modes (:func:`~hubbeam_ctrl.study.certificate.certify`, at the hub rates
+of the start and of the end of the run).
+"""
+
+from __future__ import annotations
+
+import math
+
+from controllers.scaling import first_mode
+from hubbeam_ctrl.study.certificate import certify
+from hubbeam_ctrl.study.metrics import closed_loop_metrics
+
+__all__ = ["judge", "residual_modes_for"]
+
+
+def judge(result, controller, scenario, plant_params, name: str | None = None):
+    """Metrics and verdict of one closed-loop run, with its linear certificate.
+
+    Parameters
+    ----------
+    result : Result
+        The closed-loop run (with the task's reference).
+    controller : Controller
+        The controller that ran.
+    scenario : Scenario
+        The task: maneuver time, torque limit and settling bands.
+    plant_params : Params
+        The evaluation plant's parameters (all of its transverse modes).
+    name : str, optional
+        Registry name of the controller (default ``controller.name``).
+
+    Returns
+    -------
+    tuple
+        ``(metrics, certificate)``: the metrics dictionary (with ``verdict``,
+        ``verdict_reason`` and the ``loop_*`` entries) and the
+        :class:`~hubbeam_ctrl.study.certificate.Certificate`.
+    """
+    spins = (float(result.v[0, 0]), float(result.v[-1, 0]))
+    cert = certify(controller, plant_params, spins=spins, name=name)
+    block_s = math.pi / first_mode(controller.design)     # half a period of the first bending mode
+    metrics = closed_loop_metrics(result, scenario.t_f, tau_max=scenario.tau_max, block_s=block_s,
+                                  certificate=cert, **(scenario.bands or {}))
+    return metrics, cert
+
+
+def residual_modes_for(settings, plant_modes: int):
+    """``settings`` with its residual modes set to the evaluation plant's transverse modes.
+
+    A quadratic design with ``residual_control`` (the default of ``for_scenario``) and no
+    ``residual_modes`` of its own computes its gain (and the LQG its filter) on the design
+    model with the plant's modes; other settings are returned unchanged.
+
+    Parameters
+    ----------
+    settings : ControllerSettings
+    plant_modes : int
+        Transverse modes of the evaluation plant.
+
+    Returns
+    -------
+    ControllerSettings
+    """
+    if getattr(settings, "residual_control", False) and getattr(settings, "residual_modes", 0) is None:
+        return settings.replace(residual_modes=int(plant_modes))
+    return settings
