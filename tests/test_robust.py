@@ -51,7 +51,7 @@ def test_multi_model_filter_keeps_the_lqg_stable_over_the_range():
     plants = [DesignModel.build(Params(m_t=m), 0.0, sc.dt) for m in (0.0, 0.1, 0.3, 0.5)]
     # the session-4 filter (modes below Nyquist + 1, gain padded): these loops are on 5-mode
     # plants, which have no residual modes for a gain computed with them to act on
-    st = LQGSettings.for_scenario(sc).replace(residual_control=False, residual_modes=7)
+    st = LQGSettings.for_scenario(sc).replace(residual_control=False, residual_modes=7, residual_noise=1.0)
     nominal = LQG(d, st, sc.reference)
     robust = LQG(d, multi_model_filter(d, st, (0.0, 0.1, 0.5), sc.reference, share=0.01), sc.reference)
     radius = lambda c, p: np.max(np.abs(closed_loop_poles(c, p)))   # noqa: E731
