@@ -41,6 +41,7 @@ from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
+from hubbeam_ctrl.sim.hardware import Hardware
 from hubbeam_ctrl.sim.results import Result
 from hubbeam_ctrl.sim.stepper import MAX_SUBSTEPS, PlantStepper, StepperSettings, substep_rule
 
@@ -166,7 +167,7 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
                          design_params: Params | None = None, plant_params: Params | None = None,
                          plant_modes: int | None = None, settings: ClosedLoopSettings | None = None,
-                         x0=None, reference=None, backend=None) -> Result:
+                         x0=None, reference=None, backend=None, hardware: Hardware | None = None) -> Result:
     """Run a sampled controller on a nonlinear plant (zero-order hold).
 
     At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
@@ -215,6 +216,11 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     backend : {"auto", "compiled", "vm"}, optional
         How the plant step is evaluated (see :class:`PlantStepper`); default
         ``$HUBBEAM_BACKEND`` or ``"auto"``.
+    hardware : Hardware, optional
+        The rig's drive and friction (:class:`~hubbeam_ctrl.sim.hardware.Hardware`, e.g.
+        ``Hardware.from_rig(rig)``; give the plant ``rig.plant_params``, whose hub inertia holds the
+        reflected rotor): the controller's output is then the command (a voltage for a DC motor,
+        stored as ``tau``). None or ideal hardware: the ideal torque source, bit for bit.
 
     Returns
     -------
@@ -266,7 +272,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                  seconds=N * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n / 11.0) ** 2,
                  max_memory_mb=settings.max_memory_mb, max_wall_s=settings.max_wall_s)
     x = _initial_state(x0, 2 * n)
-    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend)
+    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend, hardware=hardware)
     t = dt * np.arange(N + 1)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None
@@ -347,6 +353,10 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         message = (f"completed; |v_tip| passed {settings.range_limit:g} L (outside the models' validated "
                    f"range) at t = {outside_time:.3f} s")
     s_dict["backend"] = stepper.backend
+    if stepper.hardware is not None:
+        hw = stepper.hardware
+        s_dict["hardware"] = {"drive": hw.drive.to_dict(), "friction": hw.friction.to_dict(),
+                              "command": hw.command, "stick_events": stepper.stick_events}
     return Result(
         kind="closed_loop", model=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip,
         u_tip=u_tip, root_moment=root_moment, tau=taus, step_time_s=step_times,
