@@ -255,10 +255,15 @@ class Hardware:
         tau : float or ndarray
         thd : float or ndarray
         """
-        tau, thd = np.asarray(tau, dtype=float), np.asarray(thd, dtype=float)
         d = self.drive
         if d.is_ideal:
             return tau
+        if isinstance(tau, float) and isinstance(thd, float):      # one sample: no array overhead
+            sign = 1.0 if tau >= 0 else -1.0
+            x = min(max(-thd * sign / self.friction.v_eps, 0.0), 50.0)
+            e = d.eta_forward + (1.0 / d.eta_backward - d.eta_forward) * math.tanh(x) ** 2
+            return min(max(d.R * tau / (d.N * d.k_t * e) + d.k_e * d.N * thd, -d.V_max), d.V_max)
+        tau, thd = np.asarray(tau, dtype=float), np.asarray(thd, dtype=float)
         h = _unpack(self.values())
         i = tau / (d.N * d.k_t * _efficiency(tau, thd, h, np.clip, np.tanh))     # sign(i) = sign(tau)
         return np.clip(d.R * i + d.k_e * d.N * thd, -d.V_max, d.V_max)

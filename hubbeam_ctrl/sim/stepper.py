@@ -318,6 +318,8 @@ class PlantStepper:
         #: Torque the friction exerts to hold the hub at the last held sample [N m].
         self.hold_torque = 0.0
         self.stick_events = 0
+        if self.hardware is not None:
+            self._F_s, self._v_stick = self.hardware.friction.static, self.hardware.friction.stick_velocity
         self._function, self._jacobian, self.backend = step_functions(model, self.settings, backend,
                                                                       hardware=self.hardware is not None)
         self._setup_buffers()
@@ -431,24 +433,21 @@ class PlantStepper:
 
     def _advance_hardware(self) -> np.ndarray:
         """One sample with the hardware: slip, or stick while friction holds the hub (Karnopp)."""
-        n, f = self.n_q, self.hardware.friction
-        if f.static == 0.0:
+        n, F_s, v_stick = self.n_q, self._F_s, self._v_stick
+        if F_s == 0.0:
             return self._advance_one()
-        s0 = self._s_in.copy()
+        # the input buffer _s_in is not written by a step: each trial starts from it
         if self.stuck:
             self._set_stick(True)
             out = self._advance_one()
             if self._holds(out):
                 return out
             self.stuck = False                  # breakaway: the sample again, sliding
-            self._s_in[:] = s0
         self._set_stick(False)
         out = self._advance_one()
-        thd0, thd1 = s0[n], out[n]
-        if thd0 * thd1 < 0 or (abs(thd1) <= f.stick_velocity and abs(thd1) < abs(thd0)) or \
-                (thd0 == 0.0 and abs(thd1) <= f.stick_velocity):
+        thd0, thd1 = float(self._s_in[n]), float(out[n])
+        if abs(thd1) <= v_stick and (abs(thd1) < abs(thd0) or thd0 == 0.0) or thd0 * thd1 < 0:
             slip = out.copy()
-            self._s_in[:] = s0
             self._set_stick(True)
             held = self._advance_one()
             if self._holds(held):
@@ -465,7 +464,7 @@ class PlantStepper:
         self._s_hold[:] = out
         self._eval_hold()
         self.hold_torque = float(self._hold[0])
-        return abs(self.hold_torque) <= self.hardware.friction.static
+        return abs(self.hold_torque) <= self._F_s
 
     def _advance_one(self) -> np.ndarray:
         """One sample as the buffers say (slip or stick), with the iteration-matrix refreshes."""
