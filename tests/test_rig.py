@@ -164,3 +164,34 @@ def test_every_rig_field_is_in_the_ranges_doc():
         from dataclasses import fields
         for f in fields(cls):
             assert f"| `{f.name}` | {f.metadata['unit']} |" in text, (table, f.name)
+
+
+def test_rig_damping_reaches_the_plant_modes():
+    """Per-mode ratios and Rayleigh terms become the damping ratios of the plant's clamped modes
+    (modal analysis of the prescribed-hub FOAM plant, 6 modes): 0.034 on mode 1, 0.02 beyond, plus
+    beta w_i / 2; and the servo link's first clamped mode is at 3.0 Hz."""
+    from hubbeam_ctrl import build_model
+    from hubbeam_ctrl.plant.modal import modal_analysis
+    rig = load_rig("servo_link").replace(damping=Damping(ratios=(0.034, 0.02), beta=1e-5))
+    P = rig.plant_params.replace(n_axial=2, n_transverse=6)
+    ma = modal_analysis(build_model("foam", P), 0.0, "prescribed")
+    w = 2 * math.pi * ma.bending_hz
+    want = [0.034 if i == 0 else 0.02 for i in range(6)] + 0.5e-5 * w
+    assert ma.damping_ratios == pytest.approx(want, rel=1e-6)
+    assert ma.bending_hz[0] == pytest.approx(3.0, rel=1e-3)
+    assert len(rig.plant_params.damping_ratios) == 20 and rig.plant_params.damping_ratio == 0.0
+    # no [damping]: the beam's own uniform ratio, unchanged
+    assert load_rig("paper").plant_params.damping_ratios == ()
+
+
+def test_params_per_mode_damping_validation_and_toml(tmp_path):
+    from hubbeam_ctrl import load_params
+    p = Params(damping_ratios=[0.03, 0.01])
+    assert p.damping_ratios == (0.03, 0.01)
+    assert list(p.transverse_damping(4)) == [0.03, 0.01, 0.01, 0.01]
+    assert list(Params(damping_ratio=0.02).transverse_damping(2)) == [0.02, 0.02]
+    with pytest.raises(ParameterError, match=r"^damping_ratios must hold numbers in \[0, 1\), got 1.5 at index 1$"):
+        Params(damping_ratios=(0.1, 1.5))
+    path = tmp_path / "p.toml"
+    save_params(p, path)
+    assert load_params(path) == p

@@ -43,10 +43,12 @@ from dataclasses import dataclass, fields
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text
 from hubbeam_ctrl.core.settings import Settings, setting
-from hubbeam_ctrl.plant.params import Params, _read_toml
+from hubbeam_ctrl.plant.params import MAX_MODES, Params, _read_toml
 
 __all__ = ["Drive", "Friction", "Damping", "Sensors", "Timing", "Rig", "load_rig", "save_rig", "PRESETS",
            "RIG_TABLES", "RIG_RELATIONS", "rig_from_dict", "rig_to_toml"]
@@ -347,9 +349,33 @@ class Rig(Settings):
     @property
     def plant_params(self) -> Params:
         """The beam's :class:`Params` as the plant sees them: ``J_h`` plus the reflected rotor
-        inertia ``N^2 J_r`` (the beam itself when there is none)."""
-        extra = self.drive.reflected_inertia
-        return self.beam if extra == 0.0 else self.beam.replace(J_h=self.beam.J_h + extra)
+        inertia ``N^2 J_r``, and the rig's damping as per-mode ratios of the transverse clamped
+        modes (``damping_ratios``, all :data:`~hubbeam_ctrl.plant.params.MAX_MODES` of them, Rayleigh
+        terms at each mode's frequency); the beam itself when there is neither."""
+        changes = {}
+        if self.drive.reflected_inertia:
+            changes["J_h"] = self.beam.J_h + self.drive.reflected_inertia
+        if self.damping.is_set:
+            changes["damping_ratios"] = self.mode_damping()
+        return self.beam.replace(**changes) if changes else self.beam
+
+    def mode_damping(self, n: int = MAX_MODES) -> tuple:
+        """Damping ratios of transverse clamped modes 1..n by :meth:`Damping.ratio` [-].
+
+        Parameters
+        ----------
+        n : int
+            Number of modes (default all the toolbox models, 20).
+
+        Returns
+        -------
+        tuple of float
+        """
+        from hubbeam_ctrl.plant.basis import modal_basis
+        b = modal_basis(self.beam.replace(n_transverse=n, damping_ratios=()))
+        omega = np.sqrt(np.diag(b.K2)[:n] / np.diag(b.beam.M2)[:n])
+        out = tuple(min(self.damping.ratio(i + 1, float(w)), 0.999) for i, w in enumerate(omega))
+        return out
 
     def to_tables(self) -> dict:
         """The rig as the tables of a rig file: ``{"beam": {...}, "motor": {...}, ...}``."""
