@@ -114,7 +114,7 @@ def test_free_hub_decelerates_as_the_analytic_solution():
 
 def _voltage_run(t_end=2.0):
     """The servo (flexible link, undamped) driven in volts, hub always moving."""
-    P = SERVO.plant_params.replace(n_axial=1, n_transverse=3)
+    P = SERVO.plant_params.replace(n_axial=1, n_transverse=3, damping_ratios=())
     model = build_model("foam", P)
     hw = Hardware.from_rig(SERVO)
     volts = lambda t: 3.0 + 9.0 * np.sin(2 * np.pi * t)      # noqa: E731  (brakes, back-drives, saturates)
@@ -164,7 +164,7 @@ def test_closed_loop_on_the_dc_motor_with_friction_settles_off_target():
         def __call__(self, t, y):
             return float(np.clip(self.kp * (0.5 - y[0]) - self.kd * y[len(y) // 2], -10, 10))
 
-    P = SERVO.plant_params.replace(n_axial=1, n_transverse=2, damping_ratio=0.034)
+    P = SERVO.plant_params.replace(n_axial=1, n_transverse=2)          # damped 0.034 (the rig)
     res = simulate_closed_loop("foam", PDVolts(), 3.0, params=P, hardware=Hardware.from_rig(SERVO),
                                settings=ClosedLoopSettings(dt=1e-3))
     print(res.q[-1, 0], res.settings["hardware"]["stick_events"], res.stats)
