@@ -177,3 +177,36 @@ def test_closed_loop_on_the_dc_motor_with_friction_settles_off_target():
     # of motion); the beam's ringing breaks it free now and then before (measured: last at 2.8 s)
     assert np.all(np.abs(np.diff(res.q[-100:, 0])) < 1e-9) and np.all(np.abs(res.v[-100:, 0]) < 1e-9)
     assert res.settings["hardware"]["stick_events"] >= 1
+
+
+def test_encoder_quantises_the_measured_hub_angle():
+    """4096 counts/rev: every measured angle is a whole count, within half a count of the plant's
+    (both for state and for sensor feedback); 0 counts: the exact angle."""
+    from hubbeam_ctrl.plant.sensors import SensorSettings
+
+    class Rec:
+        name, dt, n_modes = "rec", 0.01, 1
+
+        def __init__(self, measurement):
+            self.measurement, self.seen = measurement, []
+
+        def reset(self):
+            self.seen = []
+
+        def __call__(self, t, y):
+            self.seen.append(y[0])
+            return 30.0
+
+    P = Params(n_axial=1, n_transverse=1)
+    step = 2 * np.pi / 4096
+    for kind, noise in (("state", 0.0), ("sensors", 1e-4)):
+        sensors = SensorSettings(encoder_counts=4096, angle_noise_rad=noise)
+        ctrl = Rec(kind)
+        res = simulate_closed_loop("foam", ctrl, 2.0, params=P, settings=ClosedLoopSettings(sensors=sensors))
+        y = np.array(ctrl.seen)
+        assert np.all(np.abs(y / step - np.round(y / step)) < 1e-9)
+        assert np.max(np.abs(y - res.q[:, 0])) <= step / 2 + noise * 5 + 1e-12
+        assert res.q[-1, 0] > 100 * step                 # it turned many counts
+    ctrl = Rec("state")
+    res = simulate_closed_loop("foam", ctrl, 2.0, params=P)
+    assert np.array_equal(np.array(ctrl.seen), res.q[:, 0])

@@ -195,3 +195,12 @@ def test_params_per_mode_damping_validation_and_toml(tmp_path):
     path = tmp_path / "p.toml"
     save_params(p, path)
     assert load_params(path) == p
+
+
+def test_sensors_give_the_closed_loop_sensor_settings():
+    s = Sensors(encoder_counts=4096, angle_noise=1e-5, rate_noise=1e-3, strain_noise=0.01)
+    ss = s.sensor_settings(seed=3)
+    assert (ss.encoder_counts, ss.angle_noise_rad, ss.rate_noise_rad_s, ss.moment_noise_nm, ss.seed) == \
+        (4096, 1e-5, 1e-3, 0.01, 3)
+    assert ss.encoder_step == pytest.approx(2 * math.pi / 4096) == s.encoder_step
+    assert Sensors().sensor_settings().encoder_step == 0.0

@@ -271,6 +271,25 @@ class Sensors(Settings):
         """Angle quantum ``2 pi / encoder_counts`` [rad] (0: ideal encoder)."""
         return 0.0 if self.encoder_counts == 0 else 2.0 * math.pi / self.encoder_counts
 
+    def sensor_settings(self, seed: int = 0):
+        """The closed loop's :class:`~hubbeam_ctrl.plant.sensors.SensorSettings` of these sensors.
+
+        Noise standard deviations of angle, rate and the first strain gauge, and the encoder
+        (biases, further gauges, the accelerometer and the filter are not in the closed loop yet).
+
+        Parameters
+        ----------
+        seed : int
+            Seed of the noise generator.
+
+        Returns
+        -------
+        SensorSettings
+        """
+        from hubbeam_ctrl.plant.sensors import SensorSettings
+        return SensorSettings(angle_noise_rad=self.angle_noise, rate_noise_rad_s=self.rate_noise,
+                              moment_noise_nm=self.strain_noise, seed=seed, encoder_counts=self.encoder_counts)
+
 
 @dataclass(frozen=True)
 class Timing(Settings):

@@ -62,7 +62,8 @@ class ClosedLoopSettings(StepperSettings):
                                          doc="Largest relative frequency error of any bending mode in "
                                              "the integrator (0.5 %).")
     sensors: SensorSettings = setting(factory=SensorSettings,
-                                      doc='Sensor noise for controllers that read "sensors".')
+                                      doc='Sensor noise for controllers that read "sensors"; the hub '
+                                          "encoder's resolution for every controller.")
     range_limit: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0,
                                  doc="Validated range of the models: a run with abs(v_tip) > range_limit * L "
                                      "is flagged (outside_validated_range, with the time) and goes on.")
@@ -180,6 +181,9 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     * ``"sensors"``: ``[theta, theta_dot, M_root]`` [rad, rad/s, N m] plus the noise of
       ``settings.sensors``.
 
+    With ``settings.sensors.encoder_counts`` the measured hub angle is rounded to the
+    nearest encoder count, in both cases.
+
     The plant is, in this order: ``plant`` itself when it is a built model; the model named
     ``plant`` with exactly ``params`` when they are given; otherwise the **evaluation plant**
     of :func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`: the physical parameters of
@@ -281,6 +285,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     L = model.params.L
     flag_at, stop_at = settings.range_limit * L, settings.divergence_limit * L
     outside_time = None
+    encoder = settings.sensors.encoder_step
 
     states = np.empty((N + 1, 2 * n))
     taus = np.full(N + 1, np.nan)
@@ -294,6 +299,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     for k in range(N + 1):
         states[k] = x
         y = x[idx_state] if noise is None else C_sens @ x + noise[k]
+        if encoder:                     # the encoder's count (nearest): y is a new array
+            y[0] = encoder * round(y[0] / encoder)
         t0 = perf()
         try:
             tau = _torque(controller(t[k], y))
