@@ -84,6 +84,14 @@ class Params(Settings):
         for rel in RELATIONS:
             rel.check(self)
 
+    def to_dict(self) -> dict:
+        """Plain dictionary of the fields; ``damping_ratios`` only when set (so that files, hashes
+        and study folders of parameter sets without per-mode damping are as before)."""
+        out = super().to_dict()
+        if not out["damping_ratios"]:
+            del out["damping_ratios"]
+        return out
+
     def transverse_damping(self, n: int) -> np.ndarray:
         """Damping ratios of transverse modes 1..n [-] (``damping_ratios``, else ``damping_ratio``).
 
