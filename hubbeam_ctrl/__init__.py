@@ -30,6 +30,7 @@ _EXPORTS = {
                                  "natural_frequencies"),
     "hubbeam_ctrl.plant.models": ("MODEL_NAMES", "HubBeamModel", "build_model"),
     "hubbeam_ctrl.plant.params": ("Params", "load_params", "save_params"),
+    "hubbeam_ctrl.plant.rig": ("Rig", "load_rig", "save_rig"),
     "hubbeam_ctrl.sim.results": ("Result", "SimulationResult", "load_result"),
     "hubbeam_ctrl.sim.simulate": ("SimulationSettings", "simulate"),
 }

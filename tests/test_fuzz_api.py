@@ -93,6 +93,9 @@ def test_c5_params_valid_and_in_range_or_one_line_error(kwargs):
         value = getattr(p, f.name)
         if value is None:
             continue
+        if f.metadata["kind"] is tuple:          # damping_ratios: floats in [0, 1)
+            assert type(value) is tuple and all(type(z) is float and 0 <= z < 1 for z in value)
+            continue
         assert not isinstance(value, bool) and type(value) in (int, float)
         assert _in_range(value, f.metadata, p), (f.name, value)
     for rel in RELATIONS:

@@ -22,6 +22,7 @@ from hubbeam_ctrl.core.settings import Settings, range_text
 from hubbeam_ctrl.linear.statespace import DT_RANGE
 from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse
 from hubbeam_ctrl.plant.params import MAX_ROOT_STRAIN, RELATIONS, Params
+from hubbeam_ctrl.plant.rig import RIG_RELATIONS, Rig
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.simulate import SimulationSettings
@@ -47,7 +48,8 @@ def settings_classes() -> list:
     roots = [("System parameters", Params), ("Simulation (`simulate`)", SimulationSettings),
              ("Closed loop (`simulate_closed_loop`)", ClosedLoopSettings),
              ("Sensors", SensorSettings), ("Spin-up maneuver (Eq. 43)", SpinUp),
-             ("Torque pulse (Eq. 44)", TorquePulse), ("Constant spin", ConstantSpin)]
+             ("Torque pulse (Eq. 44)", TorquePulse), ("Constant spin", ConstantSpin),
+             ("Rig (`load_rig`, a rig file's tables)", Rig)]
     roots += [(f"Controller `{name}` ({spec.label})", spec.settings) for name, spec in CONTROLLERS.items()]
     out, seen = [], set()
     for title, cls in roots:
@@ -86,6 +88,7 @@ def _cell(text: str) -> str:
 
 def _field_rows(cls) -> list:
     relations = {r.name: r.text for r in RELATIONS} if cls is Params else {}
+    relations.update({name: text for (owner, name), text in RIG_RELATIONS.items() if owner == cls.__name__})
     rows = []
     for f in fields(cls):
         m = f.metadata

@@ -148,8 +148,9 @@ def _write_mat(tmp, mats, meta, params: Params | None):
         elif isinstance(value, (str, int, float)) and not isinstance(value, bool):
             data[key] = float(value) if isinstance(value, (int, float)) else value
     if params is not None:
-        data["params"] = {k: float(params.tip_position if v is None else v)   # l resolved
-                          for k, v in params.to_dict().items()}
+        data["params"] = {k: (np.asarray(v, dtype=float) if isinstance(v, tuple)     # per-mode damping
+                              else float(params.tip_position if v is None else v))   # l resolved
+                          for k, v in ((k, getattr(params, k)) for k in Params.units())}
         data["param_units"] = dict(Params.units())
     data["hubbeam_metadata"] = json.dumps(meta)
     with open(tmp, "wb") as fh:

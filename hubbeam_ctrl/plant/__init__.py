@@ -10,7 +10,8 @@ from hubbeam_ctrl.plant.maneuvers import *  # noqa: F401,F403
 from hubbeam_ctrl.plant.modal import *  # noqa: F401,F403
 from hubbeam_ctrl.plant.models import *  # noqa: F401,F403
 from hubbeam_ctrl.plant.params import *  # noqa: F401,F403
+from hubbeam_ctrl.plant.rig import *  # noqa: F401,F403
 from hubbeam_ctrl.plant.sensors import *  # noqa: F401,F403
 
-__all__ = [name for _m in ('params', 'basis', 'models', 'maneuvers', 'sensors', 'linearization', 'modal')
+__all__ = [name for _m in ('params', 'basis', 'models', 'maneuvers', 'sensors', 'linearization', 'modal', 'rig')
            for name in _sys.modules[f"hubbeam_ctrl.plant.{_m}"].__all__]

@@ -406,11 +406,13 @@ class HubBeamModel:
         return fields
 
     def _damping_diagonal(self) -> np.ndarray:
-        """Modal damping ``2 zeta sqrt(K_ii M_ii)`` of the clamped modes, ``[q1, q2]`` [N s/m]."""
-        zeta = self.params.damping_ratio
+        """Modal damping ``2 zeta sqrt(K_ii M_ii)`` of the clamped modes, ``[q1, q2]`` [N s/m]
+        (axial: ``damping_ratio``; transverse: :meth:`Params.transverse_damping`)."""
         b = self.basis
         out = []
-        for n, K, Mm in ((self.n_axial_modes, b.K1, b.beam.M1), (self.n_transverse, b.K2, b.beam.M2)):
+        zetas = (self.params.damping_ratio, self.params.transverse_damping(self.n_transverse))
+        for zeta, n, K, Mm in zip(zetas, (self.n_axial_modes, self.n_transverse), (b.K1, b.K2),
+                                  (b.beam.M1, b.beam.M2)):
             out.append(2 * zeta * np.sqrt(np.diag(K)[:n] * np.diag(Mm)[:n]))
         return np.concatenate(out)
 

@@ -60,15 +60,54 @@ class Params(Settings):
     damping_ratio: float = setting(0.0, lo=0.0, hi=1.0, hi_open=True,
                                    doc="Modal damping ratio zeta of the non-rotating clamped modes "
                                        "(0: undamped, as in the paper).")
+    damping_ratios: tuple = setting((), kind=tuple,
+                                    doc="Per-mode damping ratios of transverse clamped modes 1, 2, ..., each "
+                                        "in [0, 1); modes beyond the list take its last value; empty: "
+                                        "damping_ratio for every mode (axial modes always take damping_ratio).")
     tau_max: float = setting(200.0, unit="N m", lo=0.0, lo_open=True,
                              doc="Torque limit of the hub motor (default: the paper's Eq. 44 amplitude). "
                                  "Every controller saturates its output there, or at a smaller limit its "
                                  "settings give; a larger one is an error.")
 
     def __post_init__(self):
+        if isinstance(self.damping_ratios, list):
+            object.__setattr__(self, "damping_ratios", tuple(self.damping_ratios))
         super().__post_init__()
+        ratios = []
+        for k, z in enumerate(self.damping_ratios):
+            if isinstance(z, bool) or not isinstance(z, (int, float, np.integer, np.floating)) \
+                    or not 0.0 <= z < 1.0:
+                raise ParameterError(f"damping_ratios must hold numbers in [0, 1), got {str(z)[:40]} at "
+                                     f"index {k}")
+            ratios.append(float(z))
+        object.__setattr__(self, "damping_ratios", tuple(ratios))
         for rel in RELATIONS:
             rel.check(self)
+
+    def to_dict(self) -> dict:
+        """Plain dictionary of the fields; ``damping_ratios`` only when set (so that files, hashes
+        and study folders of parameter sets without per-mode damping are as before)."""
+        out = super().to_dict()
+        if not out["damping_ratios"]:
+            del out["damping_ratios"]
+        return out
+
+    def transverse_damping(self, n: int) -> np.ndarray:
+        """Damping ratios of transverse modes 1..n [-] (``damping_ratios``, else ``damping_ratio``).
+
+        Parameters
+        ----------
+        n : int
+            Number of modes.
+
+        Returns
+        -------
+        ndarray (n,)
+        """
+        z = self.damping_ratios
+        if not z:
+            return np.full(n, self.damping_ratio)
+        return np.array([z[min(i, len(z) - 1)] for i in range(n)])
 
     # -- derived quantities -------------------------------------------------
     @property
@@ -315,5 +354,6 @@ def save_params(params: Params, path) -> None:
         if value is None:   # l unset: tip mass at the free end
             lines.append(f"# {key} unset: at the free end")
             continue
-        lines.append(f"{key} = {value!r}  # [{units[key]}]")
+        text = "[" + ", ".join(map(repr, value)) + "]" if isinstance(value, tuple) else repr(value)
+        lines.append(f"{key} = {text}  # [{units[key]}]")
     atomic_write_text(path, "\n".join(lines) + "\n")

@@ -38,6 +38,15 @@ class SensorSettings(Settings):
     moment_noise_nm: float = setting(0.02, unit="N m", lo=0.0, hi=1e6,
                                      doc="Root bending-moment (strain gauge) noise, standard deviation.")
     seed: int = setting(0, lo=0, hi=2**63 - 1, doc="Seed of the noise generator (runs are reproducible).")
+    encoder_counts: int = setting(0, lo=0, hi=10**9, unit="counts/rev",
+                                  doc="Hub encoder resolution: the measured hub angle (noise included) is "
+                                      "rounded to the nearest multiple of 2 pi / encoder_counts, for every "
+                                      "controller (also those that read the state); 0: not quantised.")
+
+    @property
+    def encoder_step(self) -> float:
+        """Angle quantum ``2 pi / encoder_counts`` [rad] (0.0: not quantised)."""
+        return 0.0 if self.encoder_counts == 0 else 2.0 * np.pi / self.encoder_counts
 
     @property
     def std(self) -> np.ndarray:

@@ -42,6 +42,7 @@ from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
+from hubbeam_ctrl.sim.hardware import Hardware
 from hubbeam_ctrl.sim.results import Result
 from hubbeam_ctrl.sim.stepper import MAX_SUBSTEPS, PlantStepper, StepperSettings, substep_rule
 
@@ -62,7 +63,8 @@ class ClosedLoopSettings(StepperSettings):
                                          doc="Largest relative frequency error of any bending mode in "
                                              "the integrator (0.5 %).")
     sensors: SensorSettings = setting(factory=SensorSettings,
-                                      doc='Sensor noise for controllers that read "sensors".')
+                                      doc='Sensor noise for controllers that read "sensors"; the hub '
+                                          "encoder's resolution for every controller.")
     range_limit: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0,
                                  doc="Validated range of the models: a run with abs(v_tip) > range_limit * L "
                                      "is flagged (outside_validated_range, with the time) and goes on.")
@@ -167,7 +169,7 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
                          design_params: Params | None = None, plant_params: Params | None = None,
                          plant_modes: int | None = None, settings: ClosedLoopSettings | None = None,
-                         x0=None, reference=None, backend=None) -> Result:
+                         x0=None, reference=None, backend=None, hardware: Hardware | None = None) -> Result:
     """Run a sampled controller on a nonlinear plant (zero-order hold).
 
     At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
@@ -180,6 +182,9 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
       ``q1`` is not given;
     * ``"sensors"``: ``[theta, theta_dot, M_root]`` [rad, rad/s, N m] plus the noise of
       ``settings.sensors``.
+
+    With ``settings.sensors.encoder_counts`` the measured hub angle is rounded to the
+    nearest encoder count, in both cases.
 
     The plant is, in this order: ``plant`` itself when it is a built model; the model named
     ``plant`` with exactly ``params`` when they are given; otherwise the **evaluation plant**
@@ -217,6 +222,11 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     backend : {"auto", "compiled", "vm"}, optional
         How the plant step is evaluated (see :class:`PlantStepper`); default
         ``$HUBBEAM_BACKEND`` or ``"auto"``.
+    hardware : Hardware, optional
+        The rig's drive and friction (:class:`~hubbeam_ctrl.sim.hardware.Hardware`, e.g.
+        ``Hardware.from_rig(rig)``; give the plant ``rig.plant_params``, whose hub inertia holds the
+        reflected rotor): the controller's output is then the command (a voltage for a DC motor,
+        stored as ``tau``). None or ideal hardware: the ideal torque source, bit for bit.
 
     Returns
     -------
@@ -270,7 +280,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                  seconds=N * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n / 11.0) ** 2,
                  max_memory_mb=settings.max_memory_mb, max_wall_s=settings.max_wall_s)
     x = _initial_state(x0, 2 * n)
-    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend)
+    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend, hardware=hardware)
     t = dt * np.arange(N + 1)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None
@@ -279,6 +289,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     L = model.params.L
     flag_at, stop_at = settings.range_limit * L, settings.divergence_limit * L
     outside_time = None
+    encoder = settings.sensors.encoder_step
 
     states = np.empty((N + 1, 2 * n))
     taus = np.full(N + 1, np.nan)
@@ -292,6 +303,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     for k in range(N + 1):
         states[k] = x
         y = x[idx_state] if noise is None else C_sens @ x + noise[k]
+        if encoder:                     # the encoder's count (nearest): y is a new array
+            y[0] = encoder * round(y[0] / encoder)
         t0 = perf()
         try:
             tau = _torque(controller(t[k], y))
@@ -351,6 +364,10 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         message = (f"completed; |v_tip| passed {settings.range_limit:g} L (outside the models' validated "
                    f"range) at t = {outside_time:.3f} s")
     s_dict["backend"] = stepper.backend
+    if stepper.hardware is not None:
+        hw = stepper.hardware
+        s_dict["hardware"] = {"drive": hw.drive.to_dict(), "friction": hw.friction.to_dict(),
+                              "command": hw.command, "stick_events": stepper.stick_events}
     return Result(
         kind="closed_loop", model=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip,
         u_tip=u_tip, root_moment=root_moment, tau=taus, step_time_s=step_times,

@@ -34,6 +34,7 @@ from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, jacobian_columns, resolve_model
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.hardware import HW_LAYOUT, Hardware, drive_torque, hub_torque
 from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients",
@@ -278,6 +279,16 @@ class PlantStepper:
         How the step and its iteration matrix are evaluated (see
         :mod:`hubbeam_ctrl.core.compiled`); default ``$HUBBEAM_BACKEND`` or ``"auto"``.
         :attr:`backend` holds the one in use (``"compiled"`` or ``"vm"``).
+    hardware : Hardware, optional
+        The drive and friction between the command and the hub
+        (:class:`~hubbeam_ctrl.sim.hardware.Hardware`): the input of :meth:`step` is then the
+        command (a voltage for a DC motor) and the hub torque ``drive - friction`` is applied
+        inside the implicit step at the end of every substep. With friction the hub sticks
+        (Karnopp): a hub that slows into ``friction.stick_velocity`` or reverses within a
+        sample is recomputed held at rest (its rate set to zero at the end of the substep),
+        and stays held while the torque needed to hold it (:attr:`hold_torque`) is within
+        the breakaway torque; :attr:`stuck` says whether it is. None or ideal hardware (torque
+        drive, no friction): today's step, bit for bit.
 
     Examples
     --------
@@ -289,7 +300,8 @@ class PlantStepper:
     0.005
     """
 
-    def __init__(self, model: HubBeamModel, settings: StepperSettings | None = None, backend=None):
+    def __init__(self, model: HubBeamModel, settings: StepperSettings | None = None, backend=None,
+                 hardware: Hardware | None = None):
         self.model = model
         self.settings = settings or StepperSettings()
         self.n_q = model.n_q
@@ -297,7 +309,19 @@ class PlantStepper:
         self.h = self.settings.dt / self.settings.substeps
         self.fallbacks = 0
         self.jacobian_updates = 0
-        self._function, self._jacobian, self.backend = step_functions(model, self.settings, backend)
+        if hardware is not None and not isinstance(hardware, Hardware):
+            raise ParameterError(f"hardware must be a Hardware (hubbeam_ctrl.sim.hardware), got "
+                                 f"{type(hardware).__name__}")
+        self.hardware = None if hardware is None or hardware.is_ideal else hardware
+        #: True while friction holds the hub at rest (only with hardware that has friction).
+        self.stuck = False
+        #: Torque the friction exerts to hold the hub at the last held sample [N m].
+        self.hold_torque = 0.0
+        self.stick_events = 0
+        if self.hardware is not None:
+            self._F_s, self._v_stick = self.hardware.friction.static, self.hardware.friction.stick_velocity
+        self._function, self._jacobian, self.backend = step_functions(model, self.settings, backend,
+                                                                      hardware=self.hardware is not None)
         self._setup_buffers()
         self._robust = None
 
@@ -320,7 +344,28 @@ class PlantStepper:
         x0 = np.zeros(2 * n) if x0 is None else np.asarray(x0, dtype=float).ravel()
         if x0.shape != (2 * n,) or not np.all(np.isfinite(x0)):
             raise ParameterError(f"x0 must hold {2 * n} finite numbers [q, v], got shape {x0.shape}")
-        a0 = self.model.accelerations(x0[:n], x0[n:], float(tau))
+        if self.hardware is None:
+            a0 = self.model.accelerations(x0[:n], x0[n:], float(tau))
+            return np.concatenate([x0, a0, a0])
+        return self._hardware_initial_state(x0, float(tau))
+
+    def _hardware_initial_state(self, x0, u: float) -> np.ndarray:
+        """Initial state with the hardware: the hub held at rest when friction can hold it."""
+        n, hw = self.n_q, self.hardware
+        q, v = x0[:n], x0[n:]
+        f = hw.friction
+        self.stuck = False
+        if f.static > 0 and abs(v[0]) <= f.stick_velocity:
+            M, c = self.model.mass_matrix(q, v), self.model.bias(q, v)
+            a = np.zeros(n)
+            a[1:] = np.linalg.solve(M[1:, 1:], -c[1:])          # the hub clamped
+            hold = float(drive_torque(u, 0.0, hw.values())) - (M[0] @ a + c[0])
+            if abs(hold) <= f.static:
+                self.stuck, self.hold_torque = True, hold
+                x = x0.copy()
+                x[n] = 0.0
+                return np.concatenate([x, a, a])
+        a0 = self.model.accelerations(q, v, float(hw.hub_torque(u, v[0])))
         return np.concatenate([x0, a0, a0])
 
     def step(self, state, tau) -> np.ndarray:
@@ -377,6 +422,52 @@ class PlantStepper:
 
     def _advance(self) -> np.ndarray:
         """One sample from the state and torques in the input buffers (a buffer: copy to keep)."""
+        if self.hardware is None:
+            return self._advance_one()
+        return self._advance_hardware()
+
+    def _set_stick(self, stick: bool):
+        if bool(self._hw[-1]) != stick:
+            self._hw[-1] = 1.0 if stick else 0.0
+            self._J_valid = False              # the hub row of the iteration matrix changes
+
+    def _advance_hardware(self) -> np.ndarray:
+        """One sample with the hardware: slip, or stick while friction holds the hub (Karnopp)."""
+        n, F_s, v_stick = self.n_q, self._F_s, self._v_stick
+        if F_s == 0.0:
+            return self._advance_one()
+        # the input buffer _s_in is not written by a step: each trial starts from it
+        if self.stuck:
+            self._set_stick(True)
+            out = self._advance_one()
+            if self._holds(out):
+                return out
+            self.stuck = False                  # breakaway: the sample again, sliding
+        self._set_stick(False)
+        out = self._advance_one()
+        thd0, thd1 = float(self._s_in[n]), float(out[n])
+        if abs(thd1) <= v_stick and (abs(thd1) < abs(thd0) or thd0 == 0.0) or thd0 * thd1 < 0:
+            slip = out.copy()
+            self._set_stick(True)
+            held = self._advance_one()
+            if self._holds(held):
+                self.stuck = True
+                self.stick_events += 1
+                return held
+            self._set_stick(False)
+            self._s_out[:] = slip
+            return self._s_out
+        return out
+
+    def _holds(self, out) -> bool:
+        """Whether friction can hold the hub at the end of a held sample (updates :attr:`hold_torque`)."""
+        self._s_hold[:] = out
+        self._eval_hold()
+        self.hold_torque = float(self._hold[0])
+        return abs(self.hold_torque) <= self._F_s
+
+    def _advance_one(self) -> np.ndarray:
+        """One sample as the buffers say (slip or stick), with the iteration-matrix refreshes."""
         tol = self.settings.newton_tol
         fresh = not self._J_valid
         if fresh:
@@ -402,10 +493,17 @@ class PlantStepper:
         self._p = np.array(self.model.p, dtype=float)
         self._J_valid = False
         self._buffers = []
+        extra = ()
+        if self.hardware is not None:
+            self._hw = self.hardware.values()
+            self._s_hold, self._hold = np.zeros(4 * n), np.zeros(1)
+            extra = (self._hw,)
+            hold = compile_function(_hold_function(self.model.parametric), self.backend, opt=OPT_HOT)
+            self._eval_hold = self._bind(hold, (self._s_hold, self._u[-1:], self._p, self._hw), (self._hold,))
         self._eval_step = self._bind(self._function,
-                                     (self._s_in, self._u, self._Jinv.reshape(-1, order="F"), self._p),
+                                     (self._s_in, self._u, self._Jinv.reshape(-1, order="F"), self._p) + extra,
                                      (self._s_out, self._err))
-        self._eval_jacobian = self._bind(self._jacobian, (self._s_in, self._tau0, self._p), (self._Jbuf,))
+        self._eval_jacobian = self._bind(self._jacobian, (self._s_in, self._tau0, self._p) + extra, (self._Jbuf,))
 
     def _bind(self, function, args, results):
         buf, evaluate = function.buffer()
@@ -428,10 +526,12 @@ class PlantStepper:
 
     def _robust_step(self, state, u) -> np.ndarray:
         if self._robust is None:
-            self._robust = _robust_step_function(self.model.parametric, self.settings)
+            self._robust = _robust_step_function(self.model.parametric, self.settings,
+                                                 self.hardware is not None)
         self.fallbacks += 1
+        extra = () if self.hardware is None else (self._hw,)
         try:
-            out = np.asarray(self._robust(state, u, self._p)).ravel()
+            out = np.asarray(self._robust(state, u, self._p, *extra)).ravel()
         except RuntimeError as exc:
             raise HubbeamError(f"{self.model.name.upper()}: the implicit step did not converge "
                                f"({str(exc).splitlines()[0][:80]})") from None
@@ -440,8 +540,16 @@ class PlantStepper:
         return out
 
 
-def _substep_expressions(model: ParametricModel, settings: StepperSettings):
-    """Symbolic generalized-alpha update: residual and new state as functions of ``a``."""
+def _substep_expressions(model: ParametricModel, settings: StepperSettings, hardware: bool = False):
+    """Symbolic generalized-alpha update: residual and new state as functions of ``a``.
+
+    With ``hardware``, three more items: ``hw`` (:data:`~hubbeam_ctrl.sim.hardware.HW_LAYOUT`),
+    the residual without the hardware's torque and ``d_hub``, the derivative of the hardware's
+    part of the hub row in ``a_0``. The hub row of the residual is ``f_0 - (drive -
+    friction)(tau, thd_1)`` when sliding, ``J (a_0 - a_stick)`` when held (``a_stick`` brings
+    the hub rate to zero at the end of the substep; ``J = J_h + J`` of the parameters scales
+    the row like the mass matrix).
+    """
     n = model.n_q
     h = settings.dt / settings.substeps
     am, af, gamma, beta = generalized_alpha_coefficients(settings.rho_inf)
@@ -454,26 +562,41 @@ def _substep_expressions(model: ParametricModel, settings: StepperSettings):
     p1 = ((1 - af) * a + af * a0 - am * p0) / (1 - am)
     q1 = q0 + h * v0 + h * h * (0.5 - beta) * p0 + h * h * beta * p1
     v1 = v0 + h * (1 - gamma) * p0 + h * gamma * p1
+    if hardware:
+        hw = sym.sym("hw", len(HW_LAYOUT))
+        f = model.inverse_dynamics(q1, v1, a, p)
+        stick = hw[-1] > 0.5
+        hub = hub_torque(tau, v1[0], hw)
+        p1_stick = -(v0[0] + h * (1 - gamma) * p0[0]) / (h * gamma)
+        a_stick = ((1 - am) * p1_stick - af * a0[0] + am * p0[0]) / (1 - af)
+        held = (p[0] + p[1]) * (a[0] - a_stick)
+        residual = ca.vertcat(ca.if_else(stick, held, f[0] - hub), f[1:])
+        mechanical = ca.vertcat(ca.if_else(stick, held, f[0]), f[1:])
+        d_hub = ca.if_else(stick, 0, -ca.jacobian(hub, a)[0])
+        return s, tau, a, p, (q1, v1, p1), residual, hw, mechanical, d_hub
     force = ca.vertcat(tau, sym.zeros(n - 1))
     residual = model.inverse_dynamics(q1, v1, a, p) - force
     return s, tau, a, p, (q1, v1, p1), residual
 
 
 @lru_cache(maxsize=16)
-def _iteration_matrix_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
+def _iteration_matrix_function(model: ParametricModel, settings: StepperSettings,
+                               hardware: bool = False) -> ca.Function:
     """Jacobian of the step residual in the new accelerations, at the predictor ``a = a_n``."""
     n = model.n_q
-    s, tau, a, p, _, residual = _substep_expressions(model, settings)
+    s, tau, a, p, _, residual, *hw = _substep_expressions(model, settings, hardware)
+    if hardware:        # the hardware's derivative is added in each Newton iteration (_fast_step_function)
+        hw, residual = hw[:1], hw[1]
     if model.sym is ca.MX:
-        R = ca.Function("residual", [a, s, tau, p], [residual])
-        J = ca.densify(jacobian_columns(R, [s[2 * n:3 * n], s, tau, p], 0))
+        R = ca.Function("residual", [a, s, tau, p, *hw], [residual])
+        J = ca.densify(jacobian_columns(R, [s[2 * n:3 * n], s, tau, p, *hw], 0))
     else:
         J = ca.densify(ca.substitute(ca.jacobian(residual, a), a, s[2 * n:3 * n]))
     # no common-subexpression pass: it found 2 % on CFOAM 10+10 and took 2.6 s of its 8.4 s build
-    return ca.Function("iteration_matrix", [s, tau, p], [J], ["s", "tau", "p"], ["J"])
+    return ca.Function("iteration_matrix", [s, tau, p, *hw], [J], ["s", "tau", "p"] + ["hw"] * len(hw), ["J"])
 
 
-def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None) -> tuple:
+def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None, hardware: bool = False) -> tuple:
     """The plant step and its iteration matrix on a backend.
 
     Both take the model's parameter vector ``p`` (:attr:`HubBeamModel.p`) as their last
@@ -485,6 +608,9 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None)
     model : HubBeamModel
     settings : StepperSettings
     backend : {"auto", "compiled", "vm"}, optional
+    hardware : bool
+        Functions with a last input ``hw`` (:data:`~hubbeam_ctrl.sim.hardware.HW_LAYOUT`):
+        ``tau`` is then the command and the hub torque the hardware's.
 
     Returns
     -------
@@ -496,21 +622,27 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None)
     backend : str
         ``"compiled"`` or ``"vm"``: the backend the step runs on.
     """
-    vm_step = _fast_step_function(model.parametric, settings)
+    extra = (True,) if hardware else ()        # the ideal functions exactly as before (same cache keys)
+    vm_step = _fast_step_function(model.parametric, settings, *extra)
     step = compile_function(vm_step, backend, opt=OPT_HOT)
     # SX: a large scalar graph, rarely called (-O0); MX: compact code whose products are worth -O3
     jac_opt = OPT_HOT if model.parametric.sym is ca.MX else OPT_COLD
-    jac = compile_function(_iteration_matrix_function(model.parametric, settings), backend, opt=jac_opt)
+    jac = compile_function(_iteration_matrix_function(model.parametric, settings, *extra), backend, opt=jac_opt)
     return step, jac, "vm" if step is vm_step else "compiled"
 
 
 @lru_cache(maxsize=16)
-def _fast_step_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
+def _fast_step_function(model: ParametricModel, settings: StepperSettings, hardware: bool = False) -> ca.Function:
     """One sample: ``substeps`` steps of modified Newton with the inverse iteration matrix given."""
     n = model.n_q
-    s, tau, a, p, (q1, v1, p1), residual = _substep_expressions(model, settings)
+    s, tau, a, p, (q1, v1, p1), residual, *hw = _substep_expressions(model, settings, hardware)
     opts = {"cse": True}
-    R = ca.Function("residual", [a, s, tau, p], [residual], opts)
+    HW = [ca.MX.sym("hw", len(HW_LAYOUT))] if hardware else []
+    if hardware:
+        hw, d_hub = hw[:1], hw[2]
+        R = ca.Function("residual", [a, s, tau, p, *hw], [residual, d_hub], opts)
+    else:
+        R = ca.Function("residual", [a, s, tau, p, *hw], [residual], opts)
     update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)], opts)
     S = ca.MX.sym("s", 4 * n)
     T = ca.MX.sym("tau")
@@ -519,43 +651,72 @@ def _fast_step_function(model: ParametricModel, settings: StepperSettings) -> ca
     A = S[2 * n:3 * n]
     delta = ca.MX.zeros(n)
     for _ in range(settings.newton_iterations):
-        delta = ca.mtimes(Jm, R(A, S, T, P))
+        if hardware:
+            # Jm inverts the mechanical iteration matrix; the hardware adds d e0 e0' to it, whose
+            # inverse is Sherman-Morrison's: an exact Newton step in the drive's and friction's
+            # derivative (stiff near zero rate), at no factorisation
+            r, d = R(A, S, T, P, *HW)
+            y = ca.mtimes(Jm, r)
+            delta = y - Jm[:, 0] * (d * y[0] / (1 + d * Jm[0, 0]))
+        else:
+            delta = ca.mtimes(Jm, R(A, S, T, P, *HW))
         A = A - delta
-    sub = ca.Function("substep", [S, T, Jm, P], [update(A, S), ca.norm_inf(delta)])
+    sub = ca.Function("substep", [S, T, Jm, P, *HW], [update(A, S), ca.norm_inf(delta)])
     k = settings.substeps
     accum = sub.mapaccum("substeps", k)
     X = ca.MX.sym("x", 4 * n)
     U = ca.MX.sym("u", 1, k)
-    xs, errs = accum(X, U, Jm, P)
-    return ca.Function("plant_step", [X, U, Jm, P], [xs[:, -1], ca.mmax(errs)],
-                       ["s", "tau", "J_inv", "p"], ["s_next", "err"])
+    xs, errs = accum(X, U, Jm, P, *HW)
+    return ca.Function("plant_step_hw" if hardware else "plant_step", [X, U, Jm, P, *HW],
+                       [xs[:, -1], ca.mmax(errs)], ["s", "tau", "J_inv", "p"] + ["hw"] * len(HW),
+                       ["s_next", "err"])
 
 
 @lru_cache(maxsize=16)
-def _robust_step_function(model: ParametricModel, settings: StepperSettings) -> ca.Function:
+def _hold_function(model: ParametricModel) -> ca.Function:
+    """``(s, tau, p, hw) -> hold``: the friction torque that holds the hub in state ``s`` [N m].
+
+    ``hold = drive(tau, 0) - f_0(q, v, a)``, the hub row of the equations of motion at the
+    state's accelerations: what friction must supply for the hub to stay at rest.
+    """
     n = model.n_q
-    s, tau, a, p, (q1, v1, p1), residual = _substep_expressions(model, settings)
-    R = ca.Function("R", [a, s, tau, p], [residual])
-    A_, W = ca.MX.sym("a", n), ca.MX.sym("w", 4 * n + 1 + model.n_p)   # an MX input must be one symbol
-    G = ca.Function("G", [A_, W], [R(A_, W[:4 * n], W[4 * n], W[4 * n + 1:])])
+    sym = model.sym
+    s, tau, p = sym.sym("s", 4 * n), sym.sym("tau"), sym.sym("p", model.n_p)
+    hw = sym.sym("hw", len(HW_LAYOUT))
+    f = model.inverse_dynamics(s[:n], s[n:2 * n], s[2 * n:3 * n], p)
+    hold = drive_torque(tau, 0.0 * tau, hw) - f[0]
+    return ca.Function("hub_hold", [s, tau, p, hw], [hold], ["s", "tau", "p", "hw"], ["hold"], {"cse": True})
+
+
+@lru_cache(maxsize=16)
+def _robust_step_function(model: ParametricModel, settings: StepperSettings, hardware: bool = False) -> ca.Function:
+    n = model.n_q
+    s, tau, a, p, (q1, v1, p1), residual, *hw = _substep_expressions(model, settings, hardware)
+    hw = hw[:1]
+    n_hw = len(HW_LAYOUT) if hardware else 0
+    R = ca.Function("R", [a, s, tau, p, *hw], [residual])
+    A_, W = ca.MX.sym("a", n), ca.MX.sym("w", 4 * n + 1 + model.n_p + n_hw)   # an MX input must be one symbol
+    k_p = 4 * n + 1 + model.n_p
+    G = ca.Function("G", [A_, W], [R(A_, W[:4 * n], W[4 * n], W[4 * n + 1:k_p], *([W[k_p:]] if hardware else []))])
     rf = ca.rootfinder("rf", "newton", G, {"abstol": 1e-9, "abstolStep": 1e-13, "max_iter": 50,
-                                          "line_search": False, "error_on_fail": True})
+                                          "line_search": hardware, "error_on_fail": True})
     update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)])
     S = ca.MX.sym("s", 4 * n)
     T = ca.MX.sym("tau")
     P = ca.MX.sym("p", model.n_p)
-    A = rf(S[2 * n:3 * n], ca.vertcat(S, T, P))
-    sub = ca.Function("substep", [S, T, P], [update(A, S)])
+    HW = [ca.MX.sym("hw", n_hw)] if hardware else []
+    A = rf(S[2 * n:3 * n], ca.vertcat(S, T, P, *HW))
+    sub = ca.Function("substep", [S, T, P, *HW], [update(A, S)])
     k = settings.substeps
     X = ca.MX.sym("x", 4 * n)
     U = ca.MX.sym("u", 1, k)
-    xs = sub.mapaccum("substeps", k)(X, U, P)
-    return ca.Function("plant_step_robust", [X, U, P], [xs[:, -1]])
+    xs = sub.mapaccum("substeps", k)(X, U, P, *HW)
+    return ca.Function("plant_step_robust", [X, U, P, *HW], [xs[:, -1]])
 
 
 def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = None,
                         settings: StepperSettings | None = None, x0=None, backend=None,
-                        axial: str | None = None) -> Result:
+                        axial: str | None = None, hardware: Hardware | None = None) -> Result:
     """Integrate a free-hub model under a torque profile with :class:`PlantStepper`.
 
     The torque is evaluated at the end of every substep (no zero-order hold), so the
@@ -579,6 +740,9 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     axial : {"dynamic", "quasi-static"}, optional
         With a model name: how the axial coordinates move (see
         :func:`~hubbeam_ctrl.plant.models.build_model`).
+    hardware : Hardware, optional
+        Drive and friction (see :class:`PlantStepper`): ``torque`` is then the command
+        (a voltage [V] for a DC motor) and is stored as ``tau``.
 
     Returns
     -------
@@ -596,7 +760,7 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({N + 1} samples)",
                  memory_bytes=8.0 * (N + 1) * (k + 4 * model.n_q + 4), seconds=0.0,
                  max_memory_mb=2048.0, max_wall_s=math.inf)
-    stepper = PlantStepper(model, settings, backend)
+    stepper = PlantStepper(model, settings, backend, hardware=hardware)
     t = dt * np.arange(N + 1)
     sub = (t[:-1, None] + dt * np.arange(1, k + 1)[None, :] / k)
     u = np.asarray(torque(sub), dtype=float) * np.ones_like(sub)

@@ -1,0 +1,137 @@
+"""The rig's hardware against the ideal plant, in the same run (issue 21, Speed). Prints one JSON object.
+
+Run: ``.venv/bin/python benchmarks/bench_rig.py [--repeats 3] [--t-end 5] [--backend compiled] [--out F.json]``.
+
+The plant is the ``servo_link`` preset's beam (FOAM, 5 + 5 modes, its hub inertia), sampled
+at its 1 ms, with the integration step of the substep rule. The same LQR (designed on 2
+modes) slews the hub by 90 degrees from rest, its torque sent through
+``Hardware.voltage_for_torque`` (the identity for the ideal drive) so that the controller side
+is the same code in every variant. Measured, median over ``--repeats`` runs, warm cache:
+
+1. ``closed_loop``: :func:`simulate_closed_loop` CPU time per sample [us] (a ``--t-end`` run less
+   a 0.1 s one: the loop without the set-up) with no hardware
+   (the ideal torque source), the DC motor alone, friction alone and both (the rig), and
+   each one's ratio to the ideal plant (the issue's target: at most 1.3).
+2. ``plant_step``: :meth:`PlantStepper.step` alone per sample [us CPU] on each variant's own command
+   sequence from 1., and the ratios.
+
+The variants run interleaved, ``--repeats`` rounds; the headline numbers are the fastest round
+of each (the least disturbed by other processes), the ``_median`` ones beside them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import sys
+import time
+
+import numpy as np
+
+from controllers import LQR, DesignModel
+from hubbeam_ctrl import build_model
+from hubbeam_ctrl.plant.modal import modal_analysis
+from hubbeam_ctrl.plant.rig import Drive, Friction, load_rig
+from hubbeam_ctrl.sim import ClosedLoopSettings, simulate_closed_loop, substep_rule
+from hubbeam_ctrl.sim.hardware import Hardware
+from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings
+
+
+class _Commanded:
+    """The LQR with its torque turned into the drive's command (volts for the DC motor)."""
+
+    def __init__(self, lqr, hardware: Hardware, m: int):
+        self.lqr, self.hw, self.m = lqr, hardware, m
+        self.name, self.measurement, self.dt, self.n_modes = "lqr", "state", lqr.dt, m
+
+    def reset(self):
+        self.lqr.reset()
+
+    def __call__(self, t, y):
+        return float(self.hw.voltage_for_torque(self.lqr(t, y), y[1 + self.m]))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--t-end", type=float, default=5.0)
+    ap.add_argument("--backend", default="compiled")
+    ap.add_argument("--out")
+    a = ap.parse_args(argv)
+    rig = load_rig("servo_link")
+    P = rig.plant_params.replace(n_axial=5, n_transverse=5, damping_ratio=0.034)
+    dt = rig.timing.dt
+    model = build_model("foam", P)
+    rule = substep_rule(modal_analysis(model, 0.0, "free").bending_hz, dt)
+    design = DesignModel.build(P.replace(n_transverse=2), 0.0, dt)
+    x0 = np.zeros(2 * model.n_q)
+    x0[0] = np.pi / 2
+    variants = {"ideal": Hardware(Drive(), Friction()),
+                "dc_motor": Hardware(rig.drive, Friction()),
+                "friction": Hardware(Drive(), rig.friction),
+                "rig": Hardware.from_rig(rig)}
+    settings = ClosedLoopSettings(dt=dt, substeps=rule.substeps)
+    closed, closed_median, plant, plant_median, info, results = {}, {}, {}, {}, {}, {}
+    for name, hw in variants.items():       # first pass: compile and warm up
+        simulate_closed_loop(model, _Commanded(LQR(design), hw, 2), 0.1, settings=settings, x0=x0,
+                             hardware=hw, backend=a.backend)
+    times = {name: [] for name in variants}
+    for _ in range(a.repeats):                  # interleaved, so a change of load hits every variant
+        for name, hw in variants.items():
+            cpu = []
+            for t_end in (a.t_end, 0.1):         # the difference: the loop's CPU time without the set-up
+                start = time.process_time()
+                res = simulate_closed_loop(model, _Commanded(LQR(design), hw, 2), t_end, settings=settings, x0=x0,
+                                           hardware=hw, backend=a.backend)
+                cpu.append(time.process_time() - start)
+                if t_end == a.t_end:
+                    results[name] = res
+            times[name].append((cpu[0] - cpu[1]) / round((a.t_end - 0.1) / dt))
+    for name, res in results.items():
+        closed[name] = 1e6 * min(times[name])
+        closed_median[name] = 1e6 * statistics.median(times[name])
+        info[name] = {"final_angle_rad": float(res.q[-1, 0]), "peak_command": float(np.max(np.abs(res.tau))),
+                      "plant_fallbacks": res.stats["plant_fallbacks"],
+                      "jacobian_updates": res.stats["jacobian_updates"], "backend": res.settings["backend"],
+                      "stick_events": res.settings.get("hardware", {}).get("stick_events", 0)}
+    steppers = {name: PlantStepper(model, StepperSettings(dt=dt, substeps=rule.substeps), a.backend, hardware=hw)
+                for name, hw in variants.items()}
+    times = {name: [] for name in variants}
+    for _ in range(a.repeats):
+        for name, stepper in steppers.items():
+            u = results[name].tau[:-1]           # each variant's own command sequence
+            s = stepper.initial_state(x0, u[0])
+            start = time.process_time()
+            for v in u:
+                s = stepper.step(s, v)
+            times[name].append((time.process_time() - start) / len(u))
+    for name in variants:
+        plant[name] = 1e6 * min(times[name])
+        plant_median[name] = 1e6 * statistics.median(times[name])
+    ratio = {k: closed[k] / closed["ideal"] for k in closed}
+    out = {
+        "machine": {"python": sys.version.split()[0], "platform": platform.platform(),
+                    "load_avg": os.getloadavg() if hasattr(os, "getloadavg") else None},
+        "plant": {"model": "foam", "n_axial": 5, "n_transverse": 5, "dt_s": dt, "substeps": rule.substeps,
+                  "t_end_s": a.t_end, "repeats": a.repeats, "backend": a.backend},
+        "closed_loop_us_per_sample": closed, "closed_loop_ratio": ratio,
+        "closed_loop_us_per_sample_median": closed_median,
+        "closed_loop_ratio_median": {k: closed_median[k] / closed_median["ideal"] for k in closed},
+        "plant_step_us": plant, "plant_step_ratio": {k: plant[k] / plant["ideal"] for k in plant},
+        "plant_step_ratio_median": {k: plant_median[k] / plant_median["ideal"] for k in plant},
+        "runs": info,
+        "targets": {"closed_loop_ratio_max": 1.3, "met": all(r <= 1.3 for r in ratio.values())},
+    }
+    text = json.dumps(out, indent=1)
+    print(text)
+    if a.out:
+        with open(a.out, "w", encoding="utf-8") as fh:
+            fh.write(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
