@@ -33,7 +33,8 @@ OPTION_NAMES = {
     "max_wall_s": "--max-wall", "max_memory_mb": "--allow-large", "out": "--out", "plot": "--plot",
     "params": "--params", "scenario": "--scenario", "plant": "--plant", "model": "--model",
     "range_limit": "--range-limit", "design_modes": "--design-modes", "plant_modes": "--plant-modes",
-    "schedule": "--schedule", "shaping": "--shaping", "axial": "--axial",
+    "schedule": "--schedule", "shaping": "--shaping", "axial": "--axial", "scheduler": "--scheduler",
+    "timeout": "--scheduler-timeout",
 }
 
 def stdout(args):
