@@ -31,6 +31,7 @@ def add_parser(subparsers, common) -> None:
     common : argparse.ArgumentParser
         Parent parser with the common plant options.
     """
+    from hubbeam_ctrl.cli.args import add_verbose
     from hubbeam_ctrl.cli.main import finite_float, positive_float
 
     p = subparsers.add_parser(
@@ -62,6 +63,7 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--out", metavar="FILE.mat|FILE.npz|FILE.json", required=True,
                    help="output file; the format follows the extension")
     p.add_argument("--json", action="store_true", help="print a JSON summary with the margins")
+    add_verbose(p)
     p.set_defaults(func=run)
 
 
@@ -87,12 +89,14 @@ def run(args) -> int:
     from controllers import CONTROLLERS, DesignModel, make_controller
     from controllers.analysis import loop_margins
     from controllers.export import FORMATS, save_controller
+    from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.cli.compare import parse_payload_range
     from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.study.payload import range_designs
     from hubbeam_ctrl.study.scenarios import make_scenario
 
+    sink = stdout(args)      # sys.stdout is captured during the run (native solver output)
     out = Path(args.out)
     if out.suffix.lower() not in FORMATS:
         raise ParameterError(f"out must end in {', '.join(FORMATS)}, got {args.out!r}")
@@ -122,18 +126,18 @@ def run(args) -> int:
         summary = {"controller": ctrl.name, "n_states": int(ctrl.to_statespace().nstates),
                    "inputs": list(ctrl.to_statespace().input_labels), "dt": ctrl.dt,
                    "tau_max_nm": ctrl.tau_max, "margins": m.to_dict(), "out": str(out)}
-        print(json.dumps(_finite(summary)))
+        print(json.dumps(_finite(summary)), file=sink)
         return 0
     sys = ctrl.to_statespace()
     print(f"{ctrl.name.upper()} on SFOAM ({modes} modes, m_t = {design.params.m_t:g} kg) at spin "
           f"{sc.design_spin:g} rad/s, dt = {args.dt:g} s, for {sc.description}: "
           f"{sys.nstates} states, inputs {', '.join(sys.input_labels)}, output tau; "
-          f"|tau| <= {ctrl.tau_max:g} N m")
+          f"|tau| <= {ctrl.tau_max:g} N m", file=sink)
     print(f"  closed loop on the design model: {'stable' if m.stable else 'UNSTABLE'} "
-          f"(spectral radius {m.spectral_radius:.6f})")
+          f"(spectral radius {m.spectral_radius:.6f})", file=sink)
     print(f"  disk margin {m.disk_margin:.3f} (gain {m.disk_gain_margin[0]:.3f}..{m.disk_gain_margin[1]:.3f}, "
           f"phase {m.disk_phase_margin_deg:.1f} deg); gain margins {m.gain_margin_lower:.3g} / "
           f"{m.gain_margin_upper:.3g}; phase margin {m.phase_margin_deg:.1f} deg at "
-          f"{m.crossover_rad_s:.4g} rad/s; delay margin {m.delay_margin_s * 1e3:.3g} ms")
-    print(f"  saved to {out}")
+          f"{m.crossover_rad_s:.4g} rad/s; delay margin {m.delay_margin_s * 1e3:.3g} ms", file=sink)
+    print(f"  saved to {out}", file=sink)
     return 0

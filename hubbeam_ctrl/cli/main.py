@@ -383,8 +383,9 @@ def _run(func, args) -> int:
             fh.writelines(warnings.formatwarning(w.message, w.category, w.filename, w.lineno) for w in caught)
     lines = cap.lines + len(caught)
     if lines and log is None:
+        hint = " (--verbose LOG keeps them)" if hasattr(args, "verbose") else ""
         print(f"hubbeam: note: {lines} line{'s' if lines > 1 else ''} of solver output and warnings "
-              "suppressed (--verbose LOG keeps them)", file=sys.stderr)
+              f"suppressed{hint}", file=sys.stderr)
     return status
 
 
@@ -409,7 +410,7 @@ def _fail(status: int, message: str, args=None, exc=None) -> int:
             message += f" (details in {log})"
         except OSError:
             pass
-    elif exc is not None:
+    elif exc is not None and args is not None and hasattr(args, "verbose"):
         message += " (--verbose LOG for details)"
     print(f"hubbeam: error: {message}", file=sys.stderr)
     return status
