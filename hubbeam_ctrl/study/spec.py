@@ -13,7 +13,8 @@ TOML form (every key optional except where noted)::
     plant = "foam"                    # foam | cfoam
     controllers = ["openloop", "lqr", "mpc"]
     design = "base"                   # base | matched
-    t_f = 10.0                        # [s]; also tau_max [N m], t_end [s], dt [s], w_f [rad/s],
+    t_f = 10.0                        # [s]; also tau_max [N m] (default: params.tau_max, the
+                                      # motor's), t_end [s], dt [s], w_f [rad/s],
                                       # horizon, solver, design_modes, plant_modes
     slew_angle = 1.5708               # [rad] (slew; default the Eq. 44 angle)
     shaping = "zvd"                   # zv | zvd | ei: input shaper of the tracked reference
@@ -79,7 +80,7 @@ DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "lognorm
 SAMPLERS = ("lhs", "sobol", "halton", "random")
 _INTEGER_FACTORS = ("n_axial", "n_transverse", "seed")
 _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", "lqr"), "design": "base",
-               "tau_max": 200.0, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
+               "tau_max": None, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
                "solver": "daqp", "design_modes": None, "plant_modes": None, "slew_angle": None,
                "shaping": None, "schedule": 1, "tolerances": None, "backend": None}
 
@@ -109,6 +110,20 @@ def _check_factor(name: str, where: str, scenario: str) -> None:
     if name == "w_f" and scenario != "spinup":
         raise ParameterError(f"{where}.w_f: the spin rate varies only in a spinup study, "
                              f"this one is {scenario!r}")
+
+
+#: The names make_scenario's messages start with -> the spec key that sets them.
+_SCENARIO_KEYS = {"tau_max": "study.tau_max", "tf": "study.t_f", "t_f": "study.t_f", "t_end": "study.t_end",
+                  "dt": "study.dt", "wf": "study.w_f", "w_f": "study.w_f", "slew_angle": "study.slew_angle"}
+
+
+def _as_study_key(message: str) -> str:
+    """A scenario's one-line error with the spec key in front (``tau_max must`` -> ``study.tau_max must``)."""
+    if message.startswith("study."):
+        return message
+    head, _, rest = message.partition(" ")
+    key = _SCENARIO_KEYS.get(head.rstrip(":"))
+    return f"{key}{head[len(head.rstrip(':')):]} {rest}" if key else f"study: {message}"
 
 
 def _number(where: str, value) -> float:
@@ -295,8 +310,9 @@ class StudySpec:
     design : {"base", "matched"}
         ``base``: every controller designed once on the base parameters; ``matched``:
         redesigned on each case's plant.
-    tau_max : float
-        Torque budget [N m].
+    tau_max : float or None
+        Torque budget [N m] (None: the motor's, ``Params.tau_max`` of the parameters each
+        scenario is built on; see :attr:`torque_budget`).
     t_f, t_end, dt : float
         Maneuver time, simulated time, controller sample time [s].
     w_f : float
@@ -338,7 +354,7 @@ class StudySpec:
     plant: str = "foam"
     controllers: tuple = ("openloop", "lqr")
     design: str = "base"
-    tau_max: float = 200.0
+    tau_max: float | None = None
     t_f: float = 10.0
     t_end: float = 30.0
     dt: float = 0.01
@@ -418,7 +434,7 @@ class StudySpec:
         try:
             sc = self.scenario_for(self.params)
         except ParameterError as exc:
-            raise ParameterError(str(exc) if str(exc).startswith("study.") else f"study: {exc}") from None
+            raise ParameterError(_as_study_key(str(exc))) from None
         for name, table in self.settings.items():
             if name not in self.controllers:
                 raise ParameterError(f"settings.{name}: not among study.controllers ({', '.join(self.controllers)})")
@@ -429,6 +445,11 @@ class StudySpec:
                     self.params.replace(**{name: v})
                 except ParameterError as exc:
                     raise ParameterError(f"grid.{name} = {v!r}: {exc}") from None
+
+    @property
+    def torque_budget(self) -> float:
+        """The torque budget of the base scenario [N m]: ``study.tau_max``, or ``params.tau_max``."""
+        return self.params.tau_max if self.tau_max is None else float(self.tau_max)
 
     @property
     def factors(self) -> tuple:
