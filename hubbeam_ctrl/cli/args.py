@@ -18,7 +18,8 @@ from pathlib import Path
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["stdout", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
+__all__ = ["params_from_args", "UNSTABLE_NOTE",
+           "stdout", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
            "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits"]
 
 #: Python names (Params fields, function arguments, settings) -> the option that sets them.
@@ -36,6 +37,30 @@ OPTION_NAMES = {
     "schedule": "--schedule", "shaping": "--shaping", "axial": "--axial", "scheduler": "--scheduler",
     "timeout": "--scheduler-timeout",
 }
+
+#: What ``modes`` and ``linearize`` say about a model with a growing mode.
+UNSTABLE_NOTE = " (UNSTABLE: a mode has lost its stiffness)"
+
+
+def params_from_args(args):
+    """Build :class:`Params` from the common options (file first, then flags).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    from hubbeam_ctrl.plant.params import Params, load_params
+    base = load_params(args.params) if getattr(args, "params", None) is not None else Params()
+    changes = {}
+    if getattr(args, "tip_mass", None) is not None:
+        changes["m_t"] = args.tip_mass
+    if getattr(args, "tip_position", None) is not None:
+        changes["l"] = args.tip_position
+    if getattr(args, "n_modes", None) is not None:
+        changes["n_axial"] = changes["n_transverse"] = args.n_modes
+    return base.replace(**changes) if changes else base
+
 
 def stdout(args):
     """The stream a subcommand prints its results to: the standard output saved before the

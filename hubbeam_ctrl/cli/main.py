@@ -15,11 +15,13 @@ import warnings
 from collections.abc import Sequence
 
 from hubbeam_ctrl.cli.args import (
+    UNSTABLE_NOTE,
     add_run_options,
     add_verbose,
     check_output,
     integer,
     nonempty,
+    params_from_args,
     real,
     refuse_inapplicable,
     rename_options,
@@ -30,7 +32,6 @@ from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import capture_native_output
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, MODEL_SPECS
-from hubbeam_ctrl.plant.params import Params, load_params
 
 __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float",
            "RegistryChoices", "add_backend_option"]
@@ -100,25 +101,6 @@ def _common_parser() -> argparse.ArgumentParser:
     g.add_argument("--n-modes", metavar="N", type=integer(),
                    help="number of axial and of transverse modes, 1..20 (default 5)")
     return common
-
-
-def params_from_args(args) -> Params:
-    """Build :class:`Params` from the common options (file first, then flags).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
-    base = load_params(args.params) if getattr(args, "params", None) is not None else Params()
-    changes = {}
-    if getattr(args, "tip_mass", None) is not None:
-        changes["m_t"] = args.tip_mass
-    if getattr(args, "tip_position", None) is not None:
-        changes["l"] = args.tip_position
-    if getattr(args, "n_modes", None) is not None:
-        changes["n_axial"] = changes["n_transverse"] = args.n_modes
-    return base.replace(**changes) if changes else base
 
 
 def positive_float(name):
@@ -196,7 +178,6 @@ def check_output_folder(option: str, path) -> None:
 # -- modes ----------------------------------------------------------------------
 def _cmd_modes(args) -> int:
     sink = stdout(args)
-    from hubbeam_ctrl.cli.linearize import UNSTABLE_NOTE
     from hubbeam_ctrl.plant.modal import modal_analysis
     params = params_from_args(args)
     res = modal_analysis(args.model, args.spin, args.hub, params)
