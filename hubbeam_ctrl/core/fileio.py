@@ -30,7 +30,8 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
+__all__ = ["read_toml", "MAX_TOML_BYTES",
+           "atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
            "check_regular_file", "check_writable", "output_folder", "write_folder", "read_manifest",
            "remove_stale_temporaries", "remove_temporaries", "TEMP_PREFIX", "MANIFEST"]
 
@@ -559,6 +560,62 @@ def output_folder(out_dir, option: str = "out", create: bool = True) -> Path:
     if create:
         out.mkdir(exist_ok=True)
     return out
+
+
+#: Largest TOML input read (parameters, study specs, settings) [bytes].
+MAX_TOML_BYTES = 1_000_000
+
+
+def read_toml(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> dict:
+    """The TOML document at ``path``, or a one-line :class:`ParameterError` naming the file.
+
+    The one reader of every TOML input (``--params``, study specs, ``--settings``). Refused
+    without blocking or a traceback: a missing path, a folder, a FIFO or device (never
+    opened), an unreadable file, a file over ``max_bytes``, bytes that are not UTF-8,
+    invalid or too deeply nested TOML.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, as the message starts (``"params file"``, ``"spec: file"``).
+    max_bytes : int
+        Largest size read [bytes].
+
+    Returns
+    -------
+    dict
+    """
+    import tomllib
+    if path is None or not isinstance(path, (str, os.PathLike)) or str(path).strip() == "" \
+            or "\x00" in str(path):
+        raise ParameterError(f"{what} must be named by a path, got {path!r}")
+    path = Path(path)
+    try:
+        if not path.exists():
+            raise ParameterError(f"{what} {path} does not exist")
+        if not path.is_file():
+            raise ParameterError(f"{what} {path} is not a regular file")
+        if path.stat().st_size > max_bytes:
+            raise ParameterError(f"{what} {path} is larger than {max_bytes} bytes")
+        with open(path, "rb") as fh:
+            data = fh.read(max_bytes + 1)
+        if len(data) > max_bytes:
+            raise ParameterError(f"{what} {path} is larger than {max_bytes} bytes")
+        text = data.decode("utf-8")
+    except OSError as exc:
+        raise ParameterError(f"{what} {path} cannot be read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"{what} {path} is not UTF-8 text (byte {exc.start})") from None
+    if "\x00" in text:
+        raise ParameterError(f"{what} {path} is not a text file (NUL byte)")
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{what} {path} is not valid TOML: {' '.join(str(exc).split())[:200]}") from None
+    except RecursionError:
+        raise ParameterError(f"{what} {path} is nested too deeply") from None
 
 
 def check_regular_file(path, option: str = "path") -> Path:

@@ -60,18 +60,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import tomllib
 
 from controllers import CONTROLLERS, SHAPERS
 from controllers.scaling import Tolerances, default_tolerances
 from hubbeam_ctrl.core.compiled import check_backend
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.fileio import read_toml
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
 
 __all__ = ["StudySpec", "load_spec", "load_settings", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
            "SAMPLERS", "settings_to_toml"]
 
+#: Largest spec or settings file read [bytes].
+MAX_SPEC_BYTES = 4_000_000
 #: Factors beyond the Params fields: the spin-up rate [rad/s] and the sensor-noise seed.
 FACTORS_EXTRA = {"w_f": "rad/s", "seed": "-"}
 #: Distributions of ``[random]`` factors and their keys.
@@ -386,10 +388,27 @@ class StudySpec:
         """
         if not isinstance(data, dict):
             raise ParameterError(f"spec must be a table, got {type(data).__name__}")
+        try:
+            return cls._from_tables(data)
+        except ParameterError:
+            raise
+        except (TypeError, ValueError, KeyError, AttributeError, OverflowError, IndexError) as exc:
+            # a mistyped value the checks above did not name (the guard of the whole class)
+            raise ParameterError(f"spec: a value has the wrong type or form ({_one_line(exc)})") from None
+
+    @classmethod
+    def _from_tables(cls, data: dict) -> "StudySpec":
         extra = sorted(set(data) - {"study", "params", "settings", "grid", "random", "tune"})
         if extra:
             raise ParameterError(f"spec: unknown table(s) {', '.join(extra)}; allowed: study, params, "
                                  "settings, grid, random, tune")
+        for table in ("study", "params", "settings", "grid", "random", "tune"):
+            if table in data and not isinstance(data[table], dict):
+                raise ParameterError(f"spec: {table} must be a table ([{table}]), got {table} = "
+                                     f"{data[table]!r}"[:300])
+        for name, table in data.get("settings", {}).items():
+            if not isinstance(table, dict):
+                raise ParameterError(f"settings.{name} must be a table ([settings.{name}]), got {table!r}"[:300])
         study = dict(data.get("study", {}))
         bad = sorted(set(study) - set(_STUDY_KEYS))
         if bad:
@@ -573,14 +592,9 @@ def load_spec(spec) -> StudySpec:
         return spec
     if isinstance(spec, dict):
         return StudySpec.from_dict(spec)
-    path = Path(spec)
-    try:
-        data = tomllib.loads(path.read_text())
-    except (FileNotFoundError, IsADirectoryError):
-        raise ParameterError(f"spec: file {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"spec: {path} is not valid TOML: {exc}") from None
-    return StudySpec.from_dict(data)
+    if not isinstance(spec, (str, Path)):
+        raise ParameterError(f"spec must be a TOML path, a dict of tables or a StudySpec, got {type(spec).__name__}")
+    return StudySpec.from_dict(read_toml(spec, "spec: file", MAX_SPEC_BYTES))
 
 
 def load_settings(spec: StudySpec, path) -> StudySpec:
@@ -597,14 +611,10 @@ def load_settings(spec: StudySpec, path) -> StudySpec:
     StudySpec
         Validated; a controller of the file that the study does not run is an error.
     """
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except (FileNotFoundError, IsADirectoryError):
-        raise ParameterError(f"settings: file {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"settings: {path} is not valid TOML: {exc}") from None
+    data = read_toml(path, "settings: file", MAX_SPEC_BYTES)
     data = data.get("settings", data)
+    if not isinstance(data, dict):
+        raise ParameterError(f"settings: {path} must hold [settings.NAME] tables, got settings = {data!r}"[:300])
     merged = {name: dict(table) for name, table in spec.settings.items()}
     for name, table in data.items():
         if not isinstance(table, dict):

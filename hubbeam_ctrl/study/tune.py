@@ -25,7 +25,6 @@ import json
 import math
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -372,10 +371,11 @@ def tune(spec, controller: str, *, options: TuneOptions | None = None, workers: 
 
 
 def _tune_table(path):
-    import tomllib
+    from hubbeam_ctrl.core.fileio import read_toml
+    from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES
     try:
-        return tomllib.loads(Path(path).read_text()).get("tune")
-    except (OSError, tomllib.TOMLDecodeError):
+        return read_toml(path, "spec: file", MAX_SPEC_BYTES).get("tune")
+    except ParameterError:
         return None            # load_spec has already reported a bad file
 
 
