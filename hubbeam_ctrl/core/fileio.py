@@ -30,7 +30,7 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["read_toml", "MAX_TOML_BYTES",
+__all__ = ["read_toml", "MAX_TOML_BYTES", "MAX_NPZ_BYTES",
            "atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
            "check_regular_file", "check_writable", "output_folder", "write_folder", "read_manifest",
            "remove_stale_temporaries", "remove_temporaries", "TEMP_PREFIX", "MANIFEST"]
@@ -639,7 +639,41 @@ def check_regular_file(path, option: str = "path") -> Path:
     return path
 
 
-def read_npz(path, option: str = "path", what: str = "hubbeam file") -> tuple:
+#: Largest total uncompressed size of the arrays of an ``.npz`` file read [bytes] (the limit
+#: is on what is unpacked, not on the compressed file: a small zip bomb is refused).
+MAX_NPZ_BYTES = 2 * 1024 ** 3
+#: Most entries of an ``.npz`` file read.
+MAX_NPZ_MEMBERS = 1000
+
+
+def _check_npz_members(path: Path, bad, max_bytes: int) -> None:
+    """Refuse an archive whose entries would unpack to more than ``max_bytes``, or whose
+    ``.npy`` headers announce more data than the entry holds (numpy allocates the announced
+    size before reading), before anything is unpacked."""
+    import zipfile
+    with zipfile.ZipFile(path) as zf:
+        infos = zf.infolist()
+        if len(infos) > MAX_NPZ_MEMBERS:
+            raise bad(f"{len(infos)} entries, more than {MAX_NPZ_MEMBERS}")
+        total = sum(i.file_size for i in infos)
+        if total > max_bytes:
+            raise bad(f"its arrays unpack to {total} bytes, more than the {max_bytes} read")
+        if "metadata.npy" not in {i.filename for i in infos}:
+            raise bad("no metadata entry")
+        for info in infos:
+            with zf.open(info) as fh:
+                fmt = np.lib.format
+                version = fmt.read_magic(fh)
+                header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+                shape, _, dtype = header(fh)
+                if dtype.hasobject:
+                    raise bad(f"entry {info.filename} holds Python objects")
+                size = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                if size > info.file_size:
+                    raise bad(f"entry {info.filename} announces {size} bytes but holds {info.file_size}")
+
+
+def read_npz(path, option: str = "path", what: str = "hubbeam file", max_bytes: int | None = None) -> tuple:
     """Read a file written by :func:`write_npz`.
 
     Parameters
@@ -649,6 +683,10 @@ def read_npz(path, option: str = "path", what: str = "hubbeam file") -> tuple:
         The argument's name as the caller spelled it (starts the error message).
     what : str
         What the file should be, for the error message (e.g. ``"hubbeam result file"``).
+    max_bytes : int, optional
+        Largest total uncompressed size of its entries [bytes] (default
+        :data:`MAX_NPZ_BYTES`; checked on the archive's directory and the arrays' headers
+        before anything is unpacked).
 
     Returns
     -------
@@ -672,6 +710,7 @@ def read_npz(path, option: str = "path", what: str = "hubbeam file") -> tuple:
             magic = fh.read(4)
         if magic[:2] != b"PK":
             raise bad("not an NPZ archive")
+        _check_npz_members(path, bad, MAX_NPZ_BYTES if max_bytes is None else max_bytes)
         with np.load(path, allow_pickle=False) as data:
             if "metadata" not in data.files:
                 raise bad("no metadata entry")
