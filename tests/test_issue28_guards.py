@@ -211,3 +211,120 @@ def test_mat_controller_with_a_foreign_version_is_refused(saved, tmp_path):
     savemat(tmp_path / "ctrl.mat", data)
     with pytest.raises(ParameterError, match="format version 7"):
         _load("controller", tmp_path / "ctrl.mat")
+
+
+# -- sweep folders: resume repairs or refuses, one sweep at a time, nothing half-made ---------------
+def _study(tmp_path, name="study"):
+    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.sweep import sweep
+    spec = load_spec({"study": {"controllers": ["openloop"], "t_f": 1.0, "t_end": 6.5, "plant_modes": 2},
+                      "params": {"n_axial": 2, "n_transverse": 2}, "grid": {"m_t": [0.0, 0.1, 0.2]}})
+    out = tmp_path / name
+    df = sweep(spec, workers=1, progress=False, out_dir=out)
+    return spec, out, df
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    return _study(tmp_path_factory.mktemp("finished"))
+
+
+def _copy(finished, tmp_path):
+    import shutil
+    spec, out, df = finished
+    dst = tmp_path / "copy"
+    shutil.copytree(out, dst)
+    return spec, dst, df
+
+
+def test_resume_drops_duplicate_foreign_and_incomplete_rows(finished, tmp_path):
+    import numpy as np
+
+    from hubbeam_ctrl.study.sweep import TIMING_COLUMNS, read_results, sweep
+    spec, out, df = _copy(finished, tmp_path)
+    path = out / "results.csv"
+    header, *rows = path.read_text().splitlines()
+    by_case = {int(r.split(",", 1)[0]): r for r in rows}
+    foreign = "999" + by_case[0][1:]
+    other_ctrl = by_case[1].replace(",openloop,", ",lqr,")
+    damaged = [header, by_case[0], by_case[1], by_case[1], foreign, other_ctrl]
+    path.write_text("\n".join(damaged) + "\n" + by_case[2][:30])           # and a line cut short
+    again = sweep(spec, workers=1, progress=False, out_dir=out, resume=True)
+    assert sorted(again["case"]) == [0, 1, 2] and not again.duplicated(["case", "controller"]).any()
+    lines = path.read_text().splitlines()
+    assert lines[:3] == [header, by_case[0], by_case[1]]            # kept byte for byte, first
+    assert len(lines) == 4 and "999" not in {ln.split(",", 1)[0] for ln in lines}
+    for c in df.columns:
+        if c not in TIMING_COLUMNS and df[c].dtype.kind == "f":
+            assert np.array_equal(df[c].to_numpy(), again[c].to_numpy(), equal_nan=True), c
+    assert len(read_results(out)) == 3
+
+
+@pytest.mark.parametrize("damage, needle", [
+    ({"study.json": b"{not json"}, "study.json is damaged (not JSON"),
+    ({"study.json": b"[1, 2]"}, "study.json is damaged (no spec_hash)"),
+    ({"study.json": b"{\"spec_hash\": 5}"}, "study.json is damaged (no spec_hash)"),
+    ({"study.json": b"\xff\xfe\x00garbage"}, "study.json is damaged (not JSON"),
+    ({"study.json": None}, "study.json is damaged (not a regular file"),
+    ({"results.csv": b"\x89PNG\r\n\x1a\n\xff"}, "results.csv is damaged (not UTF-8"),
+    ({"results.csv": b"case,x,y\n1,2,3\n"}, "results.csv has other columns"),
+    ({"results.csv": b"\x00\x00\x00\n"}, "results.csv is damaged (NUL bytes)"),
+])
+def test_resume_on_a_damaged_folder_is_one_line(finished, tmp_path, damage, needle):
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.sweep import sweep
+    spec, out, _ = _copy(finished, tmp_path)
+    for name, data in damage.items():
+        (out / name).unlink()
+        if data is None:
+            (out / name).mkdir()
+        else:
+            (out / name).write_bytes(data)
+    import re
+    with pytest.raises(ParameterError, match=re.escape(needle)) as err:
+        sweep(spec, workers=1, progress=False, out_dir=out, resume=True)
+    assert "\n" not in str(err.value)
+
+
+def test_a_second_sweep_on_the_same_folder_is_refused(finished, tmp_path):
+    import fcntl
+
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.sweep import sweep
+    spec, out, _ = _copy(finished, tmp_path)
+    before = (out / "results.csv").read_bytes()
+    with open(out / ".hubbeam-sweep.lock", "a") as held:          # what a running sweep holds
+        fcntl.flock(held, fcntl.LOCK_EX)
+        with pytest.raises(ParameterError, match="another sweep is running"):
+            sweep(spec, workers=1, progress=False, out_dir=out, resume=True)
+    assert (out / "results.csv").read_bytes() == before
+    sweep(spec, workers=1, progress=False, out_dir=out, resume=True)    # free again
+    assert (out / "results.csv").read_bytes() == before
+
+
+def test_disk_full_exits_1_in_one_line_and_leaves_no_empty_folder(tmp_path, capsys, monkeypatch):
+    import errno
+    spec_file = tmp_path / "s.toml"
+    spec_file.write_text(GOOD_SPEC)
+
+    def full(*_a, **_k):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    monkeypatch.setattr(os, "fsync", full)                        # the first append of results.csv
+    err = _one_line(capsys, main(["sweep", str(spec_file), "--out", str(tmp_path / "o"), "--workers", "1"]),
+                    expected_status=1)
+    assert "No space left on device" in err and "results.csv" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_disk_full_on_an_atomic_write_is_not_bad_input(tmp_path, monkeypatch):
+    import errno
+
+    from hubbeam_ctrl.core.errors import ParameterError, ResourceError
+    from hubbeam_ctrl.core.fileio import atomic_write_text
+
+    def full(*_a, **_k):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    monkeypatch.setattr(os, "replace", full)
+    with pytest.raises(ResourceError, match="No space left") as err:
+        atomic_write_text(tmp_path / "x.txt", "hello")
+    assert not isinstance(err.value, ParameterError) and list(tmp_path.iterdir()) == []

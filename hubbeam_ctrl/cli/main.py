@@ -28,7 +28,7 @@ from hubbeam_ctrl.cli.args import (
     run_limits,
     stdout,
 )
-from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.errors import RESOURCE_ERRNOS, HubbeamError, ParameterError, ResourceError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import capture_native_output
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, MODEL_SPECS
@@ -318,8 +318,9 @@ def main(argv=None) -> int:
     """Entry point of the ``hubbeam`` console script. Returns the exit status.
 
     0: done (warnings, e.g. a run that stopped early, on stderr); 2: bad input, one line on
-    stderr naming the option, nothing written; 1: the run failed (one line; the details in
-    the ``--verbose`` log); 130: interrupted.
+    stderr naming the option, nothing written; 1: the run failed, or the system could not
+    write its output (disk full: one line; the details in the ``--verbose`` log); 130:
+    interrupted.
 
     Parameters
     ----------
@@ -339,6 +340,8 @@ def main(argv=None) -> int:
             module = importlib.import_module(f"hubbeam_ctrl.cli.{args.command}")
             func = module.run
         return _run(func, args)
+    except ResourceError as exc:       # disk full, quota, I/O: not bad input
+        return _fail(1, rename_options(_one_line(exc), options))
     except (ParameterError, HubbeamError) as exc:
         return _fail(2, rename_options(_one_line(exc), options))
     except KeyboardInterrupt:
@@ -346,6 +349,11 @@ def main(argv=None) -> int:
         return 130
     except MemoryError:
         return _fail(1, "out of memory (lower --t-end, --horizon or --n-modes)", args)
+    except OSError as exc:
+        if exc.errno not in RESOURCE_ERRNOS:
+            return _fail(1, f"{type(exc).__name__}: {_one_line(exc)}", args, exc)
+        where = f" ({exc.filename})" if exc.filename else ""
+        return _fail(1, f"the system could not write{where}: {exc.strerror or exc}")
     except Exception as exc:      # a failure inside the run: one line here, the traceback in the log
         return _fail(1, f"{type(exc).__name__}: {_one_line(exc)}", args, exc)
 

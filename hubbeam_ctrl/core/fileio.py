@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError, write_error
 
 __all__ = ["read_toml", "MAX_TOML_BYTES", "MAX_NPZ_BYTES",
            "atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
@@ -256,6 +256,8 @@ def atomic_write(path, write, suffix: str | None = None) -> Path:
     ParameterError
         Naming the path (as option ``out``) when its folder is missing, it is a folder, or
         the system refuses the write; no file is left behind.
+    ResourceError
+        When the system runs out of space, quota or the device fails (not bad input).
     Exception
         Whatever else ``write`` raises, unchanged; the temporary file is removed and an
         existing file at ``path`` keeps its old content.
@@ -279,7 +281,7 @@ def atomic_write(path, write, suffix: str | None = None) -> Path:
         os.replace(tmp, path)
     except OSError as exc:
         _remove_entry(tmp)
-        raise ParameterError(f"out: cannot write {path}: {exc.strerror or exc}") from None
+        raise write_error(exc, f"out: cannot write {path}") from None
     except BaseException:
         _remove_entry(tmp)
         raise

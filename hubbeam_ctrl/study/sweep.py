@@ -22,6 +22,7 @@ Example
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import json
 import math
@@ -32,7 +33,7 @@ from collections import OrderedDict
 from pathlib import Path
 
 from controllers import CONTROLLERS, DesignModel, as_shaper, make_controller
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError, write_error
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
@@ -492,31 +493,184 @@ class _ResultsFile:
                                  "choose another --out")
 
     def append(self, rows: list) -> None:
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        data = _csv_text(rows, self.columns).encode()
         try:
-            os.write(fd, _csv_text(rows, self.columns).encode())
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+            try:
+                size = os.fstat(fd).st_size
+                try:
+                    written = os.write(fd, data)
+                    if written != len(data):
+                        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                    os.fsync(fd)
+                except OSError:
+                    os.ftruncate(fd, size)          # whole batches only: drop a part-written one
+                    raise
+            finally:
+                os.close(fd)
+        except OSError as exc:
+            raise write_error(exc, f"out: cannot write {self.path}") from None
 
 
-def _open_folder(out_dir, spec: StudySpec, resume: bool) -> Path:
-    out = output_folder(out_dir, create=False)
-    meta = out / _STUDY
-    if meta.exists():
-        stored = json.loads(meta.read_text()).get("spec_hash")
-        if stored != spec.hash():
-            raise ParameterError(f"out: {out} holds results of a different study spec (hash {stored[:12]}, "
-                                 f"this spec {spec.hash()[:12]}); choose another --out")
-        if not resume and (out / _RESULTS).exists():
-            raise ParameterError(f"out: {out} already holds results of this study; pass --resume to "
-                                 "finish it, or choose another --out")
-    elif (out / _RESULTS).exists():
+_LOCK = ".hubbeam-sweep.lock"
+
+
+class _StudyFolder:
+    """The ``--out`` folder of a sweep, held for the length of the run.
+
+    Taking it: an exclusive lock (``fcntl.flock`` on :data:`_LOCK` in the folder; a second
+    sweep on the same folder is refused, it cannot append too), ``study.json`` checked
+    against the spec (damaged: refused in one line), and on ``resume`` ``results.csv``
+    repaired (:func:`_repair_results`). A folder this call created is removed again if the
+    run fails before any row reached ``results.csv``.
+    """
+
+    def __init__(self, out_dir, spec: StudySpec, resume: bool):
+        self.out = output_folder(out_dir, create=False)
+        self.spec, self.resume = spec, resume
+        self.created = not self.out.exists()
+        self._fd = None
+
+    def __enter__(self):
+        try:
+            self.out.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise write_error(exc, f"out: cannot create {self.out}") from None
+        try:
+            self._lock()
+            self.done = _check_study_folder(self.out, self.spec, self.resume)
+            self.results = _ResultsFile(self.out / _RESULTS, result_columns(self.spec))
+        except BaseException:
+            self.__exit__(*sys.exc_info())
+            raise
+        return self
+
+    def _lock(self) -> None:
+        import fcntl
+        try:
+            self._fd = os.open(self.out / _LOCK, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:
+            raise write_error(exc, f"out: cannot create the lock file in {self.out}") from None
+        try:
+            fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self._fd)
+            self._fd = None
+            raise ParameterError(f"out: another sweep is running in {self.out} (it holds {_LOCK}); "
+                                 "wait for it to finish or choose another --out") from None
+
+    def __exit__(self, exc_type, *_):
+        if self._fd is not None:
+            os.close(self._fd)                  # releases the lock
+            self._fd = None
+        if exc_type is not None and self.created and not _has_rows(self.out / _RESULTS):
+            import shutil
+            shutil.rmtree(self.out, ignore_errors=True)   # nothing finished: leave no empty --out
+        return False
+
+
+def _has_rows(path: Path) -> bool:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(1 << 16).count(b"\n") > 1
+    except OSError:
+        return False
+
+
+def _read_study_json(meta: Path):
+    """The ``spec_hash`` of ``study.json``, or a one-line refusal naming what is wrong."""
+    def damaged(reason):
+        return ParameterError(f"out: {meta} is damaged ({reason}); it says which study the folder holds: "
+                              "choose another --out")
+    if not meta.is_file():
+        raise damaged("not a regular file")
+    try:
+        if meta.stat().st_size > 64_000_000:
+            raise OSError(errno.EFBIG, "larger than 64 MB")
+        doc = json.loads(meta.read_bytes().decode("utf-8"))
+    except OSError as exc:
+        raise damaged(f"cannot be read: {exc.strerror or exc}") from None
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise damaged(f"not JSON: {' '.join(str(exc).split())[:80]}") from None
+    stored = doc.get("spec_hash") if isinstance(doc, dict) else None
+    if not isinstance(stored, str) or not stored:
+        raise damaged("no spec_hash")
+    return stored
+
+
+def _check_study_folder(out: Path, spec: StudySpec, resume: bool) -> set:
+    """Check ``study.json`` against ``spec``, repair ``results.csv`` on resume, write
+    ``study.json``; returns the cases already finished."""
+    meta, results = out / _STUDY, out / _RESULTS
+    done = set()
+    if meta.exists() or meta.is_symlink():
+        if results.exists():
+            stored = _read_study_json(meta)
+            if stored != spec.hash():
+                raise ParameterError(f"out: {out} holds results of a different study spec (hash {stored[:12]}, "
+                                     f"this spec {spec.hash()[:12]}); choose another --out")
+            if not resume:
+                raise ParameterError(f"out: {out} already holds results of this study; pass --resume to "
+                                     "finish it, or choose another --out")
+            done = _repair_results(results, spec)
+    elif results.exists():
         raise ParameterError(f"out: {out} holds a {_RESULTS} of an unknown study; choose another --out")
-    out.mkdir(exist_ok=True)
     atomic_write_text(meta, json.dumps({"spec_hash": spec.hash(), "n_cases": len(spec.cases()),
                                         "spec": spec.to_dict()}, indent=2, default=str) + "\n")
-    return out
+    return done
+
+
+def _repair_results(path: Path, spec: StudySpec) -> set:
+    """Keep the rows of ``results.csv`` that belong to this study, once each; return the
+    cases finished (a row for every controller).
+
+    Dropped: a line cut short, rows of cases not in the plan (``case = 999``) or of other
+    controllers, repeated (case, controller) rows (the first is kept) and the rows of a case
+    that lacks a controller (it is run again). The file is rewritten (atomically) only if
+    something was dropped, so the rows kept stay byte for byte. A file that cannot be read
+    as this study's CSV (other header, not text) is refused in one line.
+    """
+    columns = result_columns(spec)
+
+    def damaged(reason):
+        return ParameterError(f"out: {path} is damaged ({reason}); choose another --out")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise damaged(f"cannot be read: {exc.strerror or exc}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise damaged(f"not UTF-8 text at byte {exc.start}") from None
+    if "\x00" in text:
+        raise damaged("NUL bytes")
+    lines = text.split("\n")
+    if lines[0].split(",") != columns:
+        raise ParameterError(f"out: {path} has other columns than this version writes; choose another --out")
+    complete = lines[1:-1]                  # the last piece is "" or a line cut short
+    plan = set(range(len(spec.cases())))
+    controllers = set(spec.controllers)
+    i_case, i_ctrl = columns.index("case"), columns.index("controller")
+    kept, seen = [], set()
+    for line in complete:
+        try:
+            row = next(csv.reader([line]))
+            case = int(row[i_case])
+        except (csv.Error, StopIteration, ValueError, IndexError):
+            continue
+        key = (case, row[i_ctrl] if len(row) > i_ctrl else None)
+        if len(row) != len(columns) or case not in plan or key[1] not in controllers or key in seen:
+            continue
+        seen.add(key)
+        kept.append((case, line))
+    per_case = {}
+    for case, _ in kept:
+        per_case[case] = per_case.get(case, 0) + 1
+    done = {c for c, n in per_case.items() if n == len(controllers)}
+    rows = [line for case, line in kept if case in done]
+    if len(rows) != len(complete) or lines[-1] != "":
+        atomic_write_text(path, "\n".join([lines[0], *rows]) + "\n")
+    return done
 
 
 def read_results(path, spec: StudySpec | None = None):
@@ -582,18 +736,26 @@ def sweep(spec, *, workers: int | None = None, client=None, progress: bool = Tru
         metrics, ``verdict``, ``error`` (one line, empty when the run worked) and the wall
         times ``setup_s``, ``wall_s``, ``sim_wall_s`` [s] (see :data:`TIMING_COLUMNS`).
     """
-    from tqdm import tqdm
     spec = load_spec(spec)
     Engine(workers)  # validates workers before anything is written
     cases = list(enumerate(spec.cases()))
-    results = done = None
-    if out_dir is not None:
-        folder = _open_folder(out_dir, spec, resume)
-        results = _ResultsFile(folder / _RESULTS, result_columns(spec))
-        done = set(read_results(folder)["case"].astype(int))
-        cases = [c for c in cases if c[0] not in done]
+    if out_dir is None:
+        return _run_cases(spec, cases, workers, client, progress, None)
+    with _StudyFolder(out_dir, spec, resume) as folder:
+        _run_cases(spec, [c for c in cases if c[0] not in folder.done], workers, client, progress, folder.results)
+        try:
+            return read_results(folder.out, spec)
+        except (ValueError, TypeError, KeyError) as exc:
+            raise ParameterError(f"out: {folder.out / _RESULTS} is damaged ({_one_line(exc)}); "
+                                 "choose another --out") from None
+
+
+def _run_cases(spec: StudySpec, cases: list, workers, client, progress: bool, results):
+    """Run ``cases`` on the engine; rows appended to ``results`` (a :class:`_ResultsFile`) as
+    they come, and returned as a DataFrame when there is no file."""
+    from hubbeam_ctrl.core.progress import progress_bar
     rows = []
-    bar = tqdm(total=len(cases), unit="case", disable=not progress, file=sys.stderr, desc="sweep")
+    bar = progress_bar(len(cases), "sweep", enabled=progress)     # quiet off a terminal and under --json
     failed = 0
 
     def sink(batch, _spec, batch_rows):
@@ -610,9 +772,7 @@ def sweep(spec, *, workers: int | None = None, client=None, progress: bool = Tru
             engine.run([(b, spec) for b in plan_batches(cases, engine.workers)], sink)
     finally:
         bar.close()
-    if out_dir is not None:
-        return read_results(folder, spec)
-    return _frame(rows, spec)
+    return None if results is not None else _frame(rows, spec)
 
 
 def _dask_workers(client) -> int:
