@@ -328,3 +328,148 @@ def test_disk_full_on_an_atomic_write_is_not_bad_input(tmp_path, monkeypatch):
     with pytest.raises(ResourceError, match="No space left") as err:
         atomic_write_text(tmp_path / "x.txt", "hello")
     assert not isinstance(err.value, ParameterError) and list(tmp_path.iterdir()) == []
+
+
+# -- sweeps and tune budgeted like compare -----------------------------------------------------------
+_BASE = {"study": {"controllers": ["openloop", "lqr"], "t_f": 1.0, "t_end": 6.5},
+         "params": {"n_axial": 2, "n_transverse": 2}}
+
+
+def _spec_with(**tables):
+    import copy
+    data = copy.deepcopy(_BASE)
+    for table, content in tables.items():
+        data.setdefault(table, {}).update(content)
+    return data
+
+
+@pytest.mark.parametrize("tables, needle", [
+    ({"grid": {"m_t": [i * 1e-3 for i in range(1000)], "E": [6e10 + i * 1e7 for i in range(1000)]}},
+     r"^grid\.m_t \(1000\) x grid\.E \(1000\) give 1e\+06 cases, more than the 100000"),
+    ({"random": {"n": 10**12, "m_t": {"dist": "uniform", "low": 0.0, "high": 0.2}}}, r"^random\.n must be an integer in 1\.\.100000"),  # noqa: E501
+    ({"study": {"t_end": 1e9}}, r"^study\.t_end = 1e\+09 s at study\.dt = 0\.01 s .* needs about .* of memory.*lower study\.t_end"),  # noqa: E501
+    ({"study": {"plant_modes": 0}}, r"^study\.plant_modes must be an integer in 1\.\.20, got 0"),
+    ({"study": {"design_modes": 21}}, r"^study\.design_modes must be an integer in 1\.\.20, got 21"),
+    ({"study": {"horizon": 100000}}, r"^study\.horizon: no controller of study\.controllers \(openloop, lqr\) uses it"),
+    ({"study": {"controllers": ["mpc"], "horizon": 3000}}, r"^study\.t_end = 6\.5 s .* with study\.horizon = 3000 needs"),  # noqa: E501
+    ({"study": {"controllers": ["openloop"], "shaping": "zv"}}, r"^study\.shaping: no controller .* tracks a reference"),  # noqa: E501
+    ({"random": {"n": 50, "m_t": {"dist": "normal", "mean": 0.05, "std": 0.1}}},
+     r"^random\.m_t: the sample -?[0-9.e-]+ is outside its range .*truncate the distribution"),
+])
+def test_sweep_specs_are_budgeted_up_front(tables, needle):
+    import time
+
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.spec import load_spec
+    t0 = time.perf_counter()
+    with pytest.raises(ParameterError, match=needle) as err:
+        load_spec(_spec_with(**tables))
+    assert "\n" not in str(err.value) and len(str(err.value)) < 400
+    assert time.perf_counter() - t0 < 10
+
+
+def test_a_truncated_distribution_inside_the_range_is_accepted():
+    from hubbeam_ctrl.study.spec import load_spec
+    spec = load_spec(_spec_with(random={"n": 50, "m_t": {"dist": "normal", "mean": 0.05, "std": 0.1,
+                                                         "low": 0.0, "high": 0.3}}))
+    assert all(0.0 <= c["m_t"] <= 0.3 for c in spec.cases())
+
+
+@pytest.mark.parametrize("options, needle", [
+    ({"popsize": 10**9}, r"^tune\.popsize must be an integer in 1\.\.1000"),
+    ({"maxiter": 10**6}, r"^tune\.maxiter must be an integer in 1\.\.10000"),
+    ({"maxiter": 10000, "popsize": 1000}, r"^tune\.maxiter \(10000\) \+ 1 generations x tune\.popsize \(1000\)"),
+])
+def test_tune_is_budgeted_up_front(options, needle):
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.tune import TuneOptions, tune
+    with pytest.raises(ParameterError, match=needle):
+        tune(_spec_with(), "lqr", options=TuneOptions.from_dict(options), workers=1)
+
+
+def test_cli_popsize_names_the_option(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text(GOOD_SPEC)
+    err = _one_line(capsys, main(["tune", str(spec), "--controller", "lqr", "--out", str(tmp_path / "t"),
+                                  "--popsize", "1e9"]))
+    assert "--popsize" in err and "1..1000" in err
+
+
+# -- CLI numbers: one helper, the option with its dashes --------------------------------------------
+@pytest.mark.parametrize("argv, needle", [
+    (["design", "--controller", "lqr", "--out", "c.mat", "--tau-max=--"], "--tau-max must be given a value, got '--'"),
+    (["modes", "--spin="], "--spin must be given a value"),
+    (["compare", "--out", "o", "--controllers", "mpc", "--horizon=1e308"], "--horizon must be an integer in 1..5000"),
+    (["compare", "--out", "o", "--horizon=1e309"], "--horizon must be an integer"),
+    (["design", "--controller", "lqr", "--out", "c.mat", "--tau-max=1e308"], "--tau-max must be in (0, 200]"),
+    (["design", "--controller", "lqr", "--out", "c.mat", "--payload-range", "0,1e308"],
+     "--payload-range m_max must be in [0, 1e+06]"),
+    (["design", "--controller", "lqr", "--out", "c.mat", "--design-modes", "0"], "--design-modes must be an integer"),
+    (["design", "--controller", "lqr", "--out", "c.mat", "--slew-angle", "0"], "--slew-angle must be"),
+    (["design", "--controller", "lqr", "--out", "c.mat", "--wf", "2"], "--wf does not apply to --scenario slew"),
+])
+def test_cli_numbers_are_one_line_naming_the_option(tmp_path, capsys, monkeypatch, argv, needle):
+    monkeypatch.chdir(tmp_path)
+    err = _one_line(capsys, main(argv))
+    assert needle in err, err
+    assert not any(f" {bare}" in err.replace("--" + bare, "") for bare in
+                   ("tau-max", "payload-range", "design-modes", "slew-angle")), err   # never without dashes
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_messages_with_a_bare_option_name_get_their_dashes():
+    from hubbeam_ctrl.cli.args import rename_options
+    assert rename_options("payload-range must be two numbers", {"--payload-range"}) == \
+        "--payload-range must be two numbers"
+    assert rename_options("design_modes must be an integer", {"--design-modes"}) == "--design-modes must be an integer"
+    assert rename_options("tune.popsize must be", {"--popsize"}) == "--popsize (tune.popsize) must be"
+    assert rename_options("payload-range must be", {"--out"}) == "payload-range must be"     # not this command's
+
+
+# -- the API: one ParameterError line -------------------------------------------------------------------
+def _api_cases():
+    import numpy as np
+
+    from controllers.mpc import MPCSettings
+    from controllers.reference import slew_reference
+    from hubbeam_ctrl.linear.statespace import linearize, reduce
+    from hubbeam_ctrl.plant.modal import campbell
+    from hubbeam_ctrl.plant.params import Params, load_params, save_params
+    lm = linearize("sfoam", spin=0.0, params=Params(n_axial=1, n_transverse=2))
+    return {
+        "MPCSettings(horizon=10**9)": (lambda: MPCSettings(horizon=10**9), r"^horizon must be an integer in 1\.\.5000"),
+        "reduce(model, nan)": (lambda: reduce(lm, float("nan")), r"^n_modes must be an integer in 1\.\.2, got nan"),
+        "reduce(model, inf)": (lambda: reduce(lm, np.inf), r"^n_modes must be an integer"),
+        "Params(foo=1)": (lambda: Params(foo=1), r"^Params has no field 'foo'; fields: L, "),
+        "Params().replace(foo=1)": (lambda: Params().replace(foo=1), r"^Params has no field 'foo'"),
+        "load_params(3)": (lambda: load_params(3), r"^params file must be named by a path, got 3"),
+        "save_params(dict)": (lambda: save_params({"m_t": 1.0}, "p.toml"), r"^params must be a Params"),
+        "slew_reference(nan)": (lambda: slew_reference(float("nan"), 10.0, 250.0, 200.0, 0.01, 30.0),
+                                r"^angle must be a finite number \[rad\], got nan"),
+        "campbell(spins=[])": (lambda: campbell("foam", spins=[]), r"^spins must hold at least one value"),
+        "campbell(spins=[nan])": (lambda: campbell("foam", spins=[0.0, np.nan]), r"^spins must hold finite numbers"),
+    }
+
+
+def test_api_bad_arguments_are_one_parameter_error(tmp_path, monkeypatch):
+    from hubbeam_ctrl.core.errors import ParameterError
+    monkeypatch.chdir(tmp_path)
+    for name, (call, needle) in _api_cases().items():
+        with pytest.raises(ParameterError, match=needle) as err:
+            call()
+        assert "\n" not in str(err.value), name
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- docs/ranges.md states the code's t_end rule ---------------------------------------------------------
+def test_ranges_doc_states_the_scaled_t_end_rule():
+    from pathlib import Path
+
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.scenarios import make_scenario
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "ranges.md").read_text()
+    assert "t_end > tf (1 + residual_delay)" in doc and "tf + 5" not in doc
+    for t_f in (1.0, 10.0):                 # the bound scales with tf: 1.5 tf at the default delay 0.5
+        make_scenario("slew", t_f=t_f, t_end=1.5 * t_f * 1.001, dt=0.01)
+        with pytest.raises(ParameterError, match="t_end must exceed"):
+            make_scenario("slew", t_f=t_f, t_end=1.5 * t_f * 0.999, dt=0.01)

@@ -35,7 +35,8 @@ OPTION_NAMES = {
     "params": "--params", "scenario": "--scenario", "plant": "--plant", "model": "--model",
     "range_limit": "--range-limit", "design_modes": "--design-modes", "plant_modes": "--plant-modes",
     "schedule": "--schedule", "shaping": "--shaping", "axial": "--axial", "scheduler": "--scheduler",
-    "timeout": "--scheduler-timeout",
+    "timeout": "--scheduler-timeout", "tune.popsize": "--popsize", "tune.maxiter": "--maxiter",
+    "tune.objective": "--objective", "tune.decades": "--decades", "tune.seed": "--seed",
 }
 
 #: What ``modes`` and ``linearize`` say about a model with a growing mode.
@@ -75,7 +76,7 @@ def stdout(args):
     return getattr(args, "stdout", None) or sys.stdout
 
 
-_LEADING_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?=[ :=])")
+_LEADING_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_-]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?)(?=[ :=])")
 
 
 def rename_options(message: str, options) -> str:
@@ -105,8 +106,12 @@ def rename_options(message: str, options) -> str:
     name = match.group(1)
     option = OPTION_NAMES.get(name)
     if option is None or option not in options:
-        return message
-    label = option if option.lstrip("-").replace("-", "_") == name else f"{option} ({name})"
+        # a message that names the option without its dashes (``tau-max must ...``,
+        # ``design_modes must ...``): the option as typed
+        option = "--" + name.replace("_", "-")
+        if option not in options:
+            return message
+    label = option if option.lstrip("-").replace("-", "_") == name.replace("-", "_") else f"{option} ({name})"
     return label + message[match.end():]
 
 

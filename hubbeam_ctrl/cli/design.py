@@ -50,8 +50,8 @@ def add_parser(subparsers, common) -> None:
                    help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
     p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
                    help="maneuver time [s] (default 10)")
-    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), default=3.0,
-                   help="spin-up final rate [rad/s] (default 3)")
+    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"),
+                   help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
     p.add_argument("--payload-range", metavar="MIN,MAX",
                    help="tip payloads [kg] to design LQR or LQG for (must hold the parameters' tip mass)")
     p.add_argument("--dt", metavar="S", type=positive_float("dt"), default=0.01,
@@ -89,7 +89,7 @@ def run(args) -> int:
     from controllers import CONTROLLERS, DesignModel, make_controller
     from controllers.analysis import loop_margins
     from controllers.export import FORMATS, save_controller
-    from hubbeam_ctrl.cli.args import stdout
+    from hubbeam_ctrl.cli.args import refuse_inapplicable, stdout
     from hubbeam_ctrl.cli.compare import parse_payload_range
     from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
     from hubbeam_ctrl.core.errors import ParameterError
@@ -97,6 +97,7 @@ def run(args) -> int:
     from hubbeam_ctrl.study.scenarios import make_scenario
 
     sink = stdout(args)      # sys.stdout is captured during the run (native solver output)
+    refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
     out = Path(args.out)
     if out.suffix.lower() not in FORMATS:
         raise ParameterError(f"out must end in {', '.join(FORMATS)}, got {args.out!r}")
@@ -111,13 +112,14 @@ def run(args) -> int:
     if args.slew_angle is not None and (args.slew_angle == 0 or args.scenario != "slew"):
         raise ParameterError("slew-angle must be a finite number != 0 [rad], for --scenario slew only")
     sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
-                       t_end=3 * args.tf, dt=args.dt, w_f=args.wf, slew_angle=args.slew_angle)
+                       t_end=3 * args.tf, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,
+                       slew_angle=args.slew_angle)
     design = DesignModel.build(params, sc.design_spin, args.dt, modes)
     settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
     if args.payload_range is not None:
         rng = parse_payload_range(args.payload_range, params.m_t)
         if args.controller in ("lqr", "lqg"):
-            chosen = range_designs([args.controller], sc, design, rng)[args.controller]
+            chosen = range_designs([args.controller], sc, design, rng, progress=not args.json)[args.controller]
             design, settings = chosen.design, chosen.settings
     ctrl = make_controller(args.controller, design, settings, sc.reference)
     save_controller(ctrl, out)

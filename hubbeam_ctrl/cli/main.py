@@ -330,6 +330,7 @@ def main(argv=None) -> int:
     parser = build_parser()
     args, options = None, set()
     try:
+        _refuse_missing_values(sys.argv[1:] if argv is None else argv)
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
             parser.print_help()
@@ -356,6 +357,16 @@ def main(argv=None) -> int:
         return _fail(1, f"the system could not write{where}: {exc.strerror or exc}")
     except Exception as exc:      # a failure inside the run: one line here, the traceback in the log
         return _fail(1, f"{type(exc).__name__}: {_one_line(exc)}", args, exc)
+
+
+def _refuse_missing_values(argv) -> None:
+    """``--tau-max=--`` (or ``=-``): argparse would pass on an empty list, not a value."""
+    for token in argv:
+        token = str(token)
+        if token.startswith("--") and "=" in token:
+            option, value = token.split("=", 1)
+            if value.strip() in ("--", "-", ""):
+                raise ParameterError(f"{option} must be given a value, got {value!r}")
 
 
 def _run(func, args) -> int:

@@ -288,6 +288,9 @@ def save_params(params: Params, path) -> None:
     params : Params
     path : str or Path
     """
+    if not isinstance(params, Params):
+        raise ParameterError(f"params must be a Params (Params.from_dict(d) makes one from a dict), "
+                             f"got {type(params).__name__}")
     units = Params.units()
     lines = ["# hubbeam-ctrl parameters, SI units"]
     for key, value in params.to_dict().items():

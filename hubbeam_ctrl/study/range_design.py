@@ -46,7 +46,8 @@ def _nonlinear_score(sc, sim, design_modes: int, plant_modes: int | None):
 
 
 def range_designs(names, scenario, design, payload_range, settings: dict | None = None, *,
-                  horizon: int = 50, solver: str = "daqp", sim=None, plant_modes: int | None = None) -> dict:
+                  horizon: int = 50, solver: str = "daqp", sim=None, plant_modes: int | None = None,
+                  progress: bool = False) -> dict:
     """The designs of LQR, LQG and MPC (those in ``names``) for a payload range.
 
     Candidates (:func:`controllers.robust.design_for_range`) are measured on the nonlinear
@@ -72,6 +73,8 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
     plant_modes : int, optional
         Transverse modes of the evaluation plants (default: their rule,
         :func:`hubbeam_ctrl.sim.evaluation.evaluation_plant`).
+    progress : bool
+        A progress bar per controller over its candidates (stderr, only on a terminal).
 
     Returns
     -------
@@ -98,5 +101,5 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
         st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon, solver=solver)
         out[name] = design_for_range(name, make_controller, design, st, sc.reference, payload_range,
                                      t_f=sc.t_f, t_end=sc.t_end, delay=sc.bands["residual_delay"],
-                                     baseline=baseline, score=score)
+                                     baseline=baseline, score=score, progress=progress)
     return out

@@ -66,12 +66,14 @@ from controllers.scaling import Tolerances, default_tolerances
 from hubbeam_ctrl.core.compiled import check_backend
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import read_toml
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
 
 __all__ = ["StudySpec", "load_spec", "load_settings", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
            "SAMPLERS", "settings_to_toml"]
 
+#: Most cases one sweep runs (grid points times random samples).
+MAX_CASES = 100_000
 #: Largest spec or settings file read [bytes].
 MAX_SPEC_BYTES = 4_000_000
 #: Factors beyond the Params fields: the spin-up rate [rad/s] and the sensor-noise seed.
@@ -267,7 +269,7 @@ def _grid(where: str, table: dict, scenario: str) -> dict:
                 raise ParameterError(f"{where}.{name} must hold integers, got {values!r}")
             vals = [int(v) for v in vals]
         if len(set(vals)) != len(vals):
-            raise ParameterError(f"{where}.{name} repeats a value: {values!r}")
+            raise ParameterError(f"{where}.{name} repeats a value: {values!r}"[:300])
         out[name] = vals
     return out
 
@@ -276,8 +278,8 @@ def _random(where: str, table: dict, scenario: str, grid: dict) -> tuple:
     if not isinstance(table, dict):
         raise ParameterError(f"{where} must be a table, got {table!r}")
     n = table.get("n")
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise ParameterError(f"{where}.n must be an integer >= 1 (number of samples), got {n!r}")
+    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_CASES:
+        raise ParameterError(f"{where}.n must be an integer in 1..{MAX_CASES} (number of samples), got {n!r}")
     seed = table.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ParameterError(f"{where}.seed must be an integer >= 0, got {seed!r}")
@@ -423,6 +425,14 @@ class StudySpec:
             random = {"n": n, "seed": seed, "method": method, "factors": dists}
         spec = cls(params=params, settings=dict(data.get("settings", {})), grid=grid, random=random, **kw)
         spec.validate()
+        for key in ("horizon", "solver"):         # keys no chosen controller uses (to_dict writes the defaults)
+            if key in study and study[key] != _STUDY_KEYS[key] and not spec._uses(key):
+                raise ParameterError(f"study.{key}: no controller of study.controllers "
+                                     f"({', '.join(spec.controllers)}) uses it")
+        if "shaping" in study and study["shaping"] is not None \
+                and not any(CONTROLLERS[n].tracks_reference for n in spec.controllers):
+            raise ParameterError(f"study.shaping: no controller of study.controllers ({', '.join(spec.controllers)}) "
+                                 "tracks a reference")
         return spec
 
     def validate(self) -> None:
@@ -450,6 +460,7 @@ class StudySpec:
             if unknown:
                 raise ParameterError(f"study.tolerances: unknown field(s) {', '.join(unknown)}; allowed: "
                                      f"{', '.join(allowed)}")
+        self._check_run_budget()                    # before the scenario: its reference spans t_end
         try:
             sc = self.scenario_for(self.params)
         except ParameterError as exc:
@@ -464,6 +475,74 @@ class StudySpec:
                     self.params.replace(**{name: v})
                 except ParameterError as exc:
                     raise ParameterError(f"grid.{name} = {v!r}: {exc}") from None
+        for key in ("design_modes", "plant_modes"):
+            v = getattr(self, key)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_MODES):
+                raise ParameterError(f"study.{key} must be an integer in 1..{MAX_MODES}, got {v!r}")
+        self._check_size()
+        self._check_samples()
+
+    def _check_size(self) -> None:
+        """Refuse a plant spread of more than :data:`MAX_CASES` cases, naming the keys."""
+        sizes = [(f"grid.{k}", len(v)) for k, v in self.grid.items()]
+        if self.random:
+            sizes.append(("random.n", self.random["n"]))
+        total = math.prod(n for _, n in sizes)
+        if total > MAX_CASES:
+            parts = " x ".join(f"{k} ({n})" for k, n in sizes)
+            raise ParameterError(f"{parts} give {total:.6g} cases, more than the {MAX_CASES} one sweep runs; "
+                                 "split the study or sample it ([random])")
+
+    def _check_run_budget(self) -> None:
+        """Refuse a task whose single run exceeds the closed-loop runs' default memory or
+        wall-time limits (what :func:`~hubbeam_ctrl.study.compare.compare` refuses up front)."""
+        from hubbeam_ctrl.core.budget import CLOSED_LOOP_SECONDS_PER_SAMPLE, check_budget, mpc_bytes, mpc_seconds
+        from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
+        numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+                      for v in (self.t_end, self.dt))
+        if not numbers:
+            return                                  # the scenario names the bad value
+        limits = ClosedLoopSettings()
+        p = self.params
+        modes = self.plant_modes if isinstance(self.plant_modes, int) else p.n_transverse
+        n_q = 1 + p.n_axial + modes
+        steps = int(min(round(self.t_end / self.dt), 1e15))
+        memory = 16.0 * (steps + 1) * (2 * n_q + 9)
+        seconds = steps * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n_q / 11.0) ** 2
+        what = f"study.t_end = {self.t_end:g} s at study.dt = {self.dt:g} s ({steps + 1:.6g} samples per run)"
+        if self._uses("horizon") and isinstance(self.horizon, int) and not isinstance(self.horizon, bool) \
+                and 1 <= self.horizon <= 10**6:
+            n_x = 2 * (1 + (self.design_modes or p.n_transverse))
+            memory += mpc_bytes(self.horizon, n_x)
+            seconds += mpc_seconds(self.horizon, n_x, steps)
+            what += f" with study.horizon = {self.horizon}"
+        try:
+            check_budget(what, memory_bytes=memory, seconds=seconds, max_memory_mb=limits.max_memory_mb,
+                         max_wall_s=limits.max_wall_s)
+        except ParameterError as exc:           # a spec cannot lift the limits of one run: say what to lower
+            head = str(exc).split(" (raise ")[0]
+            lower = "study.horizon or study.t_end" if "horizon" in what else "study.t_end or raise study.dt"
+            raise ParameterError(f"{head} (the limit of one closed-loop run of a sweep; lower {lower})") from None
+
+    def _uses(self, setting: str) -> bool:
+        """Whether a controller of the study has the setting (``horizon``, ``solver``)."""
+        return any(setting in {f.name for f in dataclasses.fields(CONTROLLERS[n].settings)}
+                   for n in self.controllers if dataclasses.is_dataclass(CONTROLLERS[n].settings))
+
+    def _check_samples(self) -> None:
+        """Every sampled value must be a valid parameter (a distribution whose samples leave
+        the range of its factor is refused, naming it, before any case runs)."""
+        if not self.random:
+            return
+        for case in self.cases():
+            for name in self.random["factors"]:
+                if name in FACTORS_EXTRA:
+                    continue
+                try:
+                    self.params.replace(**{name: case[name]})
+                except ParameterError as exc:
+                    raise ParameterError(f"random.{name}: the sample {case[name]:.6g} is outside its range ({exc}); "
+                                         "truncate the distribution with low/high") from None
 
     @property
     def torque_budget(self) -> float:

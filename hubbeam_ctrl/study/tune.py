@@ -48,6 +48,10 @@ _ALL_WEIGHTS = TUNED_WEIGHTS + ("torque",)
 FAILED_OBJECTIVE = 1.0
 
 
+#: Largest ``tune.maxiter`` and ``tune.popsize``, and most closed-loop runs one tuning may take.
+MAX_MAXITER, MAX_POPSIZE, MAX_TUNE_RUNS = 10_000, 1_000, 1_000_000
+
+
 @dataclass(frozen=True)
 class TuneOptions:
     """Settings of :func:`tune` (the spec's ``[tune]`` table).
@@ -97,10 +101,10 @@ class TuneOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise ParameterError(f"tune.{name} must be a finite number > 0, got {v!r}")
-        for name in ("maxiter", "popsize"):
+        for name, hi in (("maxiter", MAX_MAXITER), ("popsize", MAX_POPSIZE)):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ParameterError(f"tune.{name} must be an integer >= 1, got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= hi:
+                raise ParameterError(f"tune.{name} must be an integer in 1..{hi}, got {v!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ParameterError(f"tune.seed must be an integer >= 0, got {self.seed!r}")
 
@@ -343,6 +347,7 @@ def tune(spec, controller: str, *, options: TuneOptions | None = None, workers: 
     if options is None:
         table = raw.get("tune") if isinstance(raw, dict) else _tune_table(raw)
         options = TuneOptions.from_dict(table)
+    _check_tune_budget(spec, options)
     start = time.perf_counter()
     x0 = np.array([_paper_x()[k] for k in TUNED_WEIGHTS])
     bounds = [(v - options.decades, v + options.decades) for v in x0]
@@ -368,6 +373,17 @@ def tune(spec, controller: str, *, options: TuneOptions | None = None, workers: 
                       _worst_residual(rows), _worst_residual(ev.seen[tuple(map(float, x0))][1]),
                       history or [float(res.fun)], ev.n_runs, time.perf_counter() - start, rows,
                       ev.seen[tuple(map(float, x0))][1])
+
+
+def _check_tune_budget(spec, options: TuneOptions) -> None:
+    """Refuse a search of more than :data:`MAX_TUNE_RUNS` closed-loop runs, naming the keys."""
+    n_cases = len(spec.cases())
+    per_generation = options.popsize * len(TUNED_WEIGHTS)
+    runs = (options.maxiter + 1) * per_generation * n_cases
+    if runs > MAX_TUNE_RUNS:
+        raise ParameterError(f"tune.maxiter ({options.maxiter}) + 1 generations x tune.popsize ({options.popsize}) "
+                             f"x {len(TUNED_WEIGHTS)} weights x {n_cases} cases = {runs:.6g} closed-loop runs, "
+                             f"more than the {MAX_TUNE_RUNS} one tuning runs; lower them or the spec's cases")
 
 
 def _tune_table(path):
