@@ -41,7 +41,7 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.progress import progress_bar
-from hubbeam_ctrl.core.validation import check_in_range
+from hubbeam_ctrl.core.validation import check_in_range, check_nonnegative
 
 from .analysis import closed_loop_poles
 from .base import DesignModel, Reference
@@ -96,8 +96,10 @@ def check_payload_range(payload_range, nominal: float | None = None, name: str =
         lo, hi = payload_range
     except (TypeError, ValueError):
         raise ParameterError(f"{name} must be two numbers (m_min, m_max) [kg], got {payload_range!r}") from None
-    lo = check_in_range(f"{name} m_min", lo, "kg", 0.0, _M_T_MAX, "the range of Params.m_t")
-    hi = check_in_range(f"{name} m_max", hi, "kg", 0.0, _M_T_MAX, "the range of Params.m_t")
+    lo = check_nonnegative(f"{name} m_min", lo, "kg")
+    hi = check_nonnegative(f"{name} m_max", hi, "kg")
+    for label, value in (("m_min", lo), ("m_max", hi)):
+        check_in_range(f"{name} {label}", value, "kg", 0.0, _M_T_MAX, "the range of Params.m_t")
     if lo > hi:
         raise ParameterError(f"{name} must have 0 <= m_min <= m_max [kg], got ({lo:g}, {hi:g})")
     if nominal is not None and not lo <= nominal <= hi:
@@ -369,6 +371,9 @@ def design_for_range(name: str, make, base: DesignModel, settings, reference: Re
         that payload (e.g. a nonlinear run, relative to the open loop's residual on the same
         plant); default: the linear measure above. Candidates whose linear loop is unstable
         at a payload of the grid are dropped before it is called.
+    progress : bool
+        A progress bar over the candidates on stderr (only on a terminal,
+        :func:`hubbeam_ctrl.core.progress.progress_bar`).
 
     Returns
     -------
@@ -456,6 +461,7 @@ def _search(evaluate, candidates, masses, lo, hi, bar) -> tuple:
                 a = mid
             else:
                 b = mid
+    bar.update(max(0, bar.total - bar.n))       # no refinement (an infeasible range): the bar ends full
     return best, scores
 
 

@@ -359,6 +359,35 @@ def main(argv=None) -> int:
         return _fail(1, f"{type(exc).__name__}: {_one_line(exc)}", args, exc)
 
 
+class _library_logging:
+    """Collect the libraries' log records (Python ``logging``, which would otherwise print
+    WARNING and above, e.g. solver matrices, on the terminal through ``logging.lastResort``)
+    as warnings for the ``--verbose`` log."""
+
+    def __enter__(self):
+        import logging
+        records = self.records = []
+
+        class _Collect(logging.Handler):
+            def emit(self, record):
+                try:
+                    text = record.getMessage()
+                except Exception:  # noqa: BLE001 - a record that cannot be formatted is still counted
+                    text = str(record.msg)
+                records.append(warnings.WarningMessage(text, UserWarning, record.pathname, record.lineno))
+
+        self._logging, self._handler = logging, _Collect(logging.WARNING)
+        self._last = logging.lastResort
+        logging.lastResort = self._handler
+        logging.getLogger().addHandler(self._handler)
+        return records
+
+    def __exit__(self, *exc):
+        self._logging.getLogger().removeHandler(self._handler)
+        self._logging.lastResort = self._last
+        return False
+
+
 def _refuse_missing_values(argv) -> None:
     """``--tau-max=--`` (or ``=-``): argparse would pass on an empty list, not a value."""
     for token in argv:
@@ -374,10 +403,12 @@ def _run(func, args) -> int:
     log = getattr(args, "verbose", None)
     if log is not None:
         check_output("--verbose", log)
-    with capture_native_output(log) as cap, warnings.catch_warnings(record=True) as caught:
+    with capture_native_output(log) as cap, warnings.catch_warnings(record=True) as caught, \
+            _library_logging() as logged:
         warnings.simplefilter("default")
         args.stdout = cap.stdout              # results go here; sys.stdout is captured
         status = int(func(args) or 0)
+    caught = list(caught) + logged
     if log is not None and caught:
         with open(log, "a", encoding="utf-8") as fh:
             fh.writelines(warnings.formatwarning(w.message, w.category, w.filename, w.lineno) for w in caught)

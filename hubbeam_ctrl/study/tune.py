@@ -31,6 +31,7 @@ import numpy as np
 from controllers import Weights
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
+from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.scenarios import make_scenario
 from hubbeam_ctrl.study.spec import StudySpec, load_spec, settings_to_toml
@@ -337,7 +338,6 @@ def tune(spec, controller: str, *, options: TuneOptions | None = None, workers: 
     -------
     TuneResult
     """
-    import sys
 
     from scipy.optimize import differential_evolution
     raw = spec
@@ -352,16 +352,15 @@ def tune(spec, controller: str, *, options: TuneOptions | None = None, workers: 
     x0 = np.array([_paper_x()[k] for k in TUNED_WEIGHTS])
     bounds = [(v - options.decades, v + options.decades) for v in x0]
     history = []
-    with Engine(workers, client) as engine:
+    bar = progress_bar(options.maxiter, f"tune {controller}", enabled=progress)   # quiet off a terminal
+    with Engine(workers, client) as engine, bar:
         ev = _Evaluator(spec, controller, options, engine)
         default = float(ev(x0[:, None])[0])
 
         def report(intermediate_result):
             history.append(float(intermediate_result.fun))
-            if progress:
-                print(f"tune {controller}: generation {len(history)}, best {history[-1]:.4f} "
-                      f"(scaled defaults {default:.4f}), {ev.n_runs} runs, {time.perf_counter() - start:.0f} s",
-                      file=sys.stderr, flush=True)
+            bar.update(1)
+            bar.set_postfix(best=f"{history[-1]:.4f}", defaults=f"{default:.4f}", runs=ev.n_runs)
 
         res = differential_evolution(ev, bounds, x0=x0, maxiter=options.maxiter, popsize=options.popsize,
                                      tol=options.tol, rng=np.random.default_rng(options.seed), polish=False,
