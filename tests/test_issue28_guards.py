@@ -473,3 +473,12 @@ def test_ranges_doc_states_the_scaled_t_end_rule():
         make_scenario("slew", t_f=t_f, t_end=1.5 * t_f * 1.001, dt=0.01)
         with pytest.raises(ParameterError, match="t_end must exceed"):
             make_scenario("slew", t_f=t_f, t_end=1.5 * t_f * 0.999, dt=0.01)
+
+
+def test_spec_parameter_errors_name_the_spec_key():
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.spec import load_spec
+    with pytest.raises(ParameterError, match=r"^params\.m_t must be in \[0, 1e\+06\] \[kg\], got -1"):
+        load_spec({"params": {"m_t": -1.0}})
+    with pytest.raises(ParameterError, match=r"^params: unknown parameter\(s\) foo"):
+        load_spec({"params": {"foo": 1.0}})

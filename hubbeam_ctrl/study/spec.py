@@ -417,7 +417,13 @@ class StudySpec:
             raise ParameterError(f"study: unknown key(s) {', '.join(bad)}; allowed: {', '.join(_STUDY_KEYS)}")
         kw = {k: study.get(k, v) for k, v in _STUDY_KEYS.items()}
         kw["controllers"] = _controller_list(kw["controllers"])
-        params = Params.from_dict(dict(data.get("params", {})))
+        try:
+            params = Params.from_dict(dict(data.get("params", {})))
+        except ParameterError as exc:           # name the spec key: params.m_t, not m_t
+            text = str(exc)
+            head = text.split(" ", 1)[0]
+            raise ParameterError(f"params.{text}" if head in {f.name for f in dataclasses.fields(Params)}
+                                 else f"params: {text}") from None
         grid = _grid("grid", data.get("grid", {}), kw["scenario"])
         random = None
         if "random" in data:
