@@ -482,3 +482,24 @@ def test_spec_parameter_errors_name_the_spec_key():
         load_spec({"params": {"m_t": -1.0}})
     with pytest.raises(ParameterError, match=r"^params: unknown parameter\(s\) foo"):
         load_spec({"params": {"foo": 1.0}})
+
+
+def test_a_refused_second_sweep_leaves_the_first_ones_new_folder_alone(tmp_path):
+    """Both see no folder, the first takes the lock: the refused one must not remove it."""
+    import fcntl
+
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.sweep import _StudyFolder
+    spec = load_spec({"study": {"controllers": ["openloop"], "t_f": 1.0, "t_end": 6.5},
+                      "params": {"n_axial": 2, "n_transverse": 2}})
+    out = tmp_path / "new"
+    second = _StudyFolder(out, spec, resume=True)             # looked before the first created it
+    assert second.created
+    out.mkdir()
+    with open(out / ".hubbeam-sweep.lock", "a") as first:
+        fcntl.flock(first, fcntl.LOCK_EX)
+        with pytest.raises(ParameterError, match="another sweep is running"):
+            with second:
+                pass
+        assert out.is_dir()                                       # the first sweep's folder survives

@@ -560,12 +560,13 @@ class _StudyFolder:
                                  "wait for it to finish or choose another --out") from None
 
     def __exit__(self, exc_type, *_):
-        if self._fd is not None:
-            os.close(self._fd)                  # releases the lock
-            self._fd = None
+        if self._fd is None:
+            return False                        # the lock is another sweep's: its folder is left alone
         if exc_type is not None and self.created and not _has_rows(self.out / _RESULTS):
             import shutil
             shutil.rmtree(self.out, ignore_errors=True)   # nothing finished: leave no empty --out
+        os.close(self._fd)                      # releases the lock
+        self._fd = None
         return False
 
 
