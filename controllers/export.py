@@ -29,6 +29,7 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -207,7 +208,11 @@ def load_controller(path) -> ControllerModel:
         Equal, bit for bit, to what was saved.
     """
     import control
-    mats, meta = load_system(path, _MATRICES, _TAG, "hubbeam controller file")
+    mats, meta = load_system(path, _MATRICES, _TAG, "hubbeam controller file", _VERSION)
+    dt = meta.get("dt")
+    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (math.isfinite(dt) and dt > 0):
+        raise ParameterError(f"path: {path} is not a valid hubbeam controller file (dt {str(dt)[:40]} is not "
+                             "a finite sample time > 0 s)")
     try:
         sys = control.ss(*(_real_matrix(k, mats[k]) for k in _MATRICES), float(meta["dt"]),
                          states=list(meta["state_names"]), inputs=list(meta["input_names"]),

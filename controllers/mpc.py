@@ -61,7 +61,7 @@ class MPCSettings(LQSettings):
     feedforward torque the torque reference of the cost.
     """
 
-    horizon: int = setting(50, unit="samples", lo=1, doc="Prediction horizon N.")
+    horizon: int = setting(50, unit="samples", lo=1, hi=5000, doc="Prediction horizon N.")
     tip_bound: float | None = setting(None, unit="m", lo=0.0, lo_open=True, kind=float,
                                       doc="Soft bound on abs(v_tip) over the horizon; None: no bound.")
     tip_bound_weight: float = setting(1e8, unit="1/m^2", lo=0.0, lo_open=True,

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.validation import check_finite
 from hubbeam_ctrl.plant.maneuvers import SpinUp
 
 from .base import Reference, check_positive
@@ -78,6 +79,7 @@ def slew_reference(angle: float, duration: float, inertia: float, tau_max: float
     -------
     Reference
     """
+    angle = check_finite("angle", angle, "rad")
     T = check_positive("tf", duration, "s")
     J = check_positive("inertia", inertia, "kg m^2")
     check_positive("tau_max", tau_max, "N m")

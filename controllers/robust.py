@@ -40,7 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.validation import check_nonnegative
+from hubbeam_ctrl.core.progress import progress_bar
+from hubbeam_ctrl.core.validation import check_in_range, check_nonnegative
 
 from .analysis import closed_loop_poles
 from .base import DesignModel, Reference
@@ -65,6 +66,10 @@ FILTER_SHARES = (0.003, 0.01, 0.03)
 FILTER_MODES = 1
 #: Bisection steps that refine the best candidate's design payload (each one more candidate).
 REFINE_STEPS = 4
+
+
+#: Largest tip mass of :class:`~hubbeam_ctrl.plant.params.Params` (its ``m_t`` range) [kg].
+_M_T_MAX = 1e6
 
 
 def check_payload_range(payload_range, nominal: float | None = None, name: str = "payload_range") -> tuple:
@@ -93,6 +98,8 @@ def check_payload_range(payload_range, nominal: float | None = None, name: str =
         raise ParameterError(f"{name} must be two numbers (m_min, m_max) [kg], got {payload_range!r}") from None
     lo = check_nonnegative(f"{name} m_min", lo, "kg")
     hi = check_nonnegative(f"{name} m_max", hi, "kg")
+    for label, value in (("m_min", lo), ("m_max", hi)):
+        check_in_range(f"{name} {label}", value, "kg", 0.0, _M_T_MAX, "the range of Params.m_t")
     if lo > hi:
         raise ParameterError(f"{name} must have 0 <= m_min <= m_max [kg], got ({lo:g}, {hi:g})")
     if nominal is not None and not lo <= nominal <= hi:
@@ -334,7 +341,8 @@ def _candidates(settings, payload_range, nominal: float, shares=(None,)):
 
 
 def design_for_range(name: str, make, base: DesignModel, settings, reference: Reference, payload_range, *,
-                     t_f: float, t_end: float, delay: float, baseline, score=None) -> RangeDesign:
+                     t_f: float, t_end: float, delay: float, baseline, score=None,
+                     progress: bool = False) -> RangeDesign:
     """Choose the design of a controller for a payload range by measurement (see the module docstring).
 
     Parameters
@@ -363,6 +371,9 @@ def design_for_range(name: str, make, base: DesignModel, settings, reference: Re
         that payload (e.g. a nonlinear run, relative to the open loop's residual on the same
         plant); default: the linear measure above. Candidates whose linear loop is unstable
         at a payload of the grid are dropped before it is called.
+    progress : bool
+        A progress bar over the candidates on stderr (only on a terminal,
+        :func:`hubbeam_ctrl.core.progress.progress_bar`).
 
     Returns
     -------
@@ -412,8 +423,22 @@ def design_for_range(name: str, make, base: DesignModel, settings, reference: Re
     best, scores = None, {}
     shares = FILTER_SHARES if probe == "lqg" else (None,)
     masses = sorted({m for _, m, _, _ in _candidates(settings_probe, payload_range, nominal)})
-    for label, m, st, share in _candidates(settings_probe, payload_range, nominal, shares):
+    candidates = list(_candidates(settings_probe, payload_range, nominal, shares))
+    bar = progress_bar(len(candidates) + (REFINE_STEPS if hi > lo else 0), f"{name} payload range", enabled=progress)
+    with bar:
+        best, scores = _search(evaluate, candidates, masses, lo, hi, bar)
+    worst, label, m, design, st_used = best[:5]
+    chosen = settings.replace(weights=st_used.weights) if name == "mpc" else st_used
+    return RangeDesign(design=design, settings=chosen, design_mass=m, choice=label, score=worst,
+                       scores=scores, grid=grid)
+
+
+def _search(evaluate, candidates, masses, lo, hi, bar) -> tuple:
+    """The best candidate, refined by bisection (see :func:`design_for_range`), and every score."""
+    best, scores = None, {}
+    for label, m, st, share in candidates:
         worst, per, design, st_used = evaluate(m, st, share)
+        bar.update(1)
         scores[label] = worst
         if best is None or worst < best[0]:
             best = (worst, label, m, design, st_used, per, st, share)
@@ -428,6 +453,7 @@ def design_for_range(name: str, make, base: DesignModel, settings, reference: Re
         for _ in range(REFINE_STEPS):
             mid = 0.5 * (a + b)
             w, p, d, su = evaluate(mid, st, share)
+            bar.update(1)
             scores[f"m={mid:.4g} kg{suffix}"] = w
             if w < best[0]:
                 best = (w, f"m={mid:.4g} kg{suffix}", mid, d, su, p, st, share)
@@ -435,10 +461,8 @@ def design_for_range(name: str, make, base: DesignModel, settings, reference: Re
                 a = mid
             else:
                 b = mid
-    worst, label, m, design, st_used = best[:5]
-    chosen = settings.replace(weights=st_used.weights) if name == "mpc" else st_used
-    return RangeDesign(design=design, settings=chosen, design_mass=m, choice=label, score=worst,
-                       scores=scores, grid=grid)
+    bar.update(max(0, bar.total - bar.n))       # no refinement (an infeasible range): the bar ends full
+    return best, scores
 
 
 def _spectral_radius(ctrl, plant: DesignModel) -> float:

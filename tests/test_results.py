@@ -212,7 +212,7 @@ def test_load_result_refuses_bad_files_in_one_line(runs, tmp_path):
         "nometa.npz": "no metadata entry",
         "pickled.npz": "not a hubbeam result file",
         "plain.npz": "not an NPZ archive",
-        "model.npz": "format tag None",
+        "model.npz": "format tag 'hubbeam-linear-model'",
         _rewrite(good, tmp_path / "a.npz", drop=["tau"]).name: "needs tau",
         _rewrite(good, tmp_path / "b.npz", arrays={"q": np.zeros((3, 2))}).name: r"q must have shape \(201, 2\)",
         _rewrite(good, tmp_path / "c.npz", arrays={"v_tip": np.zeros(201, complex)}).name: "v_tip must hold real",

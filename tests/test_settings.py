@@ -75,7 +75,7 @@ def test_messages_name_the_argument_as_written():
         SpinUp(3.0, 0.0)
     with pytest.raises(ParameterError, match=r"^spin must be finite \[rad/s\], got nan"):
         ConstantSpin(math.nan)
-    with pytest.raises(ParameterError, match=r"^horizon must be an integer >= 1 \[samples\], got 2.5"):
+    with pytest.raises(ParameterError, match=r"^horizon must be an integer in 1\.\.5000 \[samples\], got 2.5"):
         MPCSettings(horizon=2.5)
     with pytest.raises(ParameterError, match=r"^solver must be one of 'daqp', "):
         MPCSettings(solver="cplex")

@@ -18,7 +18,8 @@ from pathlib import Path
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["stdout", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
+__all__ = ["params_from_args", "UNSTABLE_NOTE",
+           "stdout", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
            "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits"]
 
 #: Python names (Params fields, function arguments, settings) -> the option that sets them.
@@ -33,8 +34,34 @@ OPTION_NAMES = {
     "max_wall_s": "--max-wall", "max_memory_mb": "--allow-large", "out": "--out", "plot": "--plot",
     "params": "--params", "scenario": "--scenario", "plant": "--plant", "model": "--model",
     "range_limit": "--range-limit", "design_modes": "--design-modes", "plant_modes": "--plant-modes",
-    "schedule": "--schedule", "shaping": "--shaping", "axial": "--axial",
+    "schedule": "--schedule", "shaping": "--shaping", "axial": "--axial", "scheduler": "--scheduler",
+    "timeout": "--scheduler-timeout", "tune.popsize": "--popsize", "tune.maxiter": "--maxiter",
+    "tune.objective": "--objective", "tune.decades": "--decades", "tune.seed": "--seed",
 }
+
+#: What ``modes`` and ``linearize`` say about a model with a growing mode.
+UNSTABLE_NOTE = " (UNSTABLE: a mode has lost its stiffness)"
+
+
+def params_from_args(args):
+    """Build :class:`Params` from the common options (file first, then flags).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    from hubbeam_ctrl.plant.params import Params, load_params
+    base = load_params(args.params) if getattr(args, "params", None) is not None else Params()
+    changes = {}
+    if getattr(args, "tip_mass", None) is not None:
+        changes["m_t"] = args.tip_mass
+    if getattr(args, "tip_position", None) is not None:
+        changes["l"] = args.tip_position
+    if getattr(args, "n_modes", None) is not None:
+        changes["n_axial"] = changes["n_transverse"] = args.n_modes
+    return base.replace(**changes) if changes else base
+
 
 def stdout(args):
     """The stream a subcommand prints its results to: the standard output saved before the
@@ -49,7 +76,7 @@ def stdout(args):
     return getattr(args, "stdout", None) or sys.stdout
 
 
-_LEADING_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?=[ :=])")
+_LEADING_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_-]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?)(?=[ :=])")
 
 
 def rename_options(message: str, options) -> str:
@@ -79,8 +106,12 @@ def rename_options(message: str, options) -> str:
     name = match.group(1)
     option = OPTION_NAMES.get(name)
     if option is None or option not in options:
-        return message
-    label = option if option.lstrip("-").replace("-", "_") == name else f"{option} ({name})"
+        # a message that names the option without its dashes (``tau-max must ...``,
+        # ``design_modes must ...``): the option as typed
+        option = "--" + name.replace("_", "-")
+        if option not in options:
+            return message
+    label = option if option.lstrip("-").replace("-", "_") == name.replace("-", "_") else f"{option} ({name})"
     return label + message[match.end():]
 
 

@@ -31,6 +31,7 @@ def add_parser(subparsers, common) -> None:
     common : argparse.ArgumentParser
         Parent parser with the common plant options.
     """
+    from hubbeam_ctrl.cli.args import add_verbose
     from hubbeam_ctrl.cli.main import finite_float, positive_float
 
     p = subparsers.add_parser(
@@ -49,8 +50,8 @@ def add_parser(subparsers, common) -> None:
                    help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
     p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
                    help="maneuver time [s] (default 10)")
-    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"), default=3.0,
-                   help="spin-up final rate [rad/s] (default 3)")
+    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"),
+                   help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
     p.add_argument("--payload-range", metavar="MIN,MAX",
                    help="tip payloads [kg] to design LQR or LQG for (must hold the parameters' tip mass)")
     p.add_argument("--dt", metavar="S", type=positive_float("dt"), default=0.01,
@@ -62,6 +63,7 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--out", metavar="FILE.mat|FILE.npz|FILE.json", required=True,
                    help="output file; the format follows the extension")
     p.add_argument("--json", action="store_true", help="print a JSON summary with the margins")
+    add_verbose(p)
     p.set_defaults(func=run)
 
 
@@ -87,12 +89,15 @@ def run(args) -> int:
     from controllers import CONTROLLERS, DesignModel, make_controller
     from controllers.analysis import loop_margins
     from controllers.export import FORMATS, save_controller
+    from hubbeam_ctrl.cli.args import refuse_inapplicable, stdout
     from hubbeam_ctrl.cli.compare import parse_payload_range
     from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.study.payload import range_designs
     from hubbeam_ctrl.study.scenarios import make_scenario
 
+    sink = stdout(args)      # sys.stdout is captured during the run (native solver output)
+    refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
     out = Path(args.out)
     if out.suffix.lower() not in FORMATS:
         raise ParameterError(f"out must end in {', '.join(FORMATS)}, got {args.out!r}")
@@ -107,13 +112,14 @@ def run(args) -> int:
     if args.slew_angle is not None and (args.slew_angle == 0 or args.scenario != "slew"):
         raise ParameterError("slew-angle must be a finite number != 0 [rad], for --scenario slew only")
     sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
-                       t_end=3 * args.tf, dt=args.dt, w_f=args.wf, slew_angle=args.slew_angle)
+                       t_end=3 * args.tf, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,
+                       slew_angle=args.slew_angle)
     design = DesignModel.build(params, sc.design_spin, args.dt, modes)
     settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
     if args.payload_range is not None:
         rng = parse_payload_range(args.payload_range, params.m_t)
         if args.controller in ("lqr", "lqg"):
-            chosen = range_designs([args.controller], sc, design, rng)[args.controller]
+            chosen = range_designs([args.controller], sc, design, rng, progress=not args.json)[args.controller]
             design, settings = chosen.design, chosen.settings
     ctrl = make_controller(args.controller, design, settings, sc.reference)
     save_controller(ctrl, out)
@@ -122,18 +128,18 @@ def run(args) -> int:
         summary = {"controller": ctrl.name, "n_states": int(ctrl.to_statespace().nstates),
                    "inputs": list(ctrl.to_statespace().input_labels), "dt": ctrl.dt,
                    "tau_max_nm": ctrl.tau_max, "margins": m.to_dict(), "out": str(out)}
-        print(json.dumps(_finite(summary)))
+        print(json.dumps(_finite(summary)), file=sink)
         return 0
     sys = ctrl.to_statespace()
     print(f"{ctrl.name.upper()} on SFOAM ({modes} modes, m_t = {design.params.m_t:g} kg) at spin "
           f"{sc.design_spin:g} rad/s, dt = {args.dt:g} s, for {sc.description}: "
           f"{sys.nstates} states, inputs {', '.join(sys.input_labels)}, output tau; "
-          f"|tau| <= {ctrl.tau_max:g} N m")
+          f"|tau| <= {ctrl.tau_max:g} N m", file=sink)
     print(f"  closed loop on the design model: {'stable' if m.stable else 'UNSTABLE'} "
-          f"(spectral radius {m.spectral_radius:.6f})")
+          f"(spectral radius {m.spectral_radius:.6f})", file=sink)
     print(f"  disk margin {m.disk_margin:.3f} (gain {m.disk_gain_margin[0]:.3f}..{m.disk_gain_margin[1]:.3f}, "
           f"phase {m.disk_phase_margin_deg:.1f} deg); gain margins {m.gain_margin_lower:.3g} / "
           f"{m.gain_margin_upper:.3g}; phase margin {m.phase_margin_deg:.1f} deg at "
-          f"{m.crossover_rad_s:.4g} rad/s; delay margin {m.delay_margin_s * 1e3:.3g} ms")
-    print(f"  saved to {out}")
+          f"{m.crossover_rad_s:.4g} rad/s; delay margin {m.delay_margin_s * 1e3:.3g} ms", file=sink)
+    print(f"  saved to {out}", file=sink)
     return 0

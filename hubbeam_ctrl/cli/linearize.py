@@ -11,8 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-#: What ``modes`` and ``linearize`` say about a model with a growing mode.
-UNSTABLE_NOTE = " (UNSTABLE: a mode has lost its stiffness)"
+from hubbeam_ctrl.cli.args import UNSTABLE_NOTE  # noqa: F401 (re-exported: its old home)
 
 
 class _OutputsHelpFormatter(argparse.HelpFormatter):
@@ -75,8 +74,7 @@ def run(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from hubbeam_ctrl.cli.args import check_output, stdout
-    from hubbeam_ctrl.cli.main import params_from_args
+    from hubbeam_ctrl.cli.args import check_output, params_from_args, stdout
     from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.core.validation import check_in_range
     from hubbeam_ctrl.linear.export import FORMATS, save_model

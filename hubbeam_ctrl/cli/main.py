@@ -15,22 +15,23 @@ import warnings
 from collections.abc import Sequence
 
 from hubbeam_ctrl.cli.args import (
+    UNSTABLE_NOTE,
     add_run_options,
     add_verbose,
     check_output,
     integer,
     nonempty,
+    params_from_args,
     real,
     refuse_inapplicable,
     rename_options,
     run_limits,
     stdout,
 )
-from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.errors import RESOURCE_ERRNOS, HubbeamError, ParameterError, ResourceError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import capture_native_output
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, MODEL_SPECS
-from hubbeam_ctrl.plant.params import Params, load_params
 
 __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float",
            "RegistryChoices", "add_backend_option"]
@@ -100,25 +101,6 @@ def _common_parser() -> argparse.ArgumentParser:
     g.add_argument("--n-modes", metavar="N", type=integer(),
                    help="number of axial and of transverse modes, 1..20 (default 5)")
     return common
-
-
-def params_from_args(args) -> Params:
-    """Build :class:`Params` from the common options (file first, then flags).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
-    base = load_params(args.params) if getattr(args, "params", None) is not None else Params()
-    changes = {}
-    if getattr(args, "tip_mass", None) is not None:
-        changes["m_t"] = args.tip_mass
-    if getattr(args, "tip_position", None) is not None:
-        changes["l"] = args.tip_position
-    if getattr(args, "n_modes", None) is not None:
-        changes["n_axial"] = changes["n_transverse"] = args.n_modes
-    return base.replace(**changes) if changes else base
 
 
 def positive_float(name):
@@ -196,7 +178,6 @@ def check_output_folder(option: str, path) -> None:
 # -- modes ----------------------------------------------------------------------
 def _cmd_modes(args) -> int:
     sink = stdout(args)
-    from hubbeam_ctrl.cli.linearize import UNSTABLE_NOTE
     from hubbeam_ctrl.plant.modal import modal_analysis
     params = params_from_args(args)
     res = modal_analysis(args.model, args.spin, args.hub, params)
@@ -337,8 +318,9 @@ def main(argv=None) -> int:
     """Entry point of the ``hubbeam`` console script. Returns the exit status.
 
     0: done (warnings, e.g. a run that stopped early, on stderr); 2: bad input, one line on
-    stderr naming the option, nothing written; 1: the run failed (one line; the details in
-    the ``--verbose`` log); 130: interrupted.
+    stderr naming the option, nothing written; 1: the run failed, or the system could not
+    write its output (disk full: one line; the details in the ``--verbose`` log); 130:
+    interrupted.
 
     Parameters
     ----------
@@ -348,6 +330,7 @@ def main(argv=None) -> int:
     parser = build_parser()
     args, options = None, set()
     try:
+        _refuse_missing_values(sys.argv[1:] if argv is None else argv)
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
             parser.print_help()
@@ -358,6 +341,8 @@ def main(argv=None) -> int:
             module = importlib.import_module(f"hubbeam_ctrl.cli.{args.command}")
             func = module.run
         return _run(func, args)
+    except ResourceError as exc:       # disk full, quota, I/O: not bad input
+        return _fail(1, rename_options(_one_line(exc), options))
     except (ParameterError, HubbeamError) as exc:
         return _fail(2, rename_options(_one_line(exc), options))
     except KeyboardInterrupt:
@@ -365,8 +350,52 @@ def main(argv=None) -> int:
         return 130
     except MemoryError:
         return _fail(1, "out of memory (lower --t-end, --horizon or --n-modes)", args)
+    except OSError as exc:
+        if exc.errno not in RESOURCE_ERRNOS:
+            return _fail(1, f"{type(exc).__name__}: {_one_line(exc)}", args, exc)
+        where = f" ({exc.filename})" if exc.filename else ""
+        return _fail(1, f"the system could not write{where}: {exc.strerror or exc}")
     except Exception as exc:      # a failure inside the run: one line here, the traceback in the log
         return _fail(1, f"{type(exc).__name__}: {_one_line(exc)}", args, exc)
+
+
+class _library_logging:
+    """Collect the libraries' log records (Python ``logging``, which would otherwise print
+    WARNING and above, e.g. solver matrices, on the terminal through ``logging.lastResort``)
+    as warnings for the ``--verbose`` log."""
+
+    def __enter__(self):
+        import logging
+        records = self.records = []
+
+        class _Collect(logging.Handler):
+            def emit(self, record):
+                try:
+                    text = record.getMessage()
+                except Exception:  # noqa: BLE001 - a record that cannot be formatted is still counted
+                    text = str(record.msg)
+                records.append(warnings.WarningMessage(text, UserWarning, record.pathname, record.lineno))
+
+        self._logging, self._handler = logging, _Collect(logging.WARNING)
+        self._last = logging.lastResort
+        logging.lastResort = self._handler
+        logging.getLogger().addHandler(self._handler)
+        return records
+
+    def __exit__(self, *exc):
+        self._logging.getLogger().removeHandler(self._handler)
+        self._logging.lastResort = self._last
+        return False
+
+
+def _refuse_missing_values(argv) -> None:
+    """``--tau-max=--`` (or ``=-``): argparse would pass on an empty list, not a value."""
+    for token in argv:
+        token = str(token)
+        if token.startswith("--") and "=" in token:
+            option, value = token.split("=", 1)
+            if value.strip() in ("--", "-", ""):
+                raise ParameterError(f"{option} must be given a value, got {value!r}")
 
 
 def _run(func, args) -> int:
@@ -374,17 +403,20 @@ def _run(func, args) -> int:
     log = getattr(args, "verbose", None)
     if log is not None:
         check_output("--verbose", log)
-    with capture_native_output(log) as cap, warnings.catch_warnings(record=True) as caught:
+    with capture_native_output(log) as cap, warnings.catch_warnings(record=True) as caught, \
+            _library_logging() as logged:
         warnings.simplefilter("default")
         args.stdout = cap.stdout              # results go here; sys.stdout is captured
         status = int(func(args) or 0)
+    caught = list(caught) + logged
     if log is not None and caught:
         with open(log, "a", encoding="utf-8") as fh:
             fh.writelines(warnings.formatwarning(w.message, w.category, w.filename, w.lineno) for w in caught)
     lines = cap.lines + len(caught)
     if lines and log is None:
+        hint = " (--verbose LOG keeps them)" if hasattr(args, "verbose") else ""
         print(f"hubbeam: note: {lines} line{'s' if lines > 1 else ''} of solver output and warnings "
-              "suppressed (--verbose LOG keeps them)", file=sys.stderr)
+              f"suppressed{hint}", file=sys.stderr)
     return status
 
 
@@ -409,7 +441,7 @@ def _fail(status: int, message: str, args=None, exc=None) -> int:
             message += f" (details in {log})"
         except OSError:
             pass
-    elif exc is not None:
+    elif exc is not None and args is not None and hasattr(args, "verbose"):
         message += " (--verbose LOG for details)"
     print(f"hubbeam: error: {message}", file=sys.stderr)
     return status

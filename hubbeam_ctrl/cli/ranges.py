@@ -124,7 +124,9 @@ def _function_rows() -> list:
         rows.append(("`make_scenario`, `compare`", f"`{name}`", unit, f"[{lo:g}, {hi:g}]",
                      f"`{OPTION_NAMES[name]}`"))
     rows += [
-        ("`make_scenario`, `compare`", "`t_end`, `tf`, `dt`", "s", "t_end > tf + 5; dt <= tf / 10", ""),
+        ("`make_scenario`, `compare`", "`t_end`, `tf`, `dt`", "s",
+         "t_end > tf (1 + residual_delay) (the residual-vibration window's start; residual_delay "
+         "of the task's Tolerances, default 0.5); dt <= tf / 10", ""),
         ("`make_scenario`, `compare`", "`wf`", "rad/s", "abs(wf) <= Params.max_spin", "`--wf`"),
         ("`make_scenario`, `compare`", "`tau_max`", "N m", "slew: tau_max tf / (pi J_total) <= "
          "Params.max_spin", "`--tau-max`"),

@@ -11,13 +11,15 @@ from __future__ import annotations
 
 import time
 
+from hubbeam_ctrl.cli.args import add_verbose
 from hubbeam_ctrl.cli.main import positive_float, positive_int
 
 __all__ = ["add_parser", "run", "add_engine_options", "engine_from_args"]
 
 
 def add_engine_options(p) -> None:
-    """Options shared by ``sweep`` and ``tune``: --workers, --scheduler, --scheduler-timeout, --json.
+    """Options shared by ``sweep`` and ``tune``: --workers, --scheduler, --scheduler-timeout, --json,
+    --verbose.
 
     Parameters
     ----------
@@ -31,6 +33,7 @@ def add_engine_options(p) -> None:
     p.add_argument("--scheduler-timeout", metavar="S", type=positive_float("scheduler-timeout"), default=10.0,
                    help="seconds to wait for the scheduler (default 10)")
     p.add_argument("--json", action="store_true", help="print a JSON summary, no progress bar")
+    add_verbose(p)
 
 
 def engine_from_args(args):

@@ -68,21 +68,17 @@ def run(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from pathlib import Path
-
-    import tomllib
-
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
     from hubbeam_ctrl.cli.sweep import engine_from_args
-    from hubbeam_ctrl.core.fileio import strict_json
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.core.fileio import read_toml, strict_json
+    from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES, load_spec
     from hubbeam_ctrl.study.tune import TuneOptions, tune, write_tune_outputs
 
     sink = stdout(args)
     check_output_dir("--out", args.out)
     spec = load_spec(args.spec)
-    table = dict(tomllib.loads(Path(args.spec).read_text()).get("tune", {}))
+    table = dict(read_toml(args.spec, "spec: file", MAX_SPEC_BYTES).get("tune", {}))
     for key in ("objective", "maxiter", "popsize", "decades", "seed"):
         if getattr(args, key) is not None:
             table[key] = getattr(args, key)

@@ -1,6 +1,14 @@
 """Exceptions raised by hubbeam-ctrl."""
 
-__all__ = ["HubbeamError", "ParameterError", "UserFunctionError"]
+import errno as _errno
+
+__all__ = ["HubbeamError", "ParameterError", "UserFunctionError", "ResourceError", "RESOURCE_ERRNOS",
+           "write_error"]
+
+#: OS errors that say the system ran out of something (space, quota, the device), not that
+#: the caller asked for something wrong.
+RESOURCE_ERRNOS = frozenset(getattr(_errno, n) for n in ("ENOSPC", "EDQUOT", "EIO", "EFBIG", "ENOMEM")
+                            if hasattr(_errno, n))
 
 
 class HubbeamError(Exception):
@@ -28,3 +36,26 @@ class UserFunctionError(HubbeamError):
     def __init__(self, message: str, t: float | None = None):
         super().__init__(message)
         self.t = t
+
+
+class ResourceError(HubbeamError, OSError):
+    """The system could not do what was asked (disk full, quota, I/O error): not bad input.
+
+    The command line reports it in one line with exit status 1 (2 is kept for bad input).
+    """
+
+
+def write_error(exc: OSError, what: str) -> HubbeamError:
+    """The one-line error of a failed write: :class:`ResourceError` when the system ran out of
+    something (:data:`RESOURCE_ERRNOS`), else :class:`ParameterError` (a path the caller chose
+    that cannot be written).
+
+    Parameters
+    ----------
+    exc : OSError
+        What the system raised.
+    what : str
+        The start of the message (``"out: cannot write results.csv"``).
+    """
+    text = f"{what}: {exc.strerror or exc}"
+    return ResourceError(text) if exc.errno in RESOURCE_ERRNOS else ParameterError(text)

@@ -28,9 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError, write_error
 
-__all__ = ["atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
+__all__ = ["read_toml", "MAX_TOML_BYTES", "MAX_NPZ_BYTES",
+           "atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
            "check_regular_file", "check_writable", "output_folder", "write_folder", "read_manifest",
            "remove_stale_temporaries", "remove_temporaries", "TEMP_PREFIX", "MANIFEST"]
 
@@ -255,6 +256,8 @@ def atomic_write(path, write, suffix: str | None = None) -> Path:
     ParameterError
         Naming the path (as option ``out``) when its folder is missing, it is a folder, or
         the system refuses the write; no file is left behind.
+    ResourceError
+        When the system runs out of space, quota or the device fails (not bad input).
     Exception
         Whatever else ``write`` raises, unchanged; the temporary file is removed and an
         existing file at ``path`` keeps its old content.
@@ -278,7 +281,7 @@ def atomic_write(path, write, suffix: str | None = None) -> Path:
         os.replace(tmp, path)
     except OSError as exc:
         _remove_entry(tmp)
-        raise ParameterError(f"out: cannot write {path}: {exc.strerror or exc}") from None
+        raise write_error(exc, f"out: cannot write {path}") from None
     except BaseException:
         _remove_entry(tmp)
         raise
@@ -561,6 +564,62 @@ def output_folder(out_dir, option: str = "out", create: bool = True) -> Path:
     return out
 
 
+#: Largest TOML input read (parameters, study specs, settings) [bytes].
+MAX_TOML_BYTES = 1_000_000
+
+
+def read_toml(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> dict:
+    """The TOML document at ``path``, or a one-line :class:`ParameterError` naming the file.
+
+    The one reader of every TOML input (``--params``, study specs, ``--settings``). Refused
+    without blocking or a traceback: a missing path, a folder, a FIFO or device (never
+    opened), an unreadable file, a file over ``max_bytes``, bytes that are not UTF-8,
+    invalid or too deeply nested TOML.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, as the message starts (``"params file"``, ``"spec: file"``).
+    max_bytes : int
+        Largest size read [bytes].
+
+    Returns
+    -------
+    dict
+    """
+    import tomllib
+    if path is None or not isinstance(path, (str, os.PathLike)) or str(path).strip() == "" \
+            or "\x00" in str(path):
+        raise ParameterError(f"{what} must be named by a path, got {path!r}")
+    path = Path(path)
+    try:
+        if not path.exists():
+            raise ParameterError(f"{what} {path} does not exist")
+        if not path.is_file():
+            raise ParameterError(f"{what} {path} is not a regular file")
+        if path.stat().st_size > max_bytes:
+            raise ParameterError(f"{what} {path} is larger than {max_bytes} bytes")
+        with open(path, "rb") as fh:
+            data = fh.read(max_bytes + 1)
+        if len(data) > max_bytes:
+            raise ParameterError(f"{what} {path} is larger than {max_bytes} bytes")
+        text = data.decode("utf-8")
+    except OSError as exc:
+        raise ParameterError(f"{what} {path} cannot be read ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"{what} {path} is not UTF-8 text (byte {exc.start})") from None
+    if "\x00" in text:
+        raise ParameterError(f"{what} {path} is not a text file (NUL byte)")
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{what} {path} is not valid TOML: {' '.join(str(exc).split())[:200]}") from None
+    except RecursionError:
+        raise ParameterError(f"{what} {path} is nested too deeply") from None
+
+
 def check_regular_file(path, option: str = "path") -> Path:
     """Return ``Path(path)``; raise unless it names an existing regular file.
 
@@ -582,7 +641,41 @@ def check_regular_file(path, option: str = "path") -> Path:
     return path
 
 
-def read_npz(path, option: str = "path", what: str = "hubbeam file") -> tuple:
+#: Largest total uncompressed size of the arrays of an ``.npz`` file read [bytes] (the limit
+#: is on what is unpacked, not on the compressed file: a small zip bomb is refused).
+MAX_NPZ_BYTES = 2 * 1024 ** 3
+#: Most entries of an ``.npz`` file read.
+MAX_NPZ_MEMBERS = 1000
+
+
+def _check_npz_members(path: Path, bad, max_bytes: int) -> None:
+    """Refuse an archive whose entries would unpack to more than ``max_bytes``, or whose
+    ``.npy`` headers announce more data than the entry holds (numpy allocates the announced
+    size before reading), before anything is unpacked."""
+    import zipfile
+    with zipfile.ZipFile(path) as zf:
+        infos = zf.infolist()
+        if len(infos) > MAX_NPZ_MEMBERS:
+            raise bad(f"{len(infos)} entries, more than {MAX_NPZ_MEMBERS}")
+        total = sum(i.file_size for i in infos)
+        if total > max_bytes:
+            raise bad(f"its arrays unpack to {total} bytes, more than the {max_bytes} read")
+        if "metadata.npy" not in {i.filename for i in infos}:
+            raise bad("no metadata entry")
+        for info in infos:
+            with zf.open(info) as fh:
+                fmt = np.lib.format
+                version = fmt.read_magic(fh)
+                header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+                shape, _, dtype = header(fh)
+                if dtype.hasobject:
+                    raise bad(f"entry {info.filename} holds Python objects")
+                size = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                if size > info.file_size:
+                    raise bad(f"entry {info.filename} announces {size} bytes but holds {info.file_size}")
+
+
+def read_npz(path, option: str = "path", what: str = "hubbeam file", max_bytes: int | None = None) -> tuple:
     """Read a file written by :func:`write_npz`.
 
     Parameters
@@ -592,6 +685,10 @@ def read_npz(path, option: str = "path", what: str = "hubbeam file") -> tuple:
         The argument's name as the caller spelled it (starts the error message).
     what : str
         What the file should be, for the error message (e.g. ``"hubbeam result file"``).
+    max_bytes : int, optional
+        Largest total uncompressed size of its entries [bytes] (default
+        :data:`MAX_NPZ_BYTES`; checked on the archive's directory and the arrays' headers
+        before anything is unpacked).
 
     Returns
     -------
@@ -615,6 +712,7 @@ def read_npz(path, option: str = "path", what: str = "hubbeam file") -> tuple:
             magic = fh.read(4)
         if magic[:2] != b"PK":
             raise bad("not an NPZ archive")
+        _check_npz_members(path, bad, MAX_NPZ_BYTES if max_bytes is None else max_bytes)
         with np.load(path, allow_pickle=False) as data:
             if "metadata" not in data.files:
                 raise bad("no metadata entry")

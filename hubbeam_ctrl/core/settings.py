@@ -292,8 +292,24 @@ def _parameters_section(cls) -> str:
     return "\n".join(lines)
 
 
+class _CheckedCall(type):
+    """Metaclass of :class:`Settings`: an unknown keyword or too many positional arguments
+    are one :class:`ParameterError` naming the class and its fields (not a ``TypeError``);
+    it covers ``Settings(...)``, ``replace`` and ``dataclasses.replace`` alike."""
+
+    def __call__(cls, *args, **kwargs):
+        if dataclasses.is_dataclass(cls):
+            names = [f.name for f in fields(cls) if f.init]
+            unknown = sorted(set(kwargs) - set(names))
+            if unknown or len(args) > len(names):
+                what = f"no field {', '.join(map(repr, unknown))}" if unknown else \
+                    f"{len(names)} fields, got {len(args)} positional values"
+                raise ParameterError(f"{cls.__name__} has {what}; fields: {', '.join(names)}"[:400])
+        return super().__call__(*args, **kwargs)
+
+
 @dataclass(frozen=True, eq=False)
-class Settings:
+class Settings(metaclass=_CheckedCall):
     """Base of the toolbox's settings: frozen dataclasses validated from field metadata.
 
     Subclasses declare every field with :func:`setting`; construction runs :func:`validate`.

@@ -11,7 +11,8 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["check_positive", "check_nonnegative", "check_finite", "check_in_range"]
+__all__ = ["check_positive", "check_nonnegative", "check_finite", "check_in_range", "check_integer",
+           "check_array"]
 
 _NUMBER = (int, float, np.floating, np.integer)
 
@@ -111,3 +112,65 @@ def check_in_range(name: str, value, unit: str, lo: float, hi: float, why: str =
     if not _is_number(value) or not lo <= value <= hi:
         raise ParameterError(f"{name} must be in [{lo:g}, {hi:g}] [{unit}]{note}, got {_shown(value)}")
     return float(value)
+
+
+def check_integer(name: str, value, lo: int, hi: int) -> int:
+    """Return ``int(value)``; raise unless it is an integer (or an integral float) in ``lo..hi``.
+
+    NaN, infinities, booleans, strings and fractions are one-line errors, never a
+    ``ValueError``/``OverflowError`` from the conversion.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name as the caller spelled it (starts the message).
+    value : object
+    lo, hi : int
+        Inclusive bounds.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> check_integer("n_modes", float("nan"), 1, 4)
+    Traceback (most recent call last):
+    ...
+    hubbeam_ctrl.core.errors.ParameterError: n_modes must be an integer in 1..4, got nan
+    """
+    ok = not isinstance(value, bool) and isinstance(value, (int, np.integer, float, np.floating)) \
+        and (isinstance(value, (int, np.integer)) or (math.isfinite(value) and float(value).is_integer()))
+    if not ok or not lo <= int(value) <= hi:
+        raise ParameterError(f"{name} must be an integer in {lo}..{hi}, got {_shown(value)}")
+    return int(value)
+
+
+def check_array(name: str, values, unit: str, nonempty: bool = True) -> np.ndarray:
+    """Return ``values`` as a 1-D float array; raise unless every entry is a finite number
+    (and, with ``nonempty``, there is at least one).
+
+    Parameters
+    ----------
+    name : str
+        The argument's name as the caller spelled it (starts the message).
+    values : array_like
+    unit : str
+    nonempty : bool
+        Refuse an empty sequence.
+
+    Returns
+    -------
+    ndarray
+    """
+    try:
+        arr = np.atleast_1d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"{name} must be a sequence of finite numbers [{unit}], got {_shown(values)}") from None
+    if arr.ndim != 1:
+        raise ParameterError(f"{name} must be a 1-D sequence of numbers [{unit}], got shape {arr.shape}")
+    if nonempty and arr.size == 0:
+        raise ParameterError(f"{name} must hold at least one value [{unit}], got none")
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must hold finite numbers [{unit}], got {_shown(arr[~np.isfinite(arr)][0])}")
+    return arr

@@ -119,6 +119,7 @@ def save_system(path, matrices: dict, metadata: dict, tag: str, version: int,
     """
     path = Path(path)
     suffix = _suffix(path, "out")
+    metadata = {"format": tag, "version": version, **metadata}     # what the file is, in every format
     if suffix == ".npz":
         return write_npz(path, matrices, metadata)
     if suffix == ".mat":
@@ -244,7 +245,8 @@ def load_model(path) -> LinearModel:
     return _from_parts(mats, meta, Path(path))
 
 
-def load_system(path, names=_MATRICES, tag: str = _FORMAT_TAG, what: str = "hubbeam model file"):
+def load_system(path, names=_MATRICES, tag: str = _FORMAT_TAG, what: str = "hubbeam model file",
+                version: int = _VERSION):
     """Read the matrices and metadata of a file written by :func:`save_system`.
 
     Parameters
@@ -253,9 +255,12 @@ def load_system(path, names=_MATRICES, tag: str = _FORMAT_TAG, what: str = "hubb
     names : sequence of str
         The four matrix names, in the order ``A, B, C, D`` (e.g. ``("Ac", "Bc", "Cc", "Dc")``).
     tag : str
-        Expected JSON ``format`` tag.
+        Expected ``format`` tag (required in .json; in .mat and .npz checked when present,
+        files of earlier versions have none).
     what : str
         What the file should be, for error messages.
+    version : int
+        The layout version this toolbox reads (another is refused).
 
     Returns
     -------
@@ -285,9 +290,17 @@ def load_system(path, names=_MATRICES, tag: str = _FORMAT_TAG, what: str = "hubb
             mats = {k: mats[k] for k in names}
         else:
             meta = json.loads(path.read_text(encoding="utf-8"))
-            if meta.get("format") != tag:
+            if not isinstance(meta, dict) or meta.get("format") != tag:
                 raise KeyError("format")
             mats = {k: np.array(meta[k]) for k in names}
+        if not isinstance(meta, dict):
+            raise ValueError("metadata is not a JSON object")
+        # files written before the tag was stored in .mat/.npz have none; a tag or version
+        # that is there must be this toolbox's
+        if meta.get("format", tag) != tag:
+            raise ValueError(f"format tag {meta.get('format')!r}"[:60] + f", expected {tag!r}")
+        if isinstance(meta.get("version"), bool) or meta.get("version", version) != version:
+            raise ValueError(f"format version {meta.get('version')!r}"[:60] + f"; this toolbox reads version {version}")
         shapes = _shapes(meta, names)
         # the formats lose the dimensions of empty matrices: restore them from the name lists;
         # the values are checked by the caller (real, finite, shapes: ``_real_matrix``)

@@ -37,7 +37,7 @@ import control
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.validation import check_in_range
+from hubbeam_ctrl.core.validation import check_in_range, check_integer
 from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization, velocity_name
 from hubbeam_ctrl.plant.models import MODEL_NAMES, HubBeamModel, build_model
 from hubbeam_ctrl.plant.params import Params, check_spin
@@ -534,9 +534,7 @@ def reduce(lm: LinearModel, n_modes: int, method: str = "modal") -> LinearModel:
         raise ParameterError(f"method must be 'modal' or 'balanced', got {method!r}")
     A, B, C, D = lm.A, lm.B, lm.C, lm.D
     n_flex = A.shape[0] // 2 - 1
-    if isinstance(n_modes, bool) or int(n_modes) != n_modes or not 1 <= n_modes <= n_flex:
-        raise ParameterError(f"n_modes must be an integer in 1..{n_flex}, got {n_modes}")
-    n_modes = int(n_modes)
+    n_modes = check_integer("n_modes", n_modes, 1, n_flex)
     P, mode_lams = _modal_basis(A)
     T = np.linalg.inv(P)
     Bm, Cm = T @ B, C @ P

@@ -9,6 +9,7 @@ integration stays inside compiled CasADi code.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import casadi as ca
@@ -299,10 +300,12 @@ class UserManeuver:
 
     def _symbolic(self, t):
         try:
-            parts = self._parts(self.func(t))
+            parts, trusted = self._trace(t)
         except UserFunctionError:
             raise
         except Exception:
+            return self._tabulated(t)
+        if not trusted:
             return self._tabulated(t)
         outs = []
         for p in parts:
@@ -318,6 +321,20 @@ class UserManeuver:
                 except UserFunctionError:          # ...or math.sin(SX symbol), which gives NaN:
                     return self._tabulated(t)      # the table says which
         return tuple(outs) if self.kind == "prescribed" else outs[0]
+
+    def _trace(self, t) -> tuple:
+        """``(parts, trusted)`` of ``func`` called on the symbol ``t``, no warning let through.
+
+        NumPy functions on a CasADi symbol (``50 * np.sin(t)``) give the CasADi expression
+        with CasADi's FutureWarning about NumPy interoperability: the expression is kept, the
+        warning dropped. Any other warning raised while tracing (the user's code reacting to a
+        symbol) makes the trace untrusted: the function is then evaluated on numbers only.
+        """
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            parts = self._parts(self.func(t))
+        trusted = all(_casadi_numpy_warning(w) for w in caught)
+        return parts, trusted
 
     def _tabulated(self, t):
         if self._t_end is None:
@@ -336,6 +353,11 @@ class UserManeuver:
                    for k, row in enumerate(values)]
         outs = tuple(f(t) for f in interps)
         return outs if self.kind == "prescribed" else outs[0]
+
+
+def _casadi_numpy_warning(w) -> bool:
+    """Whether a recorded warning is CasADi's note on a NumPy function called on its value."""
+    return issubclass(w.category, FutureWarning) and "numpy function was called on a casadi value" in str(w.message)
 
 
 def _what(value) -> str:

@@ -18,6 +18,7 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.progress import progress_bar
+from hubbeam_ctrl.core.validation import check_array
 from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params, check_spin
@@ -160,8 +161,8 @@ def campbell(model="foam", spins=np.linspace(0, 5, 26), hub: str = "prescribed",
     ndarray (len(spins), n2)
         Frequencies [Hz]; NaN where a mode has lost its stiffness (unstable).
     """
+    spins = check_array("spins", spins, "rad/s")
     m = resolve_model(model, params)
-    spins = np.atleast_1d(np.asarray(spins, dtype=float))
     out = np.full((len(spins), m.n_transverse), np.nan)
     with progress_bar(len(spins), f"campbell {m.name}", enabled=progress) as bar:
         for i, s in enumerate(spins):

@@ -9,10 +9,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from pathlib import Path
 
 import numpy as np
-import tomllib
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text
@@ -311,33 +309,14 @@ MAX_PARAMS_FILE_BYTES = 1_000_000
 
 
 def _read_toml(path) -> dict:
-    """The TOML document at ``path``, or a one-line error naming the file and the reason.
-
-    Refused without blocking or a traceback: a missing path, a folder, a FIFO or device, an
-    unreadable file, a file over :data:`MAX_PARAMS_FILE_BYTES`, bytes that are not UTF-8,
-    invalid or too deeply nested TOML.
-    """
+    """The TOML document at ``path`` (:func:`hubbeam_ctrl.core.fileio.read_toml`: a missing
+    path, a folder, a FIFO or device, an unreadable file, a file over
+    :data:`MAX_PARAMS_FILE_BYTES`, bytes that are not UTF-8, invalid or too deeply nested TOML
+    are one-line errors)."""
+    from hubbeam_ctrl.core.fileio import read_toml
     if path is None or str(path).strip() == "":
         raise ParameterError(f"params file must be named, got {str(path)!r}")
-    path = Path(path)
-    if not path.exists():
-        raise ParameterError(f"params file {path} does not exist")
-    if not path.is_file():
-        raise ParameterError(f"params file {path} is not a regular file")
-    try:
-        if path.stat().st_size > MAX_PARAMS_FILE_BYTES:
-            raise ParameterError(f"params file {path} is larger than {MAX_PARAMS_FILE_BYTES} bytes")
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise ParameterError(f"params file {path} cannot be read ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise ParameterError(f"params file {path} is not UTF-8 text (byte {exc.start})") from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"params file {path} is not valid TOML: {str(exc)[:200]}") from None
-    except RecursionError:
-        raise ParameterError(f"params file {path} is nested too deeply") from None
+    return read_toml(path, "params file", MAX_PARAMS_FILE_BYTES)
 
 
 def save_params(params: Params, path) -> None:
@@ -348,6 +327,9 @@ def save_params(params: Params, path) -> None:
     params : Params
     path : str or Path
     """
+    if not isinstance(params, Params):
+        raise ParameterError(f"params must be a Params (Params.from_dict(d) makes one from a dict), "
+                             f"got {type(params).__name__}")
     units = Params.units()
     lines = ["# hubbeam-ctrl parameters, SI units"]
     for key, value in params.to_dict().items():

@@ -409,6 +409,23 @@ SimulationResult = Result
 ClosedLoopResult = Result
 
 
+def _non_finite(value, where: str):
+    """The path (``settings.dt``) of the first NaN or infinity in a JSON document, or None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return where
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, list):
+        items = ((str(i), v) for i, v in enumerate(value))
+    else:
+        return None
+    for key, item in items:
+        found = _non_finite(item, f"{where}.{key}" if not key.isdigit() else f"{where}[{key}]")
+        if found is not None:
+            return found
+    return None
+
+
 def load_result(path) -> Result:
     """Load a :class:`Result` saved as ``.npz`` by :meth:`Result.save`.
 
@@ -456,6 +473,11 @@ def load_result(path) -> Result:
         raise bad(f"a {meta['kind']} result needs {', '.join(absent)}")
     if not isinstance(meta["params"], dict):
         raise bad(f"params must be a JSON object, got {type(meta['params']).__name__}")
+    if not isinstance(meta["settings"], dict):
+        raise bad(f"settings must be a JSON object, got {type(meta['settings']).__name__}")
+    where = _non_finite(meta["settings"], "settings")
+    if where is not None:
+        raise bad(f"{where} is not a finite number")
     try:
         params = Params.from_dict(meta["params"])
         return Result(params=params, **{k: meta[k] for k in _META_FIELDS}, **arrays)

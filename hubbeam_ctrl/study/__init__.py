@@ -1,8 +1,14 @@
 """The study layer: scenarios, closed-loop comparison, metrics, reports, robustness sweeps
 and robust tuning. It may import ``controllers`` (at module level); the layers below may not.
+
+``hubbeam_ctrl.study.compare`` is the module :mod:`hubbeam_ctrl.study.compare` (``import
+hubbeam_ctrl.study.compare`` gives the module, as every other submodule), and calling it
+calls its function :func:`~hubbeam_ctrl.study.compare.compare`, so ``from hubbeam_ctrl.study
+import compare; compare(...)`` keeps working.
 """
 
 import sys as _sys  # noqa: E402
+import types as _types
 
 from hubbeam_ctrl.study.certificate import *  # noqa: F401,F403
 from hubbeam_ctrl.study.compare import *  # noqa: F401,F403
@@ -22,3 +28,21 @@ from hubbeam_ctrl.study.tune import *  # noqa: F401,F403
 __all__ = [name for _m in ('metrics', 'tasks', 'scenarios', 'certificate', 'judge', 'compare', 'report', 'shaping',
                            'payload', 'spec', 'spillover', 'sweep', 'sweep_report', 'tune')
            for name in _sys.modules[f"hubbeam_ctrl.study.{_m}"].__all__]
+
+
+class _CallableModule(_types.ModuleType):
+    """A module that, called, calls its function of the same name (``study.compare(...)``)."""
+
+    def __call__(self, *args, **kwargs):
+        return getattr(self, self.__name__.rsplit(".", 1)[-1])(*args, **kwargs)
+
+
+def _module_over_function(name: str):
+    """Give back the submodule ``name`` its attribute on the package (the star import put its
+    function of the same name there), callable as that function."""
+    module = _sys.modules[f"{__name__}.{name}"]
+    module.__class__ = _CallableModule
+    return module
+
+
+compare = _module_over_function("compare")

@@ -19,99 +19,14 @@ import json
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from controllers import CONTROLLERS, make_controller
-from controllers.robust import check_payload_range, design_for_range
+from controllers.robust import check_payload_range
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.study.range_design import ROBUST_CONTROLLERS, range_designs  # noqa: F401 (re-exported)
 
 __all__ = ["ROBUST_CONTROLLERS", "range_designs", "PayloadComparison", "payload_comparison", "payload_verdict",
            "payload_table", "write_payload_outputs"]
-
-#: Controllers designed for a payload range (the others run their nominal design).
-ROBUST_CONTROLLERS = ("lqr", "lqg", "mpc")
-
-
-def _nonlinear_score(sc, sim, design_modes: int, plant_modes: int | None):
-    """``score(ctrl, payload)``: residual on the evaluation plant with that payload over the open loop's."""
-    from controllers import OpenLoopSettings
-    from hubbeam_ctrl.sim.closedloop import simulate_closed_loop
-    from hubbeam_ctrl.sim.evaluation import evaluation_plant
-    from hubbeam_ctrl.study.metrics import closed_loop_metrics
-    ref, open_loop = sc.reference, {}
-
-    def residual(ctrl, mass):
-        model = evaluation_plant(sc.plant, sc.params, sc.dt, design_modes, sc.design_spin,
-                                 plant_params=sc.params.replace(m_t=mass), plant_modes=plant_modes)
-        res = simulate_closed_loop(model, ctrl, sc.t_end, settings=sim, reference=(ref.theta_at, ref.theta_dot_at))
-        m = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **sc.bands)
-        return m["residual_tip_max_m"] if m["completed"] and m["verdict"] != "unstable" else math.inf
-
-    def score(ctrl, mass):
-        if mass not in open_loop:
-            ol = make_controller("openloop", ctrl.design, OpenLoopSettings.for_scenario(sc), ref)
-            open_loop[mass] = residual(ol, mass)
-        return residual(ctrl, mass) / open_loop[mass]
-    return score
-
-
-def range_designs(names, scenario, design, payload_range, settings: dict | None = None, *,
-                  horizon: int = 50, solver: str = "daqp", sim=None, plant_modes: int | None = None) -> dict:
-    """The designs of LQR, LQG and MPC (those in ``names``) for a payload range.
-
-    Candidates (:func:`controllers.robust.design_for_range`) are measured on the nonlinear
-    plant of the scenario at ``m_min``, the nominal payload and ``m_max`` (after the linear
-    loops at those payloads have been checked for stability).
-
-    Parameters
-    ----------
-    names : sequence of str
-        Controllers of the comparison.
-    scenario : Scenario
-        The task on the nominal beam (``scenario.params.m_t`` is the nominal payload).
-    design : DesignModel
-        The nominal design model.
-    payload_range : tuple of float
-        ``(m_min, m_max)`` [kg].
-    settings : dict, optional
-        Controller name -> settings replacing the scenario's defaults.
-    horizon, solver
-        MPC options (as :func:`~hubbeam_ctrl.study.compare.compare`).
-    sim : ClosedLoopSettings, optional
-        Settings of the measuring runs (default: the scenario's sensors).
-    plant_modes : int, optional
-        Transverse modes of the evaluation plants (default: their rule,
-        :func:`hubbeam_ctrl.sim.evaluation.evaluation_plant`).
-
-    Returns
-    -------
-    dict
-        Controller name -> :class:`controllers.robust.RangeDesign`.
-    """
-    payload_range = check_payload_range(payload_range, scenario.params.m_t)
-    settings = settings or {}
-    sc = scenario
-    if sc.baseline_tau_m is not None:
-        w = 2 * math.pi / sc.t_f
-        baseline = lambda t: np.where(t <= sc.t_f, sc.baseline_tau_m * np.sin(w * t), 0.0)
-    else:
-        baseline = lambda t: sc.reference.at(t)[2]
-    if sim is None:
-        from hubbeam_ctrl.plant.sensors import SensorSettings
-        from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
-        sim = ClosedLoopSettings(dt=sc.dt, sensors=SensorSettings(**(sc.sensors or {})))
-    score = _nonlinear_score(sc, sim, design.n_modes, plant_modes)
-    out = {}
-    for name in names:
-        if name not in ROBUST_CONTROLLERS:
-            continue
-        st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon, solver=solver)
-        out[name] = design_for_range(name, make_controller, design, st, sc.reference, payload_range,
-                                     t_f=sc.t_f, t_end=sc.t_end, delay=sc.bands["residual_delay"],
-                                     baseline=baseline, score=score)
-    return out
 
 
 def payload_verdict(m: dict) -> str:

@@ -69,8 +69,8 @@ def register_scenario(name: str):
 
 
 #: Ranges of :func:`make_scenario`'s numbers: name as in messages -> (lo, hi, unit). Also
-#: ``t_end > tf + 5``, ``dt <= tf / 10``, ``abs(wf) <= params.max_spin`` and, for the slew,
-#: ``tau_max tf / (pi J_total) <= params.max_spin``.
+#: ``t_end > tf (1 + residual_delay)`` (the task's Tolerances), ``dt <= tf / 10``,
+#: ``abs(wf) <= params.max_spin`` and, for the slew, ``tau_max tf / (pi J_total) <= params.max_spin``.
 RANGES = {"tau_max": (1e-6, 1e9, "N m"), "tf": (1e-3, 1e6, "s"), "t_end": (1e-3, T_END_MAX, "s"),
           "dt": (1e-6, 10.0, "s")}
 

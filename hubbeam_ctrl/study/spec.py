@@ -13,7 +13,8 @@ TOML form (every key optional except where noted)::
     plant = "foam"                    # foam | cfoam
     controllers = ["openloop", "lqr", "mpc"]
     design = "base"                   # base | matched
-    t_f = 10.0                        # [s]; also tau_max [N m], t_end [s], dt [s], w_f [rad/s],
+    t_f = 10.0                        # [s]; also tau_max [N m] (default: params.tau_max, the
+                                      # motor's), t_end [s], dt [s], w_f [rad/s],
                                       # horizon, solver, design_modes, plant_modes
     slew_angle = 1.5708               # [rad] (slew; default the Eq. 44 angle)
     shaping = "zvd"                   # zv | zvd | ei: input shaper of the tracked reference
@@ -59,18 +60,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import tomllib
 
 from controllers import CONTROLLERS, SHAPERS
 from controllers.scaling import Tolerances, default_tolerances
 from hubbeam_ctrl.core.compiled import check_backend
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.core.fileio import read_toml
+from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
 
 __all__ = ["StudySpec", "load_spec", "load_settings", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
            "SAMPLERS", "settings_to_toml"]
 
+#: Most cases one sweep runs (grid points times random samples).
+MAX_CASES = 100_000
+#: Largest spec or settings file read [bytes].
+MAX_SPEC_BYTES = 4_000_000
 #: Factors beyond the Params fields: the spin-up rate [rad/s] and the sensor-noise seed.
 FACTORS_EXTRA = {"w_f": "rad/s", "seed": "-"}
 #: Distributions of ``[random]`` factors and their keys.
@@ -79,7 +84,7 @@ DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "lognorm
 SAMPLERS = ("lhs", "sobol", "halton", "random")
 _INTEGER_FACTORS = ("n_axial", "n_transverse", "seed")
 _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", "lqr"), "design": "base",
-               "tau_max": 200.0, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
+               "tau_max": None, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
                "solver": "daqp", "design_modes": None, "plant_modes": None, "slew_angle": None,
                "shaping": None, "schedule": 1, "tolerances": None, "backend": None}
 
@@ -109,6 +114,20 @@ def _check_factor(name: str, where: str, scenario: str) -> None:
     if name == "w_f" and scenario != "spinup":
         raise ParameterError(f"{where}.w_f: the spin rate varies only in a spinup study, "
                              f"this one is {scenario!r}")
+
+
+#: The names make_scenario's messages start with -> the spec key that sets them.
+_SCENARIO_KEYS = {"tau_max": "study.tau_max", "tf": "study.t_f", "t_f": "study.t_f", "t_end": "study.t_end",
+                  "dt": "study.dt", "wf": "study.w_f", "w_f": "study.w_f", "slew_angle": "study.slew_angle"}
+
+
+def _as_study_key(message: str) -> str:
+    """A scenario's one-line error with the spec key in front (``tau_max must`` -> ``study.tau_max must``)."""
+    if message.startswith("study."):
+        return message
+    head, _, rest = message.partition(" ")
+    key = _SCENARIO_KEYS.get(head.rstrip(":"))
+    return f"{key}{head[len(head.rstrip(':')):]} {rest}" if key else f"study: {message}"
 
 
 def _number(where: str, value) -> float:
@@ -250,7 +269,7 @@ def _grid(where: str, table: dict, scenario: str) -> dict:
                 raise ParameterError(f"{where}.{name} must hold integers, got {values!r}")
             vals = [int(v) for v in vals]
         if len(set(vals)) != len(vals):
-            raise ParameterError(f"{where}.{name} repeats a value: {values!r}")
+            raise ParameterError(f"{where}.{name} repeats a value: {values!r}"[:300])
         out[name] = vals
     return out
 
@@ -259,8 +278,8 @@ def _random(where: str, table: dict, scenario: str, grid: dict) -> tuple:
     if not isinstance(table, dict):
         raise ParameterError(f"{where} must be a table, got {table!r}")
     n = table.get("n")
-    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise ParameterError(f"{where}.n must be an integer >= 1 (number of samples), got {n!r}")
+    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_CASES:
+        raise ParameterError(f"{where}.n must be an integer in 1..{MAX_CASES} (number of samples), got {n!r}")
     seed = table.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ParameterError(f"{where}.seed must be an integer >= 0, got {seed!r}")
@@ -295,8 +314,9 @@ class StudySpec:
     design : {"base", "matched"}
         ``base``: every controller designed once on the base parameters; ``matched``:
         redesigned on each case's plant.
-    tau_max : float
-        Torque budget [N m].
+    tau_max : float or None
+        Torque budget [N m] (None: the motor's, ``Params.tau_max`` of the parameters each
+        scenario is built on; see :attr:`torque_budget`).
     t_f, t_end, dt : float
         Maneuver time, simulated time, controller sample time [s].
     w_f : float
@@ -338,7 +358,7 @@ class StudySpec:
     plant: str = "foam"
     controllers: tuple = ("openloop", "lqr")
     design: str = "base"
-    tau_max: float = 200.0
+    tau_max: float | None = None
     t_f: float = 10.0
     t_end: float = 30.0
     dt: float = 0.01
@@ -370,17 +390,40 @@ class StudySpec:
         """
         if not isinstance(data, dict):
             raise ParameterError(f"spec must be a table, got {type(data).__name__}")
+        try:
+            return cls._from_tables(data)
+        except ParameterError:
+            raise
+        except (TypeError, ValueError, KeyError, AttributeError, OverflowError, IndexError) as exc:
+            # a mistyped value the checks above did not name (the guard of the whole class)
+            raise ParameterError(f"spec: a value has the wrong type or form ({_one_line(exc)})") from None
+
+    @classmethod
+    def _from_tables(cls, data: dict) -> "StudySpec":
         extra = sorted(set(data) - {"study", "params", "settings", "grid", "random", "tune"})
         if extra:
             raise ParameterError(f"spec: unknown table(s) {', '.join(extra)}; allowed: study, params, "
                                  "settings, grid, random, tune")
+        for table in ("study", "params", "settings", "grid", "random", "tune"):
+            if table in data and not isinstance(data[table], dict):
+                raise ParameterError(f"spec: {table} must be a table ([{table}]), got {table} = "
+                                     f"{data[table]!r}"[:300])
+        for name, table in data.get("settings", {}).items():
+            if not isinstance(table, dict):
+                raise ParameterError(f"settings.{name} must be a table ([settings.{name}]), got {table!r}"[:300])
         study = dict(data.get("study", {}))
         bad = sorted(set(study) - set(_STUDY_KEYS))
         if bad:
             raise ParameterError(f"study: unknown key(s) {', '.join(bad)}; allowed: {', '.join(_STUDY_KEYS)}")
         kw = {k: study.get(k, v) for k, v in _STUDY_KEYS.items()}
         kw["controllers"] = _controller_list(kw["controllers"])
-        params = Params.from_dict(dict(data.get("params", {})))
+        try:
+            params = Params.from_dict(dict(data.get("params", {})))
+        except ParameterError as exc:           # name the spec key: params.m_t, not m_t
+            text = str(exc)
+            head = text.split(" ", 1)[0]
+            raise ParameterError(f"params.{text}" if head in {f.name for f in dataclasses.fields(Params)}
+                                 else f"params: {text}") from None
         grid = _grid("grid", data.get("grid", {}), kw["scenario"])
         random = None
         if "random" in data:
@@ -388,6 +431,14 @@ class StudySpec:
             random = {"n": n, "seed": seed, "method": method, "factors": dists}
         spec = cls(params=params, settings=dict(data.get("settings", {})), grid=grid, random=random, **kw)
         spec.validate()
+        for key in ("horizon", "solver"):         # keys no chosen controller uses (to_dict writes the defaults)
+            if key in study and study[key] != _STUDY_KEYS[key] and not spec._uses(key):
+                raise ParameterError(f"study.{key}: no controller of study.controllers "
+                                     f"({', '.join(spec.controllers)}) uses it")
+        if "shaping" in study and study["shaping"] is not None \
+                and not any(CONTROLLERS[n].tracks_reference for n in spec.controllers):
+            raise ParameterError(f"study.shaping: no controller of study.controllers ({', '.join(spec.controllers)}) "
+                                 "tracks a reference")
         return spec
 
     def validate(self) -> None:
@@ -415,10 +466,11 @@ class StudySpec:
             if unknown:
                 raise ParameterError(f"study.tolerances: unknown field(s) {', '.join(unknown)}; allowed: "
                                      f"{', '.join(allowed)}")
+        self._check_run_budget()                    # before the scenario: its reference spans t_end
         try:
             sc = self.scenario_for(self.params)
         except ParameterError as exc:
-            raise ParameterError(str(exc) if str(exc).startswith("study.") else f"study: {exc}") from None
+            raise ParameterError(_as_study_key(str(exc))) from None
         for name, table in self.settings.items():
             if name not in self.controllers:
                 raise ParameterError(f"settings.{name}: not among study.controllers ({', '.join(self.controllers)})")
@@ -429,6 +481,79 @@ class StudySpec:
                     self.params.replace(**{name: v})
                 except ParameterError as exc:
                     raise ParameterError(f"grid.{name} = {v!r}: {exc}") from None
+        for key in ("design_modes", "plant_modes"):
+            v = getattr(self, key)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_MODES):
+                raise ParameterError(f"study.{key} must be an integer in 1..{MAX_MODES}, got {v!r}")
+        self._check_size()
+        self._check_samples()
+
+    def _check_size(self) -> None:
+        """Refuse a plant spread of more than :data:`MAX_CASES` cases, naming the keys."""
+        sizes = [(f"grid.{k}", len(v)) for k, v in self.grid.items()]
+        if self.random:
+            sizes.append(("random.n", self.random["n"]))
+        total = math.prod(n for _, n in sizes)
+        if total > MAX_CASES:
+            parts = " x ".join(f"{k} ({n})" for k, n in sizes)
+            raise ParameterError(f"{parts} give {total:.6g} cases, more than the {MAX_CASES} one sweep runs; "
+                                 "split the study or sample it ([random])")
+
+    def _check_run_budget(self) -> None:
+        """Refuse a task whose single run exceeds the closed-loop runs' default memory or
+        wall-time limits (what :func:`~hubbeam_ctrl.study.compare.compare` refuses up front)."""
+        from hubbeam_ctrl.core.budget import CLOSED_LOOP_SECONDS_PER_SAMPLE, check_budget, mpc_bytes, mpc_seconds
+        from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
+        numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+                      for v in (self.t_end, self.dt))
+        if not numbers:
+            return                                  # the scenario names the bad value
+        limits = ClosedLoopSettings()
+        p = self.params
+        modes = self.plant_modes if isinstance(self.plant_modes, int) else p.n_transverse
+        n_q = 1 + p.n_axial + modes
+        steps = int(min(round(self.t_end / self.dt), 1e15))
+        memory = 16.0 * (steps + 1) * (2 * n_q + 9)
+        seconds = steps * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n_q / 11.0) ** 2
+        what = f"study.t_end = {self.t_end:g} s at study.dt = {self.dt:g} s ({steps + 1:.6g} samples per run)"
+        if self._uses("horizon") and isinstance(self.horizon, int) and not isinstance(self.horizon, bool) \
+                and 1 <= self.horizon <= 10**6:
+            n_x = 2 * (1 + (self.design_modes or p.n_transverse))
+            memory += mpc_bytes(self.horizon, n_x)
+            seconds += mpc_seconds(self.horizon, n_x, steps)
+            what += f" with study.horizon = {self.horizon}"
+        try:
+            check_budget(what, memory_bytes=memory, seconds=seconds, max_memory_mb=limits.max_memory_mb,
+                         max_wall_s=limits.max_wall_s)
+        except ParameterError as exc:           # a spec cannot lift the limits of one run: say what to lower
+            head = str(exc).split(" (raise ")[0]
+            lower = "study.horizon or study.t_end" if "horizon" in what else "study.t_end or raise study.dt"
+            raise ParameterError(f"{head} (the limit of one closed-loop run of a sweep; lower {lower})") from None
+
+    def _uses(self, setting: str) -> bool:
+        """Whether a controller of the study has the setting (``horizon``, ``solver``)."""
+        return any(setting in {f.name for f in dataclasses.fields(CONTROLLERS[n].settings)}
+                   for n in self.controllers if dataclasses.is_dataclass(CONTROLLERS[n].settings))
+
+    def _check_samples(self) -> None:
+        """Every sampled value must be a valid parameter (a distribution whose samples leave
+        the range of its factor is refused, naming it, before any case runs)."""
+        if not self.random:
+            return
+        for case in self.cases():
+            for name in self.random["factors"]:
+                if name in FACTORS_EXTRA:
+                    continue
+                try:
+                    self.params.replace(**{name: case[name]})
+                except ParameterError as exc:
+                    raise ParameterError(f"random.{name}: the sample {case[name]:.6g} is outside its range ({exc}); "
+                                         "truncate the distribution with low/high") from None
+
+    @property
+    def torque_budget(self) -> float:
+        """The torque budget of the base scenario [N m]: ``study.tau_max``, or ``params.tau_max``."""
+        return self.params.tau_max if self.tau_max is None else float(self.tau_max)
 
     @property
     def factors(self) -> tuple:
@@ -552,14 +677,9 @@ def load_spec(spec) -> StudySpec:
         return spec
     if isinstance(spec, dict):
         return StudySpec.from_dict(spec)
-    path = Path(spec)
-    try:
-        data = tomllib.loads(path.read_text())
-    except (FileNotFoundError, IsADirectoryError):
-        raise ParameterError(f"spec: file {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"spec: {path} is not valid TOML: {exc}") from None
-    return StudySpec.from_dict(data)
+    if not isinstance(spec, (str, Path)):
+        raise ParameterError(f"spec must be a TOML path, a dict of tables or a StudySpec, got {type(spec).__name__}")
+    return StudySpec.from_dict(read_toml(spec, "spec: file", MAX_SPEC_BYTES))
 
 
 def load_settings(spec: StudySpec, path) -> StudySpec:
@@ -576,14 +696,10 @@ def load_settings(spec: StudySpec, path) -> StudySpec:
     StudySpec
         Validated; a controller of the file that the study does not run is an error.
     """
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except (FileNotFoundError, IsADirectoryError):
-        raise ParameterError(f"settings: file {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"settings: {path} is not valid TOML: {exc}") from None
+    data = read_toml(path, "settings: file", MAX_SPEC_BYTES)
     data = data.get("settings", data)
+    if not isinstance(data, dict):
+        raise ParameterError(f"settings: {path} must hold [settings.NAME] tables, got settings = {data!r}"[:300])
     merged = {name: dict(table) for name, table in spec.settings.items()}
     for name, table in data.items():
         if not isinstance(table, dict):

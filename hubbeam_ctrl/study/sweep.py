@@ -22,6 +22,7 @@ Example
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import json
 import math
@@ -32,7 +33,7 @@ from collections import OrderedDict
 from pathlib import Path
 
 from controllers import CONTROLLERS, DesignModel, as_shaper, make_controller
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import ParameterError, write_error
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
@@ -364,7 +365,9 @@ class Engine:
         from distributed import as_completed
         futures = {self.client.submit(run_batch, b, s, retries=self.retries, pure=False): (b, s)
                    for b, s in jobs}
-        for fut in as_completed(list(futures)):
+        # the client's own loop: as_completed would otherwise look for a default client, and
+        # connect() makes none (set_as_default=False keeps the caller's global state alone)
+        for fut in as_completed(list(futures), loop=self.client.loop):
             batch, spec = futures[fut]
             try:
                 sink(batch, spec, fut.result())
@@ -376,12 +379,16 @@ class Engine:
 def connect(address: str, timeout: float = 10.0):
     """A ``dask.distributed.Client`` of the scheduler at ``address``.
 
+    The address is parsed and the scheduler's port probed (one TCP connection, at most
+    ``timeout`` seconds) before the client is made, so a wrong or unreachable address is one
+    :class:`ParameterError`, not a half-made client.
+
     Parameters
     ----------
     address : str
-        E.g. ``tcp://10.0.0.5:8786``.
+        E.g. ``tcp://10.0.0.5:8786`` (``tcp://`` or ``tls://``; the port defaults to 8786).
     timeout : float
-        Seconds to wait for the scheduler.
+        Seconds to wait for the scheduler, > 0.
 
     Returns
     -------
@@ -390,14 +397,59 @@ def connect(address: str, timeout: float = 10.0):
     Raises
     ------
     ParameterError
-        If no scheduler answers within ``timeout``.
+        If the address is not ``tcp://HOST:PORT`` or no scheduler answers within ``timeout``.
     """
+    host, port = _scheduler_host_port(address)
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not 0 < timeout < 1e6:
+        raise ParameterError(f"timeout must be a number of seconds in (0, 1e6), got {timeout!r}")
+    import socket
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except (OSError, ValueError) as exc:
+        raise ParameterError(f"scheduler: no Dask scheduler answered at {address!r} within {timeout:g} s "
+                             f"({_one_line(exc)})") from None
+    failure = _make_client(address, timeout)
+    if not isinstance(failure, str):
+        return failure
+    raise ParameterError(f"scheduler: {address!r} did not answer as a Dask scheduler within {timeout:g} s ({failure})")
+
+
+def _scheduler_host_port(address) -> tuple:
+    """``(host, port)`` of a scheduler address, or ParameterError naming ``--scheduler``."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    bad = ParameterError(f"scheduler must be an address tcp://HOST:PORT (port 1..65535), got {str(address)[:80]!r}")
+    if not isinstance(address, str) or not address.strip() or any(c.isspace() for c in address):
+        raise bad
+    try:
+        scheme, loc = parse_address(address)
+        host, port = parse_host_port(loc, 8786)
+    except (ValueError, TypeError):
+        raise bad from None
+    if scheme not in ("tcp", "tls") or not host or not 1 <= int(port) <= 65535:
+        raise bad
+    return host, int(port)
+
+
+def _make_client(address: str, timeout: float):
+    """The client, or the one-line reason it could not be made (its half-made client is
+    collected here, quietly: ``Client.__del__`` would print a traceback later)."""
+    import gc
+
     from distributed import Client
     try:
         return Client(address, timeout=timeout, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ParameterError(f"scheduler: no Dask scheduler answered at {address!r} within "
-                             f"{timeout:g} s ({type(exc).__name__})") from None
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - a garbled answer can be a MemoryError, an OSError, ...
+        failure = _one_line(exc)
+        exc.__traceback__ = None
+        del exc
+    hook, sys.unraisablehook = sys.unraisablehook, lambda _u: None
+    try:
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+    return failure
 
 
 # -- results on disk ----------------------------------------------------------------------------
@@ -442,31 +494,185 @@ class _ResultsFile:
                                  "choose another --out")
 
     def append(self, rows: list) -> None:
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        data = _csv_text(rows, self.columns).encode()
         try:
-            os.write(fd, _csv_text(rows, self.columns).encode())
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+            try:
+                size = os.fstat(fd).st_size
+                try:
+                    written = os.write(fd, data)
+                    if written != len(data):
+                        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                    os.fsync(fd)
+                except OSError:
+                    os.ftruncate(fd, size)          # whole batches only: drop a part-written one
+                    raise
+            finally:
+                os.close(fd)
+        except OSError as exc:
+            raise write_error(exc, f"out: cannot write {self.path}") from None
 
 
-def _open_folder(out_dir, spec: StudySpec, resume: bool) -> Path:
-    out = output_folder(out_dir, create=False)
-    meta = out / _STUDY
-    if meta.exists():
-        stored = json.loads(meta.read_text()).get("spec_hash")
-        if stored != spec.hash():
-            raise ParameterError(f"out: {out} holds results of a different study spec (hash {stored[:12]}, "
-                                 f"this spec {spec.hash()[:12]}); choose another --out")
-        if not resume and (out / _RESULTS).exists():
-            raise ParameterError(f"out: {out} already holds results of this study; pass --resume to "
-                                 "finish it, or choose another --out")
-    elif (out / _RESULTS).exists():
+_LOCK = ".hubbeam-sweep.lock"
+
+
+class _StudyFolder:
+    """The ``--out`` folder of a sweep, held for the length of the run.
+
+    Taking it: an exclusive lock (``fcntl.flock`` on :data:`_LOCK` in the folder; a second
+    sweep on the same folder is refused, it cannot append too), ``study.json`` checked
+    against the spec (damaged: refused in one line), and on ``resume`` ``results.csv``
+    repaired (:func:`_repair_results`). A folder this call created is removed again if the
+    run fails before any row reached ``results.csv``.
+    """
+
+    def __init__(self, out_dir, spec: StudySpec, resume: bool):
+        self.out = output_folder(out_dir, create=False)
+        self.spec, self.resume = spec, resume
+        self.created = not self.out.exists()
+        self._fd = None
+
+    def __enter__(self):
+        try:
+            self.out.mkdir(exist_ok=True)
+        except OSError as exc:
+            raise write_error(exc, f"out: cannot create {self.out}") from None
+        try:
+            self._lock()
+            self.done = _check_study_folder(self.out, self.spec, self.resume)
+            self.results = _ResultsFile(self.out / _RESULTS, result_columns(self.spec))
+        except BaseException:
+            self.__exit__(*sys.exc_info())
+            raise
+        return self
+
+    def _lock(self) -> None:
+        import fcntl
+        try:
+            self._fd = os.open(self.out / _LOCK, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:
+            raise write_error(exc, f"out: cannot create the lock file in {self.out}") from None
+        try:
+            fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self._fd)
+            self._fd = None
+            raise ParameterError(f"out: another sweep is running in {self.out} (it holds {_LOCK}); "
+                                 "wait for it to finish or choose another --out") from None
+
+    def __exit__(self, exc_type, *_):
+        if self._fd is None:
+            return False                        # the lock is another sweep's: its folder is left alone
+        if exc_type is not None and self.created and not _has_rows(self.out / _RESULTS):
+            import shutil
+            shutil.rmtree(self.out, ignore_errors=True)   # nothing finished: leave no empty --out
+        os.close(self._fd)                      # releases the lock
+        self._fd = None
+        return False
+
+
+def _has_rows(path: Path) -> bool:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(1 << 16).count(b"\n") > 1
+    except OSError:
+        return False
+
+
+def _read_study_json(meta: Path):
+    """The ``spec_hash`` of ``study.json``, or a one-line refusal naming what is wrong."""
+    def damaged(reason):
+        return ParameterError(f"out: {meta} is damaged ({reason}); it says which study the folder holds: "
+                              "choose another --out")
+    if not meta.is_file():
+        raise damaged("not a regular file")
+    try:
+        if meta.stat().st_size > 64_000_000:
+            raise OSError(errno.EFBIG, "larger than 64 MB")
+        doc = json.loads(meta.read_bytes().decode("utf-8"))
+    except OSError as exc:
+        raise damaged(f"cannot be read: {exc.strerror or exc}") from None
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise damaged(f"not JSON: {' '.join(str(exc).split())[:80]}") from None
+    stored = doc.get("spec_hash") if isinstance(doc, dict) else None
+    if not isinstance(stored, str) or not stored:
+        raise damaged("no spec_hash")
+    return stored
+
+
+def _check_study_folder(out: Path, spec: StudySpec, resume: bool) -> set:
+    """Check ``study.json`` against ``spec``, repair ``results.csv`` on resume, write
+    ``study.json``; returns the cases already finished."""
+    meta, results = out / _STUDY, out / _RESULTS
+    done = set()
+    if meta.exists() or meta.is_symlink():
+        if results.exists():
+            stored = _read_study_json(meta)
+            if stored != spec.hash():
+                raise ParameterError(f"out: {out} holds results of a different study spec (hash {stored[:12]}, "
+                                     f"this spec {spec.hash()[:12]}); choose another --out")
+            if not resume:
+                raise ParameterError(f"out: {out} already holds results of this study; pass --resume to "
+                                     "finish it, or choose another --out")
+            done = _repair_results(results, spec)
+    elif results.exists():
         raise ParameterError(f"out: {out} holds a {_RESULTS} of an unknown study; choose another --out")
-    out.mkdir(exist_ok=True)
     atomic_write_text(meta, json.dumps({"spec_hash": spec.hash(), "n_cases": len(spec.cases()),
                                         "spec": spec.to_dict()}, indent=2, default=str) + "\n")
-    return out
+    return done
+
+
+def _repair_results(path: Path, spec: StudySpec) -> set:
+    """Keep the rows of ``results.csv`` that belong to this study, once each; return the
+    cases finished (a row for every controller).
+
+    Dropped: a line cut short, rows of cases not in the plan (``case = 999``) or of other
+    controllers, repeated (case, controller) rows (the first is kept) and the rows of a case
+    that lacks a controller (it is run again). The file is rewritten (atomically) only if
+    something was dropped, so the rows kept stay byte for byte. A file that cannot be read
+    as this study's CSV (other header, not text) is refused in one line.
+    """
+    columns = result_columns(spec)
+
+    def damaged(reason):
+        return ParameterError(f"out: {path} is damaged ({reason}); choose another --out")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise damaged(f"cannot be read: {exc.strerror or exc}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise damaged(f"not UTF-8 text at byte {exc.start}") from None
+    if "\x00" in text:
+        raise damaged("NUL bytes")
+    lines = text.split("\n")
+    if lines[0].split(",") != columns:
+        raise ParameterError(f"out: {path} has other columns than this version writes; choose another --out")
+    complete = lines[1:-1]                  # the last piece is "" or a line cut short
+    plan = set(range(len(spec.cases())))
+    controllers = set(spec.controllers)
+    i_case, i_ctrl = columns.index("case"), columns.index("controller")
+    kept, seen = [], set()
+    for line in complete:
+        try:
+            row = next(csv.reader([line]))
+            case = int(row[i_case])
+        except (csv.Error, StopIteration, ValueError, IndexError):
+            continue
+        key = (case, row[i_ctrl] if len(row) > i_ctrl else None)
+        if len(row) != len(columns) or case not in plan or key[1] not in controllers or key in seen:
+            continue
+        seen.add(key)
+        kept.append((case, line))
+    per_case = {}
+    for case, _ in kept:
+        per_case[case] = per_case.get(case, 0) + 1
+    done = {c for c, n in per_case.items() if n == len(controllers)}
+    rows = [line for case, line in kept if case in done]
+    if len(rows) != len(complete) or lines[-1] != "":
+        atomic_write_text(path, "\n".join([lines[0], *rows]) + "\n")
+    return done
 
 
 def read_results(path, spec: StudySpec | None = None):
@@ -532,18 +738,26 @@ def sweep(spec, *, workers: int | None = None, client=None, progress: bool = Tru
         metrics, ``verdict``, ``error`` (one line, empty when the run worked) and the wall
         times ``setup_s``, ``wall_s``, ``sim_wall_s`` [s] (see :data:`TIMING_COLUMNS`).
     """
-    from tqdm import tqdm
     spec = load_spec(spec)
     Engine(workers)  # validates workers before anything is written
     cases = list(enumerate(spec.cases()))
-    results = done = None
-    if out_dir is not None:
-        folder = _open_folder(out_dir, spec, resume)
-        results = _ResultsFile(folder / _RESULTS, result_columns(spec))
-        done = set(read_results(folder)["case"].astype(int))
-        cases = [c for c in cases if c[0] not in done]
+    if out_dir is None:
+        return _run_cases(spec, cases, workers, client, progress, None)
+    with _StudyFolder(out_dir, spec, resume) as folder:
+        _run_cases(spec, [c for c in cases if c[0] not in folder.done], workers, client, progress, folder.results)
+        try:
+            return read_results(folder.out, spec)
+        except (ValueError, TypeError, KeyError) as exc:
+            raise ParameterError(f"out: {folder.out / _RESULTS} is damaged ({_one_line(exc)}); "
+                                 "choose another --out") from None
+
+
+def _run_cases(spec: StudySpec, cases: list, workers, client, progress: bool, results):
+    """Run ``cases`` on the engine; rows appended to ``results`` (a :class:`_ResultsFile`) as
+    they come, and returned as a DataFrame when there is no file."""
+    from hubbeam_ctrl.core.progress import progress_bar
     rows = []
-    bar = tqdm(total=len(cases), unit="case", disable=not progress, file=sys.stderr, desc="sweep")
+    bar = progress_bar(len(cases), "sweep", enabled=progress)     # quiet off a terminal and under --json
     failed = 0
 
     def sink(batch, _spec, batch_rows):
@@ -560,9 +774,7 @@ def sweep(spec, *, workers: int | None = None, client=None, progress: bool = Tru
             engine.run([(b, spec) for b in plan_batches(cases, engine.workers)], sink)
     finally:
         bar.close()
-    if out_dir is not None:
-        return read_results(folder, spec)
-    return _frame(rows, spec)
+    return None if results is not None else _frame(rows, spec)
 
 
 def _dask_workers(client) -> int:

@@ -138,7 +138,8 @@ def _report(df, summary, spec: StudySpec, paths: dict, wall_s) -> str:
              f"{', '.join(spec.controllers)}.",
              f"- Design: {'on the base parameters' if spec.design == 'base' else 'redesigned for each case'} "
              f"(m_t = {spec.params.m_t:g} kg, {spec.params.n_axial}+{spec.params.n_transverse} modes); "
-             f"tau_max = {spec.tau_max:g} N m, t_f = {spec.t_f:g} s, t_end = {spec.t_end:g} s, dt = {spec.dt:g} s.",
+             f"tau_max = {spec.torque_budget:g} N m, t_f = {spec.t_f:g} s, t_end = {spec.t_end:g} s, "
+             f"dt = {spec.dt:g} s.",
              f"- Spec hash {spec.hash()[:12]}" + (f"; wall time {wall_s:.1f} s." if wall_s is not None else "."),
              "", "| " + " | ".join(summary.columns) + " |", "|" + "---|" * len(summary.columns)]
     lines += ["| " + " | ".join(_fmt(v) for v in row) + " |" for row in summary.itertuples(index=False)]

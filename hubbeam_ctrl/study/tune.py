@@ -25,13 +25,13 @@ import json
 import math
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from controllers import Weights
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
+from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.scenarios import make_scenario
 from hubbeam_ctrl.study.spec import StudySpec, load_spec, settings_to_toml
@@ -47,6 +47,10 @@ TUNED_WEIGHTS = ("angle", "rate", "tip", "tip_rate", "modal")
 _ALL_WEIGHTS = TUNED_WEIGHTS + ("torque",)
 #: Objective of a run that failed or did not complete (10 L of residual vibration).
 FAILED_OBJECTIVE = 1.0
+
+
+#: Largest ``tune.maxiter`` and ``tune.popsize``, and most closed-loop runs one tuning may take.
+MAX_MAXITER, MAX_POPSIZE, MAX_TUNE_RUNS = 10_000, 1_000, 1_000_000
 
 
 @dataclass(frozen=True)
@@ -98,10 +102,10 @@ class TuneOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise ParameterError(f"tune.{name} must be a finite number > 0, got {v!r}")
-        for name in ("maxiter", "popsize"):
+        for name, hi in (("maxiter", MAX_MAXITER), ("popsize", MAX_POPSIZE)):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ParameterError(f"tune.{name} must be an integer >= 1, got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= hi:
+                raise ParameterError(f"tune.{name} must be an integer in 1..{hi}, got {v!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ParameterError(f"tune.seed must be an integer >= 0, got {self.seed!r}")
 
@@ -334,7 +338,6 @@ def tune(spec, controller: str, *, options: TuneOptions | None = None, workers: 
     -------
     TuneResult
     """
-    import sys
 
     from scipy.optimize import differential_evolution
     raw = spec
@@ -344,20 +347,20 @@ def tune(spec, controller: str, *, options: TuneOptions | None = None, workers: 
     if options is None:
         table = raw.get("tune") if isinstance(raw, dict) else _tune_table(raw)
         options = TuneOptions.from_dict(table)
+    _check_tune_budget(spec, options)
     start = time.perf_counter()
     x0 = np.array([_paper_x()[k] for k in TUNED_WEIGHTS])
     bounds = [(v - options.decades, v + options.decades) for v in x0]
     history = []
-    with Engine(workers, client) as engine:
+    bar = progress_bar(options.maxiter, f"tune {controller}", enabled=progress)   # quiet off a terminal
+    with Engine(workers, client) as engine, bar:
         ev = _Evaluator(spec, controller, options, engine)
         default = float(ev(x0[:, None])[0])
 
         def report(intermediate_result):
             history.append(float(intermediate_result.fun))
-            if progress:
-                print(f"tune {controller}: generation {len(history)}, best {history[-1]:.4f} "
-                      f"(scaled defaults {default:.4f}), {ev.n_runs} runs, {time.perf_counter() - start:.0f} s",
-                      file=sys.stderr, flush=True)
+            bar.update(1)
+            bar.set_postfix(best=f"{history[-1]:.4f}", defaults=f"{default:.4f}", runs=ev.n_runs)
 
         res = differential_evolution(ev, bounds, x0=x0, maxiter=options.maxiter, popsize=options.popsize,
                                      tol=options.tol, rng=np.random.default_rng(options.seed), polish=False,
@@ -371,11 +374,23 @@ def tune(spec, controller: str, *, options: TuneOptions | None = None, workers: 
                       ev.seen[tuple(map(float, x0))][1])
 
 
+def _check_tune_budget(spec, options: TuneOptions) -> None:
+    """Refuse a search of more than :data:`MAX_TUNE_RUNS` closed-loop runs, naming the keys."""
+    n_cases = len(spec.cases())
+    per_generation = options.popsize * len(TUNED_WEIGHTS)
+    runs = (options.maxiter + 1) * per_generation * n_cases
+    if runs > MAX_TUNE_RUNS:
+        raise ParameterError(f"tune.maxiter ({options.maxiter}) + 1 generations x tune.popsize ({options.popsize}) "
+                             f"x {len(TUNED_WEIGHTS)} weights x {n_cases} cases = {runs:.6g} closed-loop runs, "
+                             f"more than the {MAX_TUNE_RUNS} one tuning runs; lower them or the spec's cases")
+
+
 def _tune_table(path):
-    import tomllib
+    from hubbeam_ctrl.core.fileio import read_toml
+    from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES
     try:
-        return tomllib.loads(Path(path).read_text()).get("tune")
-    except (OSError, tomllib.TOMLDecodeError):
+        return read_toml(path, "spec: file", MAX_SPEC_BYTES).get("tune")
+    except ParameterError:
         return None            # load_spec has already reported a bad file
 
 
