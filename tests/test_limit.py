@@ -1,0 +1,149 @@
+"""The physical limit: time-optimal and minimum-vibration slews (hubbeam_ctrl.limit)."""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from scipy.optimize import fsolve
+
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.limit import OptimalSettings, min_vibration_slew, rigid_bang_bang_time, time_optimal_slew
+from hubbeam_ctrl.plant.linearization import second_order_linearization
+from hubbeam_ctrl.plant.models import build_model
+from hubbeam_ctrl.plant.params import Params
+
+FAST = OptimalSettings(check=False)
+
+
+def _one_mode_bang_bang(params: Params, theta: float) -> tuple:
+    """Time-optimal rest-to-rest slew of the hub with ONE undamped bending mode, from its switching equations.
+
+    The hub-free model linearised at rest, ``M0 q'' + K0 q = [tau, 0]``, splits into the rigid
+    mode (``M0_00 theta_mean'' = tau``) and one bending mode (``eta'' + w^2 eta = b tau``).
+    Torque ``+tau_max, -tau_max, +tau_max, -tau_max`` with switches ``t1, T/2, T - t1``
+    (antisymmetric about ``T/2``: the momentum ends at 0 by itself). The two unknowns solve:
+
+    * rigid angle: ``M0_00 Theta = int_0^T (T - s) tau(s) ds``;
+    * no residual: ``int_0^T sin(w (s - T/2)) tau(s) ds = 0`` (the cosine part vanishes by the
+      antisymmetry).
+    """
+    model = build_model("foam", params, axial="quasi-static")
+    lin = second_order_linearization(model, 0.0, "free")
+    w2, _ = sla.eigh(lin.K, lin.M)
+    w = math.sqrt(max(w2))
+    J, tm = lin.M[0, 0], params.tau_max
+
+    def pieces(t1, T):
+        return [(0.0, t1, 1.0), (t1, T / 2, -1.0), (T / 2, T - t1, 1.0), (T - t1, T, -1.0)]
+
+    def equations(z):
+        t1, T = z
+        angle = sum(s * tm * ((T * b - b * b / 2) - (T * a - a * a / 2)) for a, b, s in pieces(t1, T))
+        modal = sum(s * (-math.cos(w * (b - T / 2)) + math.cos(w * (a - T / 2))) / w for a, b, s in pieces(t1, T))
+        return [angle / (J * theta) - 1.0, modal * w]
+
+    T_r = 2 * math.sqrt(theta * J / tm)
+    (t1, T), info, ok, msg = fsolve(equations, [0.3 * T_r, 1.15 * T_r], full_output=True)
+    assert ok == 1, msg
+    assert 0 < t1 < T / 2
+    return t1, T, w
+
+
+def test_rigid_bound_formula():
+    p = Params()
+    assert rigid_bang_bang_time(p, 1.0) == pytest.approx(2 * math.sqrt(p.total_inertia / p.tau_max))
+    assert rigid_bang_bang_time(p, -1.0) == rigid_bang_bang_time(p, 1.0)
+
+
+def test_table1_slew_never_undercuts_the_rigid_bound_and_ends_quiet():
+    """The paper's beam, 1 rad with 200 N m: above the rigid bound, within the drive, residual
+    within the tolerance on the design model and on the evaluation plant."""
+    p = Params()
+    r = time_optimal_slew(p, 1.0)
+    assert r.converged, r.message
+    assert r.duration_s >= r.rigid_bound_s
+    assert r.rigid_bound_s == pytest.approx(2 * math.sqrt(1.0 * p.total_inertia / p.tau_max))
+    assert 1.05 < r.ratio < 1.4                       # the 2.2 s first mode costs time
+    assert np.all(np.abs(r.tau) <= p.tau_max * (1 + 1e-6))
+    assert r.residual_design <= r.tolerance * (1 + 1e-4)
+    assert r.residual_plant <= r.tolerance
+    assert r.final_angle_plant == pytest.approx(1.0, abs=2e-3)
+    assert r.theta[-1] == pytest.approx(1.0, abs=1e-2) and abs(r.theta_dot[-1]) < 2e-2
+    assert r.solve_s < 60.0
+
+
+def test_stiff_beam_approaches_the_rigid_bound():
+    """E x 100: the beam is nearly rigid and the optimum within 3 % of the bang-bang time."""
+    p = Params(E=Params().E * 100)
+    r = time_optimal_slew(p, 1.0, settings=FAST)
+    assert r.converged, r.message
+    assert 1.0 <= r.ratio < 1.03
+
+
+def test_one_flexible_mode_agrees_with_the_switching_equations():
+    """One bending mode: the collocation optimum within 1 % of the 3-switch bang-bang solved by fsolve."""
+    p = Params(n_transverse=1)
+    theta = 1.0
+    t1, T, w = _one_mode_bang_bang(p, theta)
+    r = time_optimal_slew(p, theta, tolerance=1e-6 * p.L, settings=FAST)
+    assert r.converged, r.message
+    assert r.duration_s == pytest.approx(T, rel=0.01)
+    # and the torque is that bang-bang: +, -, +, - with the first switch near t1
+    first_switch = r.t[np.argmax(r.tau < 0)]
+    assert first_switch == pytest.approx(t1, abs=2 * T / len(r.tau))
+
+
+def test_min_vibration_in_the_time_optimal_duration_and_longer():
+    p = Params(n_transverse=2)
+    fastest = time_optimal_slew(p, 0.5, settings=FAST)
+    r = min_vibration_slew(p, 0.5, 1.2 * fastest.duration_s, settings=FAST)
+    assert r.converged, r.message
+    assert r.duration_s == pytest.approx(1.2 * fastest.duration_s)
+    assert r.residual_design < 1e-3 * r.tolerance
+    assert np.all(np.abs(r.tau) <= p.tau_max * (1 + 1e-6))
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: time_optimal_slew(Params(), 1.0, tolerance=0.0), "tolerance must be a finite number > 0"),
+    (lambda: time_optimal_slew(Params(), 1.0, tolerance=-1.0), "tolerance must be a finite number > 0"),
+    (lambda: time_optimal_slew(Params(), 0.0), "slew_angle must be"),
+    (lambda: time_optimal_slew(Params(), float("nan")), "slew_angle must be"),
+    (lambda: min_vibration_slew(Params(), 1.0, 1.0, name="--duration"), r"--duration must be >= 2.2295 s"),
+])
+def test_bad_input_is_one_line(call, match):
+    with pytest.raises(ParameterError, match=match) as err:
+        call()
+    assert "\n" not in str(err.value)
+
+
+def test_duration_below_the_limit_names_the_shortest_feasible():
+    p = Params(n_transverse=1)
+    with pytest.raises(ParameterError, match=r"duration must be >= 2\.[3-9]\d* s \(the time-optimal") as err:
+        min_vibration_slew(p, 1.0, 1.01 * rigid_bang_bang_time(p, 1.0), settings=FAST)
+    assert "\n" not in str(err.value)
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "hubbeam_ctrl.cli", "optimal", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_cli_json_and_bad_input(tmp_path):
+    toml = tmp_path / "p.toml"
+    toml.write_text("n_transverse = 2\nn_axial = 2\n")
+    run = _cli("--params", str(toml), "--slew-angle", "0.5", "--json")
+    assert run.returncode == 0, run.stderr
+    out = json.loads(run.stdout)
+    p = Params(n_transverse=2, n_axial=2)
+    assert out["duration_s"] >= rigid_bang_bang_time(p, 0.5)
+    assert out["rigid_bound_s"] == pytest.approx(rigid_bang_bang_time(p, 0.5))
+    for args, name in ((["--tolerance", "0"], "--tolerance"), (["--tolerance", "-1"], "--tolerance"),
+                       (["--duration", "0.5"], "--duration")):
+        bad = _cli("--params", str(toml), "--slew-angle", "0.5", *args)
+        assert bad.returncode == 2
+        assert "Traceback" not in bad.stderr
+        assert name in bad.stderr and len(bad.stderr.strip().splitlines()) == 1, bad.stderr
