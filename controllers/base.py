@@ -237,8 +237,9 @@ class DesignModel:
         ----------
         reference : Reference
         elastic : bool
-            Include the quasi-static deflection ``q2 = g theta_ddot`` (and its rate)
-            that the reference acceleration necessarily causes; otherwise ``q2 = 0``.
+            Include the deflection the reference plans (:attr:`Reference.elastic`, when it
+            has this model's modes) or else the quasi-static deflection ``q2 = g theta_ddot``
+            (and its rate) that the reference acceleration necessarily causes; otherwise ``q2 = 0``.
 
         Returns
         -------
@@ -248,7 +249,10 @@ class DesignModel:
         X = np.zeros((len(reference.theta), self.n_x))
         X[:, 0] = reference.theta
         X[:, n] = reference.theta_dot
-        if elastic and len(reference.theta) > 1:
+        planned = getattr(reference, "elastic", None)
+        if elastic and planned is not None and planned.shape == (len(reference.theta), 2 * (n - 1)):
+            X[:, 1:n], X[:, n + 1:] = planned[:, :n - 1], planned[:, n - 1:]
+        elif elastic and len(reference.theta) > 1:
             g = self.quasi_static_gain
             acc = reference.theta_ddot
             X[:, 1:n] = np.outer(acc, g)
@@ -277,6 +281,10 @@ class Reference:
     torque : ndarray (K,)
         Feedforward torque [N m] that drives the rigid body along the reference.
     description : str
+    elastic : ndarray (K, 2 m) or None
+        Planned modal coordinates and rates ``[q2, q2_dot]`` [m, m/s] of a reference that
+        knows the beam's motion (an optimal slew); None: the quasi-static deflection of
+        :meth:`DesignModel.reference_states`.
     """
 
     dt: float
@@ -285,6 +293,7 @@ class Reference:
     theta_ddot: np.ndarray
     torque: np.ndarray
     description: str = ""
+    elastic: np.ndarray | None = None
 
     @classmethod
     def from_profile(cls, profile, dt: float, t_end: float, description: str = "") -> "Reference":

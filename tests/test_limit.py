@@ -147,3 +147,38 @@ def test_cli_json_and_bad_input(tmp_path):
         assert bad.returncode == 2
         assert "Traceback" not in bad.stderr
         assert name in bad.stderr and len(bad.stderr.strip().splitlines()) == 1, bad.stderr
+
+
+def test_lqr_tracks_the_optimal_reference_on_foam():
+    """The time-optimal slew as LQR reference and feedforward on the 10-mode FOAM plant: the
+    feedback only corrects model error, so the plant follows the plan and ends quiet."""
+    from controllers import LQR, DesignModel, optimal_reference
+    from hubbeam_ctrl.sim import simulate_closed_loop
+
+    p = Params()
+    opt = time_optimal_slew(p, 1.0, settings=FAST)
+    dt, T = 0.01, opt.duration_s
+    ref = optimal_reference(opt, dt, T + 4.0)
+    assert ref.elastic.shape == (len(ref.theta), 2 * p.n_transverse)
+    assert np.max(np.abs(ref.torque)) <= p.tau_max * (1 + 1e-9)
+    assert ref.theta[-1] == 1.0 and ref.torque[-1] == 0.0
+    # the feedforward is the optimal torque's average over each sample: same impulse
+    assert np.sum(ref.torque) * dt == pytest.approx(np.sum(opt.tau) * T / len(opt.tau), abs=1e-6 * p.tau_max * T)
+    res = simulate_closed_loop("foam", LQR(DesignModel.build(p, spin=0.0, dt=dt), reference=ref), T + 4.0,
+                               design_params=p)
+    assert res.settings["plant_modes"] == 10
+    track = np.abs(res.q[:, 0] - np.interp(res.t, ref.t, ref.theta))
+    assert track.max() < 3e-3                                     # rad, on a 1 rad slew
+    assert np.max(np.abs(res.v_tip[res.t >= T])) < opt.tolerance   # residual within 1e-3 L
+    assert abs(res.q[-1, 0] - 1.0) < 1e-3
+    assert np.max(np.abs(res.tau)) <= p.tau_max * (1 + 1e-9)
+
+
+def test_optimal_reference_bad_input():
+    from controllers import optimal_reference
+
+    opt = time_optimal_slew(Params(n_transverse=1), 0.5, settings=FAST)
+    with pytest.raises(ParameterError, match="t_end must be >="):
+        optimal_reference(opt, 0.01, 0.5 * opt.duration_s)
+    with pytest.raises(ParameterError, match="opt must be an OptimalSlew"):
+        optimal_reference("slew", 0.01, 10.0)

@@ -94,6 +94,8 @@ class OptimalSlew:
     theta, theta_dot, v_tip : ndarray (N+1,)
         Hub angle [rad], hub rate [rad/s] and tip deflection in the hub frame [m] of the
         design model at the grid times.
+    q2, q2_dot : ndarray (N+1, n2)
+        Transverse modal coordinates [m] and rates [m/s] of the design model at the grid times.
     tolerance : float
         Allowed residual tip vibration [m].
     residual_design : float
@@ -127,6 +129,8 @@ class OptimalSlew:
     theta: np.ndarray
     theta_dot: np.ndarray
     v_tip: np.ndarray
+    q2: np.ndarray
+    q2_dot: np.ndarray
     tolerance: float
     residual_design: float
     residual_plant: float | None
@@ -415,8 +419,9 @@ def _trajectory(pb: _Problem, w: np.ndarray, N: int) -> dict:
     c = pb.tip_modal
     eta, etad = pb.Phi.T @ pb.M0 @ q[:, -1], pb.Phi.T @ pb.M0 @ v[:, -1]
     residual = float(np.sum(np.abs(c) * np.hypot(eta, etad / pb.w)))
+    sl = pb.model.transverse_slice
     return {"T": T, "t": np.linspace(0.0, T, N + 1), "tau": tau, "theta": q[0], "theta_dot": v[0],
-            "v_tip": tip, "residual": residual, "angle_error": dangle}
+            "v_tip": tip, "q2": q[sl].T.copy(), "q2_dot": v[sl].T.copy(), "residual": residual, "angle_error": dangle}
 
 
 def _plant_check(params: Params, result: "OptimalSlew", settings: OptimalSettings, design_modes: int) -> tuple:
@@ -462,7 +467,8 @@ def _result(kind: str, params: Params, slew_angle: float, tolerance: float, pb: 
     m = pb.model
     design = f"{m.name.upper()}, {m.n_transverse} transverse modes, {m.axial} axial, {N} x {settings.degree} Radau"
     out = OptimalSlew(kind=kind, slew_angle=slew_angle, duration_s=tr["T"], t=tr["t"], tau=tr["tau"],
-                      theta=tr["theta"], theta_dot=tr["theta_dot"], v_tip=tr["v_tip"], tolerance=tolerance,
+                      theta=tr["theta"], theta_dot=tr["theta_dot"], v_tip=tr["v_tip"], q2=tr["q2"], q2_dot=tr["q2_dot"],
+                      tolerance=tolerance,
                       residual_design=tr["residual"], residual_plant=None, final_angle_plant=None,
                       rigid_bound_s=pb.T_rigid, converged=converged, message=message, solve_s=wall,
                       iterations=iterations, design=design, plant="", params=params)
