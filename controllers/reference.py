@@ -13,7 +13,6 @@ import math
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.limit.optimal import OptimalSlew
 from hubbeam_ctrl.plant.maneuvers import SpinUp
 
 from .base import Reference, check_positive
@@ -186,7 +185,7 @@ def spinup_reference(w_f: float, t_f: float, inertia: float, dt: float, t_end: f
                                   f"spin-up to {w_f:g} rad/s in {T:g} s (peak feedforward {peak:.4g} N m)")
 
 
-def optimal_reference(opt: OptimalSlew, dt: float, t_end: float) -> Reference:
+def optimal_reference(opt, dt: float, t_end: float) -> Reference:
     """The hub motion of an optimal slew as reference, its optimal torque as feedforward.
 
     The feedforward is the torque the optimisation found on the nonlinear design model
@@ -213,6 +212,8 @@ def optimal_reference(opt: OptimalSlew, dt: float, t_end: float) -> Reference:
     Reference
     """
     from scipy.interpolate import CubicHermiteSpline
+
+    from hubbeam_ctrl.limit.optimal import OptimalSlew  # the limit layer loads SciPy and IPOPT: on use
 
     if not isinstance(opt, OptimalSlew):
         raise ParameterError(f"opt must be an OptimalSlew, got {type(opt).__name__}")
