@@ -520,7 +520,7 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
     slew_angle : float
         Theta [rad], finite, not 0.
     duration : float
-        Slew time T [s], at least the rigid bound ``2 sqrt(Theta J / tau_max)``.
+        Slew time T [s], at least the time-optimal one.
     tolerance : float, optional
         Allowed residual tip vibration [m], > 0 (default 1e-3 L): a result above it raises.
     settings : OptimalSettings
@@ -536,21 +536,28 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
     Raises
     ------
     ParameterError
-        ``duration`` below the rigid bound, or so short that the smallest residual exceeds
-        ``tolerance``: one line naming ``name`` and the shortest feasible duration (the
-        time-optimal one).
+        ``duration`` so short that the smallest residual exceeds ``tolerance`` (below the
+        time-optimal duration): one line naming ``name`` and the shortest feasible duration,
+        found by :func:`time_optimal_slew`.
     """
     slew_angle, tolerance = _check_inputs(params, slew_angle, tolerance, settings)
     duration = check_positive(name, duration, "s")
-    bound = rigid_bound = rigid_bang_bang_time(params, slew_angle)
-    if duration < rigid_bound * (1 - 1e-9):
-        raise ParameterError(f"{name} must be >= {bound:.5g} s (the rigid bang-bang time 2 sqrt(Theta J / "
-                             f"tau_max) with tau_max = {params.tau_max:g} N m), got {duration:g} s")
+    quick = settings.replace(check=False)
+
+    def refuse():
+        fastest = time_optimal_slew(params, slew_angle, tolerance=tolerance, settings=quick)
+        if duration < fastest.duration_s:
+            raise ParameterError(f"{name} must be >= {fastest.duration_s:.5g} s (the time-optimal slew with "
+                                 f"residual <= {tolerance:.3g} m; the rigid bang-bang bound is "
+                                 f"{fastest.rigid_bound_s:.5g} s), got {duration:g} s")
+
+    if duration < rigid_bang_bang_time(params, slew_angle):     # below the rigid bound: hardly ever feasible
+        refuse()
     pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, duration, settings)
-    out = _result("min-vibration", params, slew_angle, tolerance, pb, w, stats, iterations, wall, settings)
+    out = _result("min-vibration", params, slew_angle, tolerance, pb, w, stats, iterations, wall, quick)
     if out.residual_design > tolerance * 1.0001:
-        fastest = time_optimal_slew(params, slew_angle, tolerance=tolerance,
-                                    settings=settings.replace(check=False))
-        raise ParameterError(f"{name} must be >= {fastest.duration_s:.5g} s (the time-optimal slew with residual "
-                             f"<= {tolerance:.3g} m), got {duration:g} s")
+        refuse()
+    if settings.check:
+        residual, angle, plant = _plant_check(params, out, settings, pb.model.n_transverse)
+        out = _replace(out, residual_plant=residual, final_angle_plant=angle, plant=plant)
     return out
