@@ -201,3 +201,20 @@ def test_lab_arm_limit_and_foreshortening():
     assert 1.0 <= tlam.ratio < 1.02
     assert 0.998 < foam.ratio < 1.0
     assert np.max(np.abs(foam.v_tip)) > 0.1 * LAB_ARM.L
+
+
+def test_negative_slew_mirrors_the_positive_one():
+    p = Params(n_transverse=1)
+    plus = time_optimal_slew(p, 0.5, settings=FAST)
+    minus = time_optimal_slew(p, -0.5, settings=FAST)
+    assert minus.converged and minus.duration_s == pytest.approx(plus.duration_s, rel=1e-6)
+    np.testing.assert_allclose(minus.tau, -plus.tau, atol=1e-4 * p.tau_max)
+    assert minus.theta[-1] == pytest.approx(-0.5, abs=5e-3)
+
+
+def test_not_converged_says_so_and_keeps_the_last_iterate():
+    p = Params(n_transverse=1)
+    r = time_optimal_slew(p, 1.0, settings=OptimalSettings(check=False, max_iter=3))
+    assert not r.converged
+    assert "Maximum_Iterations_Exceeded" in r.message and "last iterate is kept" in r.message
+    assert len(r.tau) == 40 and np.all(np.isfinite(r.tau)) and r.duration_s > 0

@@ -223,7 +223,6 @@ def _problem(params: Params, slew_angle: float, settings: OptimalSettings) -> _P
     n = model.n_q
     lin = second_order_linearization(model, 0.0, "free")
     M0, K0 = np.asarray(lin.M), np.asarray(lin.K)
-    keep = [0] + list(range(1 + model.n_axial, n))        # theta and q2 (axial modes are not bending)
     w2, V = sla.eigh(K0, M0)
     order = np.argsort(w2)
     w2, V = w2[order], V[:, order]
@@ -246,7 +245,6 @@ def _problem(params: Params, slew_angle: float, settings: OptimalSettings) -> _P
     a_scale = v_scale * rate
     f_scale = np.full(n, params.tau_max)
     f_scale[1:] = np.diag(K0)[1:] * q_scale[1:]
-    del keep
     return _Problem(model, n, M0, Phi, w, tip @ Phi, q_scale, v_scale, a_scale, f_scale, T_rigid,
                     float(slew_angle), params.tau_max)
 
