@@ -237,8 +237,9 @@ class DesignModel:
         ----------
         reference : Reference
         elastic : bool
-            Include the deflection the reference plans (:attr:`Reference.elastic`, when it
-            has this model's modes) or else the quasi-static deflection ``q2 = g theta_ddot``
+            Include the deflection the reference plans (:attr:`Reference.elastic`: its first
+            modes, the rest 0; the assumed modes are the same whatever their number) or else
+            the quasi-static deflection ``q2 = g theta_ddot``
             (and its rate) that the reference acceleration necessarily causes; otherwise ``q2 = 0``.
 
         Returns
@@ -250,8 +251,10 @@ class DesignModel:
         X[:, 0] = reference.theta
         X[:, n] = reference.theta_dot
         planned = getattr(reference, "elastic", None)
-        if elastic and planned is not None and planned.shape == (len(reference.theta), 2 * (n - 1)):
-            X[:, 1:n], X[:, n + 1:] = planned[:, :n - 1], planned[:, n - 1:]
+        if elastic and planned is not None and len(planned) == len(reference.theta):
+            # the assumed modes do not depend on their number: keep the first min(m, m_planned)
+            m_p, k = planned.shape[1] // 2, min(planned.shape[1] // 2, n - 1)
+            X[:, 1:1 + k], X[:, n + 1:n + 1 + k] = planned[:, :k], planned[:, m_p:m_p + k]
         elif elastic and len(reference.theta) > 1:
             g = self.quasi_static_gain
             acc = reference.theta_ddot

@@ -195,8 +195,8 @@ def optimal_reference(opt, dt: float, t_end: float) -> Reference:
     are the design model's hub angle and rate (a cubic Hermite interpolation of the grid
     values, whose derivative is the acceleration); after the slew the reference rests at
     the slew angle with no torque. The planned bending (the design model's modal coordinates
-    and rates) goes with it (:attr:`Reference.elastic`): a controller whose design model has
-    the same transverse modes tracks it instead of the quasi-static deflection.
+    and rates) goes with it (:attr:`Reference.elastic`): the controller tracks it (its first
+    modes, if the controller's design model has fewer) instead of the quasi-static deflection.
 
     Parameters
     ----------
