@@ -237,8 +237,10 @@ class DesignModel:
         ----------
         reference : Reference
         elastic : bool
-            Include the quasi-static deflection ``q2 = g theta_ddot`` (and its rate)
-            that the reference acceleration necessarily causes; otherwise ``q2 = 0``.
+            Include the deflection the reference plans (:attr:`Reference.elastic`: its first
+            modes, the rest 0; the assumed modes are the same whatever their number) or else
+            the quasi-static deflection ``q2 = g theta_ddot``
+            (and its rate) that the reference acceleration necessarily causes; otherwise ``q2 = 0``.
 
         Returns
         -------
@@ -248,7 +250,12 @@ class DesignModel:
         X = np.zeros((len(reference.theta), self.n_x))
         X[:, 0] = reference.theta
         X[:, n] = reference.theta_dot
-        if elastic and len(reference.theta) > 1:
+        planned = getattr(reference, "elastic", None)
+        if elastic and planned is not None and len(planned) == len(reference.theta):
+            # the assumed modes do not depend on their number: keep the first min(m, m_planned)
+            m_p, k = planned.shape[1] // 2, min(planned.shape[1] // 2, n - 1)
+            X[:, 1:1 + k], X[:, n + 1:n + 1 + k] = planned[:, :k], planned[:, m_p:m_p + k]
+        elif elastic and len(reference.theta) > 1:
             g = self.quasi_static_gain
             acc = reference.theta_ddot
             X[:, 1:n] = np.outer(acc, g)
@@ -277,6 +284,10 @@ class Reference:
     torque : ndarray (K,)
         Feedforward torque [N m] that drives the rigid body along the reference.
     description : str
+    elastic : ndarray (K, 2 m) or None
+        Planned modal coordinates and rates ``[q2, q2_dot]`` [m, m/s] of a reference that
+        knows the beam's motion (an optimal slew); None: the quasi-static deflection of
+        :meth:`DesignModel.reference_states`.
     """
 
     dt: float
@@ -285,6 +296,7 @@ class Reference:
     theta_ddot: np.ndarray
     torque: np.ndarray
     description: str = ""
+    elastic: np.ndarray | None = None
 
     @classmethod
     def from_profile(cls, profile, dt: float, t_end: float, description: str = "") -> "Reference":

@@ -7,6 +7,7 @@ flexible plant needs on top.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -17,7 +18,7 @@ from hubbeam_ctrl.plant.maneuvers import SpinUp
 
 from .base import Reference, check_positive
 
-__all__ = ["slew_reference", "spinup_reference", "eq44_reference", "slew_shape_constant"]
+__all__ = ["slew_reference", "spinup_reference", "eq44_reference", "slew_shape_constant", "optimal_reference"]
 
 
 def _shape(u, flatness):
@@ -184,3 +185,65 @@ def spinup_reference(w_f: float, t_f: float, inertia: float, dt: float, t_end: f
 
     return Reference.from_profile(profile, dt, t_end,
                                   f"spin-up to {w_f:g} rad/s in {T:g} s (peak feedforward {peak:.4g} N m)")
+
+
+def optimal_reference(opt, dt: float, t_end: float) -> Reference:
+    """The hub motion of an optimal slew as reference, its optimal torque as feedforward.
+
+    The feedforward is the torque the optimisation found on the nonlinear design model
+    (:func:`hubbeam_ctrl.limit.time_optimal_slew` or :func:`~hubbeam_ctrl.limit.min_vibration_slew`),
+    averaged over each controller sample (the controller holds it for ``dt``), so that the
+    feedback only corrects the difference between that model and the plant. Angle and rate
+    are the design model's hub angle and rate (a cubic Hermite interpolation of the grid
+    values, whose derivative is the acceleration); after the slew the reference rests at
+    the slew angle with no torque. The planned bending (the design model's modal coordinates
+    and rates) goes with it (:attr:`Reference.elastic`): the controller tracks it (its first
+    modes, if the controller's design model has fewer) instead of the quasi-static deflection.
+
+    Parameters
+    ----------
+    opt : OptimalSlew
+        The optimal slew.
+    dt : float
+        Controller sample time [s], > 0.
+    t_end : float
+        Last sample [s], at least the slew's duration.
+
+    Returns
+    -------
+    Reference
+    """
+    from scipy.interpolate import CubicHermiteSpline
+
+    from hubbeam_ctrl.limit.optimal import OptimalSlew  # the limit layer loads SciPy and IPOPT: on use
+
+    if not isinstance(opt, OptimalSlew):
+        raise ParameterError(f"opt must be an OptimalSlew, got {type(opt).__name__}")
+    dt = check_positive("dt", dt, "s")
+    T = opt.duration_s
+    if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end >= T):
+        raise ParameterError(f"t_end must be >= the slew's duration {T:.5g} s, got {t_end!r}")
+    spline = CubicHermiteSpline(opt.t, opt.theta, opt.theta_dot)
+    acc = spline.derivative()
+    edges = np.concatenate([opt.t[:-1], [T]])
+    work = np.concatenate([[0.0], np.cumsum(opt.tau * np.diff(edges))])   # int_0^t tau [N m s]
+
+    def profile(t):
+        inside = t <= T
+        tc = np.clip(t, 0.0, T)
+        th = np.where(inside, spline(tc), opt.slew_angle)
+        thd = np.where(inside, spline(tc, 1), 0.0)
+        a = np.where(inside, acc(tc), 0.0)
+        upper = np.clip(t + dt, 0.0, T)
+        tau = (np.interp(upper, edges, work) - np.interp(tc, edges, work)) / dt
+        return th, thd, a, np.where(inside, tau, 0.0)
+
+    ref = Reference.from_profile(profile, dt, t_end,
+                                 f"{opt.kind} slew {opt.slew_angle:.4g} rad in {T:.4g} s "
+                                 f"({opt.ratio:.3f} x the rigid bound; optimal feedforward)")
+    tc = np.clip(ref.t, 0.0, T)
+    modal = [CubicHermiteSpline(opt.t, q, qd) for q, qd in zip(opt.q2.T, opt.q2_dot.T)]
+    after = (ref.t > T)[:, None]
+    q2 = np.where(after, 0.0, np.column_stack([m(tc) for m in modal]))
+    q2d = np.where(after, 0.0, np.column_stack([m(tc, 1) for m in modal]))
+    return dataclasses.replace(ref, elastic=np.hstack([q2, q2d]))

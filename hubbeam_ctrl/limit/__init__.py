@@ -1,0 +1,9 @@
+"""The physical limit of a task: time-optimal and minimum-vibration slews on the nonlinear
+model, checked on the evaluation plant. Imports the sim, plant and core layers.
+"""
+
+import sys as _sys  # noqa: E402
+
+from hubbeam_ctrl.limit.optimal import *  # noqa: F401,F403
+
+__all__ = list(_sys.modules["hubbeam_ctrl.limit.optimal"].__all__)
