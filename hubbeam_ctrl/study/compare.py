@@ -106,6 +106,9 @@ class Comparison:
     margins : dict
         Controller name -> :class:`controllers.analysis.LoopMargins` at the plant input on
         its design model, for the linear controllers (PD, LQR, LQG).
+    controllers : dict
+        Controller name -> the linear controllers themselves (PD, LQR, LQG), for the loop
+        plots (:func:`hubbeam_ctrl.study.loops.comparison_loop_figures`).
     plant : EvaluationPlant
         The plant the controllers were judged on, and why it has its modes.
     """
@@ -119,6 +122,7 @@ class Comparison:
     targets: tuple = ()
     plant: EvaluationPlant | None = None
     margins: dict = field(default_factory=dict)
+    controllers: dict = field(default_factory=dict)
 
 
 def _design_modes(design_modes, design: Params) -> int:
@@ -244,7 +248,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         from hubbeam_ctrl.study.payload import range_designs
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
                                    solver=solver, sim=sim, plant_modes=plant_modes), **designs}
-    results, metrics, margins = {}, {}, {}
+    results, metrics, margins, linear = {}, {}, {}, {}
     clock = WallClock(sim.max_wall_s)        # the whole comparison's wall-time limit
     for name in names:
         if clock.expired():
@@ -255,6 +259,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=sched if spec.scheduled else None)
         margins[name] = _margins(ctrl)
+        linear[name] = ctrl
         run_sim = dataclasses.replace(sim, max_wall_s=max(1e-3, sim.max_wall_s - clock.elapsed()))
         res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=run_sim,
                                    reference=(ref.theta_at, ref.theta_dot_at), backend=backend)
@@ -279,7 +284,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
                       targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,
-                      margins={n: lm for n, lm in margins.items() if lm is not None})
+                      margins={n: lm for n, lm in margins.items() if lm is not None},
+                      controllers={n: c for n, c in linear.items() if margins[n] is not None})
 
 
 def _margins(ctrl):
