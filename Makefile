@@ -5,9 +5,10 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 STAMP_TEST := $(VENV)/.installed-test
 STAMP_BENCH := $(VENV)/.installed-bench
+STAMP_DOCS := $(VENV)/.installed-docs
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-fast lint coverage bench bench-notebooks notebooks clean
+.PHONY: demo test test-fast lint coverage bench bench-notebooks notebooks docs clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +24,10 @@ $(STAMP_TEST): $(BIN)/python pyproject.toml
 
 $(STAMP_BENCH): $(BIN)/python pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[bench]"
+	touch $@ $(STAMP)
+
+$(STAMP_DOCS): $(BIN)/python pyproject.toml
+	$(BIN)/python -m pip install --quiet -e ".[docs]"
 	touch $@ $(STAMP)
 
 demo: $(STAMP)
@@ -73,6 +78,17 @@ notebooks: $(STAMP_TEST)
 		$(BIN)/jupytext --quiet --to ipynb --output $$nb $$src; \
 		$(BIN)/jupyter nbconvert --to html --execute --output-dir $(NOTEBOOK_OUT) $$nb; \
 	done
+
+# the documentation site in build/docs/html (open build/docs/html/index.html): Sphinx with numpydoc,
+# MyST and myst-nb, the API reference from __all__, warnings as errors. The notebooks are executed
+# and rendered with their outputs (DOCS_EXECUTE=off renders them without running them, as the
+# suite's quick build does: tests/test_docs_site.py)
+DOCS_EXECUTE ?= force
+DOCS_JOBS ?= 2
+
+docs: $(STAMP_DOCS)
+	HUBBEAM_DOCS_EXECUTE=$(DOCS_EXECUTE) $(BIN)/python -m sphinx -b html -W --keep-going -q -j $(DOCS_JOBS) \
+		-c docs . build/docs/html
 
 clean:
 	rm -rf $(VENV) demo_out build

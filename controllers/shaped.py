@@ -109,7 +109,7 @@ class ShapedProfile:
     base_duration : float
         Length of the base profile [s].
     base_peak : float
-        Peak |torque| of the base profile [N m] (a bound on the shaped one's).
+        Peak ``|torque|`` of the base profile [N m] (a bound on the shaped one's).
     description : str
     """
 

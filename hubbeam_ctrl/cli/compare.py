@@ -198,7 +198,7 @@ def run(args) -> int:
                          solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
                          sim_settings={"range_limit": args.range_limit, **run_limits(args)},
                          progress=not args.json, backend=args.backend)
-    write_outputs(comparison, out)
+    paths = write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:
         print(strict_json(_json_metrics(comparison.metrics)), file=sink)
@@ -207,8 +207,7 @@ def run(args) -> int:
         print(f"{sc.plant.upper()}, {sc.name}: {sc.description}", file=sink)
         print(f"plant: {ev.model.upper()} with {ev.modes} transverse modes ({ev.reason})", file=sink)
         print(format_table(comparison.metrics), file=sink)
-        print(f"wrote {out}/metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
-              f"torque.png, report.md, MANIFEST.json ({wall:.1f} s)", file=sink)
+        print(f"wrote {out}/{', '.join(p.name for p in paths.values())}, MANIFEST.json ({wall:.1f} s)", file=sink)
     for name, m in comparison.metrics.items():
         if not m["completed"] or m.get("outside_validated_range"):
             print(f"warning: {name}: {m['message']}", file=sys.stderr)

@@ -256,6 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="hubbeam", description=(
         "Rotating hub-beam toolbox: nonlinear models with dynamic stiffening (CFOAM, FOAM, "
         "TLAM, SFOAM), modal analysis, simulation, linear models and controllers."))
+    parser.add_argument("--version", action="version", version=f"%(prog)s {sys.modules['hubbeam_ctrl'].__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
     p = sub.add_parser("modes", parents=[common], help="natural frequencies at a spin rate",

@@ -7,9 +7,10 @@ import sys as _sys  # noqa: E402
 from hubbeam_ctrl.core.budget import *  # noqa: F401,F403
 from hubbeam_ctrl.core.errors import *  # noqa: F401,F403
 from hubbeam_ctrl.core.fileio import *  # noqa: F401,F403
+from hubbeam_ctrl.core.htmlpage import *  # noqa: F401,F403
 from hubbeam_ctrl.core.progress import *  # noqa: F401,F403
 from hubbeam_ctrl.core.settings import *  # noqa: F401,F403
 from hubbeam_ctrl.core.validation import *  # noqa: F401,F403
 
-__all__ = [name for _m in ('errors', 'validation', 'settings', 'fileio', 'progress', 'budget')
+__all__ = [name for _m in ('errors', 'validation', 'settings', 'fileio', 'progress', 'budget', 'htmlpage')
            for name in _sys.modules[f"hubbeam_ctrl.core.{_m}"].__all__]

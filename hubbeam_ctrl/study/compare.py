@@ -106,6 +106,9 @@ class Comparison:
     margins : dict
         Controller name -> :class:`controllers.analysis.LoopMargins` at the plant input on
         its design model, for the linear controllers (PD, LQR, LQG).
+    controllers : dict
+        Controller name -> the linear controllers themselves (PD, LQR, LQG), for the loop
+        plots (:func:`hubbeam_ctrl.study.loops.comparison_loop_figures`).
     plant : EvaluationPlant
         The plant the controllers were judged on, and why it has its modes.
     certificates : dict
@@ -123,6 +126,7 @@ class Comparison:
     plant: EvaluationPlant | None = None
     margins: dict = field(default_factory=dict)
     certificates: dict = field(default_factory=dict)
+    controllers: dict = field(default_factory=dict)
 
 
 def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
@@ -220,7 +224,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         :mod:`controllers.scaling`; default: :func:`controllers.scaling.default_tolerances`).
     payload_range : tuple of float, optional
         ``(m_min, m_max)`` [kg] that LQR, LQG and MPC are designed for
-        (:func:`hubbeam_ctrl.study.payload.range_designs`); must hold the design's ``m_t``.
+        (:func:`hubbeam_ctrl.study.range_design.range_designs`); must hold the design's ``m_t``.
     designs : dict, optional
         Controller name -> :class:`controllers.robust.RangeDesign` (design model and
         settings) chosen beforehand.
@@ -263,10 +267,10 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     ref = sc.reference
     designs = dict(designs or {})
     if payload_range is not None:
-        from hubbeam_ctrl.study.payload import range_designs
+        from hubbeam_ctrl.study.range_design import range_designs
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
                                    solver=solver, sim=sim, plant_modes=plant_modes), **designs}
-    results, metrics, margins, certificates = {}, {}, {}, {}
+    results, metrics, margins, certificates, linear = {}, {}, {}, {}, {}
     clock = WallClock(sim.max_wall_s)        # the whole comparison's wall-time limit
     for name in names:
         if clock.expired():
@@ -277,6 +281,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=sched if spec.scheduled else None)
         margins[name] = _margins(ctrl)
+        linear[name] = ctrl
         run_sim = dataclasses.replace(sim, max_wall_s=max(1e-3, sim.max_wall_s - clock.elapsed()))
         res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=run_sim,
                                    reference=(ref.theta_at, ref.theta_dot_at), backend=backend)
@@ -302,7 +307,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                       styles={n: CONTROLLERS[n].style for n in names},
                       targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,
                       margins={n: lm for n, lm in margins.items() if lm is not None},
-                      certificates=certificates)
+                      certificates=certificates,
+                      controllers={n: c for n, c in linear.items() if margins[n] is not None})
 
 
 def _margins(ctrl):

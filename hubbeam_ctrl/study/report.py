@@ -135,7 +135,7 @@ def _write_files(comparison, out: Path, names: dict) -> None:
     }
     for fname, fig in figs.items():
         save_figure(fig, out / names[fname])
-    atomic_write_text(out / names["report"], _report(comparison))
+    _write_report(comparison, out, names)      # report.md, the loop figures and report.html
 
 
 def _report(comparison) -> str:
@@ -274,3 +274,24 @@ def print_table(metrics, file=None) -> None:
     print(format_table(metrics), file=file or sys.stdout)
 
 
+
+
+def _write_report(comparison, out: Path, names: dict) -> None:
+    """report.md (with loops_<controller>.png, the loop plots of each linear controller, linked
+    from it) and report.html, the same report as one page with the figures embedded."""
+    from hubbeam_ctrl.core.htmlpage import markdown_to_html
+    from hubbeam_ctrl.study.loops import comparison_loop_figures
+    text = _report(comparison)
+    figs = comparison_loop_figures(comparison)
+    if figs:
+        text += ("\n## Loop plots (linear controllers)\n\nEach figure: Bode and Nyquist of the loop gain at the "
+                 "plant input, |S| and |T|, closed-loop step and input-disturbance responses and the sampled "
+                 "closed-loop poles, on the design model and on the linear SFOAM with the evaluation plant's "
+                 "modes (hubbeam_ctrl.study.loops).\n\n")
+        for name, fig in figs.items():
+            names[f"loops_{name}.png"] = f"loops_{name}.png"
+            save_figure(fig, out / names[f"loops_{name}.png"], dpi=100)
+            text += f"- [{name}](loops_{name}.png)\n\n![loop plots of {name}](loops_{name}.png)\n\n"
+    atomic_write_text(out / names["report"], text)
+    names["report.html"] = "report.html"
+    atomic_write_text(out / names["report.html"], markdown_to_html(text, out))
