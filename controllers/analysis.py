@@ -41,6 +41,8 @@ from scipy.optimize import brentq, minimize_scalar
 
 from hubbeam_ctrl.core.errors import ParameterError
 
+from .base import DesignModel
+
 __all__ = ["LoopMargins", "design_plant", "loop_transfer", "loop_matrices", "closed_loop_poles",
            "loop_margins", "frequency_grid"]
 
@@ -100,6 +102,8 @@ def loop_matrices(ctrl, plant=None):
     plant : DesignModel, optional
         The linear plant, with the design model's sample time and at least its modes
         (e.g. another payload, or residual modes); default the controller's design model.
+        A plant with fewer modes than a gain with residual modes reads
+        (``ctrl.state_modes``) is rebuilt with them (same parameters, spin and sample time).
 
     Returns
     -------
@@ -107,6 +111,10 @@ def loop_matrices(ctrl, plant=None):
     """
     c = ctrl.to_statespace()
     d = ctrl.design if plant is None else plant
+    needed = int(getattr(ctrl, "state_modes", 0) or 0)
+    if plant is not None and d.n_modes < needed and d.dt == ctrl.design.dt:
+        # a gain on the residual modes (residual_control) reads them: the same plant with them
+        d = DesignModel.build(d.params, d.spin, d.dt, needed)
     missing = [n for n in c.input_labels if n not in _SENSOR_ROWS and n not in d.state_names]
     if d.dt != ctrl.design.dt or missing:
         raise ParameterError(f"plant must have dt = {ctrl.design.dt:g} s and the signals the controller reads "

@@ -122,7 +122,15 @@ def payload_grid(payload_range, nominal: float) -> tuple:
 
 
 def _linear_run(design: DesignModel, plant: DesignModel, ctrl, n_steps: int) -> np.ndarray:
-    """Tip deflection of the linear ``plant`` under ``ctrl`` over ``n_steps`` samples [m]."""
+    """Tip deflection of the linear ``plant`` under ``ctrl`` over ``n_steps`` samples [m].
+
+    A state-reading controller whose gain acts on more modes than ``plant`` has (residual
+    control) runs on the same plant with those modes, and reads the coordinates of its modes."""
+    m = int(getattr(ctrl, "state_modes", plant.n_modes))
+    if ctrl.measurement != "sensors" and plant.n_modes < m:
+        plant = DesignModel.build(plant.params, plant.spin, plant.dt, m)
+    n = plant.n_x // 2
+    read = np.r_[0:1 + m, n:n + 1 + m] if ctrl.measurement != "sensors" else None
     x = np.zeros(plant.n_x)
     A, b = plant.Ad, plant.Bd[:, 0]
     c_tip = plant.C_tip[0]
@@ -131,7 +139,7 @@ def _linear_run(design: DesignModel, plant: DesignModel, ctrl, n_steps: int) -> 
     v = np.empty(n_steps)
     for k in range(n_steps):
         v[k] = c_tip @ x
-        y = x if C is None else C @ x
+        y = x[read] if C is None else C @ x
         x = A @ x + b * ctrl(k * design.dt, y)
         if not np.all(np.isfinite(x)) or abs(v[k]) > 10 * plant.params.L:
             v[k:] = np.inf

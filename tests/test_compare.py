@@ -55,7 +55,10 @@ def test_slew_targets_on_foam(slew_foam):
     assert m["mpc"]["qp_fallbacks"] == 0
     # PD is only reported; it exists and completed; the undamped open loop rings on
     assert m["pd"]["completed"]
-    assert m["openloop"]["verdict"] == "not settled" and m["pd"]["verdict"] == "not settled"
+    assert m["openloop"]["verdict"] == "not settled"
+    # the static PD pumps mode 8 (70 Hz, folded to 30 Hz) at |z| = 1 + 1.1e-7: its certificate
+    # grows, so it is unstable whatever the window shows (issue 27)
+    assert m["pd"]["verdict"] == "unstable" and m["pd"]["loop_worst_source"] == "mode 8"
 
 
 @pytest.mark.slow

@@ -100,10 +100,12 @@ def test_values_are_normalised():
 
 
 def test_shared_fields_are_declared_once():
-    """LQR, LQG and MPC share tau_max, feedforward, weights and elastic_reference; LQG adds the
+    """LQR, LQG and MPC share tau_max, feedforward, weights, elastic_reference and the residual
+    modes (issue 27); LQG adds the
     Kalman filter's noise model, whose sensor noise defaults are the sensors' own."""
     base = {f.name: f for f in fields(LQSettings)}
-    assert set(base) == {"tau_max", "feedforward", "weights", "elastic_reference"}
+    assert set(base) == {"tau_max", "feedforward", "weights", "elastic_reference", "residual_control",
+                         "residual_modes"}
     for cls in (LQRSettings, LQGSettings, MPCSettings):
         own = {f.name: f for f in fields(cls)}
         assert all(own[name] is field for name, field in base.items()), cls.__name__

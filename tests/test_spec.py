@@ -79,7 +79,7 @@ def test_controller_settings_replace_the_defaults():
                                 "settings": {"lqr": {"weights": {"tip": 5e3}}}})
     sc = spec.scenario_for(spec.params)
     st = controller_settings("lqr", spec.settings["lqr"], sc)
-    assert st == LQRSettings(weights=st.weights, tau_max=150.0)
+    assert st == LQRSettings(weights=st.weights, tau_max=150.0, residual_control=True)   # for_scenario's
     # the other weights are the scenario's scaled defaults (controllers.scaling)
     assert (st.weights.tip, st.weights.angle) == (5e3, sc.defaults["weights"].angle)
 

@@ -14,8 +14,8 @@ controllers that track one through an input shaper; ``schedule=N`` runs the regi
 gain-scheduled version of those that have one on ``N`` design spins
 (:meth:`controllers.DesignSchedule.for_scenario`).
 
-Example
--------
+Examples
+--------
 >>> from hubbeam_ctrl.study import run_compare, print_table
 >>> m = run_compare(plant="foam", controllers="openloop,lqr", out_dir=None)  # doctest: +SKIP
 >>> print_table(m)                                                           # doctest: +SKIP
