@@ -154,3 +154,14 @@ def test_cli_compare_equals_api_compare(tmp_path):
     for key in ("verdict", "residual_tip_max_m", "residual_tip_rms_m", "final_angle_error_rad", "peak_torque_nm",
                 "loop_spectral_radius", "torque_growth_rate_per_s"):
         assert cli[key] == api[key], key
+
+
+def test_report_states_the_certificate(tmp_path):
+    """The report says what decided each verdict: the certificate's sentence and the reason."""
+    from hubbeam_ctrl.study.report import format_table, write_outputs
+    comp = compare("foam", "slew", "pd", t_end=16.0)
+    write_outputs(comp, tmp_path)
+    text = (tmp_path / "report.md").read_text()
+    assert "## Stability: linear certificate and verdict" in text
+    assert "| pd | unstable | GROWS: spectral radius 1.0000001" in text and "mode 8 (70.16 Hz, folded)" in text
+    assert "loop |z|" in format_table(comp.metrics) and "1.0000001" in format_table(comp.metrics)

@@ -13,7 +13,7 @@ import numpy as np
 from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json, write_folder
 from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
 from hubbeam_ctrl.plots.plant import save_figure
-from hubbeam_ctrl.study.metrics import GROWTH_LIMIT, METRIC_UNITS, SATURATION_LIMIT
+from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
 
 __all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE"]
 
@@ -152,9 +152,11 @@ def _report(comparison) -> str:
               f"{sc.t_f + sc.bands['residual_delay']:g} s to the end. Settling: hub-angle error within "
               f"{1e3 * sc.bands['settle_angle']:.3g} mrad and |v_tip| within {1e3 * sc.bands['settle_tip']:.3g} mm "
               f"at the end (bands relative to the task's angle and L).",
-              f"- Verdicts: diverged (the run stopped), unstable (residual envelope grows more than "
-              f"{GROWTH_LIMIT:g}x beyond the tip band, or the torque is at its limit more than "
-              f"{100 * SATURATION_LIMIT:g} % of the residual window), settled, not settled.",
+              f"- Verdicts: failed (the integrator or the controller failed, or the wall-clock limit), "
+              f"diverged (the plant passed its divergence limit), unstable (the linear certificate's loop "
+              f"grows, or the envelope of the tip, the torque ripple or the angle error grows at a "
+              f"resolved rate, or the torque is at its limit more than {100 * SATURATION_LIMIT:g} % of the "
+              f"residual window), settled, not settled.",
               f"- Wall time of the comparison: {comparison.wall_s:.1f} s.", "",
               markdown_table(comparison.metrics), ""]
     if sc.name == "slew" and "openloop" in comparison.metrics:
@@ -167,6 +169,7 @@ def _report(comparison) -> str:
             note = "" if name in comparison.targets or name == "openloop" else " (reported only)"
             lines.append(f"| {name}{note} | {yes[s_ok]} | {yes[r_ok]} | {yes[t_ok]} | {yes[a_ok]} |")
         lines.append("")
+    lines += _certificate_lines(comparison)
     lines += _margin_lines(getattr(comparison, "margins", {}))
     notes = [f"- {name}: {m['message']}" for name, m in comparison.metrics.items()
              if not m["completed"] or m.get("outside_validated_range")]
@@ -200,6 +203,22 @@ def _margin_lines(margins: dict) -> list:
     return lines + [""]
 
 
+def _certificate_lines(comparison) -> list:
+    """The linear certificates and what decided each verdict (issue 27)."""
+    certs = getattr(comparison, "certificates", {}) or {}
+    if not certs:
+        return []
+    lines = ["## Stability: linear certificate and verdict", "",
+             "Each controller's sampled loop with the evaluation plant's linear model (all of its modes, "
+             "zero-order hold); a spectral radius above 1 + 1e-7 is unstable whatever the run shows.", "",
+             "| controller | verdict | certificate | why |", "|---|---|---|---|"]
+    for name, m in comparison.metrics.items():
+        cert = certs.get(name)
+        text = cert.describe() if cert is not None else "-"
+        lines.append(f"| {name} | {m['verdict']} | {text} | {m.get('verdict_reason', '')} |")
+    return lines + [""]
+
+
 _TABLE = [
     ("verdict", "verdict", "{}"),
     ("controller", "controller", "{}"),
@@ -211,6 +230,7 @@ _TABLE = [
     ("final_angle_error_rad", "err(end) rad", "{:.2e}"),
     ("settling_time_s", "settle s", "{:.2f}"),
     ("peak_torque_nm", "peak tau Nm", "{:.1f}"),
+    ("loop_spectral_radius", "loop |z|", "{:.7f}"),
     ("torque_squared_integral_n2m2s", "int tau^2", "{:.3g}"),
     ("step_time_median_ms", "step med ms", "{:.3f}"),
     ("step_time_p99_ms", "step p99 ms", "{:.3f}"),
