@@ -106,3 +106,7 @@ def test_wheel_installs_into_fresh_venv_without_warnings(tmp_path):
     assert hz[0] == pytest.approx(0.4145, abs=1e-3)      # FOAM, Table 1, at rest: the first bending mode
     bad = run("modes", "--n-modes", "0")
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    demo = run("demo", "--out", "demo_out")                # the main job, from the installed wheel
+    assert demo.returncode == 0, demo.stderr[-2000:]
+    assert "TLAM/FOAM residual vibration ratio: 236" in demo.stdout and "settled" in demo.stdout
+    assert (outside / "demo_out" / "spinup_comparison.png").is_file()

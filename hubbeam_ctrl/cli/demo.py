@@ -16,12 +16,9 @@ import time
 from pathlib import Path
 
 from hubbeam_ctrl.core.fileio import atomic_write_text
-from hubbeam_ctrl.plant.maneuvers import SpinUp
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.plots.plant import plot_tip_comparison, save_figure
-from hubbeam_ctrl.sim.simulate import simulate
 
-__all__ = ["spinup_comparison", "main"]
+__all__ = ["spinup_comparison", "main", "add_parser", "run"]
 
 #: The paper's quoted values at w_f = 2.8 rad/s (Section 4.2).
 PAPER_PEAKS_M = {"foam": 0.22, "tlam": 0.49}
@@ -49,6 +46,11 @@ def spinup_comparison(out_dir, w_f: float = 2.8, t_f: float = 30.0, t_end: float
     dict
         Model -> summary (see :meth:`hubbeam_ctrl.sim.results.Result.summary`).
     """
+    # imported here: `hubbeam` builds its parser from this module and must start light
+    from hubbeam_ctrl.plant.maneuvers import SpinUp
+    from hubbeam_ctrl.plots.plant import plot_tip_comparison, save_figure
+    from hubbeam_ctrl.sim.simulate import simulate
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     results = {}
@@ -96,6 +98,40 @@ def main(argv=None) -> int:
         print_table(metrics)
     print(f"demo finished in {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def add_parser(subparsers, common) -> None:
+    """Add the ``demo`` subcommand (the job behind ``make demo``; ``common`` is not used).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``hubbeam`` subcommands to add to.
+    common : argparse.ArgumentParser
+        Parent parser with the common plant options.
+    """
+    p = subparsers.add_parser(
+        "demo", help="the paper's spin-up comparison and the closed-loop comparison (make demo)",
+        description=("TLAM, FOAM and CFOAM spun up to 2.8 rad/s (the paper's Fig. 5), then the five "
+                     "controllers on the default slew on FOAM; plots, metrics and reports in --out."))
+    p.add_argument("--out", metavar="DIR", default="demo_out", help="output folder (default demo_out)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    """Run ``hubbeam demo``; returns the exit status (0).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    import contextlib
+
+    from hubbeam_ctrl.cli.args import check_output_dir, stdout
+    check_output_dir("--out", args.out)
+    with contextlib.redirect_stdout(stdout(args)):
+        return main(["--out", str(args.out)])
 
 
 if __name__ == "__main__":
