@@ -43,7 +43,6 @@ from hubbeam_ctrl.core.budget import (
 from hubbeam_ctrl.core.compiled import resolve_backend
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
-from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
@@ -131,7 +130,7 @@ class Comparison:
 
 def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
     """The closed loop's settings: the caller's, or the scenario's default with overrides."""
-    default = ClosedLoopSettings(sensors=SensorSettings(**(sc.sensors or {})))
+    default = sc.closed_loop_settings()
     if sim_settings is None:
         return default
     if isinstance(sim_settings, dict):

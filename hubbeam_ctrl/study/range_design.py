@@ -107,9 +107,7 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
     else:
         baseline = lambda t: sc.reference.at(t)[2]
     if sim is None:
-        from hubbeam_ctrl.plant.sensors import SensorSettings
-        from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
-        sim = ClosedLoopSettings(dt=sc.dt, sensors=SensorSettings(**(sc.sensors or {})))
+        sim = sc.closed_loop_settings()
     score = _nonlinear_score(sc, sim, design.n_modes, plant_modes)
     out = {}
     for name in names:

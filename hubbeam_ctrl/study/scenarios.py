@@ -29,6 +29,8 @@ from hubbeam_ctrl.core.budget import T_END_MAX
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.params import Params, check_spin
+from hubbeam_ctrl.plant.sensors import SensorSettings
+from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.evaluation import PLANT_MODELS
 from hubbeam_ctrl.study.tasks import Slew, SpinUp
 
@@ -153,6 +155,24 @@ class Scenario:
     defaults: dict = None
     sensors: dict = None
     bands: dict = None
+
+    def closed_loop_settings(self, seed: int | None = None):
+        """The closed loop's default settings for this task: its sample time and the sensor
+        noise scaled to its signals (:attr:`sensors`).
+
+        Parameters
+        ----------
+        seed : int, optional
+            Seed of the sensor noise (default: the sensors' default).
+
+        Returns
+        -------
+        hubbeam_ctrl.sim.closedloop.ClosedLoopSettings
+        """
+        noise = dict(self.sensors or {})
+        if seed is not None:
+            noise["seed"] = int(seed)
+        return ClosedLoopSettings(dt=self.dt, sensors=SensorSettings(**noise))
 
     def to_dict(self) -> dict:
         """Plain-data summary (JSON-ready)."""

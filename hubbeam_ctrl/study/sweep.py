@@ -35,8 +35,7 @@ from pathlib import Path
 from controllers import CONTROLLERS, DesignModel, as_shaper, make_controller
 from hubbeam_ctrl.core.errors import ParameterError, write_error
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
-from hubbeam_ctrl.plant.sensors import SensorSettings
-from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
+from hubbeam_ctrl.sim.closedloop import simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import evaluation_plant
 from hubbeam_ctrl.study.compare import _design_schedule
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
@@ -166,8 +165,7 @@ def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
             "plant": cache.get(pkey, lambda: evaluation_plant(spec.plant, design_p, spec.dt, m, spin,
                                                               plant_params=plant_p,
                                                               plant_modes=spec.plant_modes)),
-            "sim": ClosedLoopSettings(dt=spec.dt, sensors=SensorSettings(**(sc.sensors or {}),
-                                                                         seed=int(case.get("seed", 0))))}
+            "sim": sc.closed_loop_settings(seed=int(case.get("seed", 0)))}
 
 
 def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> dict:
