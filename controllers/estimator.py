@@ -24,7 +24,7 @@ from hubbeam_ctrl.plant.sensors import SensorSettings
 
 from .base import DesignModel, check_psd
 
-__all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain"]
+__all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain", "solve_kalman"]
 
 #: The sensors' own specification: the filter's assumed sensor noise defaults to it.
 _SENSORS = SensorSettings()
@@ -106,13 +106,36 @@ class KalmanNoise(Settings):
 
 def _kalman_design(design: DesignModel, noise: KalmanNoise, design_modes: int | None = None):
     """Filter gain ``L`` (measurement update) and a-priori covariance ``P`` via :func:`control.dlqe`."""
-    import control  # lazily: keeps the CLI's start-up light
     if not isinstance(noise, KalmanNoise):
         raise ParameterError(f"noise must be a KalmanNoise, got {type(noise).__name__}")
-    A, C = design.Ad, design.C_sensors
     Qn, Rn = noise.covariances(design, design_modes)
+    return solve_kalman(design.Ad, design.C_sensors, Qn, Rn)
+
+
+def solve_kalman(A: np.ndarray, C: np.ndarray, Qn: np.ndarray, Rn: np.ndarray):
+    """Steady-state Kalman gain in measurement-update form and the a-priori covariance.
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+        Sampled state matrix.
+    C : ndarray (ny, n)
+        Output matrix.
+    Qn : ndarray (n, n)
+        Process-noise covariance per sample (in state units).
+    Rn : ndarray (ny, ny)
+        Measurement-noise covariance.
+
+    Returns
+    -------
+    L : ndarray (n, ny)
+        ``x_hat = x_pred + L (y - C x_pred)``.
+    P : ndarray (n, n)
+        A-priori error covariance (:func:`control.dlqe`'s Riccati solution).
+    """
+    import control  # lazily: keeps the CLI's start-up light
     try:
-        _, P, poles = control.dlqe(A, np.eye(design.n_x), C, Qn, Rn)
+        _, P, poles = control.dlqe(A, np.eye(A.shape[0]), C, Qn, Rn)
     except (np.linalg.LinAlgError, ValueError, control.ControlArgument) as exc:
         raise ParameterError(f"the Kalman filter's Riccati equation has no solution ({exc}); "
                              "check the noise levels") from None

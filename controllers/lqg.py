@@ -15,6 +15,7 @@ from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
 from .estimator import KalmanEstimator, KalmanNoise
+from .integral import OffsetFreeEstimator, observer_feedback_matrices
 from .lqr import dlqr_gain
 from .residual import embedding, estimator_model, residual_design
 
@@ -32,6 +33,13 @@ class LQGSettings(KalmanNoise, LQSettings):
     robust: bool = setting(True, doc="Model the residual modes in the filter (controllers.residual); "
                                      "False: the filter on the design model alone, which the modes it "
                                      "leaves out destabilise.")
+    integral: bool = setting(False, doc="Integral action: the filter also estimates a constant input "
+                                        "disturbance torque, which the command cancels (offset-free control, "
+                                        "controllers.integral); the default on rigs with friction.")
+    disturbance_noise_nm: float | None = setting(None, unit="N m", lo=0.0, lo_open=True, kind=float,
+                                                 doc="Random-walk standard deviation per sample of the "
+                                                     "disturbance the integral action estimates; None: 1 % "
+                                                     "of the torque limit.")
 
 
 def filter_model(design: DesignModel, settings: LQGSettings) -> DesignModel:
@@ -92,7 +100,11 @@ class LQG(Controller):
         super().__init__(design, settings, reference)
         self.K, self.P = dlqr_gain(design, settings.weights)
         self.filter_model = filter_model(design, settings)
-        self.estimator = KalmanEstimator(self.filter_model, settings, design.n_modes)
+        if settings.integral:
+            noise_d = settings.disturbance_noise_nm or 0.01 * self.tau_max
+            self.estimator = OffsetFreeEstimator(self.filter_model, settings, noise_d, design.n_modes)
+        else:
+            self.estimator = KalmanEstimator(self.filter_model, settings, design.n_modes)
         self._E = embedding(design.n_modes, self.filter_model.n_modes)
         self._ff = 1.0 if settings.feedforward else 0.0
         self._n = self.filter_model.n_x // 2
@@ -139,10 +151,13 @@ class LQG(Controller):
         """
         fm = self.filter_model
         K = self._Ke[None, :]
-        F = fm.Ad - fm.Bd @ K
-        M = np.eye(fm.n_x) - self.L @ fm.C_sensors
         states = [f"{name}_est" for name in fm.state_names]
-        return F @ M, F @ self.L, -K @ M, -K @ self.L, states, ["theta", "theta_dot", "root_moment"]
+        A, B, C = fm.Ad, fm.Bd, fm.C_sensors
+        if self.settings.integral:
+            K = np.hstack([K, [[1.0]]])
+            A, B, C = self.estimator.A, self.estimator.B, self.estimator.C
+            states.append("d_est")
+        return (*observer_feedback_matrices(A, B, C, self.L, K), states, ["theta", "theta_dot", "root_moment"])
 
     def __call__(self, t: float, y) -> float:
         """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
@@ -155,6 +170,8 @@ class LQG(Controller):
         table = self._xref_filter
         xr = table[k] if table is not None and k < len(table) else self._E @ xr
         # x_hat is a deviation from the steady rotation; x_ref is absolute
-        u = K @ (x_hat - xr) + K[0] * spin * t + K[self._n] * spin
+        u = K @ (x_hat[:len(K)] - xr) + K[0] * spin * t + K[self._n] * spin
+        if self.settings.integral:
+            u += x_hat[-1]                      # cancel the estimated disturbance torque
         self._tau = saturate(float(self._ff * tff - u), self.tau_max)
         return self._tau

@@ -43,10 +43,12 @@ from hubbeam_ctrl.core.budget import (
 from hubbeam_ctrl.core.compiled import resolve_backend
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
+from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
+from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise, task_t_end
 from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
@@ -155,12 +157,13 @@ def _design_modes(design_modes, design: Params) -> int:
 def compare(plant: str = "foam", scenario="slew", controllers=None, *,
             params: Params | None = None, design_params: Params | None = None,
             plant_params: Params | None = None, tau_max: float | None = None, t_f: float = 10.0,
-            t_end: float = 30.0, dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
+            t_end: float | None = None, dt: float | None = None, w_f: float = 3.0, slew_angle: float | None = None,
             design_modes: int | None = None, plant_modes: int | None = None, horizon: int = 50,
             solver: str = "daqp", settings: dict | None = None,
             sim_settings: ClosedLoopSettings | None = None, shaping=None, schedule: int = 1,
             tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
-            progress: bool = False, backend=None) -> Comparison:
+            progress: bool = False, backend=None, rig: Rig | None = None,
+            integral: bool | None = None) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
@@ -186,7 +189,9 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     tau_max : float, optional
         Torque budget [N m], at most the motor's ``Params.tau_max`` (default: that limit).
     t_f, t_end, dt : float
-        Maneuver time, simulated time and sample time [s].
+        Maneuver time, simulated time and sample time [s] (``dt`` default: the rig's, else 0.01 s;
+        ``t_end`` default: on a rig the task's, :func:`hubbeam_ctrl.study.rig_loop.task_t_end`,
+        else 30 s).
     w_f : float
         Spin-up final rate [rad/s].
     slew_angle : float, optional
@@ -232,6 +237,16 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     backend : {"auto", "compiled", "vm"}, optional
         How the plant is evaluated (see :class:`~hubbeam_ctrl.sim.stepper.PlantStepper`);
         default ``$HUBBEAM_BACKEND`` or ``"auto"``.
+    rig : Rig, optional
+        The physical rig (:func:`hubbeam_ctrl.plant.rig.load_rig`): its beam is ``params``
+        (unless given; with the reflected rotor inertia and the rig's damping), its sample time
+        ``dt`` (unless given), and the evaluation plant carries its drive, friction and
+        sensors; the controllers run as :func:`hubbeam_ctrl.study.rig_loop.on_rig` makes them
+        (observer, integral action, voltage). A rig with ideal hardware gives the beam alone's
+        numbers bit for bit.
+    integral : bool, optional
+        Integral action of LQR, LQG and MPC on the rig (default: on when the rig has friction
+        or a DC motor, :func:`hubbeam_ctrl.study.rig_loop.integral_default`).
 
     Returns
     -------
@@ -240,10 +255,19 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     start = time.perf_counter()
     backend = resolve_backend(backend)
     names = _parse_controllers(controllers)
+    if rig is not None and not isinstance(rig, Rig):
+        raise ParameterError(f"rig must be a Rig (hubbeam_ctrl.plant.rig.load_rig), got {type(rig).__name__}")
+    if rig is not None:
+        params = params if params is not None else rig.plant_params
+        dt = dt if dt is not None else rig.timing.dt
+    dt = 0.01 if dt is None else dt
     base = params if params is not None else Params()
     design_p = design_params if design_params is not None else base
-    sc = make_scenario(scenario, plant=plant, params=design_p, tau_max=tau_max, t_f=t_f,
-                       t_end=t_end, dt=dt, w_f=w_f, slew_angle=slew_angle, tolerances=tolerances)
+    options = dict(plant=plant, params=design_p, tau_max=tau_max, t_f=t_f, dt=dt, w_f=w_f,
+                   slew_angle=slew_angle, tolerances=tolerances)
+    sc = make_scenario(scenario, t_end=30.0 if t_end is None else t_end, **options)
+    if t_end is None and rig is not None:
+        sc = make_scenario(scenario, t_end=task_t_end(sc), **options)
     m = _design_modes(design_modes, sc.params)
     ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
                           plant_params=plant_params if plant_params is not None else params,
@@ -255,9 +279,16 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     sim = _sim_settings(sim_settings, sc)
     if sim.dt != sc.dt:
         sim = dataclasses.replace(sim, dt=sc.dt)
+    hardware = None
+    if rig is not None:
+        sim, hardware = rig_closed_loop(rig, sim)
     chosen = {name: settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon,
                                                                                    solver=solver)
               for name in names}
+    if rig is not None:
+        chosen = {name: st if name in settings else rig_settings(name, st, rig, integral)
+                  for name, st in chosen.items()}
+        noise = task_noise(sc, rig)
     chosen = {name: residual_modes_for(st, ev.modes) for name, st in chosen.items()}
     _check_budget(sc, ev, chosen, m, sim, schedule)
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
@@ -279,11 +310,14 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         st = designs[name].settings if name in designs else chosen[name]
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=sched if spec.scheduled else None)
+        if rig is not None:
+            ctrl = on_rig(ctrl, rig, noise, hardware, integral)
         margins[name] = _margins(ctrl)
         linear[name] = ctrl
         run_sim = dataclasses.replace(sim, max_wall_s=max(1e-3, sim.max_wall_s - clock.elapsed()))
         res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=run_sim,
-                                   reference=(ref.theta_at, ref.theta_dot_at), backend=backend)
+                                   reference=(ref.theta_at, ref.theta_dot_at), backend=backend,
+                                   hardware=hardware)
         results[name] = res
         metrics[name], certificates[name] = judge(res, ctrl, sc, ev.params, name)
         metrics[name]["scenario"] = sc.name

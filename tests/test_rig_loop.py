@@ -1,0 +1,135 @@
+"""Controllers on a rig: integral action by disturbance estimation, observers for state feedback,
+voltage commands, and the comparison on a rig (issue 21)."""
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from controllers import LQG, LQR, MPC, DesignModel, KalmanNoise, LQGSettings, LQRSettings, MPCSettings
+from controllers.drive import VoltageCommand
+from controllers.integral import ObservedFeedback, OffsetFreeEstimator
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.plant.rig import Rig, load_rig
+from hubbeam_ctrl.sim.hardware import Hardware
+from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.tasks import Slew
+
+ENCODER = 2 * math.pi / 4096
+
+
+@pytest.fixture(scope="module")
+def design():
+    return DesignModel.build(Params(), 0.0, 0.01, 2)
+
+
+def test_offset_free_estimator_finds_a_constant_disturbance(design):
+    est = OffsetFreeEstimator(design, KalmanNoise(), disturbance_noise=0.05)
+    x, d, u = np.zeros(design.n_x), 0.7, 0.3              # 0.7 N m the model does not know
+    est.reset()
+    for k in range(3000):
+        est.update(design.C_sensors @ x, None if k == 0 else u)
+        x = design.Ad @ x + design.Bd[:, 0] * (u + d)
+    assert est.disturbance == pytest.approx(d, rel=1e-6)
+
+
+def test_offset_free_estimator_refuses_bad_noise(design):
+    with pytest.raises(ParameterError, match="disturbance_noise"):
+        OffsetFreeEstimator(design, KalmanNoise(), disturbance_noise=0.0)
+
+
+def _run_law(Ac, Bc, Cc, Dc, Y):
+    x = np.zeros(Ac.shape[0])
+    out = []
+    for y in Y:
+        out.append(float((Cc @ x + Dc @ y)[0]))
+        x = Ac @ x + Bc @ y
+    return np.array(out)
+
+
+@pytest.mark.parametrize("kind", ["lqg", "lqr", "mpc"])
+def test_integral_law_equals_the_controller(design, kind):
+    """The linear law the certificate closes (feedback_matrices) is the controller's, sample by sample."""
+    if kind == "lqg":
+        ctrl = LQG(design, LQGSettings(integral=True, disturbance_noise_nm=0.5))
+    elif kind == "lqr":
+        ctrl = ObservedFeedback(LQR(design, LQRSettings()), KalmanNoise(), 0.5)
+    else:
+        ctrl = ObservedFeedback(MPC(design, MPCSettings(horizon=20)), KalmanNoise(), 0.5)
+    Ac, Bc, Cc, Dc, states, inputs = ctrl.feedback_matrices()
+    assert states[-1] == "d_est" and inputs == ["theta", "theta_dot", "root_moment"]
+    rng = np.random.default_rng(1)
+    Y = 1e-4 * rng.standard_normal((60, 3))
+    ctrl.reset()
+    got = np.array([ctrl(k * design.dt, y) for k, y in enumerate(Y)])
+    want = _run_law(Ac, Bc, Cc, Dc, Y)
+    assert np.max(np.abs(got - want)) <= 1e-9 * max(1.0, np.max(np.abs(want)))
+    # integral action: the law has a pole at z = 1 (infinite gain at DC)
+    assert np.min(np.abs(np.linalg.eigvals(Ac) - 1.0)) < 1e-9
+
+
+def test_voltage_command_gives_the_torque_asked_for():
+    rig = load_rig("servo_link")
+    hw = Hardware.from_rig(rig)
+    d = DesignModel.build(rig.plant_params, 0.0, 1e-3, 2)
+    inner = LQG(d, LQGSettings())
+    ctrl = VoltageCommand(inner, hw)
+    ctrl.reset()
+    y = np.array([0.01, 2.0, 0.0])                     # 10 mrad behind, turning at 2 rad/s
+    V = ctrl(0.0, y)
+    assert abs(V) < rig.drive.V_max
+    assert float(hw.hub_torque(V, 2.0) + hw.friction.viscous * 2.0 + math.tanh(2.0 / hw.friction.v_eps)
+                 * hw.friction.coulomb) == pytest.approx(ctrl.last_torque, rel=1e-12)
+    assert ctrl.name == inner.name and ctrl.dt == inner.dt and ctrl.measurement == "sensors"
+    with pytest.raises(ParameterError, match="dc_motor"):
+        VoltageCommand(inner, Hardware.from_rig(Rig()))
+
+
+def _strip(metrics):
+    """The metrics as JSON text (NaN equals NaN there), without wall times."""
+    return json.dumps({n: {k: v for k, v in m.items() if "wall" not in k and not k.startswith("step_time")}
+                       for n, m in metrics.items()}, sort_keys=True, default=str)
+
+
+def test_ideal_rig_is_the_beam_alone_bit_for_bit():
+    kw = dict(controllers="lqg", t_end=16.0)
+    beam = compare("foam", "slew", **kw)
+    rig = compare("foam", "slew", rig=Rig(beam=Params()), **kw)
+    for name in beam.results:
+        a, b = beam.results[name], rig.results[name]
+        assert np.array_equal(a.q, b.q) and np.array_equal(a.tau, b.tau)
+    assert _strip(beam.metrics) == _strip(rig.metrics)
+
+
+@pytest.mark.slow
+def test_servo_link_targets():
+    """Issue 21's targets on the published rig: 90 degrees in 0.6 s, all defaults (the run cut at
+    2.2 s instead of the task's 3.05 s to keep the suite short; hubbeam compare --rig servo_link runs it all)."""
+    rig = load_rig("servo_link")
+    c = compare("foam", Slew(math.pi / 2, 0.6), "lqr,lqg,mpc", rig=rig, t_end=2.2)
+    for name, r in c.results.items():
+        m = c.metrics[name]
+        assert m["verdict"] == "settled", (name, m["verdict_reason"])
+        assert abs(r.q[-1, 0] - r.theta_ref[-1]) <= 2 * ENCODER, name
+        assert np.max(np.abs(r.v_tip[r.t >= 0.6 + 1.0])) <= 1e-3, name
+        assert np.max(np.abs(r.tau)) <= rig.drive.V_max, name          # volts
+        assert r.settings["hardware"]["command"] == "voltage"
+
+
+def test_friction_leaves_a_steady_error_without_integral_action():
+    """50 mN m of Coulomb friction: the LQG without integral action stops inside its dead band
+    F_c / K_theta (K_theta its DC gain from angle to torque) and more than 2 encoder counts off
+    (with it, test_servo_link_targets: within 2 counts)."""
+    rig = load_rig("servo_link")
+    rig = dataclasses.replace(rig, friction=dataclasses.replace(rig.friction, coulomb=0.05))
+    c = compare("foam", Slew(math.pi / 2, 0.6), "lqg", rig=rig, integral=False, t_end=2.0)
+    r = c.results["lqg"]
+    error = abs(r.q[-1, 0] - r.theta_ref[-1])
+    Ac, Bc, Cc, Dc, _, _ = c.controllers["lqg"].feedback_matrices()
+    k_theta = abs(float((Cc @ np.linalg.solve(np.eye(len(Ac)) - Ac, Bc) + Dc)[0, 0]))
+    dead_band = rig.friction.coulomb / k_theta
+    assert 2 * ENCODER < error <= dead_band + ENCODER
+    assert c.metrics["lqg"]["verdict"] == "not settled"
