@@ -43,16 +43,22 @@ OPTION_NAMES = {
 UNSTABLE_NOTE = " (UNSTABLE: a mode has lost its stiffness)"
 
 
-def params_from_args(args):
+def params_from_args(args, base=None):
     """Build :class:`Params` from the common options (file first, then flags).
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line.
+    base : Params, optional
+        The parameters the flags change when no ``--params`` file is given (default Table 1;
+        a rig's beam with ``--rig``).
     """
     from hubbeam_ctrl.plant.params import Params, load_params
-    base = load_params(args.params) if getattr(args, "params", None) is not None else Params()
+    if getattr(args, "params", None) is not None:
+        base = load_params(args.params)
+    elif base is None:
+        base = Params()
     changes = {}
     if getattr(args, "tip_mass", None) is not None:
         changes["m_t"] = args.tip_mass

@@ -15,6 +15,7 @@ from hubbeam_ctrl.cli.args import (
     check_output_dir,
     integer,
     nonempty,
+    params_from_args,
     real,
     refuse_inapplicable,
     run_limits,
@@ -86,13 +87,23 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
     p.add_argument("--tf", metavar="S", type=real("s"), default=10.0,
                    help="maneuver time [s] (default 10); refused, naming the shortest feasible one, "
                         "if the task needs more torque than --tau-max")
-    p.add_argument("--t-end", metavar="S", type=real("s"), default=30.0,
-                   help="simulated time [s], > tf + 5 (default 30)")
+    p.add_argument("--t-end", metavar="S", type=real("s"),
+                   help="simulated time [s], > tf + 5 (default 30; with --rig the task's: the residual "
+                        "window lasts ten first-mode periods, at least 3 tf)")
     p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
                    help="spin-up final rate [rad/s] (default 3, above TLAM's critical speed; "
                         "--scenario spinup only)")
-    p.add_argument("--dt", metavar="S", type=real("s"), default=0.01,
-                   help="controller sample time [s] (default 0.01)")
+    p.add_argument("--dt", metavar="S", type=real("s"),
+                   help="controller sample time [s] (default: the rig's, else 0.01)")
+    p.add_argument("--rig", metavar="RIG",
+                   help="the physical rig: a rig TOML file or a preset (servo_link, paper); its beam replaces "
+                        "--params, and the plant carries its drive, friction, damping and sensors (docs/rig.md); "
+                        "the report gets the rig ladder (the comparison with one part of the hardware added "
+                        "at a time)")
+    p.add_argument("--integral", choices=("auto", "on", "off"), default="auto",
+                   help="integral action of LQR, LQG and MPC on the rig (disturbance estimation; default auto: "
+                        "on for rigs with friction or a DC motor); --rig only")
+    p.add_argument("--no-ladder", action="store_true", help="skip the rig ladder (--rig only)")
     p.add_argument("--horizon", metavar="N", type=integer(),
                    help="MPC horizon [samples] (default 50; only with mpc among --controllers)")
     p.add_argument("--solver", choices=list(QP_SOLVERS),
@@ -140,7 +151,8 @@ def _run_payload(args, params, out, sink) -> int:
     from hubbeam_ctrl.study.payload import payload_comparison, payload_table, write_payload_outputs
     payload_range = parse_payload_range(args.payload_range, params.m_t)
     pc = payload_comparison(args.plant, args.scenario, args.controllers, payload_range=payload_range,
-                            params=params, tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
+                            params=params, tau_max=args.tau_max, t_f=args.tf,
+                            t_end=30.0 if args.t_end is None else args.t_end, dt=0.01 if args.dt is None else args.dt,
                             w_f=3.0 if args.wf is None else args.wf, slew_angle=args.slew_angle,
                             horizon=50 if args.horizon is None else args.horizon, solver=args.solver or "daqp")
     write_payload_outputs(pc, out)
@@ -161,7 +173,6 @@ def run(args) -> int:
         The parsed command line.
     """
     sink = stdout(args)
-    from hubbeam_ctrl.cli.main import params_from_args
     from hubbeam_ctrl.plant.params import MAX_MODES
     from hubbeam_ctrl.study.compare import _parse_controllers, compare
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
@@ -171,7 +182,8 @@ def run(args) -> int:
     if "mpc" not in names:
         refuse_inapplicable(args, "--controllers " + ",".join(names), {"--horizon": ("mpc",),
                                                                        "--solver": ("mpc",)})
-    params = params_from_args(args)
+    rig = _rig(args)
+    params = rig.plant_params if rig is not None else params_from_args(args)
     if args.tau_max is not None and args.tau_max > params.tau_max:
         raise ParameterError(f"--tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
                              f"the parameters), got {args.tau_max:g}")
@@ -187,9 +199,13 @@ def run(args) -> int:
         raise ParameterError(f"--plant-modes must be an integer in {design_modes}..{MAX_MODES} (at least "
                              f"the design model's {design_modes}), got {args.plant_modes}")
     if args.payload_range is not None:
+        if rig is not None:
+            raise ParameterError("--payload-range does not take --rig yet (give the rig's beam with --params)")
         return _run_payload(args, params, out, sink)
     t0 = time.perf_counter()
-    comparison = compare(args.plant, args.scenario, names, params=params,
+    integral = {"auto": None, "on": True, "off": False}[args.integral]
+    comparison = compare(args.plant, args.scenario, names, params=None if rig is not None else params,
+                         rig=rig, integral=integral,
                          plant_params=plant_params, design_modes=design_modes,
                          plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
                          t_end=args.t_end, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,
@@ -198,6 +214,13 @@ def run(args) -> int:
                          solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
                          sim_settings={"range_limit": args.range_limit, **run_limits(args)},
                          progress=not args.json, backend=args.backend)
+    if rig is not None and not rig.is_ideal and not args.no_ladder:
+        from hubbeam_ctrl.study.ladder import rig_ladder
+        comparison.ladder = rig_ladder(
+            rig, args.scenario, names, plant=args.plant, t_end=comparison.scenario.t_end, tau_max=args.tau_max,
+            t_f=args.tf, dt=args.dt, w_f=3.0 if args.wf is None else args.wf, slew_angle=args.slew_angle,
+            horizon=50 if args.horizon is None else args.horizon, solver=args.solver or "daqp", integral=integral,
+            progress=None if args.json else (lambda step: print(f"ladder: {step}", file=sys.stderr)))
     paths = write_outputs(comparison, out)
     wall = time.perf_counter() - t0
     if args.json:
@@ -215,6 +238,24 @@ def run(args) -> int:
     if skipped:
         print(f"warning: not run (the wall-time limit was reached): {', '.join(skipped)}", file=sys.stderr)
     return 0
+
+
+def _rig(args):
+    """The rig of ``--rig`` (None without it); refuses the options it replaces."""
+    if args.rig is None:
+        for opt in ("ladder", "integral"):
+            if opt == "ladder" and args.no_ladder or opt == "integral" and args.integral != "auto":
+                raise ParameterError(f"--{'no-ladder' if opt == 'ladder' else 'integral'} applies with --rig only")
+        return None
+    if getattr(args, "params", None) is not None:
+        raise ParameterError("give either --rig (its [beam] is the beam) or --params, not both")
+    from hubbeam_ctrl.plant.rig import load_rig
+    try:
+        rig = load_rig(args.rig)
+    except ParameterError as exc:
+        raise ParameterError(f"--rig: {exc}") from None
+    beam = params_from_args(args, rig.beam)         # --tip-mass, --tip-position, --n-modes on the rig's beam
+    return rig if beam == rig.beam else rig.replace(beam=beam)
 
 
 def _plant_params(args, params):

@@ -115,6 +115,10 @@ class Comparison:
     certificates : dict
         Controller name -> :class:`~hubbeam_ctrl.study.certificate.Certificate`: the sampled
         linear loop on the evaluation plant's modes (empty for the open loop).
+    rig : Rig or None
+        The rig the controllers ran on (None: the beam alone).
+    ladder : list of dict
+        The rig ladder's rows (:func:`hubbeam_ctrl.study.ladder.rig_ladder`) when it was run.
     """
 
     scenario: Scenario
@@ -128,6 +132,8 @@ class Comparison:
     margins: dict = field(default_factory=dict)
     certificates: dict = field(default_factory=dict)
     controllers: dict = field(default_factory=dict)
+    rig: Rig | None = None
+    ladder: list = field(default_factory=list)
 
 
 def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
@@ -341,7 +347,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                       targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,
                       margins={n: lm for n, lm in margins.items() if lm is not None},
                       certificates=certificates,
-                      controllers={n: c for n, c in linear.items() if margins[n] is not None})
+                      controllers={n: c for n, c in linear.items() if margins[n] is not None}, rig=rig)
 
 
 def _margins(ctrl):

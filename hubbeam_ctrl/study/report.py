@@ -14,8 +14,10 @@ from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json, write_folde
 from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
 from hubbeam_ctrl.plots.plant import save_figure
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
+from hubbeam_ctrl.study.rig_loop import delay_simulated
 
-__all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE"]
+__all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
+           "ladder_lines"]
 
 
 # -- output -----------------------------------------------------------------------------------
@@ -57,6 +59,14 @@ def _targets(comparison) -> list:
     return rows
 
 
+def _number_text(value) -> str:
+    """A parameter's value for the report: a number, or a list of them (per-mode damping ratios)."""
+    if isinstance(value, (tuple, list)):
+        shown = ", ".join(f"{v:.3g}" for v in value[:4])
+        return f"({shown}{', ...' if len(value) > 4 else ''})"
+    return f"{value:g}"
+
+
 def _plant_lines(comparison) -> list:
     """Report lines saying which plant (model, modes, parameters, step) judged the controllers."""
     sc, ev = comparison.scenario, comparison.plant
@@ -72,7 +82,7 @@ def _plant_lines(comparison) -> list:
                      f"transverse modes ({ev.reason}), structural damping ratio {p.damping_ratio:g}.")
         differs = sorted(k for k, v in p.to_dict().items()
                          if k not in ("n_axial", "n_transverse") and v != design.to_dict()[k])
-        values = ", ".join(f"{k} = {v:g}" for k, v in p.to_dict().items()
+        values = ", ".join(f"{k} = {_number_text(v)}" for k, v in p.to_dict().items()
                            if k not in ("n_axial", "n_transverse") and v is not None)
         lines.append(f"- Plant parameters (SI units): {values}; "
                      + (f"{', '.join(differs)} differ from the design's." if differs
@@ -169,6 +179,8 @@ def _report(comparison) -> str:
             note = "" if name in comparison.targets or name == "openloop" else " (reported only)"
             lines.append(f"| {name}{note} | {yes[s_ok]} | {yes[r_ok]} | {yes[t_ok]} | {yes[a_ok]} |")
         lines.append("")
+    lines += _rig_lines(comparison)
+    lines += ladder_lines(getattr(comparison, "ladder", []))
     lines += _certificate_lines(comparison)
     lines += _margin_lines(getattr(comparison, "margins", {}))
     notes = [f"- {name}: {m['message']}" for name, m in comparison.metrics.items()
@@ -180,6 +192,74 @@ def _report(comparison) -> str:
     lines += ["## Plots", "", "![tip deflection](tip_deflection.png)", "",
               "![hub angle](hub_angle.png)", "", "![torque](torque.png)", ""]
     return "\n".join(lines)
+
+
+def ladder_lines(rows: list) -> list:
+    """The ladder as a Markdown section (lines), for the report.
+
+    Parameters
+    ----------
+    rows : list of dict
+        From :func:`rig_ladder`.
+    """
+    if not rows:
+        return []
+    lines = ["## The rig ladder: what each part of the hardware does", "",
+             "The same comparison on the beam alone, then with the rig's parts added one at a time "
+             "(each step keeps the ones above; parts that are ideal in the rig are left out).", "",
+             "| step | controller | verdict | residual [mm] | final angle error [mrad] | settling [s] | max command |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        unit = "V" if r["command"] == "voltage" else "N m"
+        settle = "-" if r["settling_time_s"] is None else f"{r['settling_time_s']:.3g}"
+        lines.append(f"| {r['step']} | {r['controller']} | {r['verdict']} | {1e3 * r['residual_tip_max_m']:.4g} | "
+                     f"{1e3 * r['final_angle_error_rad']:.3g} | {settle} | {r['command_max']:.3g} {unit} |")
+    return lines + [""]
+
+
+def _rig_lines(comparison) -> list:
+    """The rig the controllers ran on: hardware, damping (a warning without any), how they read it."""
+    rig = getattr(comparison, "rig", None)
+    p = comparison.plant.params if comparison.plant is not None else comparison.scenario.params
+    ratios = p.transverse_damping(p.n_transverse)
+    damped = bool(ratios.size and ratios.max() > 0)
+    lines = []
+    if rig is None or rig.is_ideal:
+        if not damped:
+            lines = ["warning: the plant has no structural damping (every mode rings until a controller damps "
+                     "it); give the measured ratios ([damping] in a rig file, or damping_ratio).", ""]
+        return lines
+    d, f, sn, tm = rig.drive, rig.friction, rig.sensors, rig.timing
+    first = next(iter(comparison.results.values()), None)
+    hw = (first.settings.get("hardware") or {}) if first is not None else {}
+    lines = ["## The rig", ""]
+    if d.is_ideal:
+        lines.append("- Drive: ideal torque source; the commands are hub torques [N m].")
+    else:
+        lines.append(f"- Drive: DC motor R = {d.R:g} ohm, k_t = {d.k_t:g} N m/A, k_e = {d.k_e:g} V s/rad, gear "
+                     f"{d.N:g}:1 (efficiency {d.eta_forward:g} driving, {d.eta_backward:g} back-driven), "
+                     f"{d.V_max:g} V, {d.I_max:g} A; the commands are voltages (the torque designs through "
+                     "the drive's static inverse with the measured hub rate, controllers.drive).")
+    lines.append("- Friction at the hub: " + ("none." if f.is_ideal else
+                 f"viscous {f.viscous:g} N m s/rad, Coulomb {f.coulomb:g} N m, breakaway {f.static:g} N m "
+                 f"(stick events in the first run: {hw.get('stick_events', 0)})."))
+    lines.append(f"- Damping: ratios {', '.join(f'{z:.3g}' for z in ratios[:4])}"
+                 + (" ..." if len(ratios) > 4 else "") + " of the plant's first modes."
+                 if damped else "- warning: the rig has no damping; every mode rings until a controller damps it.")
+    lines.append(f"- Sensors: encoder {sn.encoder_counts} counts/rev" if sn.encoder_counts else
+                 "- Sensors: ideal angle")
+    lines[-1] += (", strain gauges at " + ", ".join(f"{x:g} m" for x in sn.strain_gauges) + "; LQR and MPC read "
+                  "them through a Kalman filter (controllers.integral.ObservedFeedback); the filters count the "
+                  "encoder's quantisation as angle noise.")
+    lines.append(f"- Timing: sample {comparison.scenario.dt * 1e3:g} ms, computation delay {tm.delay:g} of a sample"
+                 + ("." if delay_simulated() or not tm.delay
+                    else " (not simulated yet: the command acts at the sample)."))
+    integral = {n: c.settings.integral if hasattr(getattr(c, "settings", None), "integral")
+                else getattr(c, "integral", None) for n, c in getattr(comparison, "controllers", {}).items()}
+    on = [n for n, v in integral.items() if v]
+    lines.append("- Integral action (disturbance estimation, controllers.integral): "
+                 + (", ".join(on) if on else "none") + ".")
+    return lines + [""]
 
 
 def _margin_lines(margins: dict) -> list:

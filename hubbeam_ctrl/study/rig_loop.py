@@ -31,7 +31,7 @@ from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.hardware import Hardware
 
 __all__ = ["rig_closed_loop", "on_rig", "rig_settings", "rig_noise", "task_noise", "integral_default",
-           "task_t_end", "DISTURBANCE_FRACTION", "RESIDUAL_PERIODS"]
+           "task_t_end", "delay_simulated", "DISTURBANCE_FRACTION", "RESIDUAL_PERIODS"]
 
 #: Random-walk standard deviation per sample of the estimated disturbance, as a fraction of the
 #: torque limit (the integral action's speed; measured on ``servo_link``: see docs/rig.md).
@@ -205,3 +205,11 @@ def task_t_end(scenario) -> float:
     w1 = first_mode(DesignModel.build(scenario.params, scenario.design_spin, scenario.dt, 1))
     t = max(3.0 * scenario.t_f, scenario.t_f + scenario.bands["residual_delay"] + RESIDUAL_PERIODS * 2 * math.pi / w1)
     return math.ceil(t / scenario.dt - 1e-9) * scenario.dt
+
+
+def delay_simulated() -> bool:
+    """Whether the closed loop simulates the computation delay (its settings have ``delay``)."""
+    from dataclasses import fields
+
+    from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
+    return "delay" in {f.name for f in fields(ClosedLoopSettings)}

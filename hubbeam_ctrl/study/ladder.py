@@ -1,0 +1,97 @@
+"""The rig ladder: the same comparison with the rig's hardware added one part at a time.
+
+A design that works on the ideal plant and fails on the rig leaves the user asking which
+part of the hardware broke it. :func:`rig_ladder` runs the comparison on the beam alone,
+then adds the rig's damping, friction, drive, sensors and computation delay one after the
+other (each step keeps the ones before), and reports each controller's verdict, residual
+and final angle error at every step. Steps whose part is ideal in the rig are left out.
+"""
+
+from __future__ import annotations
+
+import math
+
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.rig import Damping, Drive, Friction, Rig, Sensors, Timing
+from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.rig_loop import delay_simulated
+
+__all__ = ["LADDER_STEPS", "ladder_rigs", "rig_ladder"]
+
+#: The ladder's steps in order: label and the rig part it adds.
+LADDER_STEPS = (("ideal plant", None), ("+ damping", "damping"), ("+ friction", "friction"),
+                ("+ drive", "drive"), ("+ sensors", "sensors"), ("+ delay", "timing"))
+
+_IDEAL = {"damping": Damping, "friction": Friction, "drive": Drive, "sensors": Sensors}
+
+
+def ladder_rigs(rig: Rig) -> list:
+    """The rigs of the ladder: ``[(label, Rig), ...]``, from the beam alone to ``rig`` itself.
+
+    The first step keeps the rig's sample time (a design choice, not hardware); a step whose
+    part is ideal in ``rig`` is left out, so the last rig equals ``rig`` (the delay step only
+    where the closed loop simulates the delay, :func:`delay_simulated`).
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    list of (str, Rig)
+    """
+    if not isinstance(rig, Rig):
+        raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
+    parts = {name: cls() for name, cls in _IDEAL.items()}
+    parts["timing"] = Timing(dt=rig.timing.dt)
+    out = [("ideal plant", Rig(beam=rig.beam, **parts))]
+    for label, part in LADDER_STEPS[1:]:
+        value = getattr(rig, part)
+        if value == parts[part] or part == "timing" and not delay_simulated():
+            continue
+        parts[part] = value
+        out.append((label, Rig(beam=rig.beam, **parts)))
+    return out
+
+
+def rig_ladder(rig: Rig, scenario="slew", controllers=None, progress=None, **options) -> list:
+    """Run :func:`~hubbeam_ctrl.study.compare.compare` on each rig of :func:`ladder_rigs`.
+
+    Parameters
+    ----------
+    rig : Rig
+    scenario : str or Slew or SpinUp
+        The task (as for ``compare``).
+    controllers : str or sequence of str, optional
+        As for ``compare``.
+    progress : callable, optional
+        Called with each step's label before it runs.
+    **options
+        Further keywords of ``compare`` (``plant``, ``t_end``, ``integral``...); ``t_end``
+        defaults to the full rig's task time, so every step runs the same window.
+
+    Returns
+    -------
+    list of dict
+        One row per step and controller: ``step``, ``controller``, ``verdict``,
+        ``residual_tip_max_m``, ``final_angle_error_rad``, ``settling_time_s``, ``command_max``
+        (N m or V), ``command`` (``"torque"`` or ``"voltage"``).
+    """
+    plant = options.pop("plant", "foam")
+    rows, t_end = [], options.pop("t_end", None)
+    for label, step_rig in ladder_rigs(rig):
+        if progress is not None:
+            progress(label)
+        c = compare(plant, scenario, controllers, rig=step_rig, t_end=t_end, **options)
+        t_end = c.scenario.t_end if t_end is None else t_end
+        for name, m in c.metrics.items():
+            res = c.results[name]
+            hw = res.settings.get("hardware") or {}
+            rows.append({"step": label, "controller": name, "verdict": m["verdict"],
+                         "residual_tip_max_m": m["residual_tip_max_m"],
+                         "final_angle_error_rad": m["final_angle_error_rad"],
+                         "settling_time_s": m.get("settling_time_s"),
+                         "command_max": float(max(abs(float(v)) for v in res.tau if math.isfinite(v)))
+                         if len(res.tau) else float("nan"),
+                         "command": hw.get("command", "torque")})
+    return rows
