@@ -13,10 +13,12 @@ import types as _types
 from hubbeam_ctrl.study.certificate import *  # noqa: F401,F403
 from hubbeam_ctrl.study.compare import *  # noqa: F401,F403
 from hubbeam_ctrl.study.judge import *  # noqa: F401,F403
+from hubbeam_ctrl.study.ladder import *  # noqa: F401,F403
 from hubbeam_ctrl.study.loops import *  # noqa: F401,F403
 from hubbeam_ctrl.study.metrics import *  # noqa: F401,F403
 from hubbeam_ctrl.study.payload import *  # noqa: F401,F403
 from hubbeam_ctrl.study.report import *  # noqa: F401,F403
+from hubbeam_ctrl.study.rig_loop import *  # noqa: F401,F403
 from hubbeam_ctrl.study.scenarios import *  # noqa: F401,F403
 from hubbeam_ctrl.study.shaping import *  # noqa: F401,F403
 from hubbeam_ctrl.study.spec import *  # noqa: F401,F403
@@ -27,7 +29,8 @@ from hubbeam_ctrl.study.tasks import *  # noqa: F401,F403
 from hubbeam_ctrl.study.tune import *  # noqa: F401,F403
 
 __all__ = [name for _m in ('metrics', 'tasks', 'scenarios', 'certificate', 'judge', 'compare', 'report', 'shaping',
-                           'payload', 'spec', 'spillover', 'sweep', 'sweep_report', 'tune', 'loops')
+                           'payload', 'spec', 'spillover', 'sweep', 'sweep_report', 'tune', 'loops', 'rig_loop',
+                           'ladder')
            for name in _sys.modules[f"hubbeam_ctrl.study.{_m}"].__all__]
 
 
