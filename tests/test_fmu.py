@@ -154,7 +154,8 @@ def test_rig_with_dc_motor_and_friction_equals_fixed_step_run(rig_fmu):
 
     def volt(t):
         t = np.asarray(t, dtype=float)
-        return np.where(t < 0.5, 3.0 * np.sin(2 * np.pi * t / 0.5), np.where(t < 1.0, 0.0, 0.2 * np.sin(2 * np.pi * t / 0.3)))
+        late = np.where(t < 1.0, 0.0, 0.2 * np.sin(2 * np.pi * t / 0.3))
+        return np.where(t < 0.5, 3.0 * np.sin(2 * np.pi * t / 0.5), late)
 
     ref = simulate_fixed_step("foam", _zoh(volt, dt, k), t_end, params=rig.plant_params,
                               settings=StepperSettings(dt=dt, substeps=k), hardware=Hardware.from_rig(rig))

@@ -45,8 +45,16 @@ from xml.sax.saxutils import quoteattr
 import casadi as ca
 import numpy as np
 
-from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, OPT_HOT_LARGE, OPT_HOT_MAX_CHARS, CompileError, find_compiler
-from hubbeam_ctrl.core.compiled import _run_compiler, _timeout_s
+from hubbeam_ctrl.core.compiled import (
+    OPT_COLD,
+    OPT_HOT,
+    OPT_HOT_LARGE,
+    OPT_HOT_MAX_CHARS,
+    CompileError,
+    _run_compiler,
+    _timeout_s,
+    find_compiler,
+)
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write, check_writable
 from hubbeam_ctrl.core.validation import check_in_range
@@ -56,8 +64,14 @@ from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.plant.rig import Rig, load_rig
 from hubbeam_ctrl.sim.hardware import HW_LAYOUT, Hardware, drive_torque, hub_torque
-from hubbeam_ctrl.sim.stepper import (StepperSettings, _fast_step_function, _hold_function,
-                                      _iteration_matrix_function, _substep_expressions, substep_rule)
+from hubbeam_ctrl.sim.stepper import (
+    StepperSettings,
+    _fast_step_function,
+    _hold_function,
+    _iteration_matrix_function,
+    _substep_expressions,
+    substep_rule,
+)
 
 __all__ = ["FMU_MODELS", "FMI_VERSIONS", "FmuInfo", "build_fmu", "fmi_headers", "fmu_platform"]
 
@@ -71,7 +85,8 @@ MODEL_IDENTIFIER = "hubbeam_plant"
 _UNITS = {   # name -> SI base-unit exponents (FMI 2.0 BaseUnit attributes)
     "rad": {"rad": 1}, "rad/s": {"rad": 1, "s": -1}, "N.m": {"kg": 1, "m": 2, "s": -2}, "m": {"m": 1},
     "m/s": {"m": 1, "s": -1}, "V": {"kg": 1, "m": 2, "s": -3, "A": -1}, "ohm": {"kg": 1, "m": 2, "s": -3, "A": -2},
-    "A": {"A": 1}, "N.m/A": {"kg": 1, "m": 2, "s": -2, "A": -1}, "V.s/rad": {"kg": 1, "m": 2, "s": -2, "A": -1, "rad": -1},
+    "A": {"A": 1}, "N.m/A": {"kg": 1, "m": 2, "s": -2, "A": -1},
+    "V.s/rad": {"kg": 1, "m": 2, "s": -2, "A": -1, "rad": -1},
     "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1}, "kg.m2": {"kg": 1, "m": 2}, "kg.m": {"kg": 1, "m": 1},
     "kg": {"kg": 1}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1}, "1/m": {"m": -1}, "s": {"s": 1},
     "1": {},
