@@ -177,6 +177,8 @@ def test_bad_input_is_one_line(tmp_path, plant_fmu):
         build_fmu(SMALL, "foam", plant_fmu.path)
     with pytest.raises(ParameterError, match=r"substeps must be an integer in \[1, 200\]"):
         build_fmu(SMALL, "foam", tmp_path / "x.fmu", substeps=0)
+    with pytest.raises(ParameterError, match="fmi_version must be one of 2.0"):
+        build_fmu(SMALL, "foam", tmp_path / "x.fmu", fmi_version="3.0")
     with pytest.raises(ParameterError, match="dt must be"):
         build_fmu(SMALL, "foam", tmp_path / "x.fmu", dt=-1.0)
     assert list(tmp_path.iterdir()) == []                  # nothing written
@@ -194,6 +196,10 @@ def test_doStep_refuses_a_partial_sample(plant_fmu, tmp_path):
     with pytest.raises(Exception, match=r"fmi2DoStep failed with status 3"):
         fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=0.5 * plant_fmu.dt)
     fmu.freeInstance()
+    if sys.platform == "linux":         # only the FMI functions are exported, not CasADi's
+        import ctypes
+        lib = ctypes.CDLL(str(tmp_path / "u" / plant_fmu.binary))
+        assert hasattr(lib, "fmi2DoStep") and not hasattr(lib, "hb_step")
 
 
 def test_cli_writes_the_fmu_and_refuses_bad_input(tmp_path, plant_fmu):

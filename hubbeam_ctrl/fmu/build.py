@@ -556,7 +556,9 @@ def _compile(src: Path, headers: Path, root: Path, hot_c: str) -> str | None:
         return None
     suffix = {"win64": ".dll", "darwin64": ".dylib"}.get(folder, ".so")
     timeout = _timeout_s()
-    pic = [] if os.name == "nt" else ["-fPIC"]
+    # only the fmi2* functions are exported (FMI2_Export): the CasADi functions stay inside, so two
+    # hubbeam FMUs loaded into one process never call each other's plant step
+    pic = [] if os.name == "nt" else ["-fPIC", "-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT="]
     objs = []
     hot_flag = OPT_HOT if len(hot_c) <= OPT_HOT_MAX_CHARS else OPT_HOT_LARGE
     build = root / ".build"
