@@ -9,6 +9,7 @@ import dataclasses
 import shutil
 import subprocess
 import sys
+import zipfile
 
 import numpy as np
 import pytest
@@ -79,7 +80,6 @@ def test_fmu_validates_and_describes_the_plant(plant_fmu, rig_fmu):
     rig_md = fmpy.read_model_description(str(rig_fmu[1].path))
     rig_units = {v.name: v.unit for v in rig_md.modelVariables}
     assert rig_units["u"] == "V" and rig_units["hw.R"] == "ohm" and rig_fmu[1].command == "voltage"
-    import zipfile
     with zipfile.ZipFile(plant_fmu.path) as z:
         files = set(z.namelist())
     assert {"sources/hubbeam_fmu.c", "sources/hb_hot.c", "sources/hb_cold.c", "sources/hubbeam_model.h",
@@ -219,3 +219,17 @@ def test_cli_writes_the_fmu_and_refuses_bad_input(tmp_path, plant_fmu):
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert not (tmp_path / "y.fmu").exists()
     shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+def test_failed_compiler_leaves_nothing_and_no_compiler_gives_sources(tmp_path, monkeypatch, plant_fmu):
+    monkeypatch.setenv("CC", "false")                       # a compiler that fails
+    with pytest.raises(CompileError, match="failed"):
+        build_fmu(SMALL, "foam", tmp_path / "failed.fmu")
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setenv("CC", "no-such-compiler-hubbeam")    # none at all: the sources only
+    info = build_fmu(SMALL, "foam", tmp_path / "sources.fmu")
+    assert info.binary is None
+    with zipfile.ZipFile(info.path) as z:
+        names = z.namelist()
+    assert "sources/hubbeam_fmu.c" in names and not any(n.startswith("binaries/") for n in names)
+    assert validate_fmu(str(info.path)) == []
