@@ -99,6 +99,7 @@ def test_pulse_in_fmpy_equals_fixed_step_run(plant_fmu):
     peak = np.max(np.abs(ref.v_tip))
     assert peak > 0.5                                       # the slew bends the beam (1.30 m here)
     err = np.max(np.abs(res["v_tip"] - ref.v_tip)) / peak
+    print(f"FMU pulse: max tip difference {err:.2e} of the peak {peak:.4f} m")
     assert err < 1e-6                                       # measured 3e-16 (same arithmetic)
     assert np.max(np.abs(res["theta"] - ref.q[:, 0])) < 1e-6 * np.max(np.abs(ref.q[:, 0]))
     assert np.max(np.abs(res["u_tip"] - ref.u_tip)) < 1e-6 * np.max(np.abs(ref.u_tip))
@@ -141,9 +142,12 @@ def test_pd_loop_through_fmu2slave_equals_simulate_closed_loop(plant_fmu, tmp_pa
         fmu.terminate()
         fmu.freeInstance()
     peak = np.max(np.abs(ref.v_tip))
+    err = np.max(np.abs(np.array(v_tip) - ref.v_tip)) / peak
+    err_tau = np.max(np.abs(np.array(taus) - ref.tau)) / np.max(np.abs(ref.tau))
+    print(f"FMU PD loop: max tip difference {err:.2e} of the peak {peak:.4f} m, torque {err_tau:.2e} of its peak")
     assert peak > 1e-3
-    assert np.max(np.abs(np.array(v_tip) - ref.v_tip)) < 1e-6 * peak
-    assert np.max(np.abs(np.array(taus) - ref.tau)) < 1e-6 * np.max(np.abs(ref.tau))
+    assert err < 1e-6
+    assert err_tau < 1e-6
 
 
 def test_rig_with_dc_motor_and_friction_equals_fixed_step_run(rig_fmu):
@@ -162,7 +166,10 @@ def test_rig_with_dc_motor_and_friction_equals_fixed_step_run(rig_fmu):
     res = fmpy.simulate_fmu(str(info.path), stop_time=t_end, output_interval=dt, input=_table(volt, dt, t_end),
                             output=["v_tip", "q.theta", "theta", "stuck"])
     peak = np.max(np.abs(ref.v_tip))
-    assert np.max(np.abs(res["v_tip"] - ref.v_tip)) < 1e-6 * peak          # measured 1e-14
+    err = np.max(np.abs(res["v_tip"] - ref.v_tip)) / peak
+    print(f"FMU servo_link: max tip difference {err:.2e} of the peak {peak:.4f} m, "
+          f"{int(res['stuck'].sum())} held samples of {len(res)}")
+    assert err < 1e-6                                   # measured 1e-14
     assert np.max(np.abs(res["q.theta"] - ref.q[:, 0])) < 1e-9
     assert res["stuck"].sum() > 50                       # the hub did stick (141 of 1501 samples)
     step = 2 * np.pi / rig.sensors.encoder_counts        # the encoder's nearest count
