@@ -19,6 +19,7 @@ BASE = {
     "simulate": ["simulate", "--model", "sfoam", "--maneuver", "torque", "--t-end", "1"],
     "linearize": ["linearize", "--out", "m.npz"],
     "compare": ["compare", "--plant", "foam", "--out", "cmp"],
+    "fmu": ["fmu", "--out", "p.fmu"],
 }
 COMMANDS = tuple(BASE)
 
@@ -128,6 +129,15 @@ SPECIFIC = [
     ("c8", "simulate", ["--t-end", "-3"], "--t-end must be in [0.01, 1e+09] [s]"),
     ("c8", "simulate", ["--axial", "quasi-static"], "--axial = 'quasi-static' needs a model with axial modes"),
     ("c8", "simulate", ["--axial", "static"], "--axial: invalid choice: 'static'"),
+    # hubbeam fmu (issue 26)
+    ("c8", "fmu", ["--model", "tlam"], "--model: invalid choice: 'tlam'"),
+    ("c8", "fmu", ["--rig", "servo_link", "--params", "L_big.toml"], "--rig and --params are exclusive"),
+    ("c8", "fmu", ["--rig", "nope"], "--rig 'nope' is neither a file nor a preset"),
+    ("c8", "fmu", ["--rig", ""], "--rig must name a rig"),
+    ("c8", "fmu", ["--dt", "-1"], "--dt must be in [1e-06, 10] [s], got -1"),
+    ("c8", "fmu", ["--substeps", "0"], "--substeps must be an integer in [1, 200], got 0"),
+    ("c6", "fmu", ["--out", "adir"], "--out must name a .fmu file"),
+    ("c6", "fmu", ["--out", "nofolder/p.fmu"], "--out: folder nofolder does not exist"),
 ]
 
 CASES = ([pytest.param(c, cmd, argv, words, id=f"{c}-{cmd}-{' '.join(argv)[:40]}") for c, argv, words in COMMON
