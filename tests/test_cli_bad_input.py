@@ -129,6 +129,12 @@ SPECIFIC = [
     ("c8", "simulate", ["--t-end", "-3"], "--t-end must be in [0.01, 1e+09] [s]"),
     ("c8", "simulate", ["--axial", "quasi-static"], "--axial = 'quasi-static' needs a model with axial modes"),
     ("c8", "simulate", ["--axial", "static"], "--axial: invalid choice: 'static'"),
+    # hubbeam compare --rig (issue 21)
+    ("c8", "compare", ["--rig", "servo_link", "--params", "L_big.toml"], "--rig and --params are exclusive"),
+    ("c8", "compare", ["--rig", "nope"], "--rig 'nope' is neither a file nor a preset"),
+    ("c8", "compare", ["--no-ladder"], "--no-ladder applies with --rig only"),
+    ("c8", "compare", ["--integral", "off"], "--integral applies with --rig only"),
+    ("c8", "compare", ["--integral", "maybe"], "--integral: invalid choice: 'maybe'"),
     # hubbeam fmu (issue 26)
     ("c8", "fmu", ["--model", "tlam"], "--model: invalid choice: 'tlam'"),
     ("c8", "fmu", ["--rig", "servo_link", "--params", "L_big.toml"], "--rig and --params are exclusive"),

@@ -133,3 +133,34 @@ def test_friction_leaves_a_steady_error_without_integral_action():
     dead_band = rig.friction.coulomb / k_theta
     assert 2 * ENCODER < error <= dead_band + ENCODER
     assert c.metrics["lqg"]["verdict"] == "not settled"
+
+
+def test_cli_compare_on_a_rig_writes_the_rig_and_its_ladder(tmp_path, capsys):
+    """hubbeam compare --rig: the API's numbers on the rig, and the ladder's last step is the rig itself."""
+    from hubbeam_ctrl.cli.main import main
+    out = tmp_path / "cmp"
+    argv = ["compare", "--rig", "servo_link", "--slew-angle", "1.5708", "--tf", "0.6", "--controllers", "lqg",
+            "--t-end", "1.2", "--out", str(out), "--json"]
+    assert main(argv) == 0
+    cli = json.loads(capsys.readouterr().out)
+    api = compare("foam", "slew", "lqg", rig=load_rig("servo_link"), slew_angle=1.5708, t_f=0.6, t_end=1.2)
+    assert cli[0]["residual_tip_max_m"] == api.metrics["lqg"]["residual_tip_max_m"]
+    report = (out / "report.md").read_text()
+    assert "## The rig" in report and "DC motor R = 2.6 ohm" in report and "integral action" in report.lower()
+    section = report[report.index("## The rig ladder"):]
+    ladder = section[:section.index("\n## ", 5)].splitlines()
+    steps = [line.split("|")[1].strip() for line in ladder if line.startswith("| ") and "lqg" in line]
+    assert steps == ["ideal plant", "+ damping", "+ friction", "+ drive", "+ sensors"]
+    last = [line for line in ladder if line.startswith("| + sensors")][0]
+    assert f"{1e3 * api.metrics['lqg']['residual_tip_max_m']:.4g}" in last
+
+
+def test_ladder_rigs_add_one_part_at_a_time():
+    from hubbeam_ctrl.study.ladder import ladder_rigs
+    rig = load_rig("servo_link")
+    steps = ladder_rigs(rig)
+    assert steps[0][1].is_ideal is False or steps[0][1].drive.is_ideal      # the beam alone (its dt kept)
+    assert steps[0][1].timing.dt == rig.timing.dt and steps[0][1].friction.is_ideal
+    assert steps[-1][1].replace(timing=rig.timing) == rig
+    ideal = ladder_rigs(Rig(beam=Params()))
+    assert [label for label, _ in ideal] == ["ideal plant"]

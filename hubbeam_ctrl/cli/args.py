@@ -69,6 +69,25 @@ def params_from_args(args, base=None):
     return base.replace(**changes) if changes else base
 
 
+def rig_from_args(args):
+    """The rig of ``--rig`` (a file or a preset) with the common options applied to its beam; None
+    without ``--rig``. ``--rig`` and ``--params`` are exclusive (a rig file holds the beam).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    if getattr(args, "rig", None) is None:
+        return None
+    from hubbeam_ctrl.plant.rig import load_rig
+    if getattr(args, "params", None) is not None:
+        raise ParameterError("--rig and --params are exclusive: a rig file holds the beam in its [beam] table")
+    rig = load_rig(args.rig)
+    beam = params_from_args(args, rig.beam)         # --tip-mass, --tip-position, --n-modes on the rig's beam
+    return rig if beam == rig.beam else rig.replace(beam=beam)
+
+
 def stdout(args):
     """The stream a subcommand prints its results to: the standard output saved before the
     run (during the run ``sys.stdout`` collects native and CasADi output, see

@@ -18,6 +18,7 @@ from hubbeam_ctrl.cli.args import (
     params_from_args,
     real,
     refuse_inapplicable,
+    rig_from_args,
     run_limits,
     stdout,
 )
@@ -95,7 +96,7 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                         "--scenario spinup only)")
     p.add_argument("--dt", metavar="S", type=real("s"),
                    help="controller sample time [s] (default: the rig's, else 0.01)")
-    p.add_argument("--rig", metavar="RIG",
+    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
                    help="the physical rig: a rig TOML file or a preset (servo_link, paper); its beam replaces "
                         "--params, and the plant carries its drive, friction, damping and sensors (docs/rig.md); "
                         "the report gets the rig ladder (the comparison with one part of the hardware added "
@@ -241,21 +242,13 @@ def run(args) -> int:
 
 
 def _rig(args):
-    """The rig of ``--rig`` (None without it); refuses the options it replaces."""
+    """The rig of ``--rig`` (None without it); ``--no-ladder`` and ``--integral`` need one."""
     if args.rig is None:
-        for opt in ("ladder", "integral"):
-            if opt == "ladder" and args.no_ladder or opt == "integral" and args.integral != "auto":
-                raise ParameterError(f"--{'no-ladder' if opt == 'ladder' else 'integral'} applies with --rig only")
-        return None
-    if getattr(args, "params", None) is not None:
-        raise ParameterError("give either --rig (its [beam] is the beam) or --params, not both")
-    from hubbeam_ctrl.plant.rig import load_rig
-    try:
-        rig = load_rig(args.rig)
-    except ParameterError as exc:
-        raise ParameterError(f"--rig: {exc}") from None
-    beam = params_from_args(args, rig.beam)         # --tip-mass, --tip-position, --n-modes on the rig's beam
-    return rig if beam == rig.beam else rig.replace(beam=beam)
+        if args.no_ladder:
+            raise ParameterError("--no-ladder applies with --rig only")
+        if args.integral != "auto":
+            raise ParameterError("--integral applies with --rig only")
+    return rig_from_args(args)
 
 
 def _plant_params(args, params):

@@ -52,29 +52,15 @@ def run(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    import dataclasses
     import sys
 
-    from hubbeam_ctrl.cli.args import params_from_args, stdout
+    from hubbeam_ctrl.cli.args import params_from_args, rig_from_args, stdout
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.fmu import build_fmu
-    from hubbeam_ctrl.plant.rig import load_rig
 
-    if args.rig is not None and args.params is not None:
-        raise ParameterError("--rig and --params are exclusive: a rig file holds the beam in its [beam] table")
-    if args.rig is not None:
-        rig = load_rig(args.rig)
-        beam = rig.beam
-        changes = {}
-        if args.tip_mass is not None:
-            changes["m_t"] = args.tip_mass
-        if args.tip_position is not None:
-            changes["l"] = args.tip_position
-        if args.n_modes is not None:
-            changes["n_axial"] = changes["n_transverse"] = args.n_modes
-        source = dataclasses.replace(rig, beam=beam.replace(**changes)) if changes else rig
-    else:
+    source = rig_from_args(args)
+    if source is None:
         source = params_from_args(args)
     if not str(args.out).endswith(".fmu"):
         raise ParameterError(f"--out must name a .fmu file, got {str(args.out)[:80]!r}")
