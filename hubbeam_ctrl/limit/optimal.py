@@ -45,6 +45,7 @@ from hubbeam_ctrl.core.validation import check_finite, check_positive
 from hubbeam_ctrl.plant.linearization import second_order_linearization
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, build_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
+from hubbeam_ctrl.plant.rig import Rig
 
 __all__ = ["OptimalSettings", "OptimalSlew", "DEFAULT_TOLERANCE", "rigid_bang_bang_time", "default_tolerance",
            "time_optimal_slew", "min_vibration_slew"]
@@ -74,6 +75,11 @@ class OptimalSettings(Settings):
     check: bool = setting(True, doc="Apply the optimal torque to the evaluation plant and report its "
                                     "residual.")
     max_iter: int = setting(1000, lo=1, doc="IPOPT iteration limit per solve.")
+    deflection_limit: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0,
+                                      doc="Largest |v_tip| during the slew, relative to L, kept at every grid "
+                                          "point (0.3: the models' validated range; a light link driven by its "
+                                          "full torque would otherwise bend past it, where the model is not "
+                                          "the beam).")
 
 
 @dataclass(frozen=True, eq=False)
@@ -215,9 +221,28 @@ class _Problem:
     T_rigid: float
     theta: float
     tau_max: float
+    tip_row: np.ndarray      # v_tip = tip_row @ q [m]
+    tip_limit: float         # [m]
+    drive: tuple | None      # (stall torque, back-EMF damping, current-limit torque, viscous, Coulomb, v_c)
 
 
-def _problem(params: Params, slew_angle: float, settings: OptimalSettings) -> _Problem:
+def _drive_terms(rig) -> tuple | None:
+    """The DC drive's torque bounds at the hub, affine in the hub rate, and the friction to overcome.
+
+    ``|tau_drive + k_emf theta_dot| <= tau_stall`` (the voltage limit through back-EMF) and
+    ``|tau_drive| <= tau_current`` (the current limit), with ``tau_stall = eta N k_t V_max / R``,
+    ``k_emf = eta N^2 k_t k_e / R`` and ``tau_current = eta N k_t I_max`` (``eta`` the gear's
+    driving efficiency, also while braking: conservative); ``tau_drive`` is the net hub torque
+    plus viscous and Coulomb friction (the sign smoothed over ``v_c``). None without a DC motor.
+    """
+    if rig is None or rig.drive.is_ideal:
+        return None
+    d, f = rig.drive, rig.friction
+    gain = d.eta_forward * d.N * d.k_t
+    return (gain * d.V_max / d.R, gain * d.N * d.k_e / d.R, gain * d.I_max, f.viscous, f.coulomb, 0.05)
+
+
+def _problem(params: Params, slew_angle: float, settings: OptimalSettings, rig=None) -> _Problem:
     p = params if settings.modes is None else params.replace(n_transverse=settings.modes)
     model = build_model(settings.model, p, axial=settings.axial)
     n = model.n_q
@@ -246,7 +271,7 @@ def _problem(params: Params, slew_angle: float, settings: OptimalSettings) -> _P
     f_scale = np.full(n, params.tau_max)
     f_scale[1:] = np.diag(K0)[1:] * q_scale[1:]
     return _Problem(model, n, M0, Phi, w, tip @ Phi, q_scale, v_scale, a_scale, f_scale, T_rigid,
-                    float(slew_angle), params.tau_max)
+                    float(slew_angle), params.tau_max, tip, settings.deflection_limit * params.L, _drive_terms(rig))
 
 
 def _interval_function(pb: _Problem, d: int) -> tuple:
@@ -306,6 +331,19 @@ def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None)
     g += [dangle / abs(pb.theta), momentum * pb.T_rigid / abs(pb.theta)]
     lbg += [np.zeros(2)]
     ubg += [np.zeros(2)]
+    # the tip within the models' range at every grid point (linear in the scaled states)
+    g.append(ca.mtimes((pb.tip_row * pb.q_scale / pb.tip_limit)[None, :], X[:n, 1:]).T)
+    lbg.append(np.full(N, -1.0))
+    ubg.append(np.full(N, 1.0))
+    if pb.drive is not None:            # the DC drive's voltage (back-EMF) and current limits
+        stall, k_emf, current, viscous, coulomb, v_c = pb.drive
+        rate = Zr[n, :] * pb.v_scale[0]                                  # hub rate at every collocation point
+        u = ca.repmat(U, d, 1)
+        u = ca.reshape(u, 1, d * N) * pb.tau_max                        # net torque of each point's interval
+        drive = u + viscous * rate + coulomb * ca.tanh(rate / (v_c * 2.0 / pb.T_rigid * abs(pb.theta)))
+        g += [((drive + k_emf * rate) / stall).T, (drive / current).T]
+        lbg += [np.full(d * N, -1.0), np.full(d * N, -1.0)]
+        ubg += [np.full(d * N, 1.0), np.full(d * N, 1.0)]
     n_flex = max(len(pb.w), 1)
     if duration is None:
         g.append(energy * n_flex / tolerance ** 2)
@@ -386,8 +424,9 @@ def _fallback_guess(pb: _Problem, N: int, d: int, duration) -> tuple:
     return _rigid_guess(pb, N, d, points, T), points
 
 
-def _optimise(params: Params, slew_angle: float, tolerance: float, duration, settings: OptimalSettings) -> tuple:
-    pb = _problem(params, slew_angle, settings)
+def _optimise(params: Params, slew_angle: float, tolerance: float, duration, settings: OptimalSettings,
+              rig=None) -> tuple:
+    pb = _problem(params, slew_angle, settings, rig)
     N, d = settings.intervals, settings.degree
     iterations, statuses = 0, []
     start = time.perf_counter()
@@ -440,9 +479,16 @@ def _plant_check(params: Params, result: "OptimalSlew", settings: OptimalSetting
             f"FOAM, {modes} transverse and {plant.n_axial} axial modes (dynamic), dt = {dt:.3g} s")
 
 
+def _source(params) -> tuple:
+    """``(Params, Rig or None)`` of the first argument: a beam, or a rig (its plant parameters)."""
+    if isinstance(params, Rig):
+        return params.plant_params, params
+    return params, None
+
+
 def _check_inputs(params: Params, slew_angle, tolerance, settings) -> tuple:
     if not isinstance(params, Params):
-        raise ParameterError(f"params must be a Params, got {type(params).__name__}")
+        raise ParameterError(f"params must be a Params or a Rig, got {type(params).__name__}")
     slew_angle = check_finite("slew_angle", slew_angle, "rad")
     if slew_angle == 0.0:
         raise ParameterError("slew_angle must be a finite number != 0 [rad], got 0")
@@ -487,8 +533,10 @@ def time_optimal_slew(params: Params, slew_angle: float, *, tolerance: float | N
 
     Parameters
     ----------
-    params : Params
-        Beam, hub and drive (``tau_max``).
+    params : Params or Rig
+        Beam, hub and drive (``tau_max``); or a rig: its plant parameters, and with a DC motor
+        the voltage limit through back-EMF, the current limit and the friction the drive must
+        overcome (:func:`_drive_terms`).
     slew_angle : float
         Theta [rad], finite, not 0.
     tolerance : float, optional
@@ -502,8 +550,9 @@ def time_optimal_slew(params: Params, slew_angle: float, *, tolerance: float | N
         ``kind="time-optimal"``; ``converged`` False (with the message) if IPOPT did not
         converge, the last iterate kept.
     """
+    params, rig = _source(params)
     slew_angle, tolerance = _check_inputs(params, slew_angle, tolerance, settings)
-    pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, None, settings)
+    pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, None, settings, rig)
     return _result("time-optimal", params, slew_angle, tolerance, pb, w, stats, iterations, wall, settings)
 
 
@@ -513,8 +562,10 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
 
     Parameters
     ----------
-    params : Params
-        Beam, hub and drive (``tau_max``).
+    params : Params or Rig
+        Beam, hub and drive (``tau_max``); or a rig: its plant parameters, and with a DC motor
+        the voltage limit through back-EMF, the current limit and the friction the drive must
+        overcome (:func:`_drive_terms`).
     slew_angle : float
         Theta [rad], finite, not 0.
     duration : float
@@ -538,12 +589,14 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
         time-optimal duration): one line naming ``name`` and the shortest feasible duration,
         found by :func:`time_optimal_slew`.
     """
+    source = params
+    params, rig = _source(params)
     slew_angle, tolerance = _check_inputs(params, slew_angle, tolerance, settings)
     duration = check_positive(name, duration, "s")
     quick = settings.replace(check=False)
 
     def refuse():
-        fastest = time_optimal_slew(params, slew_angle, tolerance=tolerance, settings=quick)
+        fastest = time_optimal_slew(source, slew_angle, tolerance=tolerance, settings=quick)
         if duration < fastest.duration_s:
             raise ParameterError(f"{name} must be >= {fastest.duration_s:.5g} s (the time-optimal slew with "
                                  f"residual <= {tolerance:.3g} m; the rigid bang-bang bound is "
@@ -551,7 +604,7 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
 
     if duration < rigid_bang_bang_time(params, slew_angle):     # below the rigid bound: hardly ever feasible
         refuse()
-    pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, duration, settings)
+    pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, duration, settings, rig)
     out = _result("min-vibration", params, slew_angle, tolerance, pb, w, stats, iterations, wall, quick)
     if out.residual_design > tolerance * 1.0001:
         refuse()
