@@ -42,7 +42,7 @@ import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.plant.rig import Drive, Friction, Rig
+from hubbeam_ctrl.plant.rig import Drive, Friction, Rig, Sensors, Timing
 
 __all__ = ["Hardware", "HW_LAYOUT", "hub_torque", "drive_torque", "friction_torque", "drive_power"]
 
@@ -166,12 +166,20 @@ def drive_power(u, thd, hw) -> dict:
 
 @dataclass(frozen=True)
 class Hardware:
-    """The drive and friction of a rig as the plant step applies them.
+    """The hardware of a rig as the closed loop applies it: drive, friction, sensors and timing.
+
+    The drive and friction act in the plant step (:class:`~hubbeam_ctrl.sim.stepper.PlantStepper`);
+    the sensors make the measurement (:class:`~hubbeam_ctrl.sim.measurement.MeasurementChain`)
+    and the timing delays the command (:func:`~hubbeam_ctrl.sim.closedloop.simulate_closed_loop`).
 
     Parameters
     ----------
     drive : Drive
     friction : Friction
+    sensors : Sensors, optional
+        None: the closed loop's own sensor settings (today's).
+    timing : Timing, optional
+        None: no computation delay.
 
     Examples
     --------
@@ -185,10 +193,16 @@ class Hardware:
 
     drive: Drive
     friction: Friction
+    sensors: Sensors | None = None
+    timing: Timing | None = None
 
     def __post_init__(self):
         if not isinstance(self.drive, Drive) or not isinstance(self.friction, Friction):
             raise ParameterError("hardware needs a Drive and a Friction (plant.rig)")
+        if self.sensors is not None and not isinstance(self.sensors, Sensors):
+            raise ParameterError(f"hardware sensors must be a Sensors (plant.rig), got {type(self.sensors).__name__}")
+        if self.timing is not None and not isinstance(self.timing, Timing):
+            raise ParameterError(f"hardware timing must be a Timing (plant.rig), got {type(self.timing).__name__}")
 
     @classmethod
     def from_rig(cls, rig: Rig) -> "Hardware":
@@ -200,12 +214,24 @@ class Hardware:
         """
         if not isinstance(rig, Rig):
             raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
-        return cls(rig.drive, rig.friction)
+        return cls(rig.drive, rig.friction, rig.sensors, rig.timing)
+
+    @property
+    def mechanics_ideal(self) -> bool:
+        """True for the ideal torque source without friction: the plant step is then today's, bit for bit."""
+        return self.drive.is_ideal and self.friction.is_ideal
+
+    @property
+    def delay(self) -> float:
+        """Computation delay as a fraction of the sample [-] (0 without timing)."""
+        return 0.0 if self.timing is None else self.timing.delay
 
     @property
     def is_ideal(self) -> bool:
-        """True for the ideal torque source without friction: the plant is then today's, bit for bit."""
-        return self.drive.is_ideal and self.friction.is_ideal
+        """True for the ideal torque source without friction, ideal sensors (or none given) and no
+        delay: the closed loop is then today's, bit for bit."""
+        return (self.mechanics_ideal and (self.sensors is None or self.sensors.is_ideal)
+                and self.delay == 0.0)
 
     @property
     def command(self) -> str:

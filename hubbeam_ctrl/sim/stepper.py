@@ -312,7 +312,7 @@ class PlantStepper:
         if hardware is not None and not isinstance(hardware, Hardware):
             raise ParameterError(f"hardware must be a Hardware (hubbeam_ctrl.sim.hardware), got "
                                  f"{type(hardware).__name__}")
-        self.hardware = None if hardware is None or hardware.is_ideal else hardware
+        self.hardware = None if hardware is None or hardware.mechanics_ideal else hardware
         #: True while friction holds the hub at rest (only with hardware that has friction).
         self.stuck = False
         #: Torque the friction exerts to hold the hub at the last held sample [N m].
