@@ -68,7 +68,8 @@ def _pulse_centre(p, d: float) -> float:
 def test_a_delayed_torque_pulse_moves_the_hub_later_by_the_delay():
     """The servo's hub with a nearly massless link (rho = 1), a rigid body of inertia J, hit by one
     sample of torque at k = 2 turns at omega = u dt / J through theta = omega (t - t_c): the delay d
-    moves the pulse's centre t_c by d dt (measured within 1.3e-6 dt, a line fitted through the link's ringing). Without delay t_c is
+    moves the pulse's centre t_c by d dt (measured within 1.3e-6 dt, a line fitted through the link's
+    ringing). Without delay t_c is
     (2 + 1/2) dt plus half an integration step h = dt / 4: the generalized-alpha step averages the
     acceleration over a substep, so a jump of the held torque acts as a ramp over one step."""
     p = load_rig("servo_link").plant_params.replace(n_axial=1, n_transverse=2, rho=1.0)
@@ -99,7 +100,8 @@ def test_delayed_loop_poles_match_the_exact_sampled_loop_and_a_pade_model():
     """An LQR gain designed without the delay, closed on the 2-mode SFOAM with 0.6 samples of delay:
     the poles of the augmented model equal those of the loop integrated exactly over one sample
     (to 1e-12) and the n largest poles of a 6th-order Pade model of the delay sampled with the plain
-    zero-order hold (to 1e-4, the Pade model's own error; the delay moves them by > 0.05); the delay's own pole within 5 % of the Pade model's next one."""
+    zero-order hold (to 1e-4, the Pade model's own error; the delay moves them by > 0.05); the
+    delay's own pole within 5 % of the Pade model's next one."""
     lm = linearize("sfoam", 0.0, Params(n_transverse=2), outputs=("theta",))
     A, B = np.asarray(lm.sys.A), np.asarray(lm.sys.B)
     n, dt, d = A.shape[0], 0.01, 0.6
