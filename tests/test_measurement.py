@@ -111,3 +111,14 @@ def test_state_feedback_gets_the_measured_hub_angle_and_rate():
     assert np.allclose(seen[:, 0], step * np.round((res.q[:, 0] + 0.02) / step), rtol=0, atol=1e-15)
     assert np.array_equal(seen[:, 3], res.v[:, 0] + 0.5)
     assert np.array_equal(seen[:, 1:3], res.q[:, 2:4]) and np.array_equal(seen[:, 4:], res.v[:, 2:4])
+
+
+@pytest.mark.parametrize("tables, message", [
+    ({"beam": {"L": 0.381}, "sensors": {"strain_gauges": [0.0, 0.5]}},
+     r"sensors.strain_gauges\[1\] must be in \[0, L\] = \[0, 0.381\] \[m\] \(on the beam\), got 0.5"),
+    ({"sensors": {"anti_alias_hz": -5}}, r"sensors.anti_alias_hz must be in \(0, 1e\+06\] \[Hz\], got -5"),
+    ({"timing": {"delay": 1.5}}, r"timing.delay must be in \[0, 1\], got 1.5"),
+])
+def test_bad_sensors_and_timing_in_a_rig_file_are_one_line_naming_the_key(tables, message):
+    with pytest.raises(ParameterError, match=rf"^rig file rig.toml: {message}$"):
+        rig_from_dict(tables, path="rig.toml")

@@ -8,9 +8,12 @@ step (:class:`~hubbeam_ctrl.sim.stepper.PlantStepper` with ``hardware=``) applie
 inside its compiled implicit step at the end of every substep, and the tests and reports
 evaluate them on samples.
 
-DC motor with gearbox (inductance neglected)
+DC motor with gearbox
     ``V = clip(u, +-V_max)``; ``i = clip((V - k_e N thd) / R, +-I_max)`` (the amplifier's
-    current limit lowers the terminal voltage to ``R i + k_e N thd``); motor torque
+    current limit lowers the terminal voltage to ``R i + k_e N thd``); with an armature
+    inductance ``L > 0`` the current is a state of the plant step instead,
+    ``L di/dt = V - R i - k_e N thd`` by backward Euler over each substep
+    (:func:`inductive_current`; the amplifier clips it to ``+-I_max``); motor torque
     ``k_t i``, mechanical power at the motor shaft ``P_m = k_t i N thd``. The gear passes
     ``eta_forward`` of the power while the motor drives the load (``P_m >= 0``, at rest
     too) and ``1 / eta_backward`` while the load drives the gear (``P_m < 0``: braking,
