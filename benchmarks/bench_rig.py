@@ -10,8 +10,11 @@ is the same code in every variant. Measured, median over ``--repeats`` runs, war
 
 1. ``closed_loop``: :func:`simulate_closed_loop` CPU time per sample [us] (a ``--t-end`` run less
    a 0.1 s one: the loop without the set-up) with no hardware
-   (the ideal torque source), the DC motor alone, friction alone and both (the rig), and
-   each one's ratio to the ideal plant (the issue's target: at most 1.3).
+   (the ideal torque source), the DC motor alone, the DC motor with its armature inductance
+   (the current a state), friction alone, the rig's sensors (encoder, two strain gauges, the tip
+   accelerometer, noise on each, a 200 Hz anti-alias filter), half a sample of computation delay,
+   and everything at once (the rig), and each one's ratio to the ideal plant (the issue's
+   target: at most 1.3).
 2. ``plant_step``: :meth:`PlantStepper.step` alone per sample [us CPU] on each variant's own command
    sequence from 1., and the ratios.
 
@@ -34,7 +37,7 @@ import numpy as np
 from controllers import LQR, DesignModel
 from hubbeam_ctrl import build_model
 from hubbeam_ctrl.plant.modal import modal_analysis
-from hubbeam_ctrl.plant.rig import Drive, Friction, load_rig
+from hubbeam_ctrl.plant.rig import Drive, Friction, Sensors, Timing, load_rig
 from hubbeam_ctrl.sim import ClosedLoopSettings, simulate_closed_loop, substep_rule
 from hubbeam_ctrl.sim.hardware import Hardware
 from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings
@@ -69,10 +72,17 @@ def main(argv=None) -> int:
     design = DesignModel.build(P.replace(n_transverse=2), 0.0, dt)
     x0 = np.zeros(2 * model.n_q)
     x0[0] = np.pi / 2
+    inductive = Drive(**{**rig.drive.to_dict(), "L": 1.8e-4})       # the SRV02's 0.18 mH
+    sensors = Sensors(encoder_counts=4096, strain_gauges=(0.0, 0.19), tip_accelerometer=True, rate_noise=1e-3,
+                      strain_noise=1e-3, accel_noise=0.01, anti_alias_hz=200.0)
+    delay = Timing(dt=dt, delay=0.5)
     variants = {"ideal": Hardware(Drive(), Friction()),
                 "dc_motor": Hardware(rig.drive, Friction()),
+                "inductance": Hardware(inductive, Friction()),
                 "friction": Hardware(Drive(), rig.friction),
-                "rig": Hardware.from_rig(rig)}
+                "sensors": Hardware(Drive(), Friction(), sensors=sensors),
+                "delay": Hardware(Drive(), Friction(), timing=delay),
+                "rig": Hardware(inductive, rig.friction, sensors, delay)}
     settings = ClosedLoopSettings(dt=dt, substeps=rule.substeps)
     closed, closed_median, plant, plant_median, info, results = {}, {}, {}, {}, {}, {}
     for name, hw in variants.items():       # first pass: compile and warm up

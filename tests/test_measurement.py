@@ -59,6 +59,28 @@ def test_chain_adds_bias_and_seeded_noise_per_sensor_and_counts_the_encoder():
     assert not np.array_equal(MeasurementChain(s, model, 0.01, n_samples, seed=8).measure(5, state), y[5])
 
 
+def test_chain_filters_each_analog_signal_as_the_filter_and_not_the_encoder_count():
+    """The compiled chain's filter is AntiAliasFilter's update, per analog channel; with an encoder the
+    angle is counted, unfiltered."""
+    model = build_model("foam", P)
+    n = model.n_q
+    t = 0.002 * np.arange(50)
+    states = np.zeros((50, 3 * n))
+    states[:, 0], states[:, n], states[:, 2] = 0.4 * t ** 2, 0.8 * t, 1e-3 * np.sin(40 * t)
+    for counts in (0, 2048):
+        s = Sensors(encoder_counts=counts, strain_gauges=(1.0,), anti_alias_hz=25.0, rate_bias=0.1)
+        chain = MeasurementChain(s, model, 0.002, 50)
+        got = np.array([chain.measure(k, x) for k, x in enumerate(states)])
+        raw = np.array([chain.exact(x) + [0.0, 0.1, 0.0] for x in states])
+        ref = AntiAliasFilter(25.0, 0.002)
+        want = np.array([ref(y) for y in raw])
+        first = 1 if counts else 0
+        assert np.allclose(got[:, first:], want[:, first:], rtol=1e-12, atol=1e-15)
+        if counts:
+            assert np.array_equal(got[:, 0], 2 * np.pi / counts * np.floor(raw[:, 0] / (2 * np.pi / counts) + 0.5))
+        assert np.max(np.abs(got[:, 1] - raw[:, 1])) > 1e-3                    # the filter lags
+
+
 class Reader:
     """A controller that records what it reads and turns the hub with a fixed torque."""
 

@@ -39,6 +39,7 @@ from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
+from hubbeam_ctrl.plant.instruments import signal_names
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
@@ -172,32 +173,34 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
 DEFAULT_SIGNALS = ("theta", "theta_dot", "moment_1")
 
 
-def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed):
-    """``(chain, pick, state_pick)``: the rig's measurement chain (None: today's sensors), the
-    indices of the signals a sensor-reading controller gets (None for state feedback) and where
-    the measured hub angle and rate go in a state feedback's vector."""
+def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, backend):
+    """``(chain, state_pick)``: the rig's measurement chain reading what the controller reads
+    (None: today's sensors) and, for state feedback (None otherwise), where the measured hub
+    angle and rate go in its vector."""
     sensors = None if hardware is None else hardware.sensors
     wanted = getattr(controller, "signals", None)
+    name = _controller_name(controller)
     if sensors is None:
         if wanted is not None and tuple(wanted) != DEFAULT_SIGNALS[:len(tuple(wanted))]:
-            raise ParameterError(f"controller {_controller_name(controller)!r} reads signals {tuple(wanted)} "
-                                 "but the closed loop has no rig sensors: give hardware=Hardware.from_rig(rig)")
-        return None, None, None
+            raise ParameterError(f"controller {name!r} reads signals {tuple(wanted)} but the closed loop has no "
+                                 "rig sensors: give hardware=Hardware.from_rig(rig)")
+        return None, None
     default = sensors.strain_gauges == (0.0,) and not sensors.tip_accelerometer
     if sensors.is_ideal and default and wanted is None:
-        return None, None, None                    # the beam alone's sensors, bit for bit
-    chain = MeasurementChain(sensors, model, dt, n_samples, seed)
+        return None, None                          # the beam alone's sensors, bit for bit
     if kind == "state":
-        return chain, None, np.array([0, 1 + m])
+        chain = MeasurementChain(sensors, model, dt, n_samples, seed, read=("theta", "theta_dot"),
+                                 backend=backend)
+        return chain, np.array([0, 1 + m])
     names = tuple(DEFAULT_SIGNALS if wanted is None else wanted)
+    all_names = signal_names(len(sensors.strain_gauges), sensors.tip_accelerometer)
     if not names:
-        raise ParameterError(f"controller {_controller_name(controller)!r}: signals must name at least one of "
-                             f"{', '.join(chain.names)}")
-    for name in names:
-        if name not in chain.names:
-            raise ParameterError(f"controller {_controller_name(controller)!r} reads signal {name!r}; the rig's "
-                                 f"sensors give {', '.join(chain.names)}")
-    return chain, np.array([chain.names.index(nm) for nm in names]), None
+        raise ParameterError(f"controller {name!r}: signals must name at least one of {', '.join(all_names)}")
+    for signal in names:
+        if signal not in all_names:
+            raise ParameterError(f"controller {name!r} reads signal {signal!r}; the rig's sensors give "
+                                 f"{', '.join(all_names)}")
+    return MeasurementChain(sensors, model, dt, n_samples, seed, read=names, backend=backend), None
 
 
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
@@ -326,8 +329,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     x = _initial_state(x0, 2 * n)
     stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend, hardware=hardware)
     t = dt * np.arange(N + 1)
-    chain, pick, state_pick = _rig_measurement(hardware, controller, kind, model, m, dt, N + 1,
-                                               settings.sensors.seed)
+    chain, state_pick = _rig_measurement(hardware, controller, kind, model, m, dt, N + 1,
+                                         settings.sensors.seed, stepper.backend)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" and chain is None \
         else None
@@ -359,12 +362,11 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         if chain is not None:           # the rig's sensors (the accelerometer reads s's accelerations)
             if s is None:
                 s = stepper.initial_state(x, u_prev)
-            meas = chain.measure(k, s)
-            if pick is None:
-                y = x[idx_state]
-                y[state_pick] = meas[:2]
+            if state_pick is None:
+                y = chain.measure(k, s)
             else:
-                y = meas[pick]
+                y = x[idx_state]
+                y[state_pick] = chain.measure(k, s)
         else:
             y = x[idx_state] if noise is None else C_sens @ x + noise[k]
             if encoder:                     # the encoder's count (nearest): y is a new array
@@ -439,8 +441,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     s_dict["backend"] = stepper.backend
     if chain is not None:
         s_dict["rig_sensors"] = {"sensors": hardware.sensors.to_dict(), "signals": list(chain.names),
-                                 "read": list(chain.names[:2]) if pick is None
-                                 else [chain.names[i] for i in pick]}
+                                 "read": list(chain.read)}
     if n_late:
         s_dict["timing"] = {"delay": delay, "delay_substeps": n_late, "applied_delay": n_late / n_sub}
     if stepper.hardware is not None:

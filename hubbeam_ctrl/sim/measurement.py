@@ -19,11 +19,14 @@ signal passes, in this order,
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
+import casadi as ca
 import numpy as np
 
+from hubbeam_ctrl.core.compiled import OPT_HOT, compile_function
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.plant.instruments import moment_rows, signal_names, tip_kinematics_function
+from hubbeam_ctrl.plant.instruments import _kinematics, moment_rows, signal_names, tip_acceleration
 from hubbeam_ctrl.plant.models import HubBeamModel
 from hubbeam_ctrl.plant.rig import Sensors
 
@@ -87,8 +90,46 @@ class AntiAliasFilter:
         return self._yf.copy()
 
 
+@lru_cache(maxsize=32)
+def _measure_function(parametric, n_linear: int, accelerometer: bool, filtered: tuple, encoder: bool,
+                      pick: tuple) -> ca.Function:
+    """One sample of the chain as one CasADi function (the numbers are inputs: compiled once per layout).
+
+    ``(x, C, w, state, coef, p, rL) -> (y, y_read, state_next)``: ``x = [q, v, a]``, ``C`` the
+    linear rows (column-major), ``w`` bias plus noise, ``state = [y_f, y]`` of the previous
+    sample, ``coef = [decay, b0, b1, encoder_step, start]``.
+    """
+    n = parametric.n_q
+    sym = parametric.sym
+    x = sym.sym("x", 3 * n)
+    n_ch = n_linear + (2 if accelerometer else 0)
+    C = sym.sym("C", n_linear * 2 * n)
+    w, state, coef = sym.sym("w", n_ch), sym.sym("state", 2 * n_ch), sym.sym("coef", 5)
+    p, rL = sym.sym("p", parametric.n_p), sym.sym("rL")
+    y = ca.mtimes(ca.reshape(C, n_linear, 2 * n), x[:2 * n])
+    if accelerometer:
+        y = ca.vertcat(y, _kinematics(parametric)(x[:n], x[n:2 * n], x[2 * n:], p, rL)[2])
+    y = y + w
+    decay, b0, b1, step, start = (coef[k] for k in range(5))
+    out = []
+    for k in range(n_ch):
+        yk = y[k]
+        if k in filtered:                 # the filter's exact update, or at rest on the first sample
+            yk = ca.if_else(start > 0.5, yk, decay * state[k] + b0 * yk + b1 * state[n_ch + k])
+        out.append(yk)
+    if encoder:
+        out[0] = step * ca.floor(out[0] / step + 0.5)
+    y_out = ca.vertcat(*out)
+    read = ca.vertcat(*[y_out[k] for k in pick])
+    return ca.Function("measure", [x, C, w, state, coef, p, rL], [y_out, read, ca.vertcat(y_out, y)],
+                       ["x", "C", "w", "state", "coef", "p", "rL"], ["y", "y_read", "state_next"], {"cse": True})
+
+
 class MeasurementChain:
     """The rig's sensors on a plant: what a controller reads at each sample.
+
+    One sample is one call of a CasADi function (compiled like the plant step), so the rig's
+    sensors cost a few microseconds per sample.
 
     Parameters
     ----------
@@ -102,14 +143,21 @@ class MeasurementChain:
         Number of samples of the run (noise is drawn for them at once).
     seed : int
         Seed of the noise generator.
+    read : sequence of str, optional
+        The signals :meth:`measure` returns, in this order (default all, :attr:`names`).
+    backend : {"auto", "compiled", "vm"}, optional
+        How the chain is evaluated (:func:`~hubbeam_ctrl.core.compiled.compile_function`).
 
     Attributes
     ----------
     names : tuple of str
-        The signals, in the order of :meth:`measure`'s vector.
+        All the rig's signals (:func:`~hubbeam_ctrl.plant.instruments.signal_names`).
+    read : tuple of str
+        Those :meth:`measure` returns.
     """
 
-    def __init__(self, sensors: Sensors, model: HubBeamModel, dt: float, n_samples: int, seed: int = 0):
+    def __init__(self, sensors: Sensors, model: HubBeamModel, dt: float, n_samples: int, seed: int = 0,
+                 read=None, backend=None):
         if not isinstance(sensors, Sensors):
             raise ParameterError(f"sensors must be a Sensors (plant.rig), got {type(sensors).__name__}")
         self.sensors, self.model = sensors, model
@@ -117,32 +165,58 @@ class MeasurementChain:
         self.n_q = n
         gauges = sensors.strain_gauges
         self.names = signal_names(len(gauges), sensors.tip_accelerometer)
+        self.read = self.names if read is None else tuple(read)
+        for name in self.read:
+            if name not in self.names:
+                raise ParameterError(f"signal {name!r} is not among the rig's sensors: {', '.join(self.names)}")
         C = np.zeros((2 + len(gauges), 2 * n))
         C[0, 0], C[1, n] = 1.0, 1.0
         C[2:] = moment_rows(model.params, gauges, model.n_transverse, model.n_axial)
         self.C = C
-        self._accel = tip_kinematics_function(model) if sensors.tip_accelerometer else None
+        accel = sensors.tip_accelerometer
+        if accel and model.axial != "dynamic":
+            raise ParameterError("sensors.tip_accelerometer needs a model with dynamic axial coordinates "
+                                 f"(axial = 'dynamic'), got axial = {model.axial!r}")
         s = sensors
         k = len(gauges)
-        self.std = np.array([s.angle_noise, s.rate_noise] + [s.strain_noise] * k
-                            + ([s.accel_noise] * 2 if self._accel is not None else []))
-        self.bias = np.array([s.angle_bias, s.rate_bias] + [s.strain_bias] * k
-                             + ([s.accel_bias] * 2 if self._accel is not None else []))
+        self.std = np.array([s.angle_noise, s.rate_noise] + [s.strain_noise] * k + ([s.accel_noise] * 2 if accel else []))
+        self.bias = np.array([s.angle_bias, s.rate_bias] + [s.strain_bias] * k + ([s.accel_bias] * 2 if accel else []))
         self.encoder = s.encoder_step
+        n_ch = len(self.names)
         rng = np.random.default_rng(seed)
-        self._noise = rng.standard_normal((int(n_samples), len(self.names))) * self.std \
-            if np.any(self.std > 0) else None
-        self._filter = None if s.anti_alias_hz is None else AntiAliasFilter(s.anti_alias_hz, dt)
+        noise = rng.standard_normal((int(n_samples), n_ch)) * self.std if np.any(self.std > 0) \
+            else np.zeros((int(n_samples), n_ch))
+        self._w_all = noise + self.bias
         # the encoder counts, it is not filtered; an angle sensor without counts is analog
-        self._filtered = slice(1, None) if self.encoder else slice(0, None)
+        filtered = () if s.anti_alias_hz is None else tuple(range(1 if self.encoder else 0, n_ch))
+        coef = np.zeros(5)
+        if s.anti_alias_hz is not None:
+            w_c = 2.0 * math.pi * s.anti_alias_hz
+            decay = math.exp(-w_c * dt)
+            c1 = 1.0 / (w_c * dt)
+            coef[:3] = decay, 1.0 - c1 * (1.0 - decay), c1 * (1.0 - decay) - decay
+        coef[3], coef[4] = self.encoder, 1.0
+        pick = tuple(self.names.index(name) for name in self.read)
+        f = _measure_function(model.parametric, len(C), accel, filtered, bool(self.encoder), pick)
+        self._function = compile_function(f, backend, opt=OPT_HOT)
+        self._x, self._C, self._w = np.zeros(3 * n), C.ravel(order="F").copy(), np.zeros(n_ch)
+        self._state, self._coef = np.zeros(2 * n_ch), coef
+        self._p, self._rL = np.array(model.p, dtype=float), np.array([model.params.r + model.params.L])
+        self._y, self._y_read, self._next = np.zeros(n_ch), np.zeros(len(pick)), np.zeros(2 * n_ch)
+        buf, self._evaluate = self._function.buffer()
+        for i, a in enumerate((self._x, self._C, self._w, self._state, self._coef, self._p, self._rL)):
+            buf.set_arg(i, memoryview(a))
+        for i, r in enumerate((self._y, self._y_read, self._next)):
+            buf.set_res(i, memoryview(r))
+        self._buffer = buf                     # keep the buffer alive with its arrays
+        self._needs_a = accel
 
     def reset(self):
         """Prepare a new run (the filter starts again at rest)."""
-        if self._filter is not None:
-            self._filter.reset()
+        self._coef[4] = 1.0
 
     def exact(self, state) -> np.ndarray:
-        """The signals without bias, noise, filter or encoder at an integrator state.
+        """All the signals without bias, noise, filter or encoder at an integrator state.
 
         Parameters
         ----------
@@ -155,15 +229,14 @@ class MeasurementChain:
         """
         n = self.n_q
         y = self.C @ state[:2 * n]
-        if self._accel is not None:
+        if self._needs_a:
             if len(state) < 3 * n:
                 raise ParameterError("the tip accelerometer needs the accelerations: give [q, v, a]")
-            acc = np.asarray(self._accel(state[:n], state[n:2 * n], state[2 * n:3 * n])[2]).ravel()
-            y = np.concatenate([y, acc])
+            y = np.concatenate([y, tip_acceleration(self.model, state[:n], state[n:2 * n], state[2 * n:3 * n])])
         return y
 
     def measure(self, k: int, state) -> np.ndarray:
-        """The signals a controller reads at sample ``k``.
+        """The signals :attr:`read` at sample ``k`` (call once per sample, in order: the filter keeps state).
 
         Parameters
         ----------
@@ -174,13 +247,15 @@ class MeasurementChain:
 
         Returns
         -------
-        ndarray (len(names),)
+        ndarray (len(read),)
         """
-        y = self.exact(state) + self.bias
-        if self._noise is not None:
-            y = y + self._noise[k]
-        if self._filter is not None:
-            y[self._filtered] = self._filter(y[self._filtered])
-        if self.encoder:
-            y[0] = self.encoder * round(y[0] / self.encoder)
-        return y
+        n = self.n_q
+        if self._needs_a:
+            self._x[:] = state[:3 * n]
+        else:
+            self._x[:2 * n] = state[:2 * n]
+        self._w[:] = self._w_all[k]
+        self._evaluate()
+        self._state[:] = self._next
+        self._coef[4] = 0.0
+        return self._y_read.copy()
