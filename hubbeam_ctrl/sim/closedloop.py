@@ -176,7 +176,7 @@ DEFAULT_SIGNALS = ("theta", "theta_dot", "moment_1")
 def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, backend):
     """``(chain, state_pick)``: the rig's measurement chain reading what the controller reads
     (None: today's sensors) and, for state feedback (None otherwise), where the measured hub
-    angle and rate go in its vector."""
+    rate goes in its vector (the angle goes first)."""
     sensors = None if hardware is None else hardware.sensors
     wanted = getattr(controller, "signals", None)
     name = _controller_name(controller)
@@ -191,7 +191,7 @@ def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, 
     if kind == "state":
         chain = MeasurementChain(sensors, model, dt, n_samples, seed, read=("theta", "theta_dot"),
                                  backend=backend)
-        return chain, np.array([0, 1 + m])
+        return chain, 1 + m
     names = tuple(DEFAULT_SIGNALS if wanted is None else wanted)
     all_names = signal_names(len(sensors.strain_gauges), sensors.tip_accelerometer)
     if not names:
@@ -366,7 +366,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                 y = chain.measure(k, s)
             else:
                 y = x[idx_state]
-                y[state_pick] = chain.measure(k, s)
+                y[0], y[state_pick] = chain.measure(k, s)
         else:
             y = x[idx_state] if noise is None else C_sens @ x + noise[k]
             if encoder:                     # the encoder's count (nearest): y is a new array

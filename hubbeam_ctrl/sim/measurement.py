@@ -95,9 +95,10 @@ def _measure_function(parametric, n_linear: int, accelerometer: bool, filtered: 
                       pick: tuple) -> ca.Function:
     """One sample of the chain as one CasADi function (the numbers are inputs: compiled once per layout).
 
-    ``(x, C, w, state, coef, p, rL) -> (y, y_read, state_next)``: ``x = [q, v, a]``, ``C`` the
+    ``(x, C, w, state, coef, p, rL) -> (y, y_read, state_next)`` on the channels the chain
+    computes (the linear ones, then the accelerometer's two): ``x = [q, v, a]``, ``C`` the
     linear rows (column-major), ``w`` bias plus noise, ``state = [y_f, y]`` of the previous
-    sample, ``coef = [decay, b0, b1, encoder_step, start]``.
+    sample, ``coef = [decay, b0, b1, encoder_step, start]``; the encoder counts channel 0.
     """
     n = parametric.n_q
     sym = parametric.sym
@@ -174,7 +175,7 @@ class MeasurementChain:
         C[2:] = moment_rows(model.params, gauges, model.n_transverse, model.n_axial)
         self.C = C
         accel = sensors.tip_accelerometer
-        if accel and model.axial != "dynamic":
+        if accel and model.axial != "dynamic" and any(name.startswith("accel") for name in self.read):
             raise ParameterError("sensors.tip_accelerometer needs a model with dynamic axial coordinates "
                                  f"(axial = 'dynamic'), got axial = {model.axial!r}")
         s = sensors
@@ -182,13 +183,19 @@ class MeasurementChain:
         self.std = np.array([s.angle_noise, s.rate_noise] + [s.strain_noise] * k + ([s.accel_noise] * 2 if accel else []))
         self.bias = np.array([s.angle_bias, s.rate_bias] + [s.strain_bias] * k + ([s.accel_bias] * 2 if accel else []))
         self.encoder = s.encoder_step
-        n_ch = len(self.names)
-        rng = np.random.default_rng(seed)
-        noise = rng.standard_normal((int(n_samples), n_ch)) * self.std if np.any(self.std > 0) \
-            else np.zeros((int(n_samples), n_ch))
-        self._w_all = noise + self.bias
+        rng = np.random.default_rng(seed)            # every signal's noise is drawn, read or not: seeded runs agree
+        noise = rng.standard_normal((int(n_samples), len(self.names))) * self.std if np.any(self.std > 0) \
+            else np.zeros((int(n_samples), len(self.names)))
+        # the chain computes only the channels read (in the order of names): the linear ones, then the
+        # accelerometer's two when one of them is read
+        lin = [k for k in range(len(C)) if self.names[k] in self.read]
+        accel = accel and any(name.startswith("accel") for name in self.read)
+        channels = lin + ([len(C), len(C) + 1] if accel else [])
+        n_ch = len(channels)
+        self._w_all = np.ascontiguousarray((noise + self.bias)[:, channels])
+        encoder = bool(self.encoder) and 0 in lin
         # the encoder counts, it is not filtered; an angle sensor without counts is analog
-        filtered = () if s.anti_alias_hz is None else tuple(range(1 if self.encoder else 0, n_ch))
+        filtered = () if s.anti_alias_hz is None else tuple(range(1 if encoder else 0, n_ch))
         coef = np.zeros(5)
         if s.anti_alias_hz is not None:
             w_c = 2.0 * math.pi * s.anti_alias_hz
@@ -196,10 +203,10 @@ class MeasurementChain:
             c1 = 1.0 / (w_c * dt)
             coef[:3] = decay, 1.0 - c1 * (1.0 - decay), c1 * (1.0 - decay) - decay
         coef[3], coef[4] = self.encoder, 1.0
-        pick = tuple(self.names.index(name) for name in self.read)
-        f = _measure_function(model.parametric, len(C), accel, filtered, bool(self.encoder), pick)
+        pick = tuple(channels.index(self.names.index(name)) for name in self.read)
+        f = _measure_function(model.parametric, len(lin), accel, filtered, encoder, pick)
         self._function = compile_function(f, backend, opt=OPT_HOT)
-        self._x, self._C, self._w = np.zeros(3 * n), C.ravel(order="F").copy(), np.zeros(n_ch)
+        self._x, self._C, self._w = np.zeros(3 * n), C[lin].ravel(order="F").copy(), np.zeros(n_ch)
         self._state, self._coef = np.zeros(2 * n_ch), coef
         self._p, self._rL = np.array(model.p, dtype=float), np.array([model.params.r + model.params.L])
         self._y, self._y_read, self._next = np.zeros(n_ch), np.zeros(len(pick)), np.zeros(2 * n_ch)
@@ -210,6 +217,8 @@ class MeasurementChain:
             buf.set_res(i, memoryview(r))
         self._buffer = buf                     # keep the buffer alive with its arrays
         self._needs_a = accel
+        self._has_accel = sensors.tip_accelerometer
+        self._filtering = bool(filtered)
 
     def reset(self):
         """Prepare a new run (the filter starts again at rest)."""
@@ -229,7 +238,7 @@ class MeasurementChain:
         """
         n = self.n_q
         y = self.C @ state[:2 * n]
-        if self._needs_a:
+        if self._has_accel:
             if len(state) < 3 * n:
                 raise ParameterError("the tip accelerometer needs the accelerations: give [q, v, a]")
             y = np.concatenate([y, tip_acceleration(self.model, state[:n], state[n:2 * n], state[2 * n:3 * n])])
@@ -256,6 +265,7 @@ class MeasurementChain:
             self._x[:2 * n] = state[:2 * n]
         self._w[:] = self._w_all[k]
         self._evaluate()
-        self._state[:] = self._next
-        self._coef[4] = 0.0
+        if self._filtering:
+            self._state[:] = self._next
+            self._coef[4] = 0.0
         return self._y_read.copy()
