@@ -13,7 +13,7 @@ is the same code in every variant. Measured, median over ``--repeats`` runs, war
    (the ideal torque source), the DC motor alone, the DC motor with its armature inductance
    (the current a state), friction alone, the rig's sensors (encoder, two strain gauges, the tip
    accelerometer, noise on each, a 200 Hz anti-alias filter), half a sample of computation delay,
-   the ``servo_link`` preset as it ships (``rig``: DC motor, friction, 4096-count encoder, root
+   the preset's drive and friction (``drive_friction``), the ``servo_link`` preset as it ships (``rig``: DC motor, friction, 4096-count encoder, root
    gauge, half a sample of delay) and all of the above at once (``everything``), and each one's
    ratio to the ideal plant (the issue's target: at most 1.3).
 2. ``plant_step``: :meth:`PlantStepper.step` alone per sample [us CPU] on each variant's own command
@@ -87,6 +87,7 @@ def main(argv=None) -> int:
                 "friction": Hardware(Drive(), rig.friction),
                 "sensors": Hardware(Drive(), Friction(), sensors=sensors),
                 "delay": Hardware(Drive(), Friction(), timing=delay),
+                "drive_friction": Hardware(rig.drive, rig.friction),
                 "rig": Hardware.from_rig(rig),
                 "everything": Hardware(inductive, rig.friction, sensors, delay)}
     settings = ClosedLoopSettings(dt=dt, substeps=rule.substeps)

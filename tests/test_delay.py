@@ -136,3 +136,18 @@ def test_bad_delay_is_one_line_naming_the_key():
             Timing(delay=bad)
         with pytest.raises(ParameterError, match=r"^timing.delay must be in \[0, 1\]"):
             delay_inputs(np.zeros((1, 1)), np.ones((1, 1)), 0.1, bad)
+
+
+def test_design_model_carries_the_delay_as_an_extra_state():
+    """DesignModel.with_delay: delay 0 is its own sampled model with the previous command unused;
+    with half a sample the previous command's column is the exact Gamma1."""
+    from controllers import DesignModel
+    design = DesignModel.build(Params(n_transverse=2), 0.0, 0.01)
+    n = design.n_x
+    Ad, Bd = design.with_delay(0.0)
+    assert np.allclose(Ad[:n, :n], design.Ad, rtol=0, atol=1e-12) and np.allclose(Bd[:n], design.Bd, atol=1e-12)
+    assert np.all(Ad[:, n] == 0) and Bd[n, 0] == 1.0
+    Ad, Bd = design.with_delay(0.5)
+    Phi, G0, G1 = delay_inputs(design.A, design.B, 0.01, 0.5)
+    assert np.array_equal(Ad[:n, n:], G1) and np.array_equal(Bd[:n], G0)
+    assert np.allclose(G0 + G1, design.Bd, rtol=0, atol=1e-12)       # the whole sample's input, split

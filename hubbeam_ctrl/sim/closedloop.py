@@ -355,11 +355,20 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     s = None
     last = N
     perf = time.perf_counter
+    plain = None
     if chain is not None:
         chain.reset()
+        if state_pick is not None and chain.offsets is not None:      # hub angle and rate: inline
+            plain = chain.offsets
+            encoder = chain.encoder
     for k in range(N + 1):
         states[k] = x
-        if chain is not None:           # the rig's sensors (the accelerometer reads s's accelerations)
+        if plain is not None:           # the rig's encoder, biases and noise on the state feedback's hub
+            y = x[idx_state]
+            theta = y[0] + plain[0][k]
+            y[0] = encoder * math.floor(theta / encoder + 0.5) if encoder else theta
+            y[state_pick] += plain[1][k]
+        elif chain is not None:         # the rig's sensors (the accelerometer reads s's accelerations)
             if s is None:
                 s = stepper.initial_state(x, u_prev)
             if state_pick is None:

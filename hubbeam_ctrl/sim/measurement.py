@@ -204,6 +204,7 @@ class MeasurementChain:
             coef[:3] = decay, 1.0 - c1 * (1.0 - decay), c1 * (1.0 - decay) - decay
         coef[3], coef[4] = self.encoder, 1.0
         pick = tuple(channels.index(self.names.index(name)) for name in self.read)
+        self._function_pick = pick
         f = _measure_function(model.parametric, len(lin), accel, filtered, encoder, pick)
         self._function = compile_function(f, backend, opt=OPT_HOT)
         self._x, self._C, self._w = np.zeros(3 * n), C[lin].ravel(order="F").copy(), np.zeros(n_ch)
@@ -219,6 +220,19 @@ class MeasurementChain:
         self._needs_a = accel
         self._has_accel = sensors.tip_accelerometer
         self._filtering = bool(filtered)
+
+    @property
+    def offsets(self):
+        """Bias plus noise of each signal read, per sample, as lists of floats, when that is the whole
+        chain besides the encoder (no filter, no accelerometer); else None.
+
+        A closed loop that reads only the hub angle and rate adds them itself (faster than a call):
+        ``y = exact + offsets[i][k]``, then the angle to its nearest count (:attr:`encoder`).
+        """
+        if self._filtering or self._needs_a:
+            return None
+        pick = [self._function_pick[i] for i in range(len(self.read))]
+        return [self._w_all[:, c].tolist() for c in pick]
 
     def reset(self):
         """Prepare a new run (the filter starts again at rest)."""
