@@ -144,3 +144,15 @@ def test_state_feedback_gets_the_measured_hub_angle_and_rate():
 def test_bad_sensors_and_timing_in_a_rig_file_are_one_line_naming_the_key(tables, message):
     with pytest.raises(ParameterError, match=rf"^rig file rig.toml: {message}$"):
         rig_from_dict(tables, path="rig.toml")
+
+
+def test_state_feedback_reads_the_filtered_rate_and_the_unfiltered_count():
+    step = 2 * np.pi / 1024
+    s = Sensors(rate_bias=0.5, encoder_counts=1024, anti_alias_hz=15.0)
+    ctrl = Reader("state")
+    res = simulate_closed_loop("foam", ctrl, 0.3, params=P, settings=ClosedLoopSettings(dt=0.01, substeps=4),
+                               hardware=Hardware(Drive(), Friction(), sensors=s))
+    seen = np.array(ctrl.seen)
+    ref = AntiAliasFilter(15.0, 0.01)
+    assert np.allclose(seen[:, 3], [ref(np.array([v]))[0] for v in res.v[:, 0] + 0.5], rtol=1e-12, atol=1e-15)
+    assert np.allclose(seen[:, 0], step * np.round(res.q[:, 0] / step), rtol=0, atol=1e-15)
