@@ -13,9 +13,10 @@ is the same code in every variant. Measured, median over ``--repeats`` runs, war
    (the ideal torque source), the DC motor alone, the DC motor with its armature inductance
    (the current a state), friction alone, the rig's sensors (encoder, two strain gauges, the tip
    accelerometer, noise on each, a 200 Hz anti-alias filter), half a sample of computation delay,
-   the preset's drive and friction (``drive_friction``), the ``servo_link`` preset as it ships (``rig``: DC motor, friction, 4096-count encoder, root
-   gauge, half a sample of delay) and all of the above at once (``everything``), and each one's
-   ratio to the ideal plant (the issue's target: at most 1.3).
+   the preset's drive and friction (``drive_friction``), the ``servo_link`` preset as it ships
+   (``rig``: DC motor, friction, 4096-count encoder, root gauge, half a sample of delay) and all
+   of the above at once (``everything``), and each one's ratio to the ideal plant (the issue's
+   target: at most 1.3).
 2. ``plant_step``: :meth:`PlantStepper.step` alone per sample [us CPU] on each variant's own command
    sequence from 1., and the ratios.
 3. ``measurement_chain``: :meth:`MeasurementChain.measure` alone per sample [us CPU], reading the hub

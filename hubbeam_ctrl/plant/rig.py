@@ -63,11 +63,11 @@ class Drive(Settings):
 
     The DC motor (``kind = "dc_motor"``) takes a voltage ``V`` clipped to ``+-V_max``; its
     armature current ``i = (V - k_e N thd) / R`` (with inductance ``L > 0``: the state of
-    ``L di/dt = V - R i - k_e N thd``) is clipped to ``+-I_max`` by the amplifier, and the torque at the hub is ``eta_forward N k_t i`` while
-    the motor drives the load (``i thd >= 0``) and ``N k_t i / eta_backward`` while the load
-    drives the gear (``i thd < 0``: braking, the power flows back through the gear). The
-    rotor inertia ``J_r`` adds ``N^2 J_r`` to the hub inertia (:attr:`Rig.plant_params`).
-    With ``kind = "torque"`` the motor fields are not used.
+    ``L di/dt = V - R i - k_e N thd``) is clipped to ``+-I_max`` by the amplifier, and the
+    torque at the hub is ``eta_forward N k_t i`` while the motor drives the load (``i thd >=
+    0``) and ``N k_t i / eta_backward`` while the load drives the gear (``i thd < 0``: braking,
+    the power flows back through the gear). The rotor inertia ``J_r`` adds ``N^2 J_r`` to the
+    hub inertia (:attr:`Rig.plant_params`). With ``kind = "torque"`` the motor fields are not used.
     """
 
     _setting_prefix = "motor."

@@ -180,8 +180,9 @@ class MeasurementChain:
                                  f"(axial = 'dynamic'), got axial = {model.axial!r}")
         s = sensors
         k = len(gauges)
-        self.std = np.array([s.angle_noise, s.rate_noise] + [s.strain_noise] * k + ([s.accel_noise] * 2 if accel else []))
-        self.bias = np.array([s.angle_bias, s.rate_bias] + [s.strain_bias] * k + ([s.accel_bias] * 2 if accel else []))
+        two = 2 if accel else 0
+        self.std = np.array([s.angle_noise, s.rate_noise] + [s.strain_noise] * k + [s.accel_noise] * two)
+        self.bias = np.array([s.angle_bias, s.rate_bias] + [s.strain_bias] * k + [s.accel_bias] * two)
         self.encoder = s.encoder_step
         rng = np.random.default_rng(seed)            # every signal's noise is drawn, read or not: seeded runs agree
         noise = rng.standard_normal((int(n_samples), len(self.names))) * self.std if np.any(self.std > 0) \

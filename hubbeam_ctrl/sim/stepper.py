@@ -34,8 +34,15 @@ from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, jacobian_columns, resolve_model
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.sim.hardware import (HW_LAYOUT, Hardware, drive_torque, friction_torque, hub_torque,
-                                       inductive_current, motor_torque)
+from hubbeam_ctrl.sim.hardware import (
+    HW_LAYOUT,
+    Hardware,
+    drive_torque,
+    friction_torque,
+    hub_torque,
+    inductive_current,
+    motor_torque,
+)
 from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients",
@@ -715,7 +722,8 @@ def _hold_function(model: ParametricModel, inductive: bool = False) -> ca.Functi
 
 
 @lru_cache(maxsize=16)
-def _robust_step_function(model: ParametricModel, settings: StepperSettings, hardware: bool | str = False) -> ca.Function:
+def _robust_step_function(model: ParametricModel, settings: StepperSettings,
+                          hardware: bool | str = False) -> ca.Function:
     n = model.n_q
     s, tau, a, p, new, residual, *hw = _substep_expressions(model, settings, hardware)
     n_s = s.shape[0]
