@@ -130,6 +130,13 @@ def test_delayed_loop_poles_match_the_exact_sampled_loop_and_a_pade_model():
     assert np.max(np.abs(np.sort_complex(no_delay) - np.sort_complex(lam[:n]))) > 0.05   # the delay matters
 
 
+def test_rig_sample_time_must_be_the_loop_s():
+    with pytest.raises(ParameterError, match=r"^timing.dt = 0.002 s of the rig but the closed loop samples at dt = "
+                                             r"0.001 s"):
+        simulate_closed_loop("foam", Sequence([0.0]), 0.01, params=Params(n_axial=1, n_transverse=1),
+                             settings=SETTINGS, hardware=Hardware(Drive(), Friction(), timing=Timing(dt=2e-3)))
+
+
 def test_bad_delay_is_one_line_naming_the_key():
     for bad in (1.5, -0.1):
         with pytest.raises(ParameterError, match=r"^timing.delay must be in \[0, 1\]"):

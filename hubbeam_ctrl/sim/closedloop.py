@@ -273,7 +273,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         sensors (``settings.sensors``). With the rig's ``timing.delay`` ``d`` the command
         computed at ``t_k`` acts from ``t_k + d dt`` (the previous one before; zero before the
         first), rounded to the nearest integration substep (``result.settings["timing"]`` gives
-        the delay applied). None or ideal hardware: the beam alone, bit for bit.
+        the delay applied); a rig's ``timing.dt``, when set, must be ``settings.dt``. None or
+        ideal hardware: the beam alone, bit for bit.
 
     Returns
     -------
@@ -308,6 +309,10 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     if cdt is not None and abs(float(cdt) - dt) > 1e-12 * dt:
         raise ParameterError(f"controller {name!r} is designed for dt = {cdt:g} s but the "
                              f"simulator samples at dt = {dt:g} s")
+    rig_dt = None if hardware is None or hardware.timing is None else hardware.timing.dt
+    if rig_dt is not None and abs(rig_dt - dt) > 1e-12 * dt:
+        raise ParameterError(f"timing.dt = {rig_dt:g} s of the rig but the closed loop samples at dt = {dt:g} s "
+                             "(give settings with the rig's dt)")
     kind = getattr(controller, "measurement", "state")
     if kind not in ("state", "sensors"):
         raise ParameterError(f"controller {name!r}: measurement must be 'state' or 'sensors', got {kind!r}")
