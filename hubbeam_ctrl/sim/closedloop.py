@@ -14,6 +14,8 @@ The controller is any object with
 * ``__call__(t, y) -> float``: hub torque [N m] at time ``t`` [s] from measurement ``y``;
 * ``reset()``: prepare a new run;
 * ``measurement``: ``"state"`` or ``"sensors"`` (see :func:`simulate_closed_loop`);
+* optionally ``signals``: the names of the rig's signals a ``"sensors"`` controller reads, in
+  order (:func:`~hubbeam_ctrl.plant.instruments.signal_names`; default :data:`DEFAULT_SIGNALS`);
 * optionally ``name``, ``dt`` (its sample time, checked against the simulator's),
   ``n_modes`` (the transverse modes of its design model), ``state_modes`` (those it reads
   with ``measurement="state"``, default ``n_modes``), ``design`` (with ``params`` and
