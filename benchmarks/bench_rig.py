@@ -10,10 +10,18 @@ is the same code in every variant. Measured, median over ``--repeats`` runs, war
 
 1. ``closed_loop``: :func:`simulate_closed_loop` CPU time per sample [us] (a ``--t-end`` run less
    a 0.1 s one: the loop without the set-up) with no hardware
-   (the ideal torque source), the DC motor alone, friction alone and both (the rig), and
-   each one's ratio to the ideal plant (the issue's target: at most 1.3).
+   (the ideal torque source), the DC motor alone, the DC motor with its armature inductance
+   (the current a state), friction alone, the rig's sensors (encoder, two strain gauges, the tip
+   accelerometer, noise on each, a 200 Hz anti-alias filter), half a sample of computation delay,
+   the preset's drive and friction (``drive_friction``), the ``servo_link`` preset as it ships
+   (``rig``: DC motor, friction, 4096-count encoder, root gauge, half a sample of delay) and all
+   of the above at once (``everything``), and each one's ratio to the ideal plant (the issue's
+   target: at most 1.3).
 2. ``plant_step``: :meth:`PlantStepper.step` alone per sample [us CPU] on each variant's own command
    sequence from 1., and the ratios.
+3. ``measurement_chain``: :meth:`MeasurementChain.measure` alone per sample [us CPU], reading the hub
+   angle and rate (what the state-feedback LQR of 1. reads) and every signal of the sensors (the
+   accelerometer's kinematics included).
 
 The variants run interleaved, ``--repeats`` rounds; the headline numbers are the fastest round
 of each (the least disturbed by other processes), the ``_median`` ones beside them.
@@ -34,9 +42,10 @@ import numpy as np
 from controllers import LQR, DesignModel
 from hubbeam_ctrl import build_model
 from hubbeam_ctrl.plant.modal import modal_analysis
-from hubbeam_ctrl.plant.rig import Drive, Friction, load_rig
+from hubbeam_ctrl.plant.rig import Drive, Friction, Sensors, Timing, load_rig
 from hubbeam_ctrl.sim import ClosedLoopSettings, simulate_closed_loop, substep_rule
 from hubbeam_ctrl.sim.hardware import Hardware
+from hubbeam_ctrl.sim.measurement import MeasurementChain
 from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings
 
 
@@ -69,10 +78,19 @@ def main(argv=None) -> int:
     design = DesignModel.build(P.replace(n_transverse=2), 0.0, dt)
     x0 = np.zeros(2 * model.n_q)
     x0[0] = np.pi / 2
+    inductive = Drive(**{**rig.drive.to_dict(), "L": 1.8e-4})       # the SRV02's 0.18 mH
+    sensors = Sensors(encoder_counts=4096, strain_gauges=(0.0, 0.19), tip_accelerometer=True, rate_noise=1e-3,
+                      strain_noise=1e-3, accel_noise=0.01, anti_alias_hz=200.0)
+    delay = Timing(dt=dt, delay=0.5)
     variants = {"ideal": Hardware(Drive(), Friction()),
                 "dc_motor": Hardware(rig.drive, Friction()),
+                "inductance": Hardware(inductive, Friction()),
                 "friction": Hardware(Drive(), rig.friction),
-                "rig": Hardware.from_rig(rig)}
+                "sensors": Hardware(Drive(), Friction(), sensors=sensors),
+                "delay": Hardware(Drive(), Friction(), timing=delay),
+                "drive_friction": Hardware(rig.drive, rig.friction),
+                "rig": Hardware.from_rig(rig),
+                "everything": Hardware(inductive, rig.friction, sensors, delay)}
     settings = ClosedLoopSettings(dt=dt, substeps=rule.substeps)
     closed, closed_median, plant, plant_median, info, results = {}, {}, {}, {}, {}, {}
     for name, hw in variants.items():       # first pass: compile and warm up
@@ -111,6 +129,19 @@ def main(argv=None) -> int:
     for name in variants:
         plant[name] = 1e6 * min(times[name])
         plant_median[name] = 1e6 * statistics.median(times[name])
+    # the measurement chain alone, per sample: what a state feedback reads (angle, rate) and every signal
+    chain_us = {}
+    for label, read in (("angle_and_rate", ("theta", "theta_dot")), ("all_signals", None)):
+        chain = MeasurementChain(sensors, model, dt, 5000, read=read, backend=a.backend)
+        s = PlantStepper(model, StepperSettings(dt=dt, substeps=rule.substeps)).initial_state(x0, 0.1)
+        best = []
+        for _ in range(a.repeats):
+            chain.reset()
+            start = time.process_time()
+            for k in range(5000):
+                chain.measure(k, s)
+            best.append((time.process_time() - start) / 5000)
+        chain_us[label] = 1e6 * min(best)
     ratio = {k: closed[k] / closed["ideal"] for k in closed}
     out = {
         "machine": {"python": sys.version.split()[0], "platform": platform.platform(),
@@ -120,6 +151,7 @@ def main(argv=None) -> int:
         "closed_loop_us_per_sample": closed, "closed_loop_ratio": ratio,
         "closed_loop_us_per_sample_median": closed_median,
         "closed_loop_ratio_median": {k: closed_median[k] / closed_median["ideal"] for k in closed},
+        "measurement_chain_us_per_sample": chain_us,
         "plant_step_us": plant, "plant_step_ratio": {k: plant[k] / plant["ideal"] for k in plant},
         "plant_step_ratio_median": {k: plant_median[k] / plant_median["ideal"] for k in plant},
         "runs": info,

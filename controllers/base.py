@@ -221,6 +221,27 @@ class DesignModel:
         """Number of states ``2 (1 + n_modes)``."""
         return self.A.shape[0]
 
+    def with_delay(self, delay: float) -> tuple:
+        """The sampled model with a computation delay as one extra state, the previous command.
+
+        ``z = [x, tau_prev]``, ``z+ = Ad_z z + Bd_z tau``: the command computed at a sample
+        acts ``delay * dt`` later (:func:`hubbeam_ctrl.linear.delay.delay_augmented`, the
+        standard fractional-delay zero-order hold); ``delay = 0`` gives ``Ad``, ``Bd`` with a
+        zero column and row appended.
+
+        Parameters
+        ----------
+        delay : float
+            Computation delay as a fraction of the sample [-], in [0, 1] (``timing.delay``).
+
+        Returns
+        -------
+        Ad_z : ndarray (n_x + 1, n_x + 1)
+        Bd_z : ndarray (n_x + 1, 1)
+        """
+        from hubbeam_ctrl.linear.delay import delay_augmented
+        return delay_augmented(self.A, self.B, self.dt, delay)
+
     @property
     def quasi_static_gain(self) -> np.ndarray:
         """Modal deflection per unit hub acceleration [m/(rad/s^2)], shape (n_modes,).

@@ -11,7 +11,7 @@ from hubbeam_ctrl import Params, TorquePulse, build_model
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Drive, Rig, load_rig
 from hubbeam_ctrl.sim import ClosedLoopSettings, simulate_closed_loop, simulate_fixed_step
-from hubbeam_ctrl.sim.hardware import Hardware, drive_power, friction_torque, hub_torque
+from hubbeam_ctrl.sim.hardware import HW_LAYOUT, Hardware, drive_power, friction_torque, hub_torque
 from hubbeam_ctrl.sim.stepper import PlantStepper, StepperSettings
 
 REFERENCE = Path(__file__).parent / "data" / "ideal_plant_reference.json"
@@ -28,7 +28,7 @@ def test_hub_torque_numpy_and_casadi_agree_and_drive_relations():
     import casadi as ca
     hw = Hardware.from_rig(SERVO)
     u, thd = np.array([10.0, 5.0, -5.0, 12.0, 0.0, -3.0]), np.array([0.0, 2.0, 2.0, -1.0, 0.0, -30.0])
-    U, T, H = ca.SX.sym("u"), ca.SX.sym("t"), ca.SX.sym("h", 15)
+    U, T, H = ca.SX.sym("u"), ca.SX.sym("t"), ca.SX.sym("h", len(HW_LAYOUT))
     f = ca.Function("f", [U, T, H], [hub_torque(U, T, H)])
     sym = np.array([float(f(a, b, hw.values())) for a, b in zip(u, thd)])
     assert np.allclose(sym, hw.hub_torque(u, thd), rtol=1e-14, atol=1e-15)

@@ -4,8 +4,9 @@ Imports the plant and core layers.
 
 import sys as _sys  # noqa: E402
 
+from hubbeam_ctrl.linear.delay import *  # noqa: F401,F403
 from hubbeam_ctrl.linear.export import *  # noqa: F401,F403
 from hubbeam_ctrl.linear.statespace import *  # noqa: F401,F403
 
-__all__ = [name for _m in ('statespace', 'export')
+__all__ = [name for _m in ('statespace', 'export', 'delay')
            for name in _sys.modules[f"hubbeam_ctrl.linear.{_m}"].__all__]

@@ -62,12 +62,12 @@ class Drive(Settings):
     """The hub drive: an ideal torque source (default) or a DC motor with a gearbox.
 
     The DC motor (``kind = "dc_motor"``) takes a voltage ``V`` clipped to ``+-V_max``; its
-    armature current ``i = (V - k_e N thd) / R`` (inductance neglected) is clipped to
-    ``+-I_max`` by the amplifier, and the torque at the hub is ``eta_forward N k_t i`` while
-    the motor drives the load (``i thd >= 0``) and ``N k_t i / eta_backward`` while the load
-    drives the gear (``i thd < 0``: braking, the power flows back through the gear). The
-    rotor inertia ``J_r`` adds ``N^2 J_r`` to the hub inertia (:attr:`Rig.plant_params`).
-    With ``kind = "torque"`` the motor fields are not used.
+    armature current ``i = (V - k_e N thd) / R`` (with inductance ``L > 0``: the state of
+    ``L di/dt = V - R i - k_e N thd``) is clipped to ``+-I_max`` by the amplifier, and the
+    torque at the hub is ``eta_forward N k_t i`` while the motor drives the load (``i thd >=
+    0``) and ``N k_t i / eta_backward`` while the load drives the gear (``i thd < 0``: braking,
+    the power flows back through the gear). The rotor inertia ``J_r`` adds ``N^2 J_r`` to the
+    hub inertia (:attr:`Rig.plant_params`). With ``kind = "torque"`` the motor fields are not used.
     """
 
     _setting_prefix = "motor."
@@ -77,8 +77,9 @@ class Drive(Settings):
                             "(voltage input through a geared DC motor).")
     R: float = setting(2.6, unit="ohm", lo=0.0, lo_open=True, hi=1e4, doc="Armature resistance.")
     L: float = setting(0.0, unit="H", lo=0.0, hi=10.0,
-                       doc="Armature inductance; 0: neglected (the simulator neglects it whenever the "
-                           "electrical time constant L / R is far below the sample time).")
+                       doc="Armature inductance; > 0: the current is a state of the plant step (L di/dt = "
+                           "V - R i - k_e N thd, backward Euler per substep); 0: neglected, i = (V - k_e N "
+                           "thd) / R.")
     k_t: float = setting(7.68e-3, unit="N m/A", lo=0.0, lo_open=True, hi=1e3, doc="Motor torque constant.")
     k_e: float = setting(7.68e-3, unit="V s/rad", lo=0.0, lo_open=True, hi=1e3,
                          doc="Back-EMF constant (equals k_t in SI units for an ideal machine).")
@@ -225,7 +226,11 @@ class Sensors(Settings):
     """The rig's sensors: hub encoder, strain gauges along the beam, tip accelerometer.
 
     Noise is zero-mean Gaussian white noise of the given standard deviation, drawn at each
-    sample; the bias is a constant offset. All zero (the default): ideal sensors.
+    sample; the bias is a constant offset. All zero (the default): ideal sensors. The closed
+    loop measures them through :class:`~hubbeam_ctrl.sim.measurement.MeasurementChain`
+    (sensor, bias, noise, anti-alias filter, encoder); a controller reads the signals it names
+    (``theta``, ``theta_dot``, ``moment_<i>`` of gauge ``i``, ``accel_radial``,
+    ``accel_tangential``; :func:`~hubbeam_ctrl.plant.instruments.signal_names`).
     """
 
     _setting_prefix = "sensors."
@@ -235,21 +240,25 @@ class Sensors(Settings):
                                       "(0: ideal, not quantised).")
     strain_gauges: tuple = setting((0.0,), kind=tuple, unit="m",
                                    doc="Positions of the strain gauges along the beam from its root, each "
-                                       "in [0, L] (bending moment there).")
-    tip_accelerometer: bool = setting(False, doc="An accelerometer at the tip (in-plane acceleration).")
+                                       "in [0, L]; gauge i reads the bending moment E I w2''(x) there "
+                                       "(signal moment_i).")
+    tip_accelerometer: bool = setting(False, doc="A two-axis accelerometer at the tip: the in-plane inertial "
+                                                 "acceleration in hub axes (accel_radial, accel_tangential), "
+                                                 "centripetal and Coriolis terms included.")
     angle_noise: float = setting(0.0, unit="rad", lo=0.0, hi=1.0, doc="Hub-angle noise, standard deviation.")
     angle_bias: float = setting(0.0, unit="rad", lo=-1.0, hi=1.0, doc="Hub-angle bias.")
     rate_noise: float = setting(0.0, unit="rad/s", lo=0.0, hi=10.0, doc="Hub-rate noise, standard deviation.")
     rate_bias: float = setting(0.0, unit="rad/s", lo=-10.0, hi=10.0, doc="Hub-rate bias.")
     strain_noise: float = setting(0.0, unit="N m", lo=0.0, hi=1e6,
-                                  doc="Strain-gauge (bending moment) noise, standard deviation.")
+                                  doc="Strain-gauge (bending moment) noise, standard deviation (each gauge).")
     strain_bias: float = setting(0.0, unit="N m", lo=-1e6, hi=1e6, doc="Strain-gauge (bending moment) bias.")
     accel_noise: float = setting(0.0, unit="m/s^2", lo=0.0, hi=1e4,
-                                 doc="Tip-accelerometer noise, standard deviation.")
+                                 doc="Tip-accelerometer noise, standard deviation (each axis).")
     accel_bias: float = setting(0.0, unit="m/s^2", lo=-1e4, hi=1e4, doc="Tip-accelerometer bias.")
     anti_alias_hz: float | None = setting(None, unit="Hz", lo=0.0, lo_open=True, hi=1e6, kind=float,
-                                          doc="Cutoff of a first-order anti-alias filter on every sensor; "
-                                              "None: no filter.")
+                                          doc="Cutoff of a first-order anti-alias filter on every analog "
+                                              "signal (not an encoder's count), exact per sample; None: no "
+                                              "filter.")
 
     def __post_init__(self):
         if isinstance(self.strain_gauges, list):
@@ -274,8 +283,10 @@ class Sensors(Settings):
     def sensor_settings(self, seed: int = 0):
         """The closed loop's :class:`~hubbeam_ctrl.plant.sensors.SensorSettings` of these sensors.
 
-        Noise standard deviations of angle, rate and the first strain gauge, and the encoder
-        (biases, further gauges, the accelerometer and the filter are not in the closed loop yet).
+        Noise standard deviations of angle, rate and the first strain gauge, and the encoder:
+        the closed loop's own sensors. The whole chain (biases, every gauge, the accelerometer,
+        the filter) is measured when the closed loop gets the rig's sensors
+        (``hardware=Hardware.from_rig(rig)``).
 
         Parameters
         ----------
@@ -301,7 +312,8 @@ class Timing(Settings):
                                doc="Sample time of the controller; None: the task's.")
     delay: float = setting(0.0, lo=0.0, hi=1.0,
                            doc="Computation delay as a fraction of the sample (0: the command acts at the "
-                               "sample instant, 1: one sample later).")
+                               "sample instant, 1: one sample later); rounded to the plant's integration "
+                               "substep in the closed loop.")
 
     @property
     def is_ideal(self) -> bool:

@@ -14,6 +14,8 @@ The controller is any object with
 * ``__call__(t, y) -> float``: hub torque [N m] at time ``t`` [s] from measurement ``y``;
 * ``reset()``: prepare a new run;
 * ``measurement``: ``"state"`` or ``"sensors"`` (see :func:`simulate_closed_loop`);
+* optionally ``signals``: the names of the rig's signals a ``"sensors"`` controller reads, in
+  order (:func:`~hubbeam_ctrl.plant.instruments.signal_names`; default :data:`DEFAULT_SIGNALS`);
 * optionally ``name``, ``dt`` (its sample time, checked against the simulator's),
   ``n_modes`` (the transverse modes of its design model), ``state_modes`` (those it reads
   with ``measurement="state"``, default ``n_modes``), ``design`` (with ``params`` and
@@ -37,16 +39,18 @@ from hubbeam_ctrl.core.budget import CLOSED_LOOP_SECONDS_PER_SAMPLE, T_END_MAX, 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.core.validation import check_in_range
+from hubbeam_ctrl.plant.instruments import signal_names
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.sim.hardware import Hardware
+from hubbeam_ctrl.sim.measurement import MeasurementChain
 from hubbeam_ctrl.sim.results import Result
 from hubbeam_ctrl.sim.stepper import MAX_SUBSTEPS, PlantStepper, StepperSettings, substep_rule
 
-__all__ = ["ClosedLoopSettings", "simulate_closed_loop"]
+__all__ = ["ClosedLoopSettings", "simulate_closed_loop", "DEFAULT_SIGNALS"]
 
 
 @dataclass(frozen=True)
@@ -166,6 +170,41 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
     return model, info
 
 
+#: The signals a controller with ``measurement = "sensors"`` reads from a rig unless it names
+#: its own (``signals``): today's hub angle, hub rate and the first strain gauge.
+DEFAULT_SIGNALS = ("theta", "theta_dot", "moment_1")
+
+
+def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, backend):
+    """``(chain, state_pick)``: the rig's measurement chain reading what the controller reads
+    (None: today's sensors) and, for state feedback (None otherwise), where the measured hub
+    rate goes in its vector (the angle goes first)."""
+    sensors = None if hardware is None else hardware.sensors
+    wanted = getattr(controller, "signals", None)
+    name = _controller_name(controller)
+    if sensors is None:
+        if wanted is not None and tuple(wanted) != DEFAULT_SIGNALS[:len(tuple(wanted))]:
+            raise ParameterError(f"controller {name!r} reads signals {tuple(wanted)} but the closed loop has no "
+                                 "rig sensors: give hardware=Hardware.from_rig(rig)")
+        return None, None
+    default = sensors.strain_gauges == (0.0,) and not sensors.tip_accelerometer
+    if sensors.is_ideal and default and wanted is None:
+        return None, None                          # the beam alone's sensors, bit for bit
+    if kind == "state":
+        chain = MeasurementChain(sensors, model, dt, n_samples, seed, read=("theta", "theta_dot"),
+                                 backend=backend)
+        return chain, 1 + m
+    names = tuple(DEFAULT_SIGNALS if wanted is None else wanted)
+    all_names = signal_names(len(sensors.strain_gauges), sensors.tip_accelerometer)
+    if not names:
+        raise ParameterError(f"controller {name!r}: signals must name at least one of {', '.join(all_names)}")
+    for signal in names:
+        if signal not in all_names:
+            raise ParameterError(f"controller {name!r} reads signal {signal!r}; the rig's sensors give "
+                                 f"{', '.join(all_names)}")
+    return MeasurementChain(sensors, model, dt, n_samples, seed, read=names, backend=backend), None
+
+
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
                          design_params: Params | None = None, plant_params: Params | None = None,
                          plant_modes: int | None = None, settings: ClosedLoopSettings | None = None,
@@ -226,7 +265,18 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         The rig's drive and friction (:class:`~hubbeam_ctrl.sim.hardware.Hardware`, e.g.
         ``Hardware.from_rig(rig)``; give the plant ``rig.plant_params``, whose hub inertia holds the
         reflected rotor): the controller's output is then the command (a voltage for a DC motor,
-        stored as ``tau``). None or ideal hardware: the ideal torque source, bit for bit.
+        stored as ``tau``). With the rig's ``sensors`` (``Hardware.from_rig`` gives them) the
+        measurement comes from :class:`~hubbeam_ctrl.sim.measurement.MeasurementChain`: a
+        ``"sensors"`` controller reads the signals it names in its ``signals`` attribute (names of
+        :func:`~hubbeam_ctrl.plant.instruments.signal_names`, default :data:`DEFAULT_SIGNALS`), a
+        ``"state"`` controller gets the measured hub angle and rate in place of the exact ones;
+        the accelerometer reads the accelerations before the sample's new command acts. Ideal
+        rig sensors with the root gauge only and no ``signals`` keep the closed loop's own
+        sensors (``settings.sensors``). With the rig's ``timing.delay`` ``d`` the command
+        computed at ``t_k`` acts from ``t_k + d dt`` (the previous one before; zero before the
+        first), rounded to the nearest integration substep (``result.settings["timing"]`` gives
+        the delay applied); a rig's ``timing.dt``, when set, must be ``settings.dt``. None or
+        ideal hardware: the beam alone, bit for bit.
 
     Returns
     -------
@@ -261,6 +311,10 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     if cdt is not None and abs(float(cdt) - dt) > 1e-12 * dt:
         raise ParameterError(f"controller {name!r} is designed for dt = {cdt:g} s but the "
                              f"simulator samples at dt = {dt:g} s")
+    rig_dt = None if hardware is None or hardware.timing is None else hardware.timing.dt
+    if rig_dt is not None and abs(rig_dt - dt) > 1e-12 * dt:
+        raise ParameterError(f"timing.dt = {rig_dt:g} s of the rig but the closed loop samples at dt = {dt:g} s "
+                             "(give settings with the rig's dt)")
     kind = getattr(controller, "measurement", "state")
     if kind not in ("state", "sensors"):
         raise ParameterError(f"controller {name!r}: measurement must be 'state' or 'sensors', got {kind!r}")
@@ -282,8 +336,16 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     x = _initial_state(x0, 2 * n)
     stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend, hardware=hardware)
     t = dt * np.arange(N + 1)
+    chain, state_pick = _rig_measurement(hardware, controller, kind, model, m, dt, N + 1,
+                                         settings.sensors.seed, stepper.backend)
     rng = np.random.default_rng(settings.sensors.seed)
-    noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" else None
+    noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" and chain is None \
+        else None
+    delay = 0.0 if hardware is None else hardware.delay
+    n_sub = plant_info["substeps"]
+    n_late = int(round(delay * n_sub))            # substeps still under the previous command
+    u_sub = np.empty(n_sub)
+    u_prev = 0.0                                  # nothing was commanded before t = 0
     f2_tip = model.basis.f2_tip
     sl2 = model.transverse_slice
     L = model.params.L
@@ -300,11 +362,31 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     s = None
     last = N
     perf = time.perf_counter
+    plain = None
+    if chain is not None:
+        chain.reset()
+        if state_pick is not None and chain.offsets is not None:      # hub angle and rate: inline
+            plain = chain.offsets
+            encoder = chain.encoder
     for k in range(N + 1):
         states[k] = x
-        y = x[idx_state] if noise is None else C_sens @ x + noise[k]
-        if encoder:                     # the encoder's count (nearest): y is a new array
-            y[0] = encoder * round(y[0] / encoder)
+        if plain is not None:           # the rig's encoder, biases and noise on the state feedback's hub
+            y = x[idx_state]
+            theta = y[0] + plain[0][k]
+            y[0] = encoder * math.floor(theta / encoder + 0.5) if encoder else theta
+            y[state_pick] += plain[1][k]
+        elif chain is not None:         # the rig's sensors (the accelerometer reads s's accelerations)
+            if s is None:
+                s = stepper.initial_state(x, u_prev)
+            if state_pick is None:
+                y = chain.measure(k, s)
+            else:
+                y = x[idx_state]
+                y[0], y[state_pick] = chain.measure(k, s)
+        else:
+            y = x[idx_state] if noise is None else C_sens @ x + noise[k]
+            if encoder:                     # the encoder's count (nearest): y is a new array
+                y[0] = encoder * round(y[0] / encoder)
         t0 = perf()
         try:
             tau = _torque(controller(t[k], y))
@@ -323,10 +405,19 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
             break
         if k == N:
             break
-        if s is None:
-            s = stepper.initial_state(x, tau)
+        if n_late:                      # computation delay: the command acts delay * dt after the sample
+            u_sub[:n_late] = u_prev
+            u_sub[n_late:] = tau
+            if s is None or k == 0:
+                s = stepper.initial_state(x, u_prev)
+            u_prev = tau
+            applied = u_sub
+        else:
+            if s is None or (k == 0 and chain is not None):
+                s = stepper.initial_state(x, tau)
+            applied = tau
         try:
-            s = stepper.step(s, tau)
+            s = stepper.step(s, applied)
         except HubbeamError as exc:
             stopped, message, last, cause = True, f"{exc} at t = {t[k]:.3f} s; run stopped", k, "integrator"
             break
@@ -364,6 +455,11 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         message = (f"completed; |v_tip| passed {settings.range_limit:g} L (outside the models' validated "
                    f"range) at t = {outside_time:.3f} s")
     s_dict["backend"] = stepper.backend
+    if chain is not None:
+        s_dict["rig_sensors"] = {"sensors": hardware.sensors.to_dict(), "signals": list(chain.names),
+                                 "read": list(chain.read)}
+    if n_late:
+        s_dict["timing"] = {"delay": delay, "delay_substeps": n_late, "applied_delay": n_late / n_sub}
     if stepper.hardware is not None:
         hw = stepper.hardware
         s_dict["hardware"] = {"drive": hw.drive.to_dict(), "friction": hw.friction.to_dict(),

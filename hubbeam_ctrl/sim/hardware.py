@@ -8,9 +8,12 @@ step (:class:`~hubbeam_ctrl.sim.stepper.PlantStepper` with ``hardware=``) applie
 inside its compiled implicit step at the end of every substep, and the tests and reports
 evaluate them on samples.
 
-DC motor with gearbox (inductance neglected)
+DC motor with gearbox
     ``V = clip(u, +-V_max)``; ``i = clip((V - k_e N thd) / R, +-I_max)`` (the amplifier's
-    current limit lowers the terminal voltage to ``R i + k_e N thd``); motor torque
+    current limit lowers the terminal voltage to ``R i + k_e N thd``); with an armature
+    inductance ``L > 0`` the current is a state of the plant step instead,
+    ``L di/dt = V - R i - k_e N thd`` by backward Euler over each substep
+    (:func:`inductive_current`; the amplifier clips it to ``+-I_max``); motor torque
     ``k_t i``, mechanical power at the motor shaft ``P_m = k_t i N thd``. The gear passes
     ``eta_forward`` of the power while the motor drives the load (``P_m >= 0``, at rest
     too) and ``1 / eta_backward`` while the load drives the gear (``P_m < 0``: braking,
@@ -42,14 +45,15 @@ import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.plant.rig import Drive, Friction, Rig
+from hubbeam_ctrl.plant.rig import Drive, Friction, Rig, Sensors, Timing
 
-__all__ = ["Hardware", "HW_LAYOUT", "hub_torque", "drive_torque", "friction_torque", "drive_power"]
+__all__ = ["Hardware", "HW_LAYOUT", "hub_torque", "drive_torque", "friction_torque", "drive_power", "motor_torque",
+           "inductive_current"]
 
 #: The hardware's numbers as the plant step reads them (its input ``hw``), in this order;
 #: ``stick`` (1: the hub is held at rest) is set by the stepper at every sample.
 HW_LAYOUT = ("dc_motor", "R", "k_t", "k_e", "N", "eta_forward", "eta_backward", "V_max", "I_max",
-             "viscous", "coulomb", "breakaway", "stribeck_velocity", "v_eps", "stick")
+             "viscous", "coulomb", "breakaway", "stribeck_velocity", "v_eps", "L", "stick")
 
 
 def _ops(*xs):
@@ -93,6 +97,60 @@ def drive_torque(u, thd, hw):
     return where(h["dc_motor"] > 0.5, motor, u)
 
 
+def motor_torque(i, thd, hw):
+    """Hub torque of the geared DC motor at armature current ``i`` [N m]: ``N k_t i e`` (gear factor
+    ``e`` of the module docstring).
+
+    Parameters
+    ----------
+    i : float, ndarray or casadi symbol
+        Armature current [A].
+    thd : float, ndarray or casadi symbol
+        Hub rate [rad/s].
+    hw : sequence
+        The numbers of :data:`HW_LAYOUT`.
+
+    Returns
+    -------
+    float, ndarray or casadi symbol
+    """
+    h = _unpack(hw)
+    _, clip, tanh, _ = _ops(i, thd, hw[0])
+    return h["N"] * h["k_t"] * i * _efficiency(i, thd, h, clip, tanh)
+
+
+def inductive_current(u, thd, i0, step, hw):
+    """Armature current at the end of an integration step with inductance [A].
+
+    ``L di/dt = V - R i - k_e N thd`` by the backward Euler rule over ``step`` (L-stable: the
+    electrical time constant ``L / R`` may be far below the step), ``V = clip(u, +-V_max)``, the
+    result clipped to ``+-I_max`` by the amplifier: ``i1 = clip((L / step i0 + V - k_e N thd) /
+    (L / step + R), +-I_max)``. With ``L = 0`` it is the current of the module docstring.
+
+    Parameters
+    ----------
+    u : float, ndarray or casadi symbol
+        Voltage command [V].
+    thd : float, ndarray or casadi symbol
+        Hub rate at the end of the step [rad/s].
+    i0 : float, ndarray or casadi symbol
+        Current at the start of the step [A].
+    step : float
+        Integration step [s], > 0.
+    hw : sequence
+        The numbers of :data:`HW_LAYOUT`.
+
+    Returns
+    -------
+    float, ndarray or casadi symbol
+    """
+    h = _unpack(hw)
+    _, clip, _, _ = _ops(u, thd, i0, hw[0])
+    V = clip(u, -h["V_max"], h["V_max"])
+    g = h["L"] / step
+    return clip((g * i0 + V - h["k_e"] * h["N"] * thd) / (g + h["R"]), -h["I_max"], h["I_max"])
+
+
 def friction_torque(thd, hw):
     """Sliding friction torque at the hub [N m], opposing ``thd`` (see the module docstring).
 
@@ -132,7 +190,7 @@ def hub_torque(u, thd, hw):
     return drive_torque(u, thd, hw) - friction_torque(thd, hw)
 
 
-def drive_power(u, thd, hw) -> dict:
+def drive_power(u, thd, hw, current=None, di_dt=None) -> dict:
     """The DC drive's power flows at command ``u`` [V] and hub rate ``thd`` [rad/s].
 
     Parameters
@@ -143,35 +201,57 @@ def drive_power(u, thd, hw) -> dict:
         Hub rate [rad/s].
     hw : sequence
         The numbers of :data:`HW_LAYOUT`.
+    current : float or ndarray, optional
+        Armature current [A] when the inductance makes it a state (default: the current of the
+        resistive circuit, ``clip((V - k_e N thd) / R, +-I_max)``).
+    di_dt : float or ndarray, optional
+        Its rate [A/s] (with ``current``; default 0).
 
     Returns
     -------
     dict of ndarray
-        ``V`` terminal voltage [V] (the command clipped to ``V_max``, lowered in current
-        limit), ``i`` current [A], ``P_in = V i`` electrical power in, ``P_copper = R i^2``,
-        ``P_shaft = k_t i N thd`` at the motor shaft, ``P_gear = P_shaft - P_out`` gear
-        losses, ``P_out = tau_drive thd`` at the hub [W], and ``tau`` the hub torque [N m].
+        ``V`` terminal voltage ``R i + L di/dt + k_e N thd`` [V] (the command clipped to
+        ``V_max``, lowered in current limit), ``i`` current [A], ``P_in = V i`` electrical power
+        in, ``P_copper = R i^2``, ``P_inductor = L i di/dt`` (the rate of the magnetic energy),
+        ``P_shaft = k_t i N thd`` at the motor shaft, ``P_gear = P_shaft - P_out`` gear losses,
+        ``P_out = tau_drive thd`` at the hub [W], and ``tau`` the hub torque [N m]. So
+        ``P_in = P_copper + P_inductor + P_gear + P_out`` whenever ``k_e = k_t``.
     """
     h = _unpack(np.asarray(hw, dtype=float))
     u, thd = np.asarray(u, dtype=float), np.asarray(thd, dtype=float)
-    V = np.clip(u, -h["V_max"], h["V_max"])
-    i = np.clip((V - h["k_e"] * h["N"] * thd) / h["R"], -h["I_max"], h["I_max"])
-    V_term = h["R"] * i + h["k_e"] * h["N"] * thd
-    tau = drive_torque(u, thd, hw)
+    if current is None:
+        V = np.clip(u, -h["V_max"], h["V_max"])
+        i = np.clip((V - h["k_e"] * h["N"] * thd) / h["R"], -h["I_max"], h["I_max"])
+        di_dt = np.zeros_like(i)
+        tau = drive_torque(u, thd, hw)
+    else:
+        i = np.asarray(current, dtype=float)
+        di_dt = np.zeros_like(i) if di_dt is None else np.asarray(di_dt, dtype=float)
+        tau = motor_torque(i, thd, np.asarray(hw, dtype=float))
+    P_inductor = h["L"] * i * di_dt
+    V_term = h["R"] * i + h["L"] * di_dt + h["k_e"] * h["N"] * thd
     P_out = tau * thd
     P_shaft = h["k_t"] * i * h["N"] * thd
-    return {"V": V_term, "i": i, "P_in": V_term * i, "P_copper": h["R"] * i * i, "P_shaft": P_shaft,
-            "P_gear": P_shaft - P_out, "P_out": P_out, "tau": tau}
+    return {"V": V_term, "i": i, "P_in": V_term * i, "P_copper": h["R"] * i * i, "P_inductor": P_inductor,
+            "P_shaft": P_shaft, "P_gear": P_shaft - P_out, "P_out": P_out, "tau": tau}
 
 
 @dataclass(frozen=True)
 class Hardware:
-    """The drive and friction of a rig as the plant step applies them.
+    """The hardware of a rig as the closed loop applies it: drive, friction, sensors and timing.
+
+    The drive and friction act in the plant step (:class:`~hubbeam_ctrl.sim.stepper.PlantStepper`);
+    the sensors make the measurement (:class:`~hubbeam_ctrl.sim.measurement.MeasurementChain`)
+    and the timing delays the command (:func:`~hubbeam_ctrl.sim.closedloop.simulate_closed_loop`).
 
     Parameters
     ----------
     drive : Drive
     friction : Friction
+    sensors : Sensors, optional
+        None: the closed loop's own sensor settings (today's).
+    timing : Timing, optional
+        None: no computation delay.
 
     Examples
     --------
@@ -185,10 +265,16 @@ class Hardware:
 
     drive: Drive
     friction: Friction
+    sensors: Sensors | None = None
+    timing: Timing | None = None
 
     def __post_init__(self):
         if not isinstance(self.drive, Drive) or not isinstance(self.friction, Friction):
             raise ParameterError("hardware needs a Drive and a Friction (plant.rig)")
+        if self.sensors is not None and not isinstance(self.sensors, Sensors):
+            raise ParameterError(f"hardware sensors must be a Sensors (plant.rig), got {type(self.sensors).__name__}")
+        if self.timing is not None and not isinstance(self.timing, Timing):
+            raise ParameterError(f"hardware timing must be a Timing (plant.rig), got {type(self.timing).__name__}")
 
     @classmethod
     def from_rig(cls, rig: Rig) -> "Hardware":
@@ -200,12 +286,29 @@ class Hardware:
         """
         if not isinstance(rig, Rig):
             raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
-        return cls(rig.drive, rig.friction)
+        return cls(rig.drive, rig.friction, rig.sensors, rig.timing)
+
+    @property
+    def mechanics_ideal(self) -> bool:
+        """True for the ideal torque source without friction: the plant step is then today's, bit for bit."""
+        return self.drive.is_ideal and self.friction.is_ideal
+
+    @property
+    def inductive(self) -> bool:
+        """True for a DC motor with armature inductance ``L > 0``: the current is a state of the plant step."""
+        return not self.drive.is_ideal and self.drive.L > 0.0
+
+    @property
+    def delay(self) -> float:
+        """Computation delay as a fraction of the sample [-] (0 without timing)."""
+        return 0.0 if self.timing is None else self.timing.delay
 
     @property
     def is_ideal(self) -> bool:
-        """True for the ideal torque source without friction: the plant is then today's, bit for bit."""
-        return self.drive.is_ideal and self.friction.is_ideal
+        """True for the ideal torque source without friction, ideal sensors (or none given) and no
+        delay: the closed loop is then today's, bit for bit."""
+        return (self.mechanics_ideal and (self.sensors is None or self.sensors.is_ideal)
+                and self.delay == 0.0)
 
     @property
     def command(self) -> str:
@@ -232,7 +335,7 @@ class Hardware:
         d, f = self.drive, self.friction
         return np.array([0.0 if d.is_ideal else 1.0, d.R, d.k_t, d.k_e, d.N, d.eta_forward, d.eta_backward,
                          d.V_max, d.I_max, f.viscous, f.coulomb, f.static, f.stribeck_velocity, f.v_eps,
-                         1.0 if stick else 0.0])
+                         0.0 if d.is_ideal else d.L, 1.0 if stick else 0.0])
 
     def hub_torque(self, u, thd):
         """Drive minus sliding friction [N m] at command ``u`` [N m or V] and hub rate ``thd`` [rad/s].

@@ -34,7 +34,15 @@ from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
 from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, jacobian_columns, resolve_model
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.sim.hardware import HW_LAYOUT, Hardware, drive_torque, hub_torque
+from hubbeam_ctrl.sim.hardware import (
+    HW_LAYOUT,
+    Hardware,
+    drive_torque,
+    friction_torque,
+    hub_torque,
+    inductive_current,
+    motor_torque,
+)
 from hubbeam_ctrl.sim.results import Result, describe_input
 
 __all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients",
@@ -309,7 +317,6 @@ class PlantStepper:
         self.model = model
         self.settings = settings or StepperSettings()
         self.n_q = model.n_q
-        self.n_s = 4 * model.n_q
         self.h = self.settings.dt / self.settings.substeps
         self.fallbacks = 0
         self.jacobian_updates = 0
@@ -319,7 +326,10 @@ class PlantStepper:
         if hardware is not None and not isinstance(hardware, Hardware):
             raise ParameterError(f"hardware must be a Hardware (hubbeam_ctrl.sim.hardware), got "
                                  f"{type(hardware).__name__}")
-        self.hardware = None if hardware is None or hardware.is_ideal else hardware
+        self.hardware = None if hardware is None or hardware.mechanics_ideal else hardware
+        #: True when the armature inductance makes the current a state (the last entry of ``s``).
+        self.inductive = self.hardware is not None and self.hardware.inductive
+        self.n_s = 4 * model.n_q + (1 if self.inductive else 0)
         #: True while friction holds the hub at rest (only with hardware that has friction).
         self.stuck = False
         #: Torque the friction exerts to hold the hub at the last held sample [N m].
@@ -328,9 +338,14 @@ class PlantStepper:
         if self.hardware is not None:
             self._F_s, self._v_stick = self.hardware.friction.static, self.hardware.friction.stick_velocity
         self._function, self._jacobian, self.backend = step_functions(model, self.settings, backend,
-                                                                      hardware=self.hardware is not None)
+                                                                      hardware=self._hardware_kind)
         self._setup_buffers()
         self._robust = None
+
+    @property
+    def _hardware_kind(self):
+        """The hardware variant of the compiled functions: False, True or ``"inductive"``."""
+        return "inductive" if self.inductive else self.hardware is not None
 
     # -- state helpers ---------------------------------------------------------
     def initial_state(self, x0=None, tau: float = 0.0) -> np.ndarray:
@@ -351,6 +366,10 @@ class PlantStepper:
         x0 = np.zeros(2 * n) if x0 is None else np.asarray(x0, dtype=float).ravel()
         if x0.shape != (2 * n,) or not np.all(np.isfinite(x0)):
             raise ParameterError(f"x0 must hold {2 * n} finite numbers [q, v], got shape {x0.shape}")
+        if self.inductive:      # the circuit settled at the initial command and rate (di/dt = 0): L = 0's start
+            d, thd = self.hardware.drive, x0[n]
+            i0 = min(max((min(max(float(tau), -d.V_max), d.V_max) - d.k_e * d.N * thd) / d.R, -d.I_max), d.I_max)
+            return np.concatenate([self._hardware_initial_state(x0, float(tau)), [i0]])
         if self.hardware is None:
             a0 = self.model.accelerations(x0[:n], x0[n:], float(tau))
             return np.concatenate([x0, a0, a0])
@@ -515,18 +534,19 @@ class PlantStepper:
     def _setup_buffers(self):
         """Preallocated arrays bound to ``Function.buffer()`` calls (no argument conversion)."""
         n, k = self.n_q, self.settings.substeps
-        self._s_in, self._u, self._Jbuf = np.zeros(4 * n), np.zeros(k), np.zeros(n * n)
+        self._s_in, self._u, self._Jbuf = np.zeros(self.n_s), np.zeros(k), np.zeros(n * n)
         self._Jinv = np.zeros((n, n), order="F")
-        self._s_out, self._err, self._tau0 = np.zeros(4 * n), np.zeros(1), np.zeros(1)
+        self._s_out, self._err, self._tau0 = np.zeros(self.n_s), np.zeros(1), np.zeros(1)
         self._p = np.array(self.model.p, dtype=float)
         self._J_valid = False
         self._buffers = []
         extra = ()
         if self.hardware is not None:
             self._hw = self.hardware.values()
-            self._s_hold, self._hold = np.zeros(4 * n), np.zeros(1)
+            self._s_hold, self._hold = np.zeros(self.n_s), np.zeros(1)
             extra = (self._hw,)
-            hold = compile_function(_hold_function(self.model.parametric), self.backend, opt=OPT_HOT)
+            hold = compile_function(_hold_function(self.model.parametric, *((True,) if self.inductive else ())),
+                                    self.backend, opt=OPT_HOT)
             self._eval_hold = self._bind(hold, (self._s_hold, self._u[-1:], self._p, self._hw), (self._hold,))
         self._eval_step = self._bind_step(self._function)
         self._eval_patient = None
@@ -553,8 +573,7 @@ class PlantStepper:
 
     def _robust_step(self, state, u) -> np.ndarray:
         if self._robust is None:
-            self._robust = _robust_step_function(self.model.parametric, self.settings,
-                                                 self.hardware is not None)
+            self._robust = _robust_step_function(self.model.parametric, self.settings, self._hardware_kind)
         self.fallbacks += 1
         extra = () if self.hardware is None else (self._hw,)
         try:
@@ -567,7 +586,7 @@ class PlantStepper:
         return out
 
 
-def _substep_expressions(model: ParametricModel, settings: StepperSettings, hardware: bool = False):
+def _substep_expressions(model: ParametricModel, settings: StepperSettings, hardware: bool | str = False):
     """Symbolic generalized-alpha update: residual and new state as functions of ``a``.
 
     With ``hardware``, three more items: ``hw`` (:data:`~hubbeam_ctrl.sim.hardware.HW_LAYOUT`),
@@ -581,11 +600,12 @@ def _substep_expressions(model: ParametricModel, settings: StepperSettings, hard
     h = settings.dt / settings.substeps
     am, af, gamma, beta = generalized_alpha_coefficients(settings.rho_inf)
     sym = model.sym                      # MX for CFOAM (see ParametricModel), else SX
-    s = sym.sym("s", 4 * n)
+    inductive = hardware == "inductive"
+    s = sym.sym("s", 4 * n + (1 if inductive else 0))
     tau = sym.sym("tau")
     a = sym.sym("a", n)
     p = sym.sym("p", model.n_p)
-    q0, v0, a0, p0 = s[:n], s[n:2 * n], s[2 * n:3 * n], s[3 * n:]
+    q0, v0, a0, p0 = s[:n], s[n:2 * n], s[2 * n:3 * n], s[3 * n:4 * n] if inductive else s[3 * n:]
     p1 = ((1 - af) * a + af * a0 - am * p0) / (1 - am)
     q1 = q0 + h * v0 + h * h * (0.5 - beta) * p0 + h * h * beta * p1
     v1 = v0 + h * (1 - gamma) * p0 + h * gamma * p1
@@ -593,14 +613,20 @@ def _substep_expressions(model: ParametricModel, settings: StepperSettings, hard
         hw = sym.sym("hw", len(HW_LAYOUT))
         f = model.inverse_dynamics(q1, v1, a, p)
         stick = hw[-1] > 0.5
-        hub = hub_torque(tau, v1[0], hw)
+        if inductive:                    # the current at the end of the substep (backward Euler)
+            current = inductive_current(tau, v1[0], s[4 * n], h, hw)
+            hub = motor_torque(current, v1[0], hw) - friction_torque(v1[0], hw)
+            new = (q1, v1, p1, current)
+        else:
+            hub = hub_torque(tau, v1[0], hw)
+            new = (q1, v1, p1)
         p1_stick = -(v0[0] + h * (1 - gamma) * p0[0]) / (h * gamma)
         a_stick = ((1 - am) * p1_stick - af * a0[0] + am * p0[0]) / (1 - af)
         held = (p[0] + p[1]) * (a[0] - a_stick)
         residual = ca.vertcat(ca.if_else(stick, held, f[0] - hub), f[1:])
         mechanical = ca.vertcat(ca.if_else(stick, held, f[0]), f[1:])
         d_hub = ca.if_else(stick, 0, -ca.jacobian(hub, a)[0])
-        return s, tau, a, p, (q1, v1, p1), residual, hw, mechanical, d_hub
+        return s, tau, a, p, new, residual, hw, mechanical, d_hub
     force = ca.vertcat(tau, sym.zeros(n - 1))
     residual = model.inverse_dynamics(q1, v1, a, p) - force
     return s, tau, a, p, (q1, v1, p1), residual
@@ -608,7 +634,7 @@ def _substep_expressions(model: ParametricModel, settings: StepperSettings, hard
 
 @lru_cache(maxsize=16)
 def _iteration_matrix_function(model: ParametricModel, settings: StepperSettings,
-                               hardware: bool = False) -> ca.Function:
+                               hardware: bool | str = False) -> ca.Function:
     """Jacobian of the step residual in the new accelerations, at the predictor ``a = a_n``."""
     n = model.n_q
     s, tau, a, p, _, residual, *hw = _substep_expressions(model, settings, hardware)
@@ -623,7 +649,7 @@ def _iteration_matrix_function(model: ParametricModel, settings: StepperSettings
     return ca.Function("iteration_matrix", [s, tau, p, *hw], [J], ["s", "tau", "p"] + ["hw"] * len(hw), ["J"])
 
 
-def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None, hardware: bool = False) -> tuple:
+def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None, hardware: bool | str = False) -> tuple:
     """The plant step and its iteration matrix on a backend.
 
     Both take the model's parameter vector ``p`` (:attr:`HubBeamModel.p`) as their last
@@ -635,9 +661,11 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None,
     model : HubBeamModel
     settings : StepperSettings
     backend : {"auto", "compiled", "vm"}, optional
-    hardware : bool
+    hardware : bool or "inductive"
         Functions with a last input ``hw`` (:data:`~hubbeam_ctrl.sim.hardware.HW_LAYOUT`):
-        ``tau`` is then the command and the hub torque the hardware's.
+        ``tau`` is then the command and the hub torque the hardware's; ``"inductive"``: the
+        armature current is one more state, the last entry of ``s``
+        (:func:`~hubbeam_ctrl.sim.hardware.inductive_current`).
 
     Returns
     -------
@@ -649,7 +677,7 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None,
     backend : str
         ``"compiled"`` or ``"vm"``: the backend the step runs on.
     """
-    extra = (True,) if hardware else ()        # the ideal functions exactly as before (same cache keys)
+    extra = (hardware,) if hardware else ()    # the ideal functions exactly as before (same cache keys)
     vm_step = _fast_step_function(model.parametric, settings, *extra)
     step = compile_function(vm_step, backend, opt=OPT_HOT)
     # SX: a large scalar graph, rarely called (-O0); MX: compact code whose products are worth -O3
@@ -659,10 +687,11 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None,
 
 
 @lru_cache(maxsize=16)
-def _fast_step_function(model: ParametricModel, settings: StepperSettings, hardware: bool = False) -> ca.Function:
+def _fast_step_function(model: ParametricModel, settings: StepperSettings, hardware: bool | str = False) -> ca.Function:
     """One sample: ``substeps`` steps of modified Newton with the inverse iteration matrix given."""
     n = model.n_q
-    s, tau, a, p, (q1, v1, p1), residual, *hw = _substep_expressions(model, settings, hardware)
+    s, tau, a, p, new, residual, *hw = _substep_expressions(model, settings, hardware)
+    n_s = s.shape[0]
     opts = {"cse": True}
     HW = [ca.MX.sym("hw", len(HW_LAYOUT))] if hardware else []
     if hardware:
@@ -670,8 +699,9 @@ def _fast_step_function(model: ParametricModel, settings: StepperSettings, hardw
         R = ca.Function("residual", [a, s, tau, p, *hw], [residual, d_hub], opts)
     else:
         R = ca.Function("residual", [a, s, tau, p, *hw], [residual], opts)
-    update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)], opts)
-    S = ca.MX.sym("s", 4 * n)
+    more = [tau, *hw] if hardware == "inductive" else []     # the new current depends on them
+    update = ca.Function("update", [a, s, *more], [ca.vertcat(*new[:2], a, *new[2:])], opts)
+    S = ca.MX.sym("s", n_s)
     T = ca.MX.sym("tau")
     P = ca.MX.sym("p", model.n_p)
     Jm = ca.MX.sym("J_inv", n, n)           # inverse of the iteration matrix: no factorisation per step
@@ -688,54 +718,60 @@ def _fast_step_function(model: ParametricModel, settings: StepperSettings, hardw
         else:
             delta = ca.mtimes(Jm, R(A, S, T, P, *HW))
         A = A - delta
-    sub = ca.Function("substep", [S, T, Jm, P, *HW], [update(A, S), ca.norm_inf(delta)])
+    sub = ca.Function("substep", [S, T, Jm, P, *HW], [update(A, S, *([T, *HW] if more else [])), ca.norm_inf(delta)])
     k = settings.substeps
     accum = sub.mapaccum("substeps", k)
-    X = ca.MX.sym("x", 4 * n)
+    X = ca.MX.sym("x", n_s)
     U = ca.MX.sym("u", 1, k)
     xs, errs = accum(X, U, Jm, P, *HW)
-    return ca.Function("plant_step_hw" if hardware else "plant_step", [X, U, Jm, P, *HW],
+    name = {False: "plant_step", True: "plant_step_hw", "inductive": "plant_step_hw_l"}[hardware]
+    return ca.Function(name, [X, U, Jm, P, *HW],
                        [xs[:, -1], ca.mmax(errs)], ["s", "tau", "J_inv", "p"] + ["hw"] * len(HW),
                        ["s_next", "err"])
 
 
 @lru_cache(maxsize=16)
-def _hold_function(model: ParametricModel) -> ca.Function:
+def _hold_function(model: ParametricModel, inductive: bool = False) -> ca.Function:
     """``(s, tau, p, hw) -> hold``: the friction torque that holds the hub in state ``s`` [N m].
 
     ``hold = drive(tau, 0) - f_0(q, v, a)``, the hub row of the equations of motion at the
-    state's accelerations: what friction must supply for the hub to stay at rest.
+    state's accelerations: what friction must supply for the hub to stay at rest. With
+    ``inductive`` the drive's torque is that of the state's current (its last entry).
     """
     n = model.n_q
     sym = model.sym
-    s, tau, p = sym.sym("s", 4 * n), sym.sym("tau"), sym.sym("p", model.n_p)
+    s, tau, p = sym.sym("s", 4 * n + (1 if inductive else 0)), sym.sym("tau"), sym.sym("p", model.n_p)
     hw = sym.sym("hw", len(HW_LAYOUT))
     f = model.inverse_dynamics(s[:n], s[n:2 * n], s[2 * n:3 * n], p)
-    hold = drive_torque(tau, 0.0 * tau, hw) - f[0]
+    drive = motor_torque(s[4 * n], 0.0 * tau, hw) if inductive else drive_torque(tau, 0.0 * tau, hw)
+    hold = drive - f[0]
     return ca.Function("hub_hold", [s, tau, p, hw], [hold], ["s", "tau", "p", "hw"], ["hold"], {"cse": True})
 
 
 @lru_cache(maxsize=16)
-def _robust_step_function(model: ParametricModel, settings: StepperSettings, hardware: bool = False) -> ca.Function:
+def _robust_step_function(model: ParametricModel, settings: StepperSettings,
+                          hardware: bool | str = False) -> ca.Function:
     n = model.n_q
-    s, tau, a, p, (q1, v1, p1), residual, *hw = _substep_expressions(model, settings, hardware)
+    s, tau, a, p, new, residual, *hw = _substep_expressions(model, settings, hardware)
+    n_s = s.shape[0]
     hw = hw[:1]
     n_hw = len(HW_LAYOUT) if hardware else 0
     R = ca.Function("R", [a, s, tau, p, *hw], [residual])
-    A_, W = ca.MX.sym("a", n), ca.MX.sym("w", 4 * n + 1 + model.n_p + n_hw)   # an MX input must be one symbol
-    k_p = 4 * n + 1 + model.n_p
-    G = ca.Function("G", [A_, W], [R(A_, W[:4 * n], W[4 * n], W[4 * n + 1:k_p], *([W[k_p:]] if hardware else []))])
+    A_, W = ca.MX.sym("a", n), ca.MX.sym("w", n_s + 1 + model.n_p + n_hw)   # an MX input must be one symbol
+    k_p = n_s + 1 + model.n_p
+    G = ca.Function("G", [A_, W], [R(A_, W[:n_s], W[n_s], W[n_s + 1:k_p], *([W[k_p:]] if hardware else []))])
     rf = ca.rootfinder("rf", "newton", G, {"abstol": 1e-9, "abstolStep": 1e-13, "max_iter": 50,
-                                          "line_search": hardware, "error_on_fail": True})
-    update = ca.Function("update", [a, s], [ca.vertcat(q1, v1, a, p1)])
-    S = ca.MX.sym("s", 4 * n)
+                                          "line_search": bool(hardware), "error_on_fail": True})
+    more = [tau, *hw] if hardware == "inductive" else []
+    update = ca.Function("update", [a, s, *more], [ca.vertcat(*new[:2], a, *new[2:])])
+    S = ca.MX.sym("s", n_s)
     T = ca.MX.sym("tau")
     P = ca.MX.sym("p", model.n_p)
     HW = [ca.MX.sym("hw", n_hw)] if hardware else []
     A = rf(S[2 * n:3 * n], ca.vertcat(S, T, P, *HW))
-    sub = ca.Function("substep", [S, T, P, *HW], [update(A, S)])
+    sub = ca.Function("substep", [S, T, P, *HW], [update(A, S, *([T, *HW] if more else []))])
     k = settings.substeps
-    X = ca.MX.sym("x", 4 * n)
+    X = ca.MX.sym("x", n_s)
     U = ca.MX.sym("u", 1, k)
     xs = sub.mapaccum("substeps", k)(X, U, P, *HW)
     return ca.Function("plant_step_robust", [X, U, P, *HW], [xs[:, -1]])
