@@ -14,7 +14,6 @@ import math
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Damping, Drive, Friction, Rig, Sensors, Timing
 from hubbeam_ctrl.study.compare import compare
-from hubbeam_ctrl.study.rig_loop import delay_simulated
 
 __all__ = ["LADDER_STEPS", "ladder_rigs", "rig_ladder"]
 
@@ -29,8 +28,7 @@ def ladder_rigs(rig: Rig) -> list:
     """The rigs of the ladder: ``[(label, Rig), ...]``, from the beam alone to ``rig`` itself.
 
     The first step keeps the rig's sample time (a design choice, not hardware); a step whose
-    part is ideal in ``rig`` is left out, so the last rig equals ``rig`` (the delay step only
-    where the closed loop simulates the delay, :func:`delay_simulated`).
+    part is ideal in ``rig`` is left out, so the last rig equals ``rig``.
 
     Parameters
     ----------
@@ -47,7 +45,7 @@ def ladder_rigs(rig: Rig) -> list:
     out = [("ideal plant", Rig(beam=rig.beam, **parts))]
     for label, part in LADDER_STEPS[1:]:
         value = getattr(rig, part)
-        if value == parts[part] or part == "timing" and not delay_simulated():
+        if value == parts[part]:
             continue
         parts[part] = value
         out.append((label, Rig(beam=rig.beam, **parts)))

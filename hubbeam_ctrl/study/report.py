@@ -14,7 +14,6 @@ from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json, write_folde
 from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
 from hubbeam_ctrl.plots.plant import save_figure
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
-from hubbeam_ctrl.study.rig_loop import delay_simulated
 
 __all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
            "ladder_lines"]
@@ -251,9 +250,8 @@ def _rig_lines(comparison) -> list:
     lines[-1] += (", strain gauges at " + ", ".join(f"{x:g} m" for x in sn.strain_gauges) + "; LQR and MPC read "
                   "them through a Kalman filter (controllers.integral.ObservedFeedback); the filters count the "
                   "encoder's quantisation as angle noise.")
-    lines.append(f"- Timing: sample {comparison.scenario.dt * 1e3:g} ms, computation delay {tm.delay:g} of a sample"
-                 + ("." if delay_simulated() or not tm.delay
-                    else " (not simulated yet: the command acts at the sample)."))
+    lines.append(f"- Timing: sample {comparison.scenario.dt * 1e3:g} ms, computation delay {tm.delay:g} of a sample "
+                 "(the command acts that much after the sample it was computed from).")
     integral = {n: c.settings.integral if hasattr(getattr(c, "settings", None), "integral")
                 else getattr(c, "integral", None) for n, c in getattr(comparison, "controllers", {}).items()}
     on = [n for n, v in integral.items() if v]

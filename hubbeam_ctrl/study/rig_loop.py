@@ -1,8 +1,7 @@
 """The controllers and the closed loop on a rig: what changes when the hardware is real.
 
-:func:`rig_closed_loop` gives the closed loop's settings on a :class:`~hubbeam_ctrl.plant.rig.Rig`
-(its encoder, its sensors' noise where the rig gives it, else the task's) and the
-:class:`~hubbeam_ctrl.sim.hardware.Hardware` the plant carries; :func:`on_rig` turns a
+:func:`rig_closed_loop` gives the :class:`~hubbeam_ctrl.sim.hardware.Hardware` the plant carries
+(drive, friction, the rig's sensors and computation delay); :func:`on_rig` turns a
 designed controller into the one that runs on the rig:
 
 * a controller that reads the plant's modal state (LQR, MPC) is closed through a Kalman
@@ -31,7 +30,7 @@ from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.hardware import Hardware
 
 __all__ = ["rig_closed_loop", "on_rig", "rig_settings", "rig_noise", "task_noise", "integral_default",
-           "task_t_end", "delay_simulated", "DISTURBANCE_FRACTION", "RESIDUAL_PERIODS"]
+           "task_t_end", "DISTURBANCE_FRACTION", "RESIDUAL_PERIODS"]
 
 #: Random-walk standard deviation per sample of the estimated disturbance, as a fraction of the
 #: torque limit (the integral action's speed; measured on ``servo_link``: see docs/rig.md).
@@ -56,27 +55,21 @@ def rig_closed_loop(rig: Rig, settings: ClosedLoopSettings) -> tuple:
     ----------
     rig : Rig
     settings : ClosedLoopSettings
-        The task's default settings (sample time, sensor noise scaled to its signals).
+        The task's default settings (sample time, sensor noise scaled to its signals; a rig with
+        its own sensors is measured through them instead, see
+        :func:`~hubbeam_ctrl.sim.closedloop.simulate_closed_loop`).
 
     Returns
     -------
     settings : ClosedLoopSettings
-        With the rig's encoder and the noise levels the rig gives (the task's where it gives none).
+        ``settings`` (the rig's sample time is the task's: compare builds the task with it).
     hardware : Hardware or None
-        None for the ideal torque drive without friction (the plant is then the beam alone's).
+        The rig's drive, friction, sensors and timing; None for a rig with ideal hardware (the
+        plant and the measurement are then the beam alone's).
     """
     if not isinstance(rig, Rig):
         raise ParameterError(f"rig must be a Rig (hubbeam_ctrl.plant.rig.load_rig), got {type(rig).__name__}")
-    s = rig.sensors
-    if not s.is_ideal:
-        sens = settings.sensors
-        sens = dataclasses.replace(sens, encoder_counts=s.encoder_counts,
-                                   angle_noise_rad=s.angle_noise or sens.angle_noise_rad,
-                                   rate_noise_rad_s=s.rate_noise or sens.rate_noise_rad_s,
-                                   moment_noise_nm=s.strain_noise or sens.moment_noise_nm)
-        settings = dataclasses.replace(settings, sensors=sens)
-    hardware = Hardware.from_rig(rig)
-    return settings, (None if hardware.is_ideal else hardware)
+    return settings, (None if rig.is_ideal else Hardware.from_rig(rig))
 
 
 def rig_settings(name: str, settings, rig: Rig, integral: bool | None = None):
@@ -205,11 +198,3 @@ def task_t_end(scenario) -> float:
     w1 = first_mode(DesignModel.build(scenario.params, scenario.design_spin, scenario.dt, 1))
     t = max(3.0 * scenario.t_f, scenario.t_f + scenario.bands["residual_delay"] + RESIDUAL_PERIODS * 2 * math.pi / w1)
     return math.ceil(t / scenario.dt - 1e-9) * scenario.dt
-
-
-def delay_simulated() -> bool:
-    """Whether the closed loop simulates the computation delay (its settings have ``delay``)."""
-    from dataclasses import fields
-
-    from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
-    return "delay" in {f.name for f in fields(ClosedLoopSettings)}
