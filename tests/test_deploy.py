@@ -211,3 +211,26 @@ def test_without_a_compiler_sources_are_written_and_sil_says_why(setup, tmp_path
     assert code.source_path.is_file() and code.header_path.is_file()
     with pytest.raises(CompileError, match=f"^{re.escape(NO_COMPILER)}$"):
         compile_c(code)
+
+
+def test_cli_codegen_writes_compiles_and_refuses_bad_input(tmp_path, capsys):
+    from hubbeam_ctrl.cli.main import main
+    out = tmp_path / "pd_c"
+    args = ["codegen", "--controller", "pd", "--n-modes", "1", "--dt", "0.05", "--tf", "4", "--out", str(out)]
+    assert main([*args, "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["compiled"] is (compiler() is not None)
+    assert [m["name"] for m in summary["measurements"]] == ["theta", "theta_dot"]
+    assert (out / "pd.c").is_file() and (out / "pd.h").is_file()
+    rig = tmp_path / "rig.toml"
+    rig.write_text("[sensors]\nstrain_gauges = [0.5]\n")        # no gauge at the root
+    for bad, message in [(args, "--out: folder .* exists and is not empty"),
+                         (["codegen", "--controller", "mpc", "--out", str(tmp_path / "m")],
+                          "--controller must be one of pd, lqr, lqg"),
+                         (["codegen", "--controller", "lqg", "--rig", str(rig), "--out", str(tmp_path / "r")],
+                          "--rig: lqg reads the root bending moment, .* no gauge at the root")]:
+        assert main(bad) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and re.search(message, err), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pd_c", "rig.toml"]
+    assert main([*args, "--force"]) == 0
