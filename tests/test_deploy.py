@@ -234,3 +234,19 @@ def test_cli_codegen_writes_compiles_and_refuses_bad_input(tmp_path, capsys):
         assert len(err.splitlines()) == 1 and re.search(message, err), err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pd_c", "rig.toml"]
     assert main([*args, "--force"]) == 0
+
+
+def test_mat_export_states_sensors_and_units(setup, tmp_path):
+    from scipy.io import loadmat
+
+    from controllers.export import save_controller
+    _, _, ctrls = setup
+    for kind, expected in [("lqg", "theta [rad], theta_dot [rad/s], root_moment [N m]"),
+                           ("pd", "theta [rad], theta_dot [rad/s]")]:
+        m = loadmat(save_controller(ctrls[kind], tmp_path / f"{kind}.mat"))
+        assert str(m["sensors"][0]) == expected and str(m["measurement"][0]) == "sensors"
+        assert int(np.ravel(m["reads_sensors_only"])[0]) == 1
+    m = loadmat(save_controller(ctrls["lqr"], tmp_path / "lqr.mat"))          # full state: says why not
+    assert int(np.ravel(m["reads_sensors_only"])[0]) == 0
+    assert str(m["sensors"][0]).startswith("none: the inputs are the design model's states")
+    assert "hubbeam codegen --controller lqr" in str(m["sensors"][0])
