@@ -11,8 +11,8 @@ simulator, and nothing below it imports it. See docs/deploy.md.
 """
 
 from .codegen import CODEGEN_KINDS, SENSOR_UNITS, ControlLaw, GeneratedCode, control_law, render_c, to_c
-from .observed import ObservedLQR
+from .observed import ObservedLQR, ObservedMPC
 from .sil import NO_COMPILER, STRICT_FLAGS, CController, compile_c, compiler
 
 __all__ = ["CODEGEN_KINDS", "SENSOR_UNITS", "ControlLaw", "GeneratedCode", "control_law", "render_c", "to_c",
-           "ObservedLQR", "NO_COMPILER", "STRICT_FLAGS", "CController", "compile_c", "compiler"]
+           "ObservedLQR", "ObservedMPC", "NO_COMPILER", "STRICT_FLAGS", "CController", "compile_c", "compiler"]

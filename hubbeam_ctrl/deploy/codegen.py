@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from controllers import LQG, LQR, PD, Controller, KalmanNoise, OpenLoop, ShapedOpenLoop
+from controllers import LQG, LQR, MPC, PD, Controller, KalmanNoise, OpenLoop, ShapedOpenLoop
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.fileio import write_folder
 
-from .observed import ObservedLQR
+from .observed import ObservedLQR, ObservedMPC
 
 __all__ = ["CODEGEN_KINDS", "SENSOR_UNITS", "ControlLaw", "GeneratedCode", "control_law", "render_c", "to_c"]
 
@@ -45,6 +45,8 @@ CODEGEN_KINDS = {
     "pd": "PD on the hub angle and rate, reference table, feedforward, saturation",
     "lqr": "LQR gain on a steady-state Kalman filter of its model (the LQR with its observer)",
     "lqg": "LQG: Kalman filter (with residual modes) and gain, reference table, saturation",
+    "mpc": "MPC on a Kalman filter of its model: the condensed box-constrained QP solved by a generated "
+           "primal active-set method (no tip bound)",
     "zv": "ZV input-shaped open-loop torque table",
     "zvd": "ZVD input-shaped open-loop torque table",
     "ei": "EI input-shaped open-loop torque table",
@@ -64,8 +66,9 @@ class ControlLaw:
 
     Attributes
     ----------
-    kind : {"pd", "observer", "table"}
-        Template: PD on the hub sensors, gain on a Kalman filter, held torque table.
+    kind : {"pd", "observer", "mpc", "table"}
+        Template: PD on the hub sensors, gain on a Kalman filter, MPC on a Kalman filter,
+        held torque table.
     controller : str
         The controller's kind (``"lqg"``...).
     dt : float
@@ -162,6 +165,8 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
     ctrl = controller
     if isinstance(ctrl, LQR):
         ctrl = ObservedLQR(ctrl, noise)
+    elif type(ctrl) is MPC:
+        ctrl = ObservedMPC(ctrl, noise)
     if type(ctrl) is PD:
         ref = ctrl.reference
         law = ControlLaw(
@@ -175,6 +180,8 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         x0 = np.array(X[0])                             # ObservedLQR.reset: the first reference state
         x0[ctrl._n] -= ctrl.design.spin
         law = _observer_law(ctrl, "lqr", ctrl.K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0)
+    elif isinstance(ctrl, ObservedMPC):
+        law = _mpc_law(ctrl)
     elif type(ctrl) is LQG:
         X, tff = _reference_table(ctrl, ctrl._xref_filter, ctrl._E)
         x0 = ctrl._E @ ctrl._reference_at(0)[0]        # LQG.reset
@@ -284,6 +291,8 @@ def render_c(law: ControlLaw, name: str, precision: str = "double") -> tuple:
     tuple of str
         ``(header, source)``.
     """
+    if law.kind == "mpc":
+        return _render_mpc(law, name, precision)
     real = _PRECISIONS[precision]
     single = precision == "single"
     R = f"{name}_real"
@@ -573,3 +582,254 @@ def to_c(controller: Controller, out_dir=None, precision: str = "double", *, nam
 
     write_folder(out, write, "out")
     return GeneratedCode(name, out, header, source, precision, law)
+
+
+def _mpc_law(ctrl) -> ControlLaw:
+    """The observed MPC (:class:`ObservedMPC`) as arrays: filter, condensed QP, reference terms."""
+    mpc = ctrl.mpc
+    s = mpc.settings
+    if s.tip_bound is not None:
+        raise ParameterError("controller: an MPC with a tip_bound cannot be generated as C yet (the generated "
+                             "QP solver handles the torque bounds only); use tip_bound=None")
+    N = s.horizon
+    est = ctrl.estimator
+    x0 = np.array(mpc._reference_at(0)[0], dtype=float)
+    x0[ctrl._n] -= ctrl.design.spin
+    H = np.asarray(mpc._H.full(), dtype=float)
+    table = np.asarray(mpc._ref_term, dtype=float)
+    kt = len(table)
+    r0 = np.asarray(mpc._reference_term(kt), dtype=float)
+    r1 = np.asarray(mpc._reference_term(kt + 1), dtype=float) - r0
+    return ControlLaw(
+        kind="mpc", controller="mpc", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=1.0,
+        arrays={"A": np.asarray(est._A, float), "B": np.asarray(est._b, float),
+                "IMLC": np.asarray(est._IminusLC, float), "L": np.asarray(est.L, float), "X0": x0,
+                "GX": np.asarray(mpc._Gx, float), "H": H, "HL": np.linalg.cholesky(H), "REFT": table,
+                "R0": r0, "R1": r1},
+        scalars={"spin": float(ctrl.design.spin), "horizon": float(N)}, sensors=_SENSORS, n_reference=N,
+        reference_layout=f"r[0..{N - 1}]: the QP gradient's reference term (g = Gx x - r)")
+
+
+def _render_mpc(law: ControlLaw, name: str, precision: str) -> tuple:
+    """Body of the MPC template: Kalman filter, then a primal active-set solve of the box QP."""
+    real = _PRECISIONS[precision]
+    single = precision == "single"
+    R = f"{name}_real"
+    nx = len(law.arrays["X0"])
+    nh = nx // 2
+    N = int(law.scalars["horizon"])
+    kt = len(law.arrays["REFT"])
+    sqrt = "sqrtf" if single else "sqrt"
+    fabs = "fabsf" if single else "fabs"
+    body = (f"    {R} x_pred[{nx}];  /* prediction of the filter's state (deviation from steady spin) */\n"
+            f"    {R} x_hat[{nx}];   /* estimate after the last measurement */\n"
+            f"    {R} tau_prev;    /* torque held since the last sample [N m] */\n"
+            f"    int has_tau;      /* 0 until the first step after reset */\n"
+            f"    long k;           /* sample index */\n"
+            f"    {R} z[{N}];       /* the plan (the QP's solution) */\n"
+            f"    int st[{N}];      /* active set: 0 free, -1 at -tau_max, +1 at +tau_max */\n"
+            f"    {R} g[{N}];       /* the QP's linear term */\n"
+            f"    {R} M[{N}][{N}];  /* Cholesky factor of the free block of H */\n"
+            f"    {R} v[{N}], zs[{N}];\n"
+            f"    int fidx[{N}];\n"
+            f"    int iterations;   /* active-set iterations of the last solve */\n"
+            f"    long failures;    /* solves that hit the iteration limit (plan kept feasible) */")
+    data = "".join(_array(k, law.arrays[k], R, single)
+                   for k in ("A", "B", "IMLC", "L", "X0", "GX", "H", "HL", "REFT", "R0", "R1"))
+    num = (lambda v: _number(v, single))
+    code = f"""#define NX {nx}
+#define NH {nh}
+#define NZ {N}
+#define KT {kt}
+#define MAXIT (4 * NZ + 10)
+static const {R} DT = {num(law.dt)};
+static const {R} TAU_MAX = {num(law.tau_max)};
+static const {R} SPIN = {num(law.scalars["spin"])};
+static const {R} LAM_TOL = {num(1e-5 if single else 1e-11)};
+
+{_saturate(name)}
+void {name}_reset({name}_instance *inst)
+{{
+    int i;
+    for (i = 0; i < NX; ++i) {{
+        inst->x_pred[i] = X0[i];
+        inst->x_hat[i] = X0[i];
+    }}
+    for (i = 0; i < NZ; ++i) {{
+        inst->z[i] = 0;
+        inst->st[i] = 0;
+    }}
+    inst->tau_prev = 0;
+    inst->has_tau = 0;
+    inst->k = 0;
+    inst->iterations = 0;
+    inst->failures = 0;
+}}
+
+/* solve L L' x = v in place (L lower triangular, n x n, row stride NZ) */
+static void chol_solve(const {R} (*F)[NZ], int n, const {R} *v, {R} *x)
+{{
+    int a, c;
+    for (a = 0; a < n; ++a) {{
+        {R} s = v[a];
+        for (c = 0; c < a; ++c) s -= F[a][c] * x[c];
+        x[a] = s / F[a][a];
+    }}
+    for (a = n - 1; a >= 0; --a) {{
+        {R} s = x[a];
+        for (c = a + 1; c < n; ++c) s -= F[c][a] * x[c];
+        x[a] = s / F[a][a];
+    }}
+}}
+
+/* min 1/2 z'Hz + g'z  s.t. -TAU_MAX <= z <= TAU_MAX: primal active set from a feasible start.
+ * The QP is strictly convex, so its minimiser is unique: the Python MPC's solver finds the same. */
+static int qp_solve({name}_instance *inst)
+{{
+    int it, i, j, a, b, c, nf, blk, side, worst_i;
+    {R} alpha, worst;
+    for (it = 0; it < MAXIT; ++it) {{
+        nf = 0;
+        for (i = 0; i < NZ; ++i)
+            if (inst->st[i] == 0) inst->fidx[nf++] = i;
+        for (a = 0; a < nf; ++a) {{
+            {R} s;
+            i = inst->fidx[a];
+            s = inst->g[i];
+            for (j = 0; j < NZ; ++j)
+                if (inst->st[j] != 0) s += H[i][j] * inst->z[j];
+            inst->v[a] = -s;
+        }}
+        if (nf == NZ) {{
+            chol_solve(HL, nf, inst->v, inst->zs);
+        }} else if (nf > 0) {{
+            for (a = 0; a < nf; ++a) {{
+                for (b = 0; b <= a; ++b) {{
+                    {R} s = H[inst->fidx[a]][inst->fidx[b]];
+                    for (c = 0; c < b; ++c) s -= inst->M[a][c] * inst->M[b][c];
+                    if (a == b) {{
+                        if (!(s > 0)) return -1;
+                        inst->M[a][a] = {sqrt}(s);
+                    }} else {{
+                        inst->M[a][b] = s / inst->M[b][b];
+                    }}
+                }}
+            }}
+            chol_solve((const {R} (*)[NZ])inst->M, nf, inst->v, inst->zs);
+        }}
+        /* longest step toward the subproblem's minimiser that stays feasible */
+        alpha = 1;
+        blk = -1;
+        side = 0;
+        for (a = 0; a < nf; ++a) {{
+            {R} d, r;
+            i = inst->fidx[a];
+            d = inst->zs[a] - inst->z[i];
+            if (inst->zs[a] < -TAU_MAX) {{
+                r = (-TAU_MAX - inst->z[i]) / d;
+                if (r < alpha) {{ alpha = r; blk = i; side = -1; }}
+            }} else if (inst->zs[a] > TAU_MAX) {{
+                r = (TAU_MAX - inst->z[i]) / d;
+                if (r < alpha) {{ alpha = r; blk = i; side = 1; }}
+            }}
+        }}
+        if (blk >= 0) {{
+            for (a = 0; a < nf; ++a) {{
+                i = inst->fidx[a];
+                inst->z[i] += alpha * (inst->zs[a] - inst->z[i]);
+            }}
+            inst->z[blk] = side < 0 ? -TAU_MAX : TAU_MAX;
+            inst->st[blk] = side;
+            continue;
+        }}
+        for (a = 0; a < nf; ++a) inst->z[inst->fidx[a]] = inst->zs[a];
+        /* multipliers of the bounds in the working set */
+        worst = 0;
+        worst_i = -1;
+        for (i = 0; i < NZ; ++i) {{
+            {R} gr, lam;
+            if (inst->st[i] == 0) continue;
+            gr = inst->g[i];
+            for (j = 0; j < NZ; ++j) gr += H[i][j] * inst->z[j];
+            lam = inst->st[i] < 0 ? gr : -gr;
+            if (lam < worst && lam < -LAM_TOL * ({fabs}(inst->g[i]) + H[i][i] * TAU_MAX)) {{
+                worst = lam;
+                worst_i = i;
+            }}
+        }}
+        if (worst_i < 0) return it + 1;
+        inst->st[worst_i] = 0;
+    }}
+    return -1;
+}}
+
+void {name}_step({name}_instance *inst, const double *measurements, const double *reference,
+{' ' * (len(name) + 10)}double *command)
+{{
+    {R} t = ({R})inst->k * DT;
+    {R} yd[3];
+    {R} xa[NX];
+    {R} tau;
+    int i, j;
+    yd[0] = ({R})measurements[0] - SPIN * t;
+    yd[1] = ({R})measurements[1] - SPIN;
+    yd[2] = ({R})measurements[2];
+    if (inst->has_tau) {{
+        for (i = 0; i < NX; ++i) {{
+            {R} s = 0;
+            for (j = 0; j < NX; ++j) s += A[i][j] * inst->x_hat[j];
+            inst->x_pred[i] = s + B[i] * inst->tau_prev;
+        }}
+    }}
+    for (i = 0; i < NX; ++i) {{
+        {R} s = 0;
+        for (j = 0; j < NX; ++j) s += IMLC[i][j] * inst->x_pred[j];
+        inst->x_hat[i] = s + (L[i][0] * yd[0] + L[i][1] * yd[1] + L[i][2] * yd[2]);
+    }}
+    /* the estimated absolute state */
+    for (i = 0; i < NX; ++i) xa[i] = inst->x_hat[i];
+    xa[0] = xa[0] + SPIN * t;
+    xa[NH] = xa[NH] + SPIN;
+    /* the QP's linear term g = Gx x - r_k */
+    for (i = 0; i < NZ; ++i) {{
+        {R} s = 0, r;
+        for (j = 0; j < NX; ++j) s += GX[i][j] * xa[j];
+        if (reference) r = ({R})reference[i];
+        else if (inst->k < KT) r = REFT[inst->k][i];
+        else r = R0[i] + ({R})(inst->k - KT) * R1[i];
+        inst->g[i] = s - r;
+    }}
+    /* warm start: the previous active set and plan (kept feasible) */
+    for (i = 0; i < NZ; ++i) {{
+        if (inst->st[i] < 0) inst->z[i] = -TAU_MAX;
+        else if (inst->st[i] > 0) inst->z[i] = TAU_MAX;
+        else if (inst->z[i] < -TAU_MAX) inst->z[i] = -TAU_MAX;
+        else if (inst->z[i] > TAU_MAX) inst->z[i] = TAU_MAX;
+    }}
+    inst->iterations = qp_solve(inst);
+    if (inst->iterations < 0) inst->failures += 1;
+    tau = saturate(inst->z[0]);
+    inst->tau_prev = tau;
+    inst->has_tau = 1;
+    inst->k += 1;
+    *command = (double)tau;
+}}
+"""
+    header = _header(name, law, real, body, len(law.sensors))
+    source = f"""/* {name}.c: generated by hubbeam-ctrl (hubbeam_ctrl.deploy.to_c). {precision} precision. */
+#include <math.h>
+#include "{name}.h"
+
+{data}
+{code}
+void {name}_init({name}_instance *inst)
+{{
+    {name}_reset(inst);
+}}
+
+unsigned long {name}_instance_size(void)
+{{
+    return (unsigned long)sizeof({name}_instance);
+}}
+"""
+    return header, source

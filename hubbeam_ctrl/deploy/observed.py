@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from controllers import LQR, Controller, KalmanEstimator, KalmanNoise, saturate
+from controllers import LQR, MPC, Controller, KalmanEstimator, KalmanNoise, saturate
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["ObservedLQR"]
+__all__ = ["ObservedLQR", "ObservedMPC"]
 
 
 class ObservedLQR(Controller):
@@ -86,4 +86,61 @@ class ObservedLQR(Controller):
         K = self.K
         u = K @ (x_hat - xr) + K[0] * spin * t + K[self._n] * spin
         self._tau = saturate(float(self._ff * tff - u), self.tau_max)
+        return self._tau
+
+
+class ObservedMPC(Controller):
+    """The MPC's QP solved on a Kalman estimate from the hub sensors (the MPC as exported).
+
+    :class:`controllers.MPC` reads the full state (modal coordinates); this wraps it with a
+    steady-state :class:`controllers.KalmanEstimator` of its model, exactly as
+    :class:`ObservedLQR` does for the LQR: each call updates the estimate with the sensors
+    and hands the MPC the estimated absolute state ``x_hat + [spin t, 0, spin, 0]``.
+
+    Parameters
+    ----------
+    mpc : controllers.MPC
+    noise : controllers.KalmanNoise, optional
+        The filter's noise model (default: the simulator's sensors).
+    """
+
+    name = "mpc"
+    measurement = "sensors"
+
+    def __init__(self, mpc: MPC, noise: KalmanNoise | None = None):
+        if not isinstance(mpc, MPC):
+            raise ParameterError(f"mpc must be an MPC, got {type(mpc).__name__}")
+        noise = KalmanNoise() if noise is None else noise
+        if not isinstance(noise, KalmanNoise):
+            raise ParameterError(f"noise must be a KalmanNoise, got {type(noise).__name__}")
+        super().__init__(mpc.design, mpc.settings, mpc.reference)
+        self.mpc = mpc
+        self.n_modes = mpc.n_modes
+        self.state_modes = mpc.state_modes
+        self.tau_max = mpc.tau_max
+        self.noise = noise
+        self.estimator = KalmanEstimator(mpc.design, noise, min(mpc.n_modes, mpc.design.n_modes))
+        self._n = mpc.design.n_x // 2
+        self.reset()
+
+    def reset(self) -> None:
+        """Reset the MPC and start the filter from the reference's first state."""
+        self.mpc.reset()
+        x = np.array(self.mpc._reference_at(0)[0], dtype=float)
+        x[self._n] -= self.design.spin
+        self.estimator.reset(x)
+        self._tau = None
+
+    def stats(self) -> dict:
+        """The MPC's counters (QP solves and fallbacks)."""
+        return self.mpc.stats()
+
+    def __call__(self, t: float, y) -> float:
+        """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
+        spin = self.design.spin
+        yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
+        x = self.estimator.update(yd, self._tau).copy()
+        x[0] += spin * t
+        x[self._n] += spin
+        self._tau = self.mpc(t, x)
         return self._tau
