@@ -18,9 +18,11 @@ from controllers import (
     MPC,
     PD,
     DesignModel,
+    DesignSchedule,
     LQGSettings,
     LQRSettings,
     MPCSettings,
+    ScheduledLQR,
     ShapedSettings,
     ZVDOpenLoop,
     slew_reference,
@@ -32,6 +34,7 @@ from hubbeam_ctrl.deploy import (
     NO_COMPILER,
     CController,
     ObservedLQR,
+    ObservedMPC,
     compile_c,
     compiler,
     sil,
@@ -57,7 +60,8 @@ def setup():
     ref = slew_reference(0.5, T_F, p.total_inertia, 200.0, DT, T_END)
     ctrls = {"pd": PD(design, reference=ref),
              "lqr": LQR(design, LQRSettings(residual_control=True), reference=ref),
-             "lqg": LQG(design, LQGSettings(residual_control=True), reference=ref)}
+             "lqg": LQG(design, LQGSettings(residual_control=True), reference=ref),
+             "mpc": MPC(design, MPCSettings(horizon=20, residual_control=True, tau_max=8.0), reference=ref)}
     return design, ref, ctrls
 
 
@@ -85,7 +89,10 @@ def _run(ctrl, ref):
 
 
 def _python(ctrl):
-    return ObservedLQR(ctrl) if isinstance(ctrl, LQR) else ctrl
+    """The Python controller the C code mirrors: LQR and MPC with their observer."""
+    if isinstance(ctrl, LQR):
+        return ObservedLQR(ctrl)
+    return ObservedMPC(ctrl) if isinstance(ctrl, MPC) else ctrl
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +102,7 @@ def python_runs(setup):
 
 
 @needs_cc
-@pytest.mark.parametrize("kind", ["pd", "lqr", "lqg", "lqg-O0"])
+@pytest.mark.parametrize("kind", ["pd", "lqr", "lqg", "lqg-O0", "mpc"])
 def test_c_command_equals_python_on_the_evaluation_plant(setup, built, python_runs, kind):
     _, ref, ctrls = setup
     base = kind.split("-")[0]
@@ -111,6 +118,8 @@ def test_c_command_equals_python_on_the_evaluation_plant(setup, built, python_ru
     v_py = closed_loop_metrics(py, T_F, tau_max=ctrl.tau_max)["verdict"]
     v_c = closed_loop_metrics(c, T_F, tau_max=ctrl.tau_max)["verdict"]
     assert v_c == v_py
+    if base == "mpc":       # the torque bound was active: the generated QP solver's active set worked
+        assert np.mean(np.abs(py.tau) >= ctrl.tau_max * (1 - 1e-12)) > 0
 
 
 @needs_cc
@@ -124,7 +133,7 @@ def test_single_precision_stays_within_its_documented_bound(setup, built, python
 
 
 @needs_cc
-@pytest.mark.parametrize("kind", ["pd", "lqr", "lqg"])
+@pytest.mark.parametrize("kind", ["pd", "lqr", "lqg", "mpc"])
 def test_lockstep_beyond_the_reference_table_and_external_reference(setup, built, kind):
     """Random sensor values past the table's end: the extension of the reference matches."""
     _, ref, ctrls = setup
@@ -145,6 +154,8 @@ def test_lockstep_beyond_the_reference_table_and_external_reference(setup, built
     cc.reset()
     if law.kind == "pd":
         r = [law.arrays["THETA"][0], law.arrays["THETA_DOT"][0], law.arrays["TFF"][0]]
+    elif law.kind == "mpc":
+        r = list(law.arrays["REFT"][0])
     else:
         r = [*law.arrays["XREF"][0], law.arrays["TFF"][0]]
     y = [0.01, 0.0, 1.0]
@@ -181,8 +192,10 @@ def test_lqg_metadata_names_sensors_and_units(setup):
 
 def test_bad_input_one_line(setup, tmp_path):
     design, ref, ctrls = setup
-    with pytest.raises(ParameterError, match=r"^controller: 'mpc' \(MPC\) cannot be generated as C; kinds: pd"):
-        to_c(MPC(design, MPCSettings(horizon=5), ref), tmp_path / "x")
+    with pytest.raises(ParameterError, match=r"^controller: '.*' \(ScheduledLQR\) cannot be generated as C; kinds: pd"):
+        to_c(ScheduledLQR(DesignSchedule.build(design.params, [0.0, 1.0], DT), reference=ref), tmp_path / "x")
+    with pytest.raises(ParameterError, match=r"^controller: an MPC with a tip_bound cannot be generated"):
+        to_c(MPC(design, MPCSettings(horizon=5, tip_bound=0.1), ref), tmp_path / "x")
     with pytest.raises(ParameterError, match="^precision must be one of double, single"):
         to_c(ctrls["pd"], tmp_path / "x", "half")
     with pytest.raises(ParameterError, match="^name must be a C identifier"):
@@ -225,7 +238,7 @@ def test_cli_codegen_writes_compiles_and_refuses_bad_input(tmp_path, capsys):
     rig = tmp_path / "rig.toml"
     rig.write_text("[sensors]\nstrain_gauges = [0.5]\n")        # no gauge at the root
     for bad, message in [(args, "--out: folder .* exists and is not empty"),
-                         (["codegen", "--controller", "mpc", "--out", str(tmp_path / "m")],
+                         (["codegen", "--controller", "pid", "--out", str(tmp_path / "m")],
                           "--controller must be one of pd, lqr, lqg"),
                          (["codegen", "--controller", "lqg", "--rig", str(rig), "--out", str(tmp_path / "r")],
                           "--rig: lqg reads the root bending moment, .* no gauge at the root")]:

@@ -163,7 +163,7 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         or a non-finite gain.
     """
     ctrl = controller
-    if isinstance(ctrl, LQR):
+    if type(ctrl) is LQR:                 # not the scheduled subclasses: they interpolate in the spin
         ctrl = ObservedLQR(ctrl, noise)
     elif type(ctrl) is MPC:
         ctrl = ObservedMPC(ctrl, noise)
