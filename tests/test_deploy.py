@@ -22,10 +22,12 @@ from controllers import (
     LQGSettings,
     LQRSettings,
     MPCSettings,
+    ScheduledLQG,
     ScheduledLQR,
     ShapedSettings,
     ZVDOpenLoop,
     slew_reference,
+    spinup_reference,
 )
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.compiled import CompileError
@@ -263,3 +265,19 @@ def test_mat_export_states_sensors_and_units(setup, tmp_path):
     assert int(np.ravel(m["reads_sensors_only"])[0]) == 0
     assert str(m["sensors"][0]).startswith("none: the inputs are the design model's states")
     assert "hubbeam codegen --controller lqr" in str(m["sensors"][0])
+
+
+@needs_cc
+def test_gain_scheduled_lqg_in_c_equals_python_in_a_spin_up(tmp_path):
+    """The schedule's interpolation on the measured hub rate, sample by sample, on FOAM."""
+    p = Params(n_axial=1, n_transverse=1)
+    schedule = DesignSchedule.build(p, [0.0, 1.5, 3.0], DT)
+    ref = spinup_reference(3.0, 8.0, p.total_inertia, DT, 12.0, 200.0)
+    ctrl = ScheduledLQG(schedule, LQGSettings(), reference=ref, variable="measured")
+    code = to_c(ctrl, tmp_path / "slqg")
+    assert code.law.kind == "scheduled_lqg"
+    cc = CController(compile_c(code, "-O2", tmp_path), code, ctrl)
+    settings = ClosedLoopSettings(dt=DT)
+    py, c = (simulate_closed_loop("foam", x, 12.0, settings=settings) for x in (ctrl, cc))
+    assert abs(py.v[-1, 0] - 3.0) < 0.05                  # the spin-up crossed the grid's points
+    assert np.max(np.abs(c.tau - py.tau)) <= 1e-9 * ctrl.tau_max
