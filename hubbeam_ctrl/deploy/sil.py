@@ -170,7 +170,21 @@ class CController:
         return self._tau.value
 
     def step(self, y, reference=None) -> float:
-        """One raw ``<name>_step`` call (for benchmarks): measurement and optional reference vector."""
+        """One raw ``<name>_step`` call, without the time check (for benchmarks and tests).
+
+        Parameters
+        ----------
+        y : array_like
+            Measurements in the order of ``code.law.sensors`` [rad, rad/s, N m].
+        reference : array_like, optional
+            The external reference vector (``code.law.n_reference`` values, layout in the
+            header); None: the built-in table.
+
+        Returns
+        -------
+        float
+            The command [N m].
+        """
         for i in range(self._n_meas):
             self._y[i] = float(y[i])
         ref = self._null if reference is None else (ctypes.c_double * len(reference))(*reference)
