@@ -16,7 +16,10 @@ on the evaluation plant; its sensor values are then replayed
   alternative.
 
 The C commands of the replay are checked against the Python ones (``max_diff_over_tau_max``).
-Code and data size: ``size -A`` of the ``-O2`` object (``.text`` and ``.rodata``). Targets
+Code and data size: ``size -A`` of the ``-O2`` object (``.text`` and ``.rodata``). The MPC's
+QP has a second named alternative, CasADi's generated ``qrqp`` on the same recorded QPs
+(``mpc_qp_alternative_qrqp``: does it compile with the strict flags, its includes, its plans'
+distance from DAQP's). Targets
 (issue 26): LQG under 2 us, MPC horizon 50 under 50 us per step.
 """
 
@@ -137,6 +140,84 @@ def _bench(kind, ctrl, py, t_end, repeat, cc, root) -> dict:
     return entry
 
 
+def _qrqp_alternative(mpc, py, Y, cc, root) -> dict:
+    """The named alternative for the MPC's QP: CasADi's code generation of ``qrqp``.
+
+    Records every QP the Python MPC (DAQP) solves on the replay, then solves the same QPs with
+    the ``qrqp`` C that CasADi generates: whether it compiles with the strict flags, and how far
+    its plans are from DAQP's when compiled without them.
+    """
+    import casadi as ca
+    recorded = []
+    solver = mpc.solver
+    original = solver.solve
+
+    def recording(g, lba=None, uba=None, warm_start=True):
+        z = original(g, lba, uba, warm_start)
+        recorded.append((np.array(g), z.copy()))
+        return z
+    solver.solve = recording
+    try:
+        py.reset()
+        for k in range(len(Y)):
+            py(k * py.dt, Y[k])
+    finally:
+        solver.solve = original
+    N = mpc.settings.horizon
+    H = mpc._H
+    A = ca.DM(np.zeros((0, N)))
+    qp = ca.conic("mpc_qp", "qrqp", {"h": H.sparsity(), "a": A.sparsity()},
+                  {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False})
+    folder = root / "qrqp"
+    folder.mkdir()
+    cwd = os.getcwd()
+    os.chdir(folder)
+    try:
+        qp.generate("qrqp_qp.c")
+    finally:
+        os.chdir(cwd)
+    src = folder / "qrqp_qp.c"
+    text = src.read_text()
+    strict = subprocess.run([cc, *STRICT_FLAGS, "-O2", "-fPIC", "-shared", str(src), "-o", str(folder / "s.so"),
+                             "-lm"], capture_output=True, text=True)
+    lib = folder / "qrqp.so"
+    subprocess.run([cc, "-O2", "-fPIC", "-shared", str(src), "-o", str(lib), "-lm"], check=True, capture_output=True)
+    f = ca.external("mpc_qp", str(lib))
+    lb = np.full(N, -mpc.tau_max)
+    ub = np.full(N, mpc.tau_max)
+    inproc = ca.conic("mpc_qp_inproc", "qrqp", {"h": H.sparsity(), "a": A.sparsity()},
+                      {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False})
+    Hn = np.asarray(H.full(), dtype=float)
+    diffs, diffs_inproc, failed, worse = [], [], 0, []
+    times = []
+    for g, z_daqp in recorded:
+        t0 = time.perf_counter()
+        sol = f(h=H, g=g, a=A, lbx=lb, ubx=ub)
+        times.append(time.perf_counter() - t0)
+        z_q = np.asarray(sol["x"]).ravel()
+        diffs.append(float(np.max(np.abs(z_q - z_daqp))))
+        if diffs[-1] > 1e-9 * mpc.tau_max:       # which plan is the minimiser? (lower cost, feasible)
+            cost = [float(0.5 * z @ Hn @ z + g @ z) for z in (z_daqp, z_q)]
+            worse.append({"daqp_cost": cost[0], "qrqp_cost": cost[1],
+                          "qrqp_bound_violation_nm": float(max(0.0, np.max(np.abs(z_q)) - mpc.tau_max))})
+        sol2 = inproc(h=H, g=g, a=A, lbx=lb, ubx=ub)
+        failed += not inproc.stats().get("success", False)
+        diffs_inproc.append(float(np.max(np.abs(np.asarray(sol2["x"]).ravel() - z_daqp))))
+    diffs, diffs_inproc = np.array(diffs), np.array(diffs_inproc)
+    worst = float(diffs.max())
+    first_error = next((ln for ln in strict.stderr.splitlines() if "error" in ln), "")
+    return {"qps": len(recorded), "compiles_with_strict_flags": strict.returncode == 0,
+            "strict_first_error": first_error.strip()[:200],
+            "includes": sorted(set(ln.strip() for ln in text.splitlines() if ln.startswith("#include"))),
+            "max_plan_diff_over_tau_max": worst / mpc.tau_max,
+            "median_plan_diff_over_tau_max": float(np.median(diffs)) / mpc.tau_max,
+            "qps_off_by_more_than_1e-9_tau_max": int(np.sum(diffs > 1e-9 * mpc.tau_max)),
+            "in_process_qrqp_failures": int(failed),
+            "off_qps": worse[:5],
+            "in_process_qrqp_max_plan_diff_over_tau_max": float(diffs_inproc.max()) / mpc.tau_max,
+            "solve_us_median_via_casadi_external": float(np.median(times)) * 1e6}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--t-end", type=float, default=12.0, help="closed-loop run replayed [s]")
@@ -164,6 +245,10 @@ def main() -> None:
         for kind, ctrl in ctrls.items():
             py = ObservedLQR(ctrl) if kind == "lqr" else ObservedMPC(ctrl) if kind == "mpc" else ctrl
             out["controllers"][kind] = _bench(kind, ctrl, py, args.t_end, args.repeat, cc, Path(tmp))
+        mpc = ctrls["mpc"]
+        res = simulate_closed_loop("foam", ObservedMPC(mpc), args.t_end)
+        Y = np.column_stack([res.theta, res.v[:, 0], res.root_moment])
+        out["mpc_qp_alternative_qrqp"] = _qrqp_alternative(mpc, ObservedMPC(mpc), Y, cc, Path(tmp))
     out["load_after"] = os.getloadavg()
     RESULTS.mkdir(exist_ok=True)
     path = RESULTS / f"bench_codegen_{datetime.date.today().isoformat()}.json"
