@@ -4,7 +4,8 @@
   and units it expects): :mod:`hubbeam_ctrl.deploy.codegen`;
 * :func:`compile_c` and :class:`CController` compile it with the system C compiler and run
   it as a controller of the closed-loop simulator: :mod:`hubbeam_ctrl.deploy.sil`;
-* :class:`ObservedLQR` is the LQR with its observer, the LQR as it is exported.
+* :class:`ObservedLQR` and :class:`ObservedMPC` are the full-state designs with their Kalman
+  observer, as they are exported.
 
 This layer sits beside :mod:`hubbeam_ctrl.study`: it imports the controllers and the
 simulator, and nothing below it imports it. See docs/deploy.md.

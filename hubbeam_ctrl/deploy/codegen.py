@@ -15,7 +15,11 @@ Kinds (:data:`CODEGEN_KINDS`):
 * ``lqr``: :class:`controllers.LQR` with its observer (:class:`ObservedLQR`): the
   full-state LQR reads modal coordinates no sensor measures, so the exported LQR is its
   gain on a Kalman filter of its model (reads ``theta``, ``theta_dot``, ``root_moment``);
-* ``lqg``: :class:`controllers.LQG` (the same three sensors);
+* ``lqg``: :class:`controllers.LQG` (the same three sensors), and the gain-scheduled
+  :class:`controllers.ScheduledLQG` (gains, filter gains and models interpolated on the
+  measured spin rate);
+* ``mpc``: :class:`controllers.MPC` with its observer (:class:`ObservedMPC`): the condensed
+  box-constrained QP solved by a generated primal active-set method (no tip bound);
 * ``zv``, ``zvd``, ``ei``, ``openloop`` (profile ``feedforward``): the held torque table
   of an input-shaped or feedforward open loop (reads nothing).
 
