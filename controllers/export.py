@@ -69,7 +69,10 @@ class ControllerModel:
         Sampled system, inputs the measured deviations, output ``tau`` [N m].
     metadata : dict
         ``controller``, ``tau_max_nm``, ``design_spin_rad_s``, ``design_modes``,
-        ``settings``, ``params``, the name and unit lists and ``dt``.
+        ``settings``, ``params``, the name and unit lists, ``dt``, and what it measures:
+        ``measurement`` (``"sensors"`` or ``"state"``), ``reads_sensors_only`` (1 or 0) and ``sensors``
+        (e.g. ``"theta [rad], theta_dot [rad/s], root_moment [N m]"``; for the full-state LQR,
+        why no sensor gives its inputs and how to export it with its observer).
 
     Equality (``==``) is exact: same matrices bit for bit and same metadata.
     """
@@ -133,6 +136,24 @@ class ControllerModel:
     __hash__ = None
 
 
+#: The hub sensors of the closed loop (and of a rig with a strain gauge at the root), in order.
+SENSORS = ("theta", "theta_dot", "root_moment")
+
+
+def _sensor_metadata(ctrl: Controller, inputs: list) -> dict:
+    """What the controller measures: ``measurement``, ``reads_sensors_only`` and ``sensors``
+    (the sensors it expects with their units, or why it cannot run on the rig's sensors)."""
+    only = all(name in SENSORS for name in inputs)
+    if only:
+        text = ", ".join(f"{name} [{_unit(name)}]" for name in inputs)
+    else:
+        text = ("none: the inputs are the design model's states (modal coordinates no sensor measures); "
+                "`hubbeam codegen --controller lqr` exports this LQR with its Kalman observer on "
+                "theta [rad], theta_dot [rad/s], root_moment [N m] (hubbeam_ctrl.deploy.ObservedLQR)")
+    return {"measurement": getattr(ctrl, "measurement", "state"), "reads_sensors_only": int(only),
+            "sensors": text}
+
+
 def controller_model(ctrl: Controller) -> ControllerModel:
     """The linear controller ``ctrl`` as a :class:`ControllerModel`.
 
@@ -165,6 +186,7 @@ def controller_model(ctrl: Controller) -> ControllerModel:
         "params": json_ready(d.params.to_dict()), "param_units": Params.units(),
         "convention": "input e = measurement - reference, output u = tau - tau_ff, "
                       "unsaturated (the controller clips tau at tau_max_nm)",
+        **_sensor_metadata(ctrl, inputs),
     }
     return ControllerModel(sys, meta)
 

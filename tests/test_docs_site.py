@@ -28,8 +28,9 @@ pytestmark = pytest.mark.skipif(bool(MISSING), reason=f"documentation tools not 
                                 "they are in the test and docs extras: pip install -e '.[test]'")
 
 #: The packages documented, as docs/conf.py lists them.
-PACKAGES = ("hubbeam_ctrl", "hubbeam_ctrl.cli", "hubbeam_ctrl.study", "controllers", "hubbeam_ctrl.plots",
-            "hubbeam_ctrl.fmu", "hubbeam_ctrl.sim", "hubbeam_ctrl.linear", "hubbeam_ctrl.plant", "hubbeam_ctrl.core")
+PACKAGES = ("hubbeam_ctrl", "hubbeam_ctrl.cli", "hubbeam_ctrl.study", "hubbeam_ctrl.deploy",
+            "controllers", "hubbeam_ctrl.plots", "hubbeam_ctrl.limit", "hubbeam_ctrl.fmu", "hubbeam_ctrl.sim",
+            "hubbeam_ctrl.linear", "hubbeam_ctrl.plant", "hubbeam_ctrl.core")
 
 
 @pytest.fixture(scope="module")

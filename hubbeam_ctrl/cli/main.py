@@ -1,4 +1,4 @@
-"""Command-line interface: ``hubbeam modes | critical-speed | simulate | linearize | compare | design``.
+"""Command-line interface: ``hubbeam modes | critical-speed | simulate | linearize | compare | design | codegen``.
 
 Every subcommand accepts the common options ``--tip-mass KG``, ``--tip-position M``,
 ``--n-modes N`` (both families) and ``--params FILE.toml``. Bad input prints one line on
@@ -43,7 +43,8 @@ CRITICAL_SPEED_MODELS = tuple(n for n, spec in MODEL_SPECS.items() if spec.fores
 #: Subcommands contributed by other modules: module name -> provides add_parser/run.
 EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.design",
                   "hubbeam_ctrl.cli.sweep", "hubbeam_ctrl.cli.tune", "hubbeam_ctrl.cli.cache",
-                  "hubbeam_ctrl.cli.optimal", "hubbeam_ctrl.cli.fmu", "hubbeam_ctrl.cli.demo")
+                  "hubbeam_ctrl.cli.optimal", "hubbeam_ctrl.cli.fmu", "hubbeam_ctrl.cli.demo",
+                  "hubbeam_ctrl.cli.codegen")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,0 +1,138 @@
+"""``hubbeam codegen``: design a controller for a task and write it as portable C99.
+
+Example::
+
+    hubbeam codegen --controller lqg --rig rig.toml --slew-angle 1.0 --tf 8 --out lqg_c
+
+The controller is designed like ``hubbeam design`` does (the task's scaled defaults,
+:mod:`controllers.scaling`) and written by :func:`hubbeam_ctrl.deploy.to_c` into ``--out``:
+``<kind>.h``, ``<kind>.c`` and ``<kind>.json`` (the sensors and units it reads). With a C
+compiler the sources are compiled once with ``-std=c99 -Wall -Wextra -pedantic -Werror``
+before the folder is put in place (a failed build leaves nothing); without one the sources
+are written and one line says that the software-in-the-loop check needs one.
+"""
+
+from __future__ import annotations
+
+import json
+
+
+def add_parser(subparsers, common) -> None:
+    """Add the ``codegen`` subcommand (``common`` holds the system-parameter options).
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``hubbeam`` subcommands to add to.
+    common : argparse.ArgumentParser
+        Parent parser with the common plant options.
+    """
+    from hubbeam_ctrl.cli.args import add_verbose, nonempty
+    from hubbeam_ctrl.cli.main import finite_float, positive_float
+
+    p = subparsers.add_parser(
+        "codegen", parents=[common], help="write a controller as portable C99 (header + source)",
+        description=("Design a controller for a slew or spin-up on the sampled SFOAM model and write it "
+                     "as C99: an instance struct, <kind>_init, <kind>_reset and <kind>_step(inst, "
+                     "measurements, reference, command); no dynamic memory, no I/O, only math.h. The LQR "
+                     "is written with its Kalman observer (it reads only the hub sensors)."))
+    p.add_argument("--controller", required=True, metavar="KIND",
+                   help="controller kind: pd, lqr, lqg, zv, zvd, ei")
+    p.add_argument("--rig", metavar="RIG.toml", type=nonempty("rig"),
+                   help="rig file: the beam (with the reflected rotor), its sensors and its sample time")
+    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
+                   help="the task: slew (default) or spinup (design at --wf)")
+    p.add_argument("--slew-angle", metavar="RAD", type=finite_float("slew-angle"),
+                   help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
+    p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
+                   help="maneuver time [s] (default 10)")
+    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"),
+                   help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
+    p.add_argument("--dt", metavar="S", type=positive_float("dt"),
+                   help="sample time [s] (default: the rig's timing.dt, else 0.01)")
+    p.add_argument("--design-modes", metavar="N", type=int,
+                   help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
+    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
+                   help="torque budget [N m], at most the motor's tau_max (default: that)")
+    p.add_argument("--precision", choices=["double", "single"], default="double",
+                   help="type of the data and the arithmetic (default double)")
+    p.add_argument("--out", metavar="DIR", required=True, help="output folder (created; must be empty)")
+    p.add_argument("--force", action="store_true", help="write into a non-empty --out")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    add_verbose(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    """Run ``hubbeam codegen``; bad input raises :class:`ParameterError`.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    import sys
+
+    from controllers import CONTROLLERS, DesignModel, make_controller
+    from hubbeam_ctrl.cli.args import refuse_inapplicable, stdout
+    from hubbeam_ctrl.cli.main import params_from_args
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.deploy import CODEGEN_KINDS, NO_COMPILER, compile_c, compiler, to_c
+    from hubbeam_ctrl.plant.rig import load_rig
+    from hubbeam_ctrl.study.scenarios import make_scenario
+
+    sink = stdout(args)
+    kinds = [k for k in CODEGEN_KINDS if k != "openloop"]
+    if args.controller not in kinds:
+        raise ParameterError(f"controller must be one of {', '.join(kinds)} (the kinds that can be generated "
+                             f"as C), got {args.controller!r}")
+    refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
+    rig = None
+    if args.rig is not None:
+        if args.params is not None:
+            raise ParameterError("give either --rig or --params, not both")
+        rig = load_rig(args.rig)
+        params = rig.plant_params
+        if args.controller in ("lqr", "lqg") and 0.0 not in rig.sensors.strain_gauges:
+            raise ParameterError(f"rig: {args.controller} reads the root bending moment, but the rig's "
+                                 f"sensors.strain_gauges {list(rig.sensors.strain_gauges)} has no gauge at the "
+                                 "root (0 m)")
+    else:
+        params = params_from_args(args)
+    dt = args.dt if args.dt is not None else (rig.timing.dt if rig is not None and rig.timing.dt else 0.01)
+    if args.tau_max is not None and args.tau_max > params.tau_max:
+        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
+                             f"the parameters), got {args.tau_max:g}")
+    modes = args.design_modes if args.design_modes is not None else params.n_transverse
+    if not 1 <= modes <= 20:
+        raise ParameterError(f"design-modes must be an integer in 1..20, got {modes}")
+    if args.slew_angle is not None and args.slew_angle == 0:
+        raise ParameterError("slew-angle must be a finite number != 0 [rad]")
+    sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
+                       t_end=3 * args.tf, dt=dt, w_f=3.0 if args.wf is None else args.wf,
+                       slew_angle=args.slew_angle)
+    design = DesignModel.build(params, sc.design_spin, dt, modes)
+    settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
+    ctrl = make_controller(args.controller, design, settings, sc.reference)
+    cc = compiler()
+
+    def check(folder, name):
+        if cc is not None:
+            import tempfile
+            with tempfile.TemporaryDirectory() as tmp:
+                compile_c(folder, "-O2", tmp, name)
+
+    code = to_c(ctrl, args.out, args.precision, force=args.force, check=check)
+    meta = code.metadata()
+    if args.json:
+        print(json.dumps({**meta, "out": str(code.folder), "compiled": cc is not None}), file=sink)
+    else:
+        sensors = ", ".join(f"{m['name']} [{m['unit']}]" for m in meta["measurements"]) or "none"
+        print(f"{args.controller.upper()} for {sc.description}: wrote {code.header_path} and {code.source_path} "
+              f"({args.precision}, {meta['data_bytes']} bytes of data); reads {sensors}; "
+              f"commands tau [N m] every {dt:g} s", file=sink)
+    if cc is None:
+        print(NO_COMPILER, file=sys.stderr)
+    elif not args.json:
+        print("  compiled warning-free with -std=c99 -Wall -Wextra -pedantic -Werror -O2", file=sink)
+    return 0
