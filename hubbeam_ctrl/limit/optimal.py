@@ -76,7 +76,7 @@ class OptimalSettings(Settings):
                                     "residual.")
     max_iter: int = setting(1000, lo=1, doc="IPOPT iteration limit per solve.")
     deflection_limit: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0,
-                                      doc="Largest |v_tip| during the slew, relative to L, kept at every grid "
+                                      doc="Largest abs(v_tip) during the slew, relative to L, kept at every grid "
                                           "point (0.3: the models' validated range; a light link driven by its "
                                           "full torque would otherwise bend past it, where the model is not "
                                           "the beam).")
