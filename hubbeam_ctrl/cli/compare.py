@@ -105,6 +105,10 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="integral action of LQR, LQG and MPC on the rig (disturbance estimation; default auto: "
                         "on for rigs with friction or a DC motor); --rig only")
     p.add_argument("--no-ladder", action="store_true", help="skip the rig ladder (--rig only)")
+    p.add_argument("--limit", choices=("rigid", "optimal"), default="rigid",
+                   help="yardstick of the settling times: the rigid body's shortest slew with --tau-max (default, "
+                        "closed form) or the time-optimal slew of the nonlinear beam within the drive's limits "
+                        "(hubbeam optimal; seconds to a minute)")
     p.add_argument("--horizon", metavar="N", type=integer(),
                    help="MPC horizon [samples] (default 50; only with mpc among --controllers)")
     p.add_argument("--solver", choices=list(QP_SOLVERS),
@@ -206,7 +210,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     integral = {"auto": None, "on": True, "off": False}[args.integral]
     comparison = compare(args.plant, args.scenario, names, params=None if rig is not None else params,
-                         rig=rig, integral=integral,
+                         rig=rig, integral=integral, limit=args.limit,
                          plant_params=plant_params, design_modes=design_modes,
                          plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
                          t_end=args.t_end, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,

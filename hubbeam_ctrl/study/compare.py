@@ -50,6 +50,7 @@ from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise, task_t_end
 from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
+from hubbeam_ctrl.study.yardstick import task_limit
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
@@ -169,7 +170,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
             sim_settings: ClosedLoopSettings | None = None, shaping=None, schedule: int = 1,
             tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
             progress: bool = False, backend=None, rig: Rig | None = None,
-            integral: bool | None = None) -> Comparison:
+            integral: bool | None = None, limit: str = "rigid") -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
@@ -253,6 +254,10 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     integral : bool, optional
         Integral action of LQR, LQG and MPC on the rig (default: on when the rig has friction
         or a DC motor, :func:`hubbeam_ctrl.study.rig_loop.integral_default`).
+    limit : {"rigid", "optimal"}
+        The yardstick of the settling times (:mod:`hubbeam_ctrl.study.yardstick`): the rigid
+        body's shortest time (default, closed form) or the time-optimal slew of the nonlinear
+        beam on the rig (seconds to a minute of optimisation).
 
     Returns
     -------
@@ -307,6 +312,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
                                    solver=solver, sim=sim, plant_modes=plant_modes), **designs}
     results, metrics, margins, certificates, linear = {}, {}, {}, {}, {}
+    yardstick = task_limit(sc, limit, rig)
     clock = WallClock(sim.max_wall_s)        # the whole comparison's wall-time limit
     for name in names:
         if clock.expired():
@@ -325,7 +331,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                                    reference=(ref.theta_at, ref.theta_dot_at), backend=backend,
                                    hardware=hardware)
         results[name] = res
-        metrics[name], certificates[name] = judge(res, ctrl, sc, ev.params, name)
+        metrics[name], certificates[name] = judge(res, ctrl, sc, ev.params, name, limit=yardstick)
         metrics[name]["scenario"] = sc.name
         if margins[name] is not None:
             lm = margins[name]

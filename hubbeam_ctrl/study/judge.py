@@ -17,11 +17,12 @@ import math
 from controllers.scaling import first_mode
 from hubbeam_ctrl.study.certificate import certify
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
+from hubbeam_ctrl.study.yardstick import task_limit, yardstick_metrics
 
 __all__ = ["judge", "residual_modes_for"]
 
 
-def judge(result, controller, scenario, plant_params, name: str | None = None):
+def judge(result, controller, scenario, plant_params, name: str | None = None, limit: dict | None = None):
     """Metrics and verdict of one closed-loop run, with its linear certificate.
 
     Parameters
@@ -36,6 +37,10 @@ def judge(result, controller, scenario, plant_params, name: str | None = None):
         The evaluation plant's parameters (all of its transverse modes).
     name : str, optional
         Registry name of the controller (default ``controller.name``).
+    limit : dict, optional
+        The task's yardstick (:func:`~hubbeam_ctrl.study.yardstick.task_limit`; default the
+        rigid body's bound): the metrics get ``limit_s``, ``settling_over_limit`` and
+        ``residual_pct_of_L``.
 
     Returns
     -------
@@ -49,6 +54,7 @@ def judge(result, controller, scenario, plant_params, name: str | None = None):
     block_s = math.pi / first_mode(controller.design)     # half a period of the first bending mode
     metrics = closed_loop_metrics(result, scenario.t_f, tau_max=scenario.tau_max, block_s=block_s,
                                   certificate=cert, **(scenario.bands or {}))
+    metrics.update(yardstick_metrics(metrics, scenario, limit or task_limit(scenario)))
     return metrics, cert
 
 

@@ -44,6 +44,10 @@ METRIC_UNITS = {
     "final_angle_error_rad": ("rad", "hub angle minus reference at the end"),
     "settling_time_s": ("s", "time after which |angle error| and |v_tip| stay inside their bands "
                              "(None: not within the run)"),
+    "limit_s": ("s", "the task's physical limit: the rigid body's shortest time with tau_max, or the "
+                     "time-optimal slew (limit_kind says which; hubbeam_ctrl.study.yardstick)"),
+    "settling_over_limit": ("-", "settling time over limit_s (1: the physical limit; None: not settled)"),
+    "residual_pct_of_L": ("%", "residual tip vibration (max |v_tip| in the residual window) in % of L"),
     "peak_torque_nm": ("N m", "peak |tau|"),
     "torque_squared_integral_n2m2s": ("N^2 m^2 s", "integral of tau^2 (held torque)"),
     "torque_saturated_fraction": ("-", "fraction of the residual window with |tau| at tau_max"),
