@@ -89,8 +89,8 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="maneuver time [s] (default 10); refused, naming the shortest feasible one, "
                         "if the task needs more torque than --tau-max")
     p.add_argument("--t-end", metavar="S", type=real("s"),
-                   help="simulated time [s], > tf + 5 (default 30; with --rig the task's: the residual "
-                        "window lasts ten first-mode periods, at least 3 tf)")
+                   help="simulated time [s], > tf + 5 (default: the task's, the residual window lasts six "
+                        "first-mode periods, at least 3 tf: 30 s for the paper's slew)")
     p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
                    help="spin-up final rate [rad/s] (default 3, above TLAM's critical speed; "
                         "--scenario spinup only)")
@@ -105,6 +105,10 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="integral action of LQR, LQG and MPC on the rig (disturbance estimation; default auto: "
                         "on for rigs with friction or a DC motor); --rig only")
     p.add_argument("--no-ladder", action="store_true", help="skip the rig ladder (--rig only)")
+    p.add_argument("--reference", choices=("task", "optimal"), default="task",
+                   help="reference and feedforward of the tracking controllers: the task's smooth slew (default) or "
+                        "the minimum-vibration slew of the nonlinear beam in --tf within the drive's limits, so the "
+                        "feedback only corrects model error (slew only)")
     p.add_argument("--limit", choices=("rigid", "optimal"), default="rigid",
                    help="yardstick of the settling times: the rigid body's shortest slew with --tau-max (default, "
                         "closed form) or the time-optimal slew of the nonlinear beam within the drive's limits "
@@ -210,7 +214,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     integral = {"auto": None, "on": True, "off": False}[args.integral]
     comparison = compare(args.plant, args.scenario, names, params=None if rig is not None else params,
-                         rig=rig, integral=integral, limit=args.limit,
+                         rig=rig, integral=integral, limit=args.limit, reference=args.reference,
                          plant_params=plant_params, design_modes=design_modes,
                          plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
                          t_end=args.t_end, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,

@@ -48,9 +48,9 @@ from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
-from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise, task_t_end
+from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
-from hubbeam_ctrl.study.yardstick import task_limit
+from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_t_end
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
@@ -170,7 +170,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
             sim_settings: ClosedLoopSettings | None = None, shaping=None, schedule: int = 1,
             tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
             progress: bool = False, backend=None, rig: Rig | None = None,
-            integral: bool | None = None, limit: str = "rigid") -> Comparison:
+            integral: bool | None = None, limit: str = "rigid", reference: str = "task") -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
@@ -196,9 +196,10 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     tau_max : float, optional
         Torque budget [N m], at most the motor's ``Params.tau_max`` (default: that limit).
     t_f, t_end, dt : float
-        Maneuver time, simulated time and sample time [s] (``dt`` default: the rig's, else 0.01 s;
-        ``t_end`` default: on a rig the task's, :func:`hubbeam_ctrl.study.rig_loop.task_t_end`,
-        else 30 s).
+        Maneuver time, simulated time and sample time [s] (``dt`` default: the rig's, else
+        :func:`hubbeam_ctrl.study.yardstick.task_dt`, 10 ms unless the beam's first mode needs less;
+        ``t_end`` default: the task's, :func:`hubbeam_ctrl.study.yardstick.task_t_end`: 30 s for
+        the paper's slew, a few seconds for a lab arm's).
     w_f : float
         Spin-up final rate [rad/s].
     slew_angle : float, optional
@@ -258,6 +259,12 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         The yardstick of the settling times (:mod:`hubbeam_ctrl.study.yardstick`): the rigid
         body's shortest time (default, closed form) or the time-optimal slew of the nonlinear
         beam on the rig (seconds to a minute of optimisation).
+    reference : {"task", "optimal"}
+        The reference and feedforward of the controllers that track one: the task's smooth
+        slew (default) or the minimum-vibration slew of the nonlinear beam in ``t_f`` within the
+        drive's limits (:func:`hubbeam_ctrl.limit.min_vibration_slew`,
+        :func:`controllers.optimal_reference`), so that the feedback only corrects model error
+        (a slew only; a ``t_f`` shorter than the time-optimal slew is refused naming the shortest).
 
     Returns
     -------
@@ -271,13 +278,14 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     if rig is not None:
         params = params if params is not None else rig.plant_params
         dt = dt if dt is not None else rig.timing.dt
-    dt = 0.01 if dt is None else dt
     base = params if params is not None else Params()
+    if dt is None:
+        dt = task_dt(design_params if design_params is not None else base)
     design_p = design_params if design_params is not None else base
     options = dict(plant=plant, params=design_p, tau_max=tau_max, t_f=t_f, dt=dt, w_f=w_f,
                    slew_angle=slew_angle, tolerances=tolerances)
     sc = make_scenario(scenario, t_end=30.0 if t_end is None else t_end, **options)
-    if t_end is None and rig is not None:
+    if t_end is None and sc.t_end != task_t_end(sc):
         sc = make_scenario(scenario, t_end=task_t_end(sc), **options)
     m = _design_modes(design_modes, sc.params)
     ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
@@ -305,7 +313,9 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
     shaper = None if shaping is None else as_shaper(design, shaping)
     sched = _design_schedule(sc, schedule, m)
-    ref = sc.reference
+    ref = _reference(sc, reference, rig)
+    if ref is not sc.reference:
+        sc = dataclasses.replace(sc, reference=ref)
     designs = dict(designs or {})
     if payload_range is not None:
         from hubbeam_ctrl.study.range_design import range_designs
@@ -354,6 +364,20 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                       margins={n: lm for n, lm in margins.items() if lm is not None},
                       certificates=certificates,
                       controllers={n: c for n, c in linear.items() if margins[n] is not None}, rig=rig)
+
+
+def _reference(sc: Scenario, kind: str, rig):
+    """The tracked reference: the task's, or the minimum-vibration slew of the beam in ``t_f``."""
+    if kind == "task":
+        return sc.reference
+    if kind != "optimal":
+        raise ParameterError(f"reference must be 'task' or 'optimal', got {kind!r}")
+    if sc.name != "slew":
+        raise ParameterError(f"reference = 'optimal' applies to a slew, not a {sc.name}")
+    from controllers import optimal_reference
+    from hubbeam_ctrl.limit import min_vibration_slew
+    opt = min_vibration_slew(rig if rig is not None else sc.params, sc.target, sc.t_f, name="t_f")
+    return optimal_reference(opt, sc.dt, sc.t_end)
 
 
 def _margins(ctrl):

@@ -30,7 +30,7 @@ from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.hardware import Hardware
 
 __all__ = ["rig_closed_loop", "on_rig", "rig_settings", "rig_noise", "task_noise", "integral_default",
-           "task_t_end", "DISTURBANCE_FRACTION", "RESIDUAL_PERIODS"]
+           "DISTURBANCE_FRACTION"]
 
 #: Random-walk standard deviation per sample of the estimated disturbance, as a fraction of the
 #: torque limit (the integral action's speed; measured on ``servo_link``: see docs/rig.md).
@@ -171,30 +171,3 @@ def task_noise(scenario, rig: Rig) -> LQGSettings:
     rig : Rig
     """
     return rig_noise(LQGSettings.for_scenario(scenario), rig)
-
-
-#: First-mode periods the run goes on after the residual window opens (:func:`task_t_end`).
-RESIDUAL_PERIODS = 10
-
-
-def task_t_end(scenario) -> float:
-    """Simulated time of a task [s]: the residual window opens at ``t_f + residual_delay`` and
-    lasts :data:`RESIDUAL_PERIODS` periods of the design model's first flexible mode, at least
-    until ``3 t_f`` (so 30 s for the paper's 10 s slew, as before, and 3.4 s for the 0.6 s slew
-    of ``servo_link``, not the paper's 30 s).
-
-    Parameters
-    ----------
-    scenario : Scenario
-        Its ``t_f``, ``bands["residual_delay"]`` and design model.
-
-    Returns
-    -------
-    float
-        [s], rounded up to a whole sample.
-    """
-    from controllers import DesignModel
-    from controllers.scaling import first_mode
-    w1 = first_mode(DesignModel.build(scenario.params, scenario.design_spin, scenario.dt, 1))
-    t = max(3.0 * scenario.t_f, scenario.t_f + scenario.bands["residual_delay"] + RESIDUAL_PERIODS * 2 * math.pi / w1)
-    return math.ceil(t / scenario.dt - 1e-9) * scenario.dt

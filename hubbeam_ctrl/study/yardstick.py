@@ -22,7 +22,8 @@ import math
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["LIMIT_KINDS", "rigid_limit", "task_limit", "yardstick_metrics"]
+__all__ = ["LIMIT_KINDS", "RESIDUAL_PERIODS", "rigid_limit", "task_limit", "yardstick_metrics", "task_t_end",
+           "task_dt", "SAMPLES_PER_PERIOD"]
 
 #: The yardsticks a comparison can use.
 LIMIT_KINDS = ("rigid", "optimal")
@@ -98,3 +99,69 @@ def yardstick_metrics(metrics: dict, scenario, limit: dict) -> dict:
             "settling_over_limit": None if settle is None else settle / limit["limit_s"],
             "residual_pct_of_L": (100.0 * residual / L if residual is not None and math.isfinite(residual)
                                   else float("nan"))}
+
+
+#: First-mode periods the run goes on after the residual window opens (:func:`task_t_end`).
+RESIDUAL_PERIODS = 6
+
+
+def task_t_end(scenario) -> float:
+    """Simulated time of a task [s], from the task and the beam (issue 22: not the paper's 30 s).
+
+    The residual window opens at ``t_f + residual_delay`` and lasts :data:`RESIDUAL_PERIODS`
+    periods of the design model's first flexible mode (enough half-period blocks for the
+    envelope-growth evidence of the verdict), and the run lasts at least ``3 t_f``: 30 s for the
+    paper's 10 s slew and spin-up, as before; 3.6 s for the 1 m lab arm's 1.2 s slew; 2.19 s for
+    the 0.6 s slew of ``servo_link``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``t_f``, ``bands["residual_delay"]`` [s], ``dt`` and design model.
+
+    Returns
+    -------
+    float
+        [s], a whole number of samples (``3 t_f`` itself when that is the longer).
+    """
+    from controllers import DesignModel
+    from controllers.scaling import first_mode
+    w1 = first_mode(DesignModel.build(scenario.params, scenario.design_spin, scenario.dt, 1))
+    window = scenario.t_f + scenario.bands["residual_delay"] + RESIDUAL_PERIODS * 2 * math.pi / w1
+    if window <= 3.0 * scenario.t_f:
+        return 3.0 * scenario.t_f
+    return math.ceil(window / scenario.dt - 1e-9) * scenario.dt
+
+
+#: Fewest samples per period of the first flexible mode the default sample time gives (:func:`task_dt`).
+SAMPLES_PER_PERIOD = 20
+#: The longest default sample time [s] (the paper's 10 ms).
+DT_MAX = 0.01
+
+
+def task_dt(params, spin: float = 0.0) -> float:
+    """Default controller sample time for a beam [s] (issue 22: not the paper's 10 ms on a stiff beam).
+
+    At least :data:`SAMPLES_PER_PERIOD` samples per period of the design model's first flexible
+    mode, at most 10 ms, rounded down to 1, 2 or 5 times a power of ten: 10 ms for the paper's
+    beam (0.46 Hz) and the 1 m lab arm (4.7 Hz), 0.5 ms for a 52 Hz link. A rig's own
+    ``timing.dt`` takes precedence.
+
+    Parameters
+    ----------
+    params : Params
+    spin : float
+        Design spin rate [rad/s].
+
+    Returns
+    -------
+    float
+    """
+    from controllers import DesignModel
+    from controllers.scaling import first_mode
+    w1 = first_mode(DesignModel.build(params, spin, DT_MAX, 1))
+    dt = 2 * math.pi / w1 / SAMPLES_PER_PERIOD
+    if dt >= DT_MAX:
+        return DT_MAX
+    decade = 10.0 ** math.floor(math.log10(dt))
+    return max(m * decade for m in (1.0, 2.0, 5.0) if m * decade <= dt * (1 + 1e-12))
