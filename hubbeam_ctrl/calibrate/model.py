@@ -30,7 +30,8 @@ from hubbeam_ctrl.plant.sensors import sensor_matrix
 from hubbeam_ctrl.sim.hardware import Hardware
 from hubbeam_ctrl.sim.stepper import StepperSettings, simulate_fixed_step, substep_rule
 
-__all__ = ["ModelSettings", "simulate_sensors", "synthetic_record", "rig_sensors", "clamped_modes"]
+__all__ = ["ModelSettings", "simulate_sensors", "synthetic_record", "rig_sensors", "clamped_modes",
+           "sliding_hub_modes", "hub_damping"]
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,52 @@ def clamped_modes(rig: Rig, n: int = 2) -> tuple:
     return np.asarray(r.bending_hz[:n]), np.asarray(r.damping_ratios[:n])
 
 
+def hub_damping(rig: Rig) -> float:
+    """Linear damping of the hub at zero command [N m s/rad]: viscous friction plus, for a DC
+    motor, the back-EMF through the shorted amplifier ``eta_forward N^2 k_t k_e / R``.
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    float
+    """
+    d = rig.drive
+    emf = 0.0 if d.is_ideal else d.eta_forward * d.N ** 2 * d.k_t * d.k_e / d.R
+    return rig.friction.viscous + emf
+
+
+def sliding_hub_modes(rig: Rig, n: int = 2) -> tuple:
+    """Frequencies [Hz] and damping ratios [-] of the first ``n`` bending modes with the hub free
+    and sliding at zero command: FOAM linearised at rest (``n + 2`` transverse modes) with the
+    hub damped by :func:`hub_damping` (Coulomb friction, which cannot be linearised at rest,
+    left out): the modes a free decay shows while the hub turns.
+
+    Parameters
+    ----------
+    rig : Rig
+    n : int
+
+    Returns
+    -------
+    (ndarray, ndarray)
+    """
+    from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization
+    p = rig.plant_params.replace(n_transverse=min(n + 2, 20), n_axial=2)
+    lin = second_order_linearization(build_model("foam", p), 0.0, "free")
+    lin.G[0, 0] += hub_damping(rig)
+    A, _, _ = first_order_matrices(lin)
+    lam = np.linalg.eigvals(A)
+    lam = lam[lam.imag > 1e-9 * np.abs(lam).max()]
+    w = np.abs(lam)
+    bending = np.argsort(w)
+    f = w[bending] / (2 * np.pi)
+    z = -lam.real[bending] / w[bending]
+    return f[:n], z[:n]
+
+
 def _check_sensors(rig: Rig, sensors) -> tuple:
     sensors = tuple(sensors)
     have = rig_sensors(rig)
@@ -118,7 +165,7 @@ def _bending_hz(params, model_name):
     return np.asarray(r.bending_hz) * 1.05
 
 
-def simulate_sensors(rig: Rig, t, u, sensors, settings: ModelSettings | None = None) -> dict:
+def simulate_sensors(rig: Rig, t, u, sensors, settings: ModelSettings | None = None, q2_0=None) -> dict:
     """The rig's sensor series for an input record, from rest (see the module docstring).
 
     Parameters
@@ -132,6 +179,9 @@ def simulate_sensors(rig: Rig, t, u, sensors, settings: ModelSettings | None = N
     sensors : sequence of str
         Which series (:data:`SENSOR_COLUMNS`, those the rig has: :func:`rig_sensors`).
     settings : ModelSettings, optional
+    q2_0 : array_like, optional
+        Initial transverse modal coordinates [m] (a beam released from a deflected shape,
+        e.g. plucked by hand; at most ``settings.n_transverse`` values); default at rest.
 
     Returns
     -------
@@ -151,7 +201,14 @@ def simulate_sensors(rig: Rig, t, u, sensors, settings: ModelSettings | None = N
         return u[k] if np.ndim(times) else u[0]
 
     hw = Hardware.from_rig(rig)
-    res = simulate_fixed_step(model, command, dt * n_s, settings=st, hardware=hw)
+    x0 = None
+    if q2_0 is not None:
+        q2_0 = np.atleast_1d(np.asarray(q2_0, dtype=float))
+        if q2_0.size > model.n_transverse or not np.all(np.isfinite(q2_0)):
+            raise ParameterError(f"q2_0 must hold at most {model.n_transverse} finite values [m], got {q2_0.size}")
+        x0 = np.zeros(2 * model.n_q)
+        x0[model.transverse_slice.start:model.transverse_slice.start + q2_0.size] = q2_0
+    res = simulate_fixed_step(model, command, dt * n_s, settings=st, hardware=hw, x0=x0)
     out = {"stats": res.stats}
     if "theta" in sensors:
         out["theta"] = res.q[:, 0]
@@ -170,7 +227,7 @@ def simulate_sensors(rig: Rig, t, u, sensors, settings: ModelSettings | None = N
 
 
 def synthetic_record(rig: Rig, t, u, sensors=None, seed: int = 0, settings: ModelSettings | None = None,
-                     source: str = "synthetic") -> Record:
+                     source: str = "synthetic", q2_0=None) -> Record:
     """A measured-like record: :func:`simulate_sensors` plus the rig's sensor noise, bias and encoder.
 
     Noise (Gaussian, seeded) and bias from :class:`~hubbeam_ctrl.plant.rig.Sensors`:
@@ -190,6 +247,8 @@ def synthetic_record(rig: Rig, t, u, sensors=None, seed: int = 0, settings: Mode
     seed : int
     settings : ModelSettings, optional
     source : str
+    q2_0 : array_like, optional
+        Initial transverse modal coordinates [m] (see :func:`simulate_sensors`).
 
     Returns
     -------
@@ -197,7 +256,7 @@ def synthetic_record(rig: Rig, t, u, sensors=None, seed: int = 0, settings: Mode
     """
     if sensors is None:
         sensors = tuple(s for s in rig_sensors(rig) if s not in ("v_tip", "theta_dot"))
-    y = simulate_sensors(rig, t, u, sensors, settings)
+    y = simulate_sensors(rig, t, u, sensors, settings, q2_0=q2_0)
     rng = np.random.default_rng(seed)
     s = rig.sensors
     noise = {"theta": (s.angle_noise, s.angle_bias), "theta_dot": (s.rate_noise, s.rate_bias),
