@@ -90,7 +90,7 @@ def test_bad_start_converges_or_says_so(case):
     from hubbeam_ctrl.calibrate.fit import set_fields
     fields = resolve_fields(",".join(TRUE_NAMES), guess)
     start = set_fields(guess, fields, tv * factors)
-    res = fit_rig(start, [chirp, prbs], list(TRUE_NAMES), progress=False)
+    res = fit_rig(start, [prbs], list(TRUE_NAMES), progress=False)
     if res.converged:
         err = res.estimate / tv - 1
         assert abs(err[0]) < 0.005 and abs(err[1]) < 0.02 and abs(err[2]) < 0.05, err
@@ -111,7 +111,7 @@ def test_free_decay_modes_of_the_held_hub(fast_backend_module):
     u = np.zeros_like(t)
     u[0] = 1e-3
     rec = synthetic_record(held, t, u, seed=3, source="pluck", q2_0=[0.01, 0.002],
-                           settings=ModelSettings(n_transverse=4))
+                           settings=ModelSettings(n_transverse=4, frequency_tolerance=5e-3))
     assert np.ptp(rec.columns["theta"]) == 0.0           # the hub did not move
     est = identify_modes(rec, band_hz=(0.5, 40.0))
     f, z = clamped_modes(truth, 2)                        # modal analysis of the true rig, hub clamped

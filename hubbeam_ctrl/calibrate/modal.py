@@ -105,8 +105,12 @@ def era(markov, dt: float, order: int, rows: int | None = None):
     idx = np.arange(rows)[:, None] + np.arange(cols)[None, :]
     H0 = y[idx].transpose(0, 2, 1).reshape(rows * ny, cols)
     H1 = y[idx + 1].transpose(0, 2, 1).reshape(rows * ny, cols)
-    U, S, Vt = np.linalg.svd(H0, full_matrices=False)
-    U, S, Vt = U[:, :order], S[:order], Vt[:order]
+    # the leading singular triplets from the small Gram matrix H0 H0' (rows << cols)
+    lam, U = np.linalg.eigh(H0 @ H0.T)
+    top = np.argsort(lam)[::-1][:order]
+    S = np.sqrt(np.maximum(lam[top], 1e-300))
+    U = U[:, top]
+    Vt = (U.T @ H0) / S[:, None]
     Sh = 1.0 / np.sqrt(S)
     A = (Sh[:, None] * (U.T @ H1 @ Vt.T)) * Sh[None, :]
     C = (U[:ny] * np.sqrt(S)[None, :])
