@@ -18,7 +18,7 @@ import numpy as np
 
 from hubbeam_ctrl.calibrate.model import ModelSettings, clamped_modes, simulate_sensors
 from hubbeam_ctrl.calibrate.records import Record
-from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.validation import check_in_range, check_positive
 from hubbeam_ctrl.plant.rig import Rig
 
@@ -142,9 +142,16 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     else:
         shape[0] = 0.0
     inp = "V" if not rig.drive.is_ideal else "tau"
-    a = amplitude
-    for _ in range(8):
-        y = simulate_sensors(rig, t, a * shape, ("theta", "v_tip"), settings)
+    # a probe at 2 % of the amplitude, scaled (as if linear) to the limits: the start of the search
+    y = simulate_sensors(rig, t, 0.02 * amplitude * shape, ("theta", "v_tip"), settings)
+    ratio = max(float(np.max(np.abs(y["v_tip"]))) / tip, float(np.max(np.abs(y["theta"]))) / travel)
+    a = amplitude if ratio <= 0 else min(amplitude, 0.02 * amplitude / ratio)
+    for _ in range(12):
+        try:
+            y = simulate_sensors(rig, t, a * shape, ("theta", "v_tip"), settings)
+        except HubbeamError:           # far beyond the limits: the plant step failed; much less
+            a = 0.25 * a
+            continue
         peak_tip, peak_hub = float(np.max(np.abs(y["v_tip"]))), float(np.max(np.abs(y["theta"])))
         ratio = max(peak_tip / tip, peak_hub / travel)
         if ratio <= 1.0:

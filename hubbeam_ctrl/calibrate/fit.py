@@ -45,7 +45,7 @@ from hubbeam_ctrl.plant.rig import RIG_TABLES, Rig
 
 __all__ = ["FitField", "FitSettings", "FitResult", "resolve_fields", "set_fields", "fit_rig", "fit_percent",
            "predict", "validate_record", "ModalTable", "load_modal_table", "fit_modal_table", "FIT_ALIASES",
-           "IDENTIFIABILITY_CONDITION", "check_record_for_rig"]
+           "IDENTIFIABILITY_CONDITION", "check_record_for_rig", "MODAL_TABLE_COLUMNS"]
 
 #: Short names of ``--fit``: name -> (table, key, index or None).
 FIT_ALIASES = {"damping": ("damping", "ratios", 0), "friction": ("friction", "coulomb", None),
