@@ -223,13 +223,17 @@ class FitSettings:
     tolerance : float
         Relative change of cost, step and gradient that stops the optimiser [-].
     difference_step : float
-        Relative forward-difference step of the Jacobian [-].
+        Relative difference step of the Jacobian [-].
+    central : bool
+        Central differences (twice the simulations; less sensitive to the switches of
+        stick-slip friction) instead of forward differences.
     """
 
     model: ModelSettings = field(default_factory=ModelSettings)
-    max_evaluations: int = 40
+    max_evaluations: int = 60
     tolerance: float = 1e-8
-    difference_step: float = 1e-5
+    difference_step: float = 1e-4
+    central: bool = False
 
     def __post_init__(self):
         if not isinstance(self.max_evaluations, int) or not 1 <= self.max_evaluations <= 10000:
@@ -499,6 +503,12 @@ def _least_squares(residual_of, x0, lo, hi, n_params, settings, label, enabled, 
             h = settings.difference_step * max(abs(x[k]), 1e-3)
             xk = x.copy()
             xk[k] = x[k] + h if x[k] + h <= hi[k] else x[k] - h
+            if settings.central and x[k] - h >= lo[k] and x[k] + h <= hi[k]:
+                xm = x.copy()
+                xm[k] = x[k] - h
+                J[:, k] = (residual_of(xk) - residual_of(xm)) / (2 * h)
+                bar.update(2)
+                continue
             J[:, k] = (residual_of(xk) - r0) / (xk[k] - x[k])
             bar.update(1)
         return J

@@ -45,6 +45,11 @@ class ModelSettings(Settings):
     frequency_tolerance: float = setting(2e-4, lo=1e-6, hi=0.05,
                                          doc="Largest relative frequency error of the integrator on the "
                                              "highest bending mode: sets the substeps per sample.")
+    newton_iterations: int = setting(3, lo=1, hi=20, doc="Newton iterations per step of the plant integrator.")
+    newton_tol: float = setting(1e-6, unit="m/s^2, rad/s^2", lo=1e-14, hi=1.0,
+                                doc="Largest accepted last Newton correction of the plant integrator: the "
+                                    "simulated sensors are smooth in the parameters to about this level, "
+                                    "which sets the useful difference step of the fit's Jacobian.")
 
 
 def rig_sensors(rig: Rig) -> tuple:
@@ -156,7 +161,8 @@ def _plant(rig: Rig, settings: ModelSettings, dt: float):
     model = build_model(settings.model, params, axial="quasi-static")
     hz = _bending_hz(params, settings.model)
     rule = substep_rule(hz, dt, tolerance=settings.frequency_tolerance)
-    return model, StepperSettings(dt=dt, substeps=rule.substeps)
+    return model, StepperSettings(dt=dt, substeps=rule.substeps, newton_iterations=settings.newton_iterations,
+                                  newton_tol=settings.newton_tol)
 
 
 def _bending_hz(params, model_name):

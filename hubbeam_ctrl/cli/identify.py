@@ -49,8 +49,8 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--bounds", metavar="NAME=LO:HI", action="append", default=[],
                    help="bounds of a fitted field (repeatable)")
     p.add_argument("--sensors", metavar="S1,S2", help="sensors to fit (default every rig sensor in the records)")
-    p.add_argument("--max-evaluations", metavar="N", type=integer(), default=40,
-                   help="most residual evaluations of the optimiser (default 40)")
+    p.add_argument("--max-evaluations", metavar="N", type=integer(), default=60,
+                   help="most residual evaluations of the optimiser (default 60)")
     p.add_argument("--plant-modes", metavar="N", type=integer(), default=2,
                    help="bending modes of the simulated plant (default 2)")
     p.add_argument("--json", action="store_true", help="print each fitted field's estimate and interval as JSON")
