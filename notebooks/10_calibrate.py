@@ -44,7 +44,8 @@ guess = base.replace(beam=base.beam.replace(m_t=0.02), damping=base.damping.repl
 print("guessed clamped modes [Hz]:", np.round(clamped_modes(guess)[0], 3))
 chirp_in = excitation(guess, "chirp", 6.0, max_tip_deflection=0.02, max_hub_travel=1.0)
 step_in = excitation(guess, "step", 3.0, max_tip_deflection=0.02, max_hub_travel=1.0)
-print(f"chirp: peak {np.max(np.abs(chirp_in.input)):.3g} V, predicted tip {np.max(np.abs(chirp_in.columns['v_tip'])):.3g} m")
+peak_tip = np.max(np.abs(chirp_in.columns["v_tip"]))
+print(f"chirp: peak {np.max(np.abs(chirp_in.input)):.3g} V, predicted tip {peak_tip:.3g} m")
 
 # %% [markdown]
 # ## 2. The measured records

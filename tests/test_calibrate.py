@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hubbeam_ctrl.calibrate.excitation import excitation
-from hubbeam_ctrl.calibrate.fit import FitSettings, fit_rig, fit_percent, resolve_fields, validate_record
+from hubbeam_ctrl.calibrate.fit import FitSettings, fit_percent, fit_rig, resolve_fields, validate_record
 from hubbeam_ctrl.calibrate.modal import identify_modes
 from hubbeam_ctrl.calibrate.model import ModelSettings, clamped_modes, synthetic_record
 from hubbeam_ctrl.calibrate.records import Record, load_record, record_from_result, save_record

@@ -90,7 +90,12 @@ class FitField:
         return f"{self.table}.{self.key}" + ("" if self.index is None else f"[{self.index}]")
 
     def get(self, rig: Rig) -> float:
-        """Its value in ``rig``."""
+        """Its value in ``rig`` [its unit].
+
+        Parameters
+        ----------
+        rig : Rig
+        """
         value = getattr(getattr(rig, _ATTR[self.table]), self.key)
         if self.index is None:
             return float(value)
@@ -266,6 +271,9 @@ class FitResult:
     rig : Rig
         The calibrated rig (the estimate).
     wall_s : float
+        Wall time of the fit [s].
+    kind : str
+        ``"records"`` or ``"modal_table"``.
     """
 
     fields: list

@@ -72,6 +72,8 @@ class Record:
         Name -> ndarray (N,) for every other column, in :data:`RECORD_COLUMNS` units.
     source : str
         Where it came from (named in messages and reports).
+    units : dict
+        Filled in: column name -> unit (:data:`RECORD_COLUMNS`); what is passed is ignored.
     """
 
     t: np.ndarray

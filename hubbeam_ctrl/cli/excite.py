@@ -48,7 +48,7 @@ def add_parser(subparsers, common) -> None:
     p.set_defaults(func=run)
 
 
-def parse_band(text, option="--band"):
+def _parse_band(text, option="--band"):
     """``"LO:HI"`` -> ``(lo, hi)`` [Hz], or None."""
     from hubbeam_ctrl.core.errors import ParameterError
     if text is None:
@@ -79,7 +79,7 @@ def run(args) -> int:
     check_output("--out", args.out, (".csv", ".npz"))
     rig = load_rig(args.rig)
     rec = excitation(rig, args.kind, args.duration, dt=args.dt, amplitude=args.amplitude,
-                     band_hz=parse_band(args.band), n_modes=args.modes, max_tip_deflection=args.max_tip,
+                     band_hz=_parse_band(args.band), n_modes=args.modes, max_tip_deflection=args.max_tip,
                      max_hub_travel=args.max_hub, seed=args.seed)
     signal = type(rec)(t=rec.t, columns={rec.input_name: rec.input}, source=rec.source)
     save_record(signal, args.out)
