@@ -213,3 +213,25 @@ def test_cli_excite_and_identify(tmp_path, case, capsys):
         err = capsys.readouterr().err.strip()
         assert code == 2 and message in err and "\n" not in err, err
     assert not (tmp_path / "x").exists()
+
+
+def test_modal_table_fit_and_non_identifiable_warning(tmp_path):
+    guess, truth = _rigs()
+    from hubbeam_ctrl.plant.modal import modal_analysis
+    rows = []
+    for spin in (0.0, 6.0):
+        p = truth.plant_params.replace(n_transverse=5, n_axial=2)
+        r = modal_analysis("foam", spin, "prescribed", p)
+        rows += [(spin, k + 1, r.bending_hz[k], r.damping_ratios[k]) for k in range(2)]
+    path = tmp_path / "modes.csv"
+    path.write_text("spin [rad/s],mode [-],frequency [Hz],damping [-]\n"
+                    + "".join(f"{w},{k},{float(f)!r},{float(z)!r}\n" for w, k, f, z in rows))
+    from hubbeam_ctrl.calibrate.fit import fit_modal_table, load_modal_table
+    table = load_modal_table(path)
+    res = fit_modal_table(guess, table, "E,m_t,damping", progress=False)
+    assert res.converged
+    err = res.estimate / np.array([truth.beam.E, truth.beam.m_t, 0.02]) - 1
+    assert np.all(np.abs(err) < 1e-3), err
+    # E and I enter only as E I: the fit must say that they are not separately identifiable
+    both = fit_modal_table(guess, table, "E,I", progress=False)
+    assert any("not separately identifiable" in w and "E" in w and "I" in w for w in both.warnings), both.warnings
