@@ -213,6 +213,19 @@ def test_cli_excite_and_identify(tmp_path, case, capsys):
         err = capsys.readouterr().err.strip()
         assert code == 2 and message in err and "\n" not in err, err
     assert not (tmp_path / "x").exists()
+    # a column of NaN: exit 2, one line naming the file and column
+    nan = tmp_path / "nan.csv"
+    nan.write_text("t [s],V [V],theta [rad]\n" + "".join(f"{k * 1e-3},{k % 3},nan\n" for k in range(20)))
+    code = main(["identify", str(nan), "--rig", str(tmp_path / "guess.toml"), "--fit", "E", "--out", str(tmp_path / "y")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "column theta has NaN at row 1" in err and "\n" not in err, err
+    # a fit that does not converge: the report with its last estimate, no calibrated rig, exit 1
+    code = main(["identify", str(tmp_path / "chirp.csv"), "--rig", str(tmp_path / "guess.toml"), "--fit", "E,J_h",
+                 "--max-evaluations", "1", "--out", str(tmp_path / "nc")])
+    err = capsys.readouterr().err
+    assert code == 1 and "did not converge" in err
+    assert (tmp_path / "nc" / "report.md").exists() and not (tmp_path / "nc" / "rig.toml").exists()
+    assert "did not converge" in (tmp_path / "nc" / "report.md").read_text()
 
 
 def test_modal_table_fit_and_non_identifiable_warning(tmp_path):

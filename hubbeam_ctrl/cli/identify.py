@@ -97,7 +97,6 @@ def run(args) -> int:
     from hubbeam_ctrl.calibrate.model import ModelSettings
     from hubbeam_ctrl.calibrate.records import load_record
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
-    from hubbeam_ctrl.core.errors import HubbeamError
     from hubbeam_ctrl.core.fileio import strict_json, write_folder
     from hubbeam_ctrl.plant.rig import load_rig, rig_from_dict, rig_to_toml
     from hubbeam_ctrl.plots.calibration import plot_record_fit
@@ -155,9 +154,11 @@ def run(args) -> int:
         for src, fits in valid.items():
             print(f"  validation {src}: " + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items()), file=sink)
         print(f"wrote {out}/report.md" + (f", {out}/rig.toml" if rig_text else " (no calibrated rig)"), file=sink)
-    if not result.converged:
-        raise HubbeamError(f"identify: the fit did not converge in {args.max_evaluations} evaluations; the last "
-                           f"estimate is in {out}/report.md, no calibrated rig was written")
+    if not result.converged:                 # the run failed (status 1), not bad input (2)
+        import sys
+        print(f"hubbeam: error: identify: the fit did not converge in {args.max_evaluations} evaluations; the "
+              f"last estimate is in {out}/report.md, no calibrated rig was written", file=sys.stderr)
+        return 1
     return 0
 
 
