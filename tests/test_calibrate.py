@@ -216,7 +216,8 @@ def test_cli_excite_and_identify(tmp_path, case, capsys):
     # a column of NaN: exit 2, one line naming the file and column
     nan = tmp_path / "nan.csv"
     nan.write_text("t [s],V [V],theta [rad]\n" + "".join(f"{k * 1e-3},{k % 3},nan\n" for k in range(20)))
-    code = main(["identify", str(nan), "--rig", str(tmp_path / "guess.toml"), "--fit", "E", "--out", str(tmp_path / "y")])
+    code = main(["identify", str(nan), "--rig", str(tmp_path / "guess.toml"), "--fit", "E",
+                 "--out", str(tmp_path / "y")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "column theta has NaN at row 1" in err and "\n" not in err, err
     # a fit that does not converge: the report with its last estimate, no calibrated rig, exit 1

@@ -232,6 +232,18 @@ class FitSettings:
     central : bool
         Central differences (twice the simulations; less sensitive to the switches of
         stick-slip friction) instead of forward differences.
+    horizon_periods : tuple of float
+        The fit runs in stages: first on the records cut to these many periods of the first
+        clamped mode (of the start), each stage from the last one's estimate, then on the
+        whole records. A long record with a wrong stiffness puts the model's oscillation out
+        of phase with the measured one (a local minimum of output error); short horizons
+        first avoid it. Empty: the whole records at once.
+    restarts : int
+        Restarts of the whole-record fit from its own estimate (a fresh trust region: the
+        stick-slip friction makes the cost rough, and the first run can stop short); a
+        restart that does not lower the cost ends them.
+    warn_fit_percent : float
+        A record's sensor fitted worse than this [%] gives a warning.
     """
 
     model: ModelSettings = field(default_factory=ModelSettings)
@@ -239,11 +251,20 @@ class FitSettings:
     tolerance: float = 1e-8
     difference_step: float = 1e-4
     central: bool = False
+    horizon_periods: tuple = (4.0, 12.0)
+    restarts: int = 1
+    warn_fit_percent: float = 90.0
 
     def __post_init__(self):
         if not isinstance(self.max_evaluations, int) or not 1 <= self.max_evaluations <= 10000:
             raise ParameterError(f"max_evaluations must be an integer in 1..10000, got {self.max_evaluations!r}")
-        for name, lo, hi in (("tolerance", 1e-15, 0.1), ("difference_step", 1e-10, 0.1)):
+        if not isinstance(self.restarts, int) or not 0 <= self.restarts <= 10:
+            raise ParameterError(f"restarts must be an integer in 0..10, got {self.restarts!r}")
+        hp = self.horizon_periods
+        if not isinstance(hp, tuple) or not all(isinstance(h, (int, float)) and 0.5 <= h <= 1e4 for h in hp):
+            raise ParameterError(f"horizon_periods must be a tuple of numbers in [0.5, 10000], got {hp!r}")
+        for name, lo, hi in (("tolerance", 1e-15, 0.1), ("difference_step", 1e-10, 0.1),
+                             ("warn_fit_percent", -1e9, 100.0)):
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or not lo <= v <= hi:
                 raise ParameterError(f"{name} must be in [{lo:g}, {hi:g}], got {v!r}")
@@ -577,24 +598,44 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
         for s, v in sp.items():
             if v == 0.0:
                 raise ParameterError(f"record {r.source}: sensor {s} is constant: nothing to fit")
-    m = sum(len(r.t) * len(ss) for r, ss in zip(records, used))
-    failed = np.full(m, 10.0 / math.sqrt(m))
+    from hubbeam_ctrl.calibrate.model import clamped_modes
+    period = 1.0 / float(clamped_modes(rig, 1)[0][0])
+    longest = max(r.duration for r in records)
+    horizons = [h * period for h in settings.horizon_periods if h * period < 0.8 * longest] + [math.inf]
 
-    def residual_of(x):
-        try:
-            trial = set_fields(rig, fit_fields, x * scale)
-            parts = []
-            for r, ss, sp in zip(records, used, spreads):
-                y = predict(trial, r, ss, settings.model)
-                parts += [(y[s] - r.columns[s]) / sp[s] for s in ss]
-            out = np.concatenate(parts)
-            return out if np.all(np.isfinite(out)) else failed
-        except (HubbeamError, ParameterError):
-            return failed
+    def residual_function(recs):
+        sp_k = [{s: float(np.linalg.norm(r.columns[s] - r.columns[s].mean())) or sp[s] for s in ss}
+                for r, ss, sp in zip(recs, used, spreads)]
+        m = sum(len(r.t) * len(ss) for r, ss in zip(recs, used))
+        failed = np.full(m, 10.0 / math.sqrt(m))
+
+        def residual_of(x):
+            try:
+                trial = set_fields(rig, fit_fields, x * scale)
+                parts = []
+                for r, ss, sp in zip(recs, used, sp_k):
+                    y = predict(trial, r, ss, settings.model)
+                    parts += [(y[s] - r.columns[s]) / sp[s] for s in ss]
+                out = np.concatenate(parts)
+                return out if np.all(np.isfinite(out)) else failed
+            except (HubbeamError, ParameterError):
+                return failed
+        return residual_of
 
     t0 = time.perf_counter()
-    sol = _least_squares(residual_of, start / scale, lo / scale, hi / scale, len(fit_fields), settings,
-                         "fit", progress)
+    x, evaluations = start / scale, 0
+    stages = horizons + [math.inf] * settings.restarts
+    cost = math.inf
+    for k, horizon in enumerate(stages):
+        recs = [r if r.duration <= horizon else r.window(r.t[0], r.t[0] + horizon) for r in records]
+        label = "fit" if len(stages) == 1 else f"fit {k + 1}/{len(stages)}"
+        trial = _least_squares(residual_function(recs), x, lo / scale, hi / scale, len(fit_fields), settings,
+                               label, progress)
+        evaluations += int(trial.nfev)
+        if k >= len(horizons):                  # a restart: kept only if it lowered the cost
+            if not trial.cost < cost * (1 - 1e-6):
+                break
+        sol, x, cost = trial, trial.x, float(trial.cost)
     estimate = sol.x * scale
     converged = bool(sol.status > 0)
     message = sol.message if converged else f"did not converge ({sol.message}); the last estimate is kept"
@@ -607,7 +648,13 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
     for r, ss in zip(records, used):
         y = predict(calibrated, r, ss, settings.model)
         fits[r.source or f"record {len(fits) + 1}"] = {s: fit_percent(r.columns[s], y[s]) for s in ss}
-    return FitResult(fit_fields, start, estimate, std, corr, converged, message, int(sol.nfev), fits, warnings,
+    for src, per in fits.items():
+        for sensor, value in per.items():
+            if not value >= settings.warn_fit_percent:
+                warnings.append(f"the fit of {sensor} on {src} is only {value:.1f} % (below "
+                                f"{settings.warn_fit_percent:g} %): a local minimum, a model that lacks something "
+                                "or a noisy sensor; check the plots before trusting the estimate")
+    return FitResult(fit_fields, start, estimate, std, corr, converged, message, evaluations, fits, warnings,
                      calibrated, time.perf_counter() - t0)
 
 
