@@ -184,6 +184,9 @@ def test_excitation_respects_the_limits(fast_backend_module):
 
 
 def test_cli_excite_and_identify(tmp_path, case, capsys):
+    from hubbeam_ctrl.calibrate.excitation import EXCITATION_KINDS
+    from hubbeam_ctrl.cli.excite import KINDS
+    assert KINDS == EXCITATION_KINDS
     guess, truth, (chirp, _, multi) = case
     from hubbeam_ctrl.plant.rig import save_rig
     save_rig(guess, tmp_path / "guess.toml")

@@ -9,6 +9,10 @@ from __future__ import annotations
 
 __all__ = ["add_parser", "run"]
 
+#: The signal kinds, as ``hubbeam_ctrl.calibrate.excitation.EXCITATION_KINDS`` (not imported here:
+#: building the parser stays cheap).
+KINDS = ("chirp", "prbs", "multisine", "step")
+
 
 def add_parser(subparsers, common) -> None:
     """Add the ``excite`` subcommand.
@@ -19,7 +23,6 @@ def add_parser(subparsers, common) -> None:
     common : argparse.ArgumentParser
         Not used (the rig file holds the beam).
     """
-    from hubbeam_ctrl.calibrate.excitation import EXCITATION_KINDS
     from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty, real
 
     p = subparsers.add_parser(
@@ -30,7 +33,7 @@ def add_parser(subparsers, common) -> None:
                      "hub travel (simulated on the rig's model) stay within --max-tip and --max-hub."))
     p.add_argument("--rig", metavar="RIG", type=nonempty("rig file or preset"), required=True,
                    help="rig TOML file or preset (servo_link, paper)")
-    p.add_argument("--kind", choices=EXCITATION_KINDS, required=True)
+    p.add_argument("--kind", choices=KINDS, required=True)
     p.add_argument("--out", metavar="SIGNAL.csv|SIGNAL.npz", type=nonempty("file"), required=True)
     p.add_argument("--duration", metavar="S", type=real("s"), default=10.0, help="record length [s] (default 10)")
     p.add_argument("--dt", metavar="S", type=real("s"), help="sample period [s] (default the rig's, else 1 ms)")
