@@ -19,7 +19,7 @@ fewer than :data:`MIN_SAMPLES` rows. Time may be non-uniform (:attr:`Record.is_u
 Examples
 --------
 >>> import numpy as np
->>> rec = Record(t=np.arange(5) * 1e-3, columns={"V": np.ones(5), "theta": np.zeros(5)})
+>>> rec = Record(t=np.arange(10) * 1e-3, columns={"V": np.ones(10), "theta": np.zeros(10)})
 >>> rec.input_name, rec.sensors, round(rec.dt, 6)
 ('V', ('theta',), 0.001)
 """
