@@ -111,13 +111,19 @@ def test_free_decay_modes_of_the_held_hub(fast_backend_module):
     u = np.zeros_like(t)
     u[0] = 1e-3
     rec = synthetic_record(held, t, u, seed=3, source="pluck", q2_0=[0.01, 0.002],
-                           settings=ModelSettings(n_transverse=4, frequency_tolerance=5e-3))
+                           settings=ModelSettings(n_transverse=4, frequency_tolerance=5e-3),
+                           sensors=("theta", "root_moment", "v_tip"))
     assert np.ptp(rec.columns["theta"]) == 0.0           # the hub did not move
     est = identify_modes(rec, band_hz=(0.5, 40.0))
     f, z = clamped_modes(truth, 2)                        # modal analysis of the true rig, hub clamped
     assert np.all(np.abs(est.frequency_hz / f - 1) < 0.002), est.frequency_hz / f - 1
     assert np.all(np.abs(est.damping / z - 1) < 0.10), est.damping / z - 1
     assert np.all(est.frequency_std_hz < 0.002 * f) and np.all(est.damping_std > 0)
+    # mode-shape signs with two sensors: a cantilever's root curvature and tip deflection have the
+    # same sign in mode 1 and opposite signs in mode 2 (phi(L) = 2 (-1)^(i+1) for phi''(0) = 2 beta^2 > 0)
+    two = identify_modes(rec, ("root_moment", "v_tip"), band_hz=(0.5, 40.0))
+    assert list(two.shape_signs["v_tip"]) == [1, -1] and list(two.shape_signs["root_moment"]) == [1, 1]
+    assert np.all(np.abs(two.frequency_hz / f - 1) < 0.002)
 
 
 def test_records_round_trip_and_simulated_run_is_a_record(tmp_path, case):
