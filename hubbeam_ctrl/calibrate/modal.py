@@ -7,7 +7,12 @@ samples are Markov parameters of ``(A, x0, C)`` and the Eigensystem Realization 
 outputs, the SVD ``H0 = U S V'`` truncated to the model order, ``A = S^-1/2 U' H1 V S^-1/2``,
 and the eigenvalues ``z`` of ``A`` give ``s = ln(z) / dt``, the frequency ``|s| / 2 pi`` and
 the damping ratio ``-Re(s) / |s|``, in NumPy (``docs/calibration.md`` says why not a
-package). Forced responses are not identified yet (``docs/calibration.md``, "Not yet").
+package). Forced responses (``kind="forced"``): the system's Markov parameters (its pulse
+response) are first estimated from input and output by observer/Kalman filter identification
+(OKID, Juang, Phan, Horta and Longman 1993: a least-squares ARX model whose observer Markov
+parameters give the system's), then ERA as above. OKID assumes a linear system: on a rig
+with Coulomb friction or a gear whose efficiency switches with the power flow it is an
+approximation (``docs/calibration.md``).
 
 Uncertainty: the identification is repeated on :data:`N_WINDOWS` overlapping windows of the
 record and at two model orders; each mode's estimate is the median over those runs and its
@@ -29,7 +34,7 @@ import numpy as np
 from hubbeam_ctrl.calibrate.records import SENSOR_COLUMNS, Record
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["ModalEstimate", "identify_modes", "era", "free_decay_start", "N_WINDOWS"]
+__all__ = ["ModalEstimate", "identify_modes", "era", "okid_markov", "free_decay_start", "N_WINDOWS"]
 
 #: Overlapping windows over which each identification is repeated (for the uncertainty).
 N_WINDOWS = 5
@@ -124,6 +129,48 @@ def era(markov, dt: float, order: int, rows: int | None = None):
     return s, phi, amp
 
 
+def okid_markov(u, y, observer_order: int, n_markov: int) -> np.ndarray:
+    """System Markov parameters (pulse response) from input and output by OKID.
+
+    The ARX model ``y(k) = D u(k) + sum_{i=1..p} Ybar_i [u(k-i); y(k-i)]`` is fitted by least
+    squares; its observer Markov parameters ``Ybar_i = [Ybar_i_u, Ybar_i_y]`` give the
+    system's, ``Y_0 = D``, ``Y_k = Ybar_k_u + sum_{i=1..min(k, p)} Ybar_i_y Y_{k-i}``.
+
+    Parameters
+    ----------
+    u : ndarray (N,)
+        Input (one channel).
+    y : ndarray (N, ny)
+        Outputs.
+    observer_order : int
+        ``p``, the ARX order.
+    n_markov : int
+        Markov parameters returned.
+
+    Returns
+    -------
+    ndarray (n_markov, ny)
+        ``Y_1 .. Y_n_markov``: the output ``k`` samples after a unit pulse of the input.
+    """
+    u = np.asarray(u, dtype=float).reshape(-1, 1)
+    y = np.asarray(y, dtype=float)
+    n_t, ny = y.shape
+    p = int(observer_order)
+    if n_t < 4 * p * (1 + ny):
+        raise ParameterError(f"OKID: {n_t} samples are too few for observer order {p}")
+    v = np.hstack([u, y])
+    Phi = np.hstack([u[p:]] + [v[p - i:n_t - i] for i in range(1, p + 1)])
+    theta = np.linalg.lstsq(Phi, y[p:], rcond=None)[0].T
+    blocks = [theta[:, 1 + (i - 1) * (1 + ny):1 + i * (1 + ny)] for i in range(1, p + 1)]
+    Y = [theta[:, :1]]
+    for k in range(1, n_markov + 1):
+        yk = blocks[k - 1][:, :1].copy() if k <= p else np.zeros((ny, 1))
+        for i in range(1, min(k, p) + 1):
+            yk = yk + blocks[i - 1][:, 1:] @ Y[k - i]
+        Y.append(yk)
+    return np.array(Y[1:])[:, :, 0]
+
+
 def free_decay_start(record: Record, settle: float = 0.05) -> float:
     """Time after which the input stays at zero (plus ``settle`` [s]) [s].
 
@@ -153,11 +200,11 @@ def _decimation(dt: float, max_hz: float) -> int:
     return max(1, int(math.floor(1.0 / (dt * 12.0 * max_hz))))
 
 
-def _one_run(y, dt, order, n_modes, band):
+def _one_run(y, dt, order, n_modes, band, max_damping=0.2):
     s, phi, amp = era(y, dt, order)
     f = np.abs(s) / (2 * np.pi)
     z = -s.real / np.abs(s)
-    ok = (f >= band[0]) & (f <= band[1]) & (z > 0) & (z < 0.2)
+    ok = (f >= band[0]) & (f <= band[1]) & (z > 0) & (z < max_damping)
     idx = np.nonzero(ok)[0]
     idx = idx[np.argsort(-amp[idx])][:n_modes]
     idx = idx[np.argsort(f[idx])]
@@ -165,7 +212,8 @@ def _one_run(y, dt, order, n_modes, band):
 
 
 def identify_modes(record: Record, sensors=None, *, n_modes: int = 2, kind: str = "free_decay",
-                   band_hz=(0.1, None), t_start: float | None = None, order: int | None = None) -> ModalEstimate:
+                   band_hz=(0.1, None), t_start: float | None = None, order: int | None = None,
+                   observer_horizon: float = 0.16) -> ModalEstimate:
     """Frequencies and damping ratios of the first modes from a record (see the module docstring).
 
     Parameters
@@ -176,14 +224,18 @@ def identify_modes(record: Record, sensors=None, *, n_modes: int = 2, kind: str 
         ``tip_accel``).
     n_modes : int
         Modes wanted, 1..10.
-    kind : {"free_decay"}
-        The only kind so far: the part of the record after the input has gone to zero.
+    kind : {"free_decay", "forced"}
+        ``free_decay``: the part of the record after the input has gone to zero;
+        ``forced``: the whole record, input and output (OKID, then ERA).
     band_hz : (float, float or None)
         Frequencies considered [Hz] (None: up to a quarter of the sampling rate).
     t_start : float, optional
         Start of a free decay [s] (default :func:`free_decay_start`).
     order : int, optional
         Model order (default ``4 n_modes + 4``).
+    observer_horizon : float
+        ``forced``: the ARX model's memory [s] (its order is this over the sample period);
+        repeated at 1.5 times it for the spread.
 
     Returns
     -------
@@ -196,8 +248,8 @@ def identify_modes(record: Record, sensors=None, *, n_modes: int = 2, kind: str 
     """
     if not isinstance(n_modes, int) or not 1 <= n_modes <= 10:
         raise ParameterError(f"n_modes must be an integer in 1..10, got {n_modes!r}")
-    if kind != "free_decay":
-        raise ParameterError(f"kind must be 'free_decay' (forced responses are not identified yet), got {kind!r}")
+    if kind not in ("free_decay", "forced"):
+        raise ParameterError(f"kind must be 'free_decay' or 'forced', got {kind!r}")
     record = record.resampled()
     if sensors is None:
         sensors = tuple(s for s in ("root_moment", "v_tip", "tip_accel") if s in record.columns)
@@ -212,15 +264,21 @@ def identify_modes(record: Record, sensors=None, *, n_modes: int = 2, kind: str 
     dt = record.dt
     hi = band_hz[1] if band_hz[1] is not None else 0.25 / dt
     band = (float(band_hz[0]), float(hi))
-    t0 = free_decay_start(record) if t_start is None else float(t_start)
-    part = record.window(t0)
+    if kind == "forced":
+        record.check_input_varies()
+        t0, part = float(record.t[0]), record
+    else:
+        t0 = free_decay_start(record) if t_start is None else float(t_start)
+        part = record.window(t0)
     order = order or 4 * n_modes + 4
     dec = _decimation(dt, band[1])
     y = np.column_stack([part.columns[s] for s in sensors])
+    u = part.input
     # anti-alias before decimating: average over each block of dec samples
     if dec > 1:
         n_b = len(y) // dec
         y = y[:n_b * dec].reshape(n_b, dec, -1).mean(axis=1)
+        u = u[:n_b * dec].reshape(n_b, dec).mean(axis=1)
     ddt = dt * dec
     # no detrending: an offset is a real pole of its own (left out); a median would bias slow modes
     scale = np.std(y, axis=0)
@@ -229,13 +287,21 @@ def identify_modes(record: Record, sensors=None, *, n_modes: int = 2, kind: str 
     n = len(y)
     if n < 6 * order:
         raise ParameterError(f"record {record.source}: {part.duration:.3g} s of "
-                             f"free decay ({n} samples at "
+                             f"{'free decay' if kind == 'free_decay' else 'record'} ({n} samples at "
                              f"{1 / ddt:.4g} Hz) are too few for {n_modes} modes")
     runs = []
-    length = int(0.7 * n)
-    for k0 in np.linspace(0, n - length, N_WINDOWS).astype(int):
+    if kind == "forced":
+        y = y - y.mean(axis=0)
+        u = (u - u.mean()) / max(float(np.std(u)), 1e-300)
+        p0 = max(4, int(round(observer_horizon / ddt)))
+        data = [okid_markov(u, y, p, min(n // 4, max(8 * p, 6 * order))) for p in (p0, int(1.5 * p0))]
+    else:
+        length = int(0.7 * n)
+        data = [y[k0:k0 + length] for k0 in np.linspace(0, n - length, N_WINDOWS).astype(int)]
+    for markov in data:
         for o in (order, order + 4):
-            f, z, phi = _one_run(y[k0:k0 + length], ddt, o, n_modes, band)
+            # a forced servo's first mode can be heavily damped by the drive (0.36 on the servo link)
+            f, z, phi = _one_run(markov, ddt, o, n_modes, band, 0.7 if kind == "forced" else 0.2)
             if len(f) == n_modes:
                 runs.append((f, z, phi))
     if not runs:
