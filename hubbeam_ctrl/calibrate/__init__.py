@@ -2,7 +2,7 @@
 
 ``records`` (the record format), ``model`` (a rig's simulated sensors), ``excitation``
 (input signals within the drive's and the user's limits), ``modal`` (frequencies and damping
-from free-decay records by ERA) and ``fit`` (least squares of rig fields against records,
+from free-decay records by ERA, forced ones by OKID and ERA) and ``fit`` (least squares of rig fields against records,
 and against a modal table). See ``docs/calibration.md``.
 """
 
