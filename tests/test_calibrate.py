@@ -281,6 +281,16 @@ def test_modal_table_fit_and_non_identifiable_warning(tmp_path):
     assert res.converged
     err = res.estimate / np.array([truth.beam.E, truth.beam.m_t, 0.02]) - 1
     assert np.all(np.abs(err) < 1e-3), err
+    # the same through the command line: a checked rig is written
+    from hubbeam_ctrl.plant.rig import save_rig
+    save_rig(guess, tmp_path / "guess.toml")
+    assert main(["identify", "--modal-table", str(path), "--rig", str(tmp_path / "guess.toml"), "--fit",
+                 "E,m_t,damping", "--out", str(tmp_path / "mt"), "--json"]) == 0
+    assert load_rig(tmp_path / "mt" / "rig.toml").beam.E == pytest.approx(truth.beam.E, rel=1e-3)
+    assert main(["identify", "--rig", str(tmp_path / "guess.toml"), "--fit", "E", "--out", str(tmp_path / "n")]) == 2
+    # the damping left at its guess against measured ratios: the fit says the model misses the table
+    wrong = fit_modal_table(guess, table, "E,m_t", progress=False)
+    assert any("misses a measured" in w for w in wrong.warnings), wrong.warnings
     # E and I enter only as E I: the fit must say that they are not separately identifiable
     both = fit_modal_table(guess, table, "E,I", progress=False)
     assert any("not separately identifiable" in w and "E" in w and "I" in w for w in both.warnings), both.warnings

@@ -816,5 +816,15 @@ def fit_modal_table(rig: Rig, table: ModalTable, fit, *, bounds=None, hub: str =
     f, z = _modal_predict(calibrated, table, n_modes, hub)
     err = {f"mode {k} frequency error [%]": float(np.max(np.abs(f[table.mode == k] / table.frequency[table.mode == k]
                                                                  - 1)) * 100) for k in np.unique(table.mode)}
+    worst = max(err.values())
+    if worst > 1.0:
+        warnings.append(f"the fitted model misses a measured frequency by {worst:.2f} % (more than 1 %): a field "
+                        "that should be fitted (e.g. damping, when damping ratios are in the table) or a model "
+                        "that lacks something; do not trust the estimate")
+    if has_z.any():
+        z_err = float(np.max(np.abs(z[has_z] / table.damping[has_z] - 1))) * 100
+        err["damping error [%]"] = z_err
+        if z_err > 20.0:
+            warnings.append(f"the fitted model misses a measured damping ratio by {z_err:.0f} % (more than 20 %)")
     return FitResult(fit_fields, start, estimate, std, corr, converged, message, int(sol.nfev),
                      {"modal table": err}, warnings, calibrated, time.perf_counter() - t0, kind="modal_table")

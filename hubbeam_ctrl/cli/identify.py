@@ -34,8 +34,11 @@ def add_parser(subparsers, common) -> None:
                      "sensors (nonlinear FOAM with the rig's drive and friction) against the measured ones; "
                      "writes the calibrated rig (only if the fit converged and was checked), report.md with "
                      "measured-vs-model plots, and result.json."))
-    p.add_argument("records", metavar="RECORD", nargs="+", type=nonempty("record file"),
+    p.add_argument("records", metavar="RECORD", nargs="*", type=nonempty("record file"),
                    help="records (.csv with a 'name [unit]' header, or .npz), each starting at rest")
+    p.add_argument("--modal-table", metavar="TABLE.csv", type=nonempty("file"),
+                   help="fit to measured frequencies (and damping ratios) against spin rate and tip mass instead "
+                        "of records: header spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--rig", metavar="RIG", type=nonempty("rig file or preset"), help="rig TOML file or preset")
     src.add_argument("--params", metavar="P.toml", type=nonempty("file"),
@@ -84,7 +87,6 @@ def run(args) -> int:
     args : argparse.Namespace
     """
     import numpy as np
-    import tomllib
 
     from hubbeam_ctrl.calibrate.fit import (
         FitSettings,
@@ -97,16 +99,21 @@ def run(args) -> int:
     from hubbeam_ctrl.calibrate.model import ModelSettings
     from hubbeam_ctrl.calibrate.records import load_record
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
+    from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.core.fileio import strict_json, write_folder
-    from hubbeam_ctrl.plant.rig import load_rig, rig_from_dict, rig_to_toml
+    from hubbeam_ctrl.plant.rig import load_rig
     from hubbeam_ctrl.plots.calibration import plot_record_fit
     from hubbeam_ctrl.plots.plant import save_figure
 
     sink = stdout(args)
+    if bool(args.records) == bool(args.modal_table):
+        raise ParameterError("identify needs records or --modal-table TABLE.csv (one of the two)")
     out = check_output_dir("--out", args.out)
     rig = load_rig(args.rig if args.rig is not None else args.params)
     fit_fields = resolve_fields(args.fit, rig)
     bounds = _parse_bounds(args.bounds)
+    if args.modal_table:
+        return _run_modal_table(args, rig, fit_fields, bounds, out, sink)
     sensors = None if args.sensors is None else tuple(s.strip() for s in args.sensors.split(","))
     records = [load_record(r).resampled() for r in args.records]
     validation = [load_record(r).resampled() for r in args.validate]
@@ -127,13 +134,7 @@ def run(args) -> int:
         fits, y = validate_record(result.rig, rec, sensors, settings.model)
         valid[rec.source] = fits
         series.append((f"validate_{k + 1}.png", rec, y, fits))
-    rig_text = None
-    if result.converged:
-        text = rig_to_toml(result.rig)
-        if rig_from_dict(tomllib.loads(text)) == result.rig:
-            rig_text = text
-        else:
-            result.warnings.append("the calibrated rig did not read back equal from its TOML: not written")
+    rig_text = _checked_rig_text(result)
     summary = result.to_dict()
     summary["validation_fit_percent"] = valid
     summary["rig_written"] = rig_text is not None
@@ -162,6 +163,50 @@ def run(args) -> int:
     return 0
 
 
+def _checked_rig_text(result):
+    """The calibrated rig's TOML when the fit converged and the text reads back equal, else None."""
+    import tomllib
+
+    from hubbeam_ctrl.plant.rig import rig_from_dict, rig_to_toml
+    if not result.converged:
+        return None
+    text = rig_to_toml(result.rig)
+    if rig_from_dict(tomllib.loads(text)) == result.rig:
+        return text
+    result.warnings.append("the calibrated rig did not read back equal from its TOML: not written")
+    return None
+
+
+def _run_modal_table(args, rig, fit_fields, bounds, out, sink) -> int:
+    """``identify --modal-table``: fit to measured frequencies by modal analysis."""
+    import sys
+
+    import numpy as np
+
+    from hubbeam_ctrl.calibrate.fit import FitSettings, fit_modal_table, load_modal_table
+    from hubbeam_ctrl.core.fileio import strict_json, write_folder
+
+    table = load_modal_table(args.modal_table)
+    result = fit_modal_table(rig, table, [f.name for f in fit_fields], bounds=bounds,
+                             settings=FitSettings(max_evaluations=args.max_evaluations), progress=not args.json)
+    rig_text = _checked_rig_text(result)
+    summary = result.to_dict()
+    summary["rig_written"] = rig_text is not None
+
+    def write(folder):
+        (folder / "result.json").write_text(strict_json(summary) + "\n", encoding="utf-8")
+        (folder / "report.md").write_text(_report(result, {}, [], rig_text is not None, np), encoding="utf-8")
+        if rig_text is not None:
+            (folder / "rig.toml").write_text(rig_text, encoding="utf-8")
+    write_folder(out, write, "--out")
+    print(strict_json(summary) if args.json else result.summary(), file=sink)
+    if not result.converged:
+        print(f"hubbeam: error: identify: the fit did not converge; the last estimate is in {out}/report.md, "
+              "no calibrated rig was written", file=sys.stderr)
+        return 1
+    return 0
+
+
 def _report(result, valid, series, written, np) -> str:
     lines = ["# Calibration report", "",
              f"Fit {'converged' if result.converged else '**did not converge**'}: {result.message} "
@@ -176,8 +221,12 @@ def _report(result, valid, series, written, np) -> str:
               "|---" * (len(result.names) + 1) + "|"]
     for name, row in zip(result.names, result.correlation):
         lines.append(f"| {name} | " + " | ".join(f"{v:+.3f}" for v in row) + " |")
-    lines += ["", "## Fit per record and sensor", "", "`100 (1 - ||y - y_model|| / ||y - mean(y)||)`", "",
-              "| record | sensor | fit [%] | residual RMS |", "|---|---|---|---|"]
+    if result.kind == "modal_table":
+        lines += ["", "## Frequency errors", "", "| what | largest error [%] |", "|---|---|"]
+        lines += [f"| {k} | {v:.4f} |" for k, v in result.fit.get("modal table", {}).items()]
+    else:
+        lines += ["", "## Fit per record and sensor", "", "`100 (1 - ||y - y_model|| / ||y - mean(y)||)`", "",
+                  "| record | sensor | fit [%] | residual RMS |", "|---|---|---|---|"]
     for name, rec, y, fits in series:
         tag = " (validation)" if rec.source in valid else ""
         for s, v in fits.items():
@@ -185,5 +234,6 @@ def _report(result, valid, series, written, np) -> str:
             lines.append(f"| {rec.source}{tag} | {s} | {v:.2f} | {rms:.4g} |")
     if result.warnings:
         lines += ["", "## Warnings", ""] + [f"- {w}" for w in result.warnings]
-    lines += ["", "## Measured against model", ""] + [f"![{rec.source}]({name})" for name, rec, _, _ in series]
+    if series:
+        lines += ["", "## Measured against model", ""] + [f"![{rec.source}]({name})" for name, rec, _, _ in series]
     return "\n".join(lines) + "\n"
