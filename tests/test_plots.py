@@ -105,6 +105,22 @@ def test_shaper_sensitivity_figure_carries_the_data(tmp_path):
     assert save_figure(fig, tmp_path / "s.png").stat().st_size > 5000
 
 
+def test_record_fit_figure_carries_the_data(tmp_path):
+    from hubbeam_ctrl.plots.calibration import plot_record_fit
+    t = np.linspace(0, 1, 11)
+    measured = {"theta": np.sin(t), "root_moment": np.cos(t)}
+    model = {"theta": 0.9 * np.sin(t), "root_moment": np.cos(t)}
+    fig = plot_record_fit(t, measured, model, {"theta": 90.0, "root_moment": 100.0}, title="rec")
+    assert len(fig.axes) == 4
+    meas, mod = fig.axes[0].lines
+    np.testing.assert_allclose(meas.get_ydata(), np.sin(t))
+    np.testing.assert_allclose(mod.get_ydata(), 0.9 * np.sin(t))
+    assert "90.0 %" in mod.get_label()
+    np.testing.assert_allclose(fig.axes[1].lines[0].get_ydata(), 0.1 * np.sin(t))      # the residual
+    assert fig.axes[2].get_ylabel() == "root_moment [N m]"
+    assert save_figure(fig, tmp_path / "f.png").stat().st_size > 5000
+
+
 def test_every_public_plot_function_is_tested_here():
     """A new public plot function needs a test in this module (or, for the loop plots, in
     test_loop_plots.py)."""

@@ -1,0 +1,239 @@
+"""``hubbeam identify``: fit rig fields to measured records and write a calibrated rig and a report.
+
+Example::
+
+    hubbeam identify chirp.csv prbs.csv --rig servo_link --fit E,J_h,m_t,damping,friction \\
+        --validate multisine.csv --out calib/
+
+Writes into ``--out``: ``report.md`` (estimates with 95 % intervals, correlations, fit per
+record and sensor, residuals, warnings, measured-vs-model plots ``fit_<k>.png``),
+``result.json`` and, only when the fit converged and the rig file reads back equal to the
+estimate, ``rig.toml``. A fit that does not converge keeps its last estimate in the report,
+writes no rig and exits with status 1.
+"""
+
+from __future__ import annotations
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(subparsers, common) -> None:
+    """Add the ``identify`` subcommand.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+    common : argparse.ArgumentParser
+        Not used (the rig or parameter file holds the beam).
+    """
+    from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty
+
+    p = subparsers.add_parser(
+        "identify", help="calibrate rig fields from measured records (least squares on FOAM with the hardware)",
+        description=("Fits the --fit fields of the rig to the records by least squares of the simulated "
+                     "sensors (nonlinear FOAM with the rig's drive and friction) against the measured ones; "
+                     "writes the calibrated rig (only if the fit converged and was checked), report.md with "
+                     "measured-vs-model plots, and result.json."))
+    p.add_argument("records", metavar="RECORD", nargs="*", type=nonempty("record file"),
+                   help="records (.csv with a 'name [unit]' header, or .npz), each starting at rest")
+    p.add_argument("--modal-table", metavar="TABLE.csv", type=nonempty("file"),
+                   help="fit to measured frequencies (and damping ratios) against spin rate and tip mass instead "
+                        "of records: header spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--rig", metavar="RIG", type=nonempty("rig file or preset"), help="rig TOML file or preset")
+    src.add_argument("--params", metavar="P.toml", type=nonempty("file"),
+                     help="parameter file (the beam alone, ideal hardware)")
+    p.add_argument("--fit", metavar="E,J_h,...", required=True,
+                   help="fields to fit: beam fields, damping (first-mode ratio), friction (Coulomb), "
+                        "viscous, or table.key")
+    p.add_argument("--out", metavar="DIR", type=nonempty("folder"), required=True)
+    p.add_argument("--validate", metavar="RECORD", action="append", type=nonempty("record file"), default=[],
+                   help="a record not used in the fit: its fit percentage with the calibrated rig")
+    p.add_argument("--bounds", metavar="NAME=LO:HI", action="append", default=[],
+                   help="bounds of a fitted field (repeatable)")
+    p.add_argument("--sensors", metavar="S1,S2", help="sensors to fit (default every rig sensor in the records)")
+    p.add_argument("--max-evaluations", metavar="N", type=integer(), default=60,
+                   help="most residual evaluations of the optimiser (default 60)")
+    p.add_argument("--plant-modes", metavar="N", type=integer(), default=2,
+                   help="bending modes of the simulated plant (default 2)")
+    p.add_argument("--json", action="store_true", help="print each fitted field's estimate and interval as JSON")
+    add_verbose(p)
+    p.set_defaults(func=run)
+
+
+def _parse_bounds(items) -> dict:
+    from hubbeam_ctrl.core.errors import ParameterError
+    out = {}
+    for item in items:
+        name, sep, rng = item.partition("=")
+        lo, sep2, hi = rng.partition(":")
+        try:
+            if not sep or not sep2:
+                raise ValueError
+            a, b = float(lo), float(hi)
+        except ValueError:
+            raise ParameterError(f"--bounds must be NAME=LO:HI, got {item!r}") from None
+        if a > b:
+            raise ParameterError(f"--bounds: {name} has lo = {a:g} > hi = {b:g}")
+        out[name.strip()] = (a, b)
+    return out
+
+
+def run(args) -> int:
+    """Run ``hubbeam identify``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+    """
+    import numpy as np
+
+    from hubbeam_ctrl.calibrate.fit import (
+        FitSettings,
+        check_record_for_rig,
+        fit_rig,
+        predict,
+        resolve_fields,
+        validate_record,
+    )
+    from hubbeam_ctrl.calibrate.model import ModelSettings
+    from hubbeam_ctrl.calibrate.records import load_record
+    from hubbeam_ctrl.cli.args import check_output_dir, stdout
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.core.fileio import strict_json, write_folder
+    from hubbeam_ctrl.plant.rig import load_rig
+    from hubbeam_ctrl.plots.calibration import plot_record_fit
+    from hubbeam_ctrl.plots.plant import save_figure
+
+    sink = stdout(args)
+    if bool(args.records) == bool(args.modal_table):
+        raise ParameterError("identify needs records or --modal-table TABLE.csv (one of the two)")
+    out = check_output_dir("--out", args.out)
+    rig = load_rig(args.rig if args.rig is not None else args.params)
+    fit_fields = resolve_fields(args.fit, rig)
+    bounds = _parse_bounds(args.bounds)
+    if args.modal_table:
+        return _run_modal_table(args, rig, fit_fields, bounds, out, sink)
+    sensors = None if args.sensors is None else tuple(s.strip() for s in args.sensors.split(","))
+    records = [load_record(r).resampled() for r in args.records]
+    validation = [load_record(r).resampled() for r in args.validate]
+    for rec in records:
+        check_record_for_rig(rec, rig, sensors)
+    for rec in validation:
+        check_record_for_rig(rec, rig, sensors, "--validate")
+    settings = FitSettings(model=ModelSettings(n_transverse=args.plant_modes), max_evaluations=args.max_evaluations)
+    result = fit_rig(rig, records, [f.name for f in fit_fields], bounds=bounds, sensors=sensors, settings=settings,
+                     progress=not args.json)
+    valid = {}
+    series = []
+    for k, rec in enumerate(records):
+        used = check_record_for_rig(rec, rig, sensors)
+        series.append((f"fit_{k + 1}.png", rec, predict(result.rig, rec, used, settings.model),
+                       result.fit[rec.source]))
+    for k, rec in enumerate(validation):
+        fits, y = validate_record(result.rig, rec, sensors, settings.model)
+        valid[rec.source] = fits
+        series.append((f"validate_{k + 1}.png", rec, y, fits))
+    rig_text = _checked_rig_text(result)
+    summary = result.to_dict()
+    summary["validation_fit_percent"] = valid
+    summary["rig_written"] = rig_text is not None
+
+    def write(folder):
+        for name, rec, y, fits in series:
+            fig = plot_record_fit(rec.t, {s: rec.columns[s] for s in y}, y, fits, title=rec.source)
+            save_figure(fig, folder / name)
+        (folder / "result.json").write_text(strict_json(summary) + "\n", encoding="utf-8")
+        (folder / "report.md").write_text(_report(result, valid, series, rig_text is not None, np), encoding="utf-8")
+        if rig_text is not None:
+            (folder / "rig.toml").write_text(rig_text, encoding="utf-8")
+    write_folder(out, write, "--out")
+    if args.json:
+        print(strict_json(summary), file=sink)
+    else:
+        print(result.summary(), file=sink)
+        for src, fits in valid.items():
+            print(f"  validation {src}: " + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items()), file=sink)
+        print(f"wrote {out}/report.md" + (f", {out}/rig.toml" if rig_text else " (no calibrated rig)"), file=sink)
+    if not result.converged:                 # the run failed (status 1), not bad input (2)
+        import sys
+        print(f"hubbeam: error: identify: the fit did not converge in {args.max_evaluations} evaluations; the "
+              f"last estimate is in {out}/report.md, no calibrated rig was written", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _checked_rig_text(result):
+    """The calibrated rig's TOML when the fit converged and the text reads back equal, else None."""
+    import tomllib
+
+    from hubbeam_ctrl.plant.rig import rig_from_dict, rig_to_toml
+    if not result.converged:
+        return None
+    text = rig_to_toml(result.rig)
+    if rig_from_dict(tomllib.loads(text)) == result.rig:
+        return text
+    result.warnings.append("the calibrated rig did not read back equal from its TOML: not written")
+    return None
+
+
+def _run_modal_table(args, rig, fit_fields, bounds, out, sink) -> int:
+    """``identify --modal-table``: fit to measured frequencies by modal analysis."""
+    import sys
+
+    import numpy as np
+
+    from hubbeam_ctrl.calibrate.fit import FitSettings, fit_modal_table, load_modal_table
+    from hubbeam_ctrl.core.fileio import strict_json, write_folder
+
+    table = load_modal_table(args.modal_table)
+    result = fit_modal_table(rig, table, [f.name for f in fit_fields], bounds=bounds,
+                             settings=FitSettings(max_evaluations=args.max_evaluations), progress=not args.json)
+    rig_text = _checked_rig_text(result)
+    summary = result.to_dict()
+    summary["rig_written"] = rig_text is not None
+
+    def write(folder):
+        (folder / "result.json").write_text(strict_json(summary) + "\n", encoding="utf-8")
+        (folder / "report.md").write_text(_report(result, {}, [], rig_text is not None, np), encoding="utf-8")
+        if rig_text is not None:
+            (folder / "rig.toml").write_text(rig_text, encoding="utf-8")
+    write_folder(out, write, "--out")
+    print(strict_json(summary) if args.json else result.summary(), file=sink)
+    if not result.converged:
+        print(f"hubbeam: error: identify: the fit did not converge; the last estimate is in {out}/report.md, "
+              "no calibrated rig was written", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _report(result, valid, series, written, np) -> str:
+    lines = ["# Calibration report", "",
+             f"Fit {'converged' if result.converged else '**did not converge**'}: {result.message} "
+             f"({result.evaluations} evaluations, {result.wall_s:.1f} s). "
+             + ("The calibrated rig is `rig.toml`." if written else "**No calibrated rig was written.**"), "",
+             "## Estimates (95 % intervals from the Jacobian)", "",
+             "| name | field | start | estimate | 95 % interval | unit |", "|---|---|---|---|---|---|"]
+    for f, s, e, (lo, hi) in zip(result.fields, result.start, result.estimate, result.interval):
+        lines.append(f"| {f.name} | {f.path} | {s:.6g} | {e:.6g} | [{lo:.6g}, {hi:.6g}] | {f.unit} |")
+    lines += ["", "The intervals assume white residuals; model error and coloured noise make them optimistic.", "",
+              "## Correlations", "", "| | " + " | ".join(result.names) + " |",
+              "|---" * (len(result.names) + 1) + "|"]
+    for name, row in zip(result.names, result.correlation):
+        lines.append(f"| {name} | " + " | ".join(f"{v:+.3f}" for v in row) + " |")
+    if result.kind == "modal_table":
+        lines += ["", "## Frequency errors", "", "| what | largest error [%] |", "|---|---|"]
+        lines += [f"| {k} | {v:.4f} |" for k, v in result.fit.get("modal table", {}).items()]
+    else:
+        lines += ["", "## Fit per record and sensor", "", "`100 (1 - ||y - y_model|| / ||y - mean(y)||)`", "",
+                  "| record | sensor | fit [%] | residual RMS |", "|---|---|---|---|"]
+    for name, rec, y, fits in series:
+        tag = " (validation)" if rec.source in valid else ""
+        for s, v in fits.items():
+            rms = float(np.sqrt(np.mean((rec.columns[s] - y[s]) ** 2)))
+            lines.append(f"| {rec.source}{tag} | {s} | {v:.2f} | {rms:.4g} |")
+    if result.warnings:
+        lines += ["", "## Warnings", ""] + [f"- {w}" for w in result.warnings]
+    if series:
+        lines += ["", "## Measured against model", ""] + [f"![{rec.source}]({name})" for name, rec, _, _ in series]
+    return "\n".join(lines) + "\n"
