@@ -9,6 +9,7 @@ Example::
 
 from __future__ import annotations
 
+from hubbeam_ctrl.cli.args import terminate_as_interrupt
 from hubbeam_ctrl.cli.main import finite_float, positive_int
 
 __all__ = ["add_parser", "run"]
