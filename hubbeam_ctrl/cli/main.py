@@ -236,6 +236,10 @@ def _cmd_critical(args) -> int:
     return 0
 
 
+#: Output sample period of the fixed-step torque runs [s] (IDAS's default dt).
+FIXED_STEP_DT = 0.01
+
+
 # -- simulate -----------------------------------------------------------------------
 def _cmd_simulate(args) -> int:
     sink = stdout(args)
@@ -250,8 +254,20 @@ def _cmd_simulate(args) -> int:
     else:
         maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
                                args.tf if args.tf is not None else 10.0)
-    res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
-                   range_limit=args.range_limit, **run_limits(args), backend=args.backend, axial=args.axial)
+    integrator = args.integrator
+    if integrator == "auto":
+        integrator = "fixed-step" if args.maneuver == "torque" and args.t_end >= 2 * FIXED_STEP_DT else "idas"
+    if integrator == "fixed-step":
+        if args.maneuver != "torque":
+            raise ParameterError("--integrator fixed-step needs --maneuver torque (a spin-up prescribes the "
+                                 "hub: use --integrator idas)")
+        from hubbeam_ctrl.sim.estimated import simulate_estimated
+        res = simulate_estimated(args.model, maneuver, args.t_end, params=params, dt=FIXED_STEP_DT,
+                                 range_limit=args.range_limit, backend=args.backend, axial=args.axial,
+                                 **run_limits(args))
+    else:
+        res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
+                       range_limit=args.range_limit, **run_limits(args), backend=args.backend, axial=args.axial)
     if args.out:
         res.save(args.out)
     if args.plot:
@@ -260,6 +276,8 @@ def _cmd_simulate(args) -> int:
     s = res.summary()
     out = {k: s[k] for k in ("peak_tip_m", "residual_tip_m", "peak_axial_m", "final_theta_rad",
                              "final_theta_dot_rad_s", "diverged", "wall_s")}
+    out["integrator"] = integrator
+    out["peak_error_estimate"] = res.stats.get("peak_error_estimate")     # None: IDAS's error control
     if args.json:
         print(strict_json(out), file=sink)
     else:
@@ -328,6 +346,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--axial", choices=AXIAL_TREATMENTS, default="dynamic",
                    help="dynamic: integrate the axial modes (default); quasi-static: solve them from "
                         "their static balance at every instant (cfoam, foam, tlam; no stiff modes)")
+    p.add_argument("--integrator", choices=["auto", "fixed-step", "idas"], default="auto",
+                   help="fixed-step: the compiled generalized-alpha path run at 10 ms and 20 ms steps, the "
+                        "step halved until the estimated error of the peak tip deflection is below 1e-4 "
+                        "(torque only; about 10 times faster); idas: SUNDIALS IDAS with error control; "
+                        "auto (default): fixed-step for --maneuver torque, idas for spinup")
     add_run_options(p)
     add_backend_option(p)
     p.set_defaults(func=_cmd_simulate)
