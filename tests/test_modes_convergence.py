@@ -69,7 +69,7 @@ def test_default_modes_are_converged_and_carry_their_error(capsys):
         np.testing.assert_allclose(est, true, rtol=0.25, atol=2e-6)
         np.testing.assert_array_equal(est <= CONVERGENCE_TARGET, true <= CONVERGENCE_TARGET)
     assert np.all(np.abs(np.array(out["frequencies_hz"]) / bend_exact - 1) <= CONVERGENCE_TARGET)
-    assert out["assumed_modes"] == 20
+    assert out["assumed_modes"] == 16
 
 
 def test_a_coarse_model_says_it_is_not_converged(capsys):

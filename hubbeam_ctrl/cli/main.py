@@ -31,6 +31,7 @@ from hubbeam_ctrl.cli.args import (
 from hubbeam_ctrl.core.errors import RESOURCE_ERRNOS, HubbeamError, ParameterError, ResourceError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import capture_native_output
+from hubbeam_ctrl.plant.convergence import CLI_ASSUMED_MODES
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, MODEL_SPECS
 from hubbeam_ctrl.plant.params import MAX_MODES
 
@@ -301,17 +302,18 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("modes", parents=[common], help="natural frequencies at a spin rate",
                        description="Bending (and axial) natural frequencies of a model linearised "
                                    "about steady rotation: the first --n-modes (default 5) of each "
-                                   "family, from a model with --assumed-modes modes (default 20), "
+                                   "family, from a model with --assumed-modes modes (default 16), "
                                    "each with its estimated error.")
     p.add_argument("--model", choices=list(MODEL_SPECS), default="foam")
     p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"), default=0.0,
                    help="spin rate [rad/s], at most the 1 %% root-strain spin Params.max_spin (default 0)")
     p.add_argument("--hub", choices=["prescribed", "free"], default="prescribed",
                    help="prescribed: clamped root turning at --spin (Table 2); free: hub free")
-    p.add_argument("--assumed-modes", metavar="N", type=integer(), default=MAX_MODES,
+    p.add_argument("--assumed-modes", metavar="N", type=integer(), default=CLI_ASSUMED_MODES,
                    help=f"axial and transverse modes of the model the frequencies come from, 4..{MAX_MODES} "
-                        f"(default {MAX_MODES}: converged to 0.05 %%; --n-modes is how many are shown); "
-                        "each frequency carries its error estimated from models with N/2 and 3N/4 modes")
+                        f"(default {CLI_ASSUMED_MODES}: the bending frequencies converged to 0.05 %%; "
+                        "--n-modes is how many are shown); each frequency carries its error estimated "
+                        "from models with N/2 and 3N/4 modes")
     p.add_argument("--json", action="store_true", help="print JSON")
     add_verbose(p)
     p.set_defaults(func=_cmd_modes)
