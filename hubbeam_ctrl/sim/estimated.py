@@ -47,6 +47,17 @@ def _peak_and_series_error(fine: Result, coarse: Result, stride: int) -> tuple:
     return peak_err, series_err
 
 
+def _with_outputs(model, res: Result) -> Result:
+    """The outputs an IDAS run carries (``q_theta``, ``energy``, ``angular_momentum``), so that
+    the saved files have the same columns."""
+    N = len(res.t)
+    Q, V = res.q.T, res.v.T
+    return dataclasses.replace(
+        res, q_theta=np.array(model.q_theta_function.map(N)(Q, V)).ravel(),
+        energy=np.array(model.energy_function.map(N)(Q, V)[2]).ravel(),
+        angular_momentum=np.array(model.momentum_function.map(N)(Q, V)).ravel())
+
+
 def _flags(res: Result, range_limit: float, divergence_limit: float) -> Result:
     """The range flag and the divergence stop of :func:`~hubbeam_ctrl.sim.simulate.simulate`,
     applied to a finished fixed-step run (cut at the first bad sample)."""
@@ -113,7 +124,8 @@ def simulate_estimated(model="foam", maneuver=None, t_end: float = 30.0, *, para
     Returns
     -------
     Result
-        Of kind ``"fixed_step"`` on the ``dt`` grid; ``stats`` adds ``peak_error_estimate`` and
+        Of kind ``"fixed_step"`` on the ``dt`` grid, with ``q_theta``, ``energy`` and
+        ``angular_momentum`` as an IDAS run has them; ``stats`` adds ``peak_error_estimate`` and
         ``series_error_estimate`` (relative, [-]), ``substeps`` and ``integrator``; ``wall_s``
         is the time of both runs [s].
 
@@ -163,6 +175,7 @@ def simulate_estimated(model="foam", maneuver=None, t_end: float = 30.0, *, para
             raise ParameterError(f"tolerance {tolerance:g} is not met with {substeps} steps per {dt:g} s sample "
                                  f"(estimated peak error {peak_err:.2g}); use a larger tolerance or simulate (IDAS)")
         coarse, stride, substeps = fine, 1, 2 * substeps
+    fine = _with_outputs(m, fine)
     wall = time.perf_counter() - start
     fine = dataclasses.replace(fine, wall_s=wall, stats={
         **fine.stats, "integrator": "fixed-step", "substeps": substeps, "peak_error_estimate": peak_err,
