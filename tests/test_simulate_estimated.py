@@ -37,12 +37,11 @@ def test_default_tolerance_meets_the_tight_reference_and_knows_its_error(tight_f
     np.testing.assert_allclose(res.t, tight_foam.t, rtol=0, atol=1e-9)
     assert res.kind == "fixed_step" and not res.stopped and res.stats["substeps"] == 1
     # the outputs IDAS carries, so the saved files have the same columns: energy is conserved
-    # after the pulse (no damping) and matches IDAS's to twice the estimated series error
-    # (energy ~ amplitude^2), with a factor 2 of margin (measured 0.35 %, estimate 1.2e-3)
+    # after the pulse (no damping) and matches IDAS's to 0.5 % (measured 0.35 %: the estimate
+    # is of v_tip, not of the energy, so this bound is measured, not derived)
     after = res.t >= 10.0
     assert np.ptp(res.energy[after]) <= 1e-3 * np.max(res.energy)
-    np.testing.assert_allclose(res.energy[after], tight_foam.energy[after],
-                               rtol=4 * res.stats["series_error_estimate"])
+    np.testing.assert_allclose(res.energy[after], tight_foam.energy[after], rtol=5e-3)
     assert res.q_theta is not None and res.angular_momentum is not None
 
 
