@@ -81,6 +81,15 @@ def test_a_coarse_model_says_it_is_not_converged(capsys):
     assert not next(line for line in lines if "bending mode 1" in line).endswith("*")
 
 
+def test_more_modes_shown_than_the_default_model_raise_it(capsys):
+    """``--n-modes 18`` alone shows 18 of each from an 18-mode model (the coarser models lack
+    the highest modes: no estimate, marked)."""
+    assert main(["modes", "--n-modes", "18", "--model", "sfoam", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["assumed_modes"] == 18 and len(out["frequencies_hz"]) == 18
+    assert out["frequency_errors"][0] is not None and out["frequency_errors"][-1] is None
+
+
 def test_richardson_error_recovers_the_order():
     """Sequences ``f + C n^-p`` give back ``(f_n - f) / f`` for p = 1 and 3; a non-monotone
     sequence falls back to p = 1 (three times the last difference)."""

@@ -183,7 +183,8 @@ def _cmd_modes(args) -> int:
     sink = stdout(args)
     from hubbeam_ctrl.plant.convergence import CONVERGENCE_TARGET, converged_modes
     params = params_from_args(args)
-    assumed = args.assumed_modes
+    shown = max(params.n_transverse, params.n_axial)
+    assumed = args.assumed_modes if args.assumed_modes is not None else max(CLI_ASSUMED_MODES, shown)
     if not 4 <= assumed <= MAX_MODES:
         raise ParameterError(f"--assumed-modes must be an integer in 4..{MAX_MODES}, got {assumed}")
     if max(params.n_transverse, params.n_axial) > assumed:
@@ -309,11 +310,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="spin rate [rad/s], at most the 1 %% root-strain spin Params.max_spin (default 0)")
     p.add_argument("--hub", choices=["prescribed", "free"], default="prescribed",
                    help="prescribed: clamped root turning at --spin (Table 2); free: hub free")
-    p.add_argument("--assumed-modes", metavar="N", type=integer(), default=CLI_ASSUMED_MODES,
+    p.add_argument("--assumed-modes", metavar="N", type=integer(), default=None,
                    help=f"axial and transverse modes of the model the frequencies come from, 4..{MAX_MODES} "
-                        f"(default {CLI_ASSUMED_MODES}: the bending frequencies converged to 0.05 %%; "
-                        "--n-modes is how many are shown); each frequency carries its error estimated "
-                        "from models with N/2 and 3N/4 modes")
+                        f"(default {CLI_ASSUMED_MODES}, or --n-modes if more: the bending frequencies "
+                        "converged to 0.05 %%; --n-modes is how many are shown); each frequency "
+                        "carries its error estimated from models with N/2 and 3N/4 modes")
     p.add_argument("--json", action="store_true", help="print JSON")
     add_verbose(p)
     p.set_defaults(func=_cmd_modes)
