@@ -11,6 +11,8 @@ compiled functions cached), the median and the fastest of ``--repeats`` calls [s
    = 1e-8), the path ``hubbeam simulate`` took until issue 28;
 2. ``fixed_step_estimated``: :func:`hubbeam_ctrl.sim.estimated.simulate_estimated` (10 ms and
    20 ms runs, tolerance 1e-4), the new default of ``--maneuver torque``;
+3. ``fixed_step_estimated_with_outputs``: the same with ``outputs=True`` (energy, momentum and
+   ``q_theta`` on every sample, what ``--out`` needs);
 
 and each one's relative error of the peak ``|v_tip|`` against a tight IDAS run (rtol = atol =
 1e-11), plus the fixed-step path's own estimate of it. Targets: error <= 1e-4 in <= 0.05 s
@@ -59,7 +61,9 @@ def main(argv=None) -> int:
         ref = float(np.max(np.abs(tight.v_tip)))
         row = {"reference_peak_tip_m": ref, "reference": "IDAS rtol = atol = 1e-11"}
         for name, fn in (("idas", lambda: simulate(model, man, 30.0, backend=a.backend)),
-                         ("fixed_step_estimated", lambda: simulate_estimated(model, man, 30.0, backend=a.backend))):
+                         ("fixed_step_estimated", lambda: simulate_estimated(model, man, 30.0, backend=a.backend)),
+                         ("fixed_step_estimated_with_outputs",
+                          lambda: simulate_estimated(model, man, 30.0, backend=a.backend, outputs=True))):
             res, times = _timed(fn, a.repeats)
             row[name] = {**times, "peak_error": abs(float(np.max(np.abs(res.v_tip))) - ref) / ref,
                          "peak_error_estimate": res.stats.get("peak_error_estimate"),

@@ -29,7 +29,7 @@ def _peak(res):
 def test_default_tolerance_meets_the_tight_reference_and_knows_its_error(tight_foam):
     """Peak within 1e-4 of tight IDAS; the estimate within a factor 1.5 of the true error;
     the series on the same grid as IDAS's."""
-    res = simulate_estimated("foam", PULSE, T_END)
+    res = simulate_estimated("foam", PULSE, T_END, outputs=True)
     true = abs(_peak(res) / _peak(tight_foam) - 1)
     est = res.stats["peak_error_estimate"]
     assert true <= 1e-4 and est <= 1e-4
@@ -43,6 +43,7 @@ def test_default_tolerance_meets_the_tight_reference_and_knows_its_error(tight_f
     assert np.ptp(res.energy[after]) <= 1e-3 * np.max(res.energy)
     np.testing.assert_allclose(res.energy[after], tight_foam.energy[after], rtol=5e-3)
     assert res.q_theta is not None and res.angular_momentum is not None
+    assert simulate_estimated("foam", PULSE, 1.0).energy is None        # only when asked (cost)
 
 
 def test_a_tight_tolerance_halves_the_step_until_it_is_met(tight_foam):

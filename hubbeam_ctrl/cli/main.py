@@ -266,7 +266,7 @@ def _cmd_simulate(args) -> int:
         from hubbeam_ctrl.sim.estimated import simulate_estimated
         res = simulate_estimated(args.model, maneuver, args.t_end, params=params, dt=FIXED_STEP_DT,
                                  range_limit=args.range_limit, backend=args.backend, axial=args.axial,
-                                 **run_limits(args))
+                                 outputs=bool(args.out), **run_limits(args))
     else:
         res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
                        range_limit=args.range_limit, **run_limits(args), backend=args.backend, axial=args.axial)
