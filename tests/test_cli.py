@@ -37,7 +37,9 @@ def test_simulate_outputs(capsys, tmp_path):
                        "--plot", str(png), "--json")
     s = json.loads(out)
     assert code == 0 and set(s) == {"peak_tip_m", "residual_tip_m", "peak_axial_m", "final_theta_rad",
-                                    "final_theta_dot_rad_s", "diverged", "wall_s"}
+                                    "final_theta_dot_rad_s", "diverged", "wall_s", "integrator",
+                                    "peak_error_estimate"}
+    assert s["integrator"] == "idas" and s["peak_error_estimate"] is None      # a spin-up: IDAS
     assert s["peak_tip_m"] == pytest.approx(0.22, rel=0.15) and s["final_theta_dot_rad_s"] == pytest.approx(2.8)
     assert csv.read_text().splitlines()[0].startswith("t [s],theta [rad],theta_dot [rad/s],v_tip [m],")
     assert png.stat().st_size > 10000

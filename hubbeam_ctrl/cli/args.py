@@ -20,7 +20,8 @@ from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["params_from_args", "UNSTABLE_NOTE",
            "stdout", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
-           "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits"]
+           "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits",
+           "terminate_as_interrupt"]
 
 #: Python names (Params fields, function arguments, settings) -> the option that sets them.
 #: Used to rename the library's messages; a name is renamed only on a subcommand that has
@@ -315,3 +316,26 @@ def run_limits(args) -> dict:
     if getattr(args, "allow_large", False):
         limits["max_memory_mb"] = 1e9
     return limits
+
+
+class terminate_as_interrupt:
+    """Within the block, SIGTERM to this process acts as Ctrl-C (``KeyboardInterrupt``), so the
+    clean-up of a run with worker processes (:meth:`hubbeam_ctrl.study.sweep.Engine.terminate`)
+    runs and stops them; the default action would end this process alone and leave the
+    workers holding the terminal's pipes. Outside the main thread it does nothing."""
+
+    def __enter__(self):
+        import signal
+        import threading
+        self._previous = None
+        if threading.current_thread() is threading.main_thread():
+            def interrupt(signum, frame):
+                raise KeyboardInterrupt("SIGTERM")
+            self._previous = signal.signal(signal.SIGTERM, interrupt)
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            import signal
+            signal.signal(signal.SIGTERM, self._previous)
+        return False

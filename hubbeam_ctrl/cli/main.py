@@ -31,7 +31,9 @@ from hubbeam_ctrl.cli.args import (
 from hubbeam_ctrl.core.errors import RESOURCE_ERRNOS, HubbeamError, ParameterError, ResourceError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import capture_native_output
+from hubbeam_ctrl.plant.convergence import CLI_ASSUMED_MODES
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, MODEL_SPECS
+from hubbeam_ctrl.plant.params import MAX_MODES
 
 __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float",
            "RegistryChoices", "add_backend_option"]
@@ -180,22 +182,43 @@ def check_output_folder(option: str, path) -> None:
 # -- modes ----------------------------------------------------------------------
 def _cmd_modes(args) -> int:
     sink = stdout(args)
-    from hubbeam_ctrl.plant.modal import modal_analysis
+    from hubbeam_ctrl.plant.convergence import CONVERGENCE_TARGET, converged_modes
     params = params_from_args(args)
-    res = modal_analysis(args.model, args.spin, args.hub, params)
+    shown = max(params.n_transverse, params.n_axial)
+    assumed = args.assumed_modes if args.assumed_modes is not None else max(CLI_ASSUMED_MODES, shown)
+    if not 4 <= assumed <= MAX_MODES:
+        raise ParameterError(f"--assumed-modes must be an integer in 4..{MAX_MODES}, got {assumed}")
+    if max(params.n_transverse, params.n_axial) > assumed:
+        raise ParameterError(f"--n-modes (the frequencies shown) must be at most --assumed-modes ({assumed}), "
+                             f"got {max(params.n_transverse, params.n_axial)}")
+    res = converged_modes(args.model, args.spin, args.hub, params, assumed_modes=assumed)
+    ok_bending, ok_axial = res.converged()
     out = {"model": args.model, "spin_rad_s": args.spin, "hub": args.hub,
            "frequencies_hz": [float(f) for f in res.bending_hz],
            "axial_frequencies_hz": [float(f) for f in res.axial_hz],
+           "assumed_modes": res.assumed_modes,
+           "frequency_errors": [float(e) for e in res.bending_error],
+           "axial_frequency_errors": [float(e) for e in res.axial_error],
+           "convergence_target": CONVERGENCE_TARGET,
            "unstable": res.unstable}
     if args.json:
         print(strict_json(out), file=sink)
     else:
-        print(f"{args.model.upper()} at {args.spin:g} rad/s, hub {args.hub}"
+        counts = ", ".join(str(n) for n in (res.assumed_modes // 2 + res.assumed_modes % 2,
+                                             (3 * res.assumed_modes + 3) // 4, res.assumed_modes))
+        print(f"{args.model.upper()} at {args.spin:g} rad/s, hub {args.hub}, {res.assumed_modes} assumed modes"
               + (UNSTABLE_NOTE if res.unstable else ""), file=sink)
-        for i, f in enumerate(res.bending_hz, 1):
-            print(f"  bending mode {i}: {f:10.4f} Hz", file=sink)
-        for i, f in enumerate(res.axial_hz, 1):
-            print(f"  axial mode {i}:   {f:10.2f} Hz", file=sink)
+        print(f"  (last column: estimated error from {counts} modes; "
+              f"* = not converged to {100 * CONVERGENCE_TARGET:g} %)", file=sink)
+        def error(e, ok):
+            return (f"{100 * e:+7.3f} %" if e == e else "    n/a  ") + ("" if ok else " *")
+        for i, (f, e, ok) in enumerate(zip(res.bending_hz, res.bending_error, ok_bending), 1):
+            print(f"  bending mode {i}: {f:10.4f} Hz  {error(e, ok)}", file=sink)
+        for i, (f, e, ok) in enumerate(zip(res.axial_hz, res.axial_error, ok_axial), 1):
+            print(f"  axial mode {i}:   {f:10.2f} Hz  {error(e, ok)}", file=sink)
+        if not (ok_bending.all() and ok_axial.all()):
+            print(f"  * not shown converged to {100 * CONVERGENCE_TARGET:g} % by {res.assumed_modes} assumed "
+                  "modes (n/a: the coarser models lack the mode)", file=sink)
     return 0
 
 
@@ -216,6 +239,10 @@ def _cmd_critical(args) -> int:
     return 0
 
 
+#: Output sample period of the fixed-step torque runs [s] (IDAS's default dt).
+FIXED_STEP_DT = 0.01
+
+
 # -- simulate -----------------------------------------------------------------------
 def _cmd_simulate(args) -> int:
     sink = stdout(args)
@@ -230,8 +257,20 @@ def _cmd_simulate(args) -> int:
     else:
         maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
                                args.tf if args.tf is not None else 10.0)
-    res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
-                   range_limit=args.range_limit, **run_limits(args), backend=args.backend, axial=args.axial)
+    integrator = args.integrator
+    if integrator == "auto":
+        integrator = "fixed-step" if args.maneuver == "torque" and args.t_end >= 2 * FIXED_STEP_DT else "idas"
+    if integrator == "fixed-step":
+        if args.maneuver != "torque":
+            raise ParameterError("--integrator fixed-step needs --maneuver torque (a spin-up prescribes the "
+                                 "hub: use --integrator idas)")
+        from hubbeam_ctrl.sim.estimated import simulate_estimated
+        res = simulate_estimated(args.model, maneuver, args.t_end, params=params, dt=FIXED_STEP_DT,
+                                 range_limit=args.range_limit, backend=args.backend, axial=args.axial,
+                                 outputs=bool(args.out), **run_limits(args))
+    else:
+        res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
+                       range_limit=args.range_limit, **run_limits(args), backend=args.backend, axial=args.axial)
     if args.out:
         res.save(args.out)
     if args.plot:
@@ -240,6 +279,8 @@ def _cmd_simulate(args) -> int:
     s = res.summary()
     out = {k: s[k] for k in ("peak_tip_m", "residual_tip_m", "peak_axial_m", "final_theta_rad",
                              "final_theta_dot_rad_s", "diverged", "wall_s")}
+    out["integrator"] = integrator
+    out["peak_error_estimate"] = res.stats.get("peak_error_estimate")     # None: IDAS's error control
     if args.json:
         print(strict_json(out), file=sink)
     else:
@@ -262,12 +303,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("modes", parents=[common], help="natural frequencies at a spin rate",
                        description="Bending (and axial) natural frequencies of a model linearised "
-                                   "about steady rotation.")
+                                   "about steady rotation: the first --n-modes (default 5) of each "
+                                   "family, from a model with --assumed-modes modes (default 16), "
+                                   "each with its estimated error.")
     p.add_argument("--model", choices=list(MODEL_SPECS), default="foam")
     p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"), default=0.0,
                    help="spin rate [rad/s], at most the 1 %% root-strain spin Params.max_spin (default 0)")
     p.add_argument("--hub", choices=["prescribed", "free"], default="prescribed",
                    help="prescribed: clamped root turning at --spin (Table 2); free: hub free")
+    p.add_argument("--assumed-modes", metavar="N", type=integer(), default=None,
+                   help=f"axial and transverse modes of the model the frequencies come from, 4..{MAX_MODES} "
+                        f"(default {CLI_ASSUMED_MODES}, or --n-modes if more: the bending frequencies "
+                        "converged to 0.05 %%; --n-modes is how many are shown); each frequency "
+                        "carries its error estimated from models with N/2 and 3N/4 modes")
     p.add_argument("--json", action="store_true", help="print JSON")
     add_verbose(p)
     p.set_defaults(func=_cmd_modes)
@@ -302,6 +350,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--axial", choices=AXIAL_TREATMENTS, default="dynamic",
                    help="dynamic: integrate the axial modes (default); quasi-static: solve them from "
                         "their static balance at every instant (cfoam, foam, tlam; no stiff modes)")
+    p.add_argument("--integrator", choices=["auto", "fixed-step", "idas"], default="auto",
+                   help="fixed-step: the compiled generalized-alpha path run at 10 ms and 20 ms steps, the "
+                        "step halved until the estimated error of the peak tip deflection is below 1e-4 "
+                        "(torque only; about 10 times faster); idas: SUNDIALS IDAS with error control; "
+                        "auto (default): fixed-step for --maneuver torque, idas for spinup")
     add_run_options(p)
     add_backend_option(p)
     p.set_defaults(func=_cmd_simulate)

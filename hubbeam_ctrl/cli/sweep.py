@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 
-from hubbeam_ctrl.cli.args import add_verbose
+from hubbeam_ctrl.cli.args import add_verbose, terminate_as_interrupt
 from hubbeam_ctrl.cli.main import positive_float, positive_int
 
 __all__ = ["add_parser", "run", "add_engine_options", "engine_from_args"]
@@ -96,7 +96,7 @@ def run(args) -> int:
     client = engine_from_args(args)
     t0 = time.perf_counter()
     try:
-        with stdout_to_stderr():
+        with stdout_to_stderr(), terminate_as_interrupt():
             df = sweep(spec, workers=args.workers, client=client, progress=not args.json,
                        out_dir=args.out, resume=args.resume)
             wall = time.perf_counter() - t0

@@ -9,6 +9,7 @@ Example::
 
 from __future__ import annotations
 
+from hubbeam_ctrl.cli.args import terminate_as_interrupt
 from hubbeam_ctrl.cli.main import finite_float, positive_int
 
 __all__ = ["add_parser", "run"]
@@ -85,7 +86,7 @@ def run(args) -> int:
     options = TuneOptions.from_dict(table)
     client = engine_from_args(args)
     try:
-        with stdout_to_stderr():
+        with stdout_to_stderr(), terminate_as_interrupt():
             result = tune(spec, args.controller, options=options, workers=args.workers, client=client,
                           progress=not args.json)
             paths = write_tune_outputs(result, args.out)

@@ -779,7 +779,8 @@ def _robust_step_function(model: ParametricModel, settings: StepperSettings,
 
 def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = None,
                         settings: StepperSettings | None = None, x0=None, backend=None,
-                        axial: str | None = None, hardware: Hardware | None = None) -> Result:
+                        axial: str | None = None, hardware: Hardware | None = None,
+                        max_memory_mb: float = 2048.0) -> Result:
     """Integrate a free-hub model under a torque profile with :class:`PlantStepper`.
 
     The torque is evaluated at the end of every substep (no zero-order hold), so the
@@ -806,6 +807,8 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     hardware : Hardware, optional
         Drive and friction (see :class:`PlantStepper`): ``torque`` is then the command
         (a voltage [V] for a DC motor) and is stored as ``tau``.
+    max_memory_mb : float
+        A run whose results would need more memory than this [MB] is refused before it starts.
 
     Returns
     -------
@@ -822,7 +825,7 @@ def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = 
     N = int(round(t_end / dt))
     check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({N + 1} samples)",
                  memory_bytes=8.0 * (N + 1) * (k + 4 * model.n_q + 4), seconds=0.0,
-                 max_memory_mb=2048.0, max_wall_s=math.inf)
+                 max_memory_mb=max_memory_mb, max_wall_s=math.inf)
     stepper = PlantStepper(model, settings, backend, hardware=hardware)
     t = dt * np.arange(N + 1)
     sub = (t[:-1, None] + dt * np.arange(1, k + 1)[None, :] / k)

@@ -4,7 +4,8 @@ and robust tuning. It may import ``controllers`` (at module level); the layers b
 ``hubbeam_ctrl.study.compare`` is the module :mod:`hubbeam_ctrl.study.compare` (``import
 hubbeam_ctrl.study.compare`` gives the module, as every other submodule), and calling it
 calls its function :func:`~hubbeam_ctrl.study.compare.compare`, so ``from hubbeam_ctrl.study
-import compare; compare(...)`` keeps working.
+import compare; compare(...)`` keeps working. The same holds for every submodule with a
+function of its own name: ``judge``, ``sweep`` and ``tune``.
 """
 
 import sys as _sys  # noqa: E402
@@ -50,3 +51,6 @@ def _module_over_function(name: str):
 
 
 compare = _module_over_function("compare")
+judge = _module_over_function("judge")
+sweep = _module_over_function("sweep")
+tune = _module_over_function("tune")

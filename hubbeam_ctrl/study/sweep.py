@@ -265,6 +265,41 @@ def _default_workers() -> int:
         return os.cpu_count() or 1
 
 
+#: How often a pool worker checks that the process that started it is still there [s].
+PARENT_CHECK_S = 0.5
+
+
+def _process_gone(pid: int) -> bool:
+    """True when process ``pid`` has exited (a zombie counts as exited)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:
+        return False
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            return fh.read().rsplit(b")", 1)[1].split()[0] in (b"Z", b"X")
+    except (OSError, IndexError):
+        return False
+
+
+def _watch_parent(pid: int) -> None:
+    while not _process_gone(pid):
+        time.sleep(PARENT_CHECK_S)
+    os._exit(1)
+
+
+def _worker_init(parent_pid: int) -> None:
+    """Pool worker set-up: Ctrl-C is the main process's to handle (it stops the workers), and a
+    worker whose main process has gone (SIGTERM, SIGKILL) exits instead of finishing its batch
+    while holding the terminal's pipes."""
+    import signal
+    import threading
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True, name="hubbeam-parent").start()
+
+
 def _pool_context():
     import multiprocessing as mp
     if "forkserver" in mp.get_all_start_methods():
@@ -303,8 +338,11 @@ class Engine:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    def __exit__(self, exc_type, *exc):
+        if exc_type is None:
+            self.close()
+        else:
+            self.terminate()
         return False
 
     def close(self) -> None:
@@ -312,6 +350,39 @@ class Engine:
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
             self._pool = None
+
+    def terminate(self, timeout: float = 5.0) -> None:
+        """Stop the local pool now: its workers are sent SIGTERM (SIGKILL after ``timeout``),
+        queued batches are dropped and nothing is waited for beyond that; a second Ctrl-C
+        meanwhile is ignored, so an interrupted sweep cannot hang in its clean-up.
+
+        Parameters
+        ----------
+        timeout : float
+            Seconds the workers get to exit before they are killed.
+        """
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        import signal
+        import threading
+        main = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+        try:
+            processes = list((getattr(pool, "_processes", None) or {}).values())
+            for proc in processes:
+                if proc.is_alive():
+                    proc.terminate()
+            pool.shutdown(wait=False, cancel_futures=True)
+            deadline = time.monotonic() + timeout
+            for proc in processes:
+                proc.join(max(0.0, deadline - time.monotonic()))
+                if proc.is_alive():
+                    proc.kill()
+                    proc.join(1.0)
+        finally:
+            if main:
+                signal.signal(signal.SIGINT, previous if previous is not None else signal.default_int_handler)
 
     def run(self, jobs: list, sink) -> None:
         """Run ``[(batch, spec), ...]`` with :func:`run_batch`; ``sink(batch, spec, rows)`` gets
@@ -335,7 +406,8 @@ class Engine:
     def _submit_pool(self, jobs):
         from concurrent.futures import ProcessPoolExecutor
         if self._pool is None:
-            self._pool = ProcessPoolExecutor(self.workers, mp_context=_pool_context())
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=_pool_context(),
+                                             initializer=_worker_init, initargs=(os.getpid(),))
         return {self._pool.submit(run_batch, b, s): (b, s) for b, s in jobs}
 
     def _run_pool(self, jobs, sink) -> None:
