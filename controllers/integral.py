@@ -27,6 +27,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, saturate
 from .estimator import KalmanNoise, solve_kalman
+from .lqr import LQR
 
 __all__ = ["OffsetFreeEstimator", "ObservedFeedback", "observer_feedback_matrices", "augment_disturbance"]
 
@@ -91,6 +92,7 @@ class OffsetFreeEstimator:
                 and disturbance_noise > 0):
             raise ParameterError(f"disturbance_noise must be a number > 0 [N m], got {disturbance_noise!r}")
         self.A, self.B, self.C = augment_disturbance(model.Ad, model.Bd, model.C_sensors)
+        self._A = self.A                  # KalmanEstimator's name for it (the code generator reads it)
         Qn, Rn = noise.covariances(model, design_modes)
         nx = model.n_x
         Qa = np.zeros((nx + 1, nx + 1))
@@ -264,8 +266,13 @@ class ObservedFeedback(Controller):
         x = x_hat[self._pick].copy()
         x[0] += spin * t
         x[1 + self.state_modes] += spin
-        tau = float(self.inner(t, x))
-        if self.integral:
-            tau = saturate(tau - float(x_hat[-1]), self.tau_max)
+        d = float(x_hat[-1]) if self.integral else 0.0
+        if isinstance(self.inner, LQR):        # its law with the disturbance inside one saturation
+            xr, tff = self.inner._reference_at(int(round(t / self.dt)))
+            tau = saturate(float(self.inner._ff * tff - self.inner.K @ (x - xr) - d), self.tau_max)
+        else:                                  # MPC: its plan within the limit, then the disturbance
+            tau = float(self.inner(t, x))
+            if self.integral:
+                tau = saturate(tau - d, self.tau_max)
         self._tau = tau
         return tau

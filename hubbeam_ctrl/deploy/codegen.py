@@ -37,10 +37,15 @@ from pathlib import Path
 import numpy as np
 
 from controllers import LQG, LQR, MPC, PD, Controller, KalmanNoise, OpenLoop, ScheduledLQG, ShapedOpenLoop
+from controllers.drive import VoltageCommand
+from controllers.integral import ObservedFeedback
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.fileio import write_folder
 
 from .observed import ObservedLQR, ObservedMPC
+
+#: The drive's numbers a voltage-commanding law carries (controllers.drive.VoltageCommand).
+_DRIVE_SCALARS = ("R", "N", "k_t", "k_e", "eta_forward", "eta_backward", "v_eps", "V_max")
 
 __all__ = ["CODEGEN_KINDS", "SENSOR_UNITS", "ControlLaw", "GeneratedCode", "control_law", "render_c", "to_c"]
 
@@ -146,6 +151,12 @@ def _observer_law(ctrl, controller: str, K, estimator, X, tff, spin: float, ff: 
                          f"then tau_ff [N m]")
 
 
+def _with_disturbance(K, X, x0) -> tuple:
+    """Gain, reference table and initial state on the filter's state with the disturbance ``d``
+    (:class:`controllers.integral.OffsetFreeEstimator`): ``u = K (x - x_ref) + d``, ``d_ref = 0``."""
+    return (np.append(K, 1.0), np.hstack([X, np.zeros((len(X), 1))]), np.append(x0, 0.0))
+
+
 def control_law(controller: Controller, noise: KalmanNoise | None = None) -> ControlLaw:
     """The per-sample law of ``controller`` as arrays.
 
@@ -167,7 +178,32 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         For a controller kind that cannot be generated (the message lists those that can)
         or a non-finite gain.
     """
+    if isinstance(controller, VoltageCommand):      # the torque law, then the drive's static inverse
+        law = control_law(controller.inner, noise)
+        if law.kind not in ("pd", "observer", "mpc"):
+            raise ParameterError(f"controller: a voltage command of {law.controller!r} cannot be generated as C")
+        d, f = controller.hardware.drive, controller.hardware.friction
+        drive = {"R": d.R, "N": d.N, "k_t": d.k_t, "k_e": d.k_e, "eta_forward": d.eta_forward,
+                 "eta_backward": d.eta_backward, "v_eps": f.v_eps, "V_max": d.V_max}
+        law = ControlLaw(law.kind, law.controller, law.dt, law.tau_max, law.feedforward, law.arrays,
+                         {**law.scalars, **{k: float(v) for k, v in drive.items()}}, law.sensors, law.n_reference,
+                         law.reference_layout)
+        law.check_finite()
+        return law
     ctrl = controller
+    if isinstance(ctrl, ObservedFeedback):
+        if not isinstance(ctrl.inner, LQR) or type(ctrl.inner) is not LQR:
+            raise ParameterError("controller: only an LQR closed through ObservedFeedback can be generated as C "
+                                 "(an MPC with integral action cannot yet)")
+        inner = ctrl.inner
+        X, tff = _reference_table(inner)
+        K, x0 = np.asarray(inner.K, float), np.array(X[0])
+        x0[ctrl._n_f] -= ctrl.design.spin
+        if ctrl.integral:
+            K, X, x0 = _with_disturbance(K, X, x0)
+        law = _observer_law(ctrl, "lqr", K, ctrl.estimator, X, tff, ctrl.design.spin, float(inner._ff), x0)
+        law.check_finite()
+        return law
     if type(ctrl) is LQR:                 # not the scheduled subclasses: they interpolate in the spin
         ctrl = ObservedLQR(ctrl, noise)
     elif type(ctrl) is MPC:
@@ -193,7 +229,10 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         X, tff = _reference_table(ctrl, ctrl._xref_filter, ctrl._E)
         x0 = ctrl._E @ ctrl._reference_at(0)[0]        # LQG.reset
         x0[ctrl._n] -= ctrl.design.spin
-        law = _observer_law(ctrl, "lqg", ctrl._Ke, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0)
+        K = ctrl._Ke
+        if ctrl.settings.integral:                      # the estimated disturbance is cancelled
+            K, X, x0 = _with_disturbance(K, X, x0)
+        law = _observer_law(ctrl, "lqg", K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0)
     elif isinstance(ctrl, ShapedOpenLoop):
         law = ControlLaw(kind="table", controller=ctrl.kind, dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
                          feedforward=1.0, arrays={"TORQUE": np.asarray(ctrl.torques, float)},
@@ -294,7 +333,53 @@ def _saturate(name: str) -> str:
 
 
 def render_c(law: ControlLaw, name: str, precision: str = "double") -> tuple:
-    """The header and source text of a control law.
+    """The header and source text of a control law (with the drive's voltage stage when the law has one).
+
+    Parameters
+    ----------
+    law : ControlLaw
+    name : str
+        C identifier prefix and file stem.
+    precision : {"double", "single"}
+        Type of the stored data and the arithmetic.
+
+    Returns
+    -------
+    tuple of str
+        ``(header, source)``.
+    """
+    header, source = _render_law(law, name, precision)
+    if "V_max" not in law.scalars:
+        return header, source
+    R = f"{name}_real"
+    sc = {k: _number(law.scalars[k], precision == "single") for k in _DRIVE_SCALARS}
+    stage = f"""
+/* the DC drive's static inverse (controllers.drive.VoltageCommand): the voltage that gives the hub
+   torque tau at the measured hub rate thd, through back-EMF and the gear's efficiency, clipped */
+static {R} drive_voltage({R} tau, {R} thd)
+{{
+    {R} x = -thd * (tau >= 0 ? 1 : -1) / {sc["v_eps"]};
+    {R} e, th, v;
+    x = x < 0 ? 0 : (x > 50 ? 50 : x);
+    th = tanh(x);
+    e = {sc["eta_forward"]} + (1 / {sc["eta_backward"]} - {sc["eta_forward"]}) * th * th;
+    v = {sc["R"]} * tau / ({sc["N"]} * {sc["k_t"]} * e) + {sc["k_e"]} * {sc["N"]} * thd;
+    return v > {sc["V_max"]} ? {sc["V_max"]} : (v < -{sc["V_max"]} ? -{sc["V_max"]} : v);
+}}
+"""
+    sat = _saturate(name)
+    if sat not in source:
+        raise HubbeamError("the voltage stage needs the template's saturate()")
+    source = source.replace(sat, sat + stage, 1)
+    rate = f"({R})measurements[1]"
+    for old in ("*command = (double)tau;", "*command = (double)saturate(tau);"):
+        inner = old[len("*command = (double)"):-1]
+        source = source.replace(old, f"*command = (double)drive_voltage({inner}, {rate});")
+    return header, source
+
+
+def _render_law(law: ControlLaw, name: str, precision: str = "double") -> tuple:
+    """The header and source text of a control law's template.
 
     Parameters
     ----------
@@ -525,7 +610,8 @@ class GeneratedCode:
                 "dt_s": law.dt, "tau_max_nm": law.tau_max,
                 "measurements": [{"name": s, "unit": SENSOR_UNITS[s]} for s in law.sensors],
                 "reference": law.reference_layout, "n_reference": law.n_reference,
-                "command": {"name": "tau", "unit": "N m"}, "data_bytes": self.data_bytes}
+                "command": ({"name": "V", "unit": "V", "V_max": law.scalars["V_max"]} if "V_max" in law.scalars
+                            else {"name": "tau", "unit": "N m"}), "data_bytes": self.data_bytes}
 
 
 def _check_name(name: str) -> str:
