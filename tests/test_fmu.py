@@ -240,3 +240,51 @@ def test_failed_compiler_leaves_nothing_and_no_compiler_gives_sources(tmp_path, 
         names = z.namelist()
     assert "sources/hubbeam_fmu.c" in names and not any(n.startswith("binaries/") for n in names)
     assert validate_fmu(str(info.path)) == []
+
+
+def test_generated_c_controller_and_fmu_in_fmpy_equal_the_toolbox_loop(plant_fmu, tmp_path):
+    """Issue 26 item 4: the generated C LQG (hubbeam_ctrl.deploy) reading the FMU's sensors through
+    FMPy's FMU2Slave, one doStep per sample, against simulate_closed_loop of the Python LQG on the
+    same plant with noise-free sensors: the tip within 1e-6 of its peak, the torque likewise."""
+    from fmpy.fmi2 import FMU2Slave
+
+    from controllers import LQG, LQGSettings, slew_reference
+    from hubbeam_ctrl.deploy import CController, compile_c, compiler, to_c
+    if compiler() is None:
+        pytest.skip("the generated controller needs a C compiler")
+    dt = plant_fmu.dt
+    design = DesignModel.build(SMALL, 0.0, dt, n_modes=2)
+    ref_traj = slew_reference(0.3, 2.0, SMALL.total_inertia, 200.0, dt, T_END)
+    lqg = LQG(design, LQGSettings(residual_control=True, residual_modes=3), reference=ref_traj)
+    quiet = SensorSettings(angle_noise_rad=0.0, rate_noise_rad_s=0.0, moment_noise_nm=0.0)
+    ref = simulate_closed_loop("foam", lqg, T_END, params=SMALL,
+                               settings=ClosedLoopSettings(dt=dt, substeps=plant_fmu.substeps, sensors=quiet))
+    code = to_c(lqg, tmp_path / "lqg")
+    cctrl = CController(compile_c(code, "-O2", tmp_path), code, lqg)
+    md = fmpy.read_model_description(str(plant_fmu.path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(plant_fmu.path), unzipdir=str(tmp_path / "u")),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="c_loop")
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    cctrl.reset()
+    v_tip, taus = [], []
+    try:
+        for k in range(len(ref.t)):
+            y = np.array(fmu.getReal([vr["theta"], vr["theta_dot"], vr["root_moment"], vr["v_tip"]]))
+            v_tip.append(y[3])
+            taus.append(cctrl(ref.t[k], y[:3]))
+            if k < len(ref.t) - 1:
+                fmu.setReal([vr["u"]], [taus[-1]])
+                fmu.doStep(currentCommunicationPoint=ref.t[k], communicationStepSize=dt)
+    finally:
+        fmu.terminate()
+        fmu.freeInstance()
+    peak = np.max(np.abs(ref.v_tip))
+    err = np.max(np.abs(np.array(v_tip) - ref.v_tip)) / peak
+    err_tau = np.max(np.abs(np.array(taus) - ref.tau)) / np.max(np.abs(ref.tau))
+    print(f"C LQG + FMU in FMPy: tip {err:.2e} of the peak {peak:.4f} m, torque {err_tau:.2e} of its peak")
+    assert peak > 1e-3
+    assert err < 1e-6 and err_tau < 1e-6
