@@ -240,3 +240,13 @@ def test_published_rig_limit_keeps_the_tip_in_range_and_the_drive_in_its_limits(
     # the evaluation plant (8 modes, dynamic axial) leaves 1.14 mm = 3.0 x the 0.38 mm tolerance the
     # 5-mode quasi-static design meets: at 0.3 L the design model's axial and high-mode errors show
     assert r.residual_plant is not None and r.residual_plant <= 4.0 * r.tolerance
+
+
+def test_a_slew_the_drive_cannot_start_is_one_line():
+    """Breakaway friction above the DC drive's stall torque: no slew in any time (issue 22, bad input)."""
+    from hubbeam_ctrl.plant.rig import load_rig
+    rig = load_rig("servo_link")
+    rig = rig.replace(drive=rig.drive.replace(I_max=10.0), friction=rig.friction.replace(coulomb=1.9))
+    with pytest.raises(ParameterError, match=r"friction.breakaway \(1.9 N m\) must be below the drive's stall "
+                                             r"torque 1.861 N m"):
+        time_optimal_slew(rig, math.pi / 2)

@@ -21,7 +21,7 @@ def add_parser(subparsers, common) -> None:
     common : argparse.ArgumentParser
         Parent parser with the common plant options.
     """
-    from hubbeam_ctrl.cli.args import add_verbose, integer, real
+    from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty, real
 
     p = subparsers.add_parser(
         "optimal", parents=[common], help="time-optimal rest-to-rest slew: the limit of the beam and drive",
@@ -32,6 +32,10 @@ def add_parser(subparsers, common) -> None:
                      "residual vibration. Prints the duration, the rigid bang-bang bound "
                      "2 sqrt(Theta J / tau_max) and the residuals."))
     p.add_argument("--slew-angle", metavar="RAD", type=real("rad"), required=True, help="slew angle [rad], not 0")
+    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
+                   help="a rig file or preset (servo_link, paper): its beam, and with a DC motor the voltage "
+                        "limit through back-EMF, the current limit and the friction the drive must overcome; "
+                        "not with --params")
     p.add_argument("--tolerance", metavar="M", type=real("m"),
                    help="allowed residual tip vibration [m], > 0 (default 1e-3 L)")
     p.add_argument("--duration", metavar="S", type=real("s"),
@@ -52,8 +56,7 @@ def run(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from hubbeam_ctrl.cli.args import stdout
-    from hubbeam_ctrl.cli.main import params_from_args
+    from hubbeam_ctrl.cli.args import params_from_args, rig_from_args, stdout
     from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.core.validation import check_finite, check_positive
     from hubbeam_ctrl.limit import OptimalSettings, min_vibration_slew, time_optimal_slew
@@ -63,15 +66,17 @@ def run(args) -> int:
     tolerance = None if args.tolerance is None else check_positive("--tolerance", args.tolerance, "m")
     if args.duration is not None:
         check_positive("--duration", args.duration, "s")
-    params = params_from_args(args)
+    rig = rig_from_args(args)
+    params = rig.plant_params if rig is not None else params_from_args(args)
+    source = rig if rig is not None else params
     changes = {"check": not args.no_check}
     if args.intervals is not None:
         changes["intervals"] = args.intervals
     settings = OptimalSettings(**changes)
     if args.duration is None:
-        r = time_optimal_slew(params, angle, tolerance=tolerance, settings=settings)
+        r = time_optimal_slew(source, angle, tolerance=tolerance, settings=settings)
     else:
-        r = min_vibration_slew(params, angle, args.duration, tolerance=tolerance, settings=settings,
+        r = min_vibration_slew(source, angle, args.duration, tolerance=tolerance, settings=settings,
                                name="--duration")
     if args.json:
         print(strict_json(r.to_dict()), file=sink)

@@ -239,6 +239,11 @@ def _drive_terms(rig) -> tuple | None:
         return None
     d, f = rig.drive, rig.friction
     gain = d.eta_forward * d.N * d.k_t
+    stall = gain * min(d.V_max / d.R, d.I_max)
+    if f.static >= stall:
+        raise ParameterError(f"friction.breakaway ({f.static:g} N m) must be below the drive's stall torque "
+                             f"{stall:.4g} N m (eta_forward N k_t min(V_max / R, I_max)): the drive cannot start "
+                             "the slew in any time")
     return (gain * d.V_max / d.R, gain * d.N * d.k_e / d.R, gain * d.I_max, f.viscous, f.coulomb, 0.05)
 
 
