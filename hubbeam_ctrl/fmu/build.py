@@ -198,6 +198,9 @@ def _resolve_plant(rig_or_params):
                              f"{type(rig_or_params).__name__}")
     rig = rig_or_params
     hw = Hardware.from_rig(rig)
+    if hw.inductive:
+        raise ParameterError(f"motor.L = {rig.drive.L:g} H: the armature inductance (the current as a state) is not "
+                             "in the FMU yet; set motor.L = 0 (the resistive motor)")
     return rig.plant_params, (None if hw.is_ideal else hw), rig
 
 
@@ -300,7 +303,7 @@ def _variables(model, hardware: Hardware | None, rig: Rig | None, n_moments: int
     if hardware is not None:
         values = hardware.values()
         for i, key in enumerate(HW_LAYOUT):
-            if key in ("dc_motor", "stick"):
+            if key in ("dc_motor", "stick", "L"):       # L: fixed by the build (no inductance in the FMU)
                 continue
             if key in ("R", "k_t", "k_e", "N", "eta_forward", "eta_backward", "V_max", "I_max") \
                     and hardware.drive.is_ideal:

@@ -55,6 +55,9 @@ MAX_SUBSTEPS = 200
 #: (at most 20) before the rootfinder: measured on the 1 m lab arm's LQR slew, the fast step
 #: missed its tolerance by 1-20x on 55 of 600 samples, each costing the rootfinder ~30 ms.
 PATIENCE = 3
+#: The patient step is kept only when its last Newton increment is this fraction of ``newton_tol``
+#: (a slowly converging step is not trusted: the rootfinder takes those).
+PATIENT_TOLERANCE = 1e-3
 
 
 def generalized_alpha_coefficients(rho_inf: float) -> tuple:
@@ -511,18 +514,19 @@ class PlantStepper:
         if self._eval_patient is None:
             self._eval_patient = self._bind_step(self._patient_function())
         self._eval_patient()                      # the fresh matrix, PATIENCE times the iterations
-        if self._err[0] <= tol:
+        if self._err[0] <= PATIENT_TOLERANCE * tol:      # converged well past the fast step's tolerance
             self.patient_steps += 1
             self._J_valid = False
             return self._s_out
         return self._robust_step(self._s_in.copy(), self._u.reshape(1, -1).copy())
 
     def _patient_function(self):
-        """The fast step with :data:`PATIENCE` times the Newton iterations (compiled once, on first need)."""
+        """The fast step with :data:`PATIENCE` times the Newton iterations (compiled once, on first need),
+        for the same hardware variant as the fast step (ideal, hardware or inductive)."""
         patient = dataclasses.replace(self.settings,
                                       newton_iterations=min(20, PATIENCE * self.settings.newton_iterations))
-        extra = (True,) if self.hardware is not None else ()
-        vm = _fast_step_function(self.model.parametric, patient, *extra)
+        kind = self._hardware_kind
+        vm = _fast_step_function(self.model.parametric, patient, *((kind,) if kind else ()))
         return vm if self.backend == "vm" else compile_function(vm, self.backend, opt=OPT_HOT)
 
     def _bind_step(self, function):

@@ -5,7 +5,7 @@
 sweep case and the CLI judge a run the same way: the metrics of
 :func:`~hubbeam_ctrl.study.metrics.closed_loop_metrics` (envelope growth of tip, torque and
 angle error fitted over the residual window in blocks of half a period of the design's
-first bending mode: |x| peaks twice a period), decided together with the controller's sampled linear loop on the
+first bending mode: abs(x) peaks twice a period), decided together with the controller's sampled linear loop on the
 evaluation plant's modes (:func:`~hubbeam_ctrl.study.certificate.certify`, at the hub rates
 of the start and of the end of the run).
 """

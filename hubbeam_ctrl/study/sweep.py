@@ -12,8 +12,8 @@ With ``out_dir`` the rows are appended to ``out_dir/results.csv`` as cases finis
 write per batch, whole lines only); ``resume=True`` skips the cases already there. The
 folder remembers the spec's hash (``study.json``) and refuses a different spec.
 
-Example
--------
+Examples
+--------
 >>> from hubbeam_ctrl.study.sweep import sweep                       # doctest: +SKIP
 >>> df = sweep({"study": {"controllers": ["lqr"]}, "grid": {"m_t": [0.0, 0.3]}})  # doctest: +SKIP
 >>> df[["m_t", "controller", "residual_tip_max_m"]]                  # doctest: +SKIP
