@@ -102,7 +102,7 @@ def _spectral_radius(ctrl, gain: float) -> float:
 def test_margins_are_where_the_loop_goes_unstable(params, name):
     design = DesignModel.build(params, 0.0, 0.01)
     ctrl = (LQR if name == "lqr" else LQG)(design)
-    m = loop_margins(ctrl)
+    m = loop_margins(ctrl, check=True)
     assert m.stable and m.spectral_radius < 1
     # python-control's disk margin on the same grid agrees with the direct sensitivity peak,
     # and refining the peak only finds a higher one

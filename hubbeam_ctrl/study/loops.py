@@ -26,7 +26,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from controllers import DesignModel
-from controllers.analysis import frequency_grid, loop_matrices
+from controllers.analysis import FrequencyResponse, frequency_grid, loop_matrices
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plots.loops import LoopResponse, plot_loop
@@ -48,18 +48,6 @@ def is_linear(ctrl) -> bool:
     except HubbeamError:
         return False
     return True
-
-
-def _response(A, B, C, z) -> np.ndarray:
-    """SISO frequency response ``C (zI - A)^-1 B`` at the points ``z``."""
-    n = A.shape[0]
-    eye = np.eye(n)
-    out = np.empty(len(z), dtype=complex)
-    for k in range(0, len(z), 256):
-        zz = z[k:k + 256]
-        x = np.linalg.solve(zz[:, None, None] * eye - A, np.broadcast_to(B, (len(zz), n, 1)))
-        out[k:k + 256] = (C @ x)[:, 0, 0]
-    return out
 
 
 def _simulate(A, B, C, n: int) -> np.ndarray:
@@ -128,7 +116,7 @@ def loop_response(ctrl, plant: DesignModel | None = None, label: str | None = No
     Acl = A - B @ C
     poles = np.linalg.eigvals(Acl)
     w = frequency_grid(np.concatenate([np.linalg.eigvals(A), poles]), dt, n_points)
-    L = _response(A, B, C, np.exp(1j * w * dt))
+    L = FrequencyResponse(A, B, C)(np.exp(1j * w * dt))
     stable = bool(np.max(np.abs(poles)) < 1.0)
     alpha = float(1.0 / np.max(np.abs(1.0 / (1.0 + L) - 0.5))) if stable else 0.0
     # closed-loop inputs: reference step of theta (enters like the measurement, e = y - r) and torque
