@@ -164,3 +164,26 @@ def test_ladder_rigs_add_one_part_at_a_time():
     assert steps[-1][1] == rig
     ideal = ladder_rigs(Rig(beam=Params()))
     assert [label for label, _ in ideal] == ["ideal plant"]
+
+
+def test_sweep_on_a_rig_gives_the_rows_of_compare(tmp_path):
+    """[study] rig = "servo_link": the sweep's case at the base beam equals compare(rig=...) bit for bit
+    (the rig's dt, its hardware and the controllers on the rig, the same code path), and a spec whose
+    rig file sits beside it is read relative to it."""
+    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.sweep import sweep
+    study = {"controllers": ["lqg"], "rig": "servo_link", "t_f": 0.6, "slew_angle": 1.5708, "t_end": 1.0}
+    spec = load_spec({"study": study, "grid": {"m_t": [0.0, 0.005]}})
+    assert spec.dt == 1e-3 and spec.rig == load_rig("servo_link")
+    df = sweep(spec, workers=1, progress=False)
+    ref = compare("foam", "slew", "lqg", rig=load_rig("servo_link"), t_f=0.6, slew_angle=1.5708, t_end=1.0)
+    row = df[df["m_t"] == 0.0].iloc[0]
+    for key in ("peak_tip_m", "residual_tip_max_m", "final_angle_error_rad", "torque_squared_integral_n2m2s"):
+        assert row[key] == ref.metrics["lqg"][key], key
+    assert row["error"] == "" and row["verdict"] == ref.metrics["lqg"]["verdict"]
+    # the rig travels in the spec's identity (study.json, --resume): from_dict(to_dict) is the same study
+    assert load_spec(spec.to_dict()).hash() == spec.hash()
+    from hubbeam_ctrl.plant.rig import rig_to_toml
+    (tmp_path / "my_rig.toml").write_text(rig_to_toml(load_rig("servo_link")))
+    (tmp_path / "spec.toml").write_text('[study]\ncontrollers = ["lqg"]\nrig = "my_rig.toml"\nt_f = 0.6\n')
+    assert load_spec(tmp_path / "spec.toml").rig == load_rig("servo_link")

@@ -20,6 +20,9 @@ TOML form (every key optional except where noted)::
     shaping = "zvd"                   # zv | zvd | ei: input shaper of the tracked reference
     schedule = 3                      # spin rates of the design schedule (1: one design)
     backend = "auto"                  # auto | compiled | vm (default $HUBBEAM_BACKEND)
+    rig = "servo_link"                # a rig preset or file: its beam is [params]' base, its dt and
+                                      # the task's t_end the defaults, its hardware in every case
+    integral = true                   # integral action on the rig (default: with friction or a motor)
     tolerances = {angle_error = 5e-4} # controllers.scaling.Tolerances fields over the defaults
     [params]                          # base Params fields (SI units)
     m_t = 0.1
@@ -86,7 +89,8 @@ _INTEGER_FACTORS = ("n_axial", "n_transverse", "seed")
 _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", "lqr"), "design": "base",
                "tau_max": None, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
                "solver": "daqp", "design_modes": None, "plant_modes": None, "slew_angle": None,
-               "shaping": None, "schedule": 1, "tolerances": None, "backend": None}
+               "shaping": None, "schedule": 1, "tolerances": None, "backend": None, "rig": None,
+               "integral": None}
 
 
 def _controller_list(value) -> tuple:
@@ -372,6 +376,8 @@ class StudySpec:
     schedule: int = 1
     tolerances: dict | None = None
     backend: str | None = None
+    rig: object = None
+    integral: bool | None = None
     params: Params = field(default_factory=Params)
     settings: dict = field(default_factory=dict)
     grid: dict = field(default_factory=dict)
@@ -400,7 +406,7 @@ class StudySpec:
 
     @classmethod
     def _from_tables(cls, data: dict) -> "StudySpec":
-        extra = sorted(set(data) - {"study", "params", "settings", "grid", "random", "tune"})
+        extra = sorted(set(data) - {"study", "params", "settings", "grid", "random", "tune", "_dir"})
         if extra:
             raise ParameterError(f"spec: unknown table(s) {', '.join(extra)}; allowed: study, params, "
                                  "settings, grid, random, tune")
@@ -417,9 +423,15 @@ class StudySpec:
             raise ParameterError(f"study: unknown key(s) {', '.join(bad)}; allowed: {', '.join(_STUDY_KEYS)}")
         kw = {k: study.get(k, v) for k, v in _STUDY_KEYS.items()}
         kw["controllers"] = _controller_list(kw["controllers"])
+        kw["rig"] = _spec_rig(kw["rig"], data.get("_dir"))
+        if kw["integral"] is not None and not isinstance(kw["integral"], bool):
+            raise ParameterError(f"study.integral must be true or false, got {kw['integral']!r}")
+        if kw["rig"] is not None and "dt" not in study and kw["rig"].timing.dt is not None:
+            kw["dt"] = kw["rig"].timing.dt
         try:
-            params = Params.from_dict(dict(data.get("params", {})))
-        except ParameterError as exc:           # name the spec key: params.m_t, not m_t
+            params = Params.from_dict(dict(data.get("params", {}))) if kw["rig"] is None else \
+                kw["rig"].plant_params.replace(**dict(data.get("params", {})))
+        except (ParameterError, TypeError) as exc:  # name the spec key: params.m_t, not m_t
             text = str(exc)
             head = text.split(" ", 1)[0]
             raise ParameterError(f"params.{text}" if head in {f.name for f in dataclasses.fields(Params)}
@@ -430,6 +442,12 @@ class StudySpec:
             n, seed, method, dists = _random("random", data["random"], kw["scenario"], grid)
             random = {"n": n, "seed": seed, "method": method, "factors": dists}
         spec = cls(params=params, settings=dict(data.get("settings", {})), grid=grid, random=random, **kw)
+        if spec.rig is not None and "t_end" not in study:       # the task's simulated time, as compare
+            from hubbeam_ctrl.study.yardstick import task_t_end
+            try:
+                spec = dataclasses.replace(spec, t_end=task_t_end(spec.scenario_for(params)))
+            except ParameterError:
+                pass                                            # validate() names the bad value
         spec.validate()
         for key in ("horizon", "solver"):         # keys no chosen controller uses (to_dict writes the defaults)
             if key in study and study[key] != _STUDY_KEYS[key] and not spec._uses(key):
@@ -625,6 +643,8 @@ class StudySpec:
         """The TOML tables of this spec (plain data; ``from_dict`` of it gives the same spec)."""
         study = {k: getattr(self, k) for k in _STUDY_KEYS if getattr(self, k) is not None}
         study["controllers"] = list(self.controllers)
+        if self.rig is not None:             # the rig itself, so a changed rig file is another study
+            study["rig"] = self.rig.to_tables()
         out = {"study": study, "params": {k: v for k, v in self.params.to_dict().items() if v is not None}}
         for key in ("settings", "grid"):
             if getattr(self, key):
@@ -645,6 +665,25 @@ class StudySpec:
         out = dataclasses.replace(self, **changes)
         out.validate()
         return out
+
+
+def _spec_rig(value, folder=None):
+    """The spec's ``study.rig``: None, a preset name or a file (relative to the spec's folder), or
+    the tables of a rig (what :meth:`StudySpec.to_dict` writes)."""
+    if value is None:
+        return None
+    from hubbeam_ctrl.plant.rig import Rig, load_rig, rig_from_dict
+    try:
+        if isinstance(value, Rig):
+            return value
+        if isinstance(value, dict):
+            return rig_from_dict(value)
+        if isinstance(value, str) and value.strip():
+            path = Path(folder) / value if folder is not None and not Path(value).is_absolute() else Path(value)
+            return load_rig(str(path) if path.exists() else value)
+    except ParameterError as exc:
+        raise ParameterError(f"study.rig: {exc}") from None
+    raise ParameterError(f"study.rig must name a rig file or a preset (servo_link, paper), got {value!r}"[:200])
 
 
 def _one_line(exc: BaseException) -> str:
@@ -679,7 +718,10 @@ def load_spec(spec) -> StudySpec:
         return StudySpec.from_dict(spec)
     if not isinstance(spec, (str, Path)):
         raise ParameterError(f"spec must be a TOML path, a dict of tables or a StudySpec, got {type(spec).__name__}")
-    return StudySpec.from_dict(read_toml(spec, "spec: file", MAX_SPEC_BYTES))
+    data = read_toml(spec, "spec: file", MAX_SPEC_BYTES)
+    if isinstance(data.get("study"), dict) and isinstance(data["study"].get("rig"), str):
+        data["_dir"] = str(Path(spec).resolve().parent)        # a rig file's path is relative to the spec
+    return StudySpec.from_dict(data)
 
 
 def load_settings(spec: StudySpec, path) -> StudySpec:

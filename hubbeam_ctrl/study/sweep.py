@@ -40,6 +40,7 @@ from hubbeam_ctrl.sim.evaluation import evaluation_plant
 from hubbeam_ctrl.study.compare import _design_schedule
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import CSV_FIELDS
+from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
 from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec
 
 __all__ = ["sweep", "run_case", "run_batch", "CaseCache", "result_columns", "read_results",
@@ -165,7 +166,8 @@ def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
             "plant": cache.get(pkey, lambda: evaluation_plant(spec.plant, design_p, spec.dt, m, spin,
                                                               plant_params=plant_p,
                                                               plant_modes=spec.plant_modes)),
-            "sim": sc.closed_loop_settings(seed=int(case.get("seed", 0)))}
+            "sim": sc.closed_loop_settings(seed=int(case.get("seed", 0))),
+            "hardware": None if spec.rig is None else rig_closed_loop(spec.rig, sc.closed_loop_settings())[1]}
 
 
 def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> dict:
@@ -179,10 +181,16 @@ def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> 
         sched = _design_schedule(sc, spec.schedule, design.n_modes) if cspec.scheduled else None
         st = residual_modes_for(controller_settings(name, table, sc, spec.horizon, spec.solver),
                                 ctx["plant"].modes)
-        return make_controller(name, design, st, sc.reference, shaping=shaper, schedule=sched)
+        if spec.rig is None:
+            return make_controller(name, design, st, sc.reference, shaping=shaper, schedule=sched)
+        # on the rig exactly as compare(): integral action, observer, voltage (study.rig_loop)
+        st = rig_settings(name, st, spec.rig, spec.integral)
+        ctrl = make_controller(name, design, st, sc.reference, shaping=shaper, schedule=sched)
+        return on_rig(ctrl, spec.rig, task_noise(sc, spec.rig), ctx["hardware"], spec.integral)
     ctrl = cache.get(ckey, build)
     res = simulate_closed_loop(ctx["plant"], ctrl, sc.t_end, settings=ctx["sim"],
-                               reference=(sc.reference.theta_at, sc.reference.theta_dot_at), backend=spec.backend)
+                               reference=(sc.reference.theta_at, sc.reference.theta_dot_at), backend=spec.backend,
+                               hardware=ctx["hardware"])
     row, _ = judge(res, ctrl, sc, ctx["plant"].params, name)
     row.update(scenario=sc.name, verdict=row.get("verdict"), error="", sim_wall_s=row["wall_s"])
     return row
