@@ -74,11 +74,9 @@ def run(args) -> int:
     import sys
 
     from controllers import CONTROLLERS, DesignModel, make_controller
-    from hubbeam_ctrl.cli.args import refuse_inapplicable, stdout
-    from hubbeam_ctrl.cli.main import params_from_args
+    from hubbeam_ctrl.cli.args import params_from_args, refuse_inapplicable, rig_from_args, stdout
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.deploy import CODEGEN_KINDS, NO_COMPILER, compile_c, compiler, to_c
-    from hubbeam_ctrl.plant.rig import load_rig
     from hubbeam_ctrl.study.scenarios import make_scenario
 
     sink = stdout(args)
@@ -87,11 +85,8 @@ def run(args) -> int:
         raise ParameterError(f"controller must be one of {', '.join(kinds)} (the kinds that can be generated "
                              f"as C), got {args.controller!r}")
     refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
-    rig = None
-    if args.rig is not None:
-        if args.params is not None:
-            raise ParameterError("give either --rig or --params, not both")
-        rig = load_rig(args.rig)
+    rig = rig_from_args(args)
+    if rig is not None:
         params = rig.plant_params
         if args.controller in ("lqr", "lqg") and 0.0 not in rig.sensors.strain_gauges:
             raise ParameterError(f"rig: {args.controller} reads the root bending moment, but the rig's "
@@ -113,7 +108,12 @@ def run(args) -> int:
                        slew_angle=args.slew_angle)
     design = DesignModel.build(params, sc.design_spin, dt, modes)
     settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
-    ctrl = make_controller(args.controller, design, settings, sc.reference)
+    if rig is None:
+        ctrl = make_controller(args.controller, design, settings, sc.reference)
+    else:      # the controller that runs on the rig: integral action, observer, volts (as compare --rig)
+        from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
+        ctrl = make_controller(args.controller, design, rig_settings(args.controller, settings, rig), sc.reference)
+        ctrl = on_rig(ctrl, rig, task_noise(sc, rig), rig_closed_loop(rig, sc.closed_loop_settings())[1])
     cc = compiler()
 
     def check(folder, name):
