@@ -26,7 +26,7 @@ to ``2 atan(alpha/2)``.
 Examples
 --------
 >>> from controllers import DesignModel, LQR
->>> m = loop_margins(LQR(DesignModel.build(n_modes=2)))
+>>> m = loop_margins(LQR(DesignModel.build(n_modes=2)), check=True)
 >>> m.stable, bool(m.disk_margin > 0.5), bool(abs(m.disk_margin / m.disk_margin_control - 1) < 1e-6)
 (True, True, True)
 """

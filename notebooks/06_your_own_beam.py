@@ -109,7 +109,7 @@ design = DesignModel.build(p, 0.0, sc.dt)
 ctrls = {n: make_controller(n, design, CONTROLLERS[n].settings.for_scenario(sc), sc.reference)
          for n in ("lqr", "lqg")}
 for name, c in ctrls.items():
-    m = loop_margins(c)
+    m = loop_margins(c, check=True)      # check: python-control's disk margin on the same grid too
     print(f"{name}: disk margin {m.disk_margin:.3f} (python-control {m.disk_margin_control:.3f}), "
           f"gain margins {m.gain_margin_lower:.2f}/{m.gain_margin_upper:.2f}, phase margin "
           f"{m.phase_margin_deg:.1f} deg, delay margin {1e3 * m.delay_margin_s:.1f} ms")

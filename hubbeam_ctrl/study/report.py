@@ -286,7 +286,8 @@ def _margin_lines(margins: dict) -> list:
         return []
     f = lambda v, fmt: "-" if v is None or not math.isfinite(v) else fmt.format(v)
     lines = ["## Loop margins at the plant input (design model)", "",
-             "Disk margin (balanced; python-control's `disk_margins` on the same grid in brackets), "
+             "Disk margin (balanced; python-control's `disk_margins` on the same grid in brackets where "
+             "`loop_margins(ctrl, check=True)` asked for it), "
              "the gains and phase it guarantees together, classical gain and phase margins and the delay "
              "margin (controllers.analysis.loop_margins).", "",
              "| controller | stable | disk margin | disk gains | disk phase deg | gain margins | "
