@@ -194,7 +194,7 @@ class ExactBeamPlant:
         SC = exu.SystemContainer()
         mbs = SC.AddSystem()
         self._SC, self.mbs, self._exu = SC, mbs, exu
-        ground = mbs.AddObject(ii.ObjectGround())
+        mbs.AddObject(ii.ObjectGround())
         n_hub = mbs.AddNode(ii.NodeRigidBody2D(referenceCoordinates=[0, 0, 0]))
         hub = mbs.AddObject(ii.ObjectRigidBody2D(mass=1.0, inertia=p.J_h, nodeNumber=n_hub))
         m_ground = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=mbs.AddNode(ii.NodePointGround()),
