@@ -259,11 +259,11 @@ class ExactBeamPlant:
         # 0.7-1.0 s, one Jacobian per sample, the tip to 1e-13 m of a tighter run at 200 N m
         ti.newton.relativeTolerance = 1e-7
         ti.newton.absoluteTolerance = 1e-6
-        ss.solutionSettings.writeSolutionToFile = False
-        ss.solutionSettings.sensorsWritePeriod = 1e9
-        ss.displayStatistics = False
-        ss.displayComputationTime = False
-        ss.linearSolverType = exu.LinearSolverType.EigenSparse
+        ss.solution.file.write = False
+        ss.solution.sensors.writePeriod = 1e9
+        ss.show.statistics = False
+        ss.show.computationTime = False
+        ss.linearSolver.solverType = exu.LinearSolverType.EigenSparse
         self._settings = ss
         self._solver = exu.MainSolverImplicitSecondOrder()
         self._t = 0.0
