@@ -30,7 +30,8 @@ pytestmark = pytest.mark.skipif(bool(MISSING), reason=f"documentation tools not 
 #: The packages documented, as docs/conf.py lists them.
 PACKAGES = ("hubbeam_ctrl", "hubbeam_ctrl.cli", "hubbeam_ctrl.study", "hubbeam_ctrl.deploy",
             "controllers", "hubbeam_ctrl.plots", "hubbeam_ctrl.limit", "hubbeam_ctrl.fmu", "hubbeam_ctrl.calibrate",
-            "hubbeam_ctrl.sim", "hubbeam_ctrl.linear", "hubbeam_ctrl.plant", "hubbeam_ctrl.core")
+            "hubbeam_ctrl.sim", "hubbeam_ctrl.linear", "hubbeam_ctrl.exact", "hubbeam_ctrl.plant",
+            "hubbeam_ctrl.core")
 
 
 @pytest.fixture(scope="module")

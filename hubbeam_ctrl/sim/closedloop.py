@@ -39,6 +39,7 @@ from hubbeam_ctrl.core.budget import CLOSED_LOOP_SECONDS_PER_SAMPLE, T_END_MAX, 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.core.validation import check_in_range
+from hubbeam_ctrl.exact import ExactBeamPlant, element_rule, require_exudyn
 from hubbeam_ctrl.plant.instruments import signal_names
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
@@ -135,6 +136,23 @@ def _substep_info(model: str, params: Params, spin: float, dt: float, tolerance:
     return substep_rule(f, dt, tolerance=tolerance, rho_inf=rho_inf).to_dict()
 
 
+def _basis_model(name):
+    """The assumed-mode model behind a plant name: the exact beam (``"ancf"``) is projected on FOAM's
+    modes and integrated with FOAM's step rule."""
+    if name == "ancf":
+        require_exudyn("plant='ancf'")
+        return "foam"
+    return name
+
+
+def _exact_plant(model: HubBeamModel, settings, substeps: int, hardware, n_elements):
+    """The exact-beam plant on the evaluation plant's modes and step (:mod:`hubbeam_ctrl.exact`)."""
+    n2 = model.n_transverse
+    ne = element_rule(n2) if n_elements is None else n_elements
+    return ExactBeamPlant(model.params, n_elements=ne, dt=settings.dt, substeps=substeps, n_modes=n2,
+                          n_axial=model.n_axial, rho_inf=settings.rho_inf, hardware=hardware)
+
+
 def _plant_and_rule(plant, controller, params, design_params, plant_params, plant_modes, settings):
     """The plant model, its description and the integration step of the run."""
     spin = float(getattr(getattr(controller, "design", None), "spin", 0.0) or 0.0)
@@ -143,13 +161,13 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
         if any(v is not None for v in (params, design_params, plant_params, plant_modes)):
             raise ParameterError("an EvaluationPlant carries its parameters: give no params, "
                                  "design_params, plant_params or plant_modes with it")
-        model = build_model(plant.model, plant.params)
+        model = build_model(_basis_model(plant.model), plant.params)
         info = {k: v for k, v in plant.to_dict().items() if k != "plant_params"}
     elif explicit:
         if any(v is not None for v in (design_params, plant_params, plant_modes)):
             raise ParameterError("give either params (the exact plant) or design_params / plant_params / "
                                  "plant_modes (the evaluation-plant rule), not both")
-        model = resolve_model(plant, params)
+        model = resolve_model(_basis_model(plant), params)
         info = {"plant_model": model.name, "plant_modes": model.n_transverse,
                 "plant_axial_modes": model.n_axial, "plant_modes_reason": "as given"}
     else:
@@ -158,8 +176,10 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
         n_design = int(getattr(controller, "n_modes", None) or design.n_transverse)
         ev = evaluation_plant(plant, design, settings.dt, min(n_design, MAX_MODES), spin,
                               plant_params=plant_params, plant_modes=plant_modes)
-        model = build_model(ev.model, ev.params)
+        model = build_model(_basis_model(ev.model), ev.params)
         info = {k: v for k, v in ev.to_dict().items() if k != "plant_params"}
+    if plant == "ancf" or getattr(plant, "model", None) == "ancf":
+        info["plant_model"] = "ancf"
     if settings.substeps is None:
         info.update(_substep_info(model.name, model.params, spin, settings.dt, settings.frequency_tolerance,
                                   settings.rho_inf))
@@ -208,7 +228,8 @@ def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, 
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
                          design_params: Params | None = None, plant_params: Params | None = None,
                          plant_modes: int | None = None, settings: ClosedLoopSettings | None = None,
-                         x0=None, reference=None, backend=None, hardware: Hardware | None = None) -> Result:
+                         x0=None, reference=None, backend=None, hardware: Hardware | None = None,
+                         n_elements: int | None = None) -> Result:
     """Run a sampled controller on a nonlinear plant (zero-order hold).
 
     At each sample ``t_k = k dt`` (``k = 0..N``, ``N = round(t_end/dt)``) the controller gets
@@ -238,7 +259,10 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     Parameters
     ----------
     plant : str, HubBeamModel or EvaluationPlant
-        ``"foam"`` or ``"cfoam"`` (also ``"tlam"``, ``"sfoam"`` with ``params``), a built
+        ``"foam"``, ``"cfoam"`` or ``"ancf"`` (the geometrically exact beam of
+        :class:`~hubbeam_ctrl.exact.ExactBeamPlant`, needs Exudyn; its state for controllers is
+        projected on the evaluation plant's modes and its step is that plant's; its tip and root
+        moment are its own) (also ``"tlam"``, ``"sfoam"`` with ``params``), a built
         model (free hub), or the result of :func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`.
     controller : object
         See the module docstring. ``reset()`` is called before the run.
@@ -277,6 +301,9 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         first), rounded to the nearest integration substep (``result.settings["timing"]`` gives
         the delay applied); a rig's ``timing.dt``, when set, must be ``settings.dt``. None or
         ideal hardware: the beam alone, bit for bit.
+    n_elements : int, optional
+        ANCF elements of the exact-beam plant (``plant="ancf"``); default
+        :func:`~hubbeam_ctrl.exact.element_rule` of the evaluation plant's modes.
 
     Returns
     -------
@@ -334,7 +361,20 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                  seconds=N * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n / 11.0) ** 2,
                  max_memory_mb=settings.max_memory_mb, max_wall_s=settings.max_wall_s)
     x = _initial_state(x0, 2 * n)
-    stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend, hardware=hardware)
+    exact = plant_info.get("plant_model") == "ancf"
+    if exact:
+        stepper = _exact_plant(model, settings, plant_info["substeps"], hardware, n_elements)
+        plant_info.update(plant_elements=stepper.n_elements, plant_element_reason=(
+            f"{stepper.n_elements} ANCF cable elements (3 per bending mode of the {model.n_transverse}-mode "
+            "evaluation plant, a multiple of 8, at least 16)"),
+            root_moment_from="clamp reaction (the joint's Lagrange multiplier)")
+        exact_out = np.full((N + 1, 3), np.nan)      # v_tip, u_tip, root moment
+        exact_out[0] = 0.0
+    elif n_elements is not None:
+        raise ParameterError("n_elements is for plant='ancf' (the exact-beam plant) only")
+    else:
+        stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend,
+                               hardware=hardware)
     t = dt * np.arange(N + 1)
     chain, state_pick = _rig_measurement(hardware, controller, kind, model, m, dt, N + 1,
                                          settings.sensors.seed, stepper.backend)
@@ -350,7 +390,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     sl2 = model.transverse_slice
     L = model.params.L
     flag_at, stop_at = settings.range_limit * L, settings.divergence_limit * L
-    outside_time = None
+    outside_time = past_range_time = None
     encoder = settings.sensors.encoder_step
 
     states = np.empty((N + 1, 2 * n))
@@ -384,7 +424,12 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                 y = x[idx_state]
                 y[0], y[state_pick] = chain.measure(k, s)
         else:
-            y = x[idx_state] if noise is None else C_sens @ x + noise[k]
+            if noise is None:
+                y = x[idx_state]
+            elif exact:
+                y = np.array([x[0], x[n], exact_out[k, 2]]) + noise[k]
+            else:
+                y = C_sens @ x + noise[k]
             if encoder:                     # the encoder's count (nearest): y is a new array
                 y[0] = encoder * round(y[0] / encoder)
         t0 = perf()
@@ -422,13 +467,20 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
             stopped, message, last, cause = True, f"{exc} at t = {t[k]:.3f} s; run stopped", k, "integrator"
             break
         x = s[:2 * n]
-        tip = abs(f2_tip @ x[sl2])
+        if exact:
+            o = stepper.outputs
+            exact_out[k + 1] = o["v_tip"], o["u_tip"], o["root_moment"]
+            tip = abs(o["v_tip"])
+        else:
+            tip = abs(f2_tip @ x[sl2])
         if outside_time is None and not tip <= flag_at:
             outside_time = float(t[k + 1])
+            if exact:                   # the exact beam has no such range: recorded, not flagged
+                past_range_time, outside_time = outside_time, None
         if not tip <= stop_at:
             stopped, last, cause = True, k + 1, "diverged"
             states[k + 1] = x
-            message = (f"{model.name.upper()} left its range at t = {t[k + 1]:.3f} s under "
+            message = (f"{'ANCF' if exact else model.name.upper()} left its range at t = {t[k + 1]:.3f} s under "
                        f"controller {name!r}: |v_tip| > {settings.divergence_limit:g} L; run stopped")
             break
         if perf() - start > settings.max_wall_s:
@@ -440,8 +492,11 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     keep = slice(0, last + 1)
     t, states, taus, step_times = t[keep], states[keep], taus[keep], step_times[keep]
     q, v = states[:, :n], states[:, n:]
-    v_tip, u_tip = model.tip_series(q, v)
-    root_moment = states @ C_sens[2]
+    if exact:
+        v_tip, u_tip, root_moment = (exact_out[keep, j].copy() for j in range(3))
+    else:
+        v_tip, u_tip = model.tip_series(q, v)
+        root_moment = states @ C_sens[2]
     theta_ref = theta_dot_ref = None
     if reference is not None:
         theta_ref = np.asarray(reference[0](t), dtype=float) * np.ones_like(t)
@@ -454,6 +509,9 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     if outside_time is not None and not stopped:
         message = (f"completed; |v_tip| passed {settings.range_limit:g} L (outside the models' validated "
                    f"range) at t = {outside_time:.3f} s")
+    if exact and past_range_time is not None and not stopped:
+        message = (f"completed; |v_tip| passed {settings.range_limit:g} L at t = {past_range_time:.3f} s, "
+                   "outside the assumed-mode models' validated range; the exact beam has no such limit")
     s_dict["backend"] = stepper.backend
     if chain is not None:
         s_dict["rig_sensors"] = {"sensors": hardware.sensors.to_dict(), "signals": list(chain.names),
@@ -465,9 +523,10 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         s_dict["hardware"] = {"drive": hw.drive.to_dict(), "friction": hw.friction.to_dict(),
                               "command": hw.command, "stick_events": stepper.stick_events}
     return Result(
-        kind="closed_loop", model=model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip,
+        kind="closed_loop", model="ancf" if exact else model.name, controller=name, t=t, q=q, v=v, v_tip=v_tip,
         u_tip=u_tip, root_moment=root_moment, tau=taus, step_time_s=step_times,
         params=model.params, theta_ref=theta_ref, theta_dot_ref=theta_dot_ref, settings=s_dict,
         stats={"plant_fallbacks": stepper.fallbacks, "jacobian_updates": stepper.jacobian_updates,
-               "outside_range_time_s": outside_time, "stop_cause": cause},
+               "outside_range_time_s": outside_time, "stop_cause": cause,
+               **({"past_assumed_mode_range_time_s": past_range_time} if exact else {})},
         controller_stats=stats, stopped=stopped, message=message, wall_s=wall)

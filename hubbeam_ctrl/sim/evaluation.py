@@ -31,7 +31,7 @@ __all__ = ["EXTRA_MODES", "PLANT_MODELS", "EvaluationPlant", "default_plant_mode
 #: The default evaluation plant has at least this many more transverse modes than the design.
 EXTRA_MODES = 3
 #: Models that can serve as evaluation plant (SFOAM and TLAM are design approximations).
-PLANT_MODELS = ("foam", "cfoam")
+PLANT_MODELS = ("foam", "cfoam", "ancf")
 
 
 @dataclass(frozen=True, eq=False)

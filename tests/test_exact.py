@@ -1,0 +1,146 @@
+"""The exact-beam plant (hubbeam_ctrl.exact): Exudyn's ANCF beam against FOAM and the reference curve.
+
+Short windows only (the 30 s runs are in benchmarks/bench_exact.py).
+"""
+
+from __future__ import annotations
+
+import csv
+from importlib.resources import files
+
+import numpy as np
+import pytest
+
+from hubbeam_ctrl import Params, SpinUp, TorquePulse, simulate
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.exact import EXUDYN_INSTALL, ExactBeamPlant, element_rule, exudyn_available
+from hubbeam_ctrl.sim import ClosedLoopSettings, simulate_closed_loop
+
+needs_exudyn = pytest.mark.skipif(not exudyn_available(), reason=EXUDYN_INSTALL)
+
+
+def _run(plant: ExactBeamPlant, t_end: float, tau=0.0) -> np.ndarray:
+    """Rows ``[t, theta, v_tip, u_tip, root_moment, root_moment_from_curvature]``."""
+    x = plant.initial_state()
+    rows = [[0.0, 0.0, 0.0, 0.0, 0.0, 0.0]]
+    for k in range(int(round(t_end / plant.dt))):
+        x = plant.step(x, tau)
+        o = plant.outputs
+        rows.append([(k + 1) * plant.dt, o["theta"], o["v_tip"], o["u_tip"], o["root_moment"],
+                     plant.root_moment_from_curvature()])
+    return np.array(rows)
+
+
+def test_element_rule():
+    assert element_rule(10) == 32          # the reference's count for the 10-mode plant of Table 1
+    assert element_rule(5) == 16
+    assert element_rule(11) == 40
+
+
+@needs_exudyn
+def test_bad_input_names_the_option():
+    with pytest.raises(ParameterError, match=r"^n_elements must be an integer in \[20, 512\]"):
+        ExactBeamPlant(Params(), n_elements=16, n_modes=10)
+    with pytest.raises(ParameterError, match="^substeps"):
+        ExactBeamPlant(Params(), n_elements=32, substeps=0)
+
+
+def test_missing_exudyn_is_one_line(monkeypatch):
+    import hubbeam_ctrl.exact.beam as beam
+    monkeypatch.setattr(beam, "exudyn_available", lambda: False)
+    with pytest.raises(ParameterError) as err:
+        simulate_closed_loop("ancf", _Pulse(TorquePulse()), 0.05, params=Params(n_transverse=5))
+    assert "pip install 'hubbeam-ctrl[exact]'" in str(err.value) and "\n" not in str(err.value)
+
+
+@needs_exudyn
+@pytest.mark.parametrize("tau_m, tol", [(2.0, 1e-3), (200.0, 1.2e-2)])
+def test_eq44_peak_against_foam(tau_m, tol):
+    """Eq. 44 (continuous torque) over the first 2 s, whose peak tip deflection is at 1.77 s.
+
+    Small torque (linear range): the exact beam and FOAM agree to 0.05 % (measured). At the paper's
+    200 N m (1.3 m = 0.16 L of tip deflection) the exact beam's peak is 0.90 % below FOAM's
+    (measured -1.28834 m against -1.30004 m; CFOAM -1.3142 m): FOAM's geometric approximation.
+    """
+    pulse = TorquePulse(tau_m=tau_m)
+    params = Params(n_transverse=10)
+    exact = ExactBeamPlant(params, n_elements=32, dt=0.01, substeps=20, torque_function=pulse)
+    rows = _run(exact, 2.0)
+    foam = simulate("foam", pulse, 2.0, params=params)
+    peak_exact = rows[np.argmax(np.abs(rows[:, 2])), 2]
+    peak_foam = foam.v_tip[np.argmax(np.abs(foam.v_tip))]
+    assert abs(peak_exact / peak_foam - 1) < tol
+    # the hub angle at 2 s within 5e-4 of FOAM's (measured 2.2e-4 at 200 N m, during the peak deflection)
+    assert rows[-1, 1] == pytest.approx(foam.theta[-1], rel=5e-4)
+    # the root moment: the clamp reaction and the first element's curvature agree
+    k = np.argmax(np.abs(rows[:, 4]))
+    assert rows[k, 5] == pytest.approx(rows[k, 4], rel=2e-3)
+
+
+@needs_exudyn
+def test_spinup_against_reference():
+    """Fig. 6 spin-up (w_f = 5 rad/s, t_f = 30 s, no tip mass), prescribed hub, first 6 s, against the
+    exact-beam reference curve (hubbeam_ctrl/data/spinup_w5_tf30_ancf.csv)."""
+    with files("hubbeam_ctrl.data").joinpath("spinup_w5_tf30_ancf.csv").open() as fh:
+        ref = np.array([[float(v) for v in row] for row in list(csv.reader(fh))[1:]])
+    spin = SpinUp(w_f=5.0, t_f=30.0)
+    t_end = 6.0
+    plant = ExactBeamPlant(Params(m_t=0.0, n_transverse=10), n_elements=32, dt=0.05, substeps=100,
+                           prescribed=lambda t: spin(t)[0])
+    rows = _run(plant, t_end)
+    keep = ref[:, 0] <= t_end + 1e-9
+    assert np.allclose(rows[:, 0], ref[keep, 0])
+    err = np.max(np.abs(rows[:, 2] - ref[keep, 3])) / np.max(np.abs(ref[keep, 3]))
+    assert err < 0.01
+    assert np.allclose(rows[:, 1], ref[keep, 1], atol=1e-9)
+
+
+class _Pulse:
+    """An open-loop 'controller': Eq. 44 sampled (zero-order hold)."""
+
+    measurement = "sensors"
+    name = "eq44"
+
+    def __init__(self, pulse):
+        self.pulse = pulse
+
+    def __call__(self, t, y):
+        return float(self.pulse(t))
+
+    def reset(self):
+        pass
+
+
+@needs_exudyn
+def test_closed_loop_on_the_exact_plant():
+    """The sampled Eq. 44 through simulate_closed_loop: the exact plant against FOAM, same loop."""
+    params = Params(n_transverse=5)
+    settings = ClosedLoopSettings()
+    ctrl = _Pulse(TorquePulse())
+    ex = simulate_closed_loop("ancf", ctrl, 2.0, params=params, settings=settings)
+    fo = simulate_closed_loop("foam", ctrl, 2.0, params=params, settings=settings)
+    assert ex.model == "ancf" and ex.settings["plant_elements"] == 16
+    assert ex.settings["substeps"] == fo.settings["substeps"]
+    assert np.max(np.abs(ex.v_tip)) == pytest.approx(np.max(np.abs(fo.v_tip)), rel=1.2e-2)
+    assert ex.q[-1, 0] == pytest.approx(fo.q[-1, 0], rel=5e-4)      # measured 2.2e-4
+    # the projected modal state reproduces the exact tip to 1 %
+    tip_projected = ex.q[:, 1 + params.n_axial:] @ _f2_tip(params)
+    assert np.max(np.abs(tip_projected - ex.v_tip)) < 0.01 * np.max(np.abs(ex.v_tip))
+    with pytest.raises(ParameterError, match="^n_elements"):
+        simulate_closed_loop("foam", ctrl, 0.05, params=params, n_elements=16)
+
+
+def _f2_tip(params):
+    from hubbeam_ctrl.plant.basis import transverse_shapes
+    return transverse_shapes([params.L], params.n_transverse, params.L)[0]
+
+
+@needs_exudyn
+@pytest.mark.slow
+def test_halving_step_and_doubling_elements():
+    """The rule's plant (32 elements, 20 steps per 10 ms) against 64 elements and 40 steps: Eq. 44's
+    tip over 2 s within 1e-4 of its peak."""
+    pulse = TorquePulse()
+    a = _run(ExactBeamPlant(Params(), n_elements=32, dt=0.01, substeps=20, torque_function=pulse), 2.0)
+    b = _run(ExactBeamPlant(Params(), n_elements=64, dt=0.01, substeps=40, torque_function=pulse), 2.0)
+    assert np.max(np.abs(a[:, 2] - b[:, 2])) < 1e-4 * np.max(np.abs(b[:, 2]))
