@@ -347,6 +347,14 @@ class StudySpec:
     backend : {"auto", "compiled", "vm"} or None
         How the plant is evaluated (default ``$HUBBEAM_BACKEND`` or ``"auto"``); the
         results agree to 1e-9 relative, not bit for bit, across backends.
+    rig : Rig or None
+        The rig every case runs on (``study.rig``: a preset or a rig file beside the spec):
+        its beam is the base of ``params``, its ``timing.dt`` the default ``dt``, the task's
+        simulated time the default ``t_end``, its hardware in every case's plant, the
+        controllers on it as in :func:`~hubbeam_ctrl.study.compare.compare` with ``rig=``.
+    integral : bool or None
+        Integral action of LQR, LQG and MPC on the rig (default: the rig's,
+        :func:`hubbeam_ctrl.study.rig_loop.integral_default`).
     params : Params
         Base parameters (design, and plant where no factor changes them).
     settings : dict
