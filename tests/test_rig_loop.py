@@ -191,3 +191,20 @@ def test_sweep_on_a_rig_gives_the_rows_of_compare(tmp_path):
     (tmp_path / "my_rig.toml").write_text(rig_to_toml(load_rig("servo_link")))
     (tmp_path / "spec.toml").write_text('[study]\ncontrollers = ["lqg"]\nrig = "my_rig.toml"\nt_f = 0.6\n')
     assert load_spec(tmp_path / "spec.toml").rig == load_rig("servo_link")
+
+
+def test_sweep_rig_option_replaces_the_specs_rig(tmp_path, capsys):
+    """hubbeam sweep SPEC --rig RIG: the rig replaces [study] rig; a bad one is one line naming --rig,
+    exit 2, nothing written."""
+    from hubbeam_ctrl.cli.main import main
+    from hubbeam_ctrl.study.spec import load_spec
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[study]\ncontrollers = ["lqg"]\nt_f = 4.0\nslew_angle = 0.3\n')
+    assert load_spec(spec).rig is None
+    assert load_spec(spec, rig="servo_link").rig == load_rig("servo_link")
+    assert load_spec(spec, rig="servo_link").dt == 1e-3
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--rig", "nope", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("hubbeam: error: --rig") and "nope" in err[0], err
+    assert not out.exists()

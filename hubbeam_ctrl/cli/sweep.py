@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 
-from hubbeam_ctrl.cli.args import add_verbose, terminate_as_interrupt
+from hubbeam_ctrl.cli.args import add_verbose, nonempty, terminate_as_interrupt
 from hubbeam_ctrl.cli.main import positive_float, positive_int
 
 __all__ = ["add_parser", "run", "add_engine_options", "engine_from_args"]
@@ -69,6 +69,9 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--resume", action="store_true", help="finish an interrupted study in --out")
     p.add_argument("--settings", metavar="FILE.toml",
                    help="controller settings merged into the spec's [settings] (e.g. hubbeam tune's output)")
+    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
+                   help="run every case on this rig (a rig file or a preset), replacing the spec's [study] rig "
+                        "(docs/studies.md, 'Sweeps on a rig')")
     add_engine_options(p)
     p.set_defaults(func=run)
 
@@ -83,6 +86,7 @@ def run(args) -> int:
     """
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
+    from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.study.spec import load_settings, load_spec
     from hubbeam_ctrl.study.sweep import sweep
@@ -90,7 +94,12 @@ def run(args) -> int:
 
     sink = stdout(args)
     check_output_dir("--out", args.out)
-    spec = load_spec(args.spec)
+    try:
+        spec = load_spec(args.spec, rig=args.rig)
+    except ParameterError as exc:
+        if args.rig is None or not str(exc).startswith("study.rig"):
+            raise
+        raise ParameterError(f"--rig{str(exc)[len('study.rig'):]}") from None
     if args.settings:
         spec = load_settings(spec, args.settings)
     client = engine_from_args(args)

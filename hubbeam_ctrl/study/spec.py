@@ -675,6 +675,19 @@ class StudySpec:
         return out
 
 
+def _with_rig(data: dict, rig) -> dict:
+    """The spec's tables with ``study.rig`` replaced by ``rig`` (unchanged when None)."""
+    if rig is None:
+        return data
+    if not isinstance(data, dict):
+        return data                          # from_dict names the bad spec
+    study = data.get("study", {})
+    study = dict(study) if isinstance(study, dict) else study
+    if isinstance(study, dict):
+        study["rig"] = str(rig) if isinstance(rig, Path) else rig
+    return {**data, "study": study}
+
+
 def _spec_rig(value, folder=None):
     """The spec's ``study.rig``: None, a preset name or a file (relative to the spec's folder), or
     the tables of a rig (what :meth:`StudySpec.to_dict` writes)."""
@@ -708,25 +721,29 @@ def _plain(obj):
     raise TypeError(f"{type(obj).__name__} is not plain data")
 
 
-def load_spec(spec) -> StudySpec:
+def load_spec(spec, rig=None) -> StudySpec:
     """A :class:`StudySpec` from a TOML path, a dict of tables, or a spec passed through.
 
     Parameters
     ----------
     spec : str, Path, dict or StudySpec
+    rig : str, Path or Rig, optional
+        Replaces the spec's ``study.rig`` (``hubbeam sweep --rig``); not with a StudySpec.
 
     Returns
     -------
     StudySpec
     """
     if isinstance(spec, StudySpec):
+        if rig is not None:
+            raise ParameterError("rig: give the rig in the spec's tables, not beside a built StudySpec")
         spec.validate()
         return spec
     if isinstance(spec, dict):
-        return StudySpec.from_dict(spec)
+        return StudySpec.from_dict(_with_rig(spec, rig))
     if not isinstance(spec, (str, Path)):
         raise ParameterError(f"spec must be a TOML path, a dict of tables or a StudySpec, got {type(spec).__name__}")
-    data = read_toml(spec, "spec: file", MAX_SPEC_BYTES)
+    data = _with_rig(read_toml(spec, "spec: file", MAX_SPEC_BYTES), rig)
     if isinstance(data.get("study"), dict) and isinstance(data["study"].get("rig"), str):
         data["_dir"] = str(Path(spec).resolve().parent)        # a rig file's path is relative to the spec
     return StudySpec.from_dict(data)
