@@ -76,13 +76,14 @@ class ShapedSettings(ControllerSettings):
 
     @classmethod
     def for_scenario(cls, scenario, **options) -> "ShapedSettings":
-        """The scenario's torque budget; a smooth slew if its reference ends at rest, else its
-        feedforward shaped.
+        """The scenario's torque budget; a smooth slew in the task's duration ``t_f`` if its
+        reference ends at rest (a ``t_f`` the budget cannot do is refused when the controller is
+        built, naming the shortest feasible one), else its feedforward shaped.
 
         Parameters
         ----------
         scenario : object
-            Read: ``tau_max``, ``reference``.
+            Read: ``tau_max``, ``reference``, ``t_f`` [s].
         **options
             Ignored unless they name a field.
 
@@ -90,8 +91,11 @@ class ShapedSettings(ControllerSettings):
         -------
         ShapedSettings
         """
-        profile = "smooth" if _ends_at_rest(scenario.reference) else "feedforward"
-        return super().for_scenario(scenario, **{"profile": profile, **options})
+        if _ends_at_rest(scenario.reference):
+            chosen = {"profile": "smooth", "duration": float(scenario.t_f)}
+        else:
+            chosen = {"profile": "feedforward"}
+        return super().for_scenario(scenario, **{**chosen, **options})
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,7 +177,7 @@ def _rest_to_rest(settings: ShapedSettings, shaper: Shaper, J: float, angle: flo
         raise ParameterError(
             f"duration = {duration:g} s is too short: the {settings.profile} slew of {angle:.4g} rad "
             f"shaped by {shaper.name} ({shaper.duration:.4g} s) needs more than tau_max = "
-            f"{settings.tau_max:g} N m; shortest feasible duration {shortest:.4f} s")
+            f"{settings.tau_max:g} N m; shortest feasible duration {math.ceil(shortest * 1e4) / 1e4:.4f} s")
     T = duration - shaper.duration
     if angle == 0.0:
         return T, (lambda t: np.zeros_like(np.asarray(t, dtype=float))), 0.0

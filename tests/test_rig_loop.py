@@ -208,3 +208,35 @@ def test_sweep_rig_option_replaces_the_specs_rig(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("hubbeam: error: --rig") and "nope" in err[0], err
     assert not out.exists()
+
+
+def test_design_and_tune_take_the_rig(tmp_path, capsys, monkeypatch):
+    """Issue 22 item 4: hubbeam design --rig designs on the rig's beam (reflected inertia), its drive's
+    torque limit and its sample time; hubbeam tune --rig runs the spec on the rig; a bad rig is one line
+    naming --rig, exit 2."""
+    import json
+
+    from hubbeam_ctrl.cli.main import main
+    rig = load_rig("servo_link")
+    out = tmp_path / "c.npz"
+    assert main(["design", "--rig", "servo_link", "--controller", "lqr", "--tf", "0.6",
+                 "--slew-angle", "1.5708", "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["dt"] == rig.timing.dt == 1e-3 and summary["tau_max_nm"] == rig.beam.tau_max
+    assert main(["design", "--rig", "servo_link", "--controller", "lqr", "--tau-max", "5",
+                 "--out", str(tmp_path / "d.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--tau-max" in err[0] and "the rig's drive" in err[0], err
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[study]\ncontrollers = ["lqr"]\nt_f = 0.6\nslew_angle = 1.5708\n[grid]\nm_t = [0.0]\n')
+    assert main(["tune", str(spec), "--controller", "lqr", "--rig", "nope", "--out", str(tmp_path / "t")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("hubbeam: error: --rig"), err
+    seen = {}
+
+    def fake_tune(spec, controller, **kw):
+        seen["rig"], seen["dt"] = spec.rig, spec.dt
+        raise KeyboardInterrupt
+    monkeypatch.setattr("hubbeam_ctrl.study.tune.tune", fake_tune)
+    assert main(["tune", str(spec), "--controller", "lqr", "--rig", "servo_link", "--out", str(tmp_path / "t")]) == 130
+    assert seen == {"rig": rig, "dt": rig.timing.dt}

@@ -309,7 +309,8 @@ def test_shaped_settings_for_a_scenario():
     """A rest-to-rest scenario gets a smooth slew, any other its feedforward shaped; both its budget."""
     slew = make_scenario("slew", plant="foam", tau_max=150.0, t_f=8.0, t_end=14.0)
     spin = make_scenario("spinup", plant="foam", tau_max=150.0, t_f=8.0, t_end=14.0, w_f=2.0)
-    assert ShapedSettings.for_scenario(slew, horizon=50) == ShapedSettings(profile="smooth", tau_max=150.0)
+    assert ShapedSettings.for_scenario(slew, horizon=50) == ShapedSettings(profile="smooth", tau_max=150.0,
+                                                                           duration=8.0)
     assert ShapedSettings.for_scenario(spin) == ShapedSettings(profile="feedforward", tau_max=150.0)
     assert ShapedSettings(modes=[2, 1]).modes == (2, 1)
 
@@ -389,3 +390,32 @@ def test_target_ei_robust_to_a_heavier_tip_where_zv_is_not():
                        ("ei", make_controller("ei", d, ShapedSettings(profile="smooth"), sc.reference))):
         res[name] = residual_after(simulate_closed_loop(model, ctrl, sc.t_end), sc.t_f + 5.0)
     assert res["ei"] <= 0.05 * res["eq44"] < res["zv"]             # measured 2.1 %, 197 %
+
+
+def test_shaped_slew_honours_the_tasks_duration_or_refuses_it(capsys, tmp_path):
+    """Issue 22: a shaped slew takes the task's t_f (its torque ends there, the angle is reached), a t_f
+    its budget cannot do is refused before any run naming t_f and the shortest feasible duration (which
+    then runs), and on the Eq. 44 task, which no shaped profile can do in t_f, the report says so."""
+    from hubbeam_ctrl.cli.main import main
+    from hubbeam_ctrl.study.report import _report
+    kw = dict(slew_angle=0.5, t_end=9.0, design_modes=2, plant_modes=3)
+    c = compare("foam", "slew", "zvd", t_f=4.0, **kw)
+    r = c.results["zvd"]
+    moving = r.t[np.abs(r.tau) > 1e-9]
+    assert 3.9 < moving[-1] <= 4.0 + 1e-9                    # the last torque sample is inside t_f
+    assert c.notes == [] and abs(r.theta[-1] - 0.5) < 0.01    # FOAM's inertia is not J_total
+    with pytest.raises(ParameterError, match=r"^t_f = 2 s is too short for zvd: .*shortest feasible "
+                                             r"duration (\d+\.\d+) s$") as exc:
+        compare("foam", "slew", "zvd", t_f=2.0, **kw)
+    shortest = float(str(exc.value).rsplit(" ", 2)[-2])
+    assert 2.0 < shortest < 4.0
+    compare("foam", "slew", "zvd", t_f=shortest, **kw)      # the value quoted (rounded up) runs
+    assert main(["compare", "--controllers", "zvd", "--tf", "2", "--slew-angle", "0.5", "--out",
+                 str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--tf" in err[0] and "shortest feasible duration" in err[0], err
+    assert not (tmp_path / "o").exists()
+    # the Eq. 44 task at the full budget: the shortest shaped slew, said in the report
+    eq44 = compare("foam", "slew", "zvd", t_f=4.0, t_end=9.0, design_modes=2, plant_modes=3)
+    assert len(eq44.notes) == 1 and eq44.notes[0].startswith("zvd: its shaped slew takes")
+    assert f"- {eq44.notes[0]}" in _report(eq44).splitlines()

@@ -31,7 +31,7 @@ def add_parser(subparsers, common) -> None:
     common : argparse.ArgumentParser
         Parent parser with the common plant options.
     """
-    from hubbeam_ctrl.cli.args import add_verbose
+    from hubbeam_ctrl.cli.args import add_verbose, nonempty
     from hubbeam_ctrl.cli.main import finite_float, positive_float
 
     p = subparsers.add_parser(
@@ -54,8 +54,14 @@ def add_parser(subparsers, common) -> None:
                    help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
     p.add_argument("--payload-range", metavar="MIN,MAX",
                    help="tip payloads [kg] to design LQR or LQG for (must hold the parameters' tip mass)")
-    p.add_argument("--dt", metavar="S", type=positive_float("dt"), default=0.01,
-                   help="sample time [s] (default 0.01)")
+    p.add_argument("--dt", metavar="S", type=positive_float("dt"),
+                   help="sample time [s] (default: the rig's; else 20 samples per period of the first "
+                        "flexible mode, at most 0.01)")
+    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
+                   help="design for this rig (a rig file or a preset): its beam with the rotor's reflected "
+                        "inertia and its damping, its drive's torque limit and its sample time; the "
+                        "saved controller is in torque (hubbeam codegen --rig adds the voltage stage and "
+                        "integral action)")
     p.add_argument("--design-modes", metavar="N", type=int,
                    help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
     p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
@@ -89,12 +95,13 @@ def run(args) -> int:
     from controllers import CONTROLLERS, DesignModel, make_controller
     from controllers.analysis import loop_margins
     from controllers.export import FORMATS, save_controller
-    from hubbeam_ctrl.cli.args import refuse_inapplicable, stdout
+    from hubbeam_ctrl.cli.args import refuse_inapplicable, rig_from_args, stdout
     from hubbeam_ctrl.cli.compare import parse_payload_range
     from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.study.payload import range_designs
     from hubbeam_ctrl.study.scenarios import make_scenario
+    from hubbeam_ctrl.study.yardstick import task_dt
 
     sink = stdout(args)      # sys.stdout is captured during the run (native solver output)
     refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
@@ -102,19 +109,21 @@ def run(args) -> int:
     if out.suffix.lower() not in FORMATS:
         raise ParameterError(f"out must end in {', '.join(FORMATS)}, got {args.out!r}")
     check_output_folder("out", out)
-    params = params_from_args(args)
+    rig = rig_from_args(args)
+    params = rig.plant_params if rig is not None else params_from_args(args)
     if args.tau_max is not None and args.tau_max > params.tau_max:
-        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
-                             f"the parameters), got {args.tau_max:g}")
+        whose = "the rig's drive" if rig is not None else "the motor's tau_max of the parameters"
+        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m ({whose}), got {args.tau_max:g}")
+    dt = args.dt if args.dt is not None else (rig.timing.dt if rig is not None else task_dt(params))
     modes = args.design_modes if args.design_modes is not None else params.n_transverse
     if not 1 <= modes <= 20:
         raise ParameterError(f"design-modes must be an integer in 1..20, got {modes}")
     if args.slew_angle is not None and (args.slew_angle == 0 or args.scenario != "slew"):
         raise ParameterError("slew-angle must be a finite number != 0 [rad], for --scenario slew only")
     sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
-                       t_end=3 * args.tf, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,
+                       t_end=3 * args.tf, dt=dt, w_f=3.0 if args.wf is None else args.wf,
                        slew_angle=args.slew_angle)
-    design = DesignModel.build(params, sc.design_spin, args.dt, modes)
+    design = DesignModel.build(params, sc.design_spin, dt, modes)
     settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
     if args.payload_range is not None:
         rng = parse_payload_range(args.payload_range, params.m_t)
@@ -132,7 +141,7 @@ def run(args) -> int:
         return 0
     sys = ctrl.to_statespace()
     print(f"{ctrl.name.upper()} on SFOAM ({modes} modes, m_t = {design.params.m_t:g} kg) at spin "
-          f"{sc.design_spin:g} rad/s, dt = {args.dt:g} s, for {sc.description}: "
+          f"{sc.design_spin:g} rad/s, dt = {dt:g} s, for {sc.description}: "
           f"{sys.nstates} states, inputs {', '.join(sys.input_labels)}, output tau; "
           f"|tau| <= {ctrl.tau_max:g} N m", file=sink)
     print(f"  closed loop on the design model: {'stable' if m.stable else 'UNSTABLE'} "

@@ -69,11 +69,45 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--resume", action="store_true", help="finish an interrupted study in --out")
     p.add_argument("--settings", metavar="FILE.toml",
                    help="controller settings merged into the spec's [settings] (e.g. hubbeam tune's output)")
-    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
-                   help="run every case on this rig (a rig file or a preset), replacing the spec's [study] rig "
-                        "(docs/studies.md, 'Sweeps on a rig')")
+    add_rig_option(p)
     add_engine_options(p)
     p.set_defaults(func=run)
+
+
+def add_rig_option(p) -> None:
+    """Add ``--rig`` (every case of the spec on this rig) to a study subcommand.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The subcommand's parser.
+    """
+    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
+                   help="run every case on this rig (a rig file or a preset), replacing the spec's [study] rig "
+                        "(docs/studies.md, 'Sweeps on a rig'); its drive gives the torque limit")
+
+
+def spec_from_args(args):
+    """The study spec of ``args.spec`` with ``--rig`` applied; a bad rig names ``--rig``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (reads ``spec`` and ``rig``).
+
+    Returns
+    -------
+    hubbeam_ctrl.study.spec.StudySpec
+    """
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.study.spec import load_spec
+
+    try:
+        return load_spec(args.spec, rig=args.rig)
+    except ParameterError as exc:
+        if args.rig is None or not str(exc).startswith("study.rig"):
+            raise
+        raise ParameterError(f"--rig{str(exc)[len('study.rig'):]}") from None
 
 
 def run(args) -> int:
@@ -86,20 +120,14 @@ def run(args) -> int:
     """
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
-    from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.core.fileio import strict_json
-    from hubbeam_ctrl.study.spec import load_settings, load_spec
+    from hubbeam_ctrl.study.spec import load_settings
     from hubbeam_ctrl.study.sweep import sweep
     from hubbeam_ctrl.study.sweep_report import write_sweep_outputs
 
     sink = stdout(args)
     check_output_dir("--out", args.out)
-    try:
-        spec = load_spec(args.spec, rig=args.rig)
-    except ParameterError as exc:
-        if args.rig is None or not str(exc).startswith("study.rig"):
-            raise
-        raise ParameterError(f"--rig{str(exc)[len('study.rig'):]}") from None
+    spec = spec_from_args(args)
     if args.settings:
         spec = load_settings(spec, args.settings)
     client = engine_from_args(args)

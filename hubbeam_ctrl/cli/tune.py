@@ -38,7 +38,7 @@ def add_parser(subparsers, common) -> None:
     common : argparse.ArgumentParser
         Parent parser with the common plant options.
     """
-    from hubbeam_ctrl.cli.sweep import add_engine_options
+    from hubbeam_ctrl.cli.sweep import add_engine_options, add_rig_option
     p = subparsers.add_parser(
         "tune", help="robust LQR/LQG/MPC weights over a study's plant spread",
         description=("Search the controller's weights (scaled, dimensionless; differential evolution "
@@ -57,6 +57,7 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--decades", metavar="D", type=finite_float("decades"),
                    help="search within D decades of the scaled defaults (default 2)")
     p.add_argument("--seed", metavar="N", type=int, help="optimiser seed (default 0)")
+    add_rig_option(p)
     add_engine_options(p)
     p.set_defaults(func=run)
 
@@ -71,14 +72,14 @@ def run(args) -> int:
     """
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
-    from hubbeam_ctrl.cli.sweep import engine_from_args
+    from hubbeam_ctrl.cli.sweep import engine_from_args, spec_from_args
     from hubbeam_ctrl.core.fileio import read_toml, strict_json
-    from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES, load_spec
+    from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES
     from hubbeam_ctrl.study.tune import TuneOptions, tune, write_tune_outputs
 
     sink = stdout(args)
     check_output_dir("--out", args.out)
-    spec = load_spec(args.spec)
+    spec = spec_from_args(args)
     table = dict(read_toml(args.spec, "spec: file", MAX_SPEC_BYTES).get("tune", {}))
     for key in ("objective", "maxiter", "popsize", "decades", "seed"):
         if getattr(args, key) is not None:

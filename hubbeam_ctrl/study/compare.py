@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
 from controllers.analysis import loop_margins
 from controllers.scaling import Tolerances
+from controllers.shaped import ShapedOpenLoop, shaped_profile
 from hubbeam_ctrl.core.budget import (
     CLOSED_LOOP_SECONDS_PER_SAMPLE,
     WallClock,
@@ -58,6 +59,39 @@ __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare",
 DEFAULT_CONTROLLERS = controller_names(default=True)
 #: The controllers held to the targets of the slew (the others, e.g. PD, are only reported).
 TARGET_CONTROLLERS = controller_names(target=True)
+
+
+def _shaped_durations(names, chosen, settings, design, reference, sc) -> dict:
+    """The settings of the shaped slews, with the task's duration ``t_f`` honoured (issue 22).
+
+    A ``t_f`` that a shaped slew cannot do within its torque budget is refused before any run,
+    naming ``t_f`` and the shortest feasible duration; except on the Eq. 44 task (the angle the
+    Eq. 44 torque turns at the full budget in ``t_f``), which no shaped profile can do in ``t_f``
+    by construction: there the slew takes its shortest feasible duration and the report says so.
+    Settings the caller gave keep their own ``duration`` (and its message). Returns the settings
+    and the report's notes.
+    """
+    out, notes = dict(chosen), []
+    eq44 = sc.baseline == "eq44" and sc.baseline_tau_m is not None and sc.baseline_tau_m >= sc.tau_max * (1 - 1e-9)
+    for name in names:
+        if name in settings or not issubclass(CONTROLLERS[name].controller, ShapedOpenLoop):
+            continue
+        if chosen[name].duration is None:
+            continue
+        try:
+            shaped_profile(design, name, chosen[name], reference)
+        except ParameterError as exc:
+            text = str(exc)
+            if not text.startswith("duration = "):
+                raise
+            if not eq44:
+                raise ParameterError(f"t_f = {sc.t_f:g} s is too short for {name}: "
+                                     f"{text.split(' is too short: ', 1)[-1]}") from None
+            out[name] = dataclasses.replace(chosen[name], duration=None)
+            longer = shaped_profile(design, name, out[name], reference).duration
+            notes.append(f"{name}: its shaped slew takes {longer:.4g} s, longer than t_f = {sc.t_f:g} s (no "
+                         f"shaped profile turns the Eq. 44 angle within tau_max = {sc.tau_max:g} N m in t_f)")
+    return out, notes
 
 
 def _parse_controllers(controllers) -> tuple:
@@ -120,6 +154,8 @@ class Comparison:
         The rig the controllers ran on (None: the beam alone).
     ladder : list of dict
         The rig ladder's rows (:func:`hubbeam_ctrl.study.ladder.rig_ladder`) when it was run.
+    notes : list of str
+        One line each for the report's notes (e.g. a shaped slew longer than ``t_f``).
     """
 
     scenario: Scenario
@@ -135,6 +171,7 @@ class Comparison:
     controllers: dict = field(default_factory=dict)
     rig: Rig | None = None
     ladder: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
 
 
 def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
@@ -316,6 +353,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     ref = _reference(sc, reference, rig)
     if ref is not sc.reference:
         sc = dataclasses.replace(sc, reference=ref)
+    chosen, notes = _shaped_durations(names, chosen, settings, design, ref, sc)
     designs = dict(designs or {})
     if payload_range is not None:
         from hubbeam_ctrl.study.range_design import range_designs
@@ -363,7 +401,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                       targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,
                       margins={n: lm for n, lm in margins.items() if lm is not None},
                       certificates=certificates,
-                      controllers={n: c for n, c in linear.items() if margins[n] is not None}, rig=rig)
+                      controllers={n: c for n, c in linear.items() if margins[n] is not None}, rig=rig,
+                      notes=notes)
 
 
 def _reference(sc: Scenario, kind: str, rig):

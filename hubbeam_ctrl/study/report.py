@@ -188,6 +188,7 @@ def _report(comparison) -> str:
              if not m["completed"] or m.get("outside_validated_range")]
     notes += [f"- {name}: {m['qp_fallbacks']} of {m['qp_solves']} QPs failed and fell back to LQR"
               for name, m in comparison.metrics.items() if m.get("qp_fallbacks")]
+    notes += [f"- {line}" for line in getattr(comparison, "notes", [])]
     if notes:
         lines += ["## Notes", ""] + notes + [""]
     lines += ["## Plots", "", "![tip deflection](tip_deflection.png)", "",
