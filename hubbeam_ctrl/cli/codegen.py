@@ -49,7 +49,7 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"),
                    help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
     p.add_argument("--dt", metavar="S", type=positive_float("dt"),
-                   help="sample time [s] (default: the rig's timing.dt, else 0.01)")
+                   help="sample time [s] (default: the rig's timing.dt, else 20 samples per period of the first flexible mode, at most 0.01)")
     p.add_argument("--design-modes", metavar="N", type=int,
                    help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
     p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
@@ -78,6 +78,8 @@ def run(args) -> int:
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.deploy import CODEGEN_KINDS, NO_COMPILER, compile_c, compiler, to_c
     from hubbeam_ctrl.study.scenarios import make_scenario
+    from hubbeam_ctrl.study.shaping import task_shaped_settings
+    from hubbeam_ctrl.study.yardstick import task_dt
 
     sink = stdout(args)
     kinds = [k for k in CODEGEN_KINDS if k != "openloop"]
@@ -94,7 +96,7 @@ def run(args) -> int:
                                  "root (0 m)")
     else:
         params = params_from_args(args)
-    dt = args.dt if args.dt is not None else (rig.timing.dt if rig is not None and rig.timing.dt else 0.01)
+    dt = args.dt if args.dt is not None else (rig.timing.dt if rig is not None and rig.timing.dt else task_dt(params))
     if args.tau_max is not None and args.tau_max > params.tau_max:
         raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
                              f"the parameters), got {args.tau_max:g}")
@@ -107,7 +109,8 @@ def run(args) -> int:
                        t_end=3 * args.tf, dt=dt, w_f=3.0 if args.wf is None else args.wf,
                        slew_angle=args.slew_angle)
     design = DesignModel.build(params, sc.design_spin, dt, modes)
-    settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
+    settings = task_shaped_settings(args.controller, CONTROLLERS[args.controller].settings.for_scenario(sc),
+                                    design, sc)[0]
     if rig is None:
         ctrl = make_controller(args.controller, design, settings, sc.reference)
     else:      # the controller that runs on the rig: integral action, observer, volts (as compare --rig)

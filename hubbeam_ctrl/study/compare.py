@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
 from controllers.analysis import loop_margins
 from controllers.scaling import Tolerances
-from controllers.shaped import ShapedOpenLoop, shaped_profile
 from hubbeam_ctrl.core.budget import (
     CLOSED_LOOP_SECONDS_PER_SAMPLE,
     WallClock,
@@ -51,6 +50,7 @@ from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
+from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_t_end
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
@@ -61,36 +61,14 @@ DEFAULT_CONTROLLERS = controller_names(default=True)
 TARGET_CONTROLLERS = controller_names(target=True)
 
 
-def _shaped_durations(names, chosen, settings, design, reference, sc) -> dict:
-    """The settings of the shaped slews, with the task's duration ``t_f`` honoured (issue 22).
-
-    A ``t_f`` that a shaped slew cannot do within its torque budget is refused before any run,
-    naming ``t_f`` and the shortest feasible duration; except on the Eq. 44 task (the angle the
-    Eq. 44 torque turns at the full budget in ``t_f``), which no shaped profile can do in ``t_f``
-    by construction: there the slew takes its shortest feasible duration and the report says so.
-    Settings the caller gave keep their own ``duration`` (and its message). Returns the settings
-    and the report's notes.
-    """
+def _shaped_durations(names, chosen, settings, design, sc) -> tuple:
+    """The shaped slews' settings in the task's ``t_f`` (:func:`~hubbeam_ctrl.study.shaping.task_shaped_settings`)
+    for the controllers whose settings the caller did not give, and the report's notes."""
     out, notes = dict(chosen), []
-    eq44 = sc.baseline == "eq44" and sc.baseline_tau_m is not None and sc.baseline_tau_m >= sc.tau_max * (1 - 1e-9)
     for name in names:
-        if name in settings or not issubclass(CONTROLLERS[name].controller, ShapedOpenLoop):
-            continue
-        if chosen[name].duration is None:
-            continue
-        try:
-            shaped_profile(design, name, chosen[name], reference)
-        except ParameterError as exc:
-            text = str(exc)
-            if not text.startswith("duration = "):
-                raise
-            if not eq44:
-                raise ParameterError(f"t_f = {sc.t_f:g} s is too short for {name}: "
-                                     f"{text.split(' is too short: ', 1)[-1]}") from None
-            out[name] = dataclasses.replace(chosen[name], duration=None)
-            longer = shaped_profile(design, name, out[name], reference).duration
-            notes.append(f"{name}: its shaped slew takes {longer:.4g} s, longer than t_f = {sc.t_f:g} s (no "
-                         f"shaped profile turns the Eq. 44 angle within tau_max = {sc.tau_max:g} N m in t_f)")
+        if name not in settings:
+            out[name], note = task_shaped_settings(name, chosen[name], design, sc)
+            notes += [note] if note else []
     return out, notes
 
 
@@ -353,7 +331,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     ref = _reference(sc, reference, rig)
     if ref is not sc.reference:
         sc = dataclasses.replace(sc, reference=ref)
-    chosen, notes = _shaped_durations(names, chosen, settings, design, ref, sc)
+    chosen, notes = _shaped_durations(names, chosen, settings, design, dataclasses.replace(sc, reference=ref))
     designs = dict(designs or {})
     if payload_range is not None:
         from hubbeam_ctrl.study.range_design import range_designs

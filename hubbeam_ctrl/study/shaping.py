@@ -10,10 +10,13 @@ slew is divided by that of the same base profile unshaped.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import scipy.optimize
 
 from controllers import DesignModel, ShapedOpenLoop, ShapedSettings, Shaper, design_shaper
+from controllers.shaped import shaped_profile
 from controllers.shaping import SHAPERS, design_modes
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive
@@ -22,7 +25,7 @@ from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 
-__all__ = ["plant_sensitivity", "residual_after", "plant_variant", "VARIANTS"]
+__all__ = ["plant_sensitivity", "residual_after", "plant_variant", "VARIANTS", "task_shaped_settings"]
 
 #: How :func:`plant_variant` moves the plant's first frequency.
 VARIANTS = ("stiffness", "tip_mass")
@@ -66,6 +69,58 @@ def plant_variant(params: Params, error: float, how: str = "stiffness", plant: s
         raise ParameterError(f"error = {error:g}: no tip mass in [0, {hi:.3g}] kg moves the first "
                              f"frequency by that much; use how='stiffness'")
     return params.replace(m_t=scipy.optimize.brentq(f, 0.0, hi, xtol=1e-12))
+
+
+def task_shaped_settings(kind: str, settings, design: DesignModel, scenario):
+    """A shaped slew's settings for a task, with the task's duration ``t_f`` honoured (issue 22).
+
+    The settings from :meth:`ShapedSettings.for_scenario` ask for the slew in ``t_f``. A ``t_f``
+    that the torque budget cannot do raises, naming ``t_f`` and the shortest feasible duration;
+    except on the Eq. 44 task (the angle the Eq. 44 torque turns at the full budget in ``t_f``),
+    which no shaped profile can turn in ``t_f`` by construction: there the slew takes its
+    shortest feasible duration and the returned note says so.
+
+    Parameters
+    ----------
+    kind : str
+        Controller name (``"zv"``, ``"zvd"``, ``"ei"``; any other is returned unchanged).
+    settings : ControllerSettings
+        The controller's settings (a :class:`ShapedSettings` for a shaped kind).
+    design : DesignModel
+        The design model (modes, rigid-body inertia).
+    scenario : Scenario
+        The task (read: ``t_f`` [s], ``tau_max`` [N m], ``reference``, ``baseline``,
+        ``baseline_tau_m`` [N m]).
+
+    Returns
+    -------
+    settings : ControllerSettings
+    note : str or None
+        One line for the report when the slew is longer than ``t_f``.
+
+    Raises
+    ------
+    ParameterError
+        ``t_f = ... s is too short for KIND: ...; shortest feasible duration ... s``.
+    """
+    if not isinstance(settings, ShapedSettings) or settings.duration is None or kind not in SHAPERS:
+        return settings, None
+    try:
+        shaped_profile(design, kind, settings, scenario.reference)
+        return settings, None
+    except ParameterError as exc:
+        text = str(exc)
+        if not text.startswith("duration = "):
+            raise
+        eq44 = (scenario.baseline == "eq44" and scenario.baseline_tau_m is not None
+                and scenario.baseline_tau_m >= scenario.tau_max * (1 - 1e-9))
+        if not eq44:
+            raise ParameterError(f"t_f = {scenario.t_f:g} s is too short for {kind}: "
+                                 f"{text.split(' is too short: ', 1)[-1]}") from None
+    longest = dataclasses.replace(settings, duration=None)
+    took = shaped_profile(design, kind, longest, scenario.reference).duration
+    return longest, (f"{kind}: its shaped slew takes {took:.4g} s, longer than t_f = {scenario.t_f:g} s (no "
+                     f"shaped profile turns the Eq. 44 angle within tau_max = {scenario.tau_max:g} N m in t_f)")
 
 
 def residual_after(result, start: float) -> float:

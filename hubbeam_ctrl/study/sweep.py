@@ -41,6 +41,7 @@ from hubbeam_ctrl.study.compare import _design_schedule
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import CSV_FIELDS
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
+from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec
 
 __all__ = ["sweep", "run_case", "run_batch", "CaseCache", "result_columns", "read_results",
@@ -181,6 +182,8 @@ def _run_controller(name: str, ctx: dict, spec: StudySpec, cache: CaseCache) -> 
         sched = _design_schedule(sc, spec.schedule, design.n_modes) if cspec.scheduled else None
         st = residual_modes_for(controller_settings(name, table, sc, spec.horizon, spec.solver),
                                 ctx["plant"].modes)
+        if "duration" not in (table or {}):
+            st = task_shaped_settings(name, st, design, sc)[0]
         if spec.rig is None:
             return make_controller(name, design, st, sc.reference, shaping=shaper, schedule=sched)
         # on the rig exactly as compare(): integral action, observer, voltage (study.rig_loop)
