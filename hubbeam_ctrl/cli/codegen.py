@@ -49,7 +49,8 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"),
                    help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
     p.add_argument("--dt", metavar="S", type=positive_float("dt"),
-                   help="sample time [s] (default: the rig's timing.dt, else 20 samples per period of the first flexible mode, at most 0.01)")
+                   help="sample time [s] (default: the rig's timing.dt, else 20 samples per period of the "
+                        "first flexible mode, at most 0.01)")
     p.add_argument("--design-modes", metavar="N", type=int,
                    help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
     p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
