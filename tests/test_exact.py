@@ -13,7 +13,7 @@ import pytest
 
 from hubbeam_ctrl import Params, SpinUp, TorquePulse, simulate
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.exact import EXUDYN_INSTALL, ExactBeamPlant, element_rule, exudyn_available
+from hubbeam_ctrl.exact import EXUDYN_INSTALL, ExactBeamPlant, element_rule, exudyn_available, highest_mode_hz
 from hubbeam_ctrl.sim import ClosedLoopSettings, simulate_closed_loop
 
 needs_exudyn = pytest.mark.skipif(not exudyn_available(), reason=EXUDYN_INSTALL)
@@ -144,3 +144,25 @@ def test_halving_step_and_doubling_elements():
     a = _run(ExactBeamPlant(Params(), n_elements=32, dt=0.01, substeps=20, torque_function=pulse), 2.0)
     b = _run(ExactBeamPlant(Params(), n_elements=64, dt=0.01, substeps=40, torque_function=pulse), 2.0)
     assert np.max(np.abs(a[:, 2] - b[:, 2])) < 1e-4 * np.max(np.abs(b[:, 2]))
+
+
+@needs_exudyn
+def test_a_step_that_does_not_resolve_the_highest_mode_is_refused():
+    """12 steps per period of bending mode n_modes at least: 10 modes of Table 1's beam (113.9 Hz free
+    hub) at 10 ms need 14 substeps; the message names the option as the caller spelled it."""
+    from hubbeam_ctrl.exact import min_substeps
+    f = highest_mode_hz(Params(), 10)
+    assert f == pytest.approx(113.94, rel=1e-3)
+    assert min_substeps(0.01, f) == 14
+    with pytest.raises(ParameterError, match=r"^substeps must be at least 14 for dt = 0.01 s \(bending mode 10 "):
+        ExactBeamPlant(Params(), n_elements=32, n_modes=10, dt=0.01, substeps=13)
+    with pytest.raises(ParameterError, match=r"^--substeps must be at least 14 for --dt = 0.01 s"):
+        ExactBeamPlant(Params(), n_elements=32, n_modes=10, dt=0.01, substeps=13, substeps_option="--substeps",
+                       dt_option="--dt")
+    with pytest.raises(ParameterError, match=r"^dt must be at most 0.1463 s"):
+        ExactBeamPlant(Params(), n_elements=32, n_modes=10, dt=0.2, substeps=200)
+    assert ExactBeamPlant(Params(), n_elements=32, n_modes=10, dt=0.01, substeps=14).min_substeps == 14
+    # the closed loop's substeps (ClosedLoopSettings.substeps) is checked likewise
+    with pytest.raises(ParameterError, match=r"^substeps must be at least 3 for dt = 0.01 s \(bending mode 5 "):
+        simulate_closed_loop("ancf", _Pulse(TorquePulse()), 0.05, params=Params(n_transverse=5),
+                             settings=ClosedLoopSettings(substeps=2))

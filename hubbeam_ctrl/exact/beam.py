@@ -34,8 +34,8 @@ from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.basis import axial_shapes, transverse_shapes
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["EXUDYN_INSTALL", "MIN_ELEMENTS", "ExactBeamPlant", "element_rule", "exudyn_available",
-           "require_exudyn"]
+__all__ = ["EXUDYN_INSTALL", "MIN_ELEMENTS", "MIN_STEPS_PER_PERIOD", "ExactBeamPlant", "element_rule",
+           "exudyn_available", "highest_mode_hz", "min_substeps", "require_exudyn"]
 
 #: One line on how to get the optional dependency.
 EXUDYN_INSTALL = "the exact-beam plant needs Exudyn: pip install 'hubbeam-ctrl[exact]' (or pip install exudyn)"
@@ -43,6 +43,12 @@ EXUDYN_INSTALL = "the exact-beam plant needs Exudyn: pip install 'hubbeam-ctrl[e
 MIN_ELEMENTS = 8
 #: Elements per resolved bending mode in :func:`element_rule` (its minimum accepted: 2).
 ELEMENTS_PER_MODE = 3
+#: Fewest integration steps per period of the highest resolved bending mode that the plant accepts
+#: (generalized-alpha's frequency error there: -2.2 % at rho_inf = 0.9; the closed loop's rule,
+#: ``sim.substep_rule``, asks 0.5 %, about 26 steps per period). Fewer steps do not resolve the mode.
+MIN_STEPS_PER_PERIOD = 12
+#: Most integration steps per sample (as the assumed-mode stepper's ``MAX_SUBSTEPS``).
+MAX_SUBSTEPS = 200
 
 
 def exudyn_available() -> bool:
@@ -101,6 +107,59 @@ def element_rule(n_modes: int) -> int:
     return max(16, 8 * math.ceil(ELEMENTS_PER_MODE * n / 8))
 
 
+def highest_mode_hz(params: Params, n_modes: int, hub: str = "free") -> float:
+    """Frequency of the highest bending mode the exact-beam plant resolves [Hz].
+
+    The ``n_modes``-th bending frequency of FOAM with ``n_modes`` transverse modes at rest (a
+    Ritz model: its top frequency is slightly above the beam's, so the check errs on the safe
+    side); the ANCF elements of :func:`element_rule` resolve at least these modes.
+
+    Parameters
+    ----------
+    params : Params
+        The beam, hub and tip mass.
+    n_modes : int
+        Bending modes the plant resolves, 1..20 [-].
+    hub : {"free", "prescribed"}
+        The hub free to turn (torque input) or its angle prescribed (clamped root).
+
+    Returns
+    -------
+    float
+        Frequency [Hz].
+    """
+    from hubbeam_ctrl.plant.modal import modal_analysis
+    from hubbeam_ctrl.plant.models import build_model
+    n = int(check_in_range("n_modes", n_modes, "", 1, 20))
+    model = build_model("foam", params.replace(n_transverse=n))
+    return float(np.max(modal_analysis(model, 0.0, hub).bending_hz))
+
+
+def min_substeps(dt: float, frequency_hz: float) -> int:
+    """Fewest integration steps per sample ``dt`` that resolve a mode of ``frequency_hz``.
+
+    ``ceil(MIN_STEPS_PER_PERIOD dt f)``: at least :data:`MIN_STEPS_PER_PERIOD` steps per period.
+
+    Parameters
+    ----------
+    dt : float
+        Sample period [s], > 0.
+    frequency_hz : float
+        The highest resolved bending frequency [Hz], > 0.
+
+    Returns
+    -------
+    int
+        Steps per sample [-], at least 1.
+
+    Examples
+    --------
+    >>> min_substeps(0.01, 113.9)
+    14
+    """
+    return max(1, math.ceil(MIN_STEPS_PER_PERIOD * dt * frequency_hz * (1 - 1e-12)))
+
+
 def _hermite(xi: np.ndarray, h: float) -> np.ndarray:
     """Cubic Hermite shape functions ``[N0, N0', N1, N1']`` at ``xi`` in [0, 1] of an element of length h."""
     return np.stack([1 - 3 * xi ** 2 + 2 * xi ** 3, h * (xi - 2 * xi ** 2 + xi ** 3),
@@ -126,7 +185,9 @@ class ExactBeamPlant:
     dt : float
         Sample period [s]: one :meth:`step` advances the plant by ``dt``.
     substeps : int
-        Integration steps per sample, 1..200 (the step is ``dt / substeps``).
+        Integration steps per sample, 1..200 (the step is ``dt / substeps``); at least
+        :func:`min_substeps` of the highest resolved mode (:data:`MIN_STEPS_PER_PERIOD` steps per
+        period of bending mode ``n_modes``, :func:`highest_mode_hz`), else refused naming the least.
     n_modes : int
         Transverse modes of the projected state (that a state-feedback controller reads), 1..20.
     n_axial : int
@@ -143,6 +204,8 @@ class ExactBeamPlant:
     torque_function : callable, optional
         ``tau(t)`` [N m] added to the held input at every integration step (an open-loop torque
         without the zero-order hold).
+    substeps_option, dt_option : str
+        How the caller spells ``substeps`` and ``dt`` (named in the refusal of a step too long).
 
     Examples
     --------
@@ -152,7 +215,8 @@ class ExactBeamPlant:
 
     def __init__(self, params: Params | None = None, *, n_elements: int = 32, dt: float = 0.01,
                  substeps: int = 20, n_modes: int = 10, n_axial: int = 5, rho_inf: float = 0.9,
-                 hardware=None, prescribed=None, torque_function=None):
+                 hardware=None, prescribed=None, torque_function=None, substeps_option: str = "substeps",
+                 dt_option: str = "dt"):
         exu = require_exudyn()
         from exudyn import itemInterface as ii
 
@@ -171,6 +235,18 @@ class ExactBeamPlant:
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or not 1 <= substeps <= 200:
             raise ParameterError(f"substeps must be an integer in [1, 200], got {substeps!r}")
         self.substeps = int(substeps)
+        #: The highest resolved bending mode's frequency [Hz] and the fewest steps per sample it needs.
+        self.highest_mode_hz = highest_mode_hz(p, self.n_modes, "free" if prescribed is None else "prescribed")
+        self.min_substeps = min_substeps(self.dt, self.highest_mode_hz)
+        if self.substeps < self.min_substeps:
+            need = f"bending mode {self.n_modes} of the exact beam at {self.highest_mode_hz:.4g} Hz needs " \
+                   f"{MIN_STEPS_PER_PERIOD} steps per period"
+            if self.min_substeps > MAX_SUBSTEPS:
+                dt_max = MAX_SUBSTEPS / (MIN_STEPS_PER_PERIOD * self.highest_mode_hz)
+                raise ParameterError(f"{dt_option} must be at most {dt_max:.4g} s ({need}; at most {MAX_SUBSTEPS} "
+                                     f"steps per sample), got {self.dt:g} s")
+            raise ParameterError(f"{substeps_option} must be at least {self.min_substeps} for {dt_option} = "
+                                 f"{self.dt:g} s ({need}), got {self.substeps}")
         self.rho_inf = check_in_range("rho_inf", rho_inf, "", 0.0, 1.0)
         self.hardware = hardware if hardware is not None and not getattr(hardware, "is_ideal", False) else None
         self.prescribed = prescribed
