@@ -69,6 +69,9 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--resume", action="store_true", help="finish an interrupted study in --out")
     p.add_argument("--settings", metavar="FILE.toml",
                    help="controller settings merged into the spec's [settings] (e.g. hubbeam tune's output)")
+    p.add_argument("--plant", metavar="PLANT", type=nonempty("plant"),
+                   help="run every case on this plant (foam, cfoam, or ancf: the geometrically exact beam of "
+                        "Exudyn, extra 'exact'), replacing the spec's [study] plant")
     p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
                    help="run every case on this rig (a rig file or a preset), replacing the spec's [study] rig "
                         "(docs/studies.md, 'Sweeps on a rig')")
@@ -95,11 +98,12 @@ def run(args) -> int:
     sink = stdout(args)
     check_output_dir("--out", args.out)
     try:
-        spec = load_spec(args.spec, rig=args.rig)
+        spec = load_spec(args.spec, rig=args.rig, plant=args.plant)
     except ParameterError as exc:
-        if args.rig is None or not str(exc).startswith("study.rig"):
-            raise
-        raise ParameterError(f"--rig{str(exc)[len('study.rig'):]}") from None
+        for option, key in (("--rig", "study.rig"), ("--plant", "study.plant")):
+            if getattr(args, option[2:]) is not None and str(exc).startswith(key):
+                raise ParameterError(f"{option}{str(exc)[len(key):]}") from None
+        raise
     if args.settings:
         spec = load_settings(spec, args.settings)
     client = engine_from_args(args)

@@ -473,8 +473,21 @@ class ExactBeamPlant:
         self.outputs = {"theta": th, "theta_dot": thd,
                         "v_tip": float(self._H_tip @ W[2 * k:2 * k + 4]),
                         "u_tip": float(self._H_tip @ U[2 * k:2 * k + 4]),
-                        "root_moment": self.root_moment(), "hub_torque": self._tau}
+                        "root_moment": self.root_moment(), "hub_torque": self.drive_torque()}
         return np.concatenate([[th], self._P1 @ U, self._P2 @ W, [thd], self._P1 @ Ud, self._P2 @ Wd])
+
+    def drive_torque(self) -> float:
+        """Hub torque that the prescribed motion takes [N m] (the drive constraint's reaction;
+        0 when the hub is free: the applied torque is the input).
+
+        Returns
+        -------
+        float
+        """
+        if self.prescribed is None:
+            return self._tau
+        out = self.mbs.GetObjectOutput(self._drive, self._exu.OutputVariableType.Force)
+        return -float(np.ravel(out)[0])     # the constraint acts on the hub with the opposite sign
 
     def root_moment(self) -> float:
         """Bending moment at the root [N m]: the clamp's reaction moment, signed as ``E I w''(0)``."""
