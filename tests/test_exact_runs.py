@@ -104,3 +104,33 @@ def test_sweep_on_the_exact_plant_equals_compare():
     for name, m in ref.items():
         row = df[(df["m_t"] == 0.3) & (df["controller"] == name)].iloc[0]
         assert row["peak_tip_m"] == m["peak_tip_m"] and row["residual_tip_max_m"] == m["residual_tip_max_m"]
+
+
+@needs_exudyn
+def test_compare_past_foams_range_reports_both_plants(tmp_path, capsys):
+    """A fast slew of the paper's beam (0.5 rad in 2 s, open loop, 3 modes, 3.5 s): FOAM's tip passes 0.3 L
+    (flagged, peak 0.416 L) and the exact plant's is recorded, not flagged (peak 0.398 L: FOAM +4.5 %);
+    ``--check-plant foam`` runs both in one comparison and report.md says which left its range."""
+    out = tmp_path / "cmp"
+    assert main(["compare", "--plant", "ancf", "--check-plant", "foam", "--controllers", "openloop", "--n-modes", "3",
+                 "--plant-modes", "3", "--tf", "2", "--slew-angle", "0.5", "--t-end", "3.5", "--out", str(out),
+                 "--json"]) == 0
+    captured = capsys.readouterr()
+    m = json.loads(captured.out)[0]
+    L = Params().L
+    assert m["plant"] == "ancf" and m["check_plant"] == "foam"
+    assert not m["outside_validated_range"] and m["check_outside_range_time_s"] == pytest.approx(1.83)
+    assert 0.3 < m["peak_tip_m"] / L < m["check_peak_tip_m"] / L
+    assert m["check_peak_tip_m"] / m["peak_tip_m"] - 1 == pytest.approx(0.045, abs=0.01)   # measured +4.5 %
+    report = (out / "report.md").read_text()
+    assert "## ANCF (exact beam) and FOAM on the same loop" in report
+    assert (f"- openloop: FOAM left its validated range (|v_tip| > 0.3 L at t = 1.830 s; peak "
+            f"{m['check_peak_tip_m'] / L:.3f} L); the exact plant did not (it has no such range): peak "
+            f"{m['peak_tip_m'] / L:.3f} L") in report
+    assert "on the check plant FOAM" in captured.err
+    assert main(["compare", "--plant", "foam", "--check-plant", "foam", "--controllers", "openloop",
+                 "--out", str(tmp_path / "x")]) == 2
+    assert capsys.readouterr().err == ("hubbeam: error: --check-plant must be a plant other than --plant foam, "
+                                       "got foam\n")
+    with pytest.raises(ParameterError, match=r"^check_plant must be one of foam, cfoam \(a plant other than "):
+        compare("ancf", "slew", "openloop", params=Params(n_transverse=3), check_plant="ancf")
