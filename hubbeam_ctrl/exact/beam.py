@@ -195,9 +195,18 @@ class ExactBeamPlant:
     rho_inf : float
         Spectral radius at infinity of generalized-alpha [-], 0..1.
     hardware : object, optional
-        The rig's drive and friction: an object with ``hub_torque(command, theta_dot)`` (as
-        :class:`~hubbeam_ctrl.sim.hardware.Hardware`); the input of :meth:`step` is then the
-        command, turned into the hub torque at the start of each sample.
+        The rig's drive and friction: an object with ``hub_torque(command, theta_dot)``,
+        ``friction.static`` and ``friction.stick_velocity`` (as
+        :class:`~hubbeam_ctrl.sim.hardware.Hardware`, whose ``hub_torque_scalar`` is used when
+        present); the input of :meth:`step` is then the command (one value, or one per
+        integration step: a computation delay), turned into the hub torque inside every
+        integration step at the hub rate of the current Newton iterate (its derivative in the
+        Jacobian). With friction the hub sticks (Karnopp) inside the step: a sliding hub that
+        slowed into ``stick_velocity`` or reversed within an integration step repeats the step
+        held (a velocity constraint, Exudyn's discontinuous iteration from the start of the step)
+        and stays held while the holding torque (:attr:`hold_torque`, the constraint's reaction)
+        is within the breakaway torque; :attr:`stuck` says whether it is held. (The assumed-mode
+        stepper decides the same per sample.)
     prescribed : callable, optional
         ``theta(t)`` [rad]: the hub angle is prescribed (a constraint) and the torque input is
         ignored; the hub torque it takes is in :attr:`outputs`.
@@ -249,6 +258,9 @@ class ExactBeamPlant:
                                  f"{self.dt:g} s ({need}), got {self.substeps}")
         self.rho_inf = check_in_range("rho_inf", rho_inf, "", 0.0, 1.0)
         self.hardware = hardware if hardware is not None and not getattr(hardware, "is_ideal", False) else None
+        if self.hardware is not None:      # plain floats when the hardware offers them (sim.Hardware)
+            self._hub_torque = getattr(self.hardware, "hub_torque_scalar",
+                                       lambda u, thd: float(self.hardware.hub_torque(u, thd)))
         self.prescribed = prescribed
         self.torque_function = torque_function
         # PlantStepper's statistics, for the closed loop's result
@@ -283,6 +295,15 @@ class ExactBeamPlant:
             self._drive = mbs.AddObject(ii.ObjectConnectorCoordinate(
                 markerNumbers=[m_ground, m_phi],
                 offsetUserFunction=lambda mbs_, t, item, offset: float(prescribed(t))))
+        self._lock = None
+        self.stuck, self.hold_torque = False, 0.0
+        self._step_end, self._tried_held, self._stuck_at_start = -1.0, False, False
+        self._F_s = 0.0 if self.hardware is None else float(self.hardware.friction.static)
+        self._v_stick = 0.0 if self.hardware is None else float(self.hardware.friction.stick_velocity)
+        if self._F_s > 0 and prescribed is None:      # Karnopp: the hub held at rest (its rate zero)
+            m_phi = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=n_hub, coordinate=2))
+            self._lock = mbs.AddObject(ii.ObjectConnectorCoordinate(markerNumbers=[m_ground, m_phi],
+                                                                    velocityLevel=True, activeConnector=False))
         nodes = [mbs.AddNode(ii.NodePoint2DSlope1(referenceCoordinates=[r + i * h, 0.0, 1.0, 0.0]))
                  for i in range(ne + 1)]
         EI, EA, rhoA = p.E * p.I, p.E * p.A, p.rho * p.A
@@ -306,7 +327,12 @@ class ExactBeamPlant:
                                                                   mbs.AddMarker(ii.MarkerNodePosition(nodeNumber=n_tip))]))
         m_hub = mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=n_hub))
         self._tau = 0.0
-        if torque_function is not None:
+        self._u_sub = np.zeros(self.substeps)       # the command in each step of the sample (hardware)
+        self._h_step = self.dt / self.substeps
+        if self.hardware is not None:
+            self._load = mbs.AddLoad(ii.LoadTorqueVector(markerNumber=m_hub, loadVector=[0, 0, 0],
+                                                         loadVectorUserFunction=self._hardware_torque))
+        elif torque_function is not None:
             self._load = mbs.AddLoad(ii.LoadTorqueVector(
                 markerNumber=m_hub, loadVector=[0, 0, 0],
                 loadVectorUserFunction=lambda mbs_, t, load: [0.0, 0.0, self._tau + float(torque_function(t))]))
@@ -342,6 +368,13 @@ class ExactBeamPlant:
         ss.linearSolver.solverType = exu.LinearSolverType.EigenSparse
         self._settings = ss
         self._solver = exu.MainSolverImplicitSecondOrder()
+        if self.hardware is not None:        # the hub torque's dependence on the hub rate in the Jacobian
+            ti.computeLoadsJacobian = 2
+            sd.AddODE2LoadDependencies(self._load, [self._i_hub])
+        if self._lock is not None:
+            ti.discontinuous.maxIterations = 4          # slide, held, and back (one switch each way)
+            ti.discontinuous.ignoreMaxIterations = False
+            mbs.SetPostNewtonUserFunction(self._post_newton)
         self._t = 0.0
         self._initialized = False
         #: Exact outputs of the last sample: ``v_tip``, ``u_tip`` [m], ``root_moment``,
@@ -425,13 +458,15 @@ class ExactBeamPlant:
         """
         if not self._initialized:
             self.initial_state()
-        u = float(np.asarray(tau, dtype=float).ravel()[-1])
-        if self.hardware is not None:
-            thd = self.mbs.systemData.GetODE2Coordinates_t()[self._i_hub]
-            u = float(self.hardware.hub_torque(u, thd))
-        self._tau = u
-        if self.torque_function is None:
-            self.mbs.SetLoadParameter(self._load, "loadVector", [0.0, 0.0, u])
+        if self.hardware is not None:          # drive and friction inside every step (_hardware_torque)
+            self._u_sub[:] = np.asarray(tau, dtype=float).ravel() if np.size(tau) == self.substeps \
+                else float(np.asarray(tau, dtype=float).ravel()[-1])
+
+        else:
+            u = float(np.asarray(tau, dtype=float).ravel()[-1])
+            self._tau = u
+            if self.torque_function is None:
+                self.mbs.SetLoadParameter(self._load, "loadVector", [0.0, 0.0, u])
         start = time.perf_counter()
         it = self._solver.it
         it.startTime, it.endTime = self._t, self._t + self.dt
@@ -441,6 +476,54 @@ class ExactBeamPlant:
             raise HubbeamError(f"Exudyn's generalized-alpha failed on the exact beam at t = {self._t:.4f} s")
         self._t += self.dt
         return self._projected_state()
+
+    def _post_newton(self, mbs, t) -> list:
+        """Karnopp inside the step (Exudyn's discontinuous iteration, called after each step's Newton
+        iterations; a return above 1 repeats the step from its start with the switched constraint):
+        a sliding hub that slowed into ``stick_velocity`` or reversed within the step is tried held
+        (the velocity constraint on): kept if the holding torque (the constraint's reaction) is within
+        breakaway, else the step is repeated sliding; a held hub whose holding torque exceeds
+        breakaway is released and the step repeated sliding. As the assumed-mode stepper, per
+        integration step instead of per sample."""
+        if t != self._step_end:                        # a new step (its end time): its first solution
+            self._step_end, self._tried_held = t, False
+            self._stuck_at_start = self.stuck
+        sd = mbs.systemData
+        if self.stuck:
+            out = mbs.GetObjectOutput(self._lock, self._exu.OutputVariableType.Force)
+            hold = -float(np.ravel(out)[0])
+            if abs(hold) <= self._F_s:
+                self.hold_torque = hold
+                if not self._stuck_at_start:
+                    self.stick_events += 1
+                    self._stuck_at_start = True
+                return [0.0, -1.0]
+            self.stuck = False                           # breakaway: the step again, sliding
+            self._tried_held = True
+            mbs.SetObjectParameter(self._lock, "activeConnector", False)
+            return [2.0, -1.0]
+        if self._tried_held:
+            return [0.0, -1.0]
+        thd1 = float(sd.GetODE2Coordinates_t()[self._i_hub])
+        thd0 = float(sd.GetODE2Coordinates_t(configuration=self._exu.ConfigurationType.StartOfStep)[self._i_hub])
+        if abs(thd1) <= self._v_stick and (abs(thd1) < abs(thd0) or thd0 == 0.0) or thd0 * thd1 < 0:
+            self.stuck = True                            # the step again, held
+            self._tried_held = True
+            mbs.SetObjectParameter(self._lock, "activeConnector", True)
+            return [2.0, -1.0]
+        return [0.0, -1.0]
+
+    def _hardware_torque(self, mbs, t, load):
+        """The hub torque of the rig's drive and sliding friction at time ``t`` of the sample, at the
+        hub rate of the current iterate: the command of the step that holds ``t`` (a computation delay
+        gives the steps before it the previous command)."""
+        j = min(max(math.ceil((t - self._t) / self._h_step - 1e-6) - 1, 0), self.substeps - 1)
+        thd = mbs.systemData.GetODE2Coordinates_t()[self._i_hub]
+        tau = self._hub_torque(float(self._u_sub[j]), float(thd))
+        if self.torque_function is not None:
+            tau += float(self.torque_function(t))
+        self._tau = tau
+        return [0.0, 0.0, tau]
 
     # -- outputs ---------------------------------------------------------------
     def _hub_frame(self):

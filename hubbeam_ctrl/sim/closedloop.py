@@ -377,7 +377,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                                hardware=hardware)
     t = dt * np.arange(N + 1)
     chain, state_pick = _rig_measurement(hardware, controller, kind, model, m, dt, N + 1,
-                                         settings.sensors.seed, stepper.backend)
+                                         settings.sensors.seed, backend if exact else stepper.backend)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" and chain is None \
         else None
