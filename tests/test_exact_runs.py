@@ -57,9 +57,11 @@ def test_cli_simulate_plant_ancf(tmp_path, capsys):
             (["--substeps", "2"], "hubbeam: error: --substeps must be at least 3 for dt = 0.01 s (bending mode 5"),
             (["--elements", "4"], "hubbeam: error: --elements must be an integer in [10, 512]"),
             (["--model", "foam"], "hubbeam: error: --model does not apply to --plant ancf"),
-            (["--axial", "quasi-static"], "hubbeam: error: --axial does not apply to --plant ancf")):
+            (["--axial", "quasi-static"], "hubbeam: error: --axial does not apply to --plant ancf"),
+            (["--t-end", "1e5", "--allow-large"], "hubbeam: error: --t-end = 100000 s at dt = 0.01 s (10000001 "
+                                                  "samples of 7 steps) would take at least")):
         assert main(["simulate", "--plant", "ancf", "--maneuver", "torque", "--t-end", "0.1", "--n-modes", "5",
-                     *argv]) == 2
+                     *argv]) == 2          # (a second --t-end replaces the first)
         err = capsys.readouterr().err
         assert err.startswith(first) and err.count("\n") == 1, err
     assert main(["simulate", "--model", "foam", "--maneuver", "torque", "--t-end", "0.1", "--substeps", "3"]) == 2

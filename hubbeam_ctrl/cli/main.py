@@ -293,7 +293,7 @@ def _simulate_exact(args, maneuver, params, sink) -> int:
                          n_elements=args.elements, range_limit=args.range_limit, progress=not args.json,
                          option_names={"substeps": "--substeps", "dt": "dt", "plant": "--plant ancf",
                                        "n_elements": "--elements"},
-                         **{k: v for k, v in run_limits(args).items() if k == "max_wall_s"})
+                         **run_limits(args))
     _print_simulation(args, res, "exudyn-ancf", sink)
     return 0
 
