@@ -195,8 +195,8 @@ class ExactBeamPlant:
     rho_inf : float
         Spectral radius at infinity of generalized-alpha [-], 0..1.
     hardware : object, optional
-        The rig's drive and friction: an object with ``hub_torque(command, theta_dot)``,
-        ``friction.static`` and ``friction.stick_velocity`` (as
+        The rig's drive and friction: an object with ``hub_torque(command, theta_dot)`` and, for
+        sticking, ``friction.static`` and ``friction.stick_velocity`` (as
         :class:`~hubbeam_ctrl.sim.hardware.Hardware`, whose ``hub_torque_scalar`` is used when
         present); the input of :meth:`step` is then the command (one value, or one per
         integration step: a computation delay), turned into the hub torque inside every
@@ -298,8 +298,9 @@ class ExactBeamPlant:
         self._lock = None
         self.stuck, self.hold_torque = False, 0.0
         self._step_end, self._tried_held, self._stuck_at_start = -1.0, False, False
-        self._F_s = 0.0 if self.hardware is None else float(self.hardware.friction.static)
-        self._v_stick = 0.0 if self.hardware is None else float(self.hardware.friction.stick_velocity)
+        friction = getattr(self.hardware, "friction", None)       # None: no sticking (hub_torque only)
+        self._F_s = float(getattr(friction, "static", 0.0))
+        self._v_stick = float(getattr(friction, "stick_velocity", 0.0))
         if self._F_s > 0 and prescribed is None:      # Karnopp: the hub held at rest (its rate zero)
             m_phi = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=n_hub, coordinate=2))
             self._lock = mbs.AddObject(ii.ObjectConnectorCoordinate(markerNumbers=[m_ground, m_phi],
