@@ -462,7 +462,6 @@ class ExactBeamPlant:
         if self.hardware is not None:          # drive and friction inside every step (_hardware_torque)
             self._u_sub[:] = np.asarray(tau, dtype=float).ravel() if np.size(tau) == self.substeps \
                 else float(np.asarray(tau, dtype=float).ravel()[-1])
-
         else:
             u = float(np.asarray(tau, dtype=float).ravel()[-1])
             self._tau = u

@@ -50,7 +50,7 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
-from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
+from hubbeam_ctrl.study.scenarios import PLANTS, Scenario, make_scenario
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_t_end
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
@@ -400,7 +400,6 @@ def _check_plant(check_plant, sc: Scenario, ev: EvaluationPlant, design_modes: i
     parameters and modes on another model."""
     if check_plant is None:
         return None
-    from hubbeam_ctrl.study.scenarios import PLANTS
     if check_plant not in PLANTS or check_plant == ev.model:
         others = ", ".join(p for p in PLANTS if p != ev.model)
         raise ParameterError(f"check_plant must be one of {others} (a plant other than plant = {ev.model!r}), "
