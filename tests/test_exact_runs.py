@@ -80,6 +80,10 @@ def test_without_exudyn_one_line_exit_2(monkeypatch, tmp_path, capsys):
     spec.write_text('[study]\ncontrollers = ["lqr"]\nt_end = 2.0\n')
     assert main(["sweep", str(spec), "--plant", "ancf", "--out", str(tmp_path / "o")]) == 2
     assert capsys.readouterr().err == f"hubbeam: error: --plant 'ancf': {EXUDYN_INSTALL}\n"
+    for option in ("--plant", "--check-plant"):
+        argv = ["--plant", "ancf"] if option == "--plant" else ["--check-plant", "ancf"]
+        assert main(["compare", *argv, "--controllers", "openloop", "--out", str(tmp_path / "c")]) == 2
+        assert capsys.readouterr().err == f"hubbeam: error: {option} ancf: {EXUDYN_INSTALL}\n"
     with pytest.raises(ParameterError, match=r"^study.plant 'ancf': .*pip install 'hubbeam-ctrl\[exact\]'"):
         load_spec({"study": {"plant": "ancf"}})
 
