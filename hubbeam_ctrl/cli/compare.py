@@ -54,6 +54,10 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
     p.add_argument("--plant", metavar="PLANT", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "PLANTS"),
                    default="foam", help="nonlinear plant: %(choices)s (default %(default)s: closer to an "
                                         "exact beam than cfoam)")
+    p.add_argument("--check-plant", metavar="PLANT", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "PLANTS"),
+                   default=None, help="run every controller also on this plant (%(choices)s; same modes, step and "
+                                      "sensors) and report both: e.g. --plant ancf --check-plant foam shows where FOAM "
+                                      "leaves its validated range and the exact beam does not")
     p.add_argument("--plant-params", metavar="FILE.toml", type=nonempty("file"),
                    help="physical parameters of the plant when they differ from the design's")
     p.add_argument("--plant-tip-mass", metavar="KG", type=real("kg"), help="tip mass of the plant [kg], >= 0")
@@ -201,6 +205,12 @@ def run(args) -> int:
     if args.slew_angle is not None and args.scenario != "slew":
         raise ParameterError("--slew-angle applies to --scenario slew only")
     plant_params = _plant_params(args, params)
+    if args.check_plant is not None and args.check_plant == args.plant:
+        raise ParameterError(f"--check-plant must be a plant other than --plant {args.plant}, got {args.check_plant}")
+    for option in ("plant", "check_plant"):
+        if getattr(args, option) == "ancf":
+            from hubbeam_ctrl.exact import require_exudyn
+            require_exudyn(f"--{option.replace('_', '-')} ancf")
     design_modes = args.design_modes if args.design_modes is not None else params.n_transverse
     if not 1 <= design_modes <= MAX_MODES:
         raise ParameterError(f"--design-modes must be an integer in 1..{MAX_MODES}, got {design_modes}")
@@ -222,7 +232,7 @@ def run(args) -> int:
                          horizon=50 if args.horizon is None else args.horizon,
                          solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
                          sim_settings={"range_limit": args.range_limit, **run_limits(args)},
-                         progress=not args.json, backend=args.backend)
+                         progress=not args.json, backend=args.backend, check_plant=args.check_plant)
     if rig is not None and not rig.is_ideal and not args.no_ladder:
         from hubbeam_ctrl.study.ladder import rig_ladder
         comparison.ladder = rig_ladder(
@@ -243,6 +253,9 @@ def run(args) -> int:
     for name, m in comparison.metrics.items():
         if not m["completed"] or m.get("outside_validated_range"):
             print(f"warning: {name}: {m['message']}", file=sys.stderr)
+        if m.get("check_outside_range_time_s") is not None:
+            print(f"warning: {name}: on the check plant {m['check_plant'].upper()}: "
+                  f"{comparison.check_metrics[name]['message']}", file=sys.stderr)
     skipped = [n for n in names if n not in comparison.metrics]
     if skipped:
         print(f"warning: not run (the wall-time limit was reached): {', '.join(skipped)}", file=sys.stderr)

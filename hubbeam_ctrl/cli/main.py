@@ -257,6 +257,12 @@ def _cmd_simulate(args) -> int:
     else:
         maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
                                args.tf if args.tf is not None else 10.0)
+    if args.plant == "ancf":
+        return _simulate_exact(args, maneuver, params, sink)
+    refuse_inapplicable(args, "an assumed-mode model", {"--substeps": ("--plant ancf",),
+                                                        "--elements": ("--plant ancf",)})
+    if args.model is None:
+        raise ParameterError("--model is required (cfoam, foam, tlam, sfoam), or --plant ancf for the exact beam")
     integrator = args.integrator
     if integrator == "auto":
         integrator = "fixed-step" if args.maneuver == "torque" and args.t_end >= 2 * FIXED_STEP_DT else "idas"
@@ -271,6 +277,29 @@ def _cmd_simulate(args) -> int:
     else:
         res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
                        range_limit=args.range_limit, **run_limits(args), backend=args.backend, axial=args.axial)
+    _print_simulation(args, res, integrator, sink)
+    return 0
+
+
+def _simulate_exact(args, maneuver, params, sink) -> int:
+    """``hubbeam simulate --plant ancf``: the maneuver on the exact beam (Exudyn ANCF)."""
+    for option, value, default in (("--model", args.model, None), ("--axial", args.axial, "dynamic"),
+                                   ("--integrator", args.integrator, "auto"), ("--backend", args.backend, None)):
+        if value != default:
+            raise ParameterError(f"{option} does not apply to --plant ancf (the exact beam: Exudyn's ANCF "
+                                 "elements and generalized-alpha; FOAM's modes for the projected state)")
+    from hubbeam_ctrl.sim.exactbeam import simulate_exact
+    res = simulate_exact(maneuver, args.t_end, params=params, dt=FIXED_STEP_DT, substeps=args.substeps,
+                         n_elements=args.elements, range_limit=args.range_limit, progress=not args.json,
+                         option_names={"substeps": "--substeps", "dt": "dt", "plant": "--plant ancf",
+                                       "n_elements": "--elements"},
+                         **run_limits(args))
+    _print_simulation(args, res, "exudyn-ancf", sink)
+    return 0
+
+
+def _print_simulation(args, res, integrator: str, sink) -> None:
+    """Save, plot and print the summary of a ``hubbeam simulate`` run."""
     if args.out:
         res.save(args.out)
     if args.plot:
@@ -281,15 +310,17 @@ def _cmd_simulate(args) -> int:
                              "final_theta_dot_rad_s", "diverged", "wall_s")}
     out["integrator"] = integrator
     out["peak_error_estimate"] = res.stats.get("peak_error_estimate")     # None: IDAS's error control
+    if res.model == "ancf":
+        out.update(plant="ancf", plant_elements=res.settings["plant_elements"], substeps=res.settings["substeps"],
+                   past_assumed_mode_range_time_s=res.stats.get("past_assumed_mode_range_time_s"))
     if args.json:
         print(strict_json(out), file=sink)
     else:
         for k, v in out.items():
             print(f"{k:>22}: {v}", file=sink)
         print(f"{'message':>22}: {res.message}", file=sink)
-    if res.diverged or res.outside_validated_range:
+    if res.diverged or res.outside_validated_range or res.stats.get("past_assumed_mode_range_time_s") is not None:
         print(f"warning: {res.message}", file=sys.stderr)
-    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -331,7 +362,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", parents=[common], help="simulate a maneuver",
                        description="Simulate the Eq. 43 spin-up (prescribed hub) or the Eq. 44 "
                                    "torque pulse (free hub).")
-    p.add_argument("--model", choices=list(MODEL_SPECS), required=True)
+    p.add_argument("--model", choices=list(MODEL_SPECS), default=None,
+                   help="the assumed-mode model (required unless --plant ancf)")
+    p.add_argument("--plant", choices=["ancf"], default=None,
+                   help="ancf: the geometrically exact beam of Exudyn (ANCF cable elements, optional extra: "
+                        "pip install 'hubbeam-ctrl[exact]') instead of --model; the torque is applied at every "
+                        "integration step, the step is FOAM's rule and the elements 3 per mode")
+    p.add_argument("--substeps", metavar="K", type=integer(), default=None,
+                   help="--plant ancf: integration steps per 10 ms sample (default: FOAM's rule, 0.5 %% on the "
+                        "highest mode; at least 12 steps per period of the highest mode)")
+    p.add_argument("--elements", metavar="N", type=integer(), default=None,
+                   help="--plant ancf: ANCF elements (default: 3 per bending mode, a multiple of 8, at least 16)")
     p.add_argument("--maneuver", choices=["spinup", "torque"], required=True)
     p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
                    help="spin-up final rate [rad/s] (default 3; --maneuver spinup only)")

@@ -19,6 +19,7 @@ from controllers import CONTROLLERS
 from hubbeam_ctrl.cli.args import OPTION_NAMES
 from hubbeam_ctrl.core.budget import T_END_MAX
 from hubbeam_ctrl.core.settings import Settings, range_text
+from hubbeam_ctrl.exact import MIN_ELEMENTS, MIN_STEPS_PER_PERIOD
 from hubbeam_ctrl.linear.statespace import DT_RANGE
 from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse
 from hubbeam_ctrl.plant.params import MAX_ROOT_STRAIN, RELATIONS, Params
@@ -132,6 +133,12 @@ def _function_rows() -> list:
          "Params.max_spin", "`--tau-max`"),
         ("`compare`", "`horizon`", "samples", "MPC matrices within `max_memory_mb`, its run within "
          "`max_wall_s`", "`--horizon`"),
+        ("`ExactBeamPlant`, `simulate_exact`, `simulate_closed_loop` (plant `ancf`)", "`n_elements`", "-",
+         f"integer in [max({MIN_ELEMENTS}, 2 n_modes), 512] (default `element_rule`: 3 per mode, a multiple of 8, "
+         ">= 16)", "`--elements` (simulate)"),
+        ("`ExactBeamPlant`, `simulate_exact`, `simulate_closed_loop` (plant `ancf`)", "`substeps`", "-",
+         f"integer in [min_substeps, 200]: at least {MIN_STEPS_PER_PERIOD} steps per period of bending mode "
+         "n_modes (`highest_mode_hz`); dt at most 200 / (12 f) otherwise", "`--substeps` (simulate)"),
         ("`simulate`", "maneuver", "-", "spin-up and constant spin: abs(rate) <= Params.max_spin; torque "
          "pulse: tau_m t_f / (pi J_total) <= Params.max_spin", "`--wf`, `--tau-max`"),
     ]

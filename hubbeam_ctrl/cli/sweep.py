@@ -69,6 +69,9 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--resume", action="store_true", help="finish an interrupted study in --out")
     p.add_argument("--settings", metavar="FILE.toml",
                    help="controller settings merged into the spec's [settings] (e.g. hubbeam tune's output)")
+    p.add_argument("--plant", metavar="PLANT", type=nonempty("plant"),
+                   help="run every case on this plant (foam, cfoam, or ancf: the geometrically exact beam of "
+                        "Exudyn, extra 'exact'), replacing the spec's [study] plant")
     add_rig_option(p)
     add_engine_options(p)
     p.set_defaults(func=run)
@@ -88,12 +91,12 @@ def add_rig_option(p) -> None:
 
 
 def spec_from_args(args):
-    """The study spec of ``args.spec`` with ``--rig`` applied; a bad rig names ``--rig``.
+    """The study spec of ``args.spec`` with ``--rig`` and ``--plant`` applied; a bad one names its option.
 
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed command line (reads ``spec`` and ``rig``).
+        The parsed command line (reads ``spec``, ``rig`` and, when the command has it, ``plant``).
 
     Returns
     -------
@@ -103,11 +106,12 @@ def spec_from_args(args):
     from hubbeam_ctrl.study.spec import load_spec
 
     try:
-        return load_spec(args.spec, rig=args.rig)
+        return load_spec(args.spec, rig=args.rig, plant=getattr(args, "plant", None))
     except ParameterError as exc:
-        if args.rig is None or not str(exc).startswith("study.rig"):
-            raise
-        raise ParameterError(f"--rig{str(exc)[len('study.rig'):]}") from None
+        for option, key in (("--rig", "study.rig"), ("--plant", "study.plant")):
+            if getattr(args, option[2:], None) is not None and str(exc).startswith(key):
+                raise ParameterError(f"{option}{str(exc)[len(key):]}") from None
+        raise
 
 
 def run(args) -> int:

@@ -10,11 +10,14 @@ uses). Its layer lies between ``sim | linear`` and ``plant``.
 from hubbeam_ctrl.exact.beam import (
     EXUDYN_INSTALL,
     MIN_ELEMENTS,
+    MIN_STEPS_PER_PERIOD,
     ExactBeamPlant,
     element_rule,
     exudyn_available,
+    highest_mode_hz,
+    min_substeps,
     require_exudyn,
 )
 
-__all__ = ["EXUDYN_INSTALL", "MIN_ELEMENTS", "ExactBeamPlant", "element_rule", "exudyn_available",
-           "require_exudyn"]
+__all__ = ["EXUDYN_INSTALL", "MIN_ELEMENTS", "MIN_STEPS_PER_PERIOD", "ExactBeamPlant", "element_rule",
+           "exudyn_available", "highest_mode_hz", "min_substeps", "require_exudyn"]

@@ -34,8 +34,8 @@ from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.basis import axial_shapes, transverse_shapes
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["EXUDYN_INSTALL", "MIN_ELEMENTS", "ExactBeamPlant", "element_rule", "exudyn_available",
-           "require_exudyn"]
+__all__ = ["EXUDYN_INSTALL", "MIN_ELEMENTS", "MIN_STEPS_PER_PERIOD", "ExactBeamPlant", "element_rule",
+           "exudyn_available", "highest_mode_hz", "min_substeps", "require_exudyn"]
 
 #: One line on how to get the optional dependency.
 EXUDYN_INSTALL = "the exact-beam plant needs Exudyn: pip install 'hubbeam-ctrl[exact]' (or pip install exudyn)"
@@ -43,6 +43,12 @@ EXUDYN_INSTALL = "the exact-beam plant needs Exudyn: pip install 'hubbeam-ctrl[e
 MIN_ELEMENTS = 8
 #: Elements per resolved bending mode in :func:`element_rule` (its minimum accepted: 2).
 ELEMENTS_PER_MODE = 3
+#: Fewest integration steps per period of the highest resolved bending mode that the plant accepts
+#: (generalized-alpha's frequency error there: -2.2 % at rho_inf = 0.9; the closed loop's rule,
+#: ``sim.substep_rule``, asks 0.5 %, about 26 steps per period). Fewer steps do not resolve the mode.
+MIN_STEPS_PER_PERIOD = 12
+#: Most integration steps per sample (as the assumed-mode stepper's ``MAX_SUBSTEPS``).
+MAX_SUBSTEPS = 200
 
 
 def exudyn_available() -> bool:
@@ -101,6 +107,59 @@ def element_rule(n_modes: int) -> int:
     return max(16, 8 * math.ceil(ELEMENTS_PER_MODE * n / 8))
 
 
+def highest_mode_hz(params: Params, n_modes: int, hub: str = "free") -> float:
+    """Frequency of the highest bending mode the exact-beam plant resolves [Hz].
+
+    The ``n_modes``-th bending frequency of FOAM with ``n_modes`` transverse modes at rest (a
+    Ritz model: its top frequency is slightly above the beam's, so the check errs on the safe
+    side); the ANCF elements of :func:`element_rule` resolve at least these modes.
+
+    Parameters
+    ----------
+    params : Params
+        The beam, hub and tip mass.
+    n_modes : int
+        Bending modes the plant resolves, 1..20 [-].
+    hub : {"free", "prescribed"}
+        The hub free to turn (torque input) or its angle prescribed (clamped root).
+
+    Returns
+    -------
+    float
+        Frequency [Hz].
+    """
+    from hubbeam_ctrl.plant.modal import modal_analysis
+    from hubbeam_ctrl.plant.models import build_model
+    n = int(check_in_range("n_modes", n_modes, "", 1, 20))
+    model = build_model("foam", params.replace(n_transverse=n))
+    return float(np.max(modal_analysis(model, 0.0, hub).bending_hz))
+
+
+def min_substeps(dt: float, frequency_hz: float) -> int:
+    """Fewest integration steps per sample ``dt`` that resolve a mode of ``frequency_hz``.
+
+    ``ceil(MIN_STEPS_PER_PERIOD dt f)``: at least :data:`MIN_STEPS_PER_PERIOD` steps per period.
+
+    Parameters
+    ----------
+    dt : float
+        Sample period [s], > 0.
+    frequency_hz : float
+        The highest resolved bending frequency [Hz], > 0.
+
+    Returns
+    -------
+    int
+        Steps per sample [-], at least 1.
+
+    Examples
+    --------
+    >>> min_substeps(0.01, 113.9)
+    14
+    """
+    return max(1, math.ceil(MIN_STEPS_PER_PERIOD * dt * frequency_hz * (1 - 1e-12)))
+
+
 def _hermite(xi: np.ndarray, h: float) -> np.ndarray:
     """Cubic Hermite shape functions ``[N0, N0', N1, N1']`` at ``xi`` in [0, 1] of an element of length h."""
     return np.stack([1 - 3 * xi ** 2 + 2 * xi ** 3, h * (xi - 2 * xi ** 2 + xi ** 3),
@@ -126,7 +185,9 @@ class ExactBeamPlant:
     dt : float
         Sample period [s]: one :meth:`step` advances the plant by ``dt``.
     substeps : int
-        Integration steps per sample, 1..200 (the step is ``dt / substeps``).
+        Integration steps per sample, 1..200 (the step is ``dt / substeps``); at least
+        :func:`min_substeps` of the highest resolved mode (:data:`MIN_STEPS_PER_PERIOD` steps per
+        period of bending mode ``n_modes``, :func:`highest_mode_hz`), else refused naming the least.
     n_modes : int
         Transverse modes of the projected state (that a state-feedback controller reads), 1..20.
     n_axial : int
@@ -134,15 +195,26 @@ class ExactBeamPlant:
     rho_inf : float
         Spectral radius at infinity of generalized-alpha [-], 0..1.
     hardware : object, optional
-        The rig's drive and friction: an object with ``hub_torque(command, theta_dot)`` (as
-        :class:`~hubbeam_ctrl.sim.hardware.Hardware`); the input of :meth:`step` is then the
-        command, turned into the hub torque at the start of each sample.
+        The rig's drive and friction: an object with ``hub_torque(command, theta_dot)`` and, for
+        sticking, ``friction.static`` and ``friction.stick_velocity`` (as
+        :class:`~hubbeam_ctrl.sim.hardware.Hardware`, whose ``hub_torque_scalar`` is used when
+        present); the input of :meth:`step` is then the command (one value, or one per
+        integration step: a computation delay), turned into the hub torque inside every
+        integration step at the hub rate of the current Newton iterate (its derivative in the
+        Jacobian). With friction the hub sticks (Karnopp) inside the step: a sliding hub that
+        slowed into ``stick_velocity`` or reversed within an integration step repeats the step
+        held (a velocity constraint, Exudyn's discontinuous iteration from the start of the step)
+        and stays held while the holding torque (:attr:`hold_torque`, the constraint's reaction)
+        is within the breakaway torque; :attr:`stuck` says whether it is held. (The assumed-mode
+        stepper decides the same per sample.)
     prescribed : callable, optional
         ``theta(t)`` [rad]: the hub angle is prescribed (a constraint) and the torque input is
         ignored; the hub torque it takes is in :attr:`outputs`.
     torque_function : callable, optional
         ``tau(t)`` [N m] added to the held input at every integration step (an open-loop torque
         without the zero-order hold).
+    substeps_option, dt_option : str
+        How the caller spells ``substeps`` and ``dt`` (named in the refusal of a step too long).
 
     Examples
     --------
@@ -152,7 +224,8 @@ class ExactBeamPlant:
 
     def __init__(self, params: Params | None = None, *, n_elements: int = 32, dt: float = 0.01,
                  substeps: int = 20, n_modes: int = 10, n_axial: int = 5, rho_inf: float = 0.9,
-                 hardware=None, prescribed=None, torque_function=None):
+                 hardware=None, prescribed=None, torque_function=None, substeps_option: str = "substeps",
+                 dt_option: str = "dt"):
         exu = require_exudyn()
         from exudyn import itemInterface as ii
 
@@ -171,8 +244,23 @@ class ExactBeamPlant:
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or not 1 <= substeps <= 200:
             raise ParameterError(f"substeps must be an integer in [1, 200], got {substeps!r}")
         self.substeps = int(substeps)
+        #: The highest resolved bending mode's frequency [Hz] and the fewest steps per sample it needs.
+        self.highest_mode_hz = highest_mode_hz(p, self.n_modes, "free" if prescribed is None else "prescribed")
+        self.min_substeps = min_substeps(self.dt, self.highest_mode_hz)
+        if self.substeps < self.min_substeps:
+            need = f"bending mode {self.n_modes} of the exact beam at {self.highest_mode_hz:.4g} Hz needs " \
+                   f"{MIN_STEPS_PER_PERIOD} steps per period"
+            if self.min_substeps > MAX_SUBSTEPS:
+                dt_max = MAX_SUBSTEPS / (MIN_STEPS_PER_PERIOD * self.highest_mode_hz)
+                raise ParameterError(f"{dt_option} must be at most {dt_max:.4g} s ({need}; at most {MAX_SUBSTEPS} "
+                                     f"steps per sample), got {self.dt:g} s")
+            raise ParameterError(f"{substeps_option} must be at least {self.min_substeps} for {dt_option} = "
+                                 f"{self.dt:g} s ({need}), got {self.substeps}")
         self.rho_inf = check_in_range("rho_inf", rho_inf, "", 0.0, 1.0)
         self.hardware = hardware if hardware is not None and not getattr(hardware, "is_ideal", False) else None
+        if self.hardware is not None:      # plain floats when the hardware offers them (sim.Hardware)
+            self._hub_torque = getattr(self.hardware, "hub_torque_scalar",
+                                       lambda u, thd: float(self.hardware.hub_torque(u, thd)))
         self.prescribed = prescribed
         self.torque_function = torque_function
         # PlantStepper's statistics, for the closed loop's result
@@ -207,6 +295,16 @@ class ExactBeamPlant:
             self._drive = mbs.AddObject(ii.ObjectConnectorCoordinate(
                 markerNumbers=[m_ground, m_phi],
                 offsetUserFunction=lambda mbs_, t, item, offset: float(prescribed(t))))
+        self._lock = None
+        self.stuck, self.hold_torque = False, 0.0
+        self._step_end, self._tried_held, self._stuck_at_start = -1.0, False, False
+        friction = getattr(self.hardware, "friction", None)       # None: no sticking (hub_torque only)
+        self._F_s = float(getattr(friction, "static", 0.0))
+        self._v_stick = float(getattr(friction, "stick_velocity", 0.0))
+        if self._F_s > 0 and prescribed is None:      # Karnopp: the hub held at rest (its rate zero)
+            m_phi = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=n_hub, coordinate=2))
+            self._lock = mbs.AddObject(ii.ObjectConnectorCoordinate(markerNumbers=[m_ground, m_phi],
+                                                                    velocityLevel=True, activeConnector=False))
         nodes = [mbs.AddNode(ii.NodePoint2DSlope1(referenceCoordinates=[r + i * h, 0.0, 1.0, 0.0]))
                  for i in range(ne + 1)]
         EI, EA, rhoA = p.E * p.I, p.E * p.A, p.rho * p.A
@@ -230,7 +328,12 @@ class ExactBeamPlant:
                                                                   mbs.AddMarker(ii.MarkerNodePosition(nodeNumber=n_tip))]))
         m_hub = mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=n_hub))
         self._tau = 0.0
-        if torque_function is not None:
+        self._u_sub = np.zeros(self.substeps)       # the command in each step of the sample (hardware)
+        self._h_step = self.dt / self.substeps
+        if self.hardware is not None:
+            self._load = mbs.AddLoad(ii.LoadTorqueVector(markerNumber=m_hub, loadVector=[0, 0, 0],
+                                                         loadVectorUserFunction=self._hardware_torque))
+        elif torque_function is not None:
             self._load = mbs.AddLoad(ii.LoadTorqueVector(
                 markerNumber=m_hub, loadVector=[0, 0, 0],
                 loadVectorUserFunction=lambda mbs_, t, load: [0.0, 0.0, self._tau + float(torque_function(t))]))
@@ -266,6 +369,13 @@ class ExactBeamPlant:
         ss.linearSolver.solverType = exu.LinearSolverType.EigenSparse
         self._settings = ss
         self._solver = exu.MainSolverImplicitSecondOrder()
+        if self.hardware is not None:        # the hub torque's dependence on the hub rate in the Jacobian
+            ti.computeLoadsJacobian = 2
+            sd.AddODE2LoadDependencies(self._load, [self._i_hub])
+        if self._lock is not None:
+            ti.discontinuous.maxIterations = 4          # slide, held, and back (one switch each way)
+            ti.discontinuous.ignoreMaxIterations = False
+            mbs.SetPostNewtonUserFunction(self._post_newton)
         self._t = 0.0
         self._initialized = False
         #: Exact outputs of the last sample: ``v_tip``, ``u_tip`` [m], ``root_moment``,
@@ -349,13 +459,14 @@ class ExactBeamPlant:
         """
         if not self._initialized:
             self.initial_state()
-        u = float(np.asarray(tau, dtype=float).ravel()[-1])
-        if self.hardware is not None:
-            thd = self.mbs.systemData.GetODE2Coordinates_t()[self._i_hub]
-            u = float(self.hardware.hub_torque(u, thd))
-        self._tau = u
-        if self.torque_function is None:
-            self.mbs.SetLoadParameter(self._load, "loadVector", [0.0, 0.0, u])
+        if self.hardware is not None:          # drive and friction inside every step (_hardware_torque)
+            self._u_sub[:] = np.asarray(tau, dtype=float).ravel() if np.size(tau) == self.substeps \
+                else float(np.asarray(tau, dtype=float).ravel()[-1])
+        else:
+            u = float(np.asarray(tau, dtype=float).ravel()[-1])
+            self._tau = u
+            if self.torque_function is None:
+                self.mbs.SetLoadParameter(self._load, "loadVector", [0.0, 0.0, u])
         start = time.perf_counter()
         it = self._solver.it
         it.startTime, it.endTime = self._t, self._t + self.dt
@@ -365,6 +476,54 @@ class ExactBeamPlant:
             raise HubbeamError(f"Exudyn's generalized-alpha failed on the exact beam at t = {self._t:.4f} s")
         self._t += self.dt
         return self._projected_state()
+
+    def _post_newton(self, mbs, t) -> list:
+        """Karnopp inside the step (Exudyn's discontinuous iteration, called after each step's Newton
+        iterations; a return above 1 repeats the step from its start with the switched constraint):
+        a sliding hub that slowed into ``stick_velocity`` or reversed within the step is tried held
+        (the velocity constraint on): kept if the holding torque (the constraint's reaction) is within
+        breakaway, else the step is repeated sliding; a held hub whose holding torque exceeds
+        breakaway is released and the step repeated sliding. As the assumed-mode stepper, per
+        integration step instead of per sample."""
+        if t != self._step_end:                        # a new step (its end time): its first solution
+            self._step_end, self._tried_held = t, False
+            self._stuck_at_start = self.stuck
+        sd = mbs.systemData
+        if self.stuck:
+            out = mbs.GetObjectOutput(self._lock, self._exu.OutputVariableType.Force)
+            hold = -float(np.ravel(out)[0])
+            if abs(hold) <= self._F_s:
+                self.hold_torque = hold
+                if not self._stuck_at_start:
+                    self.stick_events += 1
+                    self._stuck_at_start = True
+                return [0.0, -1.0]
+            self.stuck = False                           # breakaway: the step again, sliding
+            self._tried_held = True
+            mbs.SetObjectParameter(self._lock, "activeConnector", False)
+            return [2.0, -1.0]
+        if self._tried_held:
+            return [0.0, -1.0]
+        thd1 = float(sd.GetODE2Coordinates_t()[self._i_hub])
+        thd0 = float(sd.GetODE2Coordinates_t(configuration=self._exu.ConfigurationType.StartOfStep)[self._i_hub])
+        if abs(thd1) <= self._v_stick and (abs(thd1) < abs(thd0) or thd0 == 0.0) or thd0 * thd1 < 0:
+            self.stuck = True                            # the step again, held
+            self._tried_held = True
+            mbs.SetObjectParameter(self._lock, "activeConnector", True)
+            return [2.0, -1.0]
+        return [0.0, -1.0]
+
+    def _hardware_torque(self, mbs, t, load):
+        """The hub torque of the rig's drive and sliding friction at time ``t`` of the sample, at the
+        hub rate of the current iterate: the command of the step that holds ``t`` (a computation delay
+        gives the steps before it the previous command)."""
+        j = min(max(math.ceil((t - self._t) / self._h_step - 1e-6) - 1, 0), self.substeps - 1)
+        thd = mbs.systemData.GetODE2Coordinates_t()[self._i_hub]
+        tau = self._hub_torque(float(self._u_sub[j]), float(thd))
+        if self.torque_function is not None:
+            tau += float(self.torque_function(t))
+        self._tau = tau
+        return [0.0, 0.0, tau]
 
     # -- outputs ---------------------------------------------------------------
     def _hub_frame(self):
@@ -397,8 +556,21 @@ class ExactBeamPlant:
         self.outputs = {"theta": th, "theta_dot": thd,
                         "v_tip": float(self._H_tip @ W[2 * k:2 * k + 4]),
                         "u_tip": float(self._H_tip @ U[2 * k:2 * k + 4]),
-                        "root_moment": self.root_moment(), "hub_torque": self._tau}
+                        "root_moment": self.root_moment(), "hub_torque": self.drive_torque()}
         return np.concatenate([[th], self._P1 @ U, self._P2 @ W, [thd], self._P1 @ Ud, self._P2 @ Wd])
+
+    def drive_torque(self) -> float:
+        """Hub torque that the prescribed motion takes [N m] (the drive constraint's reaction;
+        0 when the hub is free: the applied torque is the input).
+
+        Returns
+        -------
+        float
+        """
+        if self.prescribed is None:
+            return self._tau
+        out = self.mbs.GetObjectOutput(self._drive, self._exu.OutputVariableType.Force)
+        return -float(np.ravel(out)[0])     # the constraint acts on the hub with the opposite sign
 
     def root_moment(self) -> float:
         """Bending moment at the root [N m]: the clamp's reaction moment, signed as ``E I w''(0)``."""

@@ -377,7 +377,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                                hardware=hardware)
     t = dt * np.arange(N + 1)
     chain, state_pick = _rig_measurement(hardware, controller, kind, model, m, dt, N + 1,
-                                         settings.sensors.seed, stepper.backend)
+                                         settings.sensors.seed, backend if exact else stepper.backend)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" and chain is None \
         else None
@@ -473,10 +473,12 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
             tip = abs(o["v_tip"])
         else:
             tip = abs(f2_tip @ x[sl2])
-        if outside_time is None and not tip <= flag_at:
-            outside_time = float(t[k + 1])
-            if exact:                   # the exact beam has no such range: recorded, not flagged
-                past_range_time, outside_time = outside_time, None
+        if not tip <= flag_at:
+            if exact:                   # the exact beam has no such range: recorded (the first time), not flagged
+                if past_range_time is None:
+                    past_range_time = float(t[k + 1])
+            elif outside_time is None:
+                outside_time = float(t[k + 1])
         if not tip <= stop_at:
             stopped, last, cause = True, k + 1, "diverged"
             states[k + 1] = x

@@ -347,6 +347,33 @@ class Hardware:
         """
         return hub_torque(np.asarray(u, dtype=float), np.asarray(thd, dtype=float), self.values())
 
+    def hub_torque_scalar(self, u: float, thd: float) -> float:
+        """:meth:`hub_torque` for one command and one hub rate, in plain floats (about 25 times
+        faster: the exact-beam plant calls it at every Newton iteration of every step).
+
+        Parameters
+        ----------
+        u : float
+            Command [N m or V].
+        thd : float
+            Hub rate [rad/s].
+
+        Returns
+        -------
+        float
+            Drive minus sliding friction [N m].
+        """
+        d, f = self.drive, self.friction
+        if d.is_ideal:
+            drive = u
+        else:
+            V = min(max(u, -d.V_max), d.V_max)
+            i = min(max((V - d.k_e * d.N * thd) / d.R, -d.I_max), d.I_max)
+            x = min(max(-thd * (1.0 if i >= 0 else -1.0) / f.v_eps, 0.0), 50.0)
+            drive = d.N * d.k_t * i * (d.eta_forward + (1.0 / d.eta_backward - d.eta_forward) * math.tanh(x) ** 2)
+        peak = (f.static - f.coulomb) * math.exp(-(thd / f.stribeck_velocity) ** 2)
+        return drive - (f.viscous * thd + (f.coulomb + peak) * math.tanh(thd / f.v_eps))
+
     def voltage_for_torque(self, tau, thd):
         """The voltage [V] that gives the hub torque ``tau`` [N m] at hub rate ``thd`` [rad/s].
 

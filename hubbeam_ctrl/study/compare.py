@@ -42,6 +42,7 @@ from hubbeam_ctrl.core.budget import (
 )
 from hubbeam_ctrl.core.compiled import resolve_backend
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.exact import require_exudyn
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
@@ -49,7 +50,7 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
-from hubbeam_ctrl.study.scenarios import Scenario, make_scenario
+from hubbeam_ctrl.study.scenarios import PLANTS, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_t_end
 
@@ -134,6 +135,10 @@ class Comparison:
         The rig ladder's rows (:func:`hubbeam_ctrl.study.ladder.rig_ladder`) when it was run.
     notes : list of str
         One line each for the report's notes (e.g. a shaped slew longer than ``t_f``).
+    check_plant : EvaluationPlant or None
+        The second plant of ``compare(check_plant=...)`` (same parameters and modes).
+    check_results, check_metrics : dict
+        Controller name -> its result and metrics on ``check_plant`` (empty without one).
     """
 
     scenario: Scenario
@@ -150,6 +155,9 @@ class Comparison:
     rig: Rig | None = None
     ladder: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    check_plant: EvaluationPlant | None = None
+    check_results: dict = field(default_factory=dict)
+    check_metrics: dict = field(default_factory=dict)
 
 
 def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
@@ -185,7 +193,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
             sim_settings: ClosedLoopSettings | None = None, shaping=None, schedule: int = 1,
             tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
             progress: bool = False, backend=None, rig: Rig | None = None,
-            integral: bool | None = None, limit: str = "rigid", reference: str = "task") -> Comparison:
+            integral: bool | None = None, limit: str = "rigid", reference: str = "task",
+            check_plant: str | None = None) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
@@ -280,6 +289,13 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         drive's limits (:func:`hubbeam_ctrl.limit.min_vibration_slew`,
         :func:`controllers.optimal_reference`), so that the feedback only corrects model error
         (a slew only; a ``t_f`` shorter than the time-optimal slew is refused naming the shortest).
+    check_plant : {"foam", "cfoam", "ancf"}, optional
+        Run every controller also on this plant (same modes, step, sensors and hardware as
+        ``plant``) and judge it there: e.g. ``plant="ancf", check_plant="foam"`` shows where FOAM
+        leaves its validated range and the exact beam does not. Its results and metrics are in
+        :attr:`Comparison.check_results` and :attr:`Comparison.check_metrics`; each controller's
+        metrics get ``check_plant``, ``check_verdict``, ``check_peak_tip_m``,
+        ``check_residual_tip_max_m`` and ``check_outside_range_time_s``; the report a section.
 
     Returns
     -------
@@ -306,6 +322,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
                           plant_params=plant_params if plant_params is not None else params,
                           plant_modes=plant_modes)
+    ev_check = _check_plant(check_plant, sc, ev, m)
     settings = dict(settings or {})
     unknown = sorted(set(settings) - set(names))
     if unknown:
@@ -338,6 +355,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
                                    solver=solver, sim=sim, plant_modes=plant_modes), **designs}
     results, metrics, margins, certificates, linear = {}, {}, {}, {}, {}
+    check_results, check_metrics = {}, {}
     yardstick = task_limit(sc, limit, rig)
     clock = WallClock(sim.max_wall_s)        # the whole comparison's wall-time limit
     for name in names:
@@ -359,6 +377,16 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         results[name] = res
         metrics[name], certificates[name] = judge(res, ctrl, sc, ev.params, name, limit=yardstick)
         metrics[name]["scenario"] = sc.name
+        if ev_check is not None:
+            res_c = simulate_closed_loop(ev_check, ctrl, sc.t_end, settings=run_sim,
+                                         reference=(ref.theta_at, ref.theta_dot_at), backend=backend,
+                                         hardware=hardware)
+            check_results[name] = res_c
+            check_metrics[name], _ = judge(res_c, ctrl, sc, ev_check.params, name, limit=yardstick)
+            mc = check_metrics[name]
+            metrics[name].update(check_plant=ev_check.model, check_verdict=mc["verdict"],
+                                 check_peak_tip_m=mc["peak_tip_m"], check_residual_tip_max_m=mc["residual_tip_max_m"],
+                                 check_outside_range_time_s=mc["outside_range_time_s"])
         if margins[name] is not None:
             lm = margins[name]
             metrics[name].update(disk_margin=lm.disk_margin, gain_margin_upper=lm.gain_margin_upper,
@@ -380,7 +408,22 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                       margins={n: lm for n, lm in margins.items() if lm is not None},
                       certificates=certificates,
                       controllers={n: c for n, c in linear.items() if margins[n] is not None}, rig=rig,
-                      notes=notes)
+                      notes=notes, check_plant=ev_check, check_results=check_results, check_metrics=check_metrics)
+
+
+def _check_plant(check_plant, sc: Scenario, ev: EvaluationPlant, design_modes: int):
+    """The second plant of ``check_plant=`` (None without one): the evaluation plant's
+    parameters and modes on another model."""
+    if check_plant is None:
+        return None
+    if check_plant not in PLANTS or check_plant == ev.model:
+        others = ", ".join(p for p in PLANTS if p != ev.model)
+        raise ParameterError(f"check_plant must be one of {others} (a plant other than plant = {ev.model!r}), "
+                             f"got {check_plant!r}")
+    if check_plant == "ancf":
+        require_exudyn("check_plant='ancf'")
+    return evaluation_plant(check_plant, sc.params, sc.dt, design_modes, sc.design_spin,
+                            plant_params=ev.params, plant_modes=ev.modes)
 
 
 def _reference(sc: Scenario, kind: str, rig):

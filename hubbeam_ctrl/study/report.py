@@ -16,7 +16,7 @@ from hubbeam_ctrl.plots.plant import save_figure
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
 
 __all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
-           "ladder_lines"]
+           "check_plant_lines", "ladder_lines"]
 
 
 # -- output -----------------------------------------------------------------------------------
@@ -180,6 +180,7 @@ def _report(comparison) -> str:
             note = "" if name in comparison.targets or name == "openloop" else " (reported only)"
             lines.append(f"| {name}{note} | {yes[s_ok]} | {yes[r_ok]} | {yes[t_ok]} | {yes[a_ok]} |")
         lines.append("")
+    lines += check_plant_lines(comparison)
     lines += _rig_lines(comparison)
     lines += ladder_lines(getattr(comparison, "ladder", []))
     lines += _certificate_lines(comparison)
@@ -194,6 +195,73 @@ def _report(comparison) -> str:
     lines += ["## Plots", "", "![tip deflection](tip_deflection.png)", "",
               "![hub angle](hub_angle.png)", "", "![torque](torque.png)", ""]
     return "\n".join(lines)
+
+
+def _range_text(res, L: float) -> tuple:
+    """``(time, limit)`` at which a run passed the assumed-mode models' validated range (time None: never)."""
+    limit = float(res.settings.get("range_limit", 0.3))
+    when = res.stats.get("outside_range_time_s")
+    if when is None:
+        when = res.stats.get("past_assumed_mode_range_time_s")
+    return when, limit
+
+
+def check_plant_lines(comparison) -> list:
+    """The report's section on ``compare(check_plant=...)``: every controller on both plants, their
+    peak ``|v_tip|/L`` and range, and which plant left its validated range (lines; none without a
+    check plant).
+
+    Parameters
+    ----------
+    comparison : Comparison
+
+    Returns
+    -------
+    list of str
+        Markdown lines.
+    """
+    check = getattr(comparison, "check_plant", None)
+    if check is None or not comparison.check_results:
+        return []
+    main_name, check_name = comparison.plant.model, check.model
+    L = comparison.plant.params.L
+    label = {"ancf": "ANCF (exact beam)", "foam": "FOAM", "cfoam": "CFOAM"}
+    lines = [f"## {label[main_name]} and {label[check_name]} on the same loop", "",
+             f"Every controller also ran on {label[check_name]} with the same modes ({check.modes}), step, "
+             "sensors and hardware. The assumed-mode models (FOAM, CFOAM) are validated to 0.3 L of tip "
+             "deflection and flag a run that passes it; the exact beam has no such range (passing it is "
+             "recorded, not flagged).", "",
+             "| controller | plant | peak abs(v_tip) [m] | peak abs(v_tip) / L | passed the range at [s] "
+             "| residual max [m] | verdict |",
+             "|---|---|---|---|---|---|---|"]
+    notes = []
+    for name, res in comparison.results.items():
+        res_c = comparison.check_results.get(name)
+        if res_c is None:
+            continue
+        rows = {}
+        for plant, r, mm in ((main_name, res, comparison.metrics[name]),
+                             (check_name, res_c, comparison.check_metrics[name])):
+            when, limit = _range_text(r, L)
+            peak = mm["peak_tip_m"]
+            rows[plant] = (peak, when, limit, mm["residual_tip_max_m"])
+            where = "-" if when is None else f"{when:.3f}" + (" (recorded)" if plant == "ancf" else " (**left**)")
+            lines.append(f"| {name} | {label[plant]} | {peak:.4g} | {peak / L:.3f} | {where} | "
+                         f"{mm['residual_tip_max_m']:.4g} | {mm['verdict']} |")
+        assumed = [pl for pl in rows if pl != "ancf" and rows[pl][1] is not None]
+        for pl in assumed:
+            peak, when, limit, _ = rows[pl]
+            text = (f"- {name}: {label[pl]} left its validated range (|v_tip| > {limit:g} L at t = {when:.3f} s; "
+                    f"peak {peak / L:.3f} L)")
+            if "ancf" in rows:
+                pe = rows["ancf"][0]
+                text += (f"; the exact plant did not (it has no such range): peak {pe / L:.3f} L, "
+                         f"{100 * (peak / pe - 1):+.1f} % for {label[pl]}")
+            notes.append(text + ".")
+    lines.append("")
+    if notes:
+        lines += notes + [""]
+    return lines
 
 
 def ladder_lines(rows: list) -> list:

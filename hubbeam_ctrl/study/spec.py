@@ -10,7 +10,7 @@ TOML form (every key optional except where noted)::
 
     [study]
     scenario = "slew"                 # slew | spinup
-    plant = "foam"                    # foam | cfoam
+    plant = "foam"                    # foam | cfoam | ancf (the exact beam, extra "exact")
     controllers = ["openloop", "lqr", "mpc"]
     design = "base"                   # base | matched
     t_f = 10.0                        # [s]; also tau_max [N m] (default: params.tau_max, the
@@ -69,6 +69,7 @@ from controllers.scaling import Tolerances, default_tolerances
 from hubbeam_ctrl.core.compiled import check_backend
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import read_toml
+from hubbeam_ctrl.exact import require_exudyn
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
 
@@ -312,8 +313,9 @@ class StudySpec:
     Attributes
     ----------
     scenario : {"slew", "spinup"}
-    plant : {"foam", "cfoam"}
-        Evaluation plant model.
+    plant : {"foam", "cfoam", "ancf"}
+        Evaluation plant model (``ancf``: the geometrically exact beam of Exudyn,
+        :class:`~hubbeam_ctrl.exact.ExactBeamPlant`, extra ``exact``).
     controllers : tuple of str
     design : {"base", "matched"}
         ``base``: every controller designed once on the base parameters; ``matched``:
@@ -473,6 +475,8 @@ class StudySpec:
             raise ParameterError(f"study.scenario must be one of {', '.join(SCENARIOS)}, got {self.scenario!r}")
         if self.plant not in PLANTS:
             raise ParameterError(f"study.plant must be one of {', '.join(PLANTS)}, got {self.plant!r}")
+        if self.plant == "ancf":
+            require_exudyn("study.plant 'ancf'")
         if self.design not in ("base", "matched"):
             raise ParameterError(f"study.design must be 'base' or 'matched', got {self.design!r}")
         if not isinstance(self.settings, dict):
@@ -688,6 +692,16 @@ def _with_rig(data: dict, rig) -> dict:
     return {**data, "study": study}
 
 
+def _with_plant(data: dict, plant) -> dict:
+    """The spec's tables with ``study.plant`` replaced by ``plant`` (unchanged when None)."""
+    if plant is None or not isinstance(data, dict):
+        return data
+    study = data.get("study", {})
+    if isinstance(study, dict):
+        study = {**study, "plant": plant}
+    return {**data, "study": study}
+
+
 def _spec_rig(value, folder=None):
     """The spec's ``study.rig``: None, a preset name or a file (relative to the spec's folder), or
     the tables of a rig (what :meth:`StudySpec.to_dict` writes)."""
@@ -721,7 +735,7 @@ def _plain(obj):
     raise TypeError(f"{type(obj).__name__} is not plain data")
 
 
-def load_spec(spec, rig=None) -> StudySpec:
+def load_spec(spec, rig=None, plant=None) -> StudySpec:
     """A :class:`StudySpec` from a TOML path, a dict of tables, or a spec passed through.
 
     Parameters
@@ -729,21 +743,25 @@ def load_spec(spec, rig=None) -> StudySpec:
     spec : str, Path, dict or StudySpec
     rig : str, Path or Rig, optional
         Replaces the spec's ``study.rig`` (``hubbeam sweep --rig``); not with a StudySpec.
+    plant : str, optional
+        Replaces the spec's ``study.plant`` (``hubbeam sweep --plant``: ``foam``, ``cfoam`` or
+        ``ancf``, the exact beam); not with a StudySpec.
 
     Returns
     -------
     StudySpec
     """
     if isinstance(spec, StudySpec):
-        if rig is not None:
-            raise ParameterError("rig: give the rig in the spec's tables, not beside a built StudySpec")
+        for name, value in (("rig", rig), ("plant", plant)):
+            if value is not None:
+                raise ParameterError(f"{name}: give the {name} in the spec's tables, not beside a built StudySpec")
         spec.validate()
         return spec
     if isinstance(spec, dict):
-        return StudySpec.from_dict(_with_rig(spec, rig))
+        return StudySpec.from_dict(_with_plant(_with_rig(spec, rig), plant))
     if not isinstance(spec, (str, Path)):
         raise ParameterError(f"spec must be a TOML path, a dict of tables or a StudySpec, got {type(spec).__name__}")
-    data = _with_rig(read_toml(spec, "spec: file", MAX_SPEC_BYTES), rig)
+    data = _with_plant(_with_rig(read_toml(spec, "spec: file", MAX_SPEC_BYTES), rig), plant)
     if isinstance(data.get("study"), dict) and isinstance(data["study"].get("rig"), str):
         data["_dir"] = str(Path(spec).resolve().parent)        # a rig file's path is relative to the spec
     return StudySpec.from_dict(data)
