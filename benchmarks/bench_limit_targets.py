@@ -1,0 +1,157 @@
+"""Issue 22's targets, measured: every beam and rig at 1.5 x its time-optimal slew. Prints JSON.
+
+Run: ``.venv/bin/python benchmarks/bench_limit_targets.py [--cases lab,servo,servo_beam,paper,payload]
+[--out F.json]`` (about 5-10 min on 2 idle cores with a C compiler).
+
+For each case the time-optimal rest-to-rest slew ``T_opt`` of the beam within its drive's limits
+(:func:`hubbeam_ctrl.limit.time_optimal_slew`, FOAM, the design's modes) gives the task
+``Slew(angle, 1.5 T_opt)``; LQR, LQG and MPC then run with all defaults on the FOAM evaluation
+plant, once with the task's smooth reference (``reference="task"``, the default) and once with
+the minimum-vibration slew as reference and feedforward (``reference="optimal"``). The issue's
+targets, checked per controller:
+
+* settled (hub and tip in their bands for good) no later than ``t_f`` plus one period of the
+  first free-hub flexible mode of the design model;
+* residual tip vibration <= 0.1 % of L;
+* final angle error <= 1e-3 of the slew;
+* within the drive's limits at every sample (torque, or volts on a DC motor).
+
+Cases: ``lab`` (the 1 m aluminium lab arm of the tests, 90 degrees), ``servo`` (the ``servo_link``
+preset with its DC drive, friction, encoder and delay, 90 degrees), ``servo_beam`` (the same link
+without drive and friction: its beam with the rotor's inertia, a torque source at the stall
+torque), ``paper`` (Table 1's beam, 1 rad, 200 N m) and ``payload`` (Table 1's beam designed for
+0-0.5 kg, run at 0, 0.1, 0.3 and 0.5 kg; the 1.5 x T_opt of the nominal 0.1 kg).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import sys
+import time
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from controllers import DesignModel  # noqa: E402
+from controllers.scaling import first_mode  # noqa: E402
+from hubbeam_ctrl import Params  # noqa: E402
+from hubbeam_ctrl.core.fileio import atomic_write_text  # noqa: E402
+from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
+from hubbeam_ctrl.plant.rig import Rig, load_rig  # noqa: E402
+from hubbeam_ctrl.study.compare import compare  # noqa: E402
+from hubbeam_ctrl.study.payload import payload_comparison  # noqa: E402
+from hubbeam_ctrl.study.tasks import Slew  # noqa: E402
+
+LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
+NAMES = "lqr,lqg,mpc"
+FACTOR = 1.5
+
+
+def _period(params: Params, dt: float) -> float:
+    """Period of the first free-hub flexible mode of the design model [s]."""
+    return 2 * math.pi / first_mode(DesignModel.build(params, 0.0, dt, 1))
+
+
+def _judge(comparison, params: Params, angle: float, limit: float) -> dict:
+    """The issue's four targets for each controller of one comparison."""
+    sc = comparison.scenario
+    period = _period(params, sc.dt)
+    rows = {}
+    for name, m in comparison.metrics.items():
+        res = comparison.results[name]
+        hw = res.settings.get("hardware") or {}
+        command = hw.get("command", "torque")
+        peak = float(max((abs(float(v)) for v in res.tau if math.isfinite(v)), default=float("nan")))
+        settle = m.get("settling_time_s")
+        row = {"verdict": m["verdict"], "settling_time_s": settle, "settle_target_s": sc.t_f + period,
+               "residual_pct_of_L": m["residual_pct_of_L"],
+               "final_error_over_slew": abs(m["final_angle_error_rad"]) / abs(angle),
+               "peak_command": peak, "command": command, "limit": limit}
+        row["met"] = {"settled": m["verdict"] == "settled" and settle is not None and settle <= sc.t_f + period,
+                      "residual": m["residual_pct_of_L"] <= 0.1,
+                      "final_error": row["final_error_over_slew"] <= 1e-3,
+                      "within_limits": peak <= limit * (1 + 1e-9)}
+        row["all_met"] = all(row["met"].values())
+        rows[name] = row
+    return rows
+
+
+def _case(label, beam, angle, t_opt, limit, **options) -> dict:
+    """Both references on one beam or rig at 1.5 x T_opt."""
+    t_f = FACTOR * t_opt
+    out = {"t_opt_s": t_opt, "t_f_s": t_f, "angle_rad": angle, "runs": {}}
+    for reference in ("task", "optimal"):
+        t0 = time.perf_counter()
+        c = compare("foam", Slew(angle, t_f), NAMES, reference=reference, **options)
+        run = _judge(c, beam, angle, limit)
+        out["runs"][reference] = {"controllers": run, "wall_s": time.perf_counter() - t0}
+        print(f"{label:10s} {reference:8s} " + "  ".join(
+            f"{n}: {r['verdict']} {r['settling_time_s'] or float('nan'):.3g}/{r['settle_target_s']:.3g} s "
+            f"{r['residual_pct_of_L']:.3g} %L {'MET' if r['all_met'] else 'missed'}" for n, r in run.items()),
+            file=sys.stderr)
+    return out
+
+
+def run_cases(cases) -> dict:
+    """Measure the chosen cases; returns a JSON-ready dict."""
+    out = {}
+    if "lab" in cases:
+        angle = math.pi / 2
+        out["lab"] = _case("lab", LAB, angle, time_optimal_slew(LAB, angle).duration_s, LAB.tau_max, params=LAB)
+    servo = load_rig("servo_link")
+    if "servo" in cases:
+        angle = math.pi / 2
+        t_opt = time_optimal_slew(servo, angle).duration_s
+        out["servo"] = _case("servo", servo.plant_params, angle, t_opt, servo.drive.V_max, rig=servo)
+    if "servo_beam" in cases:
+        angle = math.pi / 2
+        beam = Rig(beam=servo.plant_params)
+        t_opt = time_optimal_slew(beam.plant_params, angle).duration_s
+        out["servo_beam"] = _case("servo_beam", beam.plant_params, angle, t_opt, beam.plant_params.tau_max, rig=beam)
+    paper = Params()
+    if "paper" in cases:
+        out["paper"] = _case("paper", paper, 1.0, time_optimal_slew(paper, 1.0).duration_s, paper.tau_max)
+    if "payload" in cases:
+        t_opt = time_optimal_slew(paper, 1.0).duration_s
+        t_f = FACTOR * t_opt
+        payload = {"t_opt_s": t_opt, "t_f_s": t_f, "runs": {}}
+        for reference in ("task", "optimal"):
+            t0 = time.perf_counter()
+            pc = payload_comparison("foam", Slew(1.0, t_f), "openloop," + NAMES, payload_range=(0.0, 0.5),
+                                    masses=(0.0, 0.1, 0.3, 0.5), reference=reference)
+            by_mass = {}
+            for m, c in pc.comparisons.items():
+                c.metrics.pop("openloop", None)
+                by_mass[f"{m:g}"] = _judge(c, paper.replace(m_t=m), 1.0, paper.tau_max)
+            payload["runs"][reference] = {"by_payload_kg": by_mass, "wall_s": time.perf_counter() - t0}
+            print(f"payload    {reference:8s} " + "; ".join(
+                f"{m} kg: " + ",".join(f"{n} {'MET' if r['all_met'] else 'missed'}" for n, r in rows.items())
+                for m, rows in by_mass.items()), file=sys.stderr)
+        out["payload"] = payload
+    return out
+
+
+def main(argv=None) -> int:
+    """Entry point; prints the JSON and writes it to ``--out`` when given."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", default="lab,servo,servo_beam,paper,payload")
+    ap.add_argument("--out", help="also write the JSON here")
+    args = ap.parse_args(argv)
+    cases = set(args.cases.split(","))
+    t0 = time.perf_counter()
+    doc = {"benchmark": "limit_targets", "issue": 22, "factor_of_t_opt": FACTOR,
+           "machine": {"python": platform.python_version(), "cpus": os.cpu_count()},
+           "cases": run_cases(cases), "wall_s": None}
+    doc["wall_s"] = time.perf_counter() - t0
+    text = json.dumps(doc, indent=1, default=float)
+    print(text)
+    if args.out:
+        atomic_write_text(args.out, text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
