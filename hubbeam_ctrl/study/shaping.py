@@ -139,7 +139,7 @@ def residual_after(result, start: float) -> float:
 
 
 def plant_sensitivity(design: DesignModel, errors=(-0.2, 0.0, 0.2), kinds=SHAPERS, *,
-                      plant: str = "foam", params: Params | None = None, tau_max: float = 50.0,
+                      plant: str = "foam", params: Params | None = None, tau_max: float | None = None,
                       base_duration: float = 8.0, modes=None, tolerance: float = 0.05,
                       residual_window: float = 10.0, how: str = "stiffness") -> dict:
     """Residual vibration of shaped open-loop slews on the nonlinear plant, by frequency error.
@@ -159,8 +159,9 @@ def plant_sensitivity(design: DesignModel, errors=(-0.2, 0.0, 0.2), kinds=SHAPER
         Nonlinear plant model (``"foam"`` or ``"cfoam"``).
     params : Params, optional
         Plant parameters at ``e = 0`` (default ``design.params``).
-    tau_max : float
-        Torque of the bang-bang base profile [N m], > 0 (50 N m keeps FOAM close to linear).
+    tau_max : float, optional
+        Torque of the bang-bang base profile [N m], > 0 (default: a quarter of the drive's
+        ``params.tau_max``, 50 N m on Table 1's beam, which keeps FOAM close to linear).
     base_duration : float
         Length of the base profile [s], > 0.
     modes : sequence of int, optional
@@ -182,9 +183,9 @@ def plant_sensitivity(design: DesignModel, errors=(-0.2, 0.0, 0.2), kinds=SHAPER
     err = np.asarray(errors, dtype=float).ravel()
     if err.size == 0 or not np.all(np.isfinite(err)) or np.any(err <= -1):
         raise ParameterError("errors must be finite relative frequency errors > -1 [-]")
-    tau_max = check_positive("tau_max", tau_max, "N m")
-    T = check_positive("base_duration", base_duration, "s")
     params = params if params is not None else design.params
+    tau_max = check_positive("tau_max", params.tau_max / 4 if tau_max is None else tau_max, "N m")
+    T = check_positive("base_duration", base_duration, "s")
     modes = tuple(range(1, design.n_modes + 1)) if modes is None else modes
     shapers = {k: design_shaper(design, k, modes, tolerance) for k in kinds}
     shapers["unshaped"] = Shaper(np.zeros(1), np.ones(1), "unshaped")
