@@ -21,6 +21,14 @@ Targets (issue 28): <= 1 s CPU beyond start-up and <= 3 s wall for the whole pro
 The outputs are compared: every number of ``metrics.json`` except timings (keys with
 ``wall``, ``step_time``) must agree with the baseline's; ``max_rel_diff_metrics`` is the
 largest relative difference, and the lists of files written are compared too.
+
+``current_blas1`` is today's code with ``OPENBLAS_NUM_THREADS=1`` (a lever measured, not
+taken: see ``blas1_max_rel_diff_metrics``, the round-off it moves the numbers by).
+
+``stages`` (one more process of today's code, CPU by ``time.process_time``): where the time of
+one ``compare`` goes, from wrappers around the functions of each stage (imports, the design
+and plant set-up, loop margins, closed-loop runs, judging with the linear certificate, the
+loop data of the report, building the figures, drawing and writing each PNG, the rest).
 """
 
 from __future__ import annotations
@@ -68,6 +76,48 @@ def _summary(runs: list) -> dict:
             "wall_median_s": statistics.median(wall), "wall_fastest_s": min(wall), "runs": runs}
 
 
+_STAGES = r"""
+import json, sys, time
+t_start = time.process_time()
+import hubbeam_ctrl.cli.compare, hubbeam_ctrl.study.compare as sc, hubbeam_ctrl.study.report as rp
+import hubbeam_ctrl.study.loops as lo, hubbeam_ctrl.plots.plant as pp
+stages = {"imports": time.process_time() - t_start}
+def wrap(module, name, stage):
+    f = getattr(module, name)
+    def timed(*a, **k):
+        t0 = time.process_time()
+        try:
+            return f(*a, **k)
+        finally:
+            stages[stage] = stages.get(stage, 0.0) + time.process_time() - t0
+    setattr(module, name, timed)
+wrap(sc, "simulate_closed_loop", "closed_loop_runs")
+wrap(sc, "_margins", "loop_margins")
+wrap(sc, "judge", "judge_and_certificate")
+wrap(sc, "make_controller", "controller_designs")
+wrap(lo, "controller_loops", "report_loop_data")
+wrap(lo, "plot_loop", "report_build_loop_figures")
+wrap(rp, "plot_tip_deflection", "report_build_closed_loop_figures")
+wrap(rp, "plot_hub_angle", "report_build_closed_loop_figures")
+wrap(rp, "plot_torque", "report_build_closed_loop_figures")
+wrap(rp, "save_figure", "report_draw_and_write_pngs")
+from hubbeam_ctrl.cli.main import main
+t0 = time.process_time()
+main(["compare", "--out", sys.argv[1]])
+stages["command_total"] = time.process_time() - t0
+inner = [k for k in stages if k not in ("imports", "command_total")]
+stages["other"] = stages["command_total"] - sum(stages[k] for k in inner)
+print(json.dumps(stages))
+"""
+
+
+def _stages(env, out_dir) -> dict:
+    """CPU [s] per stage of one ``compare`` (see the module docstring)."""
+    text = subprocess.run([sys.executable, "-c", _STAGES, str(out_dir)], env=env, capture_output=True, text=True,
+                          check=True).stdout
+    return json.loads(text.strip().splitlines()[-1])
+
+
 def _numbers(metrics: list) -> dict:
     """``(controller, key) -> float`` of metrics.json, without timings."""
     out = {}
@@ -103,7 +153,8 @@ def main(argv=None) -> int:
         _export(a.baseline, base_src)
         env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
         variants = {"baseline": {**env, "PYTHONPATH": str(base_src)},
-                    "current": {**env, "PYTHONPATH": str(ROOT)}}
+                    "current": {**env, "PYTHONPATH": str(ROOT)},
+                    "current_blas1": {**env, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}}
         runs = {v: {"startup": [], "compare": []} for v in variants}
         cli = [sys.executable, "-m", "hubbeam_ctrl.cli"]
         for name, e in variants.items():                  # warm: compiled functions, file cache
@@ -140,6 +191,10 @@ def main(argv=None) -> int:
         result["verdicts_equal"] = [m["verdict"] for m in mb] == [m["verdict"] for m in mc]
         result["files_equal"] = (sorted(p.name for p in (work / "baseline_0").iterdir())
                                  == sorted(p.name for p in (work / "current_0").iterdir()))
+        m1 = json.loads((work / "current_blas1_0" / "metrics.json").read_text())
+        result["blas1_max_rel_diff_metrics"] = _max_rel_diff(_numbers(mc), _numbers(m1))
+        result["stages"] = _stages(variants["current"], work / "stages")
+        result["stages_baseline"] = _stages(variants["baseline"], work / "stages_baseline")
     finally:
         shutil.rmtree(work, ignore_errors=True)
     text = json.dumps(result, indent=1)
