@@ -43,7 +43,7 @@ def _check(M: np.ndarray, n: int, m: int, name: str, symmetric: bool = False) ->
 
 def _dare(A, B, Q, R, S, names) -> tuple:
     """``(X, L, G)`` of python-control's ``dare(A, B, Q, R, S, method="scipy")``."""
-    import scipy.linalg      # here, not at the top: ``import controllers`` stays free of SciPy (CLI start-up)
+    import scipy.linalg  # here, not at the top: ``import controllers`` stays free of SciPy (CLI start-up)
     A, B, Q, R = (np.array(M, ndmin=2) for M in (A, B, Q, R))
     S = None if S is None else np.array(S, ndmin=2)
     n, m = A.shape[0], B.shape[1]

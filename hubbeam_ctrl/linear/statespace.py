@@ -43,8 +43,10 @@ from hubbeam_ctrl.plant.models import MODEL_NAMES, HubBeamModel, build_model
 from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.plant.sensors import SENSOR_NAMES, sensor_matrix
 
-if TYPE_CHECKING:                      # python-control is imported where a system is built: the
-    import control                     # matrices alone (linear_matrices) do not need it
+# python-control is imported where a system is built: the matrices alone (linear_matrices) do not
+# need it, and a command that needs only them (hubbeam compare) does not pay for its import
+if TYPE_CHECKING:
+    import control
 
 #: Allowed sample times of :func:`discretize` [s].
 DT_RANGE = (1e-6, 10.0)
