@@ -187,7 +187,7 @@ class DesignModel:
     state_names: list
     M2: np.ndarray = None
     K2: np.ndarray = None
-    _linear_model: object = field(default=None, repr=False)
+    _linear_model: object = field(default=None, repr=False, init=False)
 
     @classmethod
     def build(cls, params: Params = Params(), spin: float = 0.0, dt: float = 0.01,
