@@ -63,7 +63,7 @@ def _export(rev: str, folder: Path) -> None:
 def _run(cmd, env) -> dict:
     """One child process: its CPU [s] (user + system) and wall [s]."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(cmd, env=env, cwd=env["BENCH_CWD"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     proc.returncode = os.waitstatus_to_exitcode(status)
@@ -116,8 +116,8 @@ print(json.dumps(stages))
 
 def _stages(env, out_dir) -> dict:
     """CPU [s] per stage of one ``compare`` (see the module docstring)."""
-    text = subprocess.run([sys.executable, "-c", _STAGES, str(out_dir)], env=env, capture_output=True, text=True,
-                          check=True).stdout
+    text = subprocess.run([sys.executable, "-c", _STAGES, str(out_dir)], env=env, cwd=env["BENCH_CWD"],
+                          capture_output=True, text=True, check=True).stdout
     return json.loads(text.strip().splitlines()[-1])
 
 
@@ -154,11 +154,20 @@ def main(argv=None) -> int:
         base_src = work / "baseline"
         base_src.mkdir()
         _export(a.baseline, base_src)
+        # the children run in the scratch folder: with ``-m``/``-c`` the working directory comes first on
+        # sys.path, and from the repository it would shadow the baseline's PYTHONPATH
         env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        env["BENCH_CWD"] = str(work)
         variants = {"baseline": {**env, "PYTHONPATH": str(base_src)},
                     "current": {**env, "PYTHONPATH": str(ROOT)},
                     "baseline_blas1": {**env, "PYTHONPATH": str(base_src), "OPENBLAS_NUM_THREADS": "1"},
                     "current_blas1": {**env, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1"}}
+        for name, e in variants.items():                  # each variant imports its own tree
+            where = subprocess.run([sys.executable, "-c", "import hubbeam_ctrl, controllers; "
+                                    "print(hubbeam_ctrl.__file__, controllers.__file__)"], env=e, cwd=work,
+                                   capture_output=True, text=True, check=True).stdout.split()
+            if not all(Path(f).is_relative_to(e["PYTHONPATH"]) for f in where):
+                raise SystemExit(f"{name}: imports {where}, not from {e['PYTHONPATH']}")
         runs = {v: {"startup": [], "compare": []} for v in variants}
         cli = [sys.executable, "-m", "hubbeam_ctrl.cli"]
         for name, e in variants.items():                  # warm: compiled functions, file cache
