@@ -88,6 +88,16 @@ def design_plant(ctrl):
                       name=f"{ctrl.name}_design_plant")
 
 
+def _feedback_arrays(ctrl) -> tuple:
+    """``(Ac, Bc, Cc, Dc, inputs)`` of the controller's feedback law as 2-D float arrays, the
+    matrices ``ctrl.to_statespace()`` holds, without building the python-control system
+    (whose import costs more than the analysis)."""
+    Ac, Bc, Cc, Dc, states, inputs = ctrl.feedback_matrices()
+    nc, ni = len(states), len(inputs)
+    return (np.asarray(Ac, dtype=float).reshape(nc, nc), np.asarray(Bc, dtype=float).reshape(nc, ni),
+            np.asarray(Cc, dtype=float).reshape(1, nc), np.asarray(Dc, dtype=float).reshape(1, ni), list(inputs))
+
+
 def loop_matrices(ctrl, plant=None):
     """State-space matrices ``(A, B, C, D)`` of the return ratio at the plant input.
 
@@ -109,18 +119,17 @@ def loop_matrices(ctrl, plant=None):
     -------
     tuple of ndarray
     """
-    c = ctrl.to_statespace()
+    Ac, Bc, Cc, Dc, input_labels = _feedback_arrays(ctrl)
     d = ctrl.design if plant is None else plant
     needed = int(getattr(ctrl, "state_modes", 0) or 0)
     if plant is not None and d.n_modes < needed and d.dt == ctrl.design.dt:
         # a gain on the residual modes (residual_control) reads them: the same plant with them
         d = DesignModel.build(d.params, d.spin, d.dt, needed)
-    missing = [n for n in c.input_labels if n not in _SENSOR_ROWS and n not in d.state_names]
+    missing = [n for n in input_labels if n not in _SENSOR_ROWS and n not in d.state_names]
     if d.dt != ctrl.design.dt or missing:
         raise ParameterError(f"plant must have dt = {ctrl.design.dt:g} s and the signals the controller reads "
                              f"(at least the design model's modes), got dt = {d.dt:g} s and {d.n_modes} modes")
-    Ac, Bc, Cc, Dc = (np.asarray(m, dtype=float) for m in (c.A, c.B, c.C, c.D))
-    Cm = _measurement_matrix(d, list(c.input_labels))
+    Cm = _measurement_matrix(d, input_labels)
     n, nc = d.n_x, Ac.shape[0]
     A = np.block([[d.Ad, np.zeros((n, nc))], [Bc @ Cm, Ac]])
     B = np.vstack([d.Bd, np.zeros((nc, 1))])

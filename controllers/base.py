@@ -20,7 +20,7 @@ full-state controllers work directly on the plant's measured state.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -121,6 +121,24 @@ def torque_limit(tau_max, params: Params, name: str = "tau_max") -> float:
 
 
 # -- design model -------------------------------------------------------------------------
+#: Outputs of the design model's linearisation: the three sensors, then the tip.
+_DESIGN_OUTPUTS = ("theta", "theta_dot", "root_moment", "tip_deflection", "tip_rate")
+
+
+def _zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple:
+    """Zero-order-hold ``(Ad, Bd)`` exactly as python-control's ``sample(dt, "zoh")`` computes them
+    (:func:`scipy.signal.cont2discrete`: one matrix exponential of ``[[A, B], [0, 0]] dt``)."""
+    import warnings
+
+    import scipy.linalg
+    em = np.vstack((np.hstack((A, B)), np.hstack((np.zeros((B.shape[1], A.shape[0])),
+                                                  np.zeros((B.shape[1], B.shape[1]))))))
+    with np.errstate(all="ignore"), warnings.catch_warnings():     # overflow is checked by the caller
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ms = scipy.linalg.expm(dt * em)[:A.shape[0], :]
+    return ms[:, 0:A.shape[1]], ms[:, A.shape[1]:]
+
+
 @dataclass(frozen=True, eq=False)
 class DesignModel:
     """The linear SFOAM design model, continuous and sampled (zero-order hold).
@@ -151,7 +169,8 @@ class DesignModel:
     M2, K2 : ndarray (1 + m, 1 + m)
         Second-order mass and stiffness matrices ``M dq'' + G dq' + K dq = B tau``.
     linear_model : hubbeam_ctrl.linear.statespace.LinearModel
-        The sampled model as a python-control system (``.sys``).
+        The sampled model as a python-control system (``.sys``); built on first use (a
+        property), so that designing a controller does not import python-control.
     """
 
     params: Params
@@ -168,7 +187,7 @@ class DesignModel:
     state_names: list
     M2: np.ndarray = None
     K2: np.ndarray = None
-    linear_model: object = None
+    _linear_model: object = field(default=None, repr=False, init=False)
 
     @classmethod
     def build(cls, params: Params = Params(), spin: float = 0.0, dt: float = 0.01,
@@ -196,7 +215,7 @@ class DesignModel:
         >>> d.Ad.shape, d.state_names[:2]
         ((6, 6), ['theta', 'q2_1'])
         """
-        from hubbeam_ctrl.linear.statespace import discretize, linearize
+        from hubbeam_ctrl.linear.statespace import linear_matrices
         from hubbeam_ctrl.plant.linearization import second_order_linearization
         from hubbeam_ctrl.plant.models import build_model
         dt = check_positive("dt", dt, "s")
@@ -206,15 +225,26 @@ class DesignModel:
             raise ParameterError(f"spin must be a finite number [rad/s], got {spin!r}")
         m = params.n_transverse if n_modes is None else n_modes
         p = params.replace(n_transverse=m)
-        outputs = ("theta", "theta_dot", "root_moment", "tip_deflection", "tip_rate")
-        lm = linearize("sfoam", float(spin), p, outputs)
-        lmd = discretize(lm, dt)
+        A, B, C, _, states = linear_matrices("sfoam", float(spin), p, _DESIGN_OUTPUTS, state_names=True)
+        Ad, Bd = _zoh(A, B, dt)        # linearize + discretize's numbers (control's sample, zoh), bit for bit
+        if not (np.all(np.isfinite(Ad)) and np.all(np.isfinite(Bd))):
+            growth = float(np.max(np.linalg.eigvals(A).real))
+            raise ParameterError(f"dt = {dt:g} s is too long for this model: its fastest-growing mode "
+                                 f"(real part {growth:.4g} 1/s) overflows the sampled matrices")
         so = second_order_linearization(build_model("sfoam", p), float(spin), "free")
         return cls(params=p, spin=float(spin), dt=dt, n_modes=p.n_transverse,
-                   A=np.asarray(lm.A), B=np.asarray(lm.B), Ad=np.asarray(lmd.A),
-                   Bd=np.asarray(lmd.B), C_sensors=np.asarray(lm.C[:3]),
-                   C_tip=np.asarray(lm.C[3:]), inertia=p.total_inertia,
-                   state_names=list(lm.state_names), M2=so.M, K2=so.K, linear_model=lmd)
+                   A=A, B=B, Ad=Ad, Bd=Bd, C_sensors=C[:3], C_tip=C[3:], inertia=p.total_inertia,
+                   state_names=list(states), M2=so.M, K2=so.K)
+
+    @property
+    def linear_model(self):
+        """The sampled model as a :class:`~hubbeam_ctrl.linear.statespace.LinearModel` (a named
+        python-control system, ``.sys``), built on first use: the same matrices as ``Ad``, ``Bd``."""
+        if self._linear_model is None:
+            from hubbeam_ctrl.linear.statespace import discretize, linearize
+            lm = linearize("sfoam", self.spin, self.params, _DESIGN_OUTPUTS)
+            object.__setattr__(self, "_linear_model", discretize(lm, self.dt))
+        return self._linear_model
 
     @property
     def n_x(self) -> int:

@@ -23,6 +23,7 @@ from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.plant.sensors import SensorSettings
 
 from .base import DesignModel, check_psd
+from .riccati import dlqe
 
 __all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain", "solve_kalman"]
 
@@ -133,10 +134,9 @@ def solve_kalman(A: np.ndarray, C: np.ndarray, Qn: np.ndarray, Rn: np.ndarray):
     P : ndarray (n, n)
         A-priori error covariance (:func:`control.dlqe`'s Riccati solution).
     """
-    import control  # lazily: keeps the CLI's start-up light
     try:
-        _, P, poles = control.dlqe(A, np.eye(A.shape[0]), C, Qn, Rn)
-    except (np.linalg.LinAlgError, ValueError, control.ControlArgument) as exc:
+        _, P, poles = dlqe(A, np.eye(A.shape[0]), C, Qn, Rn)     # control.dlqe's numbers, without its import
+    except (np.linalg.LinAlgError, ValueError) as exc:
         raise ParameterError(f"the Kalman filter's Riccati equation has no solution ({exc}); "
                              "check the noise levels") from None
     if np.max(np.abs(poles)) >= 1.0:

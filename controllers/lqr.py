@@ -10,6 +10,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, LQSettings, Reference, Weights, saturate
 from .residual import residual_design
+from .riccati import dlqr
 
 __all__ = ["LQRSettings", "LQR", "dlqr_gain"]
 
@@ -46,13 +47,12 @@ def dlqr_gain(design: DesignModel, weights: Weights):
     >>> K.shape, P.shape
     ((6,), (6, 6))
     """
-    import control  # lazily: keeps the CLI's start-up light
     if not isinstance(weights, Weights):
         raise ParameterError(f"weights must be a Weights, got {type(weights).__name__}")
     Q, R = weights.matrices(design)
     try:
-        K, P, poles = control.dlqr(design.Ad, design.Bd, Q, R)
-    except (np.linalg.LinAlgError, ValueError, control.ControlArgument) as exc:
+        K, P, poles = dlqr(design.Ad, design.Bd, Q, R)       # control.dlqr's numbers, without its import
+    except (np.linalg.LinAlgError, ValueError) as exc:
         raise ParameterError(f"weights: the LQR Riccati equation has no stabilising solution "
                              f"({exc}); give weight to the hub angle and the modes") from None
     K = np.asarray(K).ravel()

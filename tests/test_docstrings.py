@@ -30,7 +30,7 @@ def _modules():
     for package in (hubbeam_ctrl, controllers):
         names.append(package.__name__)
         for info in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
-            if ".cli." in info.name and info.name.rsplit(".", 1)[-1] in ("__main__",):
+            if info.name.rsplit(".", 1)[-1] == "__main__":       # runs the command when imported
                 continue
             names.append(info.name)
     return sorted(set(names))

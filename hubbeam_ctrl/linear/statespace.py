@@ -32,8 +32,8 @@ from __future__ import annotations
 import dataclasses
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
@@ -43,10 +43,15 @@ from hubbeam_ctrl.plant.models import MODEL_NAMES, HubBeamModel, build_model
 from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.plant.sensors import SENSOR_NAMES, sensor_matrix
 
+# python-control is imported where a system is built: the matrices alone (linear_matrices) do not
+# need it, and a command that needs only them (hubbeam compare) does not pay for its import
+if TYPE_CHECKING:
+    import control
+
 #: Allowed sample times of :func:`discretize` [s].
 DT_RANGE = (1e-6, 10.0)
 
-__all__ = ["LinearModel", "OUTPUTS", "DEFAULT_OUTPUTS", "linearize", "discretize", "reduce",
+__all__ = ["LinearModel", "OUTPUTS", "DEFAULT_OUTPUTS", "linearize", "linear_matrices", "discretize", "reduce",
            "poles", "continuous_poles", "poles_hz", "compare_poles", "PoleComparison"]
 
 #: Available outputs: name -> (unit, description).
@@ -220,6 +225,7 @@ class LinearModel:
 
 
 def _make_ss(A, B, C, D, dt, states, outputs, name) -> control.StateSpace:
+    import control
     return control.ss(A, B, C, D, dt, states=list(states), inputs=["tau"],
                       outputs=list(outputs), name=name)
 
@@ -280,6 +286,54 @@ def linearize(model="sfoam", spin: float = 0.0, params: Params | None = None,
     >>> lm.n_states, lm.sys.output_labels
     (8, ['theta', 'root_moment'])
     """
+    hub_model, spin, outputs, A, B, C, D, states = _linearized(
+        model, spin, params, outputs, n_modes=n_modes, tip_mass=tip_mass, tip_position=tip_position,
+        damping=damping)
+    if name is None:
+        name = f"{hub_model.name}_spin{spin:g}".replace(".", "p")
+    if not isinstance(name, str) or not name or "." in name:
+        raise ParameterError(f"name must be a non-empty string without '.', got {name!r}")
+    sys = _make_ss(A, B, C, D, 0, states, outputs, name)
+    return LinearModel(sys=sys, model=hub_model.name, spin=spin, params=hub_model.params)
+
+
+def linear_matrices(model="sfoam", spin: float = 0.0, params: Params | None = None,
+                    outputs=DEFAULT_OUTPUTS, *, n_modes: int | None = None, tip_mass: float | None = None,
+                    tip_position: float | None = None, damping: float | None = None,
+                    state_names: bool = False) -> tuple:
+    """The matrices of :func:`linearize` without building a python-control system.
+
+    The same numbers as ``linearize(...).A`` etc., for callers that need only the matrices
+    (the study layer's linear certificate): python-control is not imported, which keeps a
+    command such as ``hubbeam compare`` from loading it and SciPy's signal package.
+
+    Parameters
+    ----------
+    model, spin, params, outputs, n_modes, tip_mass, tip_position, damping
+        As for :func:`linearize` (``spin`` [rad/s], ``tip_mass`` [kg], ``tip_position`` [m],
+        ``damping`` [-]).
+    state_names : bool
+        Also return the names of the states (as ``linearize(...).state_names``).
+
+    Returns
+    -------
+    tuple
+        ``(A, B, C, D)``: (n, n) [1/s], (n, 1) [per N m], (p, n) and (p, 1) in the outputs' units;
+        with ``state_names``, ``(A, B, C, D, names)``.
+
+    Examples
+    --------
+    >>> A, B, C, D = linear_matrices(outputs="theta,root_moment", n_modes=3)
+    >>> A.shape, C.shape
+    ((8, 8), (2, 8))
+    """
+    _, _, _, A, B, C, D, states = _linearized(model, spin, params, outputs, n_modes=n_modes, tip_mass=tip_mass,
+                                              tip_position=tip_position, damping=damping)
+    return (A, B, C, D, list(states)) if state_names else (A, B, C, D)
+
+
+def _linearized(model, spin, params, outputs, *, n_modes, tip_mass, tip_position, damping) -> tuple:
+    """``(hub_model, spin, outputs, A, B, C, D, states)`` of :func:`linearize`, checked."""
     if isinstance(model, HubBeamModel):
         hub_model = model
         overrides = any(v is not None for v in (n_modes, tip_mass, tip_position, damping))
@@ -326,12 +380,7 @@ def linearize(model="sfoam", spin: float = 0.0, params: Params | None = None,
         rows.append(c)
     C = np.array(rows)
     D = np.zeros((len(outputs), 1))
-    if name is None:
-        name = f"{hub_model.name}_spin{spin:g}".replace(".", "p")
-    if not isinstance(name, str) or not name or "." in name:
-        raise ParameterError(f"name must be a non-empty string without '.', got {name!r}")
-    sys = _make_ss(A, B, C, D, 0, states, outputs, name)
-    return LinearModel(sys=sys, model=hub_model.name, spin=spin, params=pr)
+    return hub_model, spin, outputs, A, B, C, D, states
 
 
 # -- poles ------------------------------------------------------------------------
@@ -578,6 +627,7 @@ def reduce(lm: LinearModel, n_modes: int, method: str = "modal") -> LinearModel:
 
 def _balanced_truncation(A, B, C, order):
     """Balanced truncation of a stable system to ``order`` states."""
+    import control
     try:
         red = control.balred(control.ss(A, B, C, np.zeros((C.shape[0], B.shape[1]))), order)
         return np.asarray(red.A), np.asarray(red.B), np.asarray(red.C)

@@ -93,8 +93,15 @@ def save_figure(fig: Figure, path, dpi: int = 120):
         Output file (the extension sets the format).
     dpi : int
         Resolution [dots per inch].
+
+    Notes
+    -----
+    PNGs are written with zlib level 1 instead of Pillow's 6: the same pixels (lossless),
+    files about a third larger, and the encoding, which took a quarter of a report's plotting
+    time, about three times faster.
     """
-    return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi))
+    extra = {"pil_kwargs": {"compress_level": 1}} if str(path).lower().endswith(".png") else {}
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, **extra))
 
 
 def plot_campbell(spins, frequencies_hz, title: str = "Campbell diagram") -> Figure:

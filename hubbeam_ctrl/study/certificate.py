@@ -36,7 +36,7 @@ import scipy.linalg
 
 from controllers import CONTROLLERS, Controller
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.linear.statespace import linearize
+from hubbeam_ctrl.linear.statespace import linear_matrices
 from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["RADIUS_TOLERANCE", "DAMPING_SEARCH_MAX", "LoopCertificate", "Certificate", "linear_points",
@@ -212,12 +212,11 @@ def _linear_plant(params: Params, spin: float):
     """Continuous ``(A0, A1, B, C)`` of the linear SFOAM, ``A = A0 + zeta A1``, and its sampled
     undamped ``(Ad, Bd)``."""
     outputs = _SENSORS
-    lm0 = linearize("sfoam", spin, params.replace(damping_ratio=0.0), outputs)
+    A0, B, C, _ = linear_matrices("sfoam", spin, params.replace(damping_ratio=0.0), outputs)
     zeta = 0.01
-    lm1 = linearize("sfoam", spin, params.replace(damping_ratio=zeta), outputs)
-    A0 = np.asarray(lm0.A, dtype=float)
-    A1 = (np.asarray(lm1.A, dtype=float) - A0) / zeta
-    return A0, A1, np.asarray(lm0.B, dtype=float), np.asarray(lm0.C, dtype=float)
+    A1 = (np.asarray(linear_matrices("sfoam", spin, params.replace(damping_ratio=zeta), outputs)[0], dtype=float)
+          - np.asarray(A0, dtype=float)) / zeta
+    return np.asarray(A0, dtype=float), A1, np.asarray(B, dtype=float), np.asarray(C, dtype=float)
 
 
 def _zoh(A: np.ndarray, B: np.ndarray, dt: float):

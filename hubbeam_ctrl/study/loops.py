@@ -32,7 +32,7 @@ from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plots.loops import LoopResponse, plot_loop
 
 __all__ = ["loop_response", "evaluation_model", "controller_loops", "loop_figure", "comparison_loop_figures",
-           "is_linear"]
+           "save_comparison_loop_figures", "is_linear"]
 
 
 def is_linear(ctrl) -> bool:
@@ -189,7 +189,7 @@ def controller_loops(ctrl, evaluation: DesignModel | None = None, t_end: float =
 
 
 def loop_figure(ctrl, evaluation: DesignModel | None = None, title: str | None = None,
-                t_end: float = 15.0) -> Figure:
+                t_end: float = 15.0, fig: Figure | None = None) -> Figure:
     """The loop plots of one linear controller (see :func:`hubbeam_ctrl.plots.loops.plot_loop`).
 
     Parameters
@@ -202,6 +202,8 @@ def loop_figure(ctrl, evaluation: DesignModel | None = None, title: str | None =
         Figure title (default: the controller's name, spin and sample time).
     t_end : float
         Length of the time responses [s].
+    fig : Figure, optional
+        A loop figure drawn before, to draw into again (see :func:`~hubbeam_ctrl.plots.loops.plot_loop`).
 
     Returns
     -------
@@ -210,7 +212,7 @@ def loop_figure(ctrl, evaluation: DesignModel | None = None, title: str | None =
     d = ctrl.design
     title = title or (f"{ctrl.name}: loop at the plant input (SFOAM at {d.spin:g} rad/s, "
                       f"dt = {1e3 * d.dt:g} ms)")
-    return plot_loop(controller_loops(ctrl, evaluation, t_end=t_end), title)
+    return plot_loop(controller_loops(ctrl, evaluation, t_end=t_end), title, fig=fig)
 
 
 def comparison_loop_figures(comparison, t_end: float = 15.0) -> dict:
@@ -228,9 +230,43 @@ def comparison_loop_figures(comparison, t_end: float = 15.0) -> dict:
     dict
         Controller name -> Figure (empty when the comparison has no linear controller).
     """
+    return {name: loop_figure(ctrl, evaluation, title=title, t_end=t_end)
+            for name, ctrl, evaluation, title in _comparison_loops(comparison)}
+
+
+def save_comparison_loop_figures(comparison, save, t_end: float = 15.0) -> list:
+    """The figures of :func:`comparison_loop_figures`, each handed to ``save`` as soon as it is
+    drawn, all in one reused figure (the report's way: the panels and their ticks are made once;
+    the images are those of separate figures, pixel for pixel).
+
+    Parameters
+    ----------
+    comparison : Comparison
+        From :func:`hubbeam_ctrl.study.compare.compare`.
+    save : callable
+        ``save(name, fig)``, called once per linear controller, in order; ``fig`` is redrawn by
+        the next call, so write it (e.g. :func:`hubbeam_ctrl.plots.plant.save_figure`) there.
+    t_end : float
+        Length of the time responses [s].
+
+    Returns
+    -------
+    list of str
+        The controllers drawn, in order.
+    """
+    fig, names = None, []
+    for name, ctrl, evaluation, title in _comparison_loops(comparison):
+        fig = loop_figure(ctrl, evaluation, title=title, t_end=t_end, fig=fig)
+        save(name, fig)
+        names.append(name)
+    return names
+
+
+def _comparison_loops(comparison):
+    """``(name, controller, evaluation model or None, title)`` of each linear controller."""
     ctrls = {n: c for n, c in getattr(comparison, "controllers", {}).items() if is_linear(c)}
     ev = comparison.plant
-    models, figs = {}, {}
+    models = {}
     for name, ctrl in ctrls.items():
         evaluation = None
         if ev is not None and ev.modes >= ctrl.design.n_modes:
@@ -238,7 +274,5 @@ def comparison_loop_figures(comparison, t_end: float = 15.0) -> dict:
             if key not in models:
                 models[key] = evaluation_model(ctrl, ev.params, ev.modes)
             evaluation = models[key]
-        figs[name] = loop_figure(ctrl, evaluation, title=f"{name}: loop at the plant input, "
-                                 f"{comparison.scenario.name} (design SFOAM at {ctrl.design.spin:g} rad/s, "
-                                 f"dt = {1e3 * ctrl.dt:g} ms)", t_end=t_end)
-    return figs
+        yield name, ctrl, evaluation, (f"{name}: loop at the plant input, {comparison.scenario.name} (design SFOAM at "
+                                       f"{ctrl.design.spin:g} rad/s, dt = {1e3 * ctrl.dt:g} ms)")

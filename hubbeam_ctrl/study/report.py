@@ -470,17 +470,20 @@ def _write_report(comparison, out: Path, names: dict) -> None:
     """report.md (with loops_<controller>.png, the loop plots of each linear controller, linked
     from it) and report.html, the same report as one page with the figures embedded."""
     from hubbeam_ctrl.core.htmlpage import markdown_to_html
-    from hubbeam_ctrl.study.loops import comparison_loop_figures
+    from hubbeam_ctrl.study.loops import save_comparison_loop_figures
     text = _report(comparison)
-    figs = comparison_loop_figures(comparison)
-    if figs:
+
+    def save(name, fig):
+        names[f"loops_{name}.png"] = f"loops_{name}.png"
+        save_figure(fig, out / names[f"loops_{name}.png"], dpi=100)
+
+    drawn = save_comparison_loop_figures(comparison, save)      # one figure, redrawn per controller
+    if drawn:
         text += ("\n## Loop plots (linear controllers)\n\nEach figure: Bode and Nyquist of the loop gain at the "
                  "plant input, |S| and |T|, closed-loop step and input-disturbance responses and the sampled "
                  "closed-loop poles, on the design model and on the linear SFOAM with the evaluation plant's "
                  "modes (hubbeam_ctrl.study.loops).\n\n")
-        for name, fig in figs.items():
-            names[f"loops_{name}.png"] = f"loops_{name}.png"
-            save_figure(fig, out / names[f"loops_{name}.png"], dpi=100)
+        for name in drawn:
             text += f"- [{name}](loops_{name}.png)\n\n![loop plots of {name}](loops_{name}.png)\n\n"
     atomic_write_text(out / names["report"], text)
     names["report.html"] = "report.html"
