@@ -22,9 +22,10 @@ from hubbeam_ctrl.sim import (
 @pytest.mark.slow
 def test_stepper_matches_tight_idas_on_foam():
     """The generalized-alpha stepper (2 x 5 ms per 10 ms sample) reproduces a tight IDAS
-    run of the Eq. 44 slew: tip deflection within 0.5 % of the peak at every sample."""
-    ref = simulate("foam", TorquePulse(200, 10), 30, rtol=1e-10, atol=1e-10, max_order=5)
-    fix = simulate_fixed_step("foam", TorquePulse(200, 10), 30)
+    run of the Eq. 44 slew: tip deflection within 0.5 % of the peak at every sample (the pulse
+    and 5 s of free vibration after it; the 30 s run measured the same 0.035 %)."""
+    ref = simulate("foam", TorquePulse(200, 10), 15, rtol=1e-10, atol=1e-10, max_order=5)
+    fix = simulate_fixed_step("foam", TorquePulse(200, 10), 15)
     peak = np.max(np.abs(ref.v_tip))
     assert fix.v_tip.shape == ref.v_tip.shape
     err = np.max(np.abs(fix.v_tip - ref.v_tip)) / peak

@@ -163,3 +163,16 @@ def test_cli_bad_input_is_one_line(tmp_path, capsys, argv, words):
     err = capsys.readouterr().err
     assert rc == 2
     assert words in err and err.count("\n") == 1
+
+
+def test_huge_t_end_is_refused_before_the_reference_is_tabulated(monkeypatch):
+    """t_end = 1e6 s: refused by the memory budget before make_scenario tabulates 1e8 reference
+    samples (which alone took 12 s and gigabytes), with the budget's message."""
+    import hubbeam_ctrl.study.compare as cmp
+
+    def tabulate(*args, **kwargs):
+        raise AssertionError("the reference was tabulated")
+    monkeypatch.setattr(cmp, "make_scenario", tabulate)
+    with pytest.raises(ParameterError, match=r"^t_end = 1e\+06 s at dt = 0.01 s \(2 runs of 100000001 samples\) "
+                                             r"needs about .* GB of memory, above max_memory_mb"):
+        cmp.compare("foam", "slew", "lqr,lqg", t_end=1e6)

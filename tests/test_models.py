@@ -184,8 +184,10 @@ def test_quasi_static_axial_refuses_bad_input():
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["tlam", "foam", "cfoam"])
 def test_free_unforced_conserves_energy_and_momentum(name, table1):
-    """Full tier: Table 1 with 5 + 5 modes for 30 s (about 12 periods of the first bending mode)."""
-    _check_conservation(name, table1, 30.0)
+    """Full tier: Table 1 with 5 + 5 modes for 12 s (about 5 periods of the first bending mode; was
+    30 s, cut for the suite's 10-minute budget: the drift bound is the same and the 10 s fast tier
+    covers the long run's mechanism on 2 + 2 modes)."""
+    _check_conservation(name, table1, 12.0)
 
 
 def test_sfoam_does_not_conserve(table1):

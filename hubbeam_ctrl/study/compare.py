@@ -176,6 +176,26 @@ def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
     return sim_settings
 
 
+def _check_runs_fit(t_end, dt, names, params: Params, sim_settings) -> None:
+    """Refuse, before the scenario's reference is tabulated (which alone takes gigabytes for a
+    ``t_end`` of 1e6 s), a comparison whose runs' arrays alone exceed the memory limit: a lower
+    bound of :func:`_check_budget`'s estimate, with its message."""
+    if t_end is None or not isinstance(dt, (int, float)) or not isinstance(t_end, (int, float)):
+        return
+    if not (math.isfinite(t_end) and math.isfinite(dt) and t_end > 0 and dt > 0):
+        return                                  # make_scenario names the bad value
+    limit = ClosedLoopSettings().max_memory_mb
+    if isinstance(sim_settings, ClosedLoopSettings):
+        limit = sim_settings.max_memory_mb
+    elif isinstance(sim_settings, dict) and "max_memory_mb" in sim_settings:
+        limit = sim_settings["max_memory_mb"]
+    steps = int(round(t_end / dt))
+    n_q = 1 + params.n_axial + params.n_transverse
+    memory = len(names) * 16.0 * (steps + 1) * (2 * n_q + 9)
+    check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({len(names)} runs of {steps + 1} samples)",
+                 memory_bytes=memory, seconds=0.0, max_memory_mb=limit, max_wall_s=math.inf)
+
+
 def _design_modes(design_modes, design: Params) -> int:
     if design_modes is None:
         return design.n_transverse
@@ -315,6 +335,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     design_p = design_params if design_params is not None else base
     options = dict(plant=plant, params=design_p, tau_max=tau_max, t_f=t_f, dt=dt, w_f=w_f,
                    slew_angle=slew_angle, tolerances=tolerances)
+    _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
     sc = make_scenario(scenario, t_end=30.0 if t_end is None else t_end, **options)
     if t_end is None and sc.t_end != task_t_end(sc):
         sc = make_scenario(scenario, t_end=task_t_end(sc), **options)
