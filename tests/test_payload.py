@@ -17,7 +17,6 @@ from controllers.robust import (
 )
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.cli.main import main
-from hubbeam_ctrl.core.compiled import compile_function
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study import make_scenario, payload_comparison, payload_table, write_payload_outputs
 
@@ -63,14 +62,6 @@ def test_design_for_range_on_linear_models():
     assert linear_openloop_residual(base, eq44, sc.t_f, sc.t_end, 5.0) > 0.1
 
 
-def _compiler_works() -> bool:
-    """Whether the compiled backend works here (a C compiler found and building)."""
-    import casadi as ca
-    x = ca.SX.sym("x")
-    f = ca.Function("payload_probe", [x], [2 * x])
-    return compile_function(f, "auto") is not f
-
-
 @pytest.mark.slow
 def test_paper_beam_designed_for_0_to_half_a_kilo(tmp_path, fast_backend):
     """Issue target: Table 1's beam, LQR, LQG and MPC designed for 0-0.5 kg, FOAM evaluation
@@ -80,10 +71,12 @@ def test_paper_beam_designed_for_0_to_half_a_kilo(tmp_path, fast_backend):
     Measured (% of the open loop at 0 / 0.1 / 0.3 / 0.5 kg): LQR 1.83/1.06/1.33/1.56,
     LQG 1.02/0.77/1.13/0.98, MPC 1.89/1.00/0.90/1.97 (about 3 min with a C compiler).
 
-    Without a C compiler (the VM is several times slower) LQR alone at the ends of the range.
+    The suite runs the LQR at the ends of the range (the range design's search is most of the
+    time: 52 evaluations on three grid payloads per controller; all three controllers took 128 s
+    of the suite's 10-minute budget); ``benchmarks/bench_payload.py`` runs all three at the four
+    payloads with the same conditions.
     """
-    compiled = _compiler_works()
-    names, masses = ("openloop,lqr,lqg,mpc", (0.0, 0.1, 0.3, 0.5)) if compiled else ("openloop,lqr", (0.0, 0.5))
+    names, masses = "openloop,lqr", (0.0, 0.5)
     pc = payload_comparison("foam", "slew", names, payload_range=(0.0, 0.5), masses=masses)
     print()
     print(payload_table(pc))
