@@ -74,13 +74,11 @@ def run(args) -> int:
     """
     import sys
 
-    from controllers import CONTROLLERS, DesignModel, make_controller
-    from hubbeam_ctrl.cli.args import params_from_args, refuse_inapplicable, rig_from_args, stdout
+    from controllers import CONTROLLERS, make_controller
+    from hubbeam_ctrl.cli.args import design_task, params_from_args, refuse_inapplicable, rig_from_args, stdout
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.deploy import CODEGEN_KINDS, NO_COMPILER, compile_c, compiler, to_c
-    from hubbeam_ctrl.study.scenarios import make_scenario
     from hubbeam_ctrl.study.shaping import task_shaped_settings
-    from hubbeam_ctrl.study.yardstick import task_dt
 
     sink = stdout(args)
     kinds = [k for k in CODEGEN_KINDS if k != "openloop"]
@@ -97,19 +95,7 @@ def run(args) -> int:
                                  "root (0 m)")
     else:
         params = params_from_args(args)
-    dt = args.dt if args.dt is not None else (rig.timing.dt if rig is not None and rig.timing.dt else task_dt(params))
-    if args.tau_max is not None and args.tau_max > params.tau_max:
-        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "
-                             f"the parameters), got {args.tau_max:g}")
-    modes = args.design_modes if args.design_modes is not None else params.n_transverse
-    if not 1 <= modes <= 20:
-        raise ParameterError(f"design-modes must be an integer in 1..20, got {modes}")
-    if args.slew_angle is not None and args.slew_angle == 0:
-        raise ParameterError("slew-angle must be a finite number != 0 [rad]")
-    sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
-                       t_end=3 * args.tf, dt=dt, w_f=3.0 if args.wf is None else args.wf,
-                       slew_angle=args.slew_angle)
-    design = DesignModel.build(params, sc.design_spin, dt, modes)
+    sc, design = design_task(args, rig, params)
     settings = task_shaped_settings(args.controller, CONTROLLERS[args.controller].settings.for_scenario(sc),
                                     design, sc)[0]
     if rig is None:
@@ -134,7 +120,7 @@ def run(args) -> int:
         sensors = ", ".join(f"{m['name']} [{m['unit']}]" for m in meta["measurements"]) or "none"
         print(f"{args.controller.upper()} for {sc.description}: wrote {code.header_path} and {code.source_path} "
               f"({args.precision}, {meta['data_bytes']} bytes of data); reads {sensors}; "
-              f"commands tau [N m] every {dt:g} s", file=sink)
+              f"commands tau [N m] every {sc.dt:g} s", file=sink)
     if cc is None:
         print(NO_COMPILER, file=sys.stderr)
     elif not args.json:

@@ -92,16 +92,14 @@ def run(args) -> int:
     """
     from pathlib import Path
 
-    from controllers import CONTROLLERS, DesignModel, make_controller
+    from controllers import CONTROLLERS, make_controller
     from controllers.analysis import loop_margins
     from controllers.export import FORMATS, save_controller
-    from hubbeam_ctrl.cli.args import refuse_inapplicable, rig_from_args, stdout
+    from hubbeam_ctrl.cli.args import design_task, refuse_inapplicable, rig_from_args, stdout
     from hubbeam_ctrl.cli.compare import parse_payload_range
     from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.study.payload import range_designs
-    from hubbeam_ctrl.study.scenarios import make_scenario
-    from hubbeam_ctrl.study.yardstick import task_dt
 
     sink = stdout(args)      # sys.stdout is captured during the run (native solver output)
     refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
@@ -111,19 +109,8 @@ def run(args) -> int:
     check_output_folder("out", out)
     rig = rig_from_args(args)
     params = rig.plant_params if rig is not None else params_from_args(args)
-    if args.tau_max is not None and args.tau_max > params.tau_max:
-        whose = "the rig's drive" if rig is not None else "the motor's tau_max of the parameters"
-        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m ({whose}), got {args.tau_max:g}")
-    dt = args.dt if args.dt is not None else (rig.timing.dt if rig is not None else task_dt(params))
-    modes = args.design_modes if args.design_modes is not None else params.n_transverse
-    if not 1 <= modes <= 20:
-        raise ParameterError(f"design-modes must be an integer in 1..20, got {modes}")
-    if args.slew_angle is not None and (args.slew_angle == 0 or args.scenario != "slew"):
-        raise ParameterError("slew-angle must be a finite number != 0 [rad], for --scenario slew only")
-    sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
-                       t_end=3 * args.tf, dt=dt, w_f=3.0 if args.wf is None else args.wf,
-                       slew_angle=args.slew_angle)
-    design = DesignModel.build(params, sc.design_spin, dt, modes)
+    sc, design = design_task(args, rig, params)
+    modes = design.n_modes
     settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
     if args.payload_range is not None:
         rng = parse_payload_range(args.payload_range, params.m_t)
@@ -141,7 +128,7 @@ def run(args) -> int:
         return 0
     sys = ctrl.to_statespace()
     print(f"{ctrl.name.upper()} on SFOAM ({modes} modes, m_t = {design.params.m_t:g} kg) at spin "
-          f"{sc.design_spin:g} rad/s, dt = {dt:g} s, for {sc.description}: "
+          f"{sc.design_spin:g} rad/s, dt = {sc.dt:g} s, for {sc.description}: "
           f"{sys.nstates} states, inputs {', '.join(sys.input_labels)}, output tau; "
           f"|tau| <= {ctrl.tau_max:g} N m", file=sink)
     print(f"  closed loop on the design model: {'stable' if m.stable else 'UNSTABLE'} "
