@@ -190,10 +190,16 @@ def _check_runs_fit(t_end, dt, names, params: Params, sim_settings) -> None:
     elif isinstance(sim_settings, dict) and "max_memory_mb" in sim_settings:
         limit = sim_settings["max_memory_mb"]
     steps = int(round(t_end / dt))
-    n_q = 1 + params.n_axial + params.n_transverse
-    memory = len(names) * 16.0 * (steps + 1) * (2 * n_q + 9)
+    memory = len(names) * _run_bytes(steps, params)
     check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({len(names)} runs of {steps + 1} samples)",
                  memory_bytes=memory, seconds=0.0, max_memory_mb=limit, max_wall_s=math.inf)
+
+
+def _run_bytes(steps: int, params: Params) -> float:
+    """Memory estimate of one closed-loop run's arrays [bytes]: ``steps + 1`` samples of the
+    coordinates, their rates and nine signals, at 16 bytes per number (the budget's margin)."""
+    n_q = 1 + params.n_axial + params.n_transverse
+    return 16.0 * (steps + 1) * (2 * n_q + 9)
 
 
 def _design_modes(design_modes, design: Params) -> int:
@@ -480,7 +486,7 @@ def _check_budget(sc: Scenario, ev, chosen: dict, design_modes: int, sim: Closed
     n_q = 1 + p.n_axial + p.n_transverse
     steps = int(round(sc.t_end / sc.dt))
     n_x = 2 * (1 + design_modes)
-    run_bytes = 16.0 * (steps + 1) * (2 * n_q + 9)
+    run_bytes = _run_bytes(steps, p)
     run_seconds = steps * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n_q / 11.0) ** 2
     memory = len(chosen) * run_bytes
     seconds = len(chosen) * run_seconds + model_build_seconds(ev.model, p.n_transverse)
