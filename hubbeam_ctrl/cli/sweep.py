@@ -110,7 +110,9 @@ def spec_from_args(args):
     except ParameterError as exc:
         for option, key in (("--rig", "study.rig"), ("--plant", "study.plant")):
             if getattr(args, option[2:], None) is not None and str(exc).startswith(key):
-                raise ParameterError(f"{option}{str(exc)[len(key):]}") from None
+                rest = str(exc)[len(key):]
+                rest = " " + rest[len(": rig "):] if rest.startswith(": rig ") else rest
+                raise ParameterError(f"{option}{rest}") from None
         raise
 
 
