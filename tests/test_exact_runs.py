@@ -130,6 +130,7 @@ def test_compare_past_foams_range_reports_both_plants(tmp_path, capsys):
     assert m["check_peak_tip_m"] / m["peak_tip_m"] - 1 == pytest.approx(0.045, abs=0.01)   # measured +4.5 %
     report = (out / "report.md").read_text()
     assert "## ANCF (exact beam) and FOAM on the same loop" in report
+    assert "- Exact beam: 16 ANCF cable elements (3 per bending mode" in report       # issue 23 item 2
     assert (f"- openloop: FOAM left its validated range (|v_tip| > 0.3 L at t = 1.830 s; peak "
             f"{m['check_peak_tip_m'] / L:.3f} L); the exact plant did not (it has no such range): peak "
             f"{m['peak_tip_m'] / L:.3f} L") in report

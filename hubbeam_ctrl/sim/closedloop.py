@@ -366,7 +366,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         stepper = _exact_plant(model, settings, plant_info["substeps"], hardware, n_elements)
         plant_info.update(plant_elements=stepper.n_elements, plant_element_reason=(
             f"{stepper.n_elements} ANCF cable elements (3 per bending mode of the {model.n_transverse}-mode "
-            "evaluation plant, a multiple of 8, at least 16)"),
+            "evaluation plant, a multiple of 8, at least 16)" if n_elements is None else
+            f"{stepper.n_elements} ANCF cable elements (as asked)"),
             root_moment_from="clamp reaction (the joint's Lagrange multiplier)")
         exact_out = np.full((N + 1, 3), np.nan)      # v_tip, u_tip, root moment
         exact_out[0] = 0.0

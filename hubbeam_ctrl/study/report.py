@@ -89,6 +89,8 @@ def _plant_lines(comparison) -> list:
     if "step_reason" in st:
         lines.append(f"- Integration: generalized-alpha (rho_inf = {st.get('rho_inf', 0.9):g}), "
                      f"{st['step_reason']}.")
+    if "plant_element_reason" in st:
+        lines.append(f"- Exact beam: {st['plant_element_reason']}.")
     lines.append(f"- {PLANT_NOTE}")
     return lines
 
