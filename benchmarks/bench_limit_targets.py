@@ -1,13 +1,15 @@
 """Issue 22's targets, measured: every beam and rig at 1.5 x its time-optimal slew. Prints JSON.
 
 Run: ``.venv/bin/python benchmarks/bench_limit_targets.py [--cases lab,servo,servo_beam,paper,payload]
-[--out F.json]`` (about 5-10 min on 2 idle cores with a C compiler).
+[--references task,rigid,optimal] [--out F.json]`` (about 5-10 min on 2 idle cores with a C compiler).
 
 For each case the time-optimal rest-to-rest slew ``T_opt`` of the beam within its drive's limits
 (:func:`hubbeam_ctrl.limit.time_optimal_slew`, FOAM, the design's modes) gives the task
 ``Slew(angle, 1.5 T_opt)``; LQR, LQG and MPC then run with all defaults on the FOAM evaluation
-plant, once with the task's smooth reference (``reference="task"``, the default) and once with
-the minimum-vibration slew as reference and feedforward (``reference="optimal"``). The issue's
+plant, with each of ``--references``: the default (``reference="task"``: the slew planned on the
+design model, :func:`controllers.planning.planned_slew_reference`), the smooth rigid reference
+(``"rigid"``, the default before) and the minimum-vibration slew of the nonlinear beam as
+reference and feedforward (``"optimal"``). The issue's
 targets, checked per controller:
 
 * settled (hub and tip in their bands for good) no later than ``t_f`` plus one period of the
@@ -79,11 +81,14 @@ def _judge(comparison, params: Params, angle: float, limit: float) -> dict:
     return rows
 
 
+REFERENCES = ("task", "optimal")
+
+
 def _case(label, beam, angle, t_opt, limit, **options) -> dict:
-    """Both references on one beam or rig at 1.5 x T_opt."""
+    """The chosen references on one beam or rig at 1.5 x T_opt."""
     t_f = FACTOR * t_opt
     out = {"t_opt_s": t_opt, "t_f_s": t_f, "angle_rad": angle, "runs": {}}
-    for reference in ("task", "optimal"):
+    for reference in REFERENCES:
         t0 = time.perf_counter()
         c = compare("foam", Slew(angle, t_f), NAMES, reference=reference, **options)
         run = _judge(c, beam, angle, limit)
@@ -118,7 +123,7 @@ def run_cases(cases) -> dict:
         t_opt = time_optimal_slew(paper, 1.0).duration_s
         t_f = FACTOR * t_opt
         payload = {"t_opt_s": t_opt, "t_f_s": t_f, "runs": {}}
-        for reference in ("task", "optimal"):
+        for reference in REFERENCES:
             t0 = time.perf_counter()
             pc = payload_comparison("foam", Slew(1.0, t_f), "openloop," + NAMES, payload_range=(0.0, 0.5),
                                     masses=(0.0, 0.1, 0.3, 0.5), reference=reference)
@@ -138,8 +143,13 @@ def main(argv=None) -> int:
     """Entry point; prints the JSON and writes it to ``--out`` when given."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default="lab,servo,servo_beam,paper,payload")
+    ap.add_argument("--references", default="task,optimal",
+                    help="comma-separated compare(reference=...): task (the default: a slew task's planned "
+                         "slew), rigid (the smooth rigid reference, the default before), planned, optimal")
     ap.add_argument("--out", help="also write the JSON here")
     args = ap.parse_args(argv)
+    global REFERENCES
+    REFERENCES = tuple(args.references.split(","))
     cases = set(args.cases.split(","))
     t0 = time.perf_counter()
     doc = {"benchmark": "limit_targets", "issue": 22, "factor_of_t_opt": FACTOR,

@@ -37,6 +37,7 @@ from .lqr import LQR, LQRSettings, dlqr_gain
 from .mpc import MPC, QP_SOLVERS, MPCSettings, condensed_matrices
 from .openloop import OpenLoop, OpenLoopSettings
 from .pd import PD, PDSettings, pd_gains
+from .planning import planned_slew_reference
 from .reference import eq44_reference, optimal_reference, slew_reference, spinup_reference
 from .registry import (
     CONTROLLERS,
@@ -66,7 +67,7 @@ __all__ = [
     "LQR", "LQRSettings", "dlqr_gain", "LQG", "LQGSettings",
     "KalmanEstimator", "KalmanNoise", "kalman_gain",
     "MPC", "MPCSettings", "QP_SOLVERS", "condensed_matrices",
-    "slew_reference", "spinup_reference", "eq44_reference", "optimal_reference",
+    "slew_reference", "spinup_reference", "eq44_reference", "optimal_reference", "planned_slew_reference",
     "CONTROLLERS", "ControllerSpec", "register_controller", "unregister_controller",
     "make_controller", "controller_names", "controller_styles",
     "Shaper", "SHAPERS", "as_shaper", "design_shaper", "shape_reference", "ShapedOpenLoop", "ShapedSettings",

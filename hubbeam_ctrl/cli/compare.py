@@ -109,10 +109,13 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="integral action of LQR, LQG and MPC on the rig (disturbance estimation; default auto: "
                         "on for rigs with friction or a DC motor); --rig only")
     p.add_argument("--no-ladder", action="store_true", help="skip the rig ladder (--rig only)")
-    p.add_argument("--reference", choices=("task", "optimal"), default="task",
-                   help="reference and feedforward of the tracking controllers: the task's smooth slew (default) or "
-                        "the minimum-vibration slew of the nonlinear beam in --tf within the drive's limits, so the "
-                        "feedback only corrects model error (slew only)")
+    p.add_argument("--reference", choices=("task", "rigid", "planned", "optimal"), default="task",
+                   help="reference and feedforward of the tracking controllers: 'task' (default): a slew given by "
+                        "--slew-angle planned on the design model to end with the beam at rest, the paper's Eq. 44 "
+                        "slew and spin-ups the rigid body's smooth reference; 'rigid': always the smooth rigid "
+                        "reference; 'planned': always the planned slew; 'optimal': the minimum-vibration slew of the "
+                        "nonlinear beam in --tf within the drive's limits (seconds of optimisation). Planned and "
+                        "optimal: slew only; the feedback then only corrects model error")
     p.add_argument("--limit", choices=("rigid", "optimal"), default="rigid",
                    help="yardstick of the settling times: the rigid body's shortest slew with --tau-max (default, "
                         "closed form) or the time-optimal slew of the nonlinear beam within the drive's limits "

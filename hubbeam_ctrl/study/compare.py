@@ -50,16 +50,19 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
-from hubbeam_ctrl.study.scenarios import PLANTS, Scenario, make_scenario
+from hubbeam_ctrl.study.scenarios import PLANTS, REFERENCES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_t_end
 
-__all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
+__all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "REFERENCE_KINDS", "Comparison", "compare", "run_compare"]
 
 #: The controllers a comparison runs by default (the built-ins; see :func:`controllers.controller_names`).
 DEFAULT_CONTROLLERS = controller_names(default=True)
 #: The controllers held to the targets of the slew (the others, e.g. PD, are only reported).
 TARGET_CONTROLLERS = controller_names(target=True)
+#: The references :func:`compare` accepts: the scenario's (:data:`~hubbeam_ctrl.study.scenarios.REFERENCES`)
+#: and the nonlinear minimum-vibration slew.
+REFERENCE_KINDS = (*REFERENCES, "optimal")
 
 
 def _shaped_durations(names, chosen, settings, design, sc) -> tuple:
@@ -309,12 +312,18 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         The yardstick of the settling times (:mod:`hubbeam_ctrl.study.yardstick`): the rigid
         body's shortest time (default, closed form) or the time-optimal slew of the nonlinear
         beam on the rig (seconds to a minute of optimisation).
-    reference : {"task", "optimal"}
-        The reference and feedforward of the controllers that track one: the task's smooth
-        slew (default) or the minimum-vibration slew of the nonlinear beam in ``t_f`` within the
+    reference : {"task", "rigid", "planned", "optimal"}
+        The reference and feedforward of the controllers that track one. ``"task"`` (default):
+        the scenario's (:func:`~hubbeam_ctrl.study.scenarios.make_scenario`): for a slew given
+        by its angle, the slew planned on the design model so that the beam ends at rest
+        (:func:`controllers.planning.planned_slew_reference`, milliseconds); for the paper's
+        Eq. 44 slew and spin-ups, the rigid body's smooth reference as in the paper.
+        ``"rigid"``: the rigid body's smooth reference; ``"planned"``: the planned slew.
+        ``"optimal"``: the minimum-vibration slew of the nonlinear beam in ``t_f`` within the
         drive's limits (:func:`hubbeam_ctrl.limit.min_vibration_slew`,
-        :func:`controllers.optimal_reference`), so that the feedback only corrects model error
-        (a slew only; a ``t_f`` shorter than the time-optimal slew is refused naming the shortest).
+        :func:`controllers.optimal_reference`; seconds of optimisation; a ``t_f`` shorter than
+        the time-optimal slew is refused naming the shortest). Planned and optimal apply to a
+        slew only; with them the feedback only corrects model error.
     check_plant : {"foam", "cfoam", "ancf"}, optional
         Run every controller also on this plant (same modes, step, sensors and hardware as
         ``plant``) and judge it there: e.g. ``plant="ancf", check_plant="foam"`` shows where FOAM
@@ -339,8 +348,11 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     if dt is None:
         dt = task_dt(design_params if design_params is not None else base)
     design_p = design_params if design_params is not None else base
+    if reference not in REFERENCE_KINDS:
+        raise ParameterError(f"reference must be one of {', '.join(REFERENCE_KINDS)}, got {reference!r}")
     options = dict(plant=plant, params=design_p, tau_max=tau_max, t_f=t_f, dt=dt, w_f=w_f,
-                   slew_angle=slew_angle, tolerances=tolerances)
+                   slew_angle=slew_angle, tolerances=tolerances,
+                   reference="rigid" if reference == "optimal" else reference)
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
     sc = make_scenario(scenario, t_end=30.0 if t_end is None else t_end, **options)
     if t_end is None and sc.t_end != task_t_end(sc):
@@ -454,11 +466,9 @@ def _check_plant(check_plant, sc: Scenario, ev: EvaluationPlant, design_modes: i
 
 
 def _reference(sc: Scenario, kind: str, rig):
-    """The tracked reference: the task's, or the minimum-vibration slew of the beam in ``t_f``."""
-    if kind == "task":
-        return sc.reference
+    """The tracked reference: the scenario's, or the minimum-vibration slew of the beam in ``t_f``."""
     if kind != "optimal":
-        raise ParameterError(f"reference must be 'task' or 'optimal', got {kind!r}")
+        return sc.reference
     if sc.name != "slew":
         raise ParameterError(f"reference = 'optimal' applies to a slew, not a {sc.name}")
     from controllers import optimal_reference

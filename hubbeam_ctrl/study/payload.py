@@ -118,7 +118,8 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
             raise ParameterError(f"masses must lie in the payload range [{lo:g}, {hi:g}] kg, got {m!r}")
     names = _parse_controllers(controllers)
     scenario_keys = ("tau_max", "t_f", "t_end", "dt", "w_f", "slew_angle", "tolerances")
-    sc = make_scenario(scenario, plant=plant, params=params,
+    kind = options.get("reference", "task")          # the range designs see the scenario's reference
+    sc = make_scenario(scenario, plant=plant, params=params, reference="rigid" if kind == "optimal" else kind,
                        **{k: options[k] for k in scenario_keys if k in options})
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, options.get("design_modes"))
     designs = range_designs(names, sc, design, (lo, hi), options.get("settings"),

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers import DesignModel, slew_reference, spinup_reference
+from controllers import DesignModel, planned_slew_reference, slew_reference, spinup_reference
 from controllers.scaling import (
     Tolerances,
     default_tolerances,
@@ -34,7 +34,10 @@ from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.evaluation import PLANT_MODELS
 from hubbeam_ctrl.study.tasks import Slew, SpinUp
 
-__all__ = ["RANGES", "SCENARIOS", "PLANTS", "Scenario", "make_scenario", "register_scenario"]
+__all__ = ["RANGES", "SCENARIOS", "PLANTS", "REFERENCES", "Scenario", "make_scenario", "register_scenario"]
+
+#: Hub references a scenario can give its controllers (see :func:`make_scenario`).
+REFERENCES = ("task", "rigid", "planned")
 
 #: Scenario name -> builder, in registration order (see :func:`register_scenario`).
 SCENARIOS: dict = {}
@@ -191,7 +194,8 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
                   tau_max: float | None = None, t_f: float = 10.0, t_end: float = 30.0,
                   dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
                   flatness: float | None = None, smoothing: float | None = None,
-                  tolerances: Tolerances | None = None, preview_s: float = 2.0) -> Scenario:
+                  tolerances: Tolerances | None = None, preview_s: float = 2.0,
+                  reference: str = "task") -> Scenario:
     """Build a :class:`Scenario` (validating every setting).
 
     Parameters
@@ -229,6 +233,16 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
         bands, residual window, reference shaping) to the beam and the task.
     preview_s : float
         Reference tabulated this long beyond ``t_end`` (MPC preview) [s].
+    reference : {"task", "rigid", "planned"}
+        The hub reference of the controllers that track one (:data:`REFERENCES`). ``"task"``
+        (default): for a slew given by its angle (a :class:`~hubbeam_ctrl.study.tasks.Slew`
+        or ``slew_angle``) the slew planned on the design model so that the beam ends at
+        rest (:func:`controllers.planning.planned_slew_reference`); for the paper's Eq. 44
+        slew (no angle given) and for spin-ups the rigid body's smooth reference, as in the
+        paper. ``"rigid"``: always the rigid body's smooth reference
+        (:func:`controllers.slew_reference`). ``"planned"``: always the planned slew (a slew
+        only). The scales of the defaults (weights, bands, noise) come from the rigid
+        reference in every case.
 
     Returns
     -------
@@ -250,6 +264,10 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
                              f"task, got {scenario!r}")
     if plant not in PLANTS:
         raise ParameterError(f"plant must be one of {', '.join(PLANTS)}, got {plant!r}")
+    if reference not in REFERENCES:
+        raise ParameterError(f"reference must be one of {', '.join(REFERENCES)}, got {reference!r}")
+    if reference == "planned" and name != "slew":
+        raise ParameterError(f"reference = 'planned' applies to a slew, not a {name}")
     params = params if params is not None else Params()
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
@@ -274,9 +292,10 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
         task.check_feasible(J, tau_max, tf_name)
     parts = SCENARIOS[name](params=params, tau_max=tau_max, t_f=t_f, dt=dt, t_ref_end=t_end + preview_s,
                             w_f=w_f, flatness=flatness, smoothing=smoothing, tolerances=tol, task=task,
-                            eq44=eq44)
+                            eq44=eq44, reference=reference)
+    scale_reference = parts.pop("scale_reference", parts["reference"])
     return Scenario(name, plant, params, tau_max, t_f, t_end, dt, task=task, tolerances=tol,
-                    **parts, **_scaled(params, tau_max, t_f, dt, task, parts, tol))
+                    **parts, **_scaled(params, tau_max, t_f, dt, task, dict(parts, reference=scale_reference), tol))
 
 
 @functools.lru_cache(maxsize=8)
@@ -328,7 +347,7 @@ def _task(name: str, tau_max: float, t_f: float, w_f, slew_angle, params: Params
 
 @register_scenario("slew")
 def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None, tolerances=None, task=None,
-          eq44=False, **_) -> dict:
+          eq44=False, reference="task", **_) -> dict:
     """Rest-to-rest slew by ``task.angle`` in tf (default: the rigid-body angle of Eq. 44).
 
     Without an angle, ``Theta = tau_m t_f^2 / (2 pi J_total)`` with ``tau_m = tau_max``. The
@@ -354,8 +373,12 @@ def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None,
     ref = slew_reference(theta, t_f, J, tau_max, dt, t_ref_end, **shape)
     text = (f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
             f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)") if eq44 else task.describe(J)
-    return dict(design_spin=0.0, target=theta, target_key="slew_angle_rad", baseline="eq44", reference=ref,
-                baseline_tau_m=tau_max if eq44 else task.baseline_torque(J), description=text)
+    parts = dict(design_spin=0.0, target=theta, target_key="slew_angle_rad", baseline="eq44", reference=ref,
+                 baseline_tau_m=tau_max if eq44 else task.baseline_torque(J), description=text)
+    if reference == "planned" or (reference == "task" and not eq44):
+        planned = planned_slew_reference(params, theta, t_f, tau_max, dt, t_ref_end)
+        parts.update(reference=planned, scale_reference=ref, description=f"{text}; {planned.description}")
+    return parts
 
 
 @register_scenario("spinup")

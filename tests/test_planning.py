@@ -1,0 +1,100 @@
+"""The planned slew (controllers.planning): the default reference of a slew task (issue 22, item 5)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controllers import DesignModel, slew_reference
+from controllers.planning import _modal_rows, planned_slew_reference
+from controllers.scaling import first_mode
+from hubbeam_ctrl import Params
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.scenarios import make_scenario
+from hubbeam_ctrl.study.tasks import Slew
+
+LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5, n_transverse=3)
+ANGLE, DT = math.pi / 2, 0.01
+#: 1.5 x the lab arm's time-optimal 90 degree slew (0.8404 s, hubbeam optimal; docs/limit.md)
+TF = 1.2606
+
+
+def _run(design: DesignModel, torque: np.ndarray) -> np.ndarray:
+    x = np.zeros(design.n_x)
+    for u in torque:
+        x = design.Ad @ x + design.Bd.ravel() * u
+    return x
+
+
+def _modal_motion(design: DesignModel, x: np.ndarray) -> float:
+    """Largest amplitude of the resolved flexible modes in state ``x`` (left-eigenvector units)."""
+    return float(np.max(np.abs(_modal_rows(design, 0.25 / design.dt) @ x)))
+
+
+def test_the_plan_leaves_the_design_model_at_rest_at_the_angle_and_the_rigid_reference_does_not():
+    ref = planned_slew_reference(LAB, ANGLE, TF, LAB.tau_max, DT, 3.0)
+    n = int(round(TF / DT))
+    rest = DesignModel.build(LAB, 0.0, DT)
+    x = _run(rest, ref.torque[:n])
+    half = rest.n_x // 2
+    assert x[0] == pytest.approx(ANGLE, rel=1e-9) and abs(x[half]) < 1e-9
+    rigid = slew_reference(ANGLE, TF, LAB.total_inertia, LAB.tau_max, DT, 3.0)
+    x_rigid = _run(rest, rigid.torque[:n])
+    assert _modal_motion(rest, x) < 1e-8 * _modal_motion(rest, x_rigid)
+    # the reference is the model's own trajectory: angle, rate and planned bending
+    assert ref.theta[n] == pytest.approx(x[0], rel=1e-12)
+    np.testing.assert_allclose(ref.elastic[n], np.r_[x[1:half], x[half + 1:]], atol=1e-15)
+    # and on the model stiffened at the peak rate: the plan is insensitive to the stiffening
+    spin = float(np.max(np.abs(rigid.theta_dot)))
+    spun = DesignModel.build(LAB, spin, DT)
+    assert _modal_motion(spun, _run(spun, ref.torque[:n])) < 1e-3 * _modal_motion(spun, _run(spun, rigid.torque[:n]))
+    # within the budget, starting and ending near zero torque, zero after the slew
+    assert np.max(np.abs(ref.torque)) <= LAB.tau_max
+    assert abs(ref.torque[0]) < 0.05 * LAB.tau_max and abs(ref.torque[n - 1]) < 0.05 * LAB.tau_max
+    assert np.all(ref.torque[n:] == 0.0) and np.all(ref.theta[n:] == ref.theta[n])
+    assert "at rest on both models" in ref.description
+
+
+def test_a_negative_slew_is_the_mirror_image():
+    a = planned_slew_reference(LAB, ANGLE, TF, LAB.tau_max, DT, 2.0)
+    b = planned_slew_reference(LAB, -ANGLE, TF, LAB.tau_max, DT, 2.0)
+    np.testing.assert_allclose(b.torque, -a.torque, atol=1e-12 * LAB.tau_max)
+
+
+def test_a_slew_the_budget_cannot_turn_is_refused_naming_the_duration():
+    with pytest.raises(ParameterError, match=r"duration = 0\.2 s.*longer duration \(tf / --tf\)"):
+        planned_slew_reference(LAB, ANGLE, 0.2, LAB.tau_max, DT, 2.0)
+    with pytest.raises(ParameterError, match="at least 4 samples"):
+        planned_slew_reference(LAB, ANGLE, 0.03, LAB.tau_max, DT, 2.0)
+    with pytest.raises(ParameterError, match="angle must be a finite number != 0"):
+        planned_slew_reference(LAB, 0.0, TF, LAB.tau_max, DT, 2.0)
+
+
+def test_the_scenario_plans_a_slew_task_and_keeps_the_papers_rigid_reference():
+    task = make_scenario(Slew(ANGLE, TF), params=LAB, t_end=3.0, dt=DT)
+    assert "planned on the design model" in task.reference.description
+    rigid = make_scenario(Slew(ANGLE, TF), params=LAB, t_end=3.0, dt=DT, reference="rigid")
+    assert rigid.reference.elastic is None
+    assert repr((task.scales, task.defaults, task.bands)) == repr((rigid.scales, rigid.defaults, rigid.bands))
+    paper = make_scenario("slew", t_end=16.0)
+    assert paper.reference.elastic is None and "planned" not in paper.reference.description
+    with pytest.raises(ParameterError, match="reference = 'planned' applies to a slew, not a spinup"):
+        make_scenario("spinup", reference="planned")
+    with pytest.raises(ParameterError, match="reference must be one of task, rigid, planned, optimal"):
+        compare(reference="smooth")
+
+
+def test_default_lqr_and_mpc_settle_within_one_period_of_the_slews_end_on_the_lab_arm():
+    """Issue 22's settling target on the lab arm at 1.5 x its time-optimal slew, all defaults."""
+    c = compare("foam", Slew(ANGLE, TF), "lqr,mpc", params=LAB)
+    period = 2 * math.pi / first_mode(DesignModel.build(LAB, 0.0, c.scenario.dt, 1))
+    for name, m in c.metrics.items():
+        assert m["verdict"] == "settled", name
+        assert m["settling_time_s"] <= TF + period, (name, m["settling_time_s"], TF + period)
+        assert m["residual_pct_of_L"] <= 0.1, name
+        assert abs(m["final_angle_error_rad"]) <= 1e-3 * ANGLE, name
+    rigid = compare("foam", Slew(ANGLE, TF), "lqr", params=LAB, reference="rigid").metrics["lqr"]
+    assert rigid["settling_time_s"] > TF + period          # the smooth rigid reference misses it
