@@ -144,17 +144,52 @@ def report_dir(tmp_path_factory, fast_backend_module):
     return out
 
 
-def test_report_links_loop_figures_and_html_embeds_them(report_dir):
+def test_report_links_one_overlaid_loop_figure_and_html_embeds_it(report_dir):
+    """Issue 28 (speed): one loop figure with every linear controller overlaid (loops.png) in place
+    of one figure per controller (loops_pd.png, loops_lqr.png, ...): changed deliberately."""
     md = (report_dir / "report.md").read_text()
-    for name in ("pd", "lqr"):
-        assert f"![loop plots of {name}](loops_{name}.png)" in md
-        assert (report_dir / f"loops_{name}.png").stat().st_size > 50_000
-    assert not (report_dir / "loops_openloop.png").exists()
+    assert "![loop plots](loops.png)" in md
+    assert (report_dir / "loops.png").stat().st_size > 50_000
+    assert not list(report_dir.glob("loops_*.png"))
     manifest = json.loads((report_dir / "MANIFEST.json").read_text())
-    assert {"loops_pd.png", "loops_lqr.png", "report.html"} <= set(manifest["files"])
+    assert {"loops.png", "report.html"} <= set(manifest["files"])
     page = (report_dir / "report.html").read_text()
-    assert page.count('<img src="data:image/png;base64,') == len(re.findall(r"!\[[^\]]*\]\(", md)) == 5
-    assert 'src="loops_' not in page and "<table>" in page
+    assert page.count('<img src="data:image/png;base64,') == len(re.findall(r"!\[[^\]]*\]\(", md)) == 4
+    assert 'src="loops' not in page and "<table>" in page
+
+
+def test_overlaid_loop_figure_panels_colours_disks_and_plain_ticks(design):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from hubbeam_ctrl.plots.loops import plot_loop_comparison
+    loops = [loop_response(PD(design), label="PD", t_end=5.0), loop_response(LQR(design), label="LQR", t_end=5.0)]
+    fig = plot_loop_comparison(loops, "t", colors=["tab:orange", "tab:blue"])
+    assert len(fig.axes) == 6
+    for ax in fig.axes:
+        assert re.search(r"\[.+\]", ax.get_ylabel()) and re.search(r"\[.+\]", ax.get_xlabel()), ax.get_title()
+    bode, nyquist, sens, zplane, step, dist = fig.axes
+    for ax, data in ((bode, [20 * np.log10(np.abs(lp.L)) for lp in loops]), (step, [lp.step_tip for lp in loops]),
+                     (dist, [1e3 * lp.dist_tip for lp in loops])):
+        lines = [ln for ln in ax.lines if len(ln.get_ydata()) > 2]
+        assert [ln.get_color() for ln in lines] == ["tab:orange", "tab:blue"]
+        assert [ln.get_linestyle() for ln in lines] == ["-", "--"]          # equal loops stay visible
+        for ln, y in zip(lines, data):
+            np.testing.assert_allclose(ln.get_ydata(), y, rtol=1e-12)
+    assert [t.get_text() for t in bode.get_legend().get_texts()] == ["PD", "LQR"]
+    peak = sensitivity_peaks(loops[1])["S"]
+    assert any(f"LQR: max|S| {peak[0]:.2f} at {peak[1] / (2 * np.pi):.3g} Hz" in t.get_text()
+               for t in sens.get_legend().get_texts())
+    stable = [lp.disk_margin for lp in loops if 0 < lp.disk_margin < 2]
+    assert len(nyquist.patches) == len(stable) >= 1                       # a disk per stable loop
+    c, r = disk_margin_disk(stable[-1])
+    x = nyquist.patches[-1].get_path().vertices[:, 0]
+    assert (x.min(), x.max()) == pytest.approx((c - r, c + r), abs=1e-3)
+    FigureCanvasAgg(fig).draw()                   # log axes: plain labels, no mathtext, no minor ticks
+    for ax in (bode, sens):
+        labels = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
+        assert labels and not any("$" in t for t in labels) and "1" in labels
+        assert ax.xaxis.get_minor_locator()() == []
+    with pytest.raises(ParameterError, match="colors must have one entry per loop"):
+        plot_loop_comparison(loops, colors=["k"])
 
 
 _PROBE = """<script>
@@ -199,7 +234,7 @@ def test_report_html_in_headless_chromium(report_dir, tmp_path):
     assert found, run.stdout[-2000:]
     result = json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
     assert result["errors"] == []
-    assert len(result["images"]) == 5
+    assert len(result["images"]) == 4
     for alt, complete, width, height in result["images"]:
         assert complete and width > 300 and height > 200, alt
     console = [ln for ln in run.stderr.splitlines() if "CONSOLE" in ln]
