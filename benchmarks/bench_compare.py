@@ -5,15 +5,16 @@ Prints one JSON object (and writes it with ``--out``).
 Run: ``.venv/bin/python benchmarks/bench_compare.py [--baseline b991ef0] [--repeats 3] [--out F.json]``.
 
 The baseline is the tree of ``--baseline`` (default ``b991ef0``, main after the first round of
-issue 28's compare work; ``4c9baca`` is main before it) exported with ``git archive`` into a temporary folder and put first on ``PYTHONPATH``
+issue 28's compare work; ``4c9baca`` is main before it) exported with ``git archive`` into a
+temporary folder and put first on ``PYTHONPATH``
 (the same virtual environment, the same compiled-function cache). Each variant runs, in
 alternation so that the shared machine's load falls on both alike:
 
 1. ``startup``: ``python -m hubbeam_ctrl.cli --help`` (the interpreter and the CLI's parser with
    every subcommand: what any ``hubbeam`` command pays before its own work);
 2. ``compare``: ``python -m hubbeam_ctrl.cli compare --out DIR`` (table on stdout, progress on
-   stderr, both discarded), the report with its PNGs included (seven at b991ef0: a loop figure per linear controller; four since
-   the loops are overlaid in one figure).
+   stderr, both discarded), the report with its PNGs included (seven at b991ef0: a loop figure per
+   linear controller; four since the loops are overlaid in one figure).
 
 For each: CPU time of the child (user + system, from ``os.wait4``) and wall time, median and
 fastest of ``--repeats``. ``beyond_startup_cpu_s`` is compare's median CPU minus startup's.

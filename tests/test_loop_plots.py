@@ -160,6 +160,7 @@ def test_report_links_one_overlaid_loop_figure_and_html_embeds_it(report_dir):
 
 def test_overlaid_loop_figure_panels_colours_disks_and_plain_ticks(design):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+
     from hubbeam_ctrl.plots.loops import plot_loop_comparison
     loops = [loop_response(PD(design), label="PD", t_end=5.0), loop_response(LQR(design), label="LQR", t_end=5.0)]
     fig = plot_loop_comparison(loops, "t", colors=["tab:orange", "tab:blue"])
