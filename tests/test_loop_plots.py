@@ -240,3 +240,19 @@ def test_report_html_in_headless_chromium(report_dir, tmp_path):
         assert complete and width > 300 and height > 200, alt
     console = [ln for ln in run.stderr.splitlines() if "CONSOLE" in ln]
     assert console == []
+
+
+def test_plain_log_ticks_label_decades_without_mathtext():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from hubbeam_ctrl.plots.loops import plain_log_ticks
+    fig = Figure(figsize=(3, 8))
+    ax = fig.subplots()
+    ax.semilogy([0, 1], [1e-5, 10.0])
+    ax.set_ylim(1e-5, 10.0)
+    plain_log_ticks(ax.yaxis)
+    FigureCanvasAgg(fig).draw()
+    labels = {t.get_text() for t in ax.get_yticklabels() if t.get_text()}
+    assert {"1e-05", "1e-04", "0.001", "0.01", "0.1", "1", "10"} <= labels
+    assert all(re.fullmatch(r"\d+(\.\d+)?|1e[-+]\d\d", t) for t in labels), labels
+    assert ax.yaxis.get_minor_locator()() == []
