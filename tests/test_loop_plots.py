@@ -14,7 +14,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from controllers import LQG, LQR, PD, DesignModel, LQGSettings
-from controllers.analysis import loop_margins, loop_transfer
+from controllers.analysis import FrequencyResponse, loop_margins, loop_matrices, loop_transfer
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.htmlpage import markdown_to_html
 from hubbeam_ctrl.plots.loops import disk_margin_disk, plot_loop, sensitivity_peaks
@@ -50,7 +50,11 @@ def test_pd_loop_static_gains_and_frequency_response(design):
     sys = loop_transfer(pd_)
     k = np.linspace(0, len(lp.w) - 1, 40).astype(int)
     ref = np.array([complex(np.squeeze(sys(np.exp(1j * w * sys.dt)))) for w in lp.w[k]])
-    np.testing.assert_allclose(lp.L[k], ref, rtol=1e-8)
+    # 1e-6: the plots take the split form of FrequencyResponse (the free hub's Jordan block apart),
+    # within 1e-7 of python-control's solves here near the undamped resonances (issue 28, speed)
+    np.testing.assert_allclose(lp.L[k], ref, rtol=1e-6)
+    np.testing.assert_allclose(FrequencyResponse(*loop_matrices(pd_))(np.exp(1j * lp.w[k] * lp.dt), precise=True),
+                               ref, rtol=1e-8)                  # the margins' precise points: as before
     # S and T add to one; the peaks are the grid maxima
     np.testing.assert_allclose(lp.S + lp.T, 1.0, atol=1e-12)
     peaks = sensitivity_peaks(lp)
