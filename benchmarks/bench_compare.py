@@ -2,17 +2,19 @@
 today's code against a baseline revision, whole processes, in the same run (issue 28, Speed).
 Prints one JSON object (and writes it with ``--out``).
 
-Run: ``.venv/bin/python benchmarks/bench_compare.py [--baseline 4c9baca] [--repeats 3] [--out F.json]``.
+Run: ``.venv/bin/python benchmarks/bench_compare.py [--baseline b991ef0] [--repeats 3] [--out F.json]``.
 
-The baseline is the tree of ``--baseline`` (default ``4c9baca``, main before issue 28's compare
-work) exported with ``git archive`` into a temporary folder and put first on ``PYTHONPATH``
+The baseline is the tree of ``--baseline`` (default ``b991ef0``, main after the first round of
+issue 28's compare work; ``4c9baca`` is main before it) exported with ``git archive`` into a
+temporary folder and put first on ``PYTHONPATH``
 (the same virtual environment, the same compiled-function cache). Each variant runs, in
 alternation so that the shared machine's load falls on both alike:
 
 1. ``startup``: ``python -m hubbeam_ctrl.cli --help`` (the interpreter and the CLI's parser with
    every subcommand: what any ``hubbeam`` command pays before its own work);
 2. ``compare``: ``python -m hubbeam_ctrl.cli compare --out DIR`` (table on stdout, progress on
-   stderr, both discarded), the report with its seven PNGs included.
+   stderr, both discarded), the report with its PNGs included (seven at b991ef0: a loop figure per
+   linear controller; four since the loops are overlaid in one figure).
 
 For each: CPU time of the child (user + system, from ``os.wait4``) and wall time, median and
 fastest of ``--repeats``. ``beyond_startup_cpu_s`` is compare's median CPU minus startup's.
@@ -98,8 +100,11 @@ wrap(sc, "simulate_closed_loop", "closed_loop_runs")
 wrap(sc, "_margins", "loop_margins")
 wrap(sc, "judge", "judge_and_certificate")
 wrap(sc, "make_controller", "controller_designs")
-wrap(lo, "controller_loops", "report_loop_data")
-wrap(lo, "plot_loop", "report_build_loop_figures")
+for name, stage in (("loop_response", "report_loop_data"), ("evaluation_model", "report_loop_data"),
+                    ("plot_loop", "report_build_loop_figures"),
+                    ("plot_loop_comparison", "report_build_loop_figures")):
+    if hasattr(lo, name):                         # the baseline drew one figure per controller
+        wrap(lo, name, stage)
 wrap(rp, "plot_tip_deflection", "report_build_closed_loop_figures")
 wrap(rp, "plot_hub_angle", "report_build_closed_loop_figures")
 wrap(rp, "plot_torque", "report_build_closed_loop_figures")
@@ -145,7 +150,7 @@ def _max_rel_diff(a: dict, b: dict) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--baseline", default="4c9baca", help="git revision of today's main (default 4c9baca)")
+    ap.add_argument("--baseline", default="b991ef0", help="git revision of today's main (default b991ef0)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", help="JSON file to write (e.g. benchmarks/results/bench_compare_DATE.json)")
     a = ap.parse_args(argv)

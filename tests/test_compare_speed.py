@@ -87,3 +87,27 @@ def test_reused_loop_figure_draws_the_pixels_of_a_new_one(design):
     again = plot_loop(second, "b", fig=fig)
     assert again is fig
     assert np.array_equal(pixels(again), fresh)
+
+
+def test_split_frequency_response_keeps_the_margins_bit_for_bit(design, monkeypatch):
+    """A hub-beam loop is not diagonalisable (the free hub's Jordan block at z = 1): its frequency
+    response splits off the repeated eigenvalues (fast, for grids and plots); the margins' roots
+    and peaks take the solves, so every margin is what the solves alone give, bit for bit."""
+    import controllers.analysis as analysis
+    from controllers import LQG, LQR
+    from controllers.analysis import FrequencyResponse, frequency_grid, loop_margins, loop_matrices
+    for ctrl in (PD(design), LQR(design), LQG(design)):
+        A, B, C, D = loop_matrices(ctrl)
+        fr = FrequencyResponse(A, B, C, D)
+        assert fr._modal is None and fr._split is not None and fr._split[0].shape == (2, 2)   # the Jordan block
+        z = np.exp(1j * frequency_grid(np.linalg.eigvals(A), ctrl.dt, 500) * ctrl.dt)
+        fast, precise = fr(z), fr(z, precise=True)
+        rel = np.abs(fast / precise - 1)
+        assert np.median(rel) < 1e-10 and np.max(rel[np.abs(precise) < 1e5]) < 1e-2
+        with_split = loop_margins(ctrl).to_dict()
+        with monkeypatch.context() as m:
+            m.setattr(analysis, "_cluster_split", lambda *a, **k: None)
+            assert FrequencyResponse(A, B, C, D)._split is None
+            solves = loop_margins(ctrl).to_dict()
+        with_split.pop("disk_margin_grid"), solves.pop("disk_margin_grid")    # the grid's own maximum
+        assert with_split == solves

@@ -63,7 +63,9 @@ def test_ideal_hardware_is_todays_plant_bit_for_bit(backend):
     x0[0] = 0.3
     ideal = Hardware.from_rig(Rig(beam=P))
     for hardware in (None, ideal):
-        cl = simulate_closed_loop("foam", LQR(design), 5.0, params=P, x0=x0, hardware=hardware, backend=backend)
+        # the reference arrays are of the 0.5 % substep rule (the closed loop's default before issue 28's 2 %)
+        cl = simulate_closed_loop("foam", LQR(design), 5.0, params=P, x0=x0, hardware=hardware, backend=backend,
+                                  settings=ClosedLoopSettings(frequency_tolerance=0.005))
         ol = simulate_fixed_step("foam", TorquePulse(200, 10), 12.0, params=P, hardware=hardware, backend=backend)
         assert cl.settings["backend"] == backend and "hardware" not in cl.settings
         for name, got in (("cl_q", cl.q), ("cl_v", cl.v), ("cl_tau", cl.tau), ("ol_q", ol.q), ("ol_v", ol.v),

@@ -106,10 +106,13 @@ def test_ideal_rig_is_the_beam_alone_bit_for_bit():
 
 @pytest.mark.slow
 def test_servo_link_targets():
-    """Issue 21's targets on the published rig: 90 degrees in 0.6 s, all defaults (the run cut at
-    1.8 s instead of the task's 2.19 s to keep the suite short; hubbeam compare --rig servo_link runs it all)."""
+    """Issue 21's targets on the published rig: 90 degrees in 0.6 s, all defaults, the task's whole
+    2.19 s. (Cut at 1.8 s, the torque envelope's growth rate over the short window that is left was
+    erratic in the integration step, MPC 'unstable' at 15 and 25 substeps and 'settled' at 14, 16,
+    18, 20 and 29, the one run at the old rule's count; over the whole task it decays at every count
+    tried, issue 28.)"""
     rig = load_rig("servo_link")
-    c = compare("foam", Slew(math.pi / 2, 0.6), "lqr,lqg,mpc", rig=rig, t_end=1.8)
+    c = compare("foam", Slew(math.pi / 2, 0.6), "lqr,lqg,mpc", rig=rig)
     for name, r in c.results.items():
         m = c.metrics[name]
         assert m["verdict"] == "settled", (name, m["verdict_reason"])

@@ -45,7 +45,8 @@ MIN_ELEMENTS = 8
 ELEMENTS_PER_MODE = 3
 #: Fewest integration steps per period of the highest resolved bending mode that the plant accepts
 #: (generalized-alpha's frequency error there: -2.2 % at rho_inf = 0.9; the closed loop's rule,
-#: ``sim.substep_rule``, asks 0.5 %, about 26 steps per period). Fewer steps do not resolve the mode.
+#: ``sim.substep_rule`` at ``ClosedLoopSettings.frequency_tolerance`` = 2 %, takes 12.7 steps per period,
+#: the open-loop runs' 0.5 % about 26). Fewer steps do not resolve the mode.
 MIN_STEPS_PER_PERIOD = 12
 #: Most integration steps per sample (as the assumed-mode stepper's ``MAX_SUBSTEPS``).
 MAX_SUBSTEPS = 200

@@ -29,10 +29,10 @@ from controllers import DesignModel
 from controllers.analysis import FrequencyResponse, frequency_grid, loop_matrices
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
-from hubbeam_ctrl.plots.loops import LoopResponse, plot_loop
+from hubbeam_ctrl.plots.loops import LoopResponse, plot_loop, plot_loop_comparison
 
 __all__ = ["loop_response", "evaluation_model", "controller_loops", "loop_figure", "comparison_loop_figures",
-           "save_comparison_loop_figures", "is_linear"]
+           "save_comparison_loop_figures", "comparison_loop_figure", "is_linear"]
 
 
 def is_linear(ctrl) -> bool:
@@ -260,6 +260,45 @@ def save_comparison_loop_figures(comparison, save, t_end: float = 15.0) -> list:
         save(name, fig)
         names.append(name)
     return names
+
+
+def comparison_loop_figure(comparison, t_end: float = 15.0) -> Figure | None:
+    """Every linear controller of a comparison in one loop figure, overlaid (the report's).
+
+    Each controller's loop is closed on the evaluation plant's linear SFOAM (all of its modes,
+    :func:`evaluation_model`; the design model when the comparison has no evaluation plant or
+    fewer modes than the design), the loop the linear certificate of the verdict judges; the
+    margins table of the report is the design model's. Colours and labels are the
+    controllers' registered styles. :func:`comparison_loop_figures` gives one full figure
+    per controller (design and evaluation model, phase, ``|T|``, hub angle).
+
+    Parameters
+    ----------
+    comparison : Comparison
+        From :func:`hubbeam_ctrl.study.compare.compare`.
+    t_end : float
+        Length of the time responses [s].
+
+    Returns
+    -------
+    Figure or None
+        :func:`hubbeam_ctrl.plots.loops.plot_loop_comparison`; None when the comparison has no
+        linear controller.
+    """
+    styles = getattr(comparison, "styles", None) or {}
+    loops, colors, on = [], [], set()
+    for i, (name, ctrl, evaluation, _) in enumerate(_comparison_loops(comparison)):
+        label = styles.get(name, {}).get("label") or name
+        loops.append(loop_response(ctrl, evaluation, label=label, t_end=t_end))
+        colors.append(styles.get(name, {}).get("color") or f"C{i}")
+        on.add("design model" if evaluation is None else f"linear SFOAM with the evaluation plant's "
+               f"{evaluation.n_modes} modes")
+    if not loops:
+        return None
+    sc, d = comparison.scenario, loops[0]
+    title = (f"Loops at the plant input, {sc.name}: each controller on the " + " / ".join(sorted(on))
+             + f" (dt = {1e3 * d.dt:g} ms)")
+    return plot_loop_comparison(loops, title, colors=colors)
 
 
 def _comparison_loops(comparison):

@@ -469,24 +469,21 @@ def print_table(metrics, file=None) -> None:
 
 
 def _write_report(comparison, out: Path, names: dict) -> None:
-    """report.md (with loops_<controller>.png, the loop plots of each linear controller, linked
-    from it) and report.html, the same report as one page with the figures embedded."""
+    """report.md (with loops.png, the loops of every linear controller overlaid, linked from it)
+    and report.html, the same report as one page with the figures embedded."""
     from hubbeam_ctrl.core.htmlpage import markdown_to_html
-    from hubbeam_ctrl.study.loops import save_comparison_loop_figures
+    from hubbeam_ctrl.study.loops import comparison_loop_figure
     text = _report(comparison)
-
-    def save(name, fig):
-        names[f"loops_{name}.png"] = f"loops_{name}.png"
-        save_figure(fig, out / names[f"loops_{name}.png"], dpi=100)
-
-    drawn = save_comparison_loop_figures(comparison, save)      # one figure, redrawn per controller
-    if drawn:
-        text += ("\n## Loop plots (linear controllers)\n\nEach figure: Bode and Nyquist of the loop gain at the "
-                 "plant input, |S| and |T|, closed-loop step and input-disturbance responses and the sampled "
-                 "closed-loop poles, on the design model and on the linear SFOAM with the evaluation plant's "
-                 "modes (hubbeam_ctrl.study.loops).\n\n")
-        for name in drawn:
-            text += f"- [{name}](loops_{name}.png)\n\n![loop plots of {name}](loops_{name}.png)\n\n"
+    fig = comparison_loop_figure(comparison)
+    if fig is not None:
+        names["loops.png"] = "loops.png"
+        save_figure(fig, out / names["loops.png"], dpi=100)
+        text += ("\n## Loop plots (linear controllers)\n\nEvery linear controller's loop at the plant input, "
+                 "overlaid, closed on the linear SFOAM with the evaluation plant's modes: the loop gain |L|, its "
+                 "Nyquist curve with the disk-margin disk, the sensitivity |S| with its peak, the sampled "
+                 "closed-loop poles and the tip deflection after a reference step and after a torque step "
+                 "(hubbeam_ctrl.study.loops.comparison_loop_figure; one controller in full, on the design "
+                 "and the evaluation model: loop_figure).\n\n![loop plots](loops.png)\n\n")
     atomic_write_text(out / names["report"], text)
     names["report.html"] = "report.html"
     atomic_write_text(out / names["report.html"], markdown_to_html(text, out))
