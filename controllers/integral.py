@@ -26,7 +26,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, saturate
-from .estimator import KalmanNoise, solve_kalman
+from .estimator import KalmanNoise, decay_model, error_decay_rate, solve_kalman
 from .lqr import LQR
 
 __all__ = ["OffsetFreeEstimator", "ObservedFeedback", "observer_feedback_matrices", "augment_disturbance"]
@@ -98,7 +98,9 @@ class OffsetFreeEstimator:
         Qa = np.zeros((nx + 1, nx + 1))
         Qa[:nx, :nx] = Qn
         Qa[nx, nx] = float(disturbance_noise) ** 2
-        self.L, self.P = solve_kalman(self.A, self.C, Qa, Rn)
+        # the prescribed degree of stability (KalmanNoise.error_decay) covers the disturbance too
+        A_riccati = decay_model(self.A, error_decay_rate(model, noise), model.dt)
+        self.L, self.P = solve_kalman(A_riccati, self.C, Qa, Rn)
         self._b = self.B[:, 0]
         self._IminusLC = np.eye(nx + 1) - self.L @ self.C
         self.reset()
