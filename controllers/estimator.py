@@ -37,7 +37,8 @@ from .base import DesignModel, check_psd
 from .riccati import dlqe
 from .scaling import first_mode
 
-__all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain", "solve_kalman", "error_decay_rate", "decay_model", "filter_poles"]
+__all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain", "solve_kalman", "error_decay_rate", "decay_model",
+           "filter_poles"]
 
 #: The sensors' own specification: the filter's assumed sensor noise defaults to it.
 _SENSORS = SensorSettings()
