@@ -11,15 +11,16 @@ model and then fed one measurement per sample::
 The gain comes from :func:`control.dlqe`'s Riccati solution (the a-priori covariance);
 the filter is written in its measurement-update form, so ``x_hat`` already uses ``y``.
 
-By default the filter has a **prescribed degree of stability** (Anderson and Moore, *Optimal
-Filtering*, 1979, sec. 6.3, the filter dual of the LQR with prescribed degree of stability):
-the Riccati equation is solved for the model ``A exp(sigma dt)`` with
+By default the filter has a **prescribed degree of stability** (the dual of the LQR with a
+prescribed degree of stability; Anderson and Moore treat both): the Riccati equation is
+solved for the model ``A exp(sigma dt)`` with
 ``sigma = error_decay * w_1`` (:attr:`KalmanNoise.error_decay`, ``w_1`` the first flexible
 mode of the filter's model, free hub), so every pole of the estimation error
 ``A (I - L C)`` lies within ``exp(-sigma dt)``: the model error of a fast slew dies out at
 least at ``sigma``, whatever the noise model. The plain Kalman filter left a pole near the
 hub-clamped frequency (the zero of torque to hub angle) at nearly the structure's own damping:
-on the 0.381 m servo link 3.0 Hz with 4.6 % damping (:func:`filter_poles`).
+on the 0.381 m servo link 3.0 Hz with 4.6 % damping with the task's noise levels
+(:func:`filter_poles`).
 """
 
 from __future__ import annotations
