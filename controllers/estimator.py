@@ -330,7 +330,7 @@ class KalmanEstimator:
         """
         return self._A @ self.x_hat + self._b * u
 
-    def update(self, y, u_prev: float | None) -> np.ndarray:
+    def update(self, y, u_prev: float | None, offset=None) -> np.ndarray:
         """Take one measurement and return the new estimate.
 
         Parameters
@@ -340,6 +340,9 @@ class KalmanEstimator:
         u_prev : float or None
             Torque held since the previous update [N m]; ``None`` for the first sample after
             :meth:`reset` (the guess is then the prediction).
+        offset : array_like (nx,), optional
+            Added to the prediction ``Ad x_hat + Bd u_prev``: what a planned trajectory does
+            that the model does not (see :class:`controllers.lqg.LQG`'s ``plan_prediction``).
 
         Returns
         -------
@@ -348,5 +351,7 @@ class KalmanEstimator:
         """
         if u_prev is not None:
             self.x_pred = self.predict(u_prev)
+            if offset is not None:
+                self.x_pred = self.x_pred + offset
         self.x_hat = self._IminusLC @ self.x_pred + self.L @ y
         return self.x_hat

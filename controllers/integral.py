@@ -136,7 +136,7 @@ class OffsetFreeEstimator:
         """
         return self.A @ self.x_hat + self._b * u
 
-    def update(self, y, u_prev: float | None) -> np.ndarray:
+    def update(self, y, u_prev: float | None, offset=None) -> np.ndarray:
         """Take one measurement ``[theta, theta_dot, M_root]`` (deviation coordinates) and
         return the new augmented estimate ``[x_hat, d_hat]``.
 
@@ -145,9 +145,15 @@ class OffsetFreeEstimator:
         y : ndarray (3,)
         u_prev : float or None
             Torque commanded since the previous update [N m] (None right after :meth:`reset`).
+        offset : array_like (nx,), optional
+            Added to the prediction of the model's states (not the disturbance's), as in
+            :meth:`controllers.estimator.KalmanEstimator.update`.
         """
         if u_prev is not None:
             self.x_pred = self.predict(u_prev)
+            if offset is not None:
+                self.x_pred = self.x_pred.copy()
+                self.x_pred[:len(offset)] += offset
         self.x_hat = self._IminusLC @ self.x_pred + self.L @ y
         return self.x_hat
 
