@@ -69,3 +69,15 @@ def test_plan_prediction_needs_a_plan(plan):
     assert not LQG(d, reference=task).predicts_along_plan                  # quasi-static deflection
     assert not LQG(d, LQGSettings(elastic_reference=False), ref).predicts_along_plan
     assert LQG(d, LQGSettings(plan_prediction=True), task).predicts_along_plan
+
+
+def test_code_generation_refuses_the_plan_it_cannot_follow(plan):
+    """The generated C step predicts with the model alone: refused in one line, not silently
+    different; without the plan prediction the same LQG is generated."""
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.deploy.codegen import control_law
+    d, ref = plan
+    with pytest.raises(ParameterError, match=r"^controller: an LQG whose filter predicts along a planned "
+                                             r"reference .*LQGSettings\(plan_prediction=False\)$"):
+        control_law(LQG(d, LQGSettings(), ref))
+    assert control_law(LQG(d, LQGSettings(plan_prediction=False), ref)).kind == "observer"

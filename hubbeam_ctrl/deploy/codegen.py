@@ -226,6 +226,10 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
     elif type(ctrl) is ScheduledLQG:
         law = _scheduled_lqg_law(ctrl)
     elif type(ctrl) is LQG:
+        if ctrl.predicts_along_plan:                   # the C step predicts with the model alone
+            raise ParameterError("controller: an LQG whose filter predicts along a planned reference "
+                                 "(plan_prediction, the default with reference='optimal') cannot be generated "
+                                 "as C yet; use LQGSettings(plan_prediction=False)")
         X, tff = _reference_table(ctrl, ctrl._xref_filter, ctrl._E)
         x0 = ctrl._E @ ctrl._reference_at(0)[0]        # LQG.reset
         x0[ctrl._n] -= ctrl.design.spin
