@@ -75,8 +75,8 @@ class LQG(Controller):
     ``tau = sat(tau_ff - K (x_hat - x_ref))``. Along a planned reference (an optimal slew,
     ``settings.plan_prediction``) the prediction follows the plan,
     ``x_ref[k+1] + A (x_hat - x_ref[k]) + B (u - u_ff[k])``: the plan comes from the
-    nonlinear model, so the linear model's error along the slew does not enter the estimate. With ``settings.robust`` the filter's model
-    (:attr:`filter_model`) has the residual modes of
+    nonlinear model, so the linear model's error along the slew does not enter the estimate.
+    With ``settings.robust`` the filter's model (:attr:`filter_model`) has the residual modes of
     :func:`controllers.residual.estimator_modes` and, with ``settings.residual_control``, the
     gain acting on the estimate is the LQR gain of that model (:attr:`K` stays the design
     model's, for reports).
