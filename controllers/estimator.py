@@ -39,7 +39,7 @@ from .riccati import dlqe
 from .scaling import first_mode
 
 __all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain", "solve_kalman", "error_decay_rate", "decay_model",
-           "filter_poles"]
+           "filter_poles", "plan_offsets"]
 
 #: The sensors' own specification: the filter's assumed sensor noise defaults to it.
 _SENSORS = SensorSettings()
@@ -164,6 +164,46 @@ def _kalman_design(design: DesignModel, noise: KalmanNoise, design_modes: int | 
     rate = error_decay_rate(design, noise)
     Qn, Rn = noise.covariances(design, design_modes)
     return solve_kalman(decay_model(design.Ad, rate, design.dt), design.C_sensors, Qn, Rn)
+
+
+def plan_offsets(model: DesignModel, states: np.ndarray, torque: np.ndarray) -> np.ndarray:
+    """What a planned trajectory does beyond the model's prediction, sample by sample.
+
+    A filter that adds ``d[k]`` to its prediction ``Ad x_hat[k] + Bd u[k]`` predicts along the
+    plan, ``x_ref[k+1] + Ad (x_hat[k] - x_ref[k]) + Bd (u[k] - u_ff[k])``: the plan comes from
+    the nonlinear model, and only the linear model's error in the deviation from it is left.
+
+    Parameters
+    ----------
+    model : DesignModel
+        The filter's model (``Ad``, ``Bd``, ``spin``, ``dt``).
+    states : ndarray (K, nx)
+        Planned states ``x_ref[k]`` on ``model``'s coordinates, absolute hub angle and rate.
+    torque : ndarray (K,)
+        Planned torque ``u_ff[k]`` [N m] the controller adds as feedforward (0 without one).
+
+    Returns
+    -------
+    ndarray (K - 1, nx)
+        ``d[k] = x_ref[k+1] - Ad x_ref[k] - Bd u_ff[k]`` in the filter's coordinates (deviations
+        from the steady rotation at ``model.spin``).
+
+    Examples
+    --------
+    >>> from controllers import DesignModel
+    >>> d = DesignModel.build(n_modes=1)
+    >>> x = [np.zeros(4)]
+    >>> for k in range(3):                     # a trajectory of the model itself: no offset
+    ...     x.append(d.Ad @ x[-1] + d.Bd[:, 0] * 10.0)
+    >>> float(np.max(np.abs(plan_offsets(d, np.array(x), np.full(4, 10.0))))) < 1e-12
+    True
+    """
+    X = np.array(states, dtype=float)
+    n = model.n_x // 2
+    X[:, 0] -= model.spin * model.dt * np.arange(len(X))       # deviations from the steady rotation
+    X[:, n] -= model.spin
+    u = np.asarray(torque, dtype=float)
+    return X[1:] - X[:-1] @ model.Ad.T - np.outer(u[:-1], model.Bd[:, 0])
 
 
 def filter_poles(A: np.ndarray, C: np.ndarray, L: np.ndarray, dt: float) -> np.ndarray:

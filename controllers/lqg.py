@@ -14,7 +14,7 @@ import numpy as np
 from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
-from .estimator import KalmanEstimator, KalmanNoise
+from .estimator import KalmanEstimator, KalmanNoise, plan_offsets
 from .integral import OffsetFreeEstimator, observer_feedback_matrices
 from .lqr import dlqr_gain
 from .residual import embedding, estimator_model, residual_design
@@ -137,16 +137,11 @@ class LQG(Controller):
         return self.settings.elastic_reference and getattr(self.reference, "elastic", None) is not None
 
     def _plan_defect(self) -> np.ndarray:
-        """``x_ref[k+1] - A x_ref[k] - B ff u_ff[k]`` in the filter's (deviation) coordinates, (K-1, nx)."""
-        fm = self.filter_model
-        K = len(self._tff)
+        """:func:`~controllers.estimator.plan_offsets` of the reference table on the filter's model."""
         table = self._xref_filter
         X = np.array([table[k] if table is not None and k < len(table) else self._E @ self._xref[k]
-                      for k in range(K)])
-        t = np.arange(K) * self.dt
-        X[:, 0] -= self.design.spin * t             # deviations from the steady rotation
-        X[:, self._n] -= self.design.spin
-        return X[1:] - X[:-1] @ fm.Ad.T - np.outer(self._ff * self._tff[:-1], fm.Bd[:, 0])
+                      for k in range(len(self._tff))])
+        return plan_offsets(self.filter_model, X, self._ff * self._tff)
 
     @property
     def L(self) -> np.ndarray:

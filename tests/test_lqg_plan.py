@@ -81,3 +81,31 @@ def test_code_generation_refuses_the_plan_it_cannot_follow(plan):
                                              r"reference .*LQGSettings\(plan_prediction=False\)$"):
         control_law(LQG(d, LQGSettings(), ref))
     assert control_law(LQG(d, LQGSettings(plan_prediction=False), ref)).kind == "observer"
+    from controllers import LQR, KalmanNoise
+    from controllers.integral import ObservedFeedback
+    with pytest.raises(ParameterError, match=r"^controller: a filter that predicts along a planned reference"):
+        control_law(ObservedFeedback(LQR(d, reference=ref), KalmanNoise()))
+
+
+@pytest.mark.parametrize("integral", [False, True], ids=["plain", "integral"])
+def test_observed_lqr_follows_the_plan_too(plan, integral):
+    """LQR and MPC on a rig close their loop through ObservedFeedback's filter: the same."""
+    from controllers import LQR, KalmanNoise
+    from controllers.integral import ObservedFeedback
+    d, ref = plan
+    noise = 0.01 if integral else None
+    ctrl = ObservedFeedback(LQR(d, reference=ref), KalmanNoise(), noise)
+    assert ctrl.predicts_along_plan
+    states = ctrl.filter_model.reference_states(ref)
+    taus, _ = _run_observed(ctrl, states)
+    scale = np.max(np.abs(ref.torque))
+    assert np.max(np.abs(taus - ref.torque)) <= 1e-9 * scale
+    plain = ObservedFeedback(LQR(d, reference=ref), KalmanNoise(), noise, plan_prediction=False)
+    taus0, _ = _run_observed(plain, states)
+    assert np.max(np.abs(taus0 - ref.torque)) > 1e-2 * scale
+
+
+def _run_observed(ctrl, states):
+    fm = ctrl.filter_model
+    taus = [ctrl(k * DT, fm.C_sensors @ x) for k, x in enumerate(states)]
+    return np.array(taus), None

@@ -192,6 +192,10 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         return law
     ctrl = controller
     if isinstance(ctrl, ObservedFeedback):
+        if ctrl.predicts_along_plan:
+            raise ParameterError("controller: a filter that predicts along a planned reference (the default "
+                                 "with reference='optimal') cannot be generated as C yet; use "
+                                 "ObservedFeedback(..., plan_prediction=False)")
         if not isinstance(ctrl.inner, LQR) or type(ctrl.inner) is not LQR:
             raise ParameterError("controller: only an LQR closed through ObservedFeedback can be generated as C "
                                  "(an MPC with integral action cannot yet)")
