@@ -155,7 +155,29 @@ def error_decay_rate(design: DesignModel, noise: KalmanNoise) -> float:
 
 
 def decay_model(A: np.ndarray, rate: float, dt: float) -> np.ndarray:
-    """The model the Riccati equation is solved for: ``A exp(rate dt)`` (``A`` itself at rate 0)."""
+    """The model the filter's Riccati equation is solved for: ``A exp(rate dt)``.
+
+    A filter designed on it and run on ``A`` has every pole of its estimation error within
+    ``exp(-rate dt)``, i.e. decaying at least at ``rate``.
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+        Sampled state matrix.
+    rate : float
+        Prescribed decay rate [1/s] (:func:`error_decay_rate`); 0 or less: ``A`` itself.
+    dt : float
+        Sample time [s].
+
+    Returns
+    -------
+    ndarray (n, n)
+
+    Examples
+    --------
+    >>> float(decay_model(np.eye(1), math.log(2.0), 1.0)[0, 0])
+    2.0
+    """
     return A * math.exp(rate * dt) if rate > 0 else A
 
 
