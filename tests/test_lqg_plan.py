@@ -71,20 +71,34 @@ def test_plan_prediction_needs_a_plan(plan):
     assert LQG(d, LQGSettings(plan_prediction=True), task).predicts_along_plan
 
 
-def test_code_generation_refuses_the_plan_it_cannot_follow(plan):
-    """The generated C step predicts with the model alone: refused in one line, not silently
-    different; without the plan prediction the same LQG is generated."""
-    from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.deploy.codegen import control_law
-    d, ref = plan
-    with pytest.raises(ParameterError, match=r"^controller: an LQG whose filter predicts along a planned "
-                                             r"reference .*LQGSettings\(plan_prediction=False\)$"):
-        control_law(LQG(d, LQGSettings(), ref))
-    assert control_law(LQG(d, LQGSettings(plan_prediction=False), ref)).kind == "observer"
+def test_generated_c_predicts_along_the_plan_too(plan, tmp_path):
+    """The C step of the LQG and of the rig's observer-fed LQR (integral action) carries the plan's
+    offsets: its command equals Python's within 1e-9 of tau_max on random sensor values, past
+    the table's end too; skipped without a C compiler."""
     from controllers import LQR, KalmanNoise
     from controllers.integral import ObservedFeedback
-    with pytest.raises(ParameterError, match=r"^controller: a filter that predicts along a planned reference"):
-        control_law(ObservedFeedback(LQR(d, reference=ref), KalmanNoise()))
+    from hubbeam_ctrl.core.compiled import CompileError
+    from hubbeam_ctrl.deploy import CController, compile_c, to_c
+    d, ref = plan
+    rng = np.random.default_rng(5)
+    for name, ctrl in (("lqg", LQG(d, LQGSettings(), ref)),
+                       ("lqr", ObservedFeedback(LQR(d, reference=ref), KalmanNoise(), 0.01))):
+        assert ctrl.predicts_along_plan
+        code = to_c(ctrl, tmp_path / name)
+        assert "OFFSET" in code.law.arrays
+        try:
+            lib = compile_c(code, "-O0", tmp_path)
+        except CompileError as exc:
+            pytest.skip(f"no C compiler: {exc}")
+        cc = CController(lib, code, ctrl)
+        ctrl.reset()
+        cc.reset()
+        worst = 0.0
+        for k in range(N + 20):
+            y = np.array([0.2 * k / N + 1e-3 * rng.standard_normal(), 0.1 * rng.standard_normal(),
+                          rng.standard_normal()])
+            worst = max(worst, abs(cc(k * DT, y) - ctrl(k * DT, y)))
+        assert worst <= 1e-9 * ctrl.tau_max, name
 
 
 @pytest.mark.parametrize("integral", [False, True], ids=["plain", "integral"])
