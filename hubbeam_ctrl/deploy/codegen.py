@@ -428,8 +428,8 @@ def _render_law(law: ControlLaw, name: str, precision: str = "double") -> tuple:
         kd = len(law.arrays["OFFSET"]) if "OFFSET" in law.arrays else 0
         if kd:
             data += _array("OFFSET", law.arrays["OFFSET"], R, single)
-        offset = (f"\n            if (inst->k >= 1 && inst->k - 1 < KOFF) s += OFFSET[inst->k - 1][i];  "
-                  f"/* along the plan */") if kd else ""
+        offset = ("\n            if (inst->k >= 1 && inst->k - 1 < KOFF) s += OFFSET[inst->k - 1][i];  "
+                  "/* along the plan */") if kd else ""
         code = f"""#define NX {nx}
 #define NH {nh}
 #define KT {kt}
