@@ -897,7 +897,7 @@ void {name}_step({name}_instance *inst, const double *measurements, const double
     if (inst->has_tau) {{
         for (i = 0; i < NX; ++i) {{
             {R} s = 0;
-            for (j = 0; j < NX; ++j) s += A[i][j] * inst->x_hat[j];{offset}
+            for (j = 0; j < NX; ++j) s += A[i][j] * inst->x_hat[j];
             inst->x_pred[i] = s + B[i] * inst->tau_prev;
         }}
     }}
