@@ -1,7 +1,8 @@
 """Issue 22's targets, measured: every beam and rig at 1.5 x its time-optimal slew. Prints JSON.
 
 Run: ``.venv/bin/python benchmarks/bench_limit_targets.py [--cases lab,servo,servo_beam,paper,payload]
-[--references task,rigid,optimal] [--out F.json]`` (about 5-10 min on 2 idle cores with a C compiler).
+[--controllers lqr,lqg,mpc] [--references task,rigid,optimal] [--out F.json]`` (about 5-10 min on 2
+idle cores with a C compiler; ``--controllers lqg --references optimal`` for one column).
 
 For each case the time-optimal rest-to-rest slew ``T_opt`` of the beam within its drive's limits
 (:func:`hubbeam_ctrl.limit.time_optimal_slew`, FOAM, the design's modes) gives the task
@@ -49,6 +50,7 @@ from hubbeam_ctrl.study.tasks import Slew  # noqa: E402
 
 LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
 NAMES = "lqr,lqg,mpc"
+REFERENCES = ("task", "optimal")
 FACTOR = 1.5
 
 
@@ -79,9 +81,6 @@ def _judge(comparison, params: Params, angle: float, limit: float) -> dict:
         row["all_met"] = all(row["met"].values())
         rows[name] = row
     return rows
-
-
-REFERENCES = ("task", "optimal")
 
 
 def _case(label, beam, angle, t_opt, limit, **options) -> dict:
@@ -141,18 +140,21 @@ def run_cases(cases) -> dict:
 
 def main(argv=None) -> int:
     """Entry point; prints the JSON and writes it to ``--out`` when given."""
+    global NAMES, REFERENCES
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default="lab,servo,servo_beam,paper,payload")
-    ap.add_argument("--references", default="task,optimal",
+    ap.add_argument("--controllers", default=NAMES, help="controllers to run (default %(default)s)")
+    ap.add_argument("--references", default=",".join(REFERENCES),
                     help="comma-separated compare(reference=...): task (the default: a slew task's planned "
-                         "slew), rigid (the smooth rigid reference, the default before), planned, optimal")
+                         "slew), rigid (the smooth rigid reference, the default before), planned, optimal "
+                         "(default %(default)s)")
     ap.add_argument("--out", help="also write the JSON here")
     args = ap.parse_args(argv)
-    global REFERENCES
-    REFERENCES = tuple(args.references.split(","))
+    NAMES, REFERENCES = args.controllers, tuple(args.references.split(","))
     cases = set(args.cases.split(","))
     t0 = time.perf_counter()
     doc = {"benchmark": "limit_targets", "issue": 22, "factor_of_t_opt": FACTOR,
+           "controllers": NAMES, "references": list(REFERENCES),
            "machine": {"python": platform.python_version(), "cpus": os.cpu_count()},
            "cases": run_cases(cases), "wall_s": None}
     doc["wall_s"] = time.perf_counter() - t0

@@ -26,7 +26,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, saturate
-from .estimator import KalmanNoise, solve_kalman
+from .estimator import KalmanNoise, decay_model, error_decay_rate, plan_offsets, solve_kalman
 from .lqr import LQR
 
 __all__ = ["OffsetFreeEstimator", "ObservedFeedback", "observer_feedback_matrices", "augment_disturbance"]
@@ -98,7 +98,9 @@ class OffsetFreeEstimator:
         Qa = np.zeros((nx + 1, nx + 1))
         Qa[:nx, :nx] = Qn
         Qa[nx, nx] = float(disturbance_noise) ** 2
-        self.L, self.P = solve_kalman(self.A, self.C, Qa, Rn)
+        # the prescribed degree of stability (KalmanNoise.error_decay) covers the disturbance too
+        A_riccati = decay_model(self.A, error_decay_rate(model, noise), model.dt)
+        self.L, self.P = solve_kalman(A_riccati, self.C, Qa, Rn)
         self._b = self.B[:, 0]
         self._IminusLC = np.eye(nx + 1) - self.L @ self.C
         self.reset()
@@ -134,7 +136,7 @@ class OffsetFreeEstimator:
         """
         return self.A @ self.x_hat + self._b * u
 
-    def update(self, y, u_prev: float | None) -> np.ndarray:
+    def update(self, y, u_prev: float | None, offset=None) -> np.ndarray:
         """Take one measurement ``[theta, theta_dot, M_root]`` (deviation coordinates) and
         return the new augmented estimate ``[x_hat, d_hat]``.
 
@@ -143,9 +145,15 @@ class OffsetFreeEstimator:
         y : ndarray (3,)
         u_prev : float or None
             Torque commanded since the previous update [N m] (None right after :meth:`reset`).
+        offset : array_like (nx,), optional
+            Added to the prediction of the model's states (not the disturbance's), as in
+            :meth:`controllers.estimator.KalmanEstimator.update`.
         """
         if u_prev is not None:
             self.x_pred = self.predict(u_prev)
+            if offset is not None:
+                self.x_pred = self.x_pred.copy()
+                self.x_pred[:len(offset)] += offset
         self.x_hat = self._IminusLC @ self.x_pred + self.L @ y
         return self.x_hat
 
@@ -192,11 +200,16 @@ class ObservedFeedback(Controller):
     disturbance_noise : float, optional
         Random-walk standard deviation of the disturbance per sample [N m]; None: no
         disturbance state (no integral action).
+    plan_prediction : bool, optional
+        The filter predicts along the reference (see :class:`controllers.lqg.LQGSettings`);
+        None: when the reference plans the beam's motion (``Reference.elastic``) and the inner
+        controller tracks it (``elastic_reference``).
     """
 
     measurement = "sensors"
 
-    def __init__(self, inner: Controller, noise: KalmanNoise, disturbance_noise: float | None = None):
+    def __init__(self, inner: Controller, noise: KalmanNoise, disturbance_noise: float | None = None,
+                 plan_prediction: bool | None = None):
         if getattr(inner, "measurement", None) != "state":
             raise ParameterError(f"ObservedFeedback wraps a state-feedback controller (measurement 'state'), "
                                  f"got {getattr(inner, 'name', type(inner).__name__)!r}")
@@ -219,6 +232,15 @@ class ObservedFeedback(Controller):
         self._n_f = n_f
         # filter state (deviation from steady spin) -> the inner controller's state
         self._pick = np.r_[0, 1:1 + m, n_f, n_f + 1:n_f + 1 + m]
+        elastic = bool(getattr(inner.settings, "elastic_reference", True))
+        if plan_prediction is None:
+            plan_prediction = elastic and getattr(inner.reference, "elastic", None) is not None
+        self.predicts_along_plan = bool(plan_prediction)
+        self._defect = None
+        if self.predicts_along_plan:
+            ff = float(getattr(inner, "_ff", 1.0))
+            X = model.reference_states(inner.reference, elastic)
+            self._defect = plan_offsets(model, X, ff * np.asarray(inner.reference.torque, dtype=float))
         self.reset()
 
     def reset(self) -> None:
@@ -262,7 +284,9 @@ class ObservedFeedback(Controller):
         """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
         spin = self.design.spin
         yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
-        x_hat = self.estimator.update(yd, self._tau)
+        k = int(round(t / self.dt))
+        D = self._defect
+        x_hat = self.estimator.update(yd, self._tau, D[k - 1] if D is not None and 0 < k <= len(D) else None)
         x = x_hat[self._pick].copy()
         x[0] += spin * t
         x[1 + self.state_modes] += spin

@@ -14,7 +14,7 @@ import numpy as np
 from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
-from .estimator import KalmanEstimator, KalmanNoise
+from .estimator import KalmanEstimator, KalmanNoise, plan_offsets
 from .integral import OffsetFreeEstimator, observer_feedback_matrices
 from .lqr import dlqr_gain
 from .residual import embedding, estimator_model, residual_design
@@ -40,6 +40,13 @@ class LQGSettings(KalmanNoise, LQSettings):
                                                  doc="Random-walk standard deviation per sample of the "
                                                      "disturbance the integral action estimates; None: 1 % "
                                                      "of the torque limit.")
+    plan_prediction: bool | None = setting(None, kind=bool,
+                                           doc="The filter predicts along the reference: x_pred = x_ref[k+1] "
+                                               "+ A (x_hat - x_ref[k]) + B (u - u_ff[k]), so the model's "
+                                               "error along a planned slew does not enter the estimate; "
+                                               "None: when the reference plans the beam's motion "
+                                               "(Reference.elastic, reference='optimal') and "
+                                               "elastic_reference is on.")
 
 
 def filter_model(design: DesignModel, settings: LQGSettings) -> DesignModel:
@@ -65,8 +72,11 @@ class LQG(Controller):
     The filter works in deviations from the steady rotation at the design spin ``Omega``:
     ``x - [Omega t, 0, Omega, 0]``. Each call updates the estimate with the measurement
     (after predicting with the torque applied since the last call) and returns
-    ``tau = sat(tau_ff - K (x_hat - x_ref))``. With ``settings.robust`` the filter's model
-    (:attr:`filter_model`) has the residual modes of
+    ``tau = sat(tau_ff - K (x_hat - x_ref))``. Along a planned reference (an optimal slew,
+    ``settings.plan_prediction``) the prediction follows the plan,
+    ``x_ref[k+1] + A (x_hat - x_ref[k]) + B (u - u_ff[k])``: the plan comes from the
+    nonlinear model, so the linear model's error along the slew does not enter the estimate.
+    With ``settings.robust`` the filter's model (:attr:`filter_model`) has the residual modes of
     :func:`controllers.residual.estimator_modes` and, with ``settings.residual_control``, the
     gain acting on the estimate is the LQR gain of that model (:attr:`K` stays the design
     model's, for reports).
@@ -116,7 +126,22 @@ class LQG(Controller):
             self._Ke = dlqr_gain(model, weights)[0]
             # the residual modes' own quasi-static deflection along the reference
             self._xref_filter = self.filter_model.reference_states(self.reference, settings.elastic_reference)
+        self._defect = self._plan_defect() if self.predicts_along_plan else None
         self.reset()
+
+    @property
+    def predicts_along_plan(self) -> bool:
+        """Whether the filter predicts along the reference (``settings.plan_prediction``)."""
+        if self.settings.plan_prediction is not None:
+            return bool(self.settings.plan_prediction)
+        return self.settings.elastic_reference and getattr(self.reference, "elastic", None) is not None
+
+    def _plan_defect(self) -> np.ndarray:
+        """:func:`~controllers.estimator.plan_offsets` of the reference table on the filter's model."""
+        table = self._xref_filter
+        X = np.array([table[k] if table is not None and k < len(table) else self._E @ self._xref[k]
+                      for k in range(len(self._tff))])
+        return plan_offsets(self.filter_model, X, self._ff * self._tff)
 
     @property
     def L(self) -> np.ndarray:
@@ -130,7 +155,8 @@ class LQG(Controller):
 
     @property
     def x_pred(self) -> np.ndarray:
-        """Prediction of the state at the next sample (the initial guess after :meth:`reset`)."""
+        """Prediction of the state at the next sample (the initial guess after :meth:`reset`; without
+        the plan's offset of ``plan_prediction``)."""
         return self.estimator.x_pred if self._tau is None else self.estimator.predict(self._tau)
 
     def reset(self) -> None:
@@ -165,7 +191,9 @@ class LQG(Controller):
         k = int(round(t / self.dt))
         xr, tff = self._reference_at(k)
         yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
-        x_hat = self.estimator.update(yd, self._tau)
+        D = self._defect
+        offset = D[k - 1] if D is not None and 0 < k <= len(D) else None
+        x_hat = self.estimator.update(yd, self._tau, offset)
         K = self._Ke
         table = self._xref_filter
         xr = table[k] if table is not None and k < len(table) else self._E @ xr

@@ -30,8 +30,9 @@ def test_dlqr_gain_is_the_riccati_optimum(design):
 
 def test_kalman_gain_is_the_measurement_update_of_dlqe(design):
     """control.dlqe gives the predictor gain A P C' S^-1; the filter corrects the current
-    estimate with P C' S^-1, its A^-1 multiple (why that one line is written here)."""
-    noise = KalmanNoise()
+    estimate with P C' S^-1, its A^-1 multiple (why that one line is written here). The plain
+    filter (error_decay=0); the default's prescribed decay is checked in test_filter_decay.py."""
+    noise = KalmanNoise(error_decay=0.0)
     A, C = design.Ad, design.C_sensors
     Qn, Rn = noise.covariances(design)
     P_ref = scipy.linalg.solve_discrete_are(A.T, C.T, Qn, Rn)

@@ -92,9 +92,11 @@ def test_sampled_loop_poles_on_the_richer_model(design):
     n10 = loop_poles(naive, 10)
     assert n10.spectral_radius > 1.01 and n10.worst_hz == pytest.approx(47.6, abs=0.3)
     assert loop_poles(robust, 10).spectral_radius < 1.0 < loop_poles(lqr, 10).spectral_radius
-    for plant_modes in (13, 20):              # modes beyond the filter's: as close as the LQR's
+    for plant_modes in (13, 20):              # modes beyond the filter's: closer than the LQR's
         r = loop_poles(robust, plant_modes).spectral_radius
-        assert r < 1.00075, plant_modes
+        # 1.000245 / 1.000767 with the filter's prescribed decay (issue 22; the plain filter's
+        # 1.000229 / 1.000727), the LQR's 1.000838 on 20
+        assert r < min(1.0008, loop_poles(lqr, plant_modes).spectral_radius), plant_modes
     assert loop_poles(robust, 20, damping_ratio=5e-4).spectral_radius < 1.0
     assert loop_poles(robust, 10, damping_ratio=2e-4).spectral_radius < 1.0
     assert loop_poles(naive, 10, damping_ratio=2e-3).spectral_radius > 1.0

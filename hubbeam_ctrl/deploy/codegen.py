@@ -137,15 +137,21 @@ def _reference_table(ctrl: Controller, table=None, embed=None) -> tuple:
     return np.array(rows), np.asarray(ctrl._tff, dtype=float)
 
 
-def _observer_law(ctrl, controller: str, K, estimator, X, tff, spin: float, ff: float, x0) -> ControlLaw:
+def _observer_law(ctrl, controller: str, K, estimator, X, tff, spin: float, ff: float, x0,
+                  offset=None) -> ControlLaw:
     A = np.asarray(estimator._A, dtype=float)
     b = np.asarray(estimator._b, dtype=float)
     nx = A.shape[0]
+    arrays = {"A": A, "B": b, "IMLC": np.asarray(estimator._IminusLC, dtype=float),
+              "L": np.asarray(estimator.L, dtype=float), "K": np.asarray(K, dtype=float),
+              "X0": np.asarray(x0, dtype=float), "XREF": X, "TFF": tff}
+    if offset is not None and len(offset):   # the filter predicts along the plan (plan_prediction)
+        D = np.zeros((len(offset), nx))
+        D[:, :np.shape(offset)[1]] = offset         # none on a disturbance state
+        arrays["OFFSET"] = D
     return ControlLaw(
         kind="observer", controller=controller, dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=ff,
-        arrays={"A": A, "B": b, "IMLC": np.asarray(estimator._IminusLC, dtype=float),
-                "L": np.asarray(estimator.L, dtype=float), "K": np.asarray(K, dtype=float),
-                "X0": np.asarray(x0, dtype=float), "XREF": X, "TFF": tff},
+        arrays=arrays,
         scalars={"spin": float(spin)}, sensors=_SENSORS, n_reference=nx + 1,
         reference_layout=f"x_ref[0..{nx - 1}] (the filter model's states, absolute hub angle and rate), "
                          f"then tau_ff [N m]")
@@ -201,7 +207,8 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         x0[ctrl._n_f] -= ctrl.design.spin
         if ctrl.integral:
             K, X, x0 = _with_disturbance(K, X, x0)
-        law = _observer_law(ctrl, "lqr", K, ctrl.estimator, X, tff, ctrl.design.spin, float(inner._ff), x0)
+        law = _observer_law(ctrl, "lqr", K, ctrl.estimator, X, tff, ctrl.design.spin, float(inner._ff), x0,
+                            ctrl._defect)
         law.check_finite()
         return law
     if type(ctrl) is LQR:                 # not the scheduled subclasses: they interpolate in the spin
@@ -232,7 +239,8 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         K = ctrl._Ke
         if ctrl.settings.integral:                      # the estimated disturbance is cancelled
             K, X, x0 = _with_disturbance(K, X, x0)
-        law = _observer_law(ctrl, "lqg", K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0)
+        law = _observer_law(ctrl, "lqg", K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0,
+                            ctrl._defect)
     elif isinstance(ctrl, ShapedOpenLoop):
         law = ControlLaw(kind="table", controller=ctrl.kind, dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
                          feedforward=1.0, arrays={"TORQUE": np.asarray(ctrl.torques, float)},
@@ -417,9 +425,15 @@ def _render_law(law: ControlLaw, name: str, precision: str = "double") -> tuple:
                 f"    int has_tau;      /* 0 until the first step after reset */\n"
                 f"    long k;           /* sample index */")
         data = "".join(_array(k, law.arrays[k], R, single) for k in ("A", "B", "IMLC", "L", "K", "X0", "XREF", "TFF"))
+        kd = len(law.arrays["OFFSET"]) if "OFFSET" in law.arrays else 0
+        if kd:
+            data += _array("OFFSET", law.arrays["OFFSET"], R, single)
+        offset = ("\n            if (inst->k >= 1 && inst->k - 1 < KOFF) s += OFFSET[inst->k - 1][i];  "
+                  "/* along the plan */") if kd else ""
         code = f"""#define NX {nx}
 #define NH {nh}
 #define KT {kt}
+#define KOFF {kd}
 {common}static const {R} SPIN = {num(law.scalars["spin"])};
 
 {_saturate(name)}
@@ -462,7 +476,7 @@ void {name}_step({name}_instance *inst, const double *measurements, const double
     if (inst->has_tau) {{
         for (i = 0; i < NX; ++i) {{
             {R} s = 0;
-            for (j = 0; j < NX; ++j) s += A[i][j] * inst->x_hat[j];
+            for (j = 0; j < NX; ++j) s += A[i][j] * inst->x_hat[j];{offset}
             inst->x_pred[i] = s + B[i] * inst->tau_prev;
         }}
     }}
