@@ -35,7 +35,7 @@ def test_slew_targets_on_foam(slew_foam):
     ev = slew_foam.plant
     assert ev.model == "foam" and ev.modes >= 10 and ev.params.damping_ratio == 0.0
     for name, mm in m.items():
-        assert mm["plant_modes"] == ev.modes and mm["design_modes"] == 5 and mm["substeps"] == 15
+        assert mm["plant_modes"] == ev.modes and mm["design_modes"] == 5 and mm["substeps"] == 21
         assert slew_foam.results[name].params.n_transverse == ev.modes
     base = m["openloop"]["residual_tip_max_m"]
     print()
@@ -95,7 +95,7 @@ def test_outputs_are_written(slew_foam, tmp_path):
     assert report.splitlines()[2].startswith("Verdicts: openloop **not settled**")
     assert "| verdict | controller |" in report and "| settled | lqg |" in report
     assert "Evaluation plant: FOAM with 5 axial and 10 transverse modes" in report
-    assert "15 steps of 0.6667 ms per sample" in report and "0.2824 m" in report
+    assert "21 steps of 0.4762 ms per sample" in report and "0.2824 m" in report
     assert data[3]["verdict"] == "settled" and data[3]["plant_params"]["n_transverse"] == 10
     assert rows[3]["verdict"] == "settled" and rows[3]["substeps"] == "15"
     assert paths["report"] == out / "report.md"
