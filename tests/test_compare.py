@@ -97,7 +97,7 @@ def test_outputs_are_written(slew_foam, tmp_path):
     assert "Evaluation plant: FOAM with 5 axial and 10 transverse modes" in report
     assert "21 steps of 0.4762 ms per sample" in report and "0.2824 m" in report
     assert data[3]["verdict"] == "settled" and data[3]["plant_params"]["n_transverse"] == 10
-    assert rows[3]["verdict"] == "settled" and rows[3]["substeps"] == "15"
+    assert rows[3]["verdict"] == "settled" and rows[3]["substeps"] == "21"
     assert paths["report"] == out / "report.md"
 
 

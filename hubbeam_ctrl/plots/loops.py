@@ -97,6 +97,14 @@ class LoopResponse:
         return self.L / (1.0 + self.L)
 
 
+
+def _loop_list(loops) -> list:
+    """``loops`` (one :class:`LoopResponse` or a sequence of them) as a non-empty list."""
+    loops = [loops] if isinstance(loops, LoopResponse) else list(loops)
+    if not loops or not all(isinstance(lp, LoopResponse) for lp in loops):
+        raise ParameterError("loops must be a LoopResponse or a non-empty sequence of them")
+    return loops
+
 def sensitivity_peaks(loop: LoopResponse) -> dict:
     """Peaks of ``|S|`` and ``|T|`` on the loop's frequency grid.
 
@@ -307,9 +315,7 @@ def plot_loop(loops, title: str = "", fig: Figure | None = None) -> Figure:
     Figure
         Five rows of two panels, 12 x 19 in.
     """
-    loops = [loops] if isinstance(loops, LoopResponse) else list(loops)
-    if not loops or not all(isinstance(lp, LoopResponse) for lp in loops):
-        raise ParameterError("loops must be a LoopResponse or a non-empty sequence of them")
+    loops = _loop_list(loops)
     ax = getattr(fig, "_loop_axes", None) if fig is not None else None
     if ax is None:
         fig = Figure(figsize=(12, 19))             # fixed margins: constrained layout costs seconds here
@@ -388,9 +394,7 @@ def plot_loop_comparison(loops, title: str = "", colors=None) -> Figure:
     Figure
         Three rows of two panels, 12 x 12 in.
     """
-    loops = [loops] if isinstance(loops, LoopResponse) else list(loops)
-    if not loops or not all(isinstance(lp, LoopResponse) for lp in loops):
-        raise ParameterError("loops must be a LoopResponse or a non-empty sequence of them")
+    loops = _loop_list(loops)
     colors = list(colors) if colors is not None else [f"C{i}" for i in range(len(loops))]
     if len(colors) != len(loops):
         raise ParameterError(f"colors must have one entry per loop ({len(loops)}), got {len(colors)}")

@@ -85,7 +85,7 @@ def loop_poles(controller: Controller, plant_modes: int, params: Params | None =
     >>> naive = LQG(DesignModel.build(), LQGSettings(robust=False))
     >>> lp = loop_poles(naive, 10)                    # the paper's beam, 10 modes, 100 Hz
     >>> round(lp.spectral_radius, 3), round(lp.worst_hz, 1)   # mode 7 (52 Hz) folded to 48 Hz
-    (1.011, 47.6)
+    (1.011, 47.7)
     """
     design = controller.design
     lo = int(getattr(controller, "state_modes", design.n_modes))
