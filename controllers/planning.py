@@ -3,7 +3,8 @@
 A rigid-body reference (:func:`controllers.slew_reference`) turns the hub in ``t_f`` but leaves
 the beam ringing, so the feedback spends the time after the slew damping what the reference
 excited. :func:`planned_slew_reference` plans the whole motion on the design model instead:
-the sampled torque ``u_0 .. u_{N-1}`` (held over each sample, ``N = t_f / dt``) that
+the sampled torque ``u_0 .. u_{N-1}`` (held over each sample, ``N = t_f / dt``; piecewise
+linear between :data:`MAX_UNKNOWNS` knots when ``N`` is larger) that
 
 * turns the hub by the slew angle and stops it (hard constraints on the design model at rest),
 * leaves the beam's flexible modes that the sample rate resolves at rest at ``t_f``, on the
@@ -14,7 +15,8 @@ the sampled torque ``u_0 .. u_{N-1}`` (held over each sample, ``N = t_f / dt``) 
 * is smooth (least squared second differences, starting and ending at zero torque), and
 * stays within the torque budget at every sample.
 
-That is one dense quadratic programme in ``N`` unknowns, solved by DAQP (milliseconds for a
+That is one dense quadratic programme in ``N`` unknowns (at most :data:`MAX_UNKNOWNS`): one
+linear solve when the budget is not active, else DAQP (milliseconds for a
 few hundred samples, against seconds for the nonlinear :func:`hubbeam_ctrl.limit.min_vibration_slew`).
 The reference carries the planned bending (:attr:`Reference.elastic`) so that the feedback
 tracks the planned motion and only corrects model error.
@@ -42,6 +44,15 @@ from .base import DesignModel, Reference
 
 __all__ = ["planned_slew_reference", "terminal_map"]
 
+#: At most this many unknowns: a longer slew's torque is piecewise linear between this many
+#: evenly spaced knots (sampled and held at every sample), so that a slow task at a fast
+#: sample rate (4 s at 1 ms) stays a problem of milliseconds instead of a dense one in
+#: thousands of unknowns.
+MAX_UNKNOWNS = 600
+#: Largest violation of the plan's equality rows [dimensionless: the angle's row is 1, each
+#: mode's row the motion the rigid plan gives it] accepted from the equality-constrained
+#: minimiser before the bounded solver is asked.
+ROW_TOLERANCE = 1e-7
 #: Weight of the beam's terminal motion against the torque's smoothness, both normalised (see
 #: :func:`planned_slew_reference`): large enough that the plan leaves the beam at rest
 #: whenever the torque budget allows it.
@@ -98,10 +109,32 @@ def _trajectory(design: DesignModel, u: np.ndarray) -> np.ndarray:
     return X
 
 
-def _second_differences(n: int) -> np.ndarray:
-    """Second differences of ``u`` padded with zero torque before and after ((n+2) x n)."""
-    D = np.eye(n + 1, n) - np.eye(n + 1, n, -1)
-    return (np.eye(n + 2, n + 1) - np.eye(n + 2, n + 1, -1)) @ D
+def _smoothness(n: int) -> np.ndarray:
+    """``D' D`` for ``D`` the second differences of ``u`` padded with zero torque before and after.
+
+    ``D`` is (n+2) x n; ``D' D`` is the pentadiagonal Toeplitz matrix ``(1, -4, 6, -4, 1)``
+    (n x n, exact in floating point).
+    """
+    S = 6.0 * np.eye(n)
+    for offset, value in ((1, -4.0), (2, 1.0)):
+        S += value * (np.eye(n, k=offset) + np.eye(n, k=-offset))
+    return S
+
+
+def _roughness(v: np.ndarray) -> float:
+    """``|D v|^2``: the squared second differences of ``v`` padded with zeros (see :func:`_smoothness`)."""
+    return float(np.sum(np.diff(np.concatenate([[0.0, 0.0], v, [0.0, 0.0]]), 2) ** 2))
+
+
+def _knots(n: int, m: int) -> np.ndarray:
+    """Linear interpolation (n x m) from ``m`` evenly spaced knots onto ``n`` samples (ends on ends)."""
+    pos = np.linspace(0.0, m - 1.0, n)
+    lo = np.minimum(np.floor(pos).astype(int), m - 2)
+    frac = pos - lo
+    P = np.zeros((n, m))
+    P[np.arange(n), lo] = 1.0 - frac
+    P[np.arange(n), lo + 1] = frac
+    return P
 
 
 def _solve(H, rows, rhs, bound: float):
@@ -111,11 +144,15 @@ def _solve(H, rows, rhs, bound: float):
     """
     n, m = H.shape[0], len(rhs)
     kkt = np.block([[H, rows.T], [rows, np.zeros((m, m))]])
+    b = np.concatenate([np.zeros(n), rhs])
     try:
-        v = np.linalg.solve(kkt, np.concatenate([np.zeros(n), rhs]))[:n]
+        z = np.linalg.solve(kkt, b)
+        if np.all(np.isfinite(z)) and not np.allclose(rows @ z[:n], rhs, rtol=0, atol=1e-9):
+            z = z + np.linalg.solve(kkt, b - kkt @ z)          # one step of iterative refinement
+        v = z[:n]
     except np.linalg.LinAlgError:
         v = None
-    if v is not None and np.all(np.isfinite(v)) and np.allclose(rows @ v, rhs, rtol=0, atol=1e-9):
+    if v is not None and np.all(np.isfinite(v)) and np.allclose(rows @ v, rhs, rtol=0, atol=ROW_TOLERANCE):
         if np.max(np.abs(v)) <= bound:
             return v
     from .mpc import DirectDAQP  # the QP solver the MPC uses
@@ -194,15 +231,25 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
     # dimensionless unknowns v = u / tau_max and rows: angle / |angle|, rate * t_f / |angle|
     row_scale = np.array([1.0, n * dt]) / abs(angle)
     target = np.array([np.sign(angle), 0.0])
-    D = _second_differences(n)
-    smoothness = D.T @ D
+    n_unknowns = min(n, MAX_UNKNOWNS)
+    P = None if n_unknowns == n else _knots(n, n_unknowns)   # torque u = tau_max P v
+    if P is None:
+        smoothness = _smoothness(n)
+    else:
+        DP = np.diff(np.vstack([np.zeros((2, n_unknowns)), P, np.zeros((2, n_unknowns))]), 2, axis=0)
+        smoothness = DP.T @ DP
+
+    def reduced(G):
+        return G if P is None else G @ P
+
     G0 = terminal_map(rest, n) * tau_max
-    A_rigid = row_scale[:, None] * G0[rigid]
-    v_rigid = _solve(smoothness + 1e-12 * np.eye(n), A_rigid, target, 1.0)
+    A_rigid = row_scale[:, None] * reduced(G0[rigid])
+    v_rigid = _solve(smoothness + 1e-12 * np.eye(n_unknowns), A_rigid, target, 1.0)
     if v_rigid is None:
         raise ParameterError(f"tau_max = {tau_max:g} N m cannot turn the hub by {angle:g} rad in "
                              f"duration = {n * dt:g} s; give a longer duration (tf / --tf)")
-    X_rigid = _trajectory(rest, tau_max * v_rigid)
+    sampled_rigid = v_rigid if P is None else P @ v_rigid
+    X_rigid = _trajectory(rest, tau_max * sampled_rigid)
     f_max = RESOLVED_FRACTION / dt
     spin = float(np.max(np.abs(X_rigid[:, half])))
     models = [(rest, G0)]
@@ -214,14 +261,14 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
         W = _modal_rows(model, f_max)
         size = np.max(np.abs(X_rigid @ W.T), axis=0)        # each mode's motion along the rigid plan
         keep = size > 1e-12 * max(float(size.max(initial=0.0)), 1e-300)
-        stiff.append((W[keep] / size[keep, None]) @ G)
+        stiff.append(reduced((W[keep] / size[keep, None]) @ G))
     v, how = None, ""
     for hard in range(len(stiff), -1, -1):    # every model at rest exactly, then fewer, then none
         rows = np.vstack([A_rigid, *stiff[:hard]])
-        H = smoothness / (float(np.sum((D @ v_rigid) ** 2)) or 1.0)
+        H = smoothness / (_roughness(sampled_rigid) or 1.0)
         for E in stiff[hard:]:
             H = H + ELASTIC_WEIGHT * (E.T @ E)
-        v = _solve(H + 1e-12 * np.eye(n), rows, np.concatenate([target, np.zeros(len(rows) - 2)]), 1.0)
+        v = _solve(H + 1e-12 * np.eye(n_unknowns), rows, np.concatenate([target, np.zeros(len(rows) - 2)]), 1.0)
         if v is not None:
             how = ("the beam at rest on both models" if hard == len(stiff) == 2 else
                    "the beam at rest" if hard == len(stiff) else
@@ -230,7 +277,7 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
     if v is None:
         v = v_rigid
         how = "the rigid body only: the budget leaves no room for the beam"
-    u = tau_max * v
+    u = tau_max * (v if P is None else P @ v)
     X = _trajectory(rest, u)
     k_end = int(round(t_end / dt)) + 1
     theta = np.full(k_end, X[-1, 0])

@@ -145,7 +145,9 @@ for k, fk in enumerate(f[:10], 1):
     print(f"  mode {k:2d}: {fk:7.2f} Hz -> {alias:5.1f} Hz")
 
 assert radius[5, "old"] < 1 and radius[10, "old"] > 1.01
-assert radius[10, "new"] < 1.001 and radius[10, "new"] <= radius[10, "lqr"]
+# on 10 plant modes both the default LQG and the LQR sit on the same pole, mode 8 (70 Hz) folded to
+# 30 Hz, which the gain pumps and no filter changes: equal to round-off (its order differs between CPUs)
+assert radius[10, "new"] < 1.001 and radius[10, "new"] <= radius[10, "lqr"] * (1 + 1e-6)
 
 # %%
 fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))

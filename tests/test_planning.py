@@ -98,3 +98,29 @@ def test_default_lqr_and_mpc_settle_within_one_period_of_the_slews_end_on_the_la
         assert abs(m["final_angle_error_rad"]) <= 1e-3 * ANGLE, name
     rigid = compare("foam", Slew(ANGLE, TF), "lqr", params=LAB, reference="rigid").metrics["lqr"]
     assert rigid["settling_time_s"] > TF + period          # the smooth rigid reference misses it
+
+
+def test_a_long_slew_at_a_fast_sample_is_planned_on_knots_and_still_ends_at_rest(monkeypatch):
+    """A slow task at a fast sample rate (the servo link's 1 ms, 4 s: 4000 samples) is planned on
+    MAX_UNKNOWNS knots of a piecewise-linear torque, one linear solve, not a dense 4000-unknown QP
+    (that took 43 s in DAQP: the equality solution's rows were off by 2.9e-9 in round-off and
+    fell back to the bounded solver). It still turns the hub, stops it and leaves the beam at rest."""
+    import controllers.planning as planning
+    from hubbeam_ctrl.plant.rig import load_rig
+
+    beam = load_rig("servo_link").beam
+    sizes, solve = [], planning._solve
+    monkeypatch.setattr(planning, "_solve", lambda H, *a: sizes.append(H.shape[0]) or solve(H, *a))
+    dt, tf = 1e-3, 4.0
+    ref = planned_slew_reference(beam, 0.3, tf, beam.tau_max, dt, 5.0)
+    assert sizes and max(sizes) == planning.MAX_UNKNOWNS
+    n = int(round(tf / dt))
+    rest = DesignModel.build(beam, 0.0, dt)
+    x = _run(rest, ref.torque[:n])
+    half = rest.n_x // 2
+    assert x[0] == pytest.approx(0.3, rel=1e-7) and abs(x[half]) < 1e-7 * 0.3 / tf
+    rigid = slew_reference(0.3, tf, beam.total_inertia, beam.tau_max, dt, 5.0)
+    assert _modal_motion(rest, x) < 1e-6 * _modal_motion(rest, _run(rest, rigid.torque[:n]))
+    # piecewise linear between knots: second differences vanish except at the knots
+    assert np.max(np.abs(np.diff(ref.torque[:n], 2))) < 1e-3 * np.max(np.abs(ref.torque))
+    assert "at rest on both models" in ref.description
