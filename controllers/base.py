@@ -339,6 +339,11 @@ class Reference:
         Planned modal coordinates and rates ``[q2, q2_dot]`` [m, m/s] of a reference that
         knows the beam's motion (an optimal slew); None: the quasi-static deflection of
         :meth:`DesignModel.reference_states`.
+    planned_on_design : bool
+        The planned motion is the design model's own response to the feedforward
+        (:func:`controllers.planning.planned_slew_reference`): a filter that predicts with the
+        applied torque already follows it, so the filters do not predict along it by default
+        (``plan_prediction``); False for a plan of the nonlinear model (an optimal slew).
     """
 
     dt: float
@@ -348,6 +353,7 @@ class Reference:
     torque: np.ndarray
     description: str = ""
     elastic: np.ndarray | None = None
+    planned_on_design: bool = False
 
     @classmethod
     def from_profile(cls, profile, dt: float, t_end: float, description: str = "") -> "Reference":

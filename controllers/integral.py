@@ -26,7 +26,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, saturate
-from .estimator import KalmanNoise, decay_model, error_decay_rate, plan_offsets, solve_kalman
+from .estimator import KalmanNoise, decay_model, error_decay_rate, plan_offsets, plan_worth_predicting, solve_kalman
 from .lqr import LQR
 
 __all__ = ["OffsetFreeEstimator", "ObservedFeedback", "observer_feedback_matrices", "augment_disturbance"]
@@ -202,8 +202,9 @@ class ObservedFeedback(Controller):
         disturbance state (no integral action).
     plan_prediction : bool, optional
         The filter predicts along the reference (see :class:`controllers.lqg.LQGSettings`);
-        None: when the reference plans the beam's motion (``Reference.elastic``) and the inner
-        controller tracks it (``elastic_reference``).
+        None: when the reference plans the beam's motion on the nonlinear model
+        (``Reference.elastic``, not ``Reference.planned_on_design``) and the inner controller
+        tracks it (``elastic_reference``).
     """
 
     measurement = "sensors"
@@ -234,7 +235,7 @@ class ObservedFeedback(Controller):
         self._pick = np.r_[0, 1:1 + m, n_f, n_f + 1:n_f + 1 + m]
         elastic = bool(getattr(inner.settings, "elastic_reference", True))
         if plan_prediction is None:
-            plan_prediction = elastic and getattr(inner.reference, "elastic", None) is not None
+            plan_prediction = plan_worth_predicting(inner.reference, elastic)
         self.predicts_along_plan = bool(plan_prediction)
         self._defect = None
         if self.predicts_along_plan:

@@ -14,7 +14,7 @@ import numpy as np
 from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
-from .estimator import KalmanEstimator, KalmanNoise, plan_offsets
+from .estimator import KalmanEstimator, KalmanNoise, plan_offsets, plan_worth_predicting
 from .integral import OffsetFreeEstimator, observer_feedback_matrices
 from .lqr import dlqr_gain
 from .residual import embedding, estimator_model, residual_design
@@ -44,9 +44,12 @@ class LQGSettings(KalmanNoise, LQSettings):
                                            doc="The filter predicts along the reference: x_pred = x_ref[k+1] "
                                                "+ A (x_hat - x_ref[k]) + B (u - u_ff[k]), so the model's "
                                                "error along a planned slew does not enter the estimate; "
-                                               "None: when the reference plans the beam's motion "
-                                               "(Reference.elastic, reference='optimal') and "
-                                               "elastic_reference is on.")
+                                               "None: when the reference plans the beam's motion on "
+                                               "the nonlinear model (Reference.elastic, "
+                                               "reference='optimal') and elastic_reference is on; "
+                                               "not along a plan of the design model itself "
+                                               "(Reference.planned_on_design), which the filter's "
+                                               "own prediction follows.")
 
 
 def filter_model(design: DesignModel, settings: LQGSettings) -> DesignModel:
@@ -134,7 +137,7 @@ class LQG(Controller):
         """Whether the filter predicts along the reference (``settings.plan_prediction``)."""
         if self.settings.plan_prediction is not None:
             return bool(self.settings.plan_prediction)
-        return self.settings.elastic_reference and getattr(self.reference, "elastic", None) is not None
+        return plan_worth_predicting(self.reference, self.settings.elastic_reference)
 
     def _plan_defect(self) -> np.ndarray:
         """:func:`~controllers.estimator.plan_offsets` of the reference table on the filter's model."""

@@ -290,4 +290,4 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
     accel[:m - 1] = np.diff(rate[:m]) / dt                  # mean acceleration over each sample
     text = (f"slew {angle:.4g} rad in {n * dt:.4g} s planned on the design model at rest and at "
             f"{spin:.3g} rad/s ({how}; peak torque {np.max(np.abs(u)):.4g} N m)")
-    return Reference(dt, theta, rate, accel, torque, text, elastic=modal)
+    return Reference(dt, theta, rate, accel, torque, text, elastic=modal, planned_on_design=True)

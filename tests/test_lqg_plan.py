@@ -123,3 +123,19 @@ def _run_observed(ctrl, states):
     fm = ctrl.filter_model
     taus = [ctrl(k * DT, fm.C_sensors @ x) for k, x in enumerate(states)]
     return np.array(taus), None
+
+
+def test_a_plan_of_the_design_model_itself_is_not_predicted_along_by_default(plan):
+    """A reference planned on the design model (controllers.planning) is what the filter's own
+    prediction follows: LQG and the observer-fed LQR do not predict along it unless asked."""
+    import dataclasses
+
+    from controllers import LQR
+    from controllers.integral import ObservedFeedback
+    d, ref = plan
+    own = dataclasses.replace(ref, planned_on_design=True)
+    assert LQG(d, reference=ref).predicts_along_plan
+    assert not LQG(d, reference=own).predicts_along_plan
+    assert LQG(d, LQGSettings(plan_prediction=True), own).predicts_along_plan
+    assert not ObservedFeedback(LQR(d, reference=own), LQGSettings()).predicts_along_plan
+    assert ObservedFeedback(LQR(d, reference=ref), LQGSettings()).predicts_along_plan

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -124,3 +125,24 @@ def test_a_long_slew_at_a_fast_sample_is_planned_on_knots_and_still_ends_at_rest
     # piecewise linear between knots: second differences vanish except at the knots
     assert np.max(np.abs(np.diff(ref.torque[:n], 2))) < 1e-3 * np.max(np.abs(ref.torque))
     assert "at rest on both models" in ref.description
+
+
+def test_the_papers_lqg_settles_within_one_period_and_does_not_predict_along_its_own_plan():
+    """The paper's beam, 1 rad at 1.5 x its time-optimal slew (2.642 s, docs/limit.md), default LQG:
+    the plan is the design model's own response (planned_on_design), so the filter predicts with
+    the applied torque, not along the plan; asked to predict along it, the filter holds its
+    residual modes at rest against the torque and settles 0.15 s later, past the target
+    (measured 6.11 s and 6.26 s against 6.137 s)."""
+    from controllers import LQGSettings
+
+    p = Params()
+    tf = 1.5 * 2.6419525
+    c = compare("foam", Slew(1.0, tf), "lqg", params=p)
+    assert c.scenario.reference.planned_on_design
+    period = 2 * math.pi / first_mode(DesignModel.build(p, 0.0, c.scenario.dt, 1))
+    m = c.metrics["lqg"]
+    assert m["verdict"] == "settled" and m["settling_time_s"] <= tf + period, (m["settling_time_s"], tf + period)
+    assert m["residual_pct_of_L"] <= 0.1 and abs(m["final_angle_error_rad"]) <= 1e-3
+    forced = dataclasses.replace(LQGSettings.for_scenario(c.scenario), plan_prediction=True)
+    along = compare("foam", Slew(1.0, tf), "lqg", params=p, settings={"lqg": forced}).metrics["lqg"]
+    assert along["settling_time_s"] > tf + period > m["settling_time_s"]
