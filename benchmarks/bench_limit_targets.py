@@ -1,8 +1,9 @@
 """Issue 22's targets, measured: every beam and rig at 1.5 x its time-optimal slew. Prints JSON.
 
 Run: ``.venv/bin/python benchmarks/bench_limit_targets.py [--cases lab,servo,servo_beam,paper,payload]
-[--controllers lqr,lqg,mpc] [--references task,rigid,optimal] [--out F.json]`` (about 5-10 min on 2
-idle cores with a C compiler; ``--controllers lqg --references optimal`` for one column).
+[--controllers lqr,lqg,mpc] [--references task,rigid,optimal] [--factors 1.3,1.5,2] [--out F.json]``
+(about 5-10 min on 2 idle cores with a C compiler; ``--controllers lqg --references optimal`` for one
+column).
 
 For each case the time-optimal rest-to-rest slew ``T_opt`` of the beam within its drive's limits
 (:func:`hubbeam_ctrl.limit.time_optimal_slew`, FOAM, the design's modes) gives the task
@@ -158,7 +159,7 @@ def run_cases(cases) -> dict:
 
 def main(argv=None) -> int:
     """Entry point; prints the JSON and writes it to ``--out`` when given."""
-    global NAMES, REFERENCES
+    global NAMES, REFERENCES, FACTOR
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default="lab,servo,servo_beam,paper,payload")
     ap.add_argument("--controllers", default=NAMES, help="controllers to run (default %(default)s)")
@@ -166,15 +167,25 @@ def main(argv=None) -> int:
                     help="comma-separated compare(reference=...): task (the default: a slew task's planned "
                          "slew), rigid (the smooth rigid reference, the default before), planned, optimal "
                          "(default %(default)s)")
+    ap.add_argument("--factors", default=str(FACTOR),
+                    help="comma-separated task durations in units of T_opt (default %(default)s: the issue's); "
+                         "several give a scan over fast and slow tasks, keyed by factor in the JSON")
     ap.add_argument("--out", help="also write the JSON here")
     args = ap.parse_args(argv)
     NAMES, REFERENCES = args.controllers, tuple(args.references.split(","))
     cases = set(args.cases.split(","))
+    factors = [float(f) for f in args.factors.split(",")]
     t0 = time.perf_counter()
-    doc = {"benchmark": "limit_targets", "issue": 22, "factor_of_t_opt": FACTOR,
+    doc = {"benchmark": "limit_targets", "issue": 22, "factor_of_t_opt": factors[0] if len(factors) == 1 else factors,
            "controllers": NAMES, "references": list(REFERENCES),
            "machine": {"python": platform.python_version(), "cpus": os.cpu_count()},
-           "cases": run_cases(cases), "wall_s": None}
+           "cases": None, "wall_s": None}
+    scan = {}
+    for factor in factors:
+        FACTOR = factor
+        print(f"-- tasks at {factor:g} x T_opt", file=sys.stderr)
+        scan[f"{factor:g}"] = run_cases(cases)
+    doc["cases"] = scan[f"{factors[0]:g}"] if len(factors) == 1 else scan
     doc["wall_s"] = time.perf_counter() - t0
     text = json.dumps(doc, indent=1, default=float)
     print(text)
