@@ -110,3 +110,28 @@ def test_wheel_installs_into_fresh_venv_without_warnings(tmp_path):
     assert demo.returncode == 0, demo.stderr[-2000:]
     assert "TLAM/FOAM residual vibration ratio: 236" in demo.stdout and "settled" in demo.stdout
     assert (outside / "demo_out" / "spinup_comparison.png").is_file()
+
+
+def test_editable_install_prints_no_setuptools_notice(tmp_path):
+    """make demo / make test install the checkout in editable mode: setuptools printed a ten-line
+    'Editable installation ... be careful with folders ... same name as your package' notice for
+    the flat two-package layout (its meta-path finder); with the project root as the package
+    directory the install is a plain path entry and prints nothing of ours. Lines about the
+    machine's own pip index configuration are not the package's and are left out."""
+    env = _clean_env()
+    target = tmp_path / "venv"
+    venv.EnvBuilder(with_pip=True).create(target)
+    py = target / "bin" / "python"
+    up = subprocess.run([str(py), "-m", "pip", "install", "--quiet", "--upgrade", "pip"],     # as the Makefile does
+                        capture_output=True, text=True, env=env, timeout=300)
+    assert up.returncode == 0, up.stderr[-2000:]
+    inst = subprocess.run([str(py), "-m", "pip", "install", "--quiet", "--no-deps", "-e", str(ROOT)],
+                          capture_output=True, text=True, env=env, timeout=300)
+    assert inst.returncode == 0, inst.stdout[-3000:] + inst.stderr[-3000:]
+    text = inst.stdout + inst.stderr
+    ours = [line for line in _warnings(text) if "is ignored: it is neither a file nor a directory" not in line]
+    assert ours == [] and "same name as your package" not in text, ours
+    where = subprocess.run([str(py), "-c", "import importlib.util as u; "
+                            "print(u.find_spec('hubbeam_ctrl').origin); print(u.find_spec('controllers').origin)"],
+                           capture_output=True, text=True, env=env, cwd=tmp_path, check=True).stdout.split()
+    assert all(Path(w).is_relative_to(ROOT) for w in where), where
