@@ -32,6 +32,7 @@ torque), ``paper`` (Table 1's beam, 1 rad, 200 N m) and ``payload`` (Table 1's b
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import os
@@ -88,9 +89,9 @@ def _judge(comparison, params: Params, angle: float, limit: float) -> dict:
     return rows
 
 
-def _case(label, beam, angle, t_opt, limit, **options) -> dict:
-    """The chosen references on one beam or rig at 1.5 x T_opt."""
-    t_f = FACTOR * t_opt
+def _case(label, beam, angle, t_opt, limit, factor=FACTOR, **options) -> dict:
+    """The chosen references on one beam or rig at ``factor`` x T_opt."""
+    t_f = factor * t_opt
     out = {"t_opt_s": t_opt, "t_f_s": t_f, "angle_rad": angle, "runs": {}}
     for reference in REFERENCES:
         t0 = time.perf_counter()
@@ -104,9 +105,9 @@ def _case(label, beam, angle, t_opt, limit, **options) -> dict:
     return out
 
 
-def _payload_case(paper: Params, t_opt: float) -> dict:
-    """Table 1's beam designed for PAYLOAD_RANGE, run at PAYLOADS, the task at 1.5 x ``t_opt``."""
-    t_f = FACTOR * t_opt
+def _payload_case(paper: Params, t_opt: float, factor: float = FACTOR) -> dict:
+    """Table 1's beam designed for PAYLOAD_RANGE, run at PAYLOADS, the task at ``factor`` x ``t_opt``."""
+    t_f = factor * t_opt
     payload = {"t_opt_s": t_opt, "t_f_s": t_f, "runs": {}}
     for reference in REFERENCES:
         t0 = time.perf_counter()
@@ -125,41 +126,63 @@ def _payload_case(paper: Params, t_opt: float) -> dict:
     return payload
 
 
-def run_cases(cases) -> dict:
-    """Measure the chosen cases; returns a JSON-ready dict."""
+@functools.cache
+def _t_opt(beam: str) -> float:
+    """Time-optimal duration [s] of each beam's slew (computed once, whatever the factors)."""
+    servo = load_rig("servo_link")
+    if beam == "lab":
+        return time_optimal_slew(LAB, math.pi / 2).duration_s
+    if beam == "servo":
+        return time_optimal_slew(servo, math.pi / 2).duration_s
+    if beam == "servo_beam":
+        return time_optimal_slew(Rig(beam=servo.plant_params).plant_params, math.pi / 2).duration_s
+    paper = Params()
+    return time_optimal_slew(paper if beam == "paper" else paper.replace(m_t=PAYLOAD_RANGE[1]), 1.0).duration_s
+
+
+def run_cases(cases, factor: float = FACTOR) -> dict:
+    """Measure the chosen cases with tasks at ``factor`` x T_opt; returns a JSON-ready dict."""
     out = {}
+    angle = math.pi / 2
     if "lab" in cases:
-        angle = math.pi / 2
-        out["lab"] = _case("lab", LAB, angle, time_optimal_slew(LAB, angle).duration_s, LAB.tau_max, params=LAB)
+        out["lab"] = _case("lab", LAB, angle, _t_opt("lab"), LAB.tau_max, factor, params=LAB)
     servo = load_rig("servo_link")
     if "servo" in cases:
-        angle = math.pi / 2
-        t_opt = time_optimal_slew(servo, angle).duration_s
-        out["servo"] = _case("servo", servo.plant_params, angle, t_opt, servo.drive.V_max, rig=servo)
+        out["servo"] = _case("servo", servo.plant_params, angle, _t_opt("servo"), servo.drive.V_max, factor, rig=servo)
     if "servo_beam" in cases:
-        angle = math.pi / 2
         beam = Rig(beam=servo.plant_params)
-        t_opt = time_optimal_slew(beam.plant_params, angle).duration_s
-        out["servo_beam"] = _case("servo_beam", beam.plant_params, angle, t_opt, beam.plant_params.tau_max, rig=beam)
+        out["servo_beam"] = _case("servo_beam", beam.plant_params, angle, _t_opt("servo_beam"),
+                                  beam.plant_params.tau_max, factor, rig=beam)
     paper = Params()
     if "paper" in cases:
-        out["paper"] = _case("paper", paper, 1.0, time_optimal_slew(paper, 1.0).duration_s, paper.tau_max)
+        out["paper"] = _case("paper", paper, 1.0, _t_opt("paper"), paper.tau_max, factor)
     if "payload" in cases:
-        out["payload"] = _payload_case(paper, time_optimal_slew(paper, 1.0).duration_s)
+        out["payload"] = _payload_case(paper, _t_opt("paper"), factor)
     heaviest = paper.replace(m_t=PAYLOAD_RANGE[1])
     if "payload_heaviest" in cases:
-        out["payload_heaviest"] = _payload_case(paper, time_optimal_slew(heaviest, 1.0).duration_s)
+        out["payload_heaviest"] = _payload_case(paper, _t_opt("heaviest"), factor)
     if "matched_heaviest" in cases:
-        # the design knows the heaviest payload; the task of the nominal payload (its 1.5 x T_opt)
-        t_opt = time_optimal_slew(paper, 1.0).duration_s
-        out["matched_heaviest"] = _case("matched", heaviest, 1.0, t_opt, paper.tau_max, params=heaviest)
-        out["matched_heaviest"]["t_opt_heaviest_s"] = time_optimal_slew(heaviest, 1.0).duration_s
+        # the design knows the heaviest payload; the task of the nominal payload (its factor x T_opt)
+        out["matched_heaviest"] = _case("matched", heaviest, 1.0, _t_opt("paper"), paper.tau_max, factor,
+                                        params=heaviest)
+        out["matched_heaviest"]["t_opt_heaviest_s"] = _t_opt("heaviest")
     return out
+
+
+def _factors(text: str) -> list:
+    """``--factors``: comma-separated positive numbers."""
+    try:
+        values = [float(f) for f in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"must be comma-separated numbers > 0 (units of T_opt), got {text!r}")
+    return values
 
 
 def main(argv=None) -> int:
     """Entry point; prints the JSON and writes it to ``--out`` when given."""
-    global NAMES, REFERENCES, FACTOR
+    global NAMES, REFERENCES
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default="lab,servo,servo_beam,paper,payload")
     ap.add_argument("--controllers", default=NAMES, help="controllers to run (default %(default)s)")
@@ -167,14 +190,14 @@ def main(argv=None) -> int:
                     help="comma-separated compare(reference=...): task (the default: a slew task's planned "
                          "slew), rigid (the smooth rigid reference, the default before), planned, optimal "
                          "(default %(default)s)")
-    ap.add_argument("--factors", default=str(FACTOR),
+    ap.add_argument("--factors", type=_factors, default=str(FACTOR),
                     help="comma-separated task durations in units of T_opt (default %(default)s: the issue's); "
                          "several give a scan over fast and slow tasks, keyed by factor in the JSON")
     ap.add_argument("--out", help="also write the JSON here")
     args = ap.parse_args(argv)
     NAMES, REFERENCES = args.controllers, tuple(args.references.split(","))
     cases = set(args.cases.split(","))
-    factors = [float(f) for f in args.factors.split(",")]
+    factors = args.factors
     t0 = time.perf_counter()
     doc = {"benchmark": "limit_targets", "issue": 22, "factor_of_t_opt": factors[0] if len(factors) == 1 else factors,
            "controllers": NAMES, "references": list(REFERENCES),
@@ -182,9 +205,8 @@ def main(argv=None) -> int:
            "cases": None, "wall_s": None}
     scan = {}
     for factor in factors:
-        FACTOR = factor
         print(f"-- tasks at {factor:g} x T_opt", file=sys.stderr)
-        scan[f"{factor:g}"] = run_cases(cases)
+        scan[f"{factor:g}"] = run_cases(cases, factor)
     doc["cases"] = scan[f"{factors[0]:g}"] if len(factors) == 1 else scan
     doc["wall_s"] = time.perf_counter() - t0
     text = json.dumps(doc, indent=1, default=float)

@@ -109,25 +109,16 @@ def _trajectory(design: DesignModel, u: np.ndarray) -> np.ndarray:
     return X
 
 
-def _smoothness(n: int) -> np.ndarray:
-    """``D' D`` for ``D`` the second differences of ``u`` padded with zero torque before and after.
-
-    ``D`` is (n+2) x n; ``D' D`` is the pentadiagonal Toeplitz matrix ``(1, -4, 6, -4, 1)``
-    (n x n, exact in floating point).
-    """
-    S = 6.0 * np.eye(n)
-    for offset, value in ((1, -4.0), (2, 1.0)):
-        S += value * (np.eye(n, k=offset) + np.eye(n, k=-offset))
-    return S
-
-
-def _roughness(v: np.ndarray) -> float:
-    """``|D v|^2``: the squared second differences of ``v`` padded with zeros (see :func:`_smoothness`)."""
-    return float(np.sum(np.diff(np.concatenate([[0.0, 0.0], v, [0.0, 0.0]]), 2) ** 2))
+def _second_differences(P: np.ndarray) -> np.ndarray:
+    """Second differences ``D P`` of the sampled torque ``P v``, padded with zero torque before and
+    after ((n+2) x m for ``P`` n x m)."""
+    zeros = np.zeros((2, P.shape[1]))
+    return np.diff(np.vstack([zeros, P, zeros]), 2, axis=0)
 
 
 def _knots(n: int, m: int) -> np.ndarray:
-    """Linear interpolation (n x m) from ``m`` evenly spaced knots onto ``n`` samples (ends on ends)."""
+    """Linear interpolation (n x m) from ``m`` evenly spaced knots onto ``n`` samples (ends on ends);
+    the identity for ``m == n``."""
     pos = np.linspace(0.0, m - 1.0, n)
     lo = np.minimum(np.floor(pos).astype(int), m - 2)
     frac = pos - lo
@@ -232,24 +223,16 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
     row_scale = np.array([1.0, n * dt]) / abs(angle)
     target = np.array([np.sign(angle), 0.0])
     n_unknowns = min(n, MAX_UNKNOWNS)
-    P = None if n_unknowns == n else _knots(n, n_unknowns)   # torque u = tau_max P v
-    if P is None:
-        smoothness = _smoothness(n)
-    else:
-        DP = np.diff(np.vstack([np.zeros((2, n_unknowns)), P, np.zeros((2, n_unknowns))]), 2, axis=0)
-        smoothness = DP.T @ DP
-
-    def reduced(G):
-        return G if P is None else G @ P
-
+    P = _knots(n, n_unknowns)                               # torque u = tau_max P v
+    D = _second_differences(P)
+    smoothness = D.T @ D
     G0 = terminal_map(rest, n) * tau_max
-    A_rigid = row_scale[:, None] * reduced(G0[rigid])
+    A_rigid = row_scale[:, None] * (G0[rigid] @ P)
     v_rigid = _solve(smoothness + 1e-12 * np.eye(n_unknowns), A_rigid, target, 1.0)
     if v_rigid is None:
         raise ParameterError(f"tau_max = {tau_max:g} N m cannot turn the hub by {angle:g} rad in "
                              f"duration = {n * dt:g} s; give a longer duration (tf / --tf)")
-    sampled_rigid = v_rigid if P is None else P @ v_rigid
-    X_rigid = _trajectory(rest, tau_max * sampled_rigid)
+    X_rigid = _trajectory(rest, tau_max * (P @ v_rigid))
     f_max = RESOLVED_FRACTION / dt
     spin = float(np.max(np.abs(X_rigid[:, half])))
     models = [(rest, G0)]
@@ -261,11 +244,11 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
         W = _modal_rows(model, f_max)
         size = np.max(np.abs(X_rigid @ W.T), axis=0)        # each mode's motion along the rigid plan
         keep = size > 1e-12 * max(float(size.max(initial=0.0)), 1e-300)
-        stiff.append(reduced((W[keep] / size[keep, None]) @ G))
+        stiff.append((W[keep] / size[keep, None]) @ G @ P)
     v, how = None, ""
     for hard in range(len(stiff), -1, -1):    # every model at rest exactly, then fewer, then none
         rows = np.vstack([A_rigid, *stiff[:hard]])
-        H = smoothness / (_roughness(sampled_rigid) or 1.0)
+        H = smoothness / (float(np.sum((D @ v_rigid) ** 2)) or 1.0)
         for E in stiff[hard:]:
             H = H + ELASTIC_WEIGHT * (E.T @ E)
         v = _solve(H + 1e-12 * np.eye(n_unknowns), rows, np.concatenate([target, np.zeros(len(rows) - 2)]), 1.0)
@@ -277,7 +260,7 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
     if v is None:
         v = v_rigid
         how = "the rigid body only: the budget leaves no room for the beam"
-    u = tau_max * (v if P is None else P @ v)
+    u = tau_max * (P @ v)
     X = _trajectory(rest, u)
     k_end = int(round(t_end / dt)) + 1
     theta = np.full(k_end, X[-1, 0])
