@@ -89,8 +89,9 @@ class KalmanNoise(Settings):
                                      "estimation error decays at least at error_decay * w_1 (the Riccati "
                                      "equation is solved for A exp(error_decay w_1 dt)); 0: the plain Kalman "
                                      "filter. At 0.3 the paper's beam's LQG settles 1.5 x its time-optimal "
-                                     "slew in 5.8 s instead of 8.5 s (issue 22; 3.9 s when it also "
-                                     "predicts along the plan, LQGSettings.plan_prediction).")
+                                     "slew with the optimal reference in 5.8 s instead of 8.5 s (issue 22). "
+                                     "The default flows derive the LQG's from its sensor noise "
+                                     "(LQGSettings.tip_noise_budget_m).")
 
     def covariances(self, design: DesignModel, design_modes: int | None = None):
         """Process and measurement noise covariances ``(Qn, Rn)`` on ``design``.

@@ -836,6 +836,8 @@ def controller_settings(name: str, table: dict | None, scenario, horizon: int = 
                                      f"{', '.join(sorted(sub))}")
             value = _replaced(name, current, value)
         changes[key] = value
+    if "error_decay" in changes and "tip_noise_budget_m" in known and "tip_noise_budget_m" not in changes:
+        changes["tip_noise_budget_m"] = None        # a decay the spec gives is used, not derived
     return _replaced(name, base, changes)
 
 
