@@ -26,7 +26,8 @@ without drive and friction: its beam with the rotor's inertia, a torque source a
 torque), ``paper`` (Table 1's beam, 1 rad, 200 N m) and ``payload`` (Table 1's beam designed for
 0-0.5 kg, run at 0, 0.1, 0.3 and 0.5 kg; the 1.5 x T_opt of the nominal 0.1 kg),
 ``payload_heaviest`` (the same at 1.5 x T_opt of the heaviest payload, 0.5 kg) and
-``matched_heaviest`` (a design that knows the 0.5 kg payload, at the nominal's 1.5 x T_opt).
+``matched_heaviest`` (a design that knows the 0.5 kg payload, at the nominal's 1.5 x T_opt) and
+``matched_range`` (at each payload a design that knows it, at 1.5 x T_opt of the heaviest).
 """
 
 from __future__ import annotations
@@ -166,6 +167,12 @@ def run_cases(cases, factor: float = FACTOR) -> dict:
         out["matched_heaviest"] = _case("matched", heaviest, 1.0, _t_opt("paper"), paper.tau_max, factor,
                                         params=heaviest)
         out["matched_heaviest"]["t_opt_heaviest_s"] = _t_opt("heaviest")
+    if "matched_range" in cases:
+        # each payload's own design (plan, gain, filter on it): what knowing the payload buys on
+        # the range's task, factor x T_opt of the heaviest payload (the slowest in the range)
+        out["matched_range"] = {f"{m:g}": _case(f"own {m:g} kg", paper.replace(m_t=m), 1.0, _t_opt("heaviest"),
+                                                paper.tau_max, factor, params=paper.replace(m_t=m))
+                                for m in PAYLOADS}
     return out
 
 

@@ -166,9 +166,10 @@ def noise_limited_decay(design: DesignModel, settings: "LQGSettings", budget_m: 
     -----
     A faster filter forgets the slew's model error sooner but passes more sensor noise to the
     torque. Measured (std / tip band at 0.3 / 0.5 / 0.7 / 1.0, 1.5 x T_opt slews, defaults):
-    Table 1's beam 0.090 / 0.090 / 0.091 / 0.093, so 1.0; the 1 m lab arm 0.12 / 0.20 / 0.23 /
-    0.27, so 0.3; the servo link's beam 0.31 / 0.33 / 0.35 / 0.40, so 0.3; the servo_link rig with
-    its encoder 0.20 / 0.19 / 0.19 / 0.18, so 0.3.
+    Table 1's beam 0.089 / 0.090 / 0.091 / 0.093, so 1.0 (its Eq. 44 slew 0.32 / 0.31 / 0.29 /
+    0.29, so 0.3); the 1 m lab arm 0.12 / 0.20 / 0.26 / 0.27, so 0.3; the servo link's beam 0.31 /
+    0.33 / 0.33 / 0.40, so 0.3; the servo_link rig with its encoder 0.20 / 0.19 / 0.19 / 0.18, so
+    0.3.
     """
     best = DECAY_LADDER[0]
     for decay in DECAY_LADDER[1:]:
