@@ -1,0 +1,236 @@
+"""Exploration, not a feature: does learning the payload during the slew meet issue 22's range target?
+
+Run: ``.venv/bin/python benchmarks/explore_payload_learning.py [--switch-at 0.25,0.5]
+[--stiffened-weight 100] [--torque-share 1.0] [--continuous] [--known-payload KG]
+[--masses 0,0.1,0.3,0.5] [--out F.json]`` (about 10 s). Prints JSON.
+
+The task: Table 1's beam, 1 rad in 1.5 x the time-optimal slew of its heaviest payload (0.5 kg,
+4.614 s), where designs that know their payload meet every target (``bench_limit_targets.py
+--cases matched_range``) and the range designs leave 0.2-3.4 % of L. Here the default LQR
+(designed for the nominal 0.1 kg, on the slew planned for it) runs on the FOAM plant with the
+true payload, wrapped so that at each ``--switch-at`` fraction of ``t_f`` it
+
+1. identifies the payload: the design models of payloads 0-0.5 kg (0.02 kg grid, parabolic
+   refinement) driven from rest by the torques applied so far; the one whose hub rate fits the
+   measured rate best in least squares;
+2. re-plans the rest of the slew from the measured state on that payload's model: the smoothest
+   torque within ``--torque-share`` x ``tau_max`` that ends at the angle at rest with every
+   resolved mode of the model at rest (hard rows) and of the model linearised at the plan's
+   peak rate nearly at rest (``--stiffened-weight``: their rows in the objective; as hard rows
+   they conflict with the rest model's from a moving state); ``--continuous``: starting at the
+   old plan's torque;
+3. continues with the LQR designed on that payload along the old plan up to now and the new
+   plan after.
+
+``--known-payload`` replaces step 1's estimate (an oracle: what re-planning alone can do).
+It monkeypatches ``compare``'s controller factory, so the verdicts are compare's own.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+import controllers.planning as planning  # noqa: E402
+import hubbeam_ctrl.study.compare as compare_module  # noqa: E402
+from controllers import DesignModel, Reference  # noqa: E402
+from controllers.mpc import DirectDAQP  # noqa: E402
+from controllers.scaling import first_mode  # noqa: E402
+from hubbeam_ctrl import Params  # noqa: E402
+from hubbeam_ctrl.study.scenarios import make_scenario  # noqa: E402
+from hubbeam_ctrl.study.tasks import Slew  # noqa: E402
+
+NOMINAL = Params()
+RANGE = (0.0, 0.5)
+GRID = np.linspace(*RANGE, 26)
+T_OPT_HEAVIEST = 3.0763           # s, hubbeam optimal on the 0.5 kg beam (docs/limit.md)
+
+
+def _model(mass: float, dt: float, n_modes: int, spin: float = 0.0, _cache={}) -> DesignModel:
+    key = (round(mass, 9), dt, n_modes, round(spin, 9))
+    if key not in _cache:
+        _cache[key] = DesignModel.build(NOMINAL.replace(m_t=mass), spin, dt, n_modes)
+    return _cache[key]
+
+
+def _run(model: DesignModel, torque, x0=None) -> np.ndarray:
+    x = np.zeros(model.n_x) if x0 is None else np.array(x0, float)
+    out = [x]
+    for u in torque:
+        x = model.Ad @ x + model.Bd[:, 0] * u
+        out.append(x)
+    return np.array(out)
+
+
+def identify_payload(dt: float, n_modes: int, torque, rate) -> float:
+    """Least-squares payload [kg] from the hub rate's response to the applied torque."""
+    half = _model(NOMINAL.m_t, dt, n_modes).n_x // 2
+    cost = np.array([np.sum((_run(_model(m, dt, n_modes), torque)[:len(rate), half] - rate) ** 2) for m in GRID])
+    i = int(np.argmin(cost))
+    if 0 < i < len(GRID) - 1 and cost[i - 1] - 2 * cost[i] + cost[i + 1] > 0:
+        c0, c1, c2 = cost[i - 1:i + 2]
+        return float(np.clip(GRID[i] + 0.5 * (c0 - c2) / (c0 - 2 * c1 + c2) * (GRID[1] - GRID[0]), *RANGE))
+    return float(GRID[i])
+
+
+def _scaled_modal_rows(model: DesignModel, n: int, x0, P, tau_max: float):
+    """Rows ``E v = e``: the resolved modes of ``model`` at rest after ``n`` samples from ``x0``."""
+    W = planning._modal_rows(model, planning.RESOLVED_FRACTION / model.dt)
+    E = W @ planning.terminal_map(model, n) * tau_max @ P
+    e = -(W @ np.linalg.matrix_power(model.Ad, n) @ x0)
+    scale = np.linalg.norm(E, axis=1) + 1e-300
+    return E / scale[:, None], e / scale
+
+
+def replan(model, stiffened, x0, angle, n, tau_max, options, torque_now=None):
+    """The rest of the slew from ``x0``: torques [N m] (n,), or None if the QP fails."""
+    half = model.n_x // 2
+    m = min(n, planning.MAX_UNKNOWNS)
+    P = planning._knots(n, m)
+    D = planning._second_differences(P)
+    free = np.linalg.matrix_power(model.Ad, n) @ x0
+    G = planning.terminal_map(model, n) * tau_max
+    weight = np.array([1.0, n * model.dt])
+    rows = [weight[:, None] * (G[[0, half]] @ P)]
+    rhs = [weight * np.array([angle - free[0], -free[half]])]
+    E, e = _scaled_modal_rows(model, n, x0, P, tau_max)
+    rows.append(E)
+    rhs.append(e)
+    if torque_now is not None:
+        rows.append(P[:1])
+        rhs.append(np.array([torque_now / tau_max]))
+    H = D.T @ D
+    H = H / np.abs(H).max()
+    f = np.zeros(m)
+    if stiffened is not None and options.stiffened_weight > 0:
+        Es, es = _scaled_modal_rows(stiffened, n, x0, P, tau_max)
+        H = H + options.stiffened_weight * Es.T @ Es
+        f = -options.stiffened_weight * Es.T @ es
+    b = options.torque_share
+    qp = DirectDAQP(H + 1e-12 * np.eye(m), np.vstack(rows), np.full(m, -b), np.full(m, b))
+    r = np.concatenate(rhs)
+    try:
+        return tau_max * (P @ qp.solve(f, lba=r, uba=r))
+    except RuntimeError:
+        return None
+
+
+class PayloadLearning:
+    """Wraps a state-feedback controller: identify, re-plan and re-design at the switch samples."""
+
+    def __init__(self, inner, name, settings, scenario, options, factory):
+        self._first, self._name, self._settings, self._options, self._factory = inner, name, settings, options, factory
+        self._switch_at = [int(round(f * scenario.t_f / inner.dt)) for f in options.switch_at]
+        self._k_f = int(round(scenario.t_f / inner.dt))
+        self._tau_max = scenario.tau_max
+        self.log = []
+        self.reset()
+
+    def __getattr__(self, attr):              # margins, certificates: the controller of the moment
+        return getattr(self.__dict__["inner"], attr)
+
+    def reset(self):
+        self.inner = self._first
+        self.inner.reset()
+        self._torque, self._rate, self._stage = [], [], 0
+
+    def __call__(self, t, y):
+        y = np.asarray(y, float)
+        k = int(round(t / self.inner.dt))
+        self._rate.append(y[len(y) // 2])
+        if self._stage < len(self._switch_at) and k == self._switch_at[self._stage]:
+            self._stage += 1
+            self._switch(k, y)
+        tau = float(self.inner(t, y))
+        self._torque.append(tau)
+        return tau
+
+    def _switch(self, k, y):
+        dt, n_modes, old = self.inner.dt, self.inner.n_modes, self.inner.reference
+        o = self._options
+        mass = o.known_payload if o.known_payload is not None else identify_payload(
+            dt, n_modes, np.array(self._torque[:k]), np.array(self._rate[:k + 1]))
+        model = _model(mass, dt, n_modes)
+        half, h_y = model.n_x // 2, len(y) // 2
+        x0 = np.concatenate([y[:half], y[h_y:h_y + half]])      # the plant's first modes, measured
+        spin = float(np.max(np.abs(old.theta_dot)))
+        n = self._k_f - k
+        torque = replan(model, _model(mass, dt, n_modes, spin), x0, float(old.theta[-1]), n, self._tau_max, o,
+                        float(old.torque[k]) if o.continuous else None)
+        self.log.append({"t_s": k * dt, "payload_kg": mass, "replanned": torque is not None})
+        if torque is None:
+            return
+        X = _run(model, torque, x0)
+        K = len(old.theta)
+        end = min(K, k + n + 1)
+        theta, rate, ff = old.theta.copy(), old.theta_dot.copy(), old.torque.copy()
+        elastic = old.elastic.copy()
+        theta[k:end], rate[k:end] = X[:end - k, 0], X[:end - k, half]
+        elastic[k:end] = X[:end - k][:, np.r_[1:half, half + 1:model.n_x]]
+        theta[end:], rate[end:], elastic[end:] = X[-1, 0], 0.0, 0.0
+        ff[k:k + n], ff[k + n:] = torque[:max(0, min(n, K - k))], 0.0
+        accel = np.zeros(K)
+        accel[:-1] = np.diff(rate) / dt
+        ref = Reference(dt, theta, rate, accel, ff, "re-planned on the identified payload", elastic=elastic,
+                        planned_on_design=True)
+        self.inner = self._factory(self._name, model, self._settings, ref)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--switch-at", default="0.25,0.5", help="fractions of t_f (default %(default)s)")
+    ap.add_argument("--stiffened-weight", type=float, default=100.0)
+    ap.add_argument("--torque-share", type=float, default=1.0, help="re-plan within this share of tau_max")
+    ap.add_argument("--continuous", action="store_true", help="the re-plan starts at the old plan's torque")
+    ap.add_argument("--known-payload", type=float, default=None, help="skip identification (oracle) [kg]")
+    ap.add_argument("--masses", default="0,0.1,0.3,0.5")
+    ap.add_argument("--out")
+    o = ap.parse_args(argv)
+    o.switch_at = [float(f) for f in o.switch_at.split(",")]
+    tf = 1.5 * T_OPT_HEAVIEST
+    scenario = make_scenario(Slew(1.0, tf), params=NOMINAL)
+    factory = compare_module.make_controller
+    wrappers = []
+
+    def learning(name, design, settings, reference, **kw):
+        ctrl = factory(name, design, settings, reference, **kw)
+        if name == "lqr":
+            ctrl = PayloadLearning(ctrl, name, settings, scenario, o, factory)
+            wrappers.append(ctrl)
+        return ctrl
+
+    compare_module.make_controller = learning
+    out = {"options": {k: v for k, v in vars(o).items() if k != "out"}, "t_f_s": tf, "runs": {}}
+    for mass in (float(m) for m in o.masses.split(",")):
+        t0 = time.perf_counter()
+        wrappers.clear()
+        c = compare_module.compare("foam", Slew(1.0, tf), "lqr", params=NOMINAL, plant_params=NOMINAL.replace(m_t=mass))
+        m = c.metrics["lqr"]
+        period = 2 * math.pi / first_mode(DesignModel.build(NOMINAL.replace(m_t=mass), 0.0, c.scenario.dt, 1))
+        settle = m.get("settling_time_s")
+        out["runs"][f"{mass:g}"] = {
+            "verdict": m["verdict"], "settling_time_s": settle, "settle_target_s": tf + period,
+            "residual_pct_of_L": m["residual_pct_of_L"], "final_angle_error_rad": m["final_angle_error_rad"],
+            "met": bool(m["verdict"] == "settled" and settle is not None and settle <= tf + period
+                        and m["residual_pct_of_L"] <= 0.1 and abs(m["final_angle_error_rad"]) <= 1e-3),
+            "switches": wrappers[-1].log if wrappers else [], "wall_s": time.perf_counter() - t0}
+        print(f"{mass:g} kg: {m['verdict']} {settle}/{tf + period:.3g} s {m['residual_pct_of_L']:.3g} %L "
+              f"{out['runs'][f'{mass:g}']['switches']}", file=sys.stderr)
+    text = json.dumps(out, indent=1)
+    print(text)
+    if o.out:
+        from hubbeam_ctrl.core.fileio import atomic_write_text
+        atomic_write_text(o.out, text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
