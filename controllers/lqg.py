@@ -59,8 +59,9 @@ class LQGSettings(KalmanNoise, LQSettings):
                                                    "standard deviation stays within this budget "
                                                    "(noise_limited_decay; the design replaces error_decay "
                                                    "with it and this with None); None: error_decay as "
-                                                   "given; ignored with integral action or without "
-                                                   "residual modes (robust=False). for_scenario sets "
+                                                   "given; ignored with integral action, without "
+                                                   "residual modes (robust=False) and by the gain-scheduled "
+                                                   "LQG (controllers.schedule). for_scenario sets "
                                                    "NOISE_SHARE_OF_BAND of the task's tip band (issue 22).")
 
     @classmethod
