@@ -27,7 +27,8 @@ torque), ``paper`` (Table 1's beam, 1 rad, 200 N m) and ``payload`` (Table 1's b
 0-0.5 kg, run at 0, 0.1, 0.3 and 0.5 kg; the 1.5 x T_opt of the nominal 0.1 kg),
 ``payload_heaviest`` (the same at 1.5 x T_opt of the heaviest payload, 0.5 kg) and
 ``matched_heaviest`` (a design that knows the 0.5 kg payload, at the nominal's 1.5 x T_opt) and
-``matched_range`` (at each payload a design that knows it, at 1.5 x T_opt of the heaviest).
+``matched_range`` (at each payload a design that knows it, at 1.5 x T_opt of the heaviest) and
+``payload_error`` (designs for a payload 2-5 % or 10-20 g off the plant's, the same task).
 """
 
 from __future__ import annotations
@@ -173,6 +174,16 @@ def run_cases(cases, factor: float = FACTOR) -> dict:
         out["matched_range"] = {f"{m:g}": _case(f"own {m:g} kg", paper.replace(m_t=m), 1.0, _t_opt("heaviest"),
                                                 paper.tau_max, factor, params=paper.replace(m_t=m))
                                 for m in PAYLOADS}
+    if "payload_error" in cases:
+        # a design for a payload a little off the true one, at 1.5 x T_opt of the heaviest: how well
+        # the payload must be known (relative errors; absolute ones at 0 kg)
+        out["payload_error"] = {}
+        for true, designs in ((0.5, (0.475, 0.49, 0.51, 0.525)), (0.3, (0.285, 0.294, 0.306, 0.315)),
+                              (0.0, (0.01, 0.02))):
+            for m in designs:
+                out["payload_error"][f"{true:g} kg plant, {m:g} kg design"] = _case(
+                    f"{true:g}|{m:g}", paper.replace(m_t=true), 1.0, _t_opt("heaviest"), paper.tau_max, factor,
+                    params=paper.replace(m_t=m), plant_params=paper.replace(m_t=true))
     return out
 
 
