@@ -24,8 +24,8 @@ true payload, wrapped so that at each ``--switch-at`` fraction of ``t_f`` it
    plan after.
 
 ``--replan nonlinear`` re-plans instead on the nonlinear FOAM model of the identified payload:
-the minimum-vibration slew of :func:`hubbeam_ctrl.limit.min_vibration_slew` (IPOPT, 1-3 s) from
-the measured state (its first modes) to rest at the angle in the remaining time, as reference
+:func:`hubbeam_ctrl.limit.min_vibration_replan` (IPOPT, 0.4-4.7 s) from the measured state (its
+first modes) to rest at the angle in the remaining time, as reference
 and feedforward (:func:`controllers.optimal_reference`). By default the run applies it at the
 switch sample itself, as if the optimisation took no time; ``--latency S`` holds the plan's
 first S seconds at the old plan's feedforward and switches after them (``--open-prefix``: that
@@ -33,8 +33,8 @@ prefix runs without feedback, so the plant ends it where the plan predicted); th
 time of each solve is in the JSON to compare with S. ``--controller mpc`` wraps the MPC
 instead (state feedback too; the LQG would need its filter's estimate and a warm start, not
 tried). ``--known-payload`` replaces step 1's estimate (an oracle: what re-planning alone can
-do). It monkeypatches ``compare``'s controller factory (and, for the nonlinear re-plan, the
-optimal slew's fixed initial state), so the verdicts are compare's own.
+do). It monkeypatches ``compare``'s controller factory (and, for ``--latency``, the NLP's first
+torques), so the verdicts are compare's own.
 """
 
 from __future__ import annotations
@@ -135,43 +135,31 @@ def replan(model, stiffened, x0, angle, n, tau_max, options, torque_now=None):
 
 
 def nonlinear_replan(mass: float, y, duration: float, dt: float, intervals: int = 40, prefix=None):
-    """The minimum-vibration slew of the nonlinear model with payload ``mass`` from the measured
-    state ``y`` (SFOAM order, its first ``n_transverse`` modes) to rest at 1 rad in ``duration``;
-    ``prefix``: torques [N m] per interval held fixed at the start (what runs while it computes)."""
+    """The minimum-vibration rest of the slew on the nonlinear model with payload ``mass`` from the
+    measured state ``y`` (SFOAM order, its first ``n_transverse`` modes) to rest at 1 rad in
+    ``duration`` (:func:`hubbeam_ctrl.limit.min_vibration_replan`); ``prefix``: torques [N m] per
+    interval held fixed at the start (what runs while it computes). Returns (slew, IPOPT wall s)."""
     import hubbeam_ctrl.limit.optimal as optimal
+    from hubbeam_ctrl.limit import OptimalSettings, min_vibration_replan, replan_coordinates
     params = NOMINAL.replace(m_t=mass)
-    n = 1 + params.n_transverse
+    n = replan_coordinates(params)
     h = len(y) // 2
     x0 = np.concatenate([y[:n], y[h:h + n]])
-    build, guess = optimal._nlp, optimal._rigid_guess
+    build = optimal._nlp
 
-    def start(pb):
-        return np.concatenate([x0[:pb.n] / pb.q_scale, x0[pb.n:] / pb.v_scale])
-
-    def nlp_from_state(pb, N, d, tolerance, duration_):
+    def nlp_with_prefix(pb, N, d, tolerance, duration_):
         nlp, lbw, ubw, lbg, ubg, points = build(pb, N, d, tolerance, duration_)
-        lbw[1 + N:1 + N + 2 * pb.n] = ubw[1 + N:1 + N + 2 * pb.n] = start(pb)
-        if prefix is not None and len(prefix):
-            lbw[1:1 + len(prefix)] = ubw[1:1 + len(prefix)] = np.asarray(prefix) / pb.tau_max
+        lbw[1:1 + len(prefix)] = ubw[1:1 + len(prefix)] = np.asarray(prefix) / pb.tau_max
         return nlp, lbw, ubw, lbg, ubg, points
 
-    def guess_from_state(pb, N, d, points, T):
-        w = guess(pb, N, d, points, T)
-        X = w[1 + N:1 + N + 2 * pb.n * (N + 1)].reshape(2 * pb.n, N + 1, order="F")
-        xs = start(pb)
-        X[0] = xs[0] + (pb.theta / pb.q_scale[0] - xs[0]) * X[0]
-        X[:, 0] = xs
-        w[1 + N:1 + N + 2 * pb.n * (N + 1)] = X.ravel(order="F")
-        return w
-
-    optimal._nlp, optimal._rigid_guess = nlp_from_state, guess_from_state
+    if prefix is not None and len(prefix):
+        optimal._nlp = nlp_with_prefix
     try:
-        settings = optimal.OptimalSettings(intervals=intervals, check=False)
-        tolerance = 1e-3 * params.L
-        pb, w, stats, iterations, wall = optimal._optimise(params, 1.0, tolerance, duration, settings, None)
-        return optimal._result("min-vibration", params, 1.0, tolerance, pb, w, stats, iterations, wall, settings), wall
+        opt = min_vibration_replan(params, x0, 1.0, duration,
+                                   settings=OptimalSettings(intervals=intervals, check=False))
     finally:
-        optimal._nlp, optimal._rigid_guess = build, guess
+        optimal._nlp = build
+    return opt, opt.solve_s
 
 
 class PayloadLearning:

@@ -5,5 +5,6 @@ model, checked on the evaluation plant. Imports the sim, plant and core layers.
 import sys as _sys  # noqa: E402
 
 from hubbeam_ctrl.limit.optimal import *  # noqa: F401,F403
+from hubbeam_ctrl.limit.replan import *  # noqa: F401,F403
 
-__all__ = list(_sys.modules["hubbeam_ctrl.limit.optimal"].__all__)
+__all__ = [*_sys.modules["hubbeam_ctrl.limit.optimal"].__all__, *_sys.modules["hubbeam_ctrl.limit.replan"].__all__]

@@ -224,6 +224,7 @@ class _Problem:
     tip_row: np.ndarray      # v_tip = tip_row @ q [m]
     tip_limit: float         # [m]
     drive: tuple | None      # (stall torque, back-EMF damping, current-limit torque, viscous, Coulomb, v_c)
+    start: np.ndarray | None = None   # scaled initial state [q, v] (None: at rest; limit.replan)
 
 
 def _drive_terms(rig) -> tuple | None:
@@ -362,7 +363,8 @@ def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None)
     lbw = np.full(w.shape[0], -np.inf)
     ubw = np.full(w.shape[0], np.inf)
     lbw[1:1 + N], ubw[1:1 + N] = -1.0, 1.0
-    lbw[1 + N:1 + N + 2 * n], ubw[1 + N:1 + N + 2 * n] = 0.0, 0.0       # x0: at rest
+    x0 = 0.0 if pb.start is None else pb.start                        # x0: at rest, or a re-plan's state
+    lbw[1 + N:1 + N + 2 * n], ubw[1 + N:1 + N + 2 * n] = x0, x0
     if duration is None:
         lbw[0], ubw[0] = 0.5 * pb.T_rigid, 20.0 * pb.T_rigid
     else:
@@ -387,6 +389,9 @@ def _rigid_guess(pb: _Problem, N: int, d: int, points, T: float) -> np.ndarray:
     Z[n] = (rate(sc) * abs(pb.theta) / T / pb.v_scale[0]).T
     Z[2 * n] = (acc(sc) * abs(pb.theta) / T ** 2 / pb.a_scale[0]).T
     u = sign * np.where((np.arange(N) + 0.5) / N < 0.5, 1.0, -1.0) * min(1.0, (pb.T_rigid / T) ** 2)
+    if pb.start is not None:            # a re-plan: the hub's rigid guess from its angle, the state fixed
+        X[0] = pb.start[0] + (pb.theta / pb.q_scale[0] - pb.start[0]) * X[0]
+        X[:, 0] = pb.start
     return np.concatenate([[T], u, X.ravel(order="F"), Z.reshape(3 * n * d, N, order="F").ravel(order="F")])
 
 
@@ -431,7 +436,10 @@ def _fallback_guess(pb: _Problem, N: int, d: int, duration) -> tuple:
 
 def _optimise(params: Params, slew_angle: float, tolerance: float, duration, settings: OptimalSettings,
               rig=None) -> tuple:
-    pb = _problem(params, slew_angle, settings, rig)
+    return _optimise_problem(_problem(params, slew_angle, settings, rig), tolerance, duration, settings)
+
+
+def _optimise_problem(pb: _Problem, tolerance: float, duration, settings: OptimalSettings) -> tuple:
     N, d = settings.intervals, settings.degree
     iterations, statuses = 0, []
     start = time.perf_counter()
