@@ -68,3 +68,13 @@ def test_a_bad_initial_state_names_it():
         min_vibration_replan(LAB, np.full(8, np.nan), 1.0, 1.0)
     with pytest.raises(ParameterError, match="duration"):
         min_vibration_replan(LAB, np.zeros(8), 1.0, -1.0)
+
+
+def test_held_torques_are_the_plans_first_and_a_bad_hold_names_it(slew):
+    x = _state(slew, 15)
+    hold = slew.tau[15:19]
+    tail = min_vibration_replan(LAB, x, 1.0, 1.3 - slew.t[15], hold=hold)
+    np.testing.assert_allclose(tail.tau[:4], hold, rtol=1e-12, atol=0)
+    assert tail.converged and tail.theta[-1] == pytest.approx(1.0, abs=1e-6)
+    with pytest.raises(ParameterError, match="hold must be fewer than 40 torques within"):
+        min_vibration_replan(LAB, x, 1.0, 0.8, hold=[2.0])

@@ -225,6 +225,7 @@ class _Problem:
     tip_limit: float         # [m]
     drive: tuple | None      # (stall torque, back-EMF damping, current-limit torque, viscous, Coulomb, v_c)
     start: np.ndarray | None = None   # scaled initial state [q, v] (None: at rest; limit.replan)
+    hold: np.ndarray | None = None    # scaled torques of the first intervals, fixed (limit.replan)
 
 
 def _drive_terms(rig) -> tuple | None:
@@ -363,6 +364,8 @@ def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None)
     lbw = np.full(w.shape[0], -np.inf)
     ubw = np.full(w.shape[0], np.inf)
     lbw[1:1 + N], ubw[1:1 + N] = -1.0, 1.0
+    if pb.hold is not None:
+        lbw[1:1 + len(pb.hold)] = ubw[1:1 + len(pb.hold)] = pb.hold
     x0 = 0.0 if pb.start is None else pb.start                        # x0: at rest, or a re-plan's state
     lbw[1 + N:1 + N + 2 * n], ubw[1 + N:1 + N + 2 * n] = x0, x0
     if duration is None:

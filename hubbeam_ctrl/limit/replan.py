@@ -56,7 +56,7 @@ def replan_coordinates(params, settings: OptimalSettings = OptimalSettings()) ->
 
 
 def min_vibration_replan(params, initial_state, slew_angle: float, duration: float, *,
-                         tolerance: float | None = None,
+                         tolerance: float | None = None, hold=None,
                          settings: OptimalSettings = OptimalSettings(check=False)) -> OptimalSlew:
     """The rest of a slew from ``initial_state`` in ``duration``, with the smallest residual vibration.
 
@@ -75,6 +75,9 @@ def min_vibration_replan(params, initial_state, slew_angle: float, duration: flo
         Time left [s], > 0.
     tolerance : float, optional
         Residual tip vibration the end conditions allow [m], > 0 (default 1e-3 L).
+    hold : array_like, optional
+        Torques [N m] of the first intervals (``duration / settings.intervals`` each), fixed:
+        what runs while the re-plan computes; each within ``tau_max``, fewer than the intervals.
     settings : OptimalSettings
         Grid and model (default: no evaluation-plant check, which runs from rest).
 
@@ -100,7 +103,15 @@ def min_vibration_replan(params, initial_state, slew_angle: float, duration: flo
                              f"{pb.n} coordinates), got {x0.size}")
     if not np.all(np.isfinite(x0)):
         raise ParameterError("initial_state must be finite numbers [rad, m, rad/s, m/s]")
-    pb = dataclasses.replace(pb, start=np.concatenate([x0[:pb.n] / pb.q_scale, x0[pb.n:] / pb.v_scale]))
+    held = None
+    if hold is not None:
+        held = np.asarray(hold, dtype=float).ravel()
+        if not (held.size < settings.intervals and np.all(np.isfinite(held))
+                and np.all(np.abs(held) <= pb.tau_max * (1 + 1e-12))):
+            raise ParameterError(f"hold must be fewer than {settings.intervals} torques within "
+                                 f"+-{pb.tau_max:g} N m, got {held.size} (largest {np.max(np.abs(held), initial=0):g})")
+        held = held / pb.tau_max
+    pb = dataclasses.replace(pb, start=np.concatenate([x0[:pb.n] / pb.q_scale, x0[pb.n:] / pb.v_scale]), hold=held)
     quick = settings.replace(check=False)
     pb, w, stats, iterations, wall = _optimise_problem(pb, tolerance, duration, quick)
     return _result("min-vibration", params, slew_angle, tolerance, pb, w, stats, iterations, wall, quick)

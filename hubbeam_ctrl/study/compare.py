@@ -52,6 +52,7 @@ from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import PLANTS, REFERENCES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
+from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_t_end
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "REFERENCE_KINDS", "Comparison", "compare", "run_compare"]
@@ -223,7 +224,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
             tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
             progress: bool = False, backend=None, rig: Rig | None = None,
             integral: bool | None = None, limit: str = "rigid", reference: str = "task",
-            check_plant: str | None = None) -> Comparison:
+            check_plant: str | None = None, payload_learning=None) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
@@ -293,6 +294,10 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     designs : dict, optional
         Controller name -> :class:`controllers.robust.RangeDesign` (design model and
         settings) chosen beforehand.
+    payload_learning : controllers.payload_learning.PayloadLearningSettings, optional
+        LQR and MPC learn the payload during a slew and re-plan for it
+        (:class:`controllers.payload_learning.PayloadLearning`; seconds of IPOPT per re-plan);
+        slew tasks without a rig only.
     progress : bool
         Print one line per controller on stderr.
     backend : {"auto", "compiled", "vm"}, optional
@@ -405,6 +410,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         st = designs[name].settings if name in designs else chosen[name]
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=sched if spec.scheduled else None)
+        if payload_learning is not None and name in LEARNING_CONTROLLERS:
+            ctrl = _learning(ctrl, payload_learning, sc, rig)
         if rig is not None:
             ctrl = on_rig(ctrl, rig, noise, hardware, integral)
         margins[name] = _margins(ctrl)
@@ -475,6 +482,20 @@ def _reference(sc: Scenario, kind: str, rig):
     from hubbeam_ctrl.limit import min_vibration_slew
     opt = min_vibration_slew(rig if rig is not None else sc.params, sc.target, sc.t_f, name="t_f")
     return optimal_reference(opt, sc.dt, sc.t_end)
+
+
+#: Controllers that learn the payload with ``compare(payload_learning=...)`` (state feedback).
+LEARNING_CONTROLLERS = ("lqr", "mpc")
+
+
+def _learning(ctrl, settings, sc, rig):
+    """``ctrl`` wrapped in :class:`controllers.payload_learning.PayloadLearning` for the slew ``sc``."""
+    from controllers.payload_learning import PayloadLearning, PayloadLearningSettings
+    if not isinstance(settings, PayloadLearningSettings):
+        raise ParameterError(f"payload_learning must be a PayloadLearningSettings, got {type(settings).__name__}")
+    if rig is not None or not isinstance(sc.task, Slew):
+        raise ParameterError("payload_learning works on slew tasks without a rig (its controllers read the state)")
+    return PayloadLearning(ctrl, settings, float(sc.reference.theta[-1]), sc.t_f, make_controller)
 
 
 def _margins(ctrl):
