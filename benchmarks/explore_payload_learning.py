@@ -33,8 +33,8 @@ prefix runs without feedback, so the plant ends it where the plan predicted); th
 time of each solve is in the JSON to compare with S. ``--controller mpc`` wraps the MPC
 instead (state feedback too; the LQG would need its filter's estimate and a warm start, not
 tried). ``--known-payload`` replaces step 1's estimate (an oracle: what re-planning alone can
-do). It monkeypatches ``compare``'s controller factory (and, for ``--latency``, the NLP's first
-torques), so the verdicts are compare's own.
+do). It monkeypatches ``compare``'s controller factory, so the verdicts are compare's own. The
+toolbox's version of the nonlinear route is :mod:`controllers.payload_learning`.
 """
 
 from __future__ import annotations
@@ -139,26 +139,13 @@ def nonlinear_replan(mass: float, y, duration: float, dt: float, intervals: int 
     measured state ``y`` (SFOAM order, its first ``n_transverse`` modes) to rest at 1 rad in
     ``duration`` (:func:`hubbeam_ctrl.limit.min_vibration_replan`); ``prefix``: torques [N m] per
     interval held fixed at the start (what runs while it computes). Returns (slew, IPOPT wall s)."""
-    import hubbeam_ctrl.limit.optimal as optimal
     from hubbeam_ctrl.limit import OptimalSettings, min_vibration_replan, replan_coordinates
     params = NOMINAL.replace(m_t=mass)
     n = replan_coordinates(params)
     h = len(y) // 2
     x0 = np.concatenate([y[:n], y[h:h + n]])
-    build = optimal._nlp
-
-    def nlp_with_prefix(pb, N, d, tolerance, duration_):
-        nlp, lbw, ubw, lbg, ubg, points = build(pb, N, d, tolerance, duration_)
-        lbw[1:1 + len(prefix)] = ubw[1:1 + len(prefix)] = np.asarray(prefix) / pb.tau_max
-        return nlp, lbw, ubw, lbg, ubg, points
-
-    if prefix is not None and len(prefix):
-        optimal._nlp = nlp_with_prefix
-    try:
-        opt = min_vibration_replan(params, x0, 1.0, duration,
-                                   settings=OptimalSettings(intervals=intervals, check=False))
-    finally:
-        optimal._nlp = build
+    opt = min_vibration_replan(params, x0, 1.0, duration, hold=prefix if prefix else None,
+                               settings=OptimalSettings(intervals=intervals, check=False))
     return opt, opt.solve_s
 
 
