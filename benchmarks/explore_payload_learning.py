@@ -54,6 +54,7 @@ import controllers.planning as planning  # noqa: E402
 import hubbeam_ctrl.study.compare as compare_module  # noqa: E402
 from controllers import DesignModel, Reference  # noqa: E402
 from controllers.mpc import DirectDAQP  # noqa: E402
+from controllers.payload_learning import identify_payload  # noqa: E402
 from controllers.scaling import first_mode  # noqa: E402
 from hubbeam_ctrl import Params  # noqa: E402
 from hubbeam_ctrl.study.scenarios import make_scenario  # noqa: E402
@@ -79,17 +80,6 @@ def _run(model: DesignModel, torque, x0=None) -> np.ndarray:
         x = model.Ad @ x + model.Bd[:, 0] * u
         out.append(x)
     return np.array(out)
-
-
-def identify_payload(dt: float, n_modes: int, torque, rate) -> float:
-    """Least-squares payload [kg] from the hub rate's response to the applied torque."""
-    half = _model(NOMINAL.m_t, dt, n_modes).n_x // 2
-    cost = np.array([np.sum((_run(_model(m, dt, n_modes), torque)[:len(rate), half] - rate) ** 2) for m in GRID])
-    i = int(np.argmin(cost))
-    if 0 < i < len(GRID) - 1 and cost[i - 1] - 2 * cost[i] + cost[i + 1] > 0:
-        c0, c1, c2 = cost[i - 1:i + 2]
-        return float(np.clip(GRID[i] + 0.5 * (c0 - c2) / (c0 - 2 * c1 + c2) * (GRID[1] - GRID[0]), *RANGE))
-    return float(GRID[i])
 
 
 def _scaled_modal_rows(model: DesignModel, n: int, x0, P, tau_max: float):
@@ -189,7 +179,7 @@ class PayloadLearning:
         dt, n_modes, old = self.inner.dt, self.inner.n_modes, self.inner.reference
         o = self._options
         mass = o.known_payload if o.known_payload is not None else identify_payload(
-            dt, n_modes, np.array(self._torque[:k]), np.array(self._rate[:k + 1]))
+            NOMINAL, dt, n_modes, np.array(self._torque[:k]), np.array(self._rate[:k + 1]), GRID)
         model = _model(mass, dt, n_modes)
         if o.replan == "nonlinear":
             self.log.append({})
@@ -250,28 +240,67 @@ class PayloadLearning:
         self.inner = self._factory(self._name, model, self._settings, ref)
 
 
+def _fractions(text: str) -> list:
+    """``--switch-at``: increasing fractions of the slew in [0, 1)."""
+    try:
+        values = [float(f) for f in text.split(",")]
+    except ValueError:
+        values = []
+    increasing = all(b > a for a, b in zip(values, values[1:]))
+    if not values or not all(0.0 <= v < 1.0 for v in values) or not increasing:
+        raise argparse.ArgumentTypeError(f"must be increasing fractions of t_f in [0, 1), got {text!r}")
+    return values
+
+
+def _masses(text: str) -> str:
+    """``--masses``: comma-separated payloads [kg] in the range."""
+    try:
+        values = [float(m) for m in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not all(RANGE[0] <= v <= RANGE[1] for v in values):
+        raise argparse.ArgumentTypeError(f"must be comma-separated payloads in [{RANGE[0]:g}, {RANGE[1]:g}] kg, "
+                                         f"got {text!r}")
+    return text
+
+
+def _bounded(lo: float, hi: float, lo_open: bool = False):
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            v = math.nan
+        if not ((v > lo if lo_open else v >= lo) and v <= hi):
+            left = "(" if lo_open else "["
+            raise argparse.ArgumentTypeError(f"must be a number in {left}{lo:g}, {hi:g}], got {text!r}")
+        return v
+    return parse
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--switch-at", default="0.25,0.5", help="fractions of t_f (default %(default)s)")
-    ap.add_argument("--stiffened-weight", type=float, default=100.0)
-    ap.add_argument("--torque-share", type=float, default=1.0, help="re-plan within this share of tau_max")
+    ap.add_argument("--switch-at", type=_fractions, default="0.25,0.5",
+                    help="fractions of t_f (default %(default)s)")
+    ap.add_argument("--stiffened-weight", type=_bounded(0.0, 1e12), default=100.0)
+    ap.add_argument("--torque-share", type=_bounded(0.0, 1.0, lo_open=True), default=1.0,
+                    help="re-plan within this share of tau_max")
     ap.add_argument("--continuous", action="store_true", help="the re-plan starts at the old plan's torque")
-    ap.add_argument("--known-payload", type=float, default=None, help="skip identification (oracle) [kg]")
-    ap.add_argument("--masses", default="0,0.1,0.3,0.5")
+    ap.add_argument("--known-payload", type=_bounded(*RANGE), default=None, help="skip identification (oracle) [kg]")
+    ap.add_argument("--masses", type=_masses, default="0,0.1,0.3,0.5")
     ap.add_argument("--replan", choices=("linear", "nonlinear"), default="linear",
                     help="re-plan on the identified payload's design model (linear) or its nonlinear "
                          "model (IPOPT)")
     ap.add_argument("--controller", choices=("lqr", "mpc"), default="lqr")
-    ap.add_argument("--intervals", type=int, default=40, help="collocation intervals of the nonlinear re-plan")
+    ap.add_argument("--intervals", type=lambda t: int(_bounded(4, 2000)(t)), default=40,
+                    help="collocation intervals of the nonlinear re-plan")
     ap.add_argument("--open-prefix", action="store_true",
                     help="while the re-plan computes, apply its prefix torque without feedback (the plan "
                          "then starts where it predicted)")
-    ap.add_argument("--latency", type=float, default=0.0,
+    ap.add_argument("--latency", type=_bounded(0.0, 60.0), default=0.0,
                     help="seconds the nonlinear re-plan takes: the old controller runs on meanwhile, the plan "
                          "holds its feedforward over those intervals and starts after them")
     ap.add_argument("--out")
     o = ap.parse_args(argv)
-    o.switch_at = [float(f) for f in o.switch_at.split(",")]
     tf = 1.5 * T_OPT_HEAVIEST
     scenario = make_scenario(Slew(1.0, tf), params=NOMINAL)
     factory = compare_module.make_controller

@@ -26,11 +26,13 @@ wall time and whether it kept to the allowance (:attr:`PayloadLearning.log`).
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.signal import dlsim
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
@@ -96,14 +98,12 @@ def identify_payload(params: Params, dt: float, n_modes: int, torque, rate, mass
     torque, rate, masses = (np.asarray(a, dtype=float) for a in (torque, rate, masses))
     cost = np.empty(len(masses))
     for i, m in enumerate(masses):
-        d = DesignModel.build(params.replace(m_t=float(m)), 0.0, dt, n_modes)
-        x = np.zeros(d.n_x)
-        b = np.asarray(d.Bd, dtype=float).ravel()
-        predicted = [0.0]
-        for u in torque:
-            x = d.Ad @ x + b * u
-            predicted.append(x[d.n_x // 2])
-        cost[i] = float(np.sum((np.asarray(predicted[:len(rate)]) - rate) ** 2))
+        d = _candidate(params.replace(m_t=float(m)), float(dt), int(n_modes))
+        # the hub rate after each held torque, from rest: one compiled linear filter per candidate
+        _, y, _ = dlsim((d.Ad, d.Bd, np.eye(d.n_x)[[d.n_x // 2]], np.zeros((1, 1)), dt),
+                        np.append(torque, 0.0)[:, None], x0=np.zeros(d.n_x))
+        predicted = np.concatenate([[0.0], y[1:len(torque) + 1, 0]]) if len(torque) else np.zeros(1)
+        cost[i] = float(np.sum((predicted[:len(rate)] - rate) ** 2))
     i = int(np.argmin(cost))
     if 0 < i < len(masses) - 1:
         c0, c1, c2 = cost[i - 1:i + 2]
@@ -111,6 +111,12 @@ def identify_payload(params: Params, dt: float, n_modes: int, torque, rate, mass
             step = masses[1] - masses[0]
             return float(np.clip(masses[i] + 0.5 * (c0 - c2) / (c0 - 2 * c1 + c2) * step, masses[0], masses[-1]))
     return float(masses[i])
+
+
+@functools.lru_cache(maxsize=256)
+def _candidate(params: Params, dt: float, n_modes: int) -> DesignModel:
+    """A candidate payload's design model, built once per run of switches."""
+    return DesignModel.build(params, 0.0, dt, n_modes)
 
 
 class PayloadLearning(Controller):
