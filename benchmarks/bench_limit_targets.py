@@ -28,7 +28,9 @@ torque), ``paper`` (Table 1's beam, 1 rad, 200 N m) and ``payload`` (Table 1's b
 ``payload_heaviest`` (the same at 1.5 x T_opt of the heaviest payload, 0.5 kg) and
 ``matched_heaviest`` (a design that knows the 0.5 kg payload, at the nominal's 1.5 x T_opt) and
 ``matched_range`` (at each payload a design that knows it, at 1.5 x T_opt of the heaviest) and
-``payload_error`` (designs for a payload 2-5 % or 10-20 g off the plant's, the same task).
+``payload_error`` (designs for a payload 2-5 % or 10-20 g off the plant's, the same task) and
+``payload_learning`` (the nominal LQR and MPC learning the payload during that task,
+:mod:`controllers.payload_learning`).
 """
 
 from __future__ import annotations
@@ -174,6 +176,26 @@ def run_cases(cases, factor: float = FACTOR) -> dict:
         out["matched_range"] = {f"{m:g}": _case(f"own {m:g} kg", paper.replace(m_t=m), 1.0, _t_opt("heaviest"),
                                                 paper.tau_max, factor, params=paper.replace(m_t=m))
                                 for m in PAYLOADS}
+    if "payload_learning" in cases:
+        # the nominal design learning the payload during the slew (controllers.payload_learning), at
+        # factor x T_opt of the heaviest payload; LQR and MPC only (state feedback)
+        from controllers.payload_learning import PayloadLearningSettings
+        t_f = factor * _t_opt("heaviest")
+        runs = {}
+        for m in PAYLOADS:
+            t0 = time.perf_counter()
+            c = compare("foam", Slew(1.0, t_f), "lqr,mpc", params=paper, plant_params=paper.replace(m_t=m),
+                        payload_learning=PayloadLearningSettings())
+            rows = _judge(c, paper.replace(m_t=m), 1.0, paper.tau_max)
+            for name, row in rows.items():
+                row["replans"] = c.controllers[name].log
+            runs[f"{m:g}"] = {"controllers": rows, "wall_s": time.perf_counter() - t0}
+            print(f"learning {m:g} kg " + "  ".join(
+                f"{n}: {r['verdict']} {r['settling_time_s'] or float('nan'):.3g}/{r['settle_target_s']:.3g} s "
+                f"{r['residual_pct_of_L']:.3g} %L {'MET' if r['all_met'] else 'missed'} re-plans "
+                + ",".join(f"{e['replan_wall_s']:.1f}s" for e in r["replans"]) for n, r in rows.items()),
+                file=sys.stderr)
+        out["payload_learning"] = {"t_f_s": t_f, "runs": runs}
     if "payload_error" in cases:
         # a design for a payload a little off the true one, at 1.5 x T_opt of the heaviest: how well
         # the payload must be known (relative errors; absolute ones at 0 kg)

@@ -16,12 +16,12 @@ state-feedback controller (LQR, MPC) designed for the nominal payload. At each s
    feedforward, :func:`controllers.optimal_reference`).
 
 Measured on Table 1's beam, 1 rad in 4.614 s (1.5 x the 0.5 kg beam's time-optimal slew), all
-defaults (switches at 25 % and 50 %, 1 s allowance), ``compare(..., payload_learning=...)``: the
-LQR settles at 4.56 / 4.56 / 4.58 / 4.58 s with 0 / 0.1 / 0.3 / 0.5 kg (targets 6.59-7.37 s,
-at most 0.006 % of L) and the MPC at 4.40 / 4.38 / 4.55 / 4.59 s. But each re-plan took 3-26 s of
-IPOPT inside the closed loop (11-100 iterations), not the 1 s allowed: the result is what the
-method gives, not yet what a real-time controller could do. The wrapper records each re-plan's
-wall time and whether it kept to the allowance (:attr:`PayloadLearning.log`).
+defaults (switches at 25 % and 50 %, 1 s allowance; ``benchmarks/bench_limit_targets.py --cases
+payload_learning``): the LQR settles at 4.58 / 4.53 / 4.56 / 4.54 s with 0 / 0.1 / 0.3 / 0.5 kg
+(targets 6.59-7.37 s, at most 0.006 % of L) and the MPC at 4.49 / 4.57 / 4.51 / 4.54 s. But each
+re-plan took 7-30 s of IPOPT (20-100 iterations), not the 1 s allowed: the result is what the
+method gives, not yet what a real-time controller could do. The wrapper records each
+re-plan's wall time and whether it kept to the allowance (:attr:`PayloadLearning.log`).
 """
 
 from __future__ import annotations
