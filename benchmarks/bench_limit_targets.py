@@ -193,7 +193,8 @@ def run_cases(cases, factor: float = FACTOR) -> dict:
             print(f"learning {m:g} kg " + "  ".join(
                 f"{n}: {r['verdict']} {r['settling_time_s'] or float('nan'):.3g}/{r['settle_target_s']:.3g} s "
                 f"{r['residual_pct_of_L']:.3g} %L {'MET' if r['all_met'] else 'missed'} re-plans "
-                + ",".join(f"{e['replan_wall_s']:.1f}s" for e in r["replans"]) for n, r in rows.items()),
+                + ",".join(f"{e['wall_s']:.2f}s/{e['modes']}m{'/dropped' if e['dropped'] else ''}"
+                           for e in r["replans"]) for n, r in rows.items()),
                 file=sys.stderr)
         out["payload_learning"] = {"t_f_s": t_f, "runs": runs}
     if "payload_error" in cases:

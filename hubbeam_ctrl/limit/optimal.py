@@ -75,6 +75,10 @@ class OptimalSettings(Settings):
     check: bool = setting(True, doc="Apply the optimal torque to the evaluation plant and report its "
                                     "residual.")
     max_iter: int = setting(1000, lo=1, doc="IPOPT iteration limit per solve.")
+    max_wall_s: float | None = setting(None, unit="s", lo=0.0, lo_open=True, kind=float,
+                                       doc="IPOPT's wall-clock limit per solve (None: none; building the NLP "
+                                           "before it is not counted); past it the result is the last iterate, "
+                                           "not converged. A real-time re-plan's deadline.")
     deflection_limit: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0,
                                       doc="Largest abs(v_tip) during the slew, relative to L, kept at every grid "
                                           "point (0.3: the models' validated range; a light link driven by its "
@@ -420,11 +424,13 @@ def _resample(pb: _Problem, w: np.ndarray, N0: int, N: int, d: int, points) -> n
     return np.concatenate([[T], u, X.ravel(order="F"), Z.reshape(3 * n * d, N, order="F").ravel(order="F")])
 
 
-def _solve(pb: _Problem, N: int, d: int, tolerance: float, duration, w0, max_iter: int) -> tuple:
+def _solve(pb: _Problem, N: int, d: int, tolerance: float, duration, w0, max_iter: int,
+           max_wall: float | None = None) -> tuple:
     nlp, lbw, ubw, lbg, ubg, points = _nlp(pb, N, d, tolerance, duration)
-    opts = {"print_time": False, "ipopt": {"print_level": 0, "max_iter": max_iter, "sb": "yes",
-                                           "tol": 1e-8, "acceptable_tol": 1e-6}}
-    solver = ca.nlpsol("optimal_slew", "ipopt", nlp, opts)
+    ipopt = {"print_level": 0, "max_iter": max_iter, "sb": "yes", "tol": 1e-8, "acceptable_tol": 1e-6}
+    if max_wall is not None:
+        ipopt["max_wall_time"] = max(float(max_wall), 1e-3)
+    solver = ca.nlpsol("optimal_slew", "ipopt", nlp, {"print_time": False, "ipopt": ipopt})
     with capture_native_output():
         sol = solver(x0=w0, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
     stats = solver.stats()
@@ -450,12 +456,12 @@ def _optimise_problem(pb: _Problem, tolerance: float, duration, settings: Optima
     N0 = settings.coarse_intervals
     if 0 < N0 < N:
         wc, points = _fallback_guess(pb, N0, d, duration)
-        wc, stats, points = _solve(pb, N0, d, tolerance, duration, wc, settings.max_iter)
+        wc, stats, points = _solve(pb, N0, d, tolerance, duration, wc, settings.max_iter, settings.max_wall_s)
         iterations += stats["iter_count"]
         statuses.append(stats["return_status"])
         if stats["success"]:
             w0 = _resample(pb, wc, N0, N, d, points)
-    w, stats, points = _solve(pb, N, d, tolerance, duration, w0, settings.max_iter)
+    w, stats, points = _solve(pb, N, d, tolerance, duration, w0, settings.max_iter, settings.max_wall_s)
     iterations += stats["iter_count"]
     return pb, w, stats, iterations, time.perf_counter() - start
 

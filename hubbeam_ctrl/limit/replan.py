@@ -10,8 +10,9 @@ Measured (``benchmarks/explore_payload_learning.py``, docs/limit.md): identifyin
 25 % and 50 % of the slew and re-planning this way lets the nominal LQR of Table 1's beam meet
 issue 22's targets at 0, 0.1, 0.3 and 0.5 kg, where a re-plan on the linear design model
 misses at 0.5 kg (its 1 % model error on the 0.6 m bending amplitude mid-slew becomes residual
-vibration). IPOPT takes 0.4-4.7 s per re-plan on two cores, so a controller must keep running
-the old plan meanwhile.
+vibration). On 2-3 bending modes a re-plan takes 0.3-0.7 s on two cores (7-30 s on 10 modes),
+so a controller must keep running the old plan meanwhile; ``OptimalSettings(max_wall_s=)``
+bounds IPOPT's time.
 """
 
 from __future__ import annotations

@@ -296,7 +296,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         settings) chosen beforehand.
     payload_learning : controllers.payload_learning.PayloadLearningSettings, optional
         LQR and MPC learn the payload during a slew and re-plan for it
-        (:class:`controllers.payload_learning.PayloadLearning`; seconds of IPOPT per re-plan);
+        (:class:`controllers.payload_learning.PayloadLearning`; each re-plan within a 1 s
+        allowance by default);
         slew tasks without a rig only.
     progress : bool
         Print one line per controller on stderr.
