@@ -178,13 +178,13 @@ def run_cases(cases, factor: float = FACTOR) -> dict:
                                 for m in PAYLOADS}
     if "payload_learning" in cases:
         # the nominal design learning the payload during the slew (controllers.payload_learning), at
-        # factor x T_opt of the heaviest payload; LQR and MPC only (state feedback)
+        # factor x T_opt of the heaviest payload; LQR, MPC (the state) and LQG (its estimate)
         from controllers.payload_learning import PayloadLearningSettings
         t_f = factor * _t_opt("heaviest")
         runs = {}
         for m in PAYLOADS:
             t0 = time.perf_counter()
-            c = compare("foam", Slew(1.0, t_f), "lqr,mpc", params=paper, plant_params=paper.replace(m_t=m),
+            c = compare("foam", Slew(1.0, t_f), "lqr,lqg,mpc", params=paper, plant_params=paper.replace(m_t=m),
                         payload_learning=PayloadLearningSettings())
             rows = _judge(c, paper.replace(m_t=m), 1.0, paper.tau_max)
             for name, row in rows.items():

@@ -685,6 +685,14 @@ class Controller:
         """Hub torque [N m] at time ``t`` [s] from measurement ``y``."""
         raise NotImplementedError
 
+    def applied(self, tau: float) -> None:
+        """Record that ``tau`` [N m], not the torque just returned, was applied at this sample.
+
+        A wrapper that overrides the output (:class:`controllers.payload_learning.PayloadLearning`
+        playing a plan's feedforward) says so, and a controller with a filter predicts with it;
+        one without memory of its torque ignores it.
+        """
+
     def stats(self) -> dict:
         """Run statistics (e.g. QP fallbacks) since the last :meth:`reset`."""
         return {}

@@ -287,6 +287,30 @@ class LQG(Controller):
         self.estimator.reset(x)
         self._tau = None
 
+    def applied(self, tau: float) -> None:
+        """The filter's next prediction uses ``tau`` [N m] as this sample's torque (:meth:`Controller.applied`)."""
+        self._tau = float(tau)
+
+    def start_estimate(self, x_hat, tau: float) -> None:
+        """Start the filter from an estimate at this sample and the torque applied at it.
+
+        Parameters
+        ----------
+        x_hat : array_like
+            State estimate ``[theta, q2, theta_dot, q2_dot]`` (deviation from the steady rotation)
+            [rad, m, rad/s, m/s]; its modes are the first of the filter's (more are dropped, fewer
+            padded with 0: the assumed modes do not depend on their number).
+        tau : float
+            Torque applied at this sample [N m]; the next call predicts with it.
+        """
+        x = np.asarray(x_hat, dtype=float)
+        m, n = len(x) // 2, self._n
+        k = min(m, n)
+        start = np.zeros(self.estimator.x_hat.shape)
+        start[:k], start[n:n + k] = x[:k], x[m:m + k]
+        self.estimator.reset(start)
+        self._tau = float(tau)
+
     def feedback_matrices(self) -> tuple:
         """The filter and gain as one system, sensors -> torque (state: the prediction).
 

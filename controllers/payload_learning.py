@@ -2,18 +2,21 @@
 
 A design for a payload range cannot settle Table 1's beam within its 1 mm tip band: that needs
 the payload to about 1 % (issue 22, docs/limit.md). :class:`PayloadLearning` wraps a
-state-feedback controller (LQR, MPC) designed for the nominal payload. At each switch time it
+state-feedback controller (LQR, MPC) or an LQG designed for the nominal payload. At each switch
+time it
 
 1. identifies the payload (:func:`identify_payload`): of the design models of the payloads on a
    grid over the range, driven from rest by the torques applied so far, the one whose hub rate
    fits the measured rate best (least squares, refined by a parabola through the best three);
-2. re-plans the rest of the slew on that payload's nonlinear model from the measured state
-   (:func:`hubbeam_ctrl.limit.min_vibration_replan`), its first ``allowance_s`` seconds held at
-   the old plan's feedforward: the re-plan's computing time, during which the wrapper plays
-   that feedforward without feedback, so that the plant ends the allowance where the plan
-   predicted;
+2. re-plans the rest of the slew on that payload's nonlinear model from the measured state, or
+   the LQG filter's estimate (:func:`hubbeam_ctrl.limit.min_vibration_replan`), its first
+   ``allowance_s`` seconds held at the old plan's feedforward: the re-plan's computing time,
+   during which the wrapper plays that feedforward without feedback, so that the plant ends the
+   allowance where the plan predicted;
 3. continues with the controller designed on that payload, along the new plan (reference and
-   feedforward, :func:`controllers.optimal_reference`).
+   feedforward, :func:`controllers.optimal_reference`); a new LQG's filter starts from the old
+   one's estimate and follows the measurements, with the torques played, while the re-plan
+   computes (:meth:`controllers.lqg.LQG.start_estimate`, :meth:`Controller.applied`).
 
 The re-plan keeps the bending modes its torque grid can shape (:func:`shapeable_modes`, the
 free-hub modes at or below the grid's Nyquist frequency; faster ones are left to the feedback)
@@ -23,11 +26,14 @@ its plan and gain.
 
 Measured on Table 1's beam, 1 rad in 4.614 s (1.5 x the 0.5 kg beam's time-optimal slew), all
 defaults (switches at 25 % and 50 %, 1 s allowance; ``benchmarks/bench_limit_targets.py --cases
-payload_learning``): the LQR settles at 4.56 / 4.55 / 6.08 / 7.14 s with 0 / 0.1 / 0.3 / 0.5 kg
-and the MPC at 4.57 / 4.57 / 6.07 / 5.23 s (targets 6.59 / 6.79 / 7.11 / 7.37 s, at most
-0.016 % of L). Each switch (identification, re-plan on 2 then 3 modes, new design) took
-0.32-0.88 s of the 1 s allowed; one of the 16 re-plans (the 0 kg MPC's second) met its
-deadline unconverged and was dropped. A re-plan on all 10 of the plant's modes took 7-30 s.
+payload_learning``): the LQR settles at 4.56 / 4.55 / 6.08 / 7.14 s with 0 / 0.1 / 0.3 / 0.5 kg,
+the MPC at 4.57 / 4.57 / 6.07 / 5.23 s and the LQG at 4.57 / 5.12 / 5.88 / 8.57 s (targets
+6.59 / 6.79 / 7.11 / 7.37 s; at most 0.021 % of L): 11 of 12 meet. The LQG misses at 0.5 kg:
+at half the slew (1.5 m of tip deflection) its linear filter's estimate of the first mode's
+rate is 2.8 % off, and the re-plan starts there. Each switch (identification, re-plan on 2 then
+3 modes, new design) took 0.31-0.84 s of the 1 s allowed; one of the 24 re-plans (the 0 kg
+MPC's second) met its deadline unconverged and was dropped. A re-plan on all 10 of the plant's
+modes took 7-30 s.
 :attr:`PayloadLearning.log` records each switch's times, modes and whether it was dropped.
 """
 
@@ -142,13 +148,15 @@ def _candidate(params: Params, dt: float, n_modes: int) -> DesignModel:
 
 
 class PayloadLearning(Controller):
-    """A state-feedback controller that learns the payload during a slew and re-plans for it.
+    """A controller that learns the payload during a slew and re-plans for it.
 
     Parameters
     ----------
     inner : Controller
-        The state-feedback controller designed for the nominal payload (``measurement ==
-        "state"``, e.g. LQR or MPC), on the slew's reference.
+        The controller designed for the nominal payload, on the slew's reference: state
+        feedback (``measurement == "state"``, e.g. LQR or MPC) or an
+        :class:`~controllers.lqg.LQG` without integral action (the re-plan starts from its
+        estimate).
     settings : PayloadLearningSettings
     slew_angle : float
         The slew's end angle [rad].
@@ -167,9 +175,11 @@ class PayloadLearning(Controller):
 
     def __init__(self, inner: Controller, settings: PayloadLearningSettings, slew_angle: float, duration: float,
                  factory):
-        if getattr(inner, "measurement", None) != "state":
-            raise ParameterError(f"PayloadLearning wraps a state-feedback controller (measurement 'state'), "
-                                 f"got {getattr(inner, 'name', type(inner).__name__)!r}")
+        from .lqg import LQG
+        output = isinstance(inner, LQG) and not inner.settings.integral and inner.design.spin == 0.0
+        if getattr(inner, "measurement", None) != "state" and not output:
+            raise ParameterError(f"PayloadLearning wraps a state-feedback controller (measurement 'state') or an "
+                                 f"LQG without integral action, got {getattr(inner, 'name', type(inner).__name__)!r}")
         if not isinstance(settings, PayloadLearningSettings):
             raise ParameterError(f"settings must be a PayloadLearningSettings, got {type(settings).__name__}")
         m_t = inner.design.params.m_t
@@ -179,6 +189,9 @@ class PayloadLearning(Controller):
         super().__init__(inner.design, inner.settings, inner.reference)
         self.first, self.learning, self.factory = inner, settings, factory
         self.name, self.n_modes, self.state_modes = inner.name, inner.n_modes, inner.state_modes
+        self.measurement = inner.measurement
+        # the hub rate: the state's or the sensors' [theta, theta_dot, M_root]
+        self._rate_at = None if inner.measurement == "state" else 1
         self.slew_angle, self.duration = float(slew_angle), float(duration)
         self._switch = [int(round(f * duration / self.dt)) for f in settings.switch_at]
         n = max(2, int(round((settings.payload_max_kg - settings.payload_min_kg) / settings.grid_kg)) + 1)
@@ -198,17 +211,19 @@ class PayloadLearning(Controller):
     def __call__(self, t: float, y) -> float:
         y = np.asarray(y, dtype=float)
         k = int(round(t / self.dt))
-        self._rate.append(float(y[len(y) // 2]))
+        self._rate.append(float(y[len(y) // 2 if self._rate_at is None else self._rate_at]))
+        if self._pending is not None and k >= self._pending[0]:
+            self.inner, self._pending = self._pending[1], None
+        elif self._pending is not None and self._pending[1].measurement != "state":
+            self._pending[1](t, y)             # the new controller's filter follows the measurements
+        tau = float(self.inner(t, y))
         if self._stage < len(self._switch) and k == self._switch[self._stage]:
             self._stage += 1
             self._relearn(k, y)
-        if self._pending is not None and k >= self._pending[0]:
-            self.inner, self._pending = self._pending[1], None
         if self._pending is not None:          # the re-plan computes: its held prefix, no feedback
-            self.inner(t, y)
             tau = float(self._pending[1].reference.torque[k])
-        else:
-            tau = float(self.inner(t, y))
+            self.inner.applied(tau)
+            self._pending[1].applied(tau)
         self._torque.append(tau)
         return tau
 
@@ -237,8 +252,10 @@ class PayloadLearning(Controller):
                                    modes=min(modes, base.n_transverse),
                                    max_wall_s=None if deadline is None else max(deadline, 1e-3))
         n = replan_coordinates(params, settings)
-        half = len(y) // 2
-        x0 = np.concatenate([y[:n], y[half:half + n]])
+        design = DesignModel.build(params, self.first.design.spin, dt, self.first.design.n_modes)
+        z = y if self.measurement == "state" else self.inner.x_hat       # the state, or the filter's estimate
+        half = len(z) // 2
+        x0 = np.concatenate([z[:n], z[half:half + n]])
         plan = min_vibration_replan(params, x0, self.slew_angle, remaining, hold=hold or None, settings=settings)
         planned = time.perf_counter()
         entry = {"t_s": k * dt, "payload_kg": mass, "modes": settings.modes, "identify_wall_s": identified - clock,
@@ -259,16 +276,14 @@ class PayloadLearning(Controller):
             elastic[:k] = _modes(old.elastic[:k], width)
         elastic[k:k + m] = _modes(new.elastic[:m], width)
         ref = Reference(dt, *arrays, f"re-planned at {k * dt:.3g} s for {mass:.4g} kg", elastic=elastic)
-        design = DesignModel.build(params, self.first.design.spin, dt, self.first.design.n_modes)
         ctrl = self.factory(self.name, design, self.first.settings, ref)
+        if self.measurement != "state":        # the new filter starts from the old one's estimate
+            ctrl.start_estimate(z, float(ref.torque[k]))
         wall = time.perf_counter() - clock
-        ready = int(edges[-1]) if n_hold else k
+        ready = max(int(edges[-1]), k + 1)     # from the next sample at the earliest
         self.log.append({**entry, "applied_s": ready * dt, "wall_s": wall, "within_allowance": wall <= st.allowance_s,
                          "dropped": False})
-        if ready > k:
-            self._pending = (ready, ctrl)
-        else:
-            self.inner = ctrl
+        self._pending = (ready, ctrl)
 
 
 def _modes(elastic: np.ndarray, width: int) -> np.ndarray:

@@ -81,6 +81,40 @@ def test_the_re_plan_keeps_the_modes_its_torque_grid_can_shape():
     assert shapeable_modes(d, 40, 3.46) == 2 and shapeable_modes(d, 40, 2.3) == 3     # 0.37, 2.33, 6.95 Hz
 
 
+def test_the_lqg_learns_the_payload_from_its_filters_estimate():
+    """The LQG re-plans from its filter's estimate and hands it to the new payload's filter: on
+    the 0.3 kg beam it settles within its target (measured 5.88 s against 7.11 s; the nominal
+    LQG 19 s, docs/limit.md). At 0.5 kg it misses (8.57 s against 7.37 s): the linear filter's
+    estimate of the first mode's rate is 2.8 % off at half the slew."""
+    p = Params()
+    heavy = p.replace(m_t=0.3)
+    c = compare("foam", Slew(1.0, TF), "lqg", params=p, plant_params=heavy,
+                payload_learning=PayloadLearningSettings(real_time=False))
+    m = c.metrics["lqg"]
+    target = TF + 2 * math.pi / first_mode(DesignModel.build(heavy, 0.0, 0.01, 1))
+    assert m["verdict"] == "settled" and m["settling_time_s"] <= target, (m["settling_time_s"], target)
+    assert m["residual_pct_of_L"] <= 0.1 and abs(m["final_angle_error_rad"]) <= 1e-3
+    log = c.controllers["lqg"].log
+    assert log[-1]["payload_kg"] == pytest.approx(0.3, rel=0.01)
+
+
+def test_the_lqg_filter_predicts_with_the_torque_applied_and_starts_from_a_given_estimate():
+    """``applied`` replaces the torque the filter predicts with; ``start_estimate`` pads a
+    smaller model's estimate with zeros and predicts from it with the given torque."""
+    d = DesignModel.build(Params(), 0.0, 0.01, 3)
+    lqg = make_controller("lqg", d, LQGSettings())
+    fm, n = lqg.filter_model, lqg.filter_model.n_x // 2
+    lqg(0.0, np.array([0.01, 0.2, 3.0]))
+    lqg.applied(5.0)
+    np.testing.assert_allclose(lqg.x_pred, fm.Ad @ lqg.x_hat + fm.Bd.ravel() * 5.0, rtol=1e-12, atol=1e-15)
+    x = np.array([0.3, 0.01, -0.02, 0.5, 0.1, 0.2])            # 2 modes: [theta, q1, q2, rates]
+    lqg.start_estimate(x, -7.0)
+    padded = np.zeros(fm.n_x)
+    padded[:3], padded[n:n + 3] = x[:3], x[3:]
+    np.testing.assert_array_equal(lqg.x_hat, padded)
+    np.testing.assert_allclose(lqg.x_pred, fm.Ad @ padded - fm.Bd.ravel() * 7.0, rtol=1e-12, atol=1e-15)
+
+
 def test_bad_settings_and_controllers_are_refused_in_one_line():
     with pytest.raises(ParameterError, match="switch_at must be increasing fractions"):
         PayloadLearningSettings(switch_at=(0.5, 0.25))
@@ -89,9 +123,11 @@ def test_bad_settings_and_controllers_are_refused_in_one_line():
     with pytest.raises(ParameterError, match="payload_max_kg"):
         PayloadLearningSettings(payload_min_kg=0.3, payload_max_kg=0.1)
     d = DesignModel.build(Params(), 0.0, 0.01, 2)
-    lqg = make_controller("lqg", d, LQGSettings())
-    with pytest.raises(ParameterError, match="state-feedback"):
+    lqg = make_controller("lqg", d, LQGSettings(integral=True))
+    with pytest.raises(ParameterError, match="LQG without integral action"):
         PayloadLearning(lqg, PayloadLearningSettings(), 1.0, TF, make_controller)
+    with pytest.raises(ParameterError, match="state-feedback"):
+        PayloadLearning(make_controller("pd", d), PayloadLearningSettings(), 1.0, TF, make_controller)
     lqr = make_controller("lqr", d)
     with pytest.raises(ParameterError, match="must hold the design's m_t = 0.1 kg"):
         PayloadLearning(lqr, PayloadLearningSettings(payload_min_kg=0.2), 1.0, TF, make_controller)

@@ -295,7 +295,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         Controller name -> :class:`controllers.robust.RangeDesign` (design model and
         settings) chosen beforehand.
     payload_learning : controllers.payload_learning.PayloadLearningSettings, optional
-        LQR and MPC learn the payload during a slew and re-plan for it
+        LQR, MPC and LQG learn the payload during a slew and re-plan for it
         (:class:`controllers.payload_learning.PayloadLearning`; each re-plan within a 1 s
         allowance by default);
         slew tasks without a rig only.
@@ -485,8 +485,9 @@ def _reference(sc: Scenario, kind: str, rig):
     return optimal_reference(opt, sc.dt, sc.t_end)
 
 
-#: Controllers that learn the payload with ``compare(payload_learning=...)`` (state feedback).
-LEARNING_CONTROLLERS = ("lqr", "mpc")
+#: Controllers that learn the payload with ``compare(payload_learning=...)`` (state feedback, and the
+#: LQG from its filter's estimate).
+LEARNING_CONTROLLERS = ("lqr", "mpc", "lqg")
 
 
 def _learning(ctrl, settings, sc, rig):
@@ -495,7 +496,7 @@ def _learning(ctrl, settings, sc, rig):
     if not isinstance(settings, PayloadLearningSettings):
         raise ParameterError(f"payload_learning must be a PayloadLearningSettings, got {type(settings).__name__}")
     if rig is not None or not isinstance(sc.task, Slew):
-        raise ParameterError("payload_learning works on slew tasks without a rig (its controllers read the state)")
+        raise ParameterError("payload_learning works on slew tasks without a rig (a rig's drive and sensors: not yet)")
     return PayloadLearning(ctrl, settings, float(sc.reference.theta[-1]), sc.t_f, make_controller)
 
 
