@@ -686,11 +686,16 @@ class Controller:
         raise NotImplementedError
 
     def applied(self, tau: float) -> None:
-        """Record that ``tau`` [N m], not the torque just returned, was applied at this sample.
+        """Record that ``tau``, not the torque just returned, was applied at this sample.
 
         A wrapper that overrides the output (:class:`controllers.payload_learning.PayloadLearning`
         playing a plan's feedforward) says so, and a controller with a filter predicts with it;
         one without memory of its torque ignores it.
+
+        Parameters
+        ----------
+        tau : float
+            The torque applied [N m].
         """
 
     def stats(self) -> dict:

@@ -288,7 +288,13 @@ class LQG(Controller):
         self._tau = None
 
     def applied(self, tau: float) -> None:
-        """The filter's next prediction uses ``tau`` [N m] as this sample's torque (:meth:`Controller.applied`)."""
+        """The filter's next prediction uses ``tau`` as this sample's torque (:meth:`Controller.applied`).
+
+        Parameters
+        ----------
+        tau : float
+            The torque applied [N m].
+        """
         self._tau = float(tau)
 
     def start_estimate(self, x_hat, tau: float) -> None:
