@@ -1,5 +1,6 @@
 """Payload learning during a slew (controllers.payload_learning, issue 22's payload range)."""
 
+import json
 import math
 
 import numpy as np
@@ -133,3 +134,39 @@ def test_bad_settings_and_controllers_are_refused_in_one_line():
         PayloadLearning(lqr, PayloadLearningSettings(payload_min_kg=0.2), 1.0, TF, make_controller)
     with pytest.raises(ParameterError, match="payload_learning works on slew tasks without a rig"):
         compare("foam", "spinup", "lqr", t_f=10.0, payload_learning=PayloadLearningSettings())
+
+
+@pytest.mark.slow
+def test_payload_comparison_and_the_cli_learn_the_payload(tmp_path, capsys):
+    """``payload_comparison(payload_learning=...)`` and ``hubbeam compare --learn-payload``: no
+    range design, the nominal LQR learns 0.5 kg and settles in time; the rows and the report say
+    what it learned (the table's design column is the payload it ended with)."""
+    from hubbeam_ctrl.cli.main import main
+    from hubbeam_ctrl.study import payload_comparison, write_payload_outputs
+    pc = payload_comparison("foam", Slew(1.0, TF), "lqr", payload_range=(0.1, 0.5), masses=(0.5,),
+                            payload_learning=PayloadLearningSettings(real_time=False))
+    assert pc.designs == {}
+    (row,) = pc.rows()
+    heavy = Params(m_t=0.5)
+    target = TF + 2 * math.pi / first_mode(DesignModel.build(heavy, 0.0, 0.01, 1))
+    assert row["verdict"] == "settled" and row["settling_time_s"] <= target
+    assert row["design"].startswith("learns the payload: ") and row["design_mass_kg"] == pytest.approx(0.5, rel=0.01)
+    assert pc.comparisons[0.5].scenario.t_end == pytest.approx(19.97, abs=0.01)       # the task's, as compare's
+    report = write_payload_outputs(pc, tmp_path / "pc")["report"].read_text()
+    assert "the nominal design learns the payload during the slew" in report
+    rc = main(["compare", "--scenario", "slew", "--tf", str(TF), "--slew-angle", "1", "--controllers", "lqr",
+               "--payload-range", "0.1,0.5", "--learn-payload", "--json", "--out", str(tmp_path / "cli")])
+    assert rc == 0
+    doc = json.loads((tmp_path / "cli" / "payload.json").read_text())
+    assert [r["payload_kg"] for r in doc["rows"]] == [0.1, 0.5]
+    assert all(r["design"].startswith("learns the payload") and r["verdict"] == "settled" for r in doc["rows"])
+
+
+@pytest.mark.parametrize("argv", [["--learn-payload"], ["--learn-payload", "--payload-range", "0,0.5",
+                                                        "--scenario", "spinup"]])
+def test_the_cli_refuses_learning_without_a_range_or_a_slew(tmp_path, capsys, argv):
+    from hubbeam_ctrl.cli.main import main
+    rc = main(["compare", *argv, "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1
+    assert "--learn-payload needs --payload-range MIN,MAX and --scenario slew" in err

@@ -135,6 +135,10 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="tip payloads [kg] that LQR, LQG and MPC are designed for (must hold the tip mass "
                         "of the parameters); runs the plant at MIN, the nominal tip mass and MAX and "
                         "writes payload.json and payload_report.md")
+    p.add_argument("--learn-payload", action="store_true",
+                   help="with --payload-range and --scenario slew: LQR, LQG and MPC keep the nominal design and "
+                        "learn the payload during the slew (identified at 25 %% and 50 %% of it, the rest "
+                        "re-planned on the nonlinear model within 1 s) instead of a design for the range")
     add_backend_option(p)
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     add_run_options(p)
@@ -166,11 +170,15 @@ def parse_payload_range(text: str, nominal: float) -> tuple:
 def _run_payload(args, params, out, sink) -> int:
     from hubbeam_ctrl.study.payload import payload_comparison, payload_table, write_payload_outputs
     payload_range = parse_payload_range(args.payload_range, params.m_t)
+    learning = None
+    if args.learn_payload:
+        from controllers.payload_learning import PayloadLearningSettings
+        learning = PayloadLearningSettings(payload_min_kg=payload_range[0], payload_max_kg=payload_range[1])
     pc = payload_comparison(args.plant, args.scenario, args.controllers, payload_range=payload_range,
-                            params=params, tau_max=args.tau_max, t_f=args.tf,
-                            t_end=30.0 if args.t_end is None else args.t_end, dt=0.01 if args.dt is None else args.dt,
+                            params=params, tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
                             w_f=3.0 if args.wf is None else args.wf, slew_angle=args.slew_angle,
-                            horizon=50 if args.horizon is None else args.horizon, solver=args.solver or "daqp")
+                            horizon=50 if args.horizon is None else args.horizon, solver=args.solver or "daqp",
+                            payload_learning=learning)
     write_payload_outputs(pc, out)
     if args.json:
         print(strict_json(json.loads((out / "payload.json").read_text())), file=sink)
@@ -220,6 +228,8 @@ def run(args) -> int:
     if args.plant_modes is not None and not design_modes <= args.plant_modes <= MAX_MODES:
         raise ParameterError(f"--plant-modes must be an integer in {design_modes}..{MAX_MODES} (at least "
                              f"the design model's {design_modes}), got {args.plant_modes}")
+    if args.learn_payload and (args.payload_range is None or args.scenario != "slew"):
+        raise ParameterError("--learn-payload needs --payload-range MIN,MAX and --scenario slew")
     if args.payload_range is not None:
         if rig is not None:
             raise ParameterError("--payload-range does not take --rig yet (give the rig's beam with --params)")

@@ -24,6 +24,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.range_design import ROBUST_CONTROLLERS, range_designs  # noqa: F401 (re-exported)
+from hubbeam_ctrl.study.yardstick import task_dt, task_t_end
 
 __all__ = ["ROBUST_CONTROLLERS", "range_designs", "PayloadComparison", "payload_comparison", "payload_verdict",
            "payload_table", "write_payload_outputs"]
@@ -75,13 +76,22 @@ class PayloadComparison:
         for m, comp in self.comparisons.items():
             for name, mm in comp.metrics.items():
                 rd = self.designs.get(name)
+                learned = getattr(comp.controllers.get(name), "log", None)
+                design = rd.choice if rd else "nominal"
+                design_mass = rd.design_mass if rd else comp.scenario.params.m_t
+                if learned is not None:          # controllers.payload_learning.PayloadLearning
+                    design = "learns the payload: " + ", ".join(
+                        f"{e['payload_kg']:.4g} kg at {e['t_s']:.3g} s" + (" (dropped)" if e["dropped"] else "")
+                        for e in learned)
+                    design_mass = next((e["payload_kg"] for e in reversed(learned) if not e["dropped"]), design_mass)
                 rows.append({"payload_kg": m, "controller": name, "verdict": payload_verdict(mm),
+                             "settling_time_s": mm.get("settling_time_s"),
                              "residual_tip_max_m": mm["residual_tip_max_m"],
                              "residual_pct_of_openloop": mm.get("residual_pct_of_openloop"),
                              "final_angle_error_rad": mm["final_angle_error_rad"],
                              "peak_torque_nm": mm["peak_torque_nm"],
-                             "design_mass_kg": rd.design_mass if rd else comp.scenario.params.m_t,
-                             "design": rd.choice if rd else "nominal"})
+                             "design_mass_kg": design_mass,
+                             "design": design})
         return rows
 
 
@@ -101,7 +111,11 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
     masses : sequence of float, optional
         Plant payloads [kg] (default ``m_min``, nominal, ``m_max``), each in the range.
     **options
-        Keyword arguments of :func:`~hubbeam_ctrl.study.compare.compare`.
+        Keyword arguments of :func:`~hubbeam_ctrl.study.compare.compare`. With
+        ``payload_learning`` (a :class:`controllers.payload_learning.PayloadLearningSettings`,
+        its range set to ``payload_range``) LQR, LQG and MPC keep the nominal design and learn
+        the payload during the slew instead of a design for the range. ``dt`` and ``t_end``
+        default to the task's (:func:`~hubbeam_ctrl.study.yardstick.task_dt`, ``task_t_end``).
 
     Returns
     -------
@@ -117,21 +131,36 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
         if not (isinstance(m, (int, float)) and lo <= m <= hi):
             raise ParameterError(f"masses must lie in the payload range [{lo:g}, {hi:g}] kg, got {m!r}")
     names = _parse_controllers(controllers)
+    options = {k: v for k, v in options.items() if v is not None or k not in ("dt", "t_end")}
+    options.setdefault("dt", task_dt(params))
     scenario_keys = ("tau_max", "t_f", "t_end", "dt", "w_f", "slew_angle", "tolerances")
     kind = options.get("reference", "task")          # the range designs see the scenario's reference
-    sc = make_scenario(scenario, plant=plant, params=params, reference="rigid" if kind == "optimal" else kind,
-                       **{k: options[k] for k in scenario_keys if k in options})
-    design = DesignModel.build(sc.params, sc.design_spin, sc.dt, options.get("design_modes"))
-    designs = range_designs(names, sc, design, (lo, hi), options.get("settings"),
-                            horizon=options.get("horizon", 50), solver=options.get("solver", "daqp"),
-                            plant_modes=options.get("plant_modes"))
+    scenario_options = dict(plant=plant, params=params, reference="rigid" if kind == "optimal" else kind,
+                            **{k: options[k] for k in scenario_keys if k in options and k != "t_end"})
+    sc = make_scenario(scenario, t_end=options.get("t_end", 30.0), **scenario_options)
+    if "t_end" not in options:                       # the task's, as compare derives it
+        options["t_end"] = task_t_end(sc)
+        sc = make_scenario(scenario, t_end=options["t_end"], **scenario_options)
+    learning = options.get("payload_learning")
+    if learning is not None:                         # the nominal design learns the payload instead
+        from controllers.payload_learning import PayloadLearningSettings
+        if not isinstance(learning, PayloadLearningSettings):
+            raise ParameterError(f"payload_learning must be a PayloadLearningSettings, got {type(learning).__name__}")
+        options["payload_learning"] = learning.replace(payload_min_kg=lo, payload_max_kg=hi)
+        designs = {}
+    else:
+        design = DesignModel.build(sc.params, sc.design_spin, sc.dt, options.get("design_modes"))
+        designs = range_designs(names, sc, design, (lo, hi), options.get("settings"),
+                                horizon=options.get("horizon", 50), solver=options.get("solver", "daqp"),
+                                plant_modes=options.get("plant_modes"))
     comparisons = {m: compare(plant, scenario, names, params=params, plant_params=params.replace(m_t=m),
-                              designs=designs, **options) for m in masses}
+                              designs=designs or None, **options) for m in masses}
     return PayloadComparison((lo, hi), masses, comparisons, designs)
 
 
 _COLUMNS = (("payload_kg", "payload kg", "{:g}"), ("controller", "controller", "{}"),
-            ("verdict", "verdict", "{}"), ("residual_pct_of_openloop", "% of OL", "{:.3g}"),
+            ("verdict", "verdict", "{}"), ("settling_time_s", "settle s", "{:.3g}"),
+            ("residual_pct_of_openloop", "% of OL", "{:.3g}"),
             ("residual_tip_max_m", "resid max m", "{:.2e}"), ("final_angle_error_rad", "err(end) rad", "{:.2e}"),
             ("peak_torque_nm", "peak tau Nm", "{:.4g}"), ("design_mass_kg", "design kg", "{:g}"))
 
@@ -187,7 +216,9 @@ def write_payload_outputs(pc: PayloadComparison, out_dir) -> dict:
     lines = [f"# Payload range {pc.payload_range[0]:g}-{pc.payload_range[1]:g} kg: {sc.name} on {sc.plant.upper()}",
              "", f"- Task: {sc.description}.",
              f"- Designs chosen on linear models at {', '.join(f'{m:g}' for m in next(iter(pc.designs.values())).grid)}"
-             " kg (controllers.robust.design_for_range):" if pc.designs else "- No range designs.", ""]
+             " kg (controllers.robust.design_for_range):" if pc.designs else "- No range designs" + (
+                 ": the nominal design learns the payload during the slew (controllers.payload_learning)."
+                 if any(r["design"].startswith("learns") for r in pc.rows()) else "."), ""]
     for n, d in pc.designs.items():
         lines.append(f"  - {n}: {d.choice}; worst linear score {d.score:.3g} (residual relative to the "
                      "open loop's; for a spin-up, the spectral radius)")
