@@ -29,8 +29,9 @@ torque), ``paper`` (Table 1's beam, 1 rad, 200 N m) and ``payload`` (Table 1's b
 ``matched_heaviest`` (a design that knows the 0.5 kg payload, at the nominal's 1.5 x T_opt) and
 ``matched_range`` (at each payload a design that knows it, at 1.5 x T_opt of the heaviest) and
 ``payload_error`` (designs for a payload 2-5 % or 10-20 g off the plant's, the same task) and
-``payload_learning`` (the nominal LQR and MPC learning the payload during that task,
-:mod:`controllers.payload_learning`).
+``payload_learning`` (the nominal LQR, LQG and MPC learning the payload during that task,
+:mod:`controllers.payload_learning`) and ``payload_learning_lab`` (the same on the lab arm,
+0-0.2 kg: all defaults, and instant re-plans on the design's modes).
 """
 
 from __future__ import annotations
@@ -62,6 +63,8 @@ REFERENCES = ("task", "optimal")
 FACTOR = 1.5
 PAYLOAD_RANGE = (0.0, 0.5)
 PAYLOADS = (0.0, 0.1, 0.3, 0.5)
+LAB_RANGE = (0.0, 0.2)
+LAB_PAYLOADS = (0.0, 0.05, 0.1, 0.2)
 
 
 def _period(params: Params, dt: float) -> float:
@@ -107,6 +110,29 @@ def _case(label, beam, angle, t_opt, limit, factor=FACTOR, **options) -> dict:
             f"{r['residual_pct_of_L']:.3g} %L {'MET' if r['all_met'] else 'missed'}" for n, r in run.items()),
             file=sys.stderr)
     return out
+
+
+def _learning_case(beam: Params, angle: float, t_f: float, payload_range, payloads, settings=None) -> dict:
+    """``beam``'s nominal LQR, LQG and MPC learning the payload (``settings``, default all defaults over
+    ``payload_range``) during a slew by ``angle`` in ``t_f``, on plants carrying each of ``payloads``."""
+    from controllers.payload_learning import PayloadLearningSettings
+    settings = (settings or PayloadLearningSettings()).replace(payload_min_kg=payload_range[0],
+                                                               payload_max_kg=payload_range[1])
+    runs = {}
+    for m in payloads:
+        t0 = time.perf_counter()
+        c = compare("foam", Slew(angle, t_f), NAMES, params=beam, plant_params=beam.replace(m_t=m),
+                    payload_learning=settings)
+        rows = _judge(c, beam.replace(m_t=m), angle, beam.tau_max)
+        for name, row in rows.items():
+            row["replans"] = c.controllers[name].log
+        runs[f"{m:g}"] = {"controllers": rows, "wall_s": time.perf_counter() - t0}
+        print(f"learning {m:g} kg " + "  ".join(
+            f"{n}: {r['verdict']} {r['settling_time_s'] or float('nan'):.3g}/{r['settle_target_s']:.3g} s "
+            f"{r['residual_pct_of_L']:.3g} %L {'MET' if r['all_met'] else 'missed'} re-plans "
+            + ",".join(f"{e['wall_s']:.2f}s/{e['modes']}m{'/dropped' if e['dropped'] else ''}"
+                       for e in r["replans"]) for n, r in rows.items()), file=sys.stderr)
+    return {"t_f_s": t_f, "settings": settings.to_dict(), "runs": runs}
 
 
 def _payload_case(paper: Params, t_opt: float, factor: float = FACTOR) -> dict:
@@ -179,24 +205,16 @@ def run_cases(cases, factor: float = FACTOR) -> dict:
     if "payload_learning" in cases:
         # the nominal design learning the payload during the slew (controllers.payload_learning), at
         # factor x T_opt of the heaviest payload; LQR, MPC (the state) and LQG (its estimate)
+        out["payload_learning"] = _learning_case(paper, 1.0, factor * _t_opt("heaviest"), PAYLOAD_RANGE, PAYLOADS)
+    if "payload_learning_lab" in cases:
+        # the same on the lab arm, 0-0.2 kg, 90 degrees at factor x T_opt of 0.2 kg: all defaults
+        # (real time), and the method with instant re-plans on the design's modes (real_time off)
         from controllers.payload_learning import PayloadLearningSettings
-        t_f = factor * _t_opt("heaviest")
-        runs = {}
-        for m in PAYLOADS:
-            t0 = time.perf_counter()
-            c = compare("foam", Slew(1.0, t_f), "lqr,lqg,mpc", params=paper, plant_params=paper.replace(m_t=m),
-                        payload_learning=PayloadLearningSettings())
-            rows = _judge(c, paper.replace(m_t=m), 1.0, paper.tau_max)
-            for name, row in rows.items():
-                row["replans"] = c.controllers[name].log
-            runs[f"{m:g}"] = {"controllers": rows, "wall_s": time.perf_counter() - t0}
-            print(f"learning {m:g} kg " + "  ".join(
-                f"{n}: {r['verdict']} {r['settling_time_s'] or float('nan'):.3g}/{r['settle_target_s']:.3g} s "
-                f"{r['residual_pct_of_L']:.3g} %L {'MET' if r['all_met'] else 'missed'} re-plans "
-                + ",".join(f"{e['wall_s']:.2f}s/{e['modes']}m{'/dropped' if e['dropped'] else ''}"
-                           for e in r["replans"]) for n, r in rows.items()),
-                file=sys.stderr)
-        out["payload_learning"] = {"t_f_s": t_f, "runs": runs}
+        t_f = factor * time_optimal_slew(LAB.replace(m_t=LAB_RANGE[1]), math.pi / 2).duration_s
+        instant = PayloadLearningSettings(allowance_s=0.0, real_time=False, modes=LAB.n_transverse)
+        out["payload_learning_lab"] = {
+            "defaults": _learning_case(LAB, math.pi / 2, t_f, LAB_RANGE, LAB_PAYLOADS),
+            "instant_design_modes": _learning_case(LAB, math.pi / 2, t_f, LAB_RANGE, LAB_PAYLOADS, instant)}
     if "payload_error" in cases:
         # a design for a payload a little off the true one, at 1.5 x T_opt of the heaviest: how well
         # the payload must be known (relative errors; absolute ones at 0 kg)

@@ -170,3 +170,18 @@ def test_the_cli_refuses_learning_without_a_range_or_a_slew(tmp_path, capsys, ar
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1
     assert "--learn-payload needs --payload-range MIN,MAX and --scenario slew" in err
+
+
+def test_a_fast_slew_caps_the_allowance_at_the_next_switch_and_half_the_time_left():
+    """The lab arm (1 m aluminium, 0.05 kg nominal, 0-0.2 kg range), 90 degrees in 1.79 s: the 1 s allowance
+    would outlast the slew's second half (it stopped the run before); it is capped at the next
+    switch (0.45 s away) and at half the time left, and the run completes. The grid's default step
+    (a fiftieth of the range, 4 g) identifies the nominal 0.05 kg within 0.5 %."""
+    lab = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
+    c = compare("foam", Slew(math.pi / 2, 1.7930), "lqr", params=lab,
+                payload_learning=PayloadLearningSettings(payload_max_kg=0.2, real_time=False))
+    assert c.metrics["lqr"]["verdict"] == "settled"
+    log = c.controllers["lqr"].log
+    assert [e["allowance_s"] for e in log] == pytest.approx([0.45, 0.45], abs=0.011)
+    assert all(e["applied_s"] <= e["t_s"] + e["allowance_s"] + 0.06 for e in log)
+    assert log[0]["payload_kg"] == pytest.approx(0.05, rel=0.005)
