@@ -38,7 +38,7 @@ def test_the_lqr_that_learns_the_payload_settles_the_heavy_beam_in_time():
     """Table 1's beam designed for 0.1 kg carrying 0.5 kg, 1 rad in 4.614 s: the nominal LQR
     settles at 19.2 s leaving 2.3 % of L (docs/limit.md); learning the payload at 25 % and 50 %
     of the slew and re-planning on the nonlinear model of the modes the re-plan's torque grid can
-    shape (2, then 3), it settles within one first-mode period after the slew (measured 7.14 s
+    shape (2, then 3), it settles within one first-mode period after the slew (measured 7.16 s
     against 7.37 s), residual <= 0.1 % of L, within 200 N m. ``real_time=False``: the same run
     on any computer (with the deadline, each re-plan took 0.3-0.7 s of the 1 s allowed)."""
     p = Params()
