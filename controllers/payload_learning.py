@@ -19,25 +19,27 @@ time it
    computes (:meth:`controllers.lqg.LQG.start_estimate`, :meth:`Controller.applied`), and does
    not predict along the re-plan, which carries fewer modes than the filter.
 
-The re-plan keeps the bending modes its torque grid can shape (:func:`shapeable_modes`, the
-free-hub modes at or below the grid's Nyquist frequency; faster ones are left to the feedback)
+The re-plan keeps the bending modes its torque grid can shape (:func:`shapeable_modes` on the
+heaviest payload, the free-hub modes at or below the grid's Nyquist frequency; faster ones are
+left to the feedback)
 and, by default, runs in real time: IPOPT gets what identification left of the allowance less
 :data:`RESERVE_SHARE`, and a re-plan not converged by then is dropped, the controller keeping
 its plan and gain.
 
 Measured on Table 1's beam, 1 rad in 4.614 s (1.5 x the 0.5 kg beam's time-optimal slew), all
 defaults (switches at 25 % and 50 %, 1 s allowance; ``benchmarks/bench_limit_targets.py --cases
-payload_learning``): the LQR settles at 4.56 / 4.56 / 5.01 / 7.16 s with 0 / 0.1 / 0.3 / 0.5 kg,
-the MPC at 4.58 / 4.57 / 4.75 / 5.23 s and the LQG at 4.59 / 4.56 / 5.58 / 5.46 s (targets
-6.59 / 6.79 / 7.11 / 7.37 s; at most 0.016 % of L): 12 of 12 meet. Each switch
-(identification, re-plan on 2 then 3 modes, new design) took 0.33-0.93 s of the 1 s allowed;
-in some runs the 0 kg MPC's second re-plan meets its deadline unconverged and is dropped.
-A re-plan on all 10 of the plant's modes took 7-30 s.
+payload_learning``): the LQR settles at 4.48 / 4.56 / 5.01 / 7.16 s with 0 / 0.1 / 0.3 / 0.5 kg,
+the MPC at 4.56 / 4.58 / 4.74 / 5.23 s and the LQG at 4.59 / 4.57 / 5.57 / 5.46 s (targets
+6.59 / 6.79 / 7.11 / 7.37 s; at most 0.016 % of L): 12 of 12 meet. Each re-plan's NLP is built
+before the slew (:class:`hubbeam_ctrl.limit.ReplanSolver`, the payload a parameter, scaled for
+the heaviest payload), so each switch (identification, IPOPT on 2 then 3 modes, new design)
+took 0.16-0.53 s of the 1 s allowed, none dropped. A re-plan on all 10 of the plant's modes
+took 7-30 s.
 
 It does not transfer in real time to the lab arm's 1.79 s slew (0-0.2 kg): the allowance is
-capped at 0.45 s there, and 5 of 12 meet with all defaults; re-planned at once on the design's
-5 modes 12 of 12 meet, but each re-plan takes 1.0-3.5 s (``--cases payload_learning_lab``,
-docs/limit.md).
+capped at 0.45 s there, and 4 of 12 meet with all defaults; re-planned at once on the design's
+5 modes 8-12 of 12 meet (which zero-residual plan IPOPT lands on decides), but each re-plan
+takes 0.3-3.5 s (``--cases payload_learning_lab``, docs/limit.md).
 :attr:`PayloadLearning.log` records each switch's times, modes and whether it was dropped.
 """
 
@@ -66,8 +68,8 @@ __all__ = ["PayloadLearningSettings", "PayloadLearning", "identify_payload", "sh
 #: missed; 4 g gave 0.0501 kg.
 GRID_POINTS = 50
 
-#: Share of the allowance kept for building the re-plan's NLP and designing the new controller
-#: (measured 0.1-0.2 s of the 1 s default on Table 1's beam); IPOPT gets the rest.
+#: Share of the allowance kept for identification's overrun and designing the new controller
+#: (0.05-0.1 s of the 1 s default on Table 1's beam); IPOPT gets the rest.
 RESERVE_SHARE = 0.3
 
 
@@ -152,6 +154,14 @@ def identify_payload(params: Params, dt: float, n_modes: int, torque, rate, mass
     return float(masses[i])
 
 
+@functools.lru_cache(maxsize=32)
+def _replan_solver(params: Params, slew_angle: float, intervals: int, max_iter: int, modes: int):
+    """The re-plan's NLP for ``params``' family, expanded (built once per beam, slew and modes)."""
+    from hubbeam_ctrl.limit import OptimalSettings, ReplanSolver
+    return ReplanSolver(params, slew_angle, settings=OptimalSettings(intervals=intervals, max_iter=max_iter,
+                                                                     modes=modes, check=False), expand=True)
+
+
 @functools.lru_cache(maxsize=256)
 def _candidate(params: Params, dt: float, n_modes: int) -> DesignModel:
     """A candidate payload's design model, built once per run of switches."""
@@ -209,6 +219,18 @@ class PayloadLearning(Controller):
         step = settings.grid_kg if settings.grid_kg is not None else span / GRID_POINTS
         n = max(2, int(round(span / step)) + 1) if span > 0 else 1
         self._masses = np.linspace(settings.payload_min_kg, settings.payload_max_kg, n)
+        # each switch's re-plan: its modes (the torque grid's rule on the heaviest payload, whose
+        # modes are the slowest) and its NLP, built now, before the slew, scaled for the heaviest
+        # payload (its deflections the largest; scaled for the nominal 0.1 kg, a re-plan for 0.5 kg
+        # took 24 iterations and missed its deadline, 7 scaled for 0.5 kg)
+        base, steps = inner.design.params, round(duration / self.dt)
+        heaviest = _candidate(base.replace(m_t=settings.payload_max_kg), float(self.dt), int(inner.design.n_modes))
+        self._plan_modes = [min(settings.modes if settings.modes is not None else
+                                shapeable_modes(heaviest, settings.intervals, (steps - k) * self.dt), base.n_transverse)
+                            for k in self._switch]
+        scaled = base.replace(m_t=settings.payload_max_kg)
+        self._solvers = [_replan_solver(scaled, self.slew_angle, settings.intervals, settings.max_iter, m)
+                         for m in self._plan_modes]
         self.reset()
 
     def reset(self) -> None:
@@ -249,8 +271,6 @@ class PayloadLearning(Controller):
         return min(self.learning.allowance_s, cap)
 
     def _relearn(self, k: int, y: np.ndarray) -> None:
-        from hubbeam_ctrl.limit import OptimalSettings, min_vibration_replan, replan_coordinates
-
         from .reference import optimal_reference
         st, old, dt = self.learning, self.inner.reference, self.dt
         base = self.first.design.params
@@ -265,22 +285,19 @@ class PayloadLearning(Controller):
         n_hold = int(math.ceil(allowance / h - 1e-9)) if allowance > 0 else 0
         edges = k + np.round(np.arange(n_hold + 1) * h / dt).astype(int)
         hold = [float(np.mean(old.torque[a:max(b, a + 1)])) for a, b in zip(edges[:-1], edges[1:])]
-        modes = st.modes if st.modes is not None else shapeable_modes(
-            _candidate(params, float(dt), int(self.first.design.n_modes)), st.intervals, remaining)
+        solver = self._solvers[self._stage - 1]
         deadline = None
         if st.real_time and allowance > 0:     # IPOPT's share: what identification left, less the reserve
-            deadline = (1.0 - RESERVE_SHARE) * allowance - (time.perf_counter() - clock)
-        settings = OptimalSettings(intervals=st.intervals, max_iter=st.max_iter, check=False,
-                                   modes=min(modes, base.n_transverse),
-                                   max_wall_s=None if deadline is None else max(deadline, 1e-3))
-        n = replan_coordinates(params, settings)
+            deadline = max((1.0 - RESERVE_SHARE) * allowance - (time.perf_counter() - clock), 1e-3)
+        n = solver.n_q
         design = DesignModel.build(params, self.first.design.spin, dt, self.first.design.n_modes)
         z = y if self.measurement == "state" else self.inner.x_hat       # the state, or the filter's estimate
         half = len(z) // 2
         x0 = np.concatenate([z[:n], z[half:half + n]])
-        plan = min_vibration_replan(params, x0, self.slew_angle, remaining, hold=hold or None, settings=settings)
+        plan = solver.solve(params, x0, remaining, hold=hold or None, max_wall_s=deadline)
         planned = time.perf_counter()
-        entry = {"t_s": k * dt, "payload_kg": mass, "modes": settings.modes, "identify_wall_s": identified - clock,
+        modes = self._plan_modes[self._stage - 1]
+        entry = {"t_s": k * dt, "payload_kg": mass, "modes": modes, "identify_wall_s": identified - clock,
                  "replan_wall_s": planned - identified, "iterations": plan.iterations, "converged": plan.converged}
         if deadline is not None and not plan.converged:      # too late: keep the plan and gain, with feedback
             wall = time.perf_counter() - clock
@@ -299,7 +316,7 @@ class PayloadLearning(Controller):
             elastic[:k] = _modes(old.elastic[:k], width)
         elastic[k:k + m] = _modes(new.elastic[:m], width)
         ref = Reference(dt, *arrays, f"re-planned at {k * dt:.3g} s for {mass:.4g} kg", elastic=elastic)
-        ctrl = self.factory(self.name, design, _along_partial_plan(self.first.settings, settings.modes, design), ref)
+        ctrl = self.factory(self.name, design, _along_partial_plan(self.first.settings, modes, design), ref)
         if self.measurement != "state":        # the new filter starts from the old one's estimate
             ctrl.start_estimate(z, float(ref.torque[k]))
         wall = time.perf_counter() - clock

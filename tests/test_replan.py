@@ -78,3 +78,47 @@ def test_held_torques_are_the_plans_first_and_a_bad_hold_names_it(slew):
     assert tail.converged and tail.theta[-1] == pytest.approx(1.0, abs=1e-6)
     with pytest.raises(ParameterError, match="hold must be fewer than 40 torques within"):
         min_vibration_replan(LAB, x, 1.0, 0.8, hold=[2.0])
+
+
+def test_the_prebuilt_solver_re_plans_any_payload_of_the_beam(slew):
+    """ReplanSolver: one NLP for the arm's family (the payload a parameter), scaled for 0.2 kg.
+    For the arm carrying 0.12 kg, from the slew's state at 0.49 s, its plan starts there, ends at
+    rest at 1 rad and, integrated by the plant stepper on the 0.12 kg model, leaves the tip
+    within the tolerance; the same with the NLP expanded. For the scaling payload it reaches the
+    minimum min_vibration_replan reaches (residual ~ 0). Another beam and a bad state are refused."""
+    from hubbeam_ctrl.limit import ReplanSolver
+    x = _state(slew, 15)
+    scale = LAB.replace(m_t=0.2)
+    carried = LAB.replace(m_t=0.12)
+    period = 1.0 / natural_frequencies("foam", 0.0, "free", params=carried)[0]
+    for expand in (False, True):
+        solver = ReplanSolver(scale, 1.0, settings=QUICK, expand=expand)
+        assert solver.n_q == 4 and solver.build_s > 0
+        tail = solver.solve(carried, x, 1.3 - slew.t[15])
+        assert tail.converged and tail.params == carried
+        np.testing.assert_allclose(_state(tail, 0), x, rtol=0, atol=1e-12)
+        assert tail.theta[-1] == pytest.approx(1.0, abs=1e-6) and abs(tail.theta_dot[-1]) < 1e-6
+        t_end = tail.duration_s + 2 * period
+        run = simulate_fixed_step("foam", tail.torque, t_end, params=carried, x0=x, axial="quasi-static",
+                                  settings=StepperSettings(dt=t_end / math.ceil(t_end / 2e-4)))
+        after = run.t >= tail.duration_s
+        assert np.max(np.abs(run.v_tip[after])) <= tail.tolerance
+        assert np.mean(run.q[after, 0]) == pytest.approx(1.0, abs=1e-3)
+    same = ReplanSolver(scale, 1.0, settings=QUICK).solve(scale, x, 1.3 - slew.t[15])
+    direct = min_vibration_replan(scale, x, 1.0, 1.3 - slew.t[15])
+    # the minimum (residual ~ 0) is a manifold of torques: both reach it, not the same torques
+    assert max(same.residual_design, direct.residual_design) <= 1e-3 * same.tolerance
+    with pytest.raises(ParameterError, match="params must be the solver's beam"):
+        solver.solve(carried.replace(L=1.1), x, 0.8)
+    with pytest.raises(ParameterError, match="initial_state must hold 2 n_q = 8"):
+        solver.solve(carried, np.zeros(6), 0.8)
+
+
+def test_a_prebuilt_re_plan_stops_at_its_deadline(slew):
+    """max_wall_s: IPOPT is asked to stop at the deadline; the result is its last iterate, not converged."""
+    from hubbeam_ctrl.limit import ReplanSolver
+    solver = ReplanSolver(LAB, 1.0, settings=QUICK)
+    late = solver.solve(LAB, _state(slew, 15), 1.3 - slew.t[15], max_wall_s=1e-6)
+    assert not late.converged and "User_Requested_Stop" in late.message
+    on_time = solver.solve(LAB, _state(slew, 15), 1.3 - slew.t[15])
+    assert on_time.converged

@@ -30,6 +30,7 @@ evaluation plant (FOAM with dynamic axial coordinates and more bending modes,
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -285,8 +286,12 @@ def _problem(params: Params, slew_angle: float, settings: OptimalSettings, rig=N
                     float(slew_angle), params.tau_max, tip, settings.deflection_limit * params.L, _drive_terms(rig))
 
 
-def _interval_function(pb: _Problem, d: int) -> tuple:
-    """One interval's collocation equations in scaled variables, and the Radau points."""
+def _interval_function(pb: _Problem, d: int, parametric: bool = False) -> tuple:
+    """One interval's collocation equations in scaled variables, and the Radau points.
+
+    ``parametric``: the model's parameter vector (:attr:`HubBeamModel.p`) is the function's last
+    input instead of built in (one NLP for every payload of the model's family).
+    """
     n = pb.n
     points = np.array(ca.collocation_points(d, "radau"))
     C, D, _ = ca.collocation_coeff(list(points))
@@ -299,7 +304,13 @@ def _interval_function(pb: _Problem, d: int) -> tuple:
     Q = ca.horzcat(x0[:n], z[:n, :]) * np.hstack([qs] * (d + 1))
     V = ca.horzcat(x0[n:], z[n:2 * n, :]) * np.hstack([vs] * (d + 1))
     A = z[2 * n:, :] * np.hstack([as_] * d)
+    inputs = [x0, z, u, h]
     f = pb.model.inverse_dynamics_function
+    if parametric:
+        family = pb.model.parametric.inverse_dynamics
+        p = ca.SX.sym("p", family.sparsity_in(3).nnz())
+        inputs.append(p)
+        f = lambda q, v, a: family(q, v, a, p)
     B = np.zeros(n)
     B[0] = 1.0
     eqs = [ca.vec((ca.mtimes(Q, C) - h * V[:, 1:]) / np.hstack([vs] * d)),
@@ -307,7 +318,7 @@ def _interval_function(pb: _Problem, d: int) -> tuple:
     for j in range(d):
         eqs.append((f(Q[:, j + 1], V[:, j + 1], A[:, j]) - B * (u * pb.tau_max)) / pb.f_scale)
     end = ca.vertcat(ca.mtimes(ca.horzcat(x0[:n], z[:n, :]), D), ca.mtimes(ca.horzcat(x0[n:], z[n:2 * n, :]), D))
-    F = ca.Function("interval", [x0, z, u, h], [ca.vertcat(*eqs), end], {"cse": True})
+    F = ca.Function("interval", inputs, [ca.vertcat(*eqs), end], {"cse": True})
     return F, points
 
 
@@ -325,20 +336,31 @@ def _end_terms(pb: _Problem, xN) -> tuple:
     return mq[0] / pb.M0[0, 0] - pb.theta, mv[0] / pb.M0[0, 0], energy
 
 
-def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None) -> tuple:
-    """The NLP over ``w = [T, u (N), x (2n, N+1), z (3n d, N)]``; returns the solver pieces."""
+def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None, parametric: bool = False) -> tuple:
+    """The NLP over ``w = [T, u (N), x (2n, N+1), z (3n d, N)]``; returns the solver pieces.
+
+    ``parametric``: the NLP's parameter ``p`` holds what depends on the payload
+    (:func:`_parameter_values`: the model's parameters and the modes at rest of the end terms).
+    """
     n = pb.n
-    F, points = _interval_function(pb, d)
+    F, points = _interval_function(pb, d, parametric)
     T = ca.MX.sym("T")
     U = ca.MX.sym("u", 1, N)
     X = ca.MX.sym("x", 2 * n, N + 1)
     Z = ca.MX.sym("z", 3 * n * d, N)
     Zr = ca.reshape(Z, 3 * n, d * N)          # column k*d + j: point j of interval k
     h = T / N
-    eqs, end = F.map(N, "serial")(X[:, :N], Zr, U, h)
+    ends, P = pb, None
+    if parametric:
+        P = [ca.MX.sym("p", len(pb.model.p)), ca.MX.sym("M0", n, n), ca.MX.sym("Phi", n, n - 1),
+             ca.MX.sym("w", n - 1), ca.MX.sym("c", n - 1)]
+        ends = dataclasses.replace(pb, M0=P[1], Phi=P[2], w=P[3], tip_modal=P[4])
+        eqs, end = F.map(N, "serial")(X[:, :N], Zr, U, h, P[0])
+    else:
+        eqs, end = F.map(N, "serial")(X[:, :N], Zr, U, h)
     g = [ca.vec(eqs), ca.vec(X[:, 1:] - end)]
     lbg, ubg = [np.zeros(g[0].shape[0] + g[1].shape[0])], [np.zeros(g[0].shape[0] + g[1].shape[0])]
-    dangle, momentum, energy = _end_terms(pb, X[:, N])
+    dangle, momentum, energy = _end_terms(ends, X[:, N])
     g += [dangle / abs(pb.theta), momentum * pb.T_rigid / abs(pb.theta)]
     lbg += [np.zeros(2)]
     ubg += [np.zeros(2)]
@@ -365,6 +387,8 @@ def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None)
         objective = energy * n_flex / tolerance ** 2
     w = ca.vertcat(T, ca.vec(U), ca.vec(X), ca.vec(Z))
     nlp = {"x": w, "f": objective, "g": ca.vertcat(*g)}
+    if P is not None:
+        nlp["p"] = ca.vertcat(*[ca.vec(s) for s in P])
     lbw = np.full(w.shape[0], -np.inf)
     ubw = np.full(w.shape[0], np.inf)
     lbw[1:1 + N], ubw[1:1 + N] = -1.0, 1.0
@@ -377,6 +401,11 @@ def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None)
     else:
         lbw[0] = ubw[0] = duration
     return nlp, lbw, ubw, np.concatenate(lbg), np.concatenate(ubg), points
+
+
+def _parameter_values(pb: _Problem) -> np.ndarray:
+    """The values of a parametric NLP's ``p`` for the problem ``pb`` (:func:`_nlp`)."""
+    return np.concatenate([pb.model.p, pb.M0.ravel(order="F"), pb.Phi.ravel(order="F"), pb.w, pb.tip_modal])
 
 
 def _rigid_guess(pb: _Problem, N: int, d: int, points, T: float) -> np.ndarray:
@@ -545,7 +574,6 @@ def _result(kind: str, params: Params, slew_angle: float, tolerance: float, pb: 
 
 
 def _replace(result: OptimalSlew, **changes) -> OptimalSlew:
-    import dataclasses
     return dataclasses.replace(result, **changes)
 
 
