@@ -122,3 +122,12 @@ def test_a_prebuilt_re_plan_stops_at_its_deadline(slew):
     assert not late.converged and "User_Requested_Stop" in late.message
     on_time = solver.solve(LAB, _state(slew, 15), 1.3 - slew.t[15])
     assert on_time.converged
+
+
+def test_optimal_settings_max_wall_s_stops_ipopt(slew):
+    """OptimalSettings(max_wall_s=) is IPOPT's max_wall_time: past it, the last iterate, not converged."""
+    late = min_vibration_replan(LAB, _state(slew, 15), 1.0, 1.3 - slew.t[15],
+                                settings=QUICK.replace(max_wall_s=1e-3))
+    assert not late.converged and "WallTime" in late.message
+    with pytest.raises(ParameterError, match="max_wall_s"):
+        OptimalSettings(max_wall_s=0.0)
