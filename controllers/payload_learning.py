@@ -190,8 +190,11 @@ class PayloadLearning(Controller):
     Attributes
     ----------
     log : list of dict
-        One entry per switch: time [s], payload [kg], when the new plan took over [s], the
-        re-plan's wall time [s] and whether IPOPT converged.
+        One entry per switch: ``t_s`` [s], the identified ``payload_kg`` [kg], the re-plan's
+        ``modes``, ``identify_wall_s``, ``replan_wall_s`` and ``wall_s`` (the whole switch) [s]
+        against ``allowance_s`` [s] (``within_allowance``), IPOPT's ``iterations`` and
+        ``converged``, ``dropped`` (too late: the controller kept its plan and gain) and
+        ``applied_s``, when the new plan took over [s] (None if dropped).
     """
 
     def __init__(self, inner: Controller, settings: PayloadLearningSettings, slew_angle: float, duration: float,
@@ -271,7 +274,6 @@ class PayloadLearning(Controller):
         return min(self.learning.allowance_s, cap)
 
     def _relearn(self, k: int, y: np.ndarray) -> None:
-        from .reference import optimal_reference
         st, old, dt = self.learning, self.inner.reference, self.dt
         base = self.first.design.params
         clock = time.perf_counter()
@@ -281,50 +283,55 @@ class PayloadLearning(Controller):
         params = base.replace(m_t=mass)
         remaining = (round(self.duration / dt) - k) * dt
         allowance = self._allowance(k)
-        h = remaining / st.intervals
-        n_hold = int(math.ceil(allowance / h - 1e-9)) if allowance > 0 else 0
-        edges = k + np.round(np.arange(n_hold + 1) * h / dt).astype(int)
-        hold = [float(np.mean(old.torque[a:max(b, a + 1)])) for a, b in zip(edges[:-1], edges[1:])]
-        solver = self._solvers[self._stage - 1]
+        edges, hold = _held_prefix(old, k, remaining / st.intervals, allowance, dt)
+        solver, modes = self._solvers[self._stage - 1], self._plan_modes[self._stage - 1]
         deadline = None
         if st.real_time and allowance > 0:     # IPOPT's share: what identification left, less the reserve
             deadline = max((1.0 - RESERVE_SHARE) * allowance - (time.perf_counter() - clock), 1e-3)
-        n = solver.n_q
-        design = DesignModel.build(params, self.first.design.spin, dt, self.first.design.n_modes)
         z = y if self.measurement == "state" else self.inner.x_hat       # the state, or the filter's estimate
-        half = len(z) // 2
-        x0 = np.concatenate([z[:n], z[half:half + n]])
-        plan = solver.solve(params, x0, remaining, hold=hold or None, max_wall_s=deadline)
-        planned = time.perf_counter()
-        modes = self._plan_modes[self._stage - 1]
+        n, half = solver.n_q, len(z) // 2
+        plan = solver.solve(params, np.concatenate([z[:n], z[half:half + n]]), remaining, hold=hold or None,
+                            max_wall_s=deadline)
         entry = {"t_s": k * dt, "payload_kg": mass, "modes": modes, "identify_wall_s": identified - clock,
-                 "replan_wall_s": planned - identified, "iterations": plan.iterations, "converged": plan.converged}
-        if deadline is not None and not plan.converged:      # too late: keep the plan and gain, with feedback
-            wall = time.perf_counter() - clock
-            self.log.append({**entry, "applied_s": None, "wall_s": wall, "allowance_s": allowance,
-                             "within_allowance": wall <= allowance,
-                             "dropped": True})
-            return
-        new = optimal_reference(plan, dt, (len(old.theta) - 1 - k) * dt)
-        m = min(len(old.theta) - k, len(new.theta))
-        arrays = [a.copy() for a in (old.theta, old.theta_dot, old.theta_ddot, old.torque)]
-        for full, part in zip(arrays, (new.theta, new.theta_dot, new.theta_ddot, new.torque)):
-            full[k:k + m] = part[:m]
-        width = max(new.elastic.shape[1], 0 if old.elastic is None else old.elastic.shape[1]) // 2
-        elastic = np.zeros((len(arrays[0]), 2 * width))
-        if old.elastic is not None:
-            elastic[:k] = _modes(old.elastic[:k], width)
-        elastic[k:k + m] = _modes(new.elastic[:m], width)
-        ref = Reference(dt, *arrays, f"re-planned at {k * dt:.3g} s for {mass:.4g} kg", elastic=elastic)
-        ctrl = self.factory(self.name, design, _along_partial_plan(self.first.settings, modes, design), ref)
-        if self.measurement != "state":        # the new filter starts from the old one's estimate
-            ctrl.start_estimate(z, float(ref.torque[k]))
-        wall = time.perf_counter() - clock
+                 "replan_wall_s": time.perf_counter() - identified, "iterations": plan.iterations,
+                 "converged": plan.converged, "allowance_s": allowance}
+        dropped = deadline is not None and not plan.converged   # too late: keep the plan and gain, with feedback
         ready = max(int(edges[-1]), k + 1)     # from the next sample at the earliest
-        self.log.append({**entry, "applied_s": ready * dt, "wall_s": wall, "allowance_s": allowance,
-                             "within_allowance": wall <= allowance,
-                         "dropped": False})
-        self._pending = (ready, ctrl)
+        if not dropped:
+            ref = _spliced(old, plan, k, mass)
+            design = DesignModel.build(params, self.first.design.spin, dt, self.first.design.n_modes)
+            ctrl = self.factory(self.name, design, _along_partial_plan(self.first.settings, modes, design), ref)
+            if self.measurement != "state":    # the new filter starts from the old one's estimate
+                ctrl.start_estimate(z, float(ref.torque[k]))
+            self._pending = (ready, ctrl)
+        wall = time.perf_counter() - clock
+        self.log.append({**entry, "applied_s": None if dropped else ready * dt, "wall_s": wall,
+                         "within_allowance": wall <= allowance, "dropped": dropped})
+
+
+def _held_prefix(old: Reference, k: int, interval: float, allowance: float, dt: float) -> tuple:
+    """The re-plan's first intervals (``interval`` [s] each) covering ``allowance`` [s] from sample ``k``:
+    their edges [samples] and the old plan's mean feedforward over each [N m]."""
+    n_hold = int(math.ceil(allowance / interval - 1e-9)) if allowance > 0 else 0
+    edges = k + np.round(np.arange(n_hold + 1) * interval / dt).astype(int)
+    return edges, [float(np.mean(old.torque[a:max(b, a + 1)])) for a, b in zip(edges[:-1], edges[1:])]
+
+
+def _spliced(old: Reference, plan, k: int, mass: float) -> Reference:
+    """``old`` up to sample ``k``, then the re-plan ``plan`` (hub, feedforward and planned modes)."""
+    from .reference import optimal_reference
+    dt = old.dt
+    new = optimal_reference(plan, dt, (len(old.theta) - 1 - k) * dt)
+    m = min(len(old.theta) - k, len(new.theta))
+    arrays = [a.copy() for a in (old.theta, old.theta_dot, old.theta_ddot, old.torque)]
+    for full, part in zip(arrays, (new.theta, new.theta_dot, new.theta_ddot, new.torque)):
+        full[k:k + m] = part[:m]
+    width = max(new.elastic.shape[1], 0 if old.elastic is None else old.elastic.shape[1]) // 2
+    elastic = np.zeros((len(arrays[0]), 2 * width))
+    if old.elastic is not None:
+        elastic[:k] = _modes(old.elastic[:k], width)
+    elastic[k:k + m] = _modes(new.elastic[:m], width)
+    return Reference(dt, *arrays, f"re-planned at {k * dt:.3g} s for {mass:.4g} kg", elastic=elastic)
 
 
 def _modes(elastic: np.ndarray, width: int) -> np.ndarray:
