@@ -28,18 +28,18 @@ its plan and gain.
 
 Measured on Table 1's beam, 1 rad in 4.614 s (1.5 x the 0.5 kg beam's time-optimal slew), all
 defaults (switches at 25 % and 50 %, 1 s allowance; ``benchmarks/bench_limit_targets.py --cases
-payload_learning``): the LQR settles at 4.48 / 4.56 / 5.01 / 7.16 s with 0 / 0.1 / 0.3 / 0.5 kg,
-the MPC at 4.56 / 4.58 / 4.74 / 5.23 s and the LQG at 4.59 / 4.57 / 5.57 / 5.46 s (targets
-6.59 / 6.79 / 7.11 / 7.37 s; at most 0.016 % of L): 12 of 12 meet. Each re-plan's NLP is built
+payload_learning``): the LQR settles at 4.54 / 4.56 / 4.96 / 7.19 s with 0 / 0.1 / 0.3 / 0.5 kg,
+the MPC at 4.54 / 4.57 / 4.63 / 4.58 s and the LQG at 4.59 / 4.58 / 5.58 / 6.57 s (targets
+6.59 / 6.79 / 7.11 / 7.37 s; at most 0.015 % of L): 12 of 12 meet. Each re-plan's NLP is built
 before the slew (:class:`hubbeam_ctrl.limit.ReplanSolver`, the payload a parameter, scaled for
-the heaviest payload), so each switch (identification, IPOPT on 2 then 3 modes, new design)
-took 0.16-0.53 s of the 1 s allowed, none dropped. A re-plan on all 10 of the plant's modes
-took 7-30 s.
+the heaviest payload, the torque's steps weighted by ``smoothing``), so each switch
+(identification, IPOPT on 2 then 3 modes, new design) took 0.19-0.39 s of the 1 s allowed, none
+dropped. A re-plan on all 10 of the plant's modes took 7-30 s.
 
 It does not transfer in real time to the lab arm's 1.79 s slew (0-0.2 kg): the allowance is
-capped at 0.45 s there, and 4 of 12 meet with all defaults; re-planned at once on the design's
-5 modes 8-12 of 12 meet (which zero-residual plan IPOPT lands on decides), but each re-plan
-takes 0.3-3.5 s (``--cases payload_learning_lab``, docs/limit.md).
+capped at 0.45 s there, and 5 of 12 meet with all defaults; re-planned at once on the design's
+5 modes 12 of 12 meet, but each re-plan takes 0.36-0.95 s (``--cases payload_learning_lab``,
+docs/limit.md).
 :attr:`PayloadLearning.log` records each switch's times, modes and whether it was dropped.
 """
 
@@ -93,6 +93,9 @@ class PayloadLearningSettings(Settings):
                                 doc="Bending modes of the re-plan's nonlinear model (None: those the re-plan's torque "
                                     "grid can shape, free-hub frequency at most intervals / (2 x time left), "
                                     "at least 1).")
+    smoothing: float = setting(1e-3, lo=0.0, doc="Weight of the re-plan's torque steps "
+                                                 "(OptimalSettings.torque_smoothing): one plan among those "
+                                                 "that leave the model at rest, and better-conditioned solves.")
     allowance_s: float = setting(1.0, unit="s", lo=0.0,
                                  doc="Computing time allowed for a re-plan (at most until the next switch and "
                                      "half the time left): its first intervals covering it are held at the "
@@ -155,11 +158,12 @@ def identify_payload(params: Params, dt: float, n_modes: int, torque, rate, mass
 
 
 @functools.lru_cache(maxsize=32)
-def _replan_solver(params: Params, slew_angle: float, intervals: int, max_iter: int, modes: int):
-    """The re-plan's NLP for ``params``' family, expanded (built once per beam, slew and modes)."""
+def _replan_solver(params: Params, slew_angle: float, intervals: int, max_iter: int, modes: int, smoothing: float):
+    """The re-plan's NLP for ``params``' family, expanded (built once per beam, slew and settings)."""
     from hubbeam_ctrl.limit import OptimalSettings, ReplanSolver
-    return ReplanSolver(params, slew_angle, settings=OptimalSettings(intervals=intervals, max_iter=max_iter,
-                                                                     modes=modes, check=False), expand=True)
+    settings = OptimalSettings(intervals=intervals, max_iter=max_iter, modes=modes, check=False,
+                               torque_smoothing=smoothing)
+    return ReplanSolver(params, slew_angle, settings=settings, expand=True)
 
 
 @functools.lru_cache(maxsize=256)
@@ -232,8 +236,8 @@ class PayloadLearning(Controller):
                                 shapeable_modes(heaviest, settings.intervals, (steps - k) * self.dt), base.n_transverse)
                             for k in self._switch]
         scaled = base.replace(m_t=settings.payload_max_kg)
-        self._solvers = [_replan_solver(scaled, self.slew_angle, settings.intervals, settings.max_iter, m)
-                         for m in self._plan_modes]
+        self._solvers = [_replan_solver(scaled, self.slew_angle, settings.intervals, settings.max_iter, m,
+                                        settings.smoothing) for m in self._plan_modes]
         self.reset()
 
     def reset(self) -> None:

@@ -76,6 +76,10 @@ class OptimalSettings(Settings):
     check: bool = setting(True, doc="Apply the optimal torque to the evaluation plant and report its "
                                     "residual.")
     max_iter: int = setting(1000, lo=1, doc="IPOPT iteration limit per solve.")
+    torque_smoothing: float = setting(0.0, lo=0.0, doc="Minimum vibration only: weight of the torque's squared "
+                                                        "steps (scaled by tau_max) added to the residual's "
+                                                        "objective, which picks one plan among the many that "
+                                                        "leave the model at rest (0: none).")
     max_wall_s: float | None = setting(None, unit="s", lo=0.0, lo_open=True, kind=float,
                                        doc="IPOPT's wall-clock limit per solve (None: none; building the NLP "
                                            "before it is not counted); past it the result is the last iterate, "
@@ -336,8 +340,12 @@ def _end_terms(pb: _Problem, xN) -> tuple:
     return mq[0] / pb.M0[0, 0] - pb.theta, mv[0] / pb.M0[0, 0], energy
 
 
-def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None, parametric: bool = False) -> tuple:
+def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None, parametric: bool = False,
+         smoothing: float = 0.0) -> tuple:
     """The NLP over ``w = [T, u (N), x (2n, N+1), z (3n d, N)]``; returns the solver pieces.
+
+    ``smoothing`` (minimum vibration only): weight of the scaled torque's squared steps added to
+    the objective (:attr:`OptimalSettings.torque_smoothing`).
 
     ``parametric``: the NLP's parameter ``p`` holds what depends on the payload
     (:func:`_parameter_values`: the model's parameters and the modes at rest of the end terms).
@@ -385,6 +393,8 @@ def _nlp(pb: _Problem, N: int, d: int, tolerance: float, duration: float | None,
         objective = T / pb.T_rigid
     else:
         objective = energy * n_flex / tolerance ** 2
+        if smoothing > 0:                # one plan among those that leave the model at rest
+            objective = objective + smoothing * ca.sumsqr(U[1:] - U[:-1])
     w = ca.vertcat(T, ca.vec(U), ca.vec(X), ca.vec(Z))
     nlp = {"x": w, "f": objective, "g": ca.vertcat(*g)}
     if P is not None:
@@ -453,12 +463,11 @@ def _resample(pb: _Problem, w: np.ndarray, N0: int, N: int, d: int, points) -> n
     return np.concatenate([[T], u, X.ravel(order="F"), Z.reshape(3 * n * d, N, order="F").ravel(order="F")])
 
 
-def _solve(pb: _Problem, N: int, d: int, tolerance: float, duration, w0, max_iter: int,
-           max_wall: float | None = None) -> tuple:
-    nlp, lbw, ubw, lbg, ubg, points = _nlp(pb, N, d, tolerance, duration)
-    ipopt = {"print_level": 0, "max_iter": max_iter, "sb": "yes", "tol": 1e-8, "acceptable_tol": 1e-6}
-    if max_wall is not None:
-        ipopt["max_wall_time"] = max(float(max_wall), 1e-3)
+def _solve(pb: _Problem, N: int, d: int, tolerance: float, duration, w0, settings: OptimalSettings) -> tuple:
+    nlp, lbw, ubw, lbg, ubg, points = _nlp(pb, N, d, tolerance, duration, smoothing=settings.torque_smoothing)
+    ipopt = {"print_level": 0, "max_iter": settings.max_iter, "sb": "yes", "tol": 1e-8, "acceptable_tol": 1e-6}
+    if settings.max_wall_s is not None:
+        ipopt["max_wall_time"] = max(float(settings.max_wall_s), 1e-3)
     solver = ca.nlpsol("optimal_slew", "ipopt", nlp, {"print_time": False, "ipopt": ipopt})
     with capture_native_output():
         sol = solver(x0=w0, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
@@ -485,12 +494,12 @@ def _optimise_problem(pb: _Problem, tolerance: float, duration, settings: Optima
     N0 = settings.coarse_intervals
     if 0 < N0 < N:
         wc, points = _fallback_guess(pb, N0, d, duration)
-        wc, stats, points = _solve(pb, N0, d, tolerance, duration, wc, settings.max_iter, settings.max_wall_s)
+        wc, stats, points = _solve(pb, N0, d, tolerance, duration, wc, settings)
         iterations += stats["iter_count"]
         statuses.append(stats["return_status"])
         if stats["success"]:
             w0 = _resample(pb, wc, N0, N, d, points)
-    w, stats, points = _solve(pb, N, d, tolerance, duration, w0, settings.max_iter, settings.max_wall_s)
+    w, stats, points = _solve(pb, N, d, tolerance, duration, w0, settings)
     iterations += stats["iter_count"]
     return pb, w, stats, iterations, time.perf_counter() - start
 

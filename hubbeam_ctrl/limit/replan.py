@@ -197,7 +197,8 @@ class ReplanSolver:
         start = time.perf_counter()
         self._pb = _problem(params, self.slew_angle, settings, rig)
         nlp, self._lbw, self._ubw, self._lbg, self._ubg, self._points = _nlp(
-            self._pb, settings.intervals, settings.degree, self.tolerance, 1.0, parametric=True)
+            self._pb, settings.intervals, settings.degree, self.tolerance, 1.0, parametric=True,
+            smoothing=settings.torque_smoothing)
         self._stop = _Deadline(nlp["x"].shape[0], nlp["g"].shape[0], nlp["p"].shape[0])
         ipopt = {"print_level": 0, "max_iter": settings.max_iter, "sb": "yes", "tol": 1e-8, "acceptable_tol": 1e-6}
         with capture_native_output():
