@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import json
 import math
 import os
 import platform
@@ -47,10 +46,11 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from benchjson import emit  # noqa: E402
+
 from controllers import DesignModel  # noqa: E402
 from controllers.scaling import first_mode  # noqa: E402
 from hubbeam_ctrl import Params  # noqa: E402
-from hubbeam_ctrl.core.fileio import atomic_write_text  # noqa: E402
 from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.plant.rig import Rig, load_rig  # noqa: E402
 from hubbeam_ctrl.study.compare import compare  # noqa: E402
@@ -268,10 +268,7 @@ def main(argv=None) -> int:
         scan[f"{factor:g}"] = run_cases(cases, factor)
     doc["cases"] = scan[f"{factors[0]:g}"] if len(factors) == 1 else scan
     doc["wall_s"] = time.perf_counter() - t0
-    text = json.dumps(doc, indent=1, default=float)
-    print(text)
-    if args.out:
-        atomic_write_text(args.out, text + "\n")
+    emit(doc, args.out)
     return 0
 
 

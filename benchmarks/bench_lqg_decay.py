@@ -12,17 +12,17 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from benchjson import emit  # noqa: E402
+
 from controllers import LQG, DesignModel, LQGSettings  # noqa: E402
 from controllers.lqg import DECAY_LADDER, noise_tip_std  # noqa: E402
 from hubbeam_ctrl import Params  # noqa: E402
-from hubbeam_ctrl.core.fileio import atomic_write_text  # noqa: E402
 from hubbeam_ctrl.plant.rig import load_rig  # noqa: E402
 from hubbeam_ctrl.study.compare import compare  # noqa: E402
 from hubbeam_ctrl.study.rig_loop import rig_noise  # noqa: E402
@@ -80,11 +80,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", help="also write the JSON here")
     args = ap.parse_args(argv)
-    text = json.dumps({"benchmark": "bench_lqg_decay", "issue": 22, "ladder": ladder(), "margins": margins()},
-                      indent=1)
-    print(text)
-    if args.out:
-        atomic_write_text(args.out, text + "\n")
+    emit({"benchmark": "bench_lqg_decay", "issue": 22, "ladder": ladder(), "margins": margins()}, args.out)
     return 0
 
 

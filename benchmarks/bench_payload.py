@@ -11,7 +11,6 @@ at the four payloads and checks the same conditions, printing each row.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
@@ -19,7 +18,8 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from hubbeam_ctrl.core.fileio import atomic_write_text  # noqa: E402
+from benchjson import emit  # noqa: E402
+
 from hubbeam_ctrl.study import payload_comparison, payload_table  # noqa: E402
 
 MASSES = (0.0, 0.1, 0.3, 0.5)
@@ -53,10 +53,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     doc = {"benchmark": "payload_range", "machine": {"python": platform.python_version(), "cpus": os.cpu_count()},
            **run()}
-    text = json.dumps(doc, indent=1, default=float)
-    print(text)
-    if args.out:
-        atomic_write_text(args.out, text + "\n")
+    emit(doc, args.out)
     return 0
 
 

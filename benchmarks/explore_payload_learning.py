@@ -40,7 +40,6 @@ toolbox's version of the nonlinear route is :mod:`controllers.payload_learning`.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -49,6 +48,8 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from benchjson import emit  # noqa: E402
 
 import controllers.planning as planning  # noqa: E402
 import hubbeam_ctrl.study.compare as compare_module  # noqa: E402
@@ -333,11 +334,7 @@ def main(argv=None) -> int:
             "switches": wrappers[-1].log if wrappers else [], "wall_s": time.perf_counter() - t0}
         print(f"{mass:g} kg: {m['verdict']} {settle}/{tf + period:.3g} s {m['residual_pct_of_L']:.3g} %L "
               f"{out['runs'][f'{mass:g}']['switches']}", file=sys.stderr)
-    text = json.dumps(out, indent=1)
-    print(text)
-    if o.out:
-        from hubbeam_ctrl.core.fileio import atomic_write_text
-        atomic_write_text(o.out, text + "\n")
+    emit(out, o.out)
     return 0
 
 
