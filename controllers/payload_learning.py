@@ -287,7 +287,7 @@ class PayloadLearning(Controller):
         params = base.replace(m_t=mass)
         remaining = (round(self.duration / dt) - k) * dt
         allowance = self._allowance(k)
-        edges, hold = _held_prefix(old, k, remaining / st.intervals, allowance, dt)
+        edges, hold = _held_prefix(old, k, remaining / st.intervals, allowance, min(self.tau_max, base.tau_max))
         solver, modes = self._solvers[self._stage - 1], self._plan_modes[self._stage - 1]
         deadline = None
         if st.real_time and allowance > 0:     # IPOPT's share: what identification left, less the reserve
@@ -313,12 +313,15 @@ class PayloadLearning(Controller):
                          "within_allowance": wall <= allowance, "dropped": dropped})
 
 
-def _held_prefix(old: Reference, k: int, interval: float, allowance: float, dt: float) -> tuple:
+def _held_prefix(old: Reference, k: int, interval: float, allowance: float, tau_max: float) -> tuple:
     """The re-plan's first intervals (``interval`` [s] each) covering ``allowance`` [s] from sample ``k``:
-    their edges [samples] and the old plan's mean feedforward over each [N m]."""
+    their edges [samples] and the old plan's mean feedforward over each, within ``tau_max`` [N m]
+    (what the drive plays: a feedforward at full torque differs from it by round-off)."""
+    dt = old.dt
     n_hold = int(math.ceil(allowance / interval - 1e-9)) if allowance > 0 else 0
     edges = k + np.round(np.arange(n_hold + 1) * interval / dt).astype(int)
-    return edges, [float(np.mean(old.torque[a:max(b, a + 1)])) for a, b in zip(edges[:-1], edges[1:])]
+    return edges, [float(np.clip(np.mean(old.torque[a:max(b, a + 1)]), -tau_max, tau_max))
+                   for a, b in zip(edges[:-1], edges[1:])]
 
 
 def _spliced(old: Reference, plan, k: int, mass: float) -> Reference:

@@ -185,3 +185,19 @@ def test_a_fast_slew_caps_the_allowance_at_the_next_switch_and_half_the_time_lef
     assert [e["allowance_s"] for e in log] == pytest.approx([0.45, 0.45], abs=0.011)
     assert all(e["applied_s"] <= e["t_s"] + e["allowance_s"] + 0.06 for e in log)
     assert log[0]["payload_kg"] == pytest.approx(0.05, rel=0.005)
+
+
+def test_the_held_feedforward_stays_within_the_drive_at_full_torque():
+    """A feedforward at full torque exceeds tau_max by round-off (it is differenced from the plan's
+    torque integral); the held prefix is what the drive plays, within tau_max. Before, the
+    re-plan refused it ("hold must be ... within +-200 N m") and the paper's Eq. 44 slew with
+    0.5 kg stopped the learning LQG's run."""
+    from controllers import Reference
+    from controllers.payload_learning import _held_prefix
+    n = 100
+    torque = np.full(n, 200.0 * (1 + 1e-11))
+    torque[60:] = -200.0 * (1 + 1e-11)
+    ref = Reference(0.01, np.zeros(n), np.zeros(n), np.zeros(n), torque, "full torque")
+    edges, hold = _held_prefix(ref, 40, 0.05, 0.3, 200.0)
+    assert list(edges) == [40, 45, 50, 55, 60, 65, 70]
+    assert hold == [200.0, 200.0, 200.0, 200.0, -200.0, -200.0]
