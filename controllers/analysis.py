@@ -44,7 +44,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from .base import DesignModel
 
 __all__ = ["LoopMargins", "FrequencyResponse", "design_plant", "loop_transfer", "loop_matrices", "closed_loop_poles",
-           "loop_margins", "frequency_grid"]
+           "loop_margins", "frequency_grid", "hardware_plant", "rig_plant"]
 
 #: Signals a controller may read, with the row of the design model that gives them.
 _SENSOR_ROWS = {"theta": ("C_sensors", 0), "theta_dot": ("C_sensors", 1),
@@ -98,6 +98,78 @@ def _feedback_arrays(ctrl) -> tuple:
             np.asarray(Cc, dtype=float).reshape(1, nc), np.asarray(Dc, dtype=float).reshape(1, ni), list(inputs))
 
 
+def hardware_plant(A, B, hardware, command: str = "torque") -> tuple:
+    """A continuous linear SFOAM with the rig's drive and viscous friction at the hub.
+
+    The hub torque is ``g u - b theta_dot``: ``g`` the drive's torque per unit command and
+    ``b`` its back-EMF damping plus the viscous friction on a DC motor commanded in volts
+    (:meth:`~hubbeam_ctrl.sim.hardware.Hardware.hub_damping`), ``g = 1`` and ``b`` the viscous
+    friction for a torque command. Coulomb friction and the limits are not linear and are left out.
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+        ``x = [theta, q2, theta_dot, q2_dot]`` [1/s].
+    B : ndarray (n, 1)
+        Per N m at the hub.
+    hardware : Hardware or None
+        The rig's (None: the beam alone).
+    command : {"torque", "voltage"}
+        The controller's output.
+
+    Returns
+    -------
+    tuple
+        ``(A, B, delay)``: the input in the command's unit, the computation delay [-].
+    """
+    if hardware is None:
+        return A, B, 0.0
+    voltage = command == "voltage" and hardware.command == "voltage"
+    gain = hardware.torque_per_volt() if voltage else 1.0
+    damping = hardware.hub_damping() if voltage else hardware.friction.viscous
+    h = A.shape[0] // 2
+    A = np.array(A, dtype=float)
+    A[:, h] -= damping * np.asarray(B, dtype=float)[:, 0]
+    return A, np.asarray(B, dtype=float) * gain, float(hardware.delay)
+
+
+def rig_plant(d: DesignModel, inputs, hardware=None, command: str = "torque", params=None) -> tuple:
+    """The sampled plant of a loop as it runs on a rig: drive, viscous friction, the sensors the
+    controller reads (an accelerometer's feedthrough) and the computation delay.
+
+    The state is ``[x, u_prev]`` (:func:`hubbeam_ctrl.linear.delay.delay_augmented`; with no
+    delay ``u_prev`` only feeds the accelerometer).
+
+    Parameters
+    ----------
+    d : DesignModel
+        The linear model (its continuous ``A``, ``B``, ``sensors``, ``delay`` without hardware).
+    inputs : sequence of str
+        The controller's input names.
+    hardware : Hardware, optional
+    command : {"torque", "voltage"}
+    params : Params, optional
+        The parameters of ``d``'s matrices (default ``d.params``).
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(Ad, Bd, Cm)`` with ``Cm`` the rows of the inputs on ``[x, u_prev]``.
+    """
+    from hubbeam_ctrl.linear.delay import delay_augmented
+    A, B, delay = hardware_plant(d.A, d.B, hardware, command)
+    if hardware is None:
+        delay = d.delay
+    layout = d.sensors
+    if layout is not None and list(inputs) == list(layout.signals):
+        Cm, Dm = layout.rows(A, B, params or d.params, d.spin)
+    else:
+        Cm = _measurement_matrix(d, [("root_moment" if n == "moment_1" else n) for n in inputs])
+        Dm = np.zeros((Cm.shape[0], 1))
+    Ad, Bd = delay_augmented(A, B, d.dt, delay)
+    return Ad, Bd, np.hstack([Cm, Dm])
+
+
 def loop_matrices(ctrl, plant=None):
     """State-space matrices ``(A, B, C, D)`` of the return ratio at the plant input.
 
@@ -124,7 +196,15 @@ def loop_matrices(ctrl, plant=None):
     needed = int(getattr(ctrl, "state_modes", 0) or 0)
     if plant is not None and d.n_modes < needed and d.dt == ctrl.design.dt:
         # a gain on the residual modes (residual_control) reads them: the same plant with them
-        d = DesignModel.build(d.params, d.spin, d.dt, needed)
+        d = DesignModel.build(d.params, d.spin, d.dt, needed).on_rig(d.sensors, d.delay)
+    hw = getattr(ctrl, "rig_hardware", None)
+    if d.sensors is not None or d.delay > 0 or hw is not None:
+        Ad, Bd, Cm = rig_plant(d, input_labels, hw, getattr(ctrl, "command", "torque"))
+        n, nc = Ad.shape[0], Ac.shape[0]
+        A = np.block([[Ad, np.zeros((n, nc))], [Bc @ Cm, Ac]])
+        B = np.vstack([Bd, np.zeros((nc, 1))])
+        C = -np.hstack([Dc @ Cm, Cc])
+        return A, B, C, np.zeros((1, 1))
     missing = [n for n in input_labels if n not in _SENSOR_ROWS and n not in d.state_names]
     if d.dt != ctrl.design.dt or missing:
         raise ParameterError(f"plant must have dt = {ctrl.design.dt:g} s and the signals the controller reads "

@@ -19,6 +19,7 @@ full-state controllers work directly on the plant's measured state.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field, fields
 
@@ -159,8 +160,9 @@ class DesignModel:
         Continuous state matrices of ``dx/dt = A x + B tau``.
     Ad, Bd : ndarray
         Sampled ones, ``x[k+1] = Ad x[k] + Bd tau[k]``.
-    C_sensors : ndarray (3, nx)
-        Rows giving ``[theta, theta_dot, M_root]`` [rad, rad/s, N m].
+    C_sensors : ndarray (ny, nx)
+        Rows giving the sensors the estimator reads: ``[theta, theta_dot, M_root]`` [rad, rad/s,
+        N m] by default, the rig's own set after :meth:`on_rig` (:attr:`sensors`).
     C_tip : ndarray (2, nx)
         Rows giving the tip deflection ``v_tip`` [m] and its rate [m/s].
     inertia : float
@@ -171,6 +173,13 @@ class DesignModel:
     linear_model : hubbeam_ctrl.linear.statespace.LinearModel
         The sampled model as a python-control system (``.sys``); built on first use (a
         property), so that designing a controller does not import python-control.
+    sensors : controllers.sensing.SensorLayout or None
+        The signals of :attr:`C_sensors` (None: the default three, hub angle and rate, root moment).
+    D_sensors : ndarray (ny, 1) or None
+        Feedthrough of the previous command into the sensors (a tip accelerometer; None: none).
+    delay : float
+        Computation delay as a fraction of the sample [-], in [0, 1]: the command computed at a
+        sample acts ``delay * dt`` later (the rig's ``timing.delay``).
     """
 
     params: Params
@@ -187,7 +196,11 @@ class DesignModel:
     state_names: list
     M2: np.ndarray = None
     K2: np.ndarray = None
+    sensors: object = None
+    D_sensors: np.ndarray = None
+    delay: float = 0.0
     _linear_model: object = field(default=None, repr=False, init=False)
+    _action: tuple = field(default=None, repr=False, init=False)
 
     @classmethod
     def build(cls, params: Params = Params(), spin: float = 0.0, dt: float = 0.01,
@@ -250,6 +263,135 @@ class DesignModel:
     def n_x(self) -> int:
         """Number of states ``2 (1 + n_modes)``."""
         return self.A.shape[0]
+
+    @property
+    def signals(self) -> tuple:
+        """Names of the sensor signals of :attr:`C_sensors`, in the closed loop's names."""
+        from .sensing import DEFAULT_LAYOUT
+        return (self.sensors or DEFAULT_LAYOUT).signals
+
+    @property
+    def sensor_labels(self) -> list:
+        """Input names of a sensor-reading law (:meth:`Controller.feedback_matrices`): the beam
+        alone's ``theta, theta_dot, root_moment``, else :attr:`signals`."""
+        return ["theta", "theta_dot", "root_moment"] if self.sensors is None else list(self.signals)
+
+    @property
+    def carries_loop(self) -> bool:
+        """The filter needs the previous command as a state: a delay or an accelerometer."""
+        return self.delay > 0.0 or (self.D_sensors is not None and bool(np.any(self.D_sensors)))
+
+    def on_rig(self, sensors=None, delay: float = 0.0) -> "DesignModel":
+        """The same model reading the rig's sensors with the rig's computation delay.
+
+        Parameters
+        ----------
+        sensors : controllers.sensing.SensorLayout, optional
+            The signals the estimator reads (default: the three of the beam alone).
+        delay : float
+            Computation delay as a fraction of the sample [-], in [0, 1].
+
+        Returns
+        -------
+        DesignModel
+            ``self`` when nothing changes (the beam alone's model, bit for bit).
+        """
+        from .sensing import DEFAULT_LAYOUT
+        if not (isinstance(delay, (int, float)) and 0.0 <= delay <= 1.0):
+            raise ParameterError(f"timing.delay must be in [0, 1] (a fraction of the sample), got {delay!r}")
+        layout = sensors or DEFAULT_LAYOUT
+        if layout.is_default and delay == 0.0 and self.sensors is None and self.delay == 0.0:
+            return self
+        C, D = layout.rows(self.A, self.B, self.params, self.spin, self.C_tip[0])
+        if layout.is_default:
+            C = self.C_sensors if self.sensors is None else C
+        return dataclasses.replace(self, C_sensors=C, D_sensors=D, sensors=layout, delay=float(delay))
+
+    def sensor_deviation(self, y, t: float) -> np.ndarray:
+        """The measurement ``y`` of :attr:`signals` in deviation coordinates about the steady
+        rotation (the angle less ``spin t``, the rate less ``spin``).
+
+        Parameters
+        ----------
+        y : array_like (ny,)
+            Measured signals [rad, rad/s, N m, m/s^2].
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        ndarray (ny,)
+        """
+        yd = np.array(y, dtype=float)
+        if self.sensors is None:
+            yd[0] -= self.spin * t
+            yd[1] -= self.spin
+            return yd
+        for k, s in enumerate(self.signals):
+            if s == "theta":
+                yd[k] -= self.spin * t
+            elif s == "theta_dot":
+                yd[k] -= self.spin
+        return yd
+
+    def acting_state(self, z_hat) -> np.ndarray:
+        """The state where this sample's command starts to act, from a filter state
+        ``z = [x, u_prev, ...]`` (:func:`controllers.estimator.filter_matrices`); ``x`` itself
+        without a delay.
+
+        Parameters
+        ----------
+        z_hat : ndarray
+            Filter estimate whose first :attr:`n_x` entries are the state (deviation coordinates).
+
+        Returns
+        -------
+        ndarray (n_x,)
+        """
+        x = np.asarray(z_hat[:self.n_x], dtype=float)
+        if self.delay == 0.0:
+            return x
+        Phi, G = self.action_map()
+        return Phi @ x + G * float(z_hat[self.n_x])
+
+    def action_gain(self, K) -> np.ndarray:
+        """A gain on the acting state (:meth:`acting_state`) as a gain on the filter state
+        ``[x, u_prev]`` (``[x]`` when the model does not carry the previous command).
+
+        Parameters
+        ----------
+        K : ndarray (1, n_x)
+
+        Returns
+        -------
+        ndarray (1, n_x) or (1, n_x + 1)
+        """
+        K = np.atleast_2d(K)
+        if not self.carries_loop:
+            return K
+        Phi, G = self.action_map()
+        return np.hstack([K @ Phi, K @ G[:, None]])
+
+    def action_map(self) -> tuple:
+        """``(Phi_d, Gamma_d)``: the state where this sample's command starts to act.
+
+        ``x(t_k + delay dt) = Phi_d x[k] + Gamma_d u[k-1]``: the previous command acts until then.
+        On the grid shifted by the delay, ``x(s_{k+1}) = Ad x(s_k) + Bd u[k]`` exactly, so the
+        design's gain applied to this state is the delay-free law (a predictor).
+
+        Returns
+        -------
+        Phi_d : ndarray (n_x, n_x)
+        Gamma_d : ndarray (n_x,)
+        """
+        if self._action is None:
+            if self.delay == 0.0:
+                action = (np.eye(self.n_x), np.zeros(self.n_x))
+            else:
+                Phi, G = _zoh(self.A, self.B, self.delay * self.dt)
+                action = (Phi, G[:, 0])
+            object.__setattr__(self, "_action", action)
+        return self._action
 
     def with_delay(self, delay: float) -> tuple:
         """The sampled model with a computation delay as one extra state, the previous command.
@@ -677,6 +819,24 @@ class Controller:
         x = self._xref[-1].copy()
         x[0] += x[self.design.n_x // 2] * (k - K + 1) * self.dt
         return x, self._tff[-1]
+
+    def _reference_acting(self, k: int):
+        """``(x_ref, tau_ff)`` where this sample's command acts: at ``k + delay`` (interpolated
+        between samples ``k`` and ``k + 1``; sample ``k`` without a delay)."""
+        d = self.design.delay
+        if d == 0.0:
+            return self._reference_at(k)
+        x0, t0 = self._reference_at(k)
+        x1, t1 = self._reference_at(k + 1)
+        return (1.0 - d) * x0 + d * x1, (1.0 - d) * t0 + d * t1
+
+    @property
+    def signals(self):
+        """The rig signals a sensor-reading controller reads, in order (None: the closed loop's
+        default three)."""
+        if self.measurement != "sensors" or self.design.sensors is None:
+            return None
+        return self.design.signals
 
     def reset(self) -> None:
         """Prepare a new run (clears estimator and solver memory)."""

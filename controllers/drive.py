@@ -45,7 +45,14 @@ class VoltageCommand:
             raise ParameterError("VoltageCommand needs a rig with a DC motor (motor.kind = 'dc_motor')")
         self.inner = inner
         self.hardware = hardware
-        self._rate_index = 1 if inner.measurement == "sensors" else inner.state_modes + 1
+        if inner.measurement != "sensors":
+            self._rate_index = inner.state_modes + 1
+        else:
+            signals = getattr(inner, "signals", None) or ("theta", "theta_dot")
+            self._rate_index = list(signals).index("theta_dot") if "theta_dot" in signals else None
+            if self._rate_index is None and not hasattr(inner, "estimator"):
+                raise ParameterError(f"controller {getattr(inner, 'name', '?')!r} on a DC motor needs the hub rate: "
+                                     "the rig has no sensors.rate and the controller no estimator")
         self.last_torque = float("nan")
 
     def __getattr__(self, name):             # name, dt, design, n_modes, settings, reference...
@@ -63,11 +70,34 @@ class VoltageCommand:
         return dict(self.inner.stats()) if hasattr(self.inner, "stats") else {}
 
     def feedback_matrices(self) -> tuple:
-        """The torque law's (the inversion makes the drive a unit gain from torque to torque)."""
-        return self.inner.feedback_matrices()
+        """The voltage law, sensors -> volts: ``V = tau / g + k_e N theta_dot``, with ``g`` the
+        drive's torque per volt (:meth:`~hubbeam_ctrl.sim.hardware.Hardware.torque_per_volt`) and the
+        measured hub rate (or the estimator's, at the instant the command acts, on a rig without a
+        rate sensor)."""
+        Ak, Bk, Ck, Dk, states, inputs = self.inner.feedback_matrices()
+        g, emf = self.hardware.torque_per_volt(), self.hardware.back_emf_constant()
+        Ck, Dk = np.atleast_2d(Ck) / g, np.atleast_2d(Dk) / g
+        if self._rate_index is not None:
+            Dk = Dk.copy()
+            Dk[0, list(inputs).index("theta_dot")] += emf
+        else:
+            est, fm = self.inner.estimator, self.inner.filter_model
+            r = fm.action_gain(np.eye(fm.n_x)[fm.n_x // 2][None, :])
+            r = np.hstack([r, np.zeros((1, est.A.shape[0] - r.shape[1]))])
+            M = np.eye(est.A.shape[0]) - est.L @ est.C
+            Ck = Ck + emf * r @ M
+            Dk = Dk + emf * r @ est.L
+        return Ak, Bk, Ck, Dk, states, inputs
+
+    def _rate(self, y) -> float:
+        """The hub rate [rad/s] the back-EMF is compensated with."""
+        if self._rate_index is not None:
+            return float(np.asarray(y)[self._rate_index])
+        fm = self.inner.filter_model
+        return float(fm.acting_state(self.inner.estimator.x_hat)[fm.n_x // 2]) + fm.spin
 
     def __call__(self, t: float, y) -> float:
         """Voltage [V] at time ``t`` [s] from measurement ``y``."""
         tau = float(self.inner(t, y))
         self.last_torque = tau
-        return self.hardware.voltage_for_torque(tau, float(np.asarray(y)[self._rate_index]))
+        return self.hardware.voltage_for_torque(tau, self._rate(y))

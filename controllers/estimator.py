@@ -38,8 +38,8 @@ from .base import DesignModel, check_psd
 from .riccati import dlqe
 from .scaling import first_mode
 
-__all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain", "solve_kalman", "error_decay_rate", "decay_model",
-           "filter_poles", "plan_offsets", "plan_worth_predicting"]
+__all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain", "solve_kalman", "filter_matrices", "error_decay_rate",
+           "decay_model", "filter_poles", "plan_offsets", "plan_worth_predicting"]
 
 #: The sensors' own specification: the filter's assumed sensor noise defaults to it.
 _SENSORS = SensorSettings()
@@ -78,6 +78,9 @@ class KalmanNoise(Settings):
                                         "trusting its model of them more than the sensors (measured: "
                                         "0.36 % of the open loop's residual on the paper's beam against "
                                         "4.2 % at 1; the 1 m arm's tip 1.5e-4 m against 3.5e-4 m at 0.01).")
+    accel_noise_m_s2: float = setting(0.05, unit="m/s^2", lo=0.0, lo_open=True,
+                                      doc="Assumed tip-accelerometer noise, standard deviation (a rig's "
+                                          "sensors.accel_noise replaces it).")
     model_error: np.ndarray | None = setting(None, kind=object,
                                              doc="Extra process-noise covariance for model error (n_x x n_x "
                                                  "of the filter's model, symmetric positive semidefinite), "
@@ -110,8 +113,9 @@ class KalmanNoise(Settings):
             ``torque_noise^2 Bd Bd'`` plus ``modal_noise^2`` on the modal coordinates and
             ``modal_rate_noise^2`` (default ``modal_noise^2``) on their rates, plus
             :attr:`model_error` if given.
-        Rn : ndarray (3, 3)
-            Diagonal: the sensors' variances [rad^2, (rad/s)^2, (N m)^2].
+        Rn : ndarray (ny, ny)
+            Diagonal: the sensors' variances [rad^2, (rad/s)^2, (N m)^2], one per signal of
+            ``design.signals`` (an accelerometer's [(m/s^2)^2]).
         """
         nx = design.n_x
         n = nx // 2
@@ -124,7 +128,12 @@ class KalmanNoise(Settings):
         Qn[np.r_[n + 1:nx], np.r_[n + 1:nx]] += (rate * scale) ** 2
         if self.model_error is not None:
             Qn = Qn + check_psd("model_error", self.model_error, nx)
-        Rn = np.diag([self.angle_noise_rad ** 2, self.rate_noise_rad_s ** 2, self.moment_noise_nm ** 2])
+        if design.sensors is None:
+            Rn = np.diag([self.angle_noise_rad ** 2, self.rate_noise_rad_s ** 2, self.moment_noise_nm ** 2])
+        else:
+            std = {"angle": self.angle_noise_rad, "rate": self.rate_noise_rad_s, "moment": self.moment_noise_nm,
+                   "accel": self.accel_noise_m_s2}
+            Rn = np.diag([std[design.sensors.kind(s)] ** 2 for s in design.signals])
         return Qn, Rn
 
 
@@ -184,9 +193,59 @@ def decay_model(A: np.ndarray, rate: float, dt: float) -> np.ndarray:
 
 def _kalman_design(design: DesignModel, noise: KalmanNoise, design_modes: int | None = None):
     """Filter gain ``L`` (measurement update) and a-priori covariance ``P`` via :func:`control.dlqe`."""
-    rate = error_decay_rate(design, noise)
-    Qn, Rn = noise.covariances(design, design_modes)
-    return solve_kalman(decay_model(design.Ad, rate, design.dt), design.C_sensors, Qn, Rn)
+    A, _, C, Qn, Rn = filter_matrices(design, noise, design_modes)
+    return solve_kalman(decay_model(A, error_decay_rate(design, noise), design.dt), C, Qn, Rn)
+
+
+def filter_matrices(model: DesignModel, noise: KalmanNoise, design_modes: int | None = None,
+                    disturbance_noise: float | None = None) -> tuple:
+    """The filter's sampled model ``z+ = A z + B u``, ``y = C z`` and its noise covariances.
+
+    The state is ``z = [x, u_prev, d]``: the model's state; the previous command when the model
+    carries a computation delay or an accelerometer (:attr:`DesignModel.carries_loop`), known
+    exactly (no noise), so the prediction is the fractional-delay zero-order hold
+    (:func:`hubbeam_ctrl.linear.delay.delay_inputs`) and the accelerometer's feedthrough is a
+    state's row; a constant input disturbance torque with ``disturbance_noise``
+    (:mod:`controllers.integral`), acting without delay.
+
+    Parameters
+    ----------
+    model : DesignModel
+    noise : KalmanNoise
+    design_modes : int, optional
+        See :meth:`KalmanNoise.covariances`.
+    disturbance_noise : float, optional
+        Random-walk standard deviation of the disturbance per sample [N m]; None: no disturbance.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(A, B, C, Qn, Rn)``.
+    """
+    Qx, Rn = noise.covariances(model, design_modes)
+    nx = model.n_x
+    if not model.carries_loop:
+        A, B, C, Q = model.Ad, model.Bd, model.C_sensors, Qx
+    else:
+        from hubbeam_ctrl.linear.delay import delay_inputs
+        Phi, G0, G1 = delay_inputs(model.A, model.B, model.dt, model.delay)
+        A = np.zeros((nx + 1, nx + 1))
+        A[:nx, :nx], A[:nx, nx:] = Phi, G1
+        B = np.vstack([G0, [[1.0]]])
+        D = np.zeros((model.C_sensors.shape[0], 1)) if model.D_sensors is None else model.D_sensors
+        C = np.hstack([model.C_sensors, D])
+        Q = np.zeros((nx + 1, nx + 1))
+        Q[:nx, :nx] = Qx
+    if disturbance_noise is not None:
+        n = A.shape[0]
+        Aa = np.zeros((n + 1, n + 1))
+        Aa[:n, :n], Aa[:nx, n] = A, model.Bd[:, 0]
+        Aa[n, n] = 1.0
+        A, B, C = Aa, np.vstack([B, [[0.0]]]), np.hstack([C, np.zeros((C.shape[0], 1))])
+        Qa = np.zeros((n + 1, n + 1))
+        Qa[:n, :n], Qa[n, n] = Q, float(disturbance_noise) ** 2
+        Q = Qa
+    return A, B, C, Q, Rn
 
 
 def plan_offsets(model: DesignModel, states: np.ndarray, torque: np.ndarray) -> np.ndarray:
@@ -393,9 +452,11 @@ class KalmanEstimator:
     """
 
     def __init__(self, design: DesignModel, noise: KalmanNoise, design_modes: int | None = None):
-        self.L, self.P = _kalman_design(design, noise, design_modes)
-        self._A, self._b = design.Ad, design.Bd[:, 0]
-        self._IminusLC = np.eye(design.n_x) - self.L @ design.C_sensors
+        self.A, self.B, self.C, Qn, Rn = filter_matrices(design, noise, design_modes)
+        self.L, self.P = solve_kalman(decay_model(self.A, error_decay_rate(design, noise), design.dt),
+                                      self.C, Qn, Rn)
+        self._A, self._b = self.A, self.B[:, 0]
+        self._IminusLC = np.eye(self.A.shape[0]) - self.L @ self.C
         self.reset()
 
     def reset(self, x0=None) -> None:
@@ -406,9 +467,12 @@ class KalmanEstimator:
         x0 : array_like (nx,), optional
             Initial guess of the (deviation) state; default zero.
         """
-        x0 = np.zeros(len(self._b)) if x0 is None else np.array(x0, dtype=float)
-        self.x_pred = x0
-        self.x_hat = x0
+        x = np.zeros(len(self._b))
+        if x0 is not None:
+            x0 = np.asarray(x0, dtype=float)
+            x[:len(x0)] = x0
+        self.x_pred = x
+        self.x_hat = x
 
     def predict(self, u: float) -> np.ndarray:
         """Prediction of the next sample's state ``Ad x_hat + Bd u`` (the estimator is unchanged).

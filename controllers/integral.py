@@ -26,7 +26,15 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, saturate
-from .estimator import KalmanNoise, decay_model, error_decay_rate, plan_offsets, plan_worth_predicting, solve_kalman
+from .estimator import (
+    KalmanNoise,
+    decay_model,
+    error_decay_rate,
+    filter_matrices,
+    plan_offsets,
+    plan_worth_predicting,
+    solve_kalman,
+)
 from .lqr import LQR
 
 __all__ = ["OffsetFreeEstimator", "ObservedFeedback", "observer_feedback_matrices", "augment_disturbance"]
@@ -91,18 +99,13 @@ class OffsetFreeEstimator:
         if not (isinstance(disturbance_noise, (int, float)) and np.isfinite(disturbance_noise)
                 and disturbance_noise > 0):
             raise ParameterError(f"disturbance_noise must be a number > 0 [N m], got {disturbance_noise!r}")
-        self.A, self.B, self.C = augment_disturbance(model.Ad, model.Bd, model.C_sensors)
+        self.A, self.B, self.C, Qa, Rn = filter_matrices(model, noise, design_modes, disturbance_noise)
         self._A = self.A                  # KalmanEstimator's name for it (the code generator reads it)
-        Qn, Rn = noise.covariances(model, design_modes)
-        nx = model.n_x
-        Qa = np.zeros((nx + 1, nx + 1))
-        Qa[:nx, :nx] = Qn
-        Qa[nx, nx] = float(disturbance_noise) ** 2
         # the prescribed degree of stability (KalmanNoise.error_decay) covers the disturbance too
         A_riccati = decay_model(self.A, error_decay_rate(model, noise), model.dt)
         self.L, self.P = solve_kalman(A_riccati, self.C, Qa, Rn)
         self._b = self.B[:, 0]
-        self._IminusLC = np.eye(nx + 1) - self.L @ self.C
+        self._IminusLC = np.eye(self.A.shape[0]) - self.L @ self.C
         self.reset()
 
     @property
@@ -209,6 +212,11 @@ class ObservedFeedback(Controller):
 
     measurement = "sensors"
 
+    @property
+    def signals(self):
+        """The rig signals the filter reads (None: the closed loop's default three)."""
+        return None if self.filter_model.sensors is None else self.filter_model.signals
+
     def __init__(self, inner: Controller, noise: KalmanNoise, disturbance_noise: float | None = None,
                  plan_prediction: bool | None = None):
         if getattr(inner, "measurement", None) != "state":
@@ -270,33 +278,35 @@ class ObservedFeedback(Controller):
     def feedback_matrices(self) -> tuple:
         """The filter and the inner law (its unconstrained gain) as one system, sensors -> torque."""
         _, _, _, Dk, _, _ = self.inner.feedback_matrices()
-        K = np.zeros((1, self.filter_model.n_x))
+        fm = self.filter_model
+        K = np.zeros((1, fm.n_x))
         K[0, self._pick] = -np.asarray(Dk)[0]
+        K = fm.action_gain(K)
+        states = [f"{s}_est" for s in fm.state_names] + (["u_prev"] if fm.carries_loop else [])
         if self.integral:
             K = np.hstack([K, [[1.0]]])
+            states.append("d_est")
         est = self.estimator
-        A = getattr(est, "A", self.filter_model.Ad)
-        B = getattr(est, "B", self.filter_model.Bd)
-        C = getattr(est, "C", self.filter_model.C_sensors)
-        states = [f"{s}_est" for s in self.filter_model.state_names] + (["d_est"] if self.integral else [])
-        return (*observer_feedback_matrices(A, B, C, est.L, K), states, ["theta", "theta_dot", "root_moment"])
+        return (*observer_feedback_matrices(est.A, est.B, est.C, est.L, K), states, fm.sensor_labels)
 
     def __call__(self, t: float, y) -> float:
         """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
         spin = self.design.spin
-        yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
+        fm = self.filter_model
+        yd = fm.sensor_deviation(y, t)
         k = int(round(t / self.dt))
         D = self._defect
         x_hat = self.estimator.update(yd, self._tau, D[k - 1] if D is not None and 0 < k <= len(D) else None)
-        x = x_hat[self._pick].copy()
-        x[0] += spin * t
+        x = fm.acting_state(x_hat)[self._pick]
+        t_act = t + fm.delay * self.dt
+        x[0] += spin * t_act
         x[1 + self.state_modes] += spin
         d = float(x_hat[-1]) if self.integral else 0.0
         if isinstance(self.inner, LQR):        # its law with the disturbance inside one saturation
-            xr, tff = self.inner._reference_at(int(round(t / self.dt)))
+            xr, tff = self.inner._reference_acting(k)
             tau = saturate(float(self.inner._ff * tff - self.inner.K @ (x - xr) - d), self.tau_max)
         else:                                  # MPC: its plan within the limit, then the disturbance
-            tau = float(self.inner(t, x))
+            tau = float(self.inner(t_act, x))
             if self.integral:
                 tau = saturate(tau - d, self.tau_max)
         self._tau = tau

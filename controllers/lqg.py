@@ -256,6 +256,11 @@ class LQG(Controller):
             return bool(self.settings.plan_prediction)
         return plan_worth_predicting(self.reference, self.settings.elastic_reference)
 
+    def _filter_reference(self, k: int) -> np.ndarray:
+        """The reference state at sample ``k`` on the filter's model."""
+        table = self._xref_filter
+        return table[k] if table is not None and k < len(table) else self._E @ self._reference_at(k)[0]
+
     def _plan_defect(self) -> np.ndarray:
         """:func:`~controllers.estimator.plan_offsets` of the reference table on the filter's model."""
         table = self._xref_filter
@@ -326,29 +331,32 @@ class LQG(Controller):
         ``Dc = -K L``.
         """
         fm = self.filter_model
-        K = self._Ke[None, :]
-        states = [f"{name}_est" for name in fm.state_names]
-        A, B, C = fm.Ad, fm.Bd, fm.C_sensors
+        K = fm.action_gain(self._Ke[None, :])
+        states = [f"{name}_est" for name in fm.state_names] + (["u_prev"] if fm.carries_loop else [])
+        est = self.estimator
         if self.settings.integral:
             K = np.hstack([K, [[1.0]]])
-            A, B, C = self.estimator.A, self.estimator.B, self.estimator.C
             states.append("d_est")
-        return (*observer_feedback_matrices(A, B, C, self.L, K), states, ["theta", "theta_dot", "root_moment"])
+        return (*observer_feedback_matrices(est.A, est.B, est.C, self.L, K), states, self.design.sensor_labels)
 
     def __call__(self, t: float, y) -> float:
         """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
         spin = self.design.spin
         k = int(round(t / self.dt))
-        xr, tff = self._reference_at(k)
-        yd = np.array([y[0] - spin * t, y[1] - spin, y[2]])
+        fm = self.filter_model
+        yd = fm.sensor_deviation(y, t)
         D = self._defect
         offset = D[k - 1] if D is not None and 0 < k <= len(D) else None
         x_hat = self.estimator.update(yd, self._tau, offset)
+        x_act = fm.acting_state(x_hat)
         K = self._Ke
-        table = self._xref_filter
-        xr = table[k] if table is not None and k < len(table) else self._E @ xr
-        # x_hat is a deviation from the steady rotation; x_ref is absolute
-        u = K @ (x_hat[:len(K)] - xr) + K[0] * spin * t + K[self._n] * spin
+        d = fm.delay
+        xr = self._filter_reference(k) if d == 0.0 else \
+            (1.0 - d) * self._filter_reference(k) + d * self._filter_reference(k + 1)
+        tff = self._reference_acting(k)[1]
+        t_act = t + d * self.dt
+        # x_act is a deviation from the steady rotation; x_ref is absolute
+        u = K @ (x_act - xr) + K[0] * spin * t_act + K[self._n] * spin
         if self.settings.integral:
             u += x_hat[-1]                      # cancel the estimated disturbance torque
         self._tau = saturate(float(self._ff * tff - u), self.tau_max)

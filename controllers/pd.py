@@ -76,6 +76,11 @@ class PD(Controller):
 
     measurement = "sensors"
 
+    @property
+    def signals(self):
+        """The hub angle and rate (None on the beam alone: the closed loop's default sensors)."""
+        return None if self.design.sensors is None else ("theta", "theta_dot")
+
     def __init__(self, design: DesignModel, settings: PDSettings | None = None,
                  reference: Reference | None = None):
         settings = settings or PDSettings()

@@ -378,6 +378,25 @@ class Hardware:
             object.__setattr__(self, "_floats", cached)
         return cached
 
+    def torque_per_volt(self) -> float:
+        """Hub torque per unit command at rest, below the current limit [N m/V] (1 for the torque drive).
+
+        The drive linearised while motoring: ``eta_forward N k_t / R``.
+        """
+        d = self.drive
+        return 1.0 if d.is_ideal else d.eta_forward * d.N * d.k_t / d.R
+
+    def back_emf_constant(self) -> float:
+        """Voltage per hub rate of the back-EMF, ``k_e N`` [V s/rad] (0 for the torque drive)."""
+        d = self.drive
+        return 0.0 if d.is_ideal else d.k_e * d.N
+
+    def hub_damping(self) -> float:
+        """Linear damping of the hub from the drive and friction [N m s/rad]: the back-EMF's
+        ``torque_per_volt * k_e N`` plus the viscous friction (Coulomb friction is not linear and
+        is left out)."""
+        return self.torque_per_volt() * self.back_emf_constant() + self.friction.viscous
+
     def voltage_for_torque(self, tau, thd):
         """The voltage [V] that gives the hub torque ``tau`` [N m] at hub rate ``thd`` [rad/s].
 

@@ -35,7 +35,9 @@ import numpy as np
 import scipy.linalg
 
 from controllers import CONTROLLERS, Controller
+from controllers.analysis import hardware_plant
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.linear.delay import delay_augmented
 from hubbeam_ctrl.linear.statespace import linear_matrices
 from hubbeam_ctrl.plant.params import Params
 
@@ -276,10 +278,24 @@ def loop_matrix(controller: Controller, params: Params, spin: float, damping_rat
     dt = float(controller.dt)
     A0, A1, B, C = _linear_plant(params, float(spin))
     A = A0 + damping_ratio * A1
-    Ad, Bd = _zoh(A, B, dt)
     Ak, Bk, Ck, Dk, _, inputs = controller.feedback_matrices()
     Ak, Bk, Ck, Dk = (np.atleast_2d(np.asarray(M, dtype=float)) for M in (Ak, Bk, Ck, Dk))
-    Cm = _measurement(controller, list(inputs), C, Ad.shape[0])
+    hw = getattr(controller, "rig_hardware", None)
+    design = getattr(controller, "design", None)
+    layout = getattr(design, "sensors", None)
+    if hw is None and layout is None:
+        Ad, Bd = _zoh(A, B, dt)
+        Cm = _measurement(controller, list(inputs), C, Ad.shape[0])
+    else:
+        A, Bu, delay = hardware_plant(A, B, hw, getattr(controller, "command", "torque"))
+        delay = delay if hw is not None else float(design.delay)
+        if layout is not None and list(inputs) == list(layout.signals):
+            Cm, Dm = layout.rows(A, Bu, params, float(spin))
+        else:
+            Cm = _measurement(controller, list(inputs), C, A.shape[0])
+            Dm = np.zeros((Cm.shape[0], 1))
+        Ad, Bd = delay_augmented(A, Bu, dt, delay)
+        Cm = np.hstack([Cm, Dm])
     nk = Ak.shape[0] if Ak.size else 0
     if nk == 0:
         A_loop = Ad + Bd @ Dk @ Cm

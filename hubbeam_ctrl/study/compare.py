@@ -49,7 +49,7 @@ from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
-from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
+from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import PLANTS, REFERENCES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
@@ -388,6 +388,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     chosen = {name: residual_modes_for(st, ev.modes) for name, st in chosen.items()}
     _check_budget(sc, ev, chosen, m, sim, schedule)
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
+    if rig is not None:
+        design = rig_design(design, rig)
     shaper = None if shaping is None else as_shaper(design, shaping)
     sched = _design_schedule(sc, schedule, m)
     ref = _reference(sc, reference, rig)

@@ -120,12 +120,16 @@ def loop_response(ctrl, plant: DesignModel | None = None, label: str | None = No
     stable = bool(np.max(np.abs(poles)) < 1.0)
     alpha = float(1.0 / np.max(np.abs(1.0 / (1.0 + L) - 0.5))) if stable else 0.0
     # closed-loop inputs: reference step of theta (enters like the measurement, e = y - r) and torque
-    _, Bc, _, Dc, _, inputs = ctrl.feedback_matrices()
+    _, Bc, _, Dc, states, inputs = ctrl.feedback_matrices()
     i = list(inputs).index("theta")
-    nc = Acl.shape[0] - d.n_x
-    B_ref = -np.vstack([d.Bd @ np.asarray(Dc)[:, [i]], np.asarray(Bc).reshape(nc, len(inputs))[:, [i]]])
-    B_dist = np.vstack([d.Bd, np.zeros((nc, 1))])
-    outputs = np.hstack([np.vstack([d.C_sensors[0], d.C_tip[0]]), np.zeros((2, nc))])
+    nc = len(states)
+    n_p = Acl.shape[0] - nc                          # the plant's states (with the previous command on a rig)
+    Bd = B[:n_p]
+    B_ref = -np.vstack([Bd @ np.asarray(Dc)[:, [i]], np.asarray(Bc).reshape(nc, len(inputs))[:, [i]]])
+    B_dist = np.vstack([Bd, np.zeros((nc, 1))])
+    rows = np.zeros((2, n_p))
+    rows[0, 0], rows[1, :d.n_x] = 1.0, d.C_tip[0]
+    outputs = np.hstack([rows, np.zeros((2, nc))])
     n = int(round(t_end / dt)) + 1
     step = _simulate(Acl, B_ref, outputs, n)
     dist = _simulate(Acl, B_dist, outputs, n)
@@ -157,7 +161,7 @@ def evaluation_model(ctrl, params: Params | None = None, modes: int | None = Non
     m = p.n_transverse if modes is None else modes
     if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not design.n_modes <= m <= MAX_MODES:
         raise ParameterError(f"modes must be an integer in {design.n_modes}..{MAX_MODES}, got {m!r}")
-    return DesignModel.build(p, design.spin, design.dt, int(m))
+    return DesignModel.build(p, design.spin, design.dt, int(m)).on_rig(design.sensors, design.delay)
 
 
 def controller_loops(ctrl, evaluation: DesignModel | None = None, t_end: float = 15.0) -> list:

@@ -24,12 +24,13 @@ import math
 from controllers import LQGSettings
 from controllers.drive import VoltageCommand
 from controllers.integral import ObservedFeedback
+from controllers.sensing import SensorLayout, observability_defect, rig_key
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.hardware import Hardware
 
-__all__ = ["rig_closed_loop", "on_rig", "rig_settings", "rig_noise", "task_noise", "integral_default",
+__all__ = ["rig_closed_loop", "on_rig", "rig_design", "rig_settings", "rig_noise", "task_noise", "integral_default",
            "DISTURBANCE_FRACTION"]
 
 #: Random-walk standard deviation per sample of the estimated disturbance, as a fraction of the
@@ -70,6 +71,34 @@ def rig_closed_loop(rig: Rig, settings: ClosedLoopSettings) -> tuple:
     if not isinstance(rig, Rig):
         raise ParameterError(f"rig must be a Rig (hubbeam_ctrl.plant.rig.load_rig), got {type(rig).__name__}")
     return settings, (None if rig.is_ideal else Hardware.from_rig(rig))
+
+
+def rig_design(design, rig: Rig):
+    """The design model on ``rig``: its estimators read the rig's sensors and its laws act
+    where the rig's computation delay puts the command (:meth:`controllers.DesignModel.on_rig`).
+
+    A sensor set that cannot observe the design model is refused in one line naming the rig keys.
+
+    Parameters
+    ----------
+    design : DesignModel
+    rig : Rig
+
+    Returns
+    -------
+    DesignModel
+        ``design`` itself on a rig with the beam alone's sensors and no delay.
+    """
+    if not isinstance(rig, Rig):
+        raise ParameterError(f"rig must be a Rig (hubbeam_ctrl.plant.rig.load_rig), got {type(rig).__name__}")
+    layout = SensorLayout.from_rig(rig.sensors)
+    out = design.on_rig(layout, rig.timing.delay)
+    missing = observability_defect(out.Ad, out.C_sensors, out.state_names)
+    if missing is not None:
+        keys = ", ".join(dict.fromkeys(rig_key(s) for s in layout.signals))
+        raise ParameterError(f"the rig's sensors ({keys}) cannot observe the design model's {missing}: add "
+                             "sensors.strain_gauges, sensors.tip_accelerometer or sensors.rate")
+    return out
 
 
 def rig_settings(name: str, settings, rig: Rig, integral: bool | None = None):
@@ -114,6 +143,8 @@ def rig_noise(noise, rig: Rig):
         The same type, ``angle_noise_rad`` raised to ``sqrt(noise^2 + q^2 / 12)``.
     """
     q = rig.sensors.encoder_step
+    if rig.sensors.tip_accelerometer and rig.sensors.accel_noise > 0 and hasattr(noise, "accel_noise_m_s2"):
+        noise = dataclasses.replace(noise, accel_noise_m_s2=rig.sensors.accel_noise)
     if not q:
         return noise
     return dataclasses.replace(noise, angle_noise_rad=math.hypot(noise.angle_noise_rad, q / math.sqrt(12.0)))
@@ -149,6 +180,8 @@ def on_rig(controller, rig: Rig, noise, hardware: Hardware | None, integral: boo
         ctrl = ObservedFeedback(controller, noise, d)
     if hardware is not None and hardware.command == "voltage":
         ctrl = VoltageCommand(ctrl, hardware)
+    if hardware is not None:
+        ctrl.rig_hardware = hardware        # the certificate closes the loop through the rig's drive and delay
     return ctrl
 
 
