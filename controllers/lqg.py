@@ -131,17 +131,20 @@ def noise_tip_std(ctrl: "LQG") -> float:
     """
     import scipy.linalg as sla
 
-    Ac, Bc, Cc, Dc = ctrl.feedback_matrices()[:4]
+    Ac, Bc, Cc, Dc, _, inputs = ctrl.feedback_matrices()
     model = ctrl.design
-    A, B, C = model.Ad, model.Bd, model.C_sensors
+    if model.sensors is None and model.delay == 0.0:
+        A, B, C = model.Ad, model.Bd, model.C_sensors
+    else:                                   # the rig's sensors and delay: the previous command is a state
+        from .analysis import rig_plant
+        A, B, C = rig_plant(model, inputs)
     closed = np.block([[A + B @ Dc @ C, B @ Cc], [Bc @ C, Ac]])
     if np.max(np.abs(np.linalg.eigvals(closed))) >= 1.0:
         return math.inf
-    st = ctrl.settings
-    R = np.diag([st.angle_noise_rad ** 2, st.rate_noise_rad_s ** 2, st.moment_noise_nm ** 2])
+    R = ctrl.settings.covariances(model)[1]
     Bv = np.vstack([B @ Dc, Bc])
     P = sla.solve_discrete_lyapunov(closed, Bv @ R @ Bv.T)
-    c = np.concatenate([model.C_tip[0], np.zeros(Ac.shape[0])])
+    c = np.concatenate([model.C_tip[0], np.zeros(A.shape[0] - model.n_x + Ac.shape[0])])
     return math.sqrt(max(float(c @ P @ c), 0.0))
 
 

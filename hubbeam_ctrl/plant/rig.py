@@ -54,7 +54,7 @@ __all__ = ["Drive", "Friction", "Damping", "Sensors", "Timing", "Rig", "load_rig
            "RIG_TABLES", "RIG_RELATIONS", "rig_from_dict", "rig_to_toml"]
 
 #: The presets that ship with the toolbox (``hubbeam_ctrl/data/rigs/<name>.toml``).
-PRESETS = ("servo_link", "paper")
+PRESETS = ("servo_link", "paper", "accel_link", "servo_payload", "space_boom")
 
 
 @dataclass(frozen=True)
@@ -245,10 +245,17 @@ class Sensors(Settings):
     tip_accelerometer: bool = setting(False, doc="A two-axis accelerometer at the tip: the in-plane inertial "
                                                  "acceleration in hub axes (accel_radial, accel_tangential), "
                                                  "centripetal and Coriolis terms included.")
-    angle_noise: float = setting(0.0, unit="rad", lo=0.0, hi=1.0, doc="Hub-angle noise, standard deviation.")
+    rate: bool = setting(True, doc="A hub-rate sensor (tachometer or gyro) gives theta_dot; false: none, the "
+                                   "estimators derive the rate from the other signals.")
+    angle_noise: float = setting(0.0, unit="rad", lo=0.0, hi=1.0,
+                                 doc="Hub-angle noise, standard deviation (an absolute angle sensor's, e.g. a "
+                                     "star tracker).")
     angle_bias: float = setting(0.0, unit="rad", lo=-1.0, hi=1.0, doc="Hub-angle bias.")
     rate_noise: float = setting(0.0, unit="rad/s", lo=0.0, hi=10.0, doc="Hub-rate noise, standard deviation.")
-    rate_bias: float = setting(0.0, unit="rad/s", lo=-10.0, hi=10.0, doc="Hub-rate bias.")
+    rate_bias: float = setting(0.0, unit="rad/s", lo=-10.0, hi=10.0, doc="Hub-rate bias (its initial value).")
+    rate_bias_walk: float = setting(0.0, unit="rad/s/sqrt(s)", lo=0.0, hi=1.0,
+                                    doc="Random walk of the hub-rate bias (a gyro's drift): the bias changes by "
+                                        "this times sqrt(dt) standard deviation per sample.")
     strain_noise: float = setting(0.0, unit="N m", lo=0.0, hi=1e6,
                                   doc="Strain-gauge (bending moment) noise, standard deviation (each gauge).")
     strain_bias: float = setting(0.0, unit="N m", lo=-1e6, hi=1e6, doc="Strain-gauge (bending moment) bias.")
@@ -272,6 +279,7 @@ class Sensors(Settings):
         """True for exact, noise-free, unfiltered sensors (the strain gauges' places aside)."""
         return (self.encoder_counts == 0 and self.anti_alias_hz is None
                 and not any(getattr(self, n) for n in ("angle_noise", "angle_bias", "rate_noise", "rate_bias",
+                                                       "rate_bias_walk",
                                                        "strain_noise", "strain_bias", "accel_noise",
                                                        "accel_bias")))
 

@@ -198,6 +198,14 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
 #: its own (``signals``): today's hub angle, hub rate and the first strain gauge.
 DEFAULT_SIGNALS = ("theta", "theta_dot", "moment_1")
 
+#: The rig key that provides each kind of signal (for refusals).
+_RIG_KEYS = {"theta": "sensors.encoder_counts", "moment": "sensors.strain_gauges",
+             "accel": "sensors.tip_accelerometer"}
+
+
+def _rig_key(signal: str) -> str:
+    return "sensors.rate" if signal == "theta_dot" else _RIG_KEYS.get(signal.split("_")[0], signal)
+
 
 def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, backend):
     """``(chain, state_pick)``: the rig's measurement chain reading what the controller reads
@@ -211,7 +219,7 @@ def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, 
             raise ParameterError(f"controller {name!r} reads signals {tuple(wanted)} but the closed loop has no "
                                  "rig sensors: give hardware=Hardware.from_rig(rig)")
         return None, None
-    default = sensors.strain_gauges == (0.0,) and not sensors.tip_accelerometer
+    default = sensors.strain_gauges == (0.0,) and not sensors.tip_accelerometer and sensors.rate
     if sensors.is_ideal and default and wanted is None:
         return None, None                          # the beam alone's sensors, bit for bit
     if kind == "state":
@@ -222,10 +230,12 @@ def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, 
     all_names = signal_names(len(sensors.strain_gauges), sensors.tip_accelerometer)
     if not names:
         raise ParameterError(f"controller {name!r}: signals must name at least one of {', '.join(all_names)}")
+    if not sensors.rate:
+        all_names = tuple(n for n in all_names if n != "theta_dot")
     for signal in names:
         if signal not in all_names:
-            raise ParameterError(f"controller {name!r} reads signal {signal!r}; the rig's sensors give "
-                                 f"{', '.join(all_names)}")
+            raise ParameterError(f"controller {name!r} reads {signal!r} ({_rig_key(signal)}), "
+                                 f"which the rig does not have; its sensors give {', '.join(all_names)}")
     return MeasurementChain(sensors, model, dt, n_samples, seed, read=names, backend=backend), None
 
 

@@ -189,6 +189,9 @@ class MeasurementChain:
         rng = np.random.default_rng(seed)            # every signal's noise is drawn, read or not: seeded runs agree
         noise = rng.standard_normal((int(n_samples), len(self.names))) * self.std if np.any(self.std > 0) \
             else np.zeros((int(n_samples), len(self.names)))
+        if s.rate_bias_walk > 0:                     # a drifting gyro bias, from its own generator
+            walk = np.random.default_rng([int(seed), 1]).standard_normal(int(n_samples))
+            noise[:, 1] += np.cumsum(walk) * s.rate_bias_walk * np.sqrt(dt)
         # the chain computes only the channels read (in the order of names): the linear ones, then the
         # accelerometer's two when one of them is read
         lin = [k for k in range(len(C)) if self.names[k] in self.read]
