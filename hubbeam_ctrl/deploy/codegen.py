@@ -157,6 +157,30 @@ def _observer_law(ctrl, controller: str, K, estimator, X, tff, spin: float, ff: 
                          f"then tau_ff [N m]")
 
 
+def _acting(ctrl, fm, K, X, x0, reference_at) -> tuple:
+    """Gain, reference table and initial state on the filter state ``[x, u_prev]`` of a model that
+    carries the previous command (:attr:`controllers.DesignModel.carries_loop`): the law acts on
+    the state where the command starts to act (:meth:`controllers.DesignModel.acting_state`),
+    ``K (Phi_d x + Gamma_d u_prev - x_ref(k + d))``, written as the template's ``K_z (z - z_ref)``
+    with ``z_ref = [Phi_d^-1 (x_ref(k + d) - s(t_k + d dt)) + s(t_k), 0]`` (``s`` the steady
+    rotation), so the C template is unchanged. The feedforward is the one where the command acts."""
+    if not fm.carries_loop:
+        return K, X, x0, None
+    d, n, spin, dt = fm.delay, fm.n_x // 2, fm.spin, fm.dt
+    Phi, G = fm.action_map()
+    K = np.asarray(K, dtype=float)
+    Kz = np.append(K @ Phi, K @ G)
+    Phi_inv = np.linalg.inv(Phi)
+    rows, tff = [], []
+    for k in range(len(X)):
+        x_act = (1.0 - d) * reference_at(k) + d * reference_at(k + 1)
+        steady = lambda t: np.r_[spin * t, np.zeros(n - 1), spin, np.zeros(n - 1)]   # noqa: E731
+        z = Phi_inv @ (x_act - steady((k + d) * dt)) + steady(k * dt)
+        rows.append(np.append(z, 0.0))
+        tff.append(ctrl._reference_acting(k)[1])
+    return Kz, np.array(rows), np.append(x0, 0.0), np.array(tff)
+
+
 def _with_disturbance(K, X, x0) -> tuple:
     """Gain, reference table and initial state on the filter's state with the disturbance ``d``
     (:class:`controllers.integral.OffsetFreeEstimator`): ``u = K (x - x_ref) + d``, ``d_ref = 0``."""
@@ -205,6 +229,8 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         X, tff = _reference_table(inner)
         K, x0 = np.asarray(inner.K, float), np.array(X[0])
         x0[ctrl._n_f] -= ctrl.design.spin
+        K, X, x0, tff_act = _acting(inner, ctrl.filter_model, K, X, x0, lambda k: inner._reference_at(k)[0])
+        tff = tff if tff_act is None else tff_act
         if ctrl.integral:
             K, X, x0 = _with_disturbance(K, X, x0)
         law = _observer_law(ctrl, "lqr", K, ctrl.estimator, X, tff, ctrl.design.spin, float(inner._ff), x0,
@@ -237,6 +263,8 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         x0 = ctrl._E @ ctrl._reference_at(0)[0]        # LQG.reset
         x0[ctrl._n] -= ctrl.design.spin
         K = ctrl._Ke
+        K, X, x0, tff_act = _acting(ctrl, ctrl.filter_model, K, X, x0, ctrl._filter_reference)
+        tff = tff if tff_act is None else tff_act
         if ctrl.settings.integral:                      # the estimated disturbance is cancelled
             K, X, x0 = _with_disturbance(K, X, x0)
         law = _observer_law(ctrl, "lqg", K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0,
