@@ -128,13 +128,25 @@ class KalmanNoise(Settings):
         Qn[np.r_[n + 1:nx], np.r_[n + 1:nx]] += (rate * scale) ** 2
         if self.model_error is not None:
             Qn = Qn + check_psd("model_error", self.model_error, nx)
+        return Qn, self.sensor_covariance(design)
+
+    def sensor_covariance(self, design: DesignModel) -> np.ndarray:
+        """The measurement noise covariance of ``design``'s sensors (``design.signals``).
+
+        Parameters
+        ----------
+        design : DesignModel
+
+        Returns
+        -------
+        ndarray (ny, ny)
+            Diagonal [rad^2, (rad/s)^2, (N m)^2, (m/s^2)^2 per signal].
+        """
         if design.sensors is None:
-            Rn = np.diag([self.angle_noise_rad ** 2, self.rate_noise_rad_s ** 2, self.moment_noise_nm ** 2])
-        else:
-            std = {"angle": self.angle_noise_rad, "rate": self.rate_noise_rad_s, "moment": self.moment_noise_nm,
-                   "accel": self.accel_noise_m_s2}
-            Rn = np.diag([std[design.sensors.kind(s)] ** 2 for s in design.signals])
-        return Qn, Rn
+            return np.diag([self.angle_noise_rad ** 2, self.rate_noise_rad_s ** 2, self.moment_noise_nm ** 2])
+        std = {"angle": self.angle_noise_rad, "rate": self.rate_noise_rad_s, "moment": self.moment_noise_nm,
+               "accel": self.accel_noise_m_s2}
+        return np.diag([std[design.sensors.kind(s)] ** 2 for s in design.signals])
 
 
 def error_decay_rate(design: DesignModel, noise: KalmanNoise) -> float:
@@ -222,6 +234,8 @@ def filter_matrices(model: DesignModel, noise: KalmanNoise, design_modes: int | 
     tuple of ndarray
         ``(A, B, C, Qn, Rn)``.
     """
+    if not isinstance(noise, KalmanNoise):
+        raise ParameterError(f"noise must be a KalmanNoise, got {type(noise).__name__}")
     Qx, Rn = noise.covariances(model, design_modes)
     nx = model.n_x
     if not model.carries_loop:

@@ -141,7 +141,7 @@ def noise_tip_std(ctrl: "LQG") -> float:
     closed = np.block([[A + B @ Dc @ C, B @ Cc], [Bc @ C, Ac]])
     if np.max(np.abs(np.linalg.eigvals(closed))) >= 1.0:
         return math.inf
-    R = ctrl.settings.covariances(model)[1]
+    R = ctrl.settings.sensor_covariance(model)
     Bv = np.vstack([B @ Dc, Bc])
     P = sla.solve_discrete_lyapunov(closed, Bv @ R @ Bv.T)
     c = np.concatenate([model.C_tip[0], np.zeros(A.shape[0] - model.n_x + Ac.shape[0])])

@@ -115,7 +115,13 @@ class SensorLayout:
         return "accel_tangential" in self.signals
 
     def kind(self, signal: str) -> str:
-        """``angle``, ``rate``, ``moment`` or ``accel``."""
+        """What a signal measures: ``angle``, ``rate``, ``moment`` or ``accel``.
+
+        Parameters
+        ----------
+        signal : str
+            One of :attr:`signals`.
+        """
         return {"theta": "angle", "theta_dot": "rate", "accel_tangential": "accel"}.get(signal, "moment")
 
     def rows(self, A, B, params, spin: float = 0.0, C_tip=None) -> tuple:

@@ -113,7 +113,8 @@ def test_controller_reads_the_signals_it_names_and_an_ideal_rig_is_the_beam_alon
     assert seen[20, 1] == pytest.approx(mid[3], rel=1e-12)              # moment at 2 m
     # the tangential tip acceleration at t = 0 is the hub's alpha (r + L) under the torque before t = 0 (none)
     assert seen[0, 0] == 0.0 and abs(seen[1, 0]) > 0
-    with pytest.raises(ParameterError, match=r"reads signal 'moment_3'; the rig's sensors give theta, theta_dot"):
+    with pytest.raises(ParameterError, match=r"reads 'moment_3' \(sensors.strain_gauges\), which the rig does "
+                                             r"not have; its sensors give theta, theta_dot"):
         simulate_closed_loop("foam", Reader(signals=("moment_3",)), 0.1, params=P, settings=settings,
                              hardware=Hardware.from_rig(rig))
     # the invariant: a rig with ideal hardware is the beam alone, bit for bit, for either measurement

@@ -48,7 +48,7 @@ def test_paper_preset_is_table_1_with_ideal_hardware():
 
 
 def test_presets_ship_and_every_one_loads():
-    assert set(PRESETS) == {"servo_link", "paper"}
+    assert set(PRESETS) == {"servo_link", "paper", "accel_link", "servo_payload", "space_boom"}
     for name in PRESETS:
         assert isinstance(load_rig(name), Rig)
 
@@ -150,7 +150,7 @@ def test_bad_rig_files_name_the_table_or_key(tmp_path, text, message):
 
 
 def test_unknown_preset_or_missing_file():
-    with pytest.raises(ParameterError, match=r"^rig 'servo_lnk' is neither a file nor a preset \(servo_link, paper\)"):
+    with pytest.raises(ParameterError, match=r"^rig 'servo_lnk' is neither a file nor a preset \(servo_link, paper, "):
         load_rig("servo_lnk")
     with pytest.raises(ParameterError, match=r"does not exist"):
         load_rig("no/such/rig.toml")

@@ -131,7 +131,7 @@ def test_friction_leaves_a_steady_error_without_integral_action():
     c = compare("foam", Slew(math.pi / 2, 0.6), "lqg", rig=rig, integral=False, t_end=2.0)
     r = c.results["lqg"]
     error = abs(r.q[-1, 0] - r.theta_ref[-1])
-    Ac, Bc, Cc, Dc, _, _ = c.controllers["lqg"].feedback_matrices()
+    Ac, Bc, Cc, Dc, _, _ = c.controllers["lqg"].inner.feedback_matrices()     # the torque law (not the volts)
     k_theta = abs(float((Cc @ np.linalg.solve(np.eye(len(Ac)) - Ac, Bc) + Dc)[0, 0]))
     dead_band = rig.friction.coulomb / k_theta
     assert 2 * ENCODER < error <= dead_band + ENCODER

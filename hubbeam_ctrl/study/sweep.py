@@ -40,7 +40,7 @@ from hubbeam_ctrl.sim.evaluation import evaluation_plant
 from hubbeam_ctrl.study.compare import _design_schedule
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import CSV_FIELDS
-from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
+from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec
 
@@ -163,7 +163,8 @@ def _case_context(case: dict, spec: StudySpec, cache: CaseCache) -> dict:
     # the same evaluation plant as compare(): the plant's physics, more modes than the design
     pkey = ("plant", spec.plant, plant_p, design_p, spin, spec.dt, m, spec.plant_modes)
     return {"scenario": sc, "key": (dkey, task, design_p, w_f),
-            "design": cache.get(dkey, lambda: DesignModel.build(design_p, spin, spec.dt, spec.design_modes)),
+            "design": cache.get(dkey, lambda: _rig_design(DesignModel.build(design_p, spin, spec.dt,
+                                                                            spec.design_modes), spec.rig)),
             "plant": cache.get(pkey, lambda: evaluation_plant(spec.plant, design_p, spec.dt, m, spin,
                                                               plant_params=plant_p,
                                                               plant_modes=spec.plant_modes)),
@@ -863,3 +864,8 @@ def _dask_workers(client) -> int:
         return max(1, sum(client.nthreads().values()))
     except Exception:  # noqa: BLE001
         return 1
+
+
+def _rig_design(design, rig):
+    """The design on the sweep's rig (:func:`~hubbeam_ctrl.study.rig_loop.rig_design`), or itself."""
+    return design if rig is None else rig_design(design, rig)

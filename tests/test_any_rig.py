@@ -1,0 +1,120 @@
+"""Issue 36, items 1-2: the controllers read whatever sensors the rig has, and the design model,
+the certificate and the margins carry the rig's delay and drive (the loop as it runs)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controllers import LQG, DesignModel, LQGSettings
+from controllers.sensing import DEFAULT_LAYOUT, SensorLayout, observability_defect
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.rig import load_rig
+from hubbeam_ctrl.study.certificate import certify
+from hubbeam_ctrl.study.rig_loop import rig_design
+
+
+def test_default_layout_is_the_beam_alone_bit_for_bit():
+    """A rig with the beam alone's three sensors and no delay gives the same design model object."""
+    d = DesignModel.build(n_modes=3)
+    assert d.on_rig(DEFAULT_LAYOUT, 0.0) is d
+    assert rig_design(d, load_rig("paper")) is d
+
+
+def test_layout_rows_match_the_design_model_rows():
+    """Hub angle, rate and the root gauge from SensorLayout.rows equal the design model's own rows;
+    the accelerometer's row is (r + L) theta_ddot + v_tip_ddot of the model's accelerations."""
+    d = DesignModel.build(n_modes=3)
+    C, D = DEFAULT_LAYOUT.rows(d.A, d.B, d.params, 0.0, d.C_tip[0])
+    assert np.allclose(C, d.C_sensors, rtol=1e-9, atol=1e-12 * np.abs(d.C_sensors).max())
+    assert not np.any(D)
+    acc = SensorLayout(("theta", "accel_tangential"), ())
+    C, D = acc.rows(d.A, d.B, d.params, 0.0, d.C_tip[0])
+    x, u = np.linspace(0.1, 0.8, d.n_x), 3.0
+    xdot = d.A @ x + d.B[:, 0] * u
+    h = d.n_x // 2
+    expected = (d.params.r + d.params.L) * xdot[h] + d.C_tip[0][:h] @ xdot[h:]
+    assert C[1] @ x + D[1, 0] * u == pytest.approx(expected, rel=1e-12)
+    assert D[1, 0] != 0.0                        # the command reaches the accelerometer within the sample
+
+
+def test_unobservable_sensor_set_is_named():
+    """Without the hub angle the rigid rotation cannot be observed: the PBH test names theta."""
+    d = DesignModel.build(n_modes=2)
+    C = d.C_sensors[2:3]                         # the root moment alone
+    assert observability_defect(d.Ad, C, d.state_names) == "theta"
+    assert observability_defect(d.Ad, d.C_sensors, d.state_names) is None
+
+
+def test_rig_without_gauge_and_tachometer_designs_from_its_sensors():
+    """accel_link (encoder and tip accelerometer only): the design reads theta and accel_tangential,
+    the filter carries the previous command (the accelerometer's feedthrough) and its loop on the
+    12-mode plant with the accelerometer's rows is stable."""
+    rig = load_rig("accel_link")
+    d = rig_design(DesignModel.build(rig.plant_params, 0.0, rig.timing.dt, 4), rig)
+    assert d.signals == ("theta", "accel_tangential")
+    assert d.carries_loop and d.delay == 0.0
+    ctrl = LQG(d, LQGSettings(residual_control=True, residual_modes=8))
+    assert ctrl.signals == ("theta", "accel_tangential")
+    assert ctrl.estimator.A.shape[0] == 2 * 9 + 1
+    cert = certify(ctrl, rig.plant_params.replace(n_transverse=12))
+    assert not cert.grows, cert.describe()
+
+
+def _servo_full_delay():
+    import dataclasses
+    rig = load_rig("servo_link")
+    return dataclasses.replace(rig, timing=dataclasses.replace(rig.timing, delay=1.0))
+
+
+def test_margins_see_the_delay():
+    """servo_link with a full sample of delay: the LQG designed without the delay has a disk margin
+    of 0.0067 and a delay margin of 11 us on the loop as it runs (drive, sensors, the delay): it
+    limit-cycles at the command limit in the nonlinear run. The delay-aware design
+    (DesignModel.on_rig: the filter predicts with the delay, the law acts where the command does)
+    has a disk margin of 0.67 and 2.0 ms of delay margin beyond the delay; both loops certified
+    stable (the slowest pole, the integral of the angle, sets the radius)."""
+    from controllers.analysis import loop_margins
+    from hubbeam_ctrl.sim.hardware import Hardware
+    rig = _servo_full_delay()
+    p = rig.plant_params
+    base = DesignModel.build(p, 0.0, rig.timing.dt, 5)
+    settings = LQGSettings(residual_control=True, residual_modes=12)
+    plant = p.replace(n_transverse=12)
+    blind = LQG(base, settings)
+    before = loop_margins(blind)                 # the loop without the rig: what the report said
+    blind.rig_hardware = Hardware.from_rig(rig)
+    with_delay = loop_margins(blind)
+    assert before.disk_margin > 0.4
+    assert with_delay.disk_margin < 0.01 and with_delay.delay_margin_s < 0.05 * rig.timing.dt
+    aware = LQG(rig_design(base, rig), settings)
+    aware.rig_hardware = Hardware.from_rig(rig)
+    m = loop_margins(aware)
+    assert m.disk_margin > 0.6 and m.delay_margin_s > rig.timing.dt
+    c = certify(aware, plant)
+    assert not c.grows, c.describe()
+
+
+@pytest.mark.slow
+def test_full_delay_servo_settles():
+    """servo_link with one full sample of delay, 90 degrees in 0.45 s (1.5 x its time-optimal
+    0.302 s): LQR, LQG and MPC settled (they limit-cycled before), final angle within 2 counts,
+    residual tip within 1e-3 L, and the certificate of the loop with its delay and drive stable."""
+    from hubbeam_ctrl.study import Slew, compare
+    rig = _servo_full_delay()
+    c = compare("foam", Slew(math.pi / 2, 0.4533), "lqr,lqg,mpc", rig=rig)
+    count = 2 * math.pi / rig.sensors.encoder_counts
+    for name in ("lqr", "lqg", "mpc"):
+        m = c.metrics[name]
+        assert m["verdict"] == "settled", (name, m["verdict_reason"])
+        assert abs(m["final_angle_error_rad"]) <= 2 * count, name
+        assert m["residual_tip_max_m"] <= 1e-3 * rig.beam.L, name
+        assert m["loop_spectral_radius"] < 1.0, name
+
+
+def test_pd_on_a_rig_without_tachometer_is_refused_naming_the_rig_key():
+    from hubbeam_ctrl.study import Slew, compare
+    with pytest.raises(ParameterError, match=r"sensors\.rate"):
+        compare("foam", Slew(math.pi / 2, 1.5), "pd", rig=load_rig("accel_link"), t_end=2.5)
