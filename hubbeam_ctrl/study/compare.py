@@ -47,7 +47,7 @@ from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
-from hubbeam_ctrl.study.judge import judge, residual_modes_for
+from hubbeam_ctrl.study.judge import margin_cause, judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import PLANTS, REFERENCES, Scenario, make_scenario
@@ -441,6 +441,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
             metrics[name].update(disk_margin=lm.disk_margin, gain_margin_upper=lm.gain_margin_upper,
                                  gain_margin_lower=lm.gain_margin_lower, phase_margin_deg=lm.phase_margin_deg,
                                  delay_margin_s=lm.delay_margin_s)
+            margin_cause(metrics[name], lm, 0.0 if rig is None else rig.timing.delay * sc.dt)
         if progress:
             mm = metrics[name]
             print(f"compare {sc.plant}/{sc.name}: {name:8s} {mm['verdict']:11s} residual "

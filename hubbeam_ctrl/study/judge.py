@@ -19,7 +19,11 @@ from hubbeam_ctrl.study.certificate import certify
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 from hubbeam_ctrl.study.yardstick import task_limit, yardstick_metrics
 
-__all__ = ["judge", "residual_modes_for"]
+__all__ = ["judge", "residual_modes_for", "margin_cause", "THIN_DISK_MARGIN"]
+
+#: A loop whose disk margin (as it runs: drive, sensors, delay) is below this is called near
+#: instability in a verdict's reason [-].
+THIN_DISK_MARGIN = 0.1
 
 
 def judge(result, controller, scenario, plant_params, name: str | None = None, limit: dict | None = None):
@@ -78,3 +82,35 @@ def residual_modes_for(settings, plant_modes: int):
     if getattr(settings, "residual_control", False) and getattr(settings, "residual_modes", 0) is None:
         return settings.replace(residual_modes=int(plant_modes))
     return settings
+
+
+def margin_cause(metrics: dict, margins, delay_s: float = 0.0) -> None:
+    """Add to a verdict's reason what the loop's margins say about it (in place).
+
+    The margins are of the loop as it runs (:func:`controllers.analysis.loop_margins` on the
+    design model with the rig's drive, sensors and computation delay). A loop that is stable but
+    barely (disk margin below :data:`THIN_DISK_MARGIN`, or a delay margin below the rig's own
+    delay) is named as the cause of a run that did not settle: saturation, friction and the
+    evaluation plant's differences tip a loop without margin over.
+
+    Parameters
+    ----------
+    metrics : dict
+        One run's metrics (``verdict``, ``verdict_reason``); gets ``delay_s`` [s] and
+        ``delay_margin_ok`` when ``margins`` is given.
+    margins : LoopMargins or None
+    delay_s : float
+        The rig's computation delay [s].
+    """
+    if margins is None:
+        return
+    metrics["delay_s"] = float(delay_s)
+    metrics["delay_margin_ok"] = bool(margins.delay_margin_s > delay_s) if delay_s > 0 else True
+    thin = margins.disk_margin < THIN_DISK_MARGIN
+    if metrics.get("verdict") in ("settled",) or not (thin or not metrics["delay_margin_ok"]):
+        return
+    what = (f"the loop as it runs has a disk margin of {margins.disk_margin:.3g} and a delay margin of "
+            f"{1e3 * margins.delay_margin_s:.3g} ms")
+    if delay_s > 0:
+        what += f" (the rig's computation delay: {1e3 * delay_s:.3g} ms)"
+    metrics["verdict_reason"] = f"{metrics.get('verdict_reason', '')}; cause: {what}, near instability".lstrip("; ")
