@@ -47,7 +47,7 @@ from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
-from hubbeam_ctrl.study.judge import margin_cause, judge, residual_modes_for
+from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import PLANTS, REFERENCES, Scenario, make_scenario
