@@ -189,7 +189,7 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         if law.kind not in ("pd", "observer", "mpc"):
             raise ParameterError(f"controller: a voltage command of {law.controller!r} cannot be generated as C")
         d, f = controller.hardware.drive, controller.hardware.friction
-        drive = {"R": d.R, "N": d.N, "k_t": d.k_t, "k_e": d.k_e, "eta_forward": d.eta_forward,
+        drive = {"R": d.R, "N": d.N, "k_t": d.k_torque, "k_e": d.k_e, "eta_forward": d.eta_forward,
                  "eta_backward": d.eta_backward, "v_eps": f.v_eps, "V_max": d.V_max}
         law = ControlLaw(law.kind, law.controller, law.dt, law.tau_max, law.feedforward, law.arrays,
                          {**law.scalars, **{k: float(v) for k, v in drive.items()}}, law.sensors, law.n_reference,

@@ -336,7 +336,7 @@ class Hardware:
         ndarray (len(HW_LAYOUT),)
         """
         d, f = self.drive, self.friction
-        return np.array([0.0 if d.is_ideal else 1.0, d.R, d.k_t, d.k_e, d.N, d.eta_forward, d.eta_backward,
+        return np.array([0.0 if d.is_ideal else 1.0, d.R, d.k_torque, d.k_e, d.N, d.eta_forward, d.eta_backward,
                          d.V_max, d.I_max, f.viscous, f.coulomb, f.static, f.stribeck_velocity, f.v_eps,
                          0.0 if d.is_ideal else d.L, 1.0 if stick else 0.0])
 
@@ -396,8 +396,8 @@ class Hardware:
             sign = 1.0 if tau >= 0 else -1.0
             x = min(max(-thd * sign / self.friction.v_eps, 0.0), 50.0)
             e = d.eta_forward + (1.0 / d.eta_backward - d.eta_forward) * math.tanh(x) ** 2
-            return min(max(d.R * tau / (d.N * d.k_t * e) + d.k_e * d.N * thd, -d.V_max), d.V_max)
+            return min(max(d.R * tau / (d.N * d.k_torque * e) + d.k_e * d.N * thd, -d.V_max), d.V_max)
         tau, thd = np.asarray(tau, dtype=float), np.asarray(thd, dtype=float)
         h = _unpack(self.values())
-        i = tau / (d.N * d.k_t * _efficiency(tau, thd, h, np.clip, np.tanh))     # sign(i) = sign(tau)
+        i = tau / (d.N * d.k_torque * _efficiency(tau, thd, h, np.clip, np.tanh))     # sign(i) = sign(tau)
         return np.clip(d.R * i + d.k_e * d.N * thd, -d.V_max, d.V_max)
