@@ -51,7 +51,9 @@ __all__ = ["Hardware", "HW_LAYOUT", "hub_torque", "drive_torque", "friction_torq
            "inductive_current"]
 
 #: The hardware's numbers as the plant step reads them (its input ``hw``), in this order;
-#: ``stick`` (1: the hub is held at rest) is set by the stepper at every sample.
+#: ``stick`` (1: the hub is held at rest) is set by the stepper at every sample. ``k_t`` is the
+#: motor's shaft torque per ampere with its efficiency applied, ``eta_motor k_t``
+#: (:attr:`~hubbeam_ctrl.plant.rig.Drive.k_torque`).
 HW_LAYOUT = ("dc_motor", "R", "k_t", "k_e", "N", "eta_forward", "eta_backward", "V_max", "I_max",
              "viscous", "coulomb", "breakaway", "stribeck_velocity", "v_eps", "L", "stick")
 
