@@ -62,3 +62,11 @@ def test_torque_source_table_has_no_voltage_columns():
     table = markdown_table({"toy": m})
     assert _column(table, "peak u") == ["100 N m"] and _column(table, "peak tau_hub Nm") == ["100"]
     assert "peak V" not in table and "peak A" not in table
+
+
+def test_command_figure_is_in_volts_with_v_max_on_a_dc_motor(servo):
+    from hubbeam_ctrl.study.report import _command_figure
+    ax = _command_figure(servo, "", None).axes[0]
+    assert ax.get_ylabel() == "command voltage [V]"
+    limits = sorted(line.get_ydata()[0] for line in ax.lines if line.get_linestyle() == ":")
+    assert limits == [-10.0, 10.0]

@@ -177,12 +177,22 @@ def _write_files(comparison, out: Path, names: dict) -> None:
                                                   styles=styles),
         "hub_angle.png": plot_hub_angle(results, sc.t_f, title + "hub angle and error vs reference",
                                         styles=styles),
-        "torque.png": plot_torque(results, sc.tau_max, title + "hub torque (dotted: +-tau_max)",
-                                  styles=styles),
+        "torque.png": _command_figure(comparison, title, styles),
     }
     for fname, fig in figs.items():
         save_figure(fig, out / names[fname])
     _write_report(comparison, out, names)      # report.md, the loop figures and report.html
+
+
+def _command_figure(comparison, title: str, styles):
+    """The commands over time in their unit, with their limit (torque.png)."""
+    first = next(iter(comparison.results.values()), None)
+    drive = drive_of(first) if first is not None else None
+    if drive is not None and not drive.is_ideal:
+        return plot_torque(comparison.results, drive.V_max, title + "command voltage (dotted: +-V_max)",
+                           styles=styles, ylabel="command voltage [V]")
+    return plot_torque(comparison.results, comparison.scenario.tau_max, title + "hub torque (dotted: +-tau_max)",
+                       styles=styles)
 
 
 def _report(comparison) -> str:
