@@ -123,7 +123,9 @@ def drive_metrics(t, u, thd, t_f: float, drive: Drive, tau_max: float | None = N
         ``time_at_limit_s`` and ``time_at_limit_slew_s`` (samples within :data:`AT_LIMIT` of
         the limit times the sample time, over the run and up to ``t_f``), ``peak_voltage_v``
         (``|clip(u, +-V_max)|``) and ``peak_current_a`` (``|clip((V - k_e N thd) / R,
-        +-I_max)|``; both None on a torque source), ``peak_hub_torque_nm`` (the drive's torque
+        +-I_max)|`` at the recorded hub rate, the resistive circuit's current: with an armature
+        inductance it leaves out the current's lag of ``L / R``; both None on a torque source),
+        ``peak_hub_torque_nm`` (the drive's torque
         on the hub, friction aside: the command on a torque source, ``N eta_motor k_t i``
         times the gear factor on a DC motor), ``within_voltage_limit``, ``within_current_limit``
         (None on a torque source), ``within_torque_limit`` (hub torque within ``tau_max``;
