@@ -88,17 +88,21 @@ def test_every_metric_holds_its_own_unit(which, dc_run, torque_run):
     u = res.tau
     checked = []
     for key, (unit, _) in METRIC_UNITS.items():
+        # a unit spelled another way ("Nm", "volt", "N.m") would slip past the checks below
+        assert unit.replace(" ", "").lower() not in ("nm", "n.m", "volt", "volts", "amp", "ampere") or \
+            unit in ("N m",), (key, unit)
         value = m[key]
         if value is None and unit in ("V", "A"):
             assert which == "torque", key          # no voltage or current on a torque source
             continue
         if unit == "N m":
-            if key in ("peak_hub_torque_nm", "peak_torque_nm"):
-                assert value == pytest.approx(np.max(ref["N m"]), rel=1e-12), key
-                if which == "dc":       # braking at the current limit: N k_t I_max / eta_backward at most
-                    d = drive
-                    assert value <= d.N * d.k_t * d.I_max / d.eta_backward * (1 + 1e-12), key
-                    assert value != pytest.approx(m["peak_command"], rel=1e-2), key     # not the volts
+            # every N m metric needs its independent reference here: a new one fails until it has one
+            assert key in ("peak_hub_torque_nm", "peak_torque_nm"), f"no reference for the N m metric {key}"
+            assert value == pytest.approx(np.max(ref["N m"]), rel=1e-12), key
+            if which == "dc":       # braking at the current limit: N k_t I_max / eta_backward at most
+                d = drive
+                assert value <= d.N * d.k_t * d.I_max / d.eta_backward * (1 + 1e-12), key
+                assert value != pytest.approx(m["peak_command"], rel=1e-2), key     # not the volts
             checked.append(key)
         elif unit == "V":
             assert which == "dc", key
@@ -109,10 +113,12 @@ def test_every_metric_holds_its_own_unit(which, dc_run, torque_run):
             assert value == pytest.approx(np.max(ref["A"]), rel=1e-12) and value <= SERVO.drive.I_max, key
             checked.append(key)
         elif unit == "command":
-            expect = {"peak_command": np.max(np.abs(u)), "peak_command_step": np.max(np.abs(np.diff(u)))}[key]
+            expect = {"peak_command": np.max(np.abs(u)), "peak_command_step": np.max(np.abs(np.diff(u)))}.get(key)
+            assert expect is not None, f"no reference for the command-unit metric {key}"
             assert value == pytest.approx(expect, rel=1e-12), key
             checked.append(key)
         elif unit == "N^2 m^2 s":
+            assert key == "torque_squared_integral_n2m2s", f"no reference for the N^2 m^2 s metric {key}"
             dt = float(res.t[1] - res.t[0])
             assert value == pytest.approx(np.sum(ref["N m"][:-1] ** 2) * dt, rel=1e-12), key
             checked.append(key)
