@@ -135,6 +135,10 @@ SPECIFIC = [
     ("c8", "compare", ["--no-ladder"], "--no-ladder applies with --rig only"),
     ("c8", "compare", ["--integral", "off"], "--integral applies with --rig only"),
     ("c8", "compare", ["--integral", "maybe"], "--integral: invalid choice: 'maybe'"),
+    # a rig's beam.tau_max against its drive's (issue 36)
+    ("c8", "compare", ["--rig", "tau_conflict.toml"],
+     "--rig file tau_conflict.toml: beam.tau_max must be within 1 % of 1.861 N m (the DC motor's stall torque"),
+    ("c8", "compare", ["--rig", "motor_tau.toml"], "motor.tau_max is the limit of a torque source"),
     # hubbeam fmu (issue 26)
     ("c8", "fmu", ["--model", "tlam"], "--model: invalid choice: 'tlam'"),
     ("c8", "fmu", ["--rig", "servo_link", "--params", "L_big.toml"], "--rig and --params are exclusive"),
@@ -171,6 +175,9 @@ def inputs(tmp_path_factory):
     (d / "rho_tiny.toml").write_text("rho = 1e-300\n")
     (d / "mt_huge.toml").write_text("m_t = 1e308\n")
     (d / "slender.toml").write_text("I = 1e-3\n")
+    (d / "tau_conflict.toml").write_text("[beam]\ntau_max = 3.0\n[motor]\nkind = 'dc_motor'\nN = 70.0\n"
+                                          "eta_forward = 0.9\n")
+    (d / "motor_tau.toml").write_text("[motor]\nkind = 'dc_motor'\ntau_max = 5.0\n")
     os.mkfifo(d / "fifo.toml")
     os.mkfifo(d / "fifo.csv")
     return d

@@ -204,3 +204,67 @@ def test_sensors_give_the_closed_loop_sensor_settings():
         (4096, 1e-5, 1e-3, 0.01, 3)
     assert ss.encoder_step == pytest.approx(2 * math.pi / 4096) == s.encoder_step
     assert Sensors().sensor_settings().encoder_step == 0.0
+
+
+# -- the drive's limit is the beam's tau_max (issue 36, Build 4) ----------------------------
+
+def _servo_file(tmp_path, beam_tau=None, motor_extra=""):
+    """servo_link's motor and friction in a file, with ``beam.tau_max`` stated or not."""
+    beam = "[beam]\nL = 0.381\nrho = 7900.0\nA = 2.1596e-5\nE = 193e9\nI = 5.352e-13\nJ_h = 2.087e-3\nr = 0.0\n"
+    if beam_tau is not None:
+        beam += f"tau_max = {beam_tau!r}\n"
+    motor = ("[motor]\nkind = 'dc_motor'\nR = 2.6\nk_t = 7.68e-3\nk_e = 7.68e-3\nN = 70.0\neta_forward = 0.9\n"
+             "eta_backward = 0.69\nV_max = 10.0\nI_max = 4.0\n" + motor_extra)
+    path = tmp_path / "servo.toml"
+    path.write_text(beam + motor)
+    return path
+
+
+def test_beam_tau_max_follows_from_the_dc_drive(tmp_path):
+    stall = 0.9 * 70 * 7.68e-3 * 10.0 / 2.6                      # V_max / R = 3.85 A < I_max = 4 A
+    assert load_rig(_servo_file(tmp_path)).beam.tau_max == pytest.approx(stall, rel=1e-12)
+    assert load_rig("servo_link").beam.tau_max == 1.86            # the preset's rounded value, 0.05 % off
+    for ok in (stall * 0.991, stall * 1.009):
+        assert load_rig(_servo_file(tmp_path, ok)).beam.tau_max == ok
+    for bad in (stall * 0.989, stall * 1.011, 200.0):
+        with pytest.raises(ParameterError, match=rf"beam\.tau_max must be within 1 % of 1\.861 N m \(the DC "
+                                                 rf"motor's stall torque .*got {bad:g}$") as info:
+            load_rig(_servo_file(tmp_path, bad))
+        assert "\n" not in str(info.value)
+    # a Rig built in Python takes the drive's limit (a calibrated drive keeps the rig consistent)
+    rig = Rig(beam=Params(J_h=1.0), drive=Drive(kind="dc_motor", N=10.0))
+    assert rig.beam.tau_max == pytest.approx(10 * 7.68e-3 * 10.0 / 2.6, rel=1e-12)
+    again = load_rig("servo_link").replace(drive=load_rig("servo_link").drive.replace(V_max=5.0))
+    assert again.beam.tau_max == pytest.approx(0.9 * 70 * 7.68e-3 * 5.0 / 2.6, rel=1e-12)
+
+
+def test_motor_efficiency_scales_the_torque_and_the_stall_torque(tmp_path):
+    from hubbeam_ctrl.sim.hardware import Hardware
+    rig = load_rig(_servo_file(tmp_path, motor_extra="eta_motor = 0.69\n"))
+    d = rig.drive
+    assert d.k_torque == pytest.approx(0.69 * 7.68e-3, rel=1e-15)
+    assert rig.beam.tau_max == pytest.approx(0.9 * 70 * 0.69 * 7.68e-3 * 10 / 2.6, rel=1e-12)
+    hw, hw1 = Hardware.from_rig(rig), Hardware.from_rig(rig.replace(drive=d.replace(eta_motor=1.0),
+                                                                       beam=rig.beam.replace(tau_max=1.86)))
+    for u, thd in ((10.0, 0.0), (4.0, 1.5), (-3.0, 0.2)):
+        # the current is the same (back-EMF unchanged); the torque is eta_motor times
+        assert float(hw.hub_torque(u, thd)) == pytest.approx(0.69 * float(hw1.hub_torque(u, thd)), rel=1e-12)
+    assert float(hw.voltage_for_torque(0.5, 0.0)) == pytest.approx(2.6 * 0.5 / (70 * 0.9 * 0.69 * 7.68e-3), rel=1e-12)
+
+
+def test_a_torque_source_takes_its_own_limit(tmp_path):
+    path = tmp_path / "boom.toml"
+    path.write_text("[motor]\nkind = 'torque'\ntau_max = 50.0\n")
+    assert load_rig(path).beam.tau_max == 50.0
+    path.write_text("[beam]\ntau_max = 50.4\n[motor]\nkind = 'torque'\ntau_max = 50.0\n")
+    assert load_rig(path).beam.tau_max == 50.4
+    path.write_text("[beam]\ntau_max = 200.0\n[motor]\nkind = 'torque'\ntau_max = 50.0\n")
+    with pytest.raises(ParameterError, match=r"beam\.tau_max must be within 1 % of 50 N m \(the torque source's "
+                                             r"motor\.tau_max; .*got 200$"):
+        load_rig(path)
+    path.write_text("[motor]\nkind = 'dc_motor'\ntau_max = 5.0\n")
+    with pytest.raises(ParameterError, match=r"motor\.tau_max is the limit of a torque source .* "
+                                             r"remove motor\.tau_max, "
+                                             r"got 5$"):
+        load_rig(path)
+    assert Rig().beam.tau_max == 200.0 and Rig().drive.torque_limit is None     # no own limit: the beam's

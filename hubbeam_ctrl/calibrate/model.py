@@ -109,7 +109,7 @@ def hub_damping(rig: Rig) -> float:
     float
     """
     d = rig.drive
-    emf = 0.0 if d.is_ideal else d.eta_forward * d.N ** 2 * d.k_t * d.k_e / d.R
+    emf = 0.0 if d.is_ideal else d.eta_forward * d.N ** 2 * d.k_torque * d.k_e / d.R
     return rig.friction.viscous + emf
 
 

@@ -97,7 +97,8 @@ _P_UNITS = {"J_h": "kg.m2", "J": "kg.m2", "V1": "kg.m", "V2": "kg.m", "M1": "kg"
 _HW_UNITS = {"R": "ohm", "k_t": "N.m/A", "k_e": "V.s/rad", "N": "1", "eta_forward": "1", "eta_backward": "1",
              "V_max": "V", "I_max": "A", "viscous": "N.m.s/rad", "coulomb": "N.m", "breakaway": "N.m",
              "stribeck_velocity": "rad/s", "v_eps": "rad/s"}
-_HW_DOC = {"R": "armature resistance", "k_t": "motor torque constant", "k_e": "back-EMF constant",
+_HW_DOC = {"R": "armature resistance", "k_t": "motor torque constant times the motor efficiency eta_motor",
+           "k_e": "back-EMF constant",
            "N": "gear ratio", "eta_forward": "gear efficiency, motor driving", "eta_backward":
            "gear efficiency, load driving", "V_max": "amplifier voltage limit", "I_max": "amplifier current limit",
            "viscous": "viscous friction coefficient", "coulomb": "Coulomb friction torque",

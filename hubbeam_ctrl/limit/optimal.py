@@ -249,7 +249,7 @@ def _drive_terms(rig) -> tuple | None:
     if rig is None or rig.drive.is_ideal:
         return None
     d, f = rig.drive, rig.friction
-    gain = d.eta_forward * d.N * d.k_t
+    gain = d.eta_forward * d.N * d.k_torque        # eta_motor k_t: the motor's own efficiency applied
     stall = gain * min(d.V_max / d.R, d.I_max)
     if f.static >= stall:
         raise ParameterError(f"friction.breakaway ({f.static:g} N m) must be below the drive's stall torque "

@@ -40,18 +40,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from importlib import resources
-from pathlib import Path
 
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write_text
 from hubbeam_ctrl.core.settings import Settings, setting
-from hubbeam_ctrl.plant.params import MAX_MODES, Params, _read_toml
+from hubbeam_ctrl.plant.params import MAX_MODES, Params
 
 __all__ = ["Drive", "Friction", "Damping", "Sensors", "Timing", "Rig", "load_rig", "save_rig", "PRESETS",
-           "RIG_TABLES", "RIG_RELATIONS", "rig_from_dict", "rig_to_toml"]
+           "RIG_TABLES", "RIG_RELATIONS", "rig_from_dict", "rig_to_toml", "TAU_MAX_TOLERANCE"]
 
 #: The presets that ship with the toolbox (``hubbeam_ctrl/data/rigs/<name>.toml``).
 PRESETS = ("servo_link", "paper", "accel_link", "servo_payload", "space_boom")
@@ -66,8 +63,15 @@ class Drive(Settings):
     ``L di/dt = V - R i - k_e N thd``) is clipped to ``+-I_max`` by the amplifier, and the
     torque at the hub is ``eta_forward N k_t i`` while the motor drives the load (``i thd >=
     0``) and ``N k_t i / eta_backward`` while the load drives the gear (``i thd < 0``: braking,
-    the power flows back through the gear). The rotor inertia ``J_r`` adds ``N^2 J_r`` to the
-    hub inertia (:attr:`Rig.plant_params`). With ``kind = "torque"`` the motor fields are not used.
+    the power flows back through the gear). The motor's own efficiency ``eta_motor`` (apart
+    from the gear's) multiplies the torque constant's torque: the motor gives ``eta_motor k_t
+    i`` at its shaft (:attr:`k_torque`). The rotor inertia ``J_r`` adds ``N^2 J_r`` to the
+    hub inertia (:attr:`Rig.plant_params`). With ``kind = "torque"`` the motor fields are not
+    used but ``tau_max``, the torque source's own limit.
+
+    The drive's hub-torque limit (:attr:`torque_limit`) is the beam's ``tau_max``: a DC
+    motor's stall torque ``eta_forward N eta_motor k_t min(V_max / R, I_max)``, or a torque
+    source's ``tau_max`` (:class:`Rig` checks ``beam.tau_max`` against it).
     """
 
     _setting_prefix = "motor."
@@ -95,6 +99,21 @@ class Drive(Settings):
                          doc="Rotor inertia at the motor shaft; N^2 J_r is added to the hub inertia J_h.")
     V_max: float = setting(10.0, unit="V", lo=0.0, lo_open=True, hi=1e5, doc="Amplifier voltage limit.")
     I_max: float = setting(4.0, unit="A", lo=0.0, lo_open=True, hi=1e5, doc="Amplifier current limit.")
+    eta_motor: float = setting(1.0, lo=0.0, lo_open=True, hi=1.0,
+                               doc="Motor efficiency apart from the gear's: the motor's shaft torque is "
+                                   "eta_motor k_t i.")
+    tau_max: float | None = setting(None, unit="N m", lo=0.0, lo_open=True, hi=1e9, kind=float,
+                                    doc='The torque source\'s limit at the hub (kind = "torque"); None: '
+                                        "beam.tau_max. A DC motor's follows from its voltage and current "
+                                        "limits (its stall torque) and takes none.")
+
+    def __post_init__(self):
+        super().__post_init__()
+        if not self.is_ideal and self.tau_max is not None:
+            raise ParameterError(f'motor.tau_max is the limit of a torque source (kind = "torque"); a DC '
+                                 f"motor's is its stall torque eta_forward N eta_motor k_t min(V_max / R, "
+                                 f"I_max) = {self.stall_torque:.4g} N m: remove motor.tau_max, got "
+                                 f"{self.tau_max:g}")
 
     @property
     def is_ideal(self) -> bool:
@@ -107,11 +126,33 @@ class Drive(Settings):
         return 0.0 if self.is_ideal else self.N ** 2 * self.J_r
 
     @property
+    def k_torque(self) -> float:
+        """Shaft torque per ampere ``eta_motor k_t`` [N m/A] (the motor's efficiency applied)."""
+        return self.eta_motor * self.k_t
+
+    @property
     def stall_torque(self) -> float:
-        """Largest hub torque at rest ``eta_forward N k_t min(I_max, V_max / R)`` [N m] (inf: torque drive)."""
+        """Largest hub torque at rest ``eta_forward N eta_motor k_t min(I_max, V_max / R)`` [N m]
+        (inf: torque drive)."""
         if self.is_ideal:
             return math.inf
-        return self.eta_forward * self.N * self.k_t * min(self.I_max, self.V_max / self.R)
+        return self.eta_forward * self.N * self.k_torque * min(self.I_max, self.V_max / self.R)
+
+    @property
+    def torque_limit(self) -> float | None:
+        """The drive's hub-torque limit [N m]: the DC motor's :attr:`stall_torque`, the torque
+        source's ``tau_max`` (None: not given, the beam's ``tau_max`` holds)."""
+        return self.tau_max if self.is_ideal else self.stall_torque
+
+    @property
+    def peak_hub_torque(self) -> float | None:
+        """Largest hub torque the drive can give in any state [N m]: on a DC motor the
+        back-driven torque at the current limit ``N eta_motor k_t I_max / eta_backward`` (braking
+        passes more torque than motoring, ``eta_forward <= 1 <= 1 / eta_backward``); on a torque
+        source :attr:`torque_limit`."""
+        if self.is_ideal:
+            return self.tau_max
+        return self.N * self.k_torque * self.I_max / self.eta_backward
 
 
 @dataclass(frozen=True)
@@ -331,16 +372,22 @@ class Timing(Settings):
 
 #: Bounds of rig fields that depend on other fields: ``(class name, field) -> text`` (``docs/ranges.md``).
 RIG_RELATIONS = {
-    ("Drive", "I_max"): "eta_forward N k_t I_max >= friction breakaway (the motor holds the hub at rest)",
+    ("Drive", "I_max"): "eta_forward N eta_motor k_t I_max >= friction breakaway (the motor holds the hub at rest)",
+    ("Drive", "tau_max"): 'kind = "torque" only; beam.tau_max within 1 % of it',
     ("Friction", "breakaway"): ">= coulomb",
     ("Damping", "ratios"): "each in [0, 1)",
     ("Sensors", "strain_gauges"): "each in [0, beam.L]",
-    ("Rig", "beam"): "damping_ratio = 0 when [damping] is given",
+    ("Rig", "beam"): "damping_ratio = 0 when [damping] is given; tau_max within 1 % of the drive's limit "
+                     "(a DC motor's stall torque, a torque source's motor.tau_max)",
 }
 
 #: The tables of a rig file and the class each holds, in file order.
 RIG_TABLES = {"beam": Params, "motor": Drive, "friction": Friction, "damping": Damping, "sensors": Sensors,
               "timing": Timing}
+
+#: A beam's ``tau_max`` within this fraction of the drive's hub-torque limit is accepted (a preset
+#: states the stall torque rounded, ``servo_link``'s 1.86 N m for 1.861) [-].
+TAU_MAX_TOLERANCE = 0.01
 
 _ATTR = {"beam": "beam", "motor": "drive", "friction": "friction", "damping": "damping", "sensors": "sensors",
          "timing": "timing"}
@@ -351,9 +398,13 @@ class Rig(Settings):
     """The physical rig: the beam and the hardware around it (see the module docstring).
 
     Beyond each part's own ranges, a rig is refused when its DC motor cannot hold the hub
-    at rest against friction (``eta_forward N k_t I_max`` below the breakaway torque), a
-    strain gauge lies beyond the beam, or the beam's ``damping_ratio`` and the rig's
-    ``[damping]`` are both given.
+    at rest against friction (``eta_forward N eta_motor k_t I_max`` below the breakaway
+    torque), a strain gauge lies beyond the beam, the beam's ``damping_ratio`` and the rig's
+    ``[damping]`` are both given. The beam's ``tau_max`` follows from the drive
+    (:attr:`Drive.torque_limit`): one within :data:`TAU_MAX_TOLERANCE` of it is kept, any
+    other is replaced by it (so a rig whose drive is replaced, e.g. by a calibration, keeps a
+    consistent limit); a rig file that states a conflicting ``beam.tau_max`` is refused
+    (:func:`rig_from_dict`).
     """
 
     beam: Params = setting(factory=Params, doc="The beam, hub and tip mass (Params).")
@@ -366,10 +417,13 @@ class Rig(Settings):
     def __post_init__(self):
         super().__post_init__()
         d, f = self.drive, self.friction
-        if not d.is_ideal and d.eta_forward * d.N * d.k_t * d.I_max < f.static:
-            need = f.static / (d.eta_forward * d.N * d.k_t)
-            raise ParameterError(f"motor.I_max must be >= {need:.4g} [A] (eta_forward N k_t I_max must hold "
-                                 f"the hub against the breakaway friction {f.static:g} N m), got {d.I_max:g}")
+        if not d.is_ideal and d.eta_forward * d.N * d.k_torque * d.I_max < f.static:
+            need = f.static / (d.eta_forward * d.N * d.k_torque)
+            raise ParameterError(f"motor.I_max must be >= {need:.4g} [A] (eta_forward N eta_motor k_t I_max must "
+                                 f"hold the hub against the breakaway friction {f.static:g} N m), got {d.I_max:g}")
+        limit = d.torque_limit
+        if limit is not None and not _close(self.beam.tau_max, limit):
+            object.__setattr__(self, "beam", self.beam.replace(tau_max=limit))
         for k, x in enumerate(self.sensors.strain_gauges):
             if x > self.beam.L:
                 raise ParameterError(f"sensors.strain_gauges[{k}] must be in [0, L] = [0, {self.beam.L:g}] [m] "
@@ -425,148 +479,20 @@ class Rig(Settings):
         return out
 
 
-def _part(table: str, data, path) -> Settings:
-    cls = RIG_TABLES[table]
-    where = f"rig file {path}: " if path is not None else ""
-    if not isinstance(data, dict):
-        raise ParameterError(f"{where}[{table}] must be a table of keys, got {type(data).__name__}")
-    if cls is Params:
-        try:
-            return Params.from_dict(data)
-        except ParameterError as exc:
-            raise ParameterError(f"{where}beam.{exc}" if str(exc).split(" ")[0] in data
-                                 else f"{where}[beam]: {exc}") from None
-    known = [f.name for f in fields(cls)]
-    for key in data:
-        if key not in known:
-            raise ParameterError(f"{where}unknown key {table}.{str(key)[:40]}; allowed in [{table}]: "
-                                 f"{', '.join(known)}")
-    try:
-        return cls(**data)
-    except ParameterError as exc:
-        raise ParameterError(f"{where}{exc}") from None
-    except TypeError as exc:
-        raise ParameterError(f"{where}[{table}]: {exc}") from None
+def _close(tau_max: float, limit: float) -> bool:
+    return abs(tau_max - limit) <= TAU_MAX_TOLERANCE * limit
 
 
-def rig_from_dict(data: dict, path=None) -> Rig:
-    """A :class:`Rig` from the tables of a rig file (or a flat :class:`Params` mapping).
-
-    Parameters
-    ----------
-    data : dict
-        ``{"beam": {...}, "motor": {...}, ...}`` (:data:`RIG_TABLES`); a mapping without
-        tables (or with ``[params]`` only) is a flat parameter set: the beam alone, ideal hardware.
-    path : str or Path, optional
-        The file it came from (named in error messages).
-
-    Returns
-    -------
-    Rig
-    """
-    where = f"rig file {path}: " if path is not None else ""
-    if not isinstance(data, dict):
-        raise ParameterError(f"{where}a rig must be a mapping of tables, got {type(data).__name__}")
-    if set(data) == {"params"} and isinstance(data["params"], dict):
-        data = data["params"]
-    if not any(isinstance(v, dict) for v in data.values()):      # today's flat Params file
-        try:
-            return Rig(beam=Params.from_dict(data))
-        except ParameterError as exc:
-            raise ParameterError(f"{where}{exc}") from None
-    for key, value in data.items():
-        if key not in RIG_TABLES:
-            kind = "table" if isinstance(value, dict) else "key"
-            shown = f"[{str(key)[:40]}]" if kind == "table" else str(key)[:40]
-            raise ParameterError(f"{where}unknown {kind} {shown}; allowed tables: "
-                                 f"{', '.join(f'[{t}]' for t in RIG_TABLES)}")
-    parts = {_ATTR[t]: _part(t, data[t], path) for t in RIG_TABLES if t in data}
-    try:
-        return Rig(**parts)
-    except ParameterError as exc:
-        raise ParameterError(f"{where}{exc}") from None
+def _check_tau_max(tau_max: float, drive: Drive) -> None:
+    """Refuse a beam ``tau_max`` [N m] that conflicts with the drive's limit, in one line."""
+    limit = drive.torque_limit
+    if limit is None or _close(tau_max, limit):
+        return
+    whose = ("the DC motor's stall torque eta_forward N eta_motor k_t min(V_max / R, I_max)" if not drive.is_ideal
+             else "the torque source's motor.tau_max")
+    raise ParameterError(f"beam.tau_max must be within {100 * TAU_MAX_TOLERANCE:g} % of {limit:.4g} N m ({whose}; "
+                         f"omit beam.tau_max to take it), got {tau_max:g}")
 
 
-def _preset_path(name: str):
-    return resources.files("hubbeam_ctrl").joinpath("data", "rigs", f"{name}.toml")
-
-
-def load_rig(source) -> Rig:
-    """Load a rig from a TOML file or a preset name.
-
-    Parameters
-    ----------
-    source : str or Path
-        A rig file (tables ``[beam]``, ``[motor]``, ``[friction]``, ``[damping]``,
-        ``[sensors]``, ``[timing]``; or a flat parameter file: the beam alone), or the name
-        of a preset (:data:`PRESETS`). An existing file wins over a preset of the same name.
-
-    Returns
-    -------
-    Rig
-
-    Raises
-    ------
-    ParameterError
-        One line naming the file and the table or key at fault.
-    """
-    if isinstance(source, Rig):
-        return source
-    if source is None or str(source).strip() == "":
-        raise ParameterError(f"rig must name a file or a preset ({', '.join(PRESETS)}), got {source!r}")
-    path = Path(source)
-    if not path.exists() and str(source) in PRESETS:
-        with resources.as_file(_preset_path(str(source))) as preset:
-            return rig_from_dict(_read_toml(preset), path=f"(preset {source})")
-    if not path.exists() and path.suffix == "" and "/" not in str(source):
-        raise ParameterError(f"rig {str(source)[:80]!r} is neither a file nor a preset "
-                             f"({', '.join(PRESETS)})")
-    data = _read_toml(path)
-    return rig_from_dict(data, path=path)
-
-
-def _toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return f'"{value}"'
-    if isinstance(value, tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    return repr(value)
-
-
-def rig_to_toml(rig: Rig) -> str:
-    """The TOML text of a rig file (units as comments; unset optional keys as comments).
-
-    Parameters
-    ----------
-    rig : Rig
-
-    Returns
-    -------
-    str
-    """
-    lines = ["# hubbeam-ctrl rig, SI units"]
-    for table, values in rig.to_tables().items():
-        units = RIG_TABLES[table].units()
-        lines += ["", f"[{table}]"]
-        for key, value in values.items():
-            unit = units[key]
-            if value is None:
-                lines.append(f"# {key} unset")
-                continue
-            lines.append(f"{key} = {_toml_value(value)}" + ("" if unit in ("", "-") else f"  # [{unit}]"))
-    return "\n".join(lines) + "\n"
-
-
-def save_rig(rig: Rig, path) -> None:
-    """Write a rig to a TOML file atomically (:func:`load_rig` reads it back equal).
-
-    Parameters
-    ----------
-    rig : Rig
-    path : str or Path
-    """
-    if not isinstance(rig, Rig):
-        raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
-    atomic_write_text(path, rig_to_toml(rig))
+# the rig files (TOML): in their own module, re-exported here
+from hubbeam_ctrl.plant.rig_files import load_rig, rig_from_dict, rig_to_toml, save_rig  # noqa: E402

@@ -123,18 +123,21 @@ def plot_hub_angle(results: dict, t_f: float | None = None, title: str = "",
 
 
 def plot_torque(results: dict, tau_max: float | None = None, title: str = "",
-                styles: dict | None = None) -> Figure:
-    """Hub torque of every run (held between samples), with the torque limit.
+                styles: dict | None = None, ylabel: str = "hub torque [N m]") -> Figure:
+    """The command of every run (held between samples), with its limit: the hub torque on a
+    torque source, the voltage on a DC motor (say so with ``ylabel``).
 
     Parameters
     ----------
     results : dict
         Controller name -> Result.
     tau_max : float, optional
-        Torque limit [N m] (dotted lines).
+        The command's limit, in its unit (dotted lines): ``tau_max`` [N m], or ``V_max`` [V].
     title : str
     styles : dict, optional
         Controller name -> ``{"color": ..., "label": ...}``.
+    ylabel : str
+        The axis label, with the command's unit (default ``"hub torque [N m]"``).
 
     Returns
     -------
@@ -150,7 +153,7 @@ def plot_torque(results: dict, tau_max: float | None = None, title: str = "",
         for s in (-1, 1):
             ax.axhline(s * tau_max, color="k", ls=":", lw=0.8)
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("hub torque [N m]")
+    ax.set_ylabel(ylabel)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", ncol=min(5, len(results)))
     ax.set_title(title or "Hub torque (dotted: limit)")

@@ -51,7 +51,9 @@ __all__ = ["Hardware", "HW_LAYOUT", "hub_torque", "drive_torque", "friction_torq
            "inductive_current"]
 
 #: The hardware's numbers as the plant step reads them (its input ``hw``), in this order;
-#: ``stick`` (1: the hub is held at rest) is set by the stepper at every sample.
+#: ``stick`` (1: the hub is held at rest) is set by the stepper at every sample. ``k_t`` is the
+#: motor's shaft torque per ampere with its efficiency applied, ``eta_motor k_t``
+#: (:attr:`~hubbeam_ctrl.plant.rig.Drive.k_torque`).
 HW_LAYOUT = ("dc_motor", "R", "k_t", "k_e", "N", "eta_forward", "eta_backward", "V_max", "I_max",
              "viscous", "coulomb", "breakaway", "stribeck_velocity", "v_eps", "L", "stick")
 
@@ -336,7 +338,7 @@ class Hardware:
         ndarray (len(HW_LAYOUT),)
         """
         d, f = self.drive, self.friction
-        return np.array([0.0 if d.is_ideal else 1.0, d.R, d.k_t, d.k_e, d.N, d.eta_forward, d.eta_backward,
+        return np.array([0.0 if d.is_ideal else 1.0, d.R, d.k_torque, d.k_e, d.N, d.eta_forward, d.eta_backward,
                          d.V_max, d.I_max, f.viscous, f.coulomb, f.static, f.stribeck_velocity, f.v_eps,
                          0.0 if d.is_ideal else d.L, 1.0 if stick else 0.0])
 
@@ -415,8 +417,8 @@ class Hardware:
             sign = 1.0 if tau >= 0 else -1.0
             x = min(max(-thd * sign / self.friction.v_eps, 0.0), 50.0)
             e = d.eta_forward + (1.0 / d.eta_backward - d.eta_forward) * math.tanh(x) ** 2
-            return min(max(d.R * tau / (d.N * d.k_t * e) + d.k_e * d.N * thd, -d.V_max), d.V_max)
+            return min(max(d.R * tau / (d.N * d.k_torque * e) + d.k_e * d.N * thd, -d.V_max), d.V_max)
         tau, thd = np.asarray(tau, dtype=float), np.asarray(thd, dtype=float)
         h = _unpack(self.values())
-        i = tau / (d.N * d.k_t * _efficiency(tau, thd, h, np.clip, np.tanh))     # sign(i) = sign(tau)
+        i = tau / (d.N * d.k_torque * _efficiency(tau, thd, h, np.clip, np.tanh))     # sign(i) = sign(tau)
         return np.clip(d.R * i + d.k_e * d.N * thd, -d.V_max, d.V_max)

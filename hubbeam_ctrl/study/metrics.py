@@ -4,6 +4,12 @@ Names are snake case with their unit as suffix (``_m``, ``_rad``, ``_s``, ``_nm`
 ``_ms``...), the same in ``metrics.csv``, ``metrics.json`` and the printed tables. The one
 nested entry is ``plant_params`` (the evaluation plant's :class:`Params` as a dictionary,
 in ``metrics.json`` only).
+
+Units are the drive's: the controller's command is a voltage on a DC motor and a hub torque
+on a torque source, so the command's own figures (unit ``"command"`` in
+:data:`METRIC_UNITS`) are in ``command_unit`` (``"V"`` or ``"N m"``), and the voltage, the
+current and the hub torque each have their own metric in their own unit
+(:mod:`hubbeam_ctrl.study.drive_metrics`); no metric in N m ever holds volts.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive
+from hubbeam_ctrl.study.drive_metrics import command_limit, drive_metrics, drive_of, friction_of
 
 __all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time", "VERDICTS", "verdict", "Evidence",
            "residual_growth", "saturated_fraction", "GROWTH_LIMIT", "SATURATION_LIMIT", "GrowthFit",
@@ -31,11 +38,12 @@ GROWTH_LIMIT = 2.0
 #: An envelope that grows by less than this factor over the fitted span is not resolved
 #: as growth (block maxima of a steady or noisy oscillation scatter by tens of %) [-].
 GROWTH_RESOLUTION = 1.5
-#: A run whose torque sits at its limit for more than this fraction of the residual window
-#: is in a saturation limit cycle, i.e. unstable [-].
+#: A run whose command sits at its limit (``tau_max``; ``V_max`` on a DC motor) for more than
+#: this fraction of the residual window is in a saturation limit cycle, i.e. unstable [-].
 SATURATION_LIMIT = 0.25
 
-#: Metric name -> (unit, description), in table order.
+#: Metric name -> (unit, description), in table order. The unit ``"command"`` is the command's,
+#: given per run in ``command_unit``: ``"V"`` on a DC motor, ``"N m"`` on a torque source.
 METRIC_UNITS = {
     "peak_tip_m": ("m", "peak |v_tip| over the whole run"),
     "residual_tip_rms_m": ("m", "RMS of v_tip from t_f + delay to the end"),
@@ -48,9 +56,20 @@ METRIC_UNITS = {
                      "time-optimal slew (limit_kind says which; hubbeam_ctrl.study.yardstick)"),
     "settling_over_limit": ("-", "settling time over limit_s (1: the physical limit; None: not settled)"),
     "residual_pct_of_L": ("%", "residual tip vibration (max |v_tip| in the residual window) in % of L"),
-    "peak_torque_nm": ("N m", "peak |tau|"),
-    "torque_squared_integral_n2m2s": ("N^2 m^2 s", "integral of tau^2 (held torque)"),
-    "torque_saturated_fraction": ("-", "fraction of the residual window with |tau| at tau_max"),
+    "peak_command": ("command", "peak |u| of the controller's command (V on a DC motor, N m on a torque source)"),
+    "peak_command_step": ("command", "largest change of the command from one sample to the next"),
+    "time_at_limit_s": ("s", "time the command sits within 0.1 % of its limit (V_max on a DC motor, tau_max on a "
+                             "torque source), over the whole run"),
+    "time_at_limit_slew_s": ("s", "the same, up to t_f (during the slew)"),
+    "peak_voltage_v": ("V", "peak |V| of the DC motor's voltage, the command clipped to V_max (None: torque source)"),
+    "peak_current_a": ("A", "peak |i| of the DC motor's current clip((V - k_e N thd) / R, +-I_max) at the recorded "
+                            "hub rate (None: torque source)"),
+    "peak_hub_torque_nm": ("N m", "peak |torque| the drive put on the hub, friction aside (the command on a torque "
+                                  "source; N eta_motor k_t i times the gear's efficiency on a DC motor)"),
+    "peak_torque_nm": ("N m", "peak_hub_torque_nm under its older name: the hub torque, never a voltage"),
+    "torque_squared_integral_n2m2s": ("N^2 m^2 s", "integral of the drive's hub torque squared (held command)"),
+    "torque_saturated_fraction": ("-", "fraction of the residual window with the command at its limit (tau_max; "
+                                       "V_max on a DC motor)"),
     "residual_growth": ("-", "max |v_tip| in the last quarter of the residual window over the first quarter"),
     "tip_growth_rate_per_s": ("1/s", "growth rate of the |v_tip| envelope over the last half of the residual window"),
     "torque_growth_rate_per_s": ("1/s", "growth rate of the envelope of the torque's sample-to-sample ripple"),
@@ -286,7 +305,7 @@ def verdict(evidence: Evidence) -> str:
     * ``"unstable"``: the linear certificate's loop grows (spectral radius above
       ``1 + RADIUS_TOLERANCE``), or the envelope of the tip deflection, of the torque's
       ripple or of the hub-angle error grows at a resolved rate in the residual window
-      (:func:`envelope_growth`), or the torque sits at its limit for more than
+      (:func:`envelope_growth`), or the command sits at its limit for more than
       :data:`SATURATION_LIMIT` of the window (a saturation limit cycle); except a settled
       run whose certificate is stable and whose torque ripple alone rises
       (:attr:`Evidence.torque_build_up`: sensor noise building up, judged ``"settled"`` and
@@ -342,7 +361,9 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
     settle_tip : float
         Settling band of the tip deflection [m] (default 1 mm).
     tau_max : float, optional
-        Torque limit [N m]; adds ``within_torque_limit`` (and the saturated fraction).
+        Hub-torque limit [N m]; adds ``within_torque_limit`` on a torque source (and the
+        saturated fraction). The drive is the run's (``result.settings["hardware"]``, default
+        the ideal torque source); on a DC motor the command's limit is ``V_max``.
     block_s : float, optional
         Shortest block of the envelope fits [s] (:func:`envelope_growth`), e.g. one period of
         the first bending mode; default a twelfth of the fitted span.
@@ -358,7 +379,10 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         ``plant``, the plant's description (``plant_modes``, ``design_modes``, ``substeps``,
         ``step_s``, ...), ``completed``, ``outside_validated_range``,
         ``outside_range_time_s``, ``message``, ``wall_s``, the controller's own statistics
-        (e.g. ``qp_fallbacks``, ``fallback_fraction``) and ``within_torque_limit``.
+        (e.g. ``qp_fallbacks``, ``fallback_fraction``), ``command_unit``, ``command_limit``
+        and the limit checks ``within_voltage_limit``, ``within_current_limit``,
+        ``within_torque_limit`` and ``within_drive_limits`` (each against its own limit;
+        :func:`~hubbeam_ctrl.study.drive_metrics.drive_metrics`; absent when there is no limit).
 
     Raises
     ------
@@ -385,20 +409,21 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         raise ParameterError(f"t_end = {planned_end:g} s must exceed tf + {residual_delay:g} s = "
                              f"{start:g} s to measure the residual vibration")
     k_f = int(np.argmin(np.abs(t - t_f)))
-    applied = tau[:-1] if len(tau) > 1 else tau
-    dt = float(t[1] - t[0]) if len(t) > 1 else 0.0
     steps = result.step_time_s[np.isfinite(result.step_time_s)]
     res = v_tip[window]
     nan = float("nan")
     growth = residual_growth(res)
-    saturated = saturated_fraction(tau[window], tau_max) if tau_max is not None else nan
+    drive = drive_of(result)
+    limit = command_limit(drive, tau_max)
+    drive_out = drive_metrics(t, tau, result.v[:, 0], t_f, drive, tau_max, friction_of(result))
+    saturated = saturated_fraction(tau[window], limit) if limit is not None else nan
     settle = settling_time(t, err, v_tip, settle_angle, settle_tip)
     t_w = t[window]
     block = float(block_s) if block_s is not None else 0.0
     fits = {"tip": envelope_growth(t_w, res, block),        # the ripple is fast: short blocks
             "torque": envelope_growth(t_w[1:], np.diff(tau[window]), 0.0),
             "angle": envelope_growth(t_w, err[window], block)}
-    torque_floor = 1e-6 * (tau_max if tau_max is not None else max(1.0, float(np.nanmax(np.abs(tau)))))
+    torque_floor = 1e-6 * (limit if limit is not None else max(1.0, float(np.nanmax(np.abs(tau)))))
     # below its settling band a noise-driven tip or angle envelope cannot be told from growth
     # over a few blocks; the torque's ripple (many short blocks) and the certificate see there
     floors = {"tip": settle_tip, "torque": torque_floor, "angle": settle_angle}
@@ -417,8 +442,8 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         "angle_error_tf_rad": float(err[k_f]) if t[-1] >= t_f - 1e-9 else nan,
         "final_angle_error_rad": float(err[-1]),
         "settling_time_s": settle,
-        "peak_torque_nm": float(np.max(np.abs(tau[np.isfinite(tau)]))) if np.any(np.isfinite(tau)) else nan,
-        "torque_squared_integral_n2m2s": float(np.sum(applied[np.isfinite(applied)] ** 2) * dt),
+        "peak_torque_nm": drive_out["peak_hub_torque_nm"],
+        "torque_squared_integral_n2m2s": drive_out.pop("hub_torque_squared_integral"),
         "torque_saturated_fraction": saturated,
         "residual_growth": growth,
         "tip_growth_rate_per_s": fits["tip"].rate_per_s,
@@ -428,8 +453,7 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         "step_time_median_ms": float(np.median(steps) * 1e3) if steps.size else nan,
         "step_time_p99_ms": float(np.percentile(steps, 99) * 1e3) if steps.size else nan,
     })
-    if tau_max is not None:
-        out["within_torque_limit"] = bool(out["peak_torque_nm"] <= tau_max * (1 + 1e-9))
+    out.update({k: v for k, v in drive_out.items() if v is not None or not k.startswith("within_")})
     for key in METRIC_UNITS:            # the loop_* entries: None without a certificate
         out.setdefault(key, None)
     if certificate is not None:
@@ -466,7 +490,7 @@ def _reason(evidence: Evidence, fits: dict, certificate, message: str) -> str:
         parts.append(f"the {name} envelope grows at {fits[name].rate_per_s:.3g} 1/s "
                      f"(resolution {fits[name].resolution_per_s:.2g} 1/s)")
     if evidence.saturated > SATURATION_LIMIT:
-        parts.append(f"the torque sits at its limit {100 * evidence.saturated:.0f} % of the residual window")
+        parts.append(f"the command sits at its limit {100 * evidence.saturated:.0f} % of the residual window")
     if evidence.torque_build_up:
         return (parts[0] + "; the linear certificate says stable and the tip and hub stay in their "
                 "bands: the loop's response to sensor noise building up, not growth")

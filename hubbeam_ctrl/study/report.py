@@ -13,16 +13,18 @@ import numpy as np
 from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json, write_folder
 from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
 from hubbeam_ctrl.plots.plant import save_figure
+from hubbeam_ctrl.study.drive_metrics import drive_of
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
 
 __all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
-           "check_plant_lines", "ladder_lines"]
+           "check_plant_lines", "ladder_lines", "drive_limits_text"]
 
 
 # -- output -----------------------------------------------------------------------------------
 #: Columns of metrics.csv, in order.
 CSV_FIELDS = (["verdict", "controller", "plant", "scenario"] + list(METRIC_UNITS)
-              + ["limit_kind", "residual_pct_of_openloop", "within_torque_limit", "completed",
+              + ["command_unit", "command_limit", "within_drive_limits", "within_voltage_limit",
+                 "within_current_limit", "limit_kind", "residual_pct_of_openloop", "within_torque_limit", "completed",
                  "outside_validated_range", "outside_range_time_s", "plant_modes", "plant_axial_modes",
                  "design_modes", "substeps", "step_s", "step_mode_hz", "qp_solves", "qp_fallbacks",
                  "fallback_fraction", "wall_s", "message"])
@@ -47,15 +49,49 @@ def _json_metrics(metrics: dict) -> list:
 
 
 def _targets(comparison) -> list:
-    """Rows ``(controller, settled, residual_ok, torque_ok, angle_ok)`` of the slew targets."""
+    """Rows ``(controller, settled, residual_ok, drive_ok, angle_ok)`` of the slew targets
+    (``drive_ok``: every drive quantity within its own limit, ``within_drive_limits``)."""
     m = comparison.metrics
     rows = []
     base = m.get("openloop", {}).get("residual_tip_max_m")
     for name, mm in m.items():
         res_ok = (base is not None and mm["residual_tip_max_m"] <= 0.01 * base) if name != "openloop" else None
-        rows.append((name, mm["verdict"] == "settled", res_ok, mm.get("within_torque_limit"),
+        rows.append((name, mm["verdict"] == "settled", res_ok, mm.get("within_drive_limits"),
                      abs(mm["final_angle_error_rad"]) <= 1e-3 * abs(comparison.scenario.target)))
     return rows
+
+
+def _command_text(comparison) -> str:
+    """What the controllers command, in which unit, within which limits (one sentence)."""
+    first = next(iter(comparison.results.values()), None)
+    drive = drive_of(first) if first is not None else None
+    if drive is not None and not drive.is_ideal:
+        return (f"the DC motor's voltage [V] within +-V_max = {drive.V_max:g} V (current limit I_max = "
+                f"{drive.I_max:g} A); peak u, max du/sample and u at limit are in V, the hub torque, voltage and "
+                "current columns each in its own unit.")
+    return (f"the hub torque [N m] within +-{comparison.scenario.tau_max:g} N m; u at limit is the time the "
+            "command sits within 0.1 % of its limit.")
+
+
+def drive_limits_text(comparison) -> str:
+    """The drive-limit check of the Targets, each quantity with its own limit and unit.
+
+    Parameters
+    ----------
+    comparison : Comparison
+
+    Returns
+    -------
+    str
+        ``"abs(u) <= V_max = 10 V, abs(i) <= I_max = 4 A"`` on a DC motor, ``"abs(tau) <= tau_max =
+        200 N m"`` on a torque source.
+    """
+    first = next(iter(comparison.results.values()), None)
+    drive = drive_of(first) if first is not None else None
+    if drive is not None and not drive.is_ideal:
+        return (f"abs(u) <= V_max = {drive.V_max:g} V, abs(i) <= I_max = {drive.I_max:g} A, hub torque within the "
+                f"drive's {drive.peak_hub_torque:.3g} N m")
+    return f"abs(tau) <= tau_max = {comparison.scenario.tau_max:g} N m"
 
 
 def _number_text(value) -> str:
@@ -141,12 +177,22 @@ def _write_files(comparison, out: Path, names: dict) -> None:
                                                   styles=styles),
         "hub_angle.png": plot_hub_angle(results, sc.t_f, title + "hub angle and error vs reference",
                                         styles=styles),
-        "torque.png": plot_torque(results, sc.tau_max, title + "hub torque (dotted: +-tau_max)",
-                                  styles=styles),
+        "torque.png": _command_figure(comparison, title, styles),
     }
     for fname, fig in figs.items():
         save_figure(fig, out / names[fname])
     _write_report(comparison, out, names)      # report.md, the loop figures and report.html
+
+
+def _command_figure(comparison, title: str, styles):
+    """The commands over time in their unit, with their limit (torque.png)."""
+    first = next(iter(comparison.results.values()), None)
+    drive = drive_of(first) if first is not None else None
+    if drive is not None and not drive.is_ideal:
+        return plot_torque(comparison.results, drive.V_max, title + "command voltage (dotted: +-V_max)",
+                           styles=styles, ylabel="command voltage [V]")
+    return plot_torque(comparison.results, comparison.scenario.tau_max, title + "hub torque (dotted: +-tau_max)",
+                       styles=styles)
 
 
 def _report(comparison) -> str:
@@ -157,7 +203,8 @@ def _report(comparison) -> str:
              f"- Scenario: {sc.description}.",
              f"- Feedback reference: {sc.reference.description}.",
              f"- Torque budget tau_max = {sc.tau_max:g} N m; sample time {sc.dt * 1e3:g} ms "
-             f"(zero-order hold); t_end = {sc.t_end:g} s."]
+             f"(zero-order hold); t_end = {sc.t_end:g} s.",
+             f"- Command: {_command_text(comparison)}"]
     lines += _plant_lines(comparison)
     lines += [f"- Residual vibration: |v_tip| from tf + {sc.bands['residual_delay']:g} s = "
               f"{sc.t_f + sc.bands['residual_delay']:g} s to the end. Settling: hub-angle error within "
@@ -166,7 +213,7 @@ def _report(comparison) -> str:
               f"- Verdicts: failed (the integrator or the controller failed, or the wall-clock limit), "
               f"diverged (the plant passed its divergence limit), unstable (the linear certificate's loop "
               f"grows, or the envelope of the tip, the torque ripple or the angle error grows at a "
-              f"resolved rate, or the torque is at its limit more than {100 * SATURATION_LIMIT:g} % of the "
+              f"resolved rate, or the command is at its limit more than {100 * SATURATION_LIMIT:g} % of the "
               f"residual window), settled, not settled.",
               f"- Wall time of the comparison: {comparison.wall_s:.1f} s.", ""]
     lines += _yardstick_lines(comparison)
@@ -174,7 +221,7 @@ def _report(comparison) -> str:
               markdown_table(comparison.metrics), ""]
     if sc.name == "slew" and "openloop" in comparison.metrics:
         lines += ["## Targets (slew)", "",
-                  "| controller | settled | residual <= 1 % of open loop | abs(tau) <= tau_max "
+                  f"| controller | settled | residual <= 1 % of open loop | {drive_limits_text(comparison)} "
                   "| final error <= 1e-3 of the slew angle |",
                   "|---|---|---|---|---|"]
         yes = {True: "yes", False: "**no**", None: "-"}
@@ -327,7 +374,8 @@ def _rig_lines(comparison) -> list:
         lines.append("- Drive: ideal torque source; the commands are hub torques [N m].")
     else:
         lines.append(f"- Drive: DC motor R = {d.R:g} ohm, k_t = {d.k_t:g} N m/A, k_e = {d.k_e:g} V s/rad, gear "
-                     f"{d.N:g}:1 (efficiency {d.eta_forward:g} driving, {d.eta_backward:g} back-driven), "
+                     f"{d.N:g}:1 (efficiency {d.eta_forward:g} driving, {d.eta_backward:g} back-driven"
+                     + (f"; motor efficiency {d.eta_motor:g}" if d.eta_motor != 1.0 else "") + "), "
                      f"{d.V_max:g} V, {d.I_max:g} A; the commands are voltages (the torque designs through "
                      "the drive's static inverse with the measured hub rate, controllers.drive).")
     lines.append("- Friction at the hub: " + ("none." if f.is_ideal else
@@ -389,6 +437,11 @@ def _certificate_lines(comparison) -> list:
     return lines + [""]
 
 
+#: Format of a quantity in the command's unit: the number and its unit (``command_unit``).
+_COMMAND = "command"
+#: Columns shown only when some run has them (a DC motor's voltage and current).
+_OPTIONAL = ("peak_voltage_v", "peak_current_a")
+
 _TABLE = [
     ("verdict", "verdict", "{}"),
     ("controller", "controller", "{}"),
@@ -401,18 +454,32 @@ _TABLE = [
     ("final_angle_error_rad", "err(end) rad", "{:.2e}"),
     ("settling_time_s", "settle s", "{:.2f}"),
     ("settling_over_limit", "settle/limit", "{:.2f}"),
-    ("peak_torque_nm", "peak tau Nm", "{:.1f}"),
+    ("peak_command", "peak u", _COMMAND),
+    ("peak_command_step", "max du/sample", _COMMAND),
+    ("time_at_limit_s", "u at limit s", "{:.3g}"),
+    ("peak_hub_torque_nm", "peak tau_hub Nm", "{:.4g}"),
+    ("peak_voltage_v", "peak V", "{:.3g}"),
+    ("peak_current_a", "peak A", "{:.3g}"),
     ("loop_spectral_radius", "loop |z|", "{:.7f}"),
-    ("torque_squared_integral_n2m2s", "int tau^2", "{:.3g}"),
+    ("torque_squared_integral_n2m2s", "int tau_hub^2", "{:.3g}"),
     ("step_time_median_ms", "step med ms", "{:.3f}"),
     ("step_time_p99_ms", "step p99 ms", "{:.3f}"),
 ]
 
 
-def _cells(m: dict) -> list:
+def _columns(metrics: dict) -> list:
+    """The table's columns for these runs (a DC motor's voltage and current only when present)."""
+    return [c for c in _TABLE if c[0] not in _OPTIONAL
+            or any(_clean(m.get(c[0])) is not None for m in metrics.values())]
+
+
+def _cells(m: dict, columns=None) -> list:
     cells = []
-    for key, _, fmt in _TABLE:
+    for key, _, fmt in (columns or _TABLE):
         v = _clean(m.get(key))
+        if v is not None and fmt == _COMMAND:
+            cells.append(f"{v:.3g} {m.get('command_unit', 'N m')}")
+            continue
         cells.append("-" if v is None else (fmt.format(v) if not isinstance(v, str) else v))
     if not m.get("completed", True):
         cells[1] += " (stopped)"
@@ -431,8 +498,9 @@ def format_table(metrics: dict) -> str:
     metrics : dict
         Controller name -> metrics.
     """
-    rows = [[h for _, h, _ in _TABLE]] + [_cells(m) for m in metrics.values()]
-    widths = [max(len(r[i]) for r in rows) for i in range(len(_TABLE))]
+    columns = _columns(metrics)
+    rows = [[h for _, h, _ in columns]] + [_cells(m, columns) for m in metrics.values()]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(columns))]
     return "\n".join("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths)))
                      for r in rows)
 
@@ -445,9 +513,10 @@ def markdown_table(metrics: dict) -> str:
     metrics : dict
         Controller name -> metrics.
     """
-    head = [h for _, h, _ in _TABLE]
+    columns = _columns(metrics)
+    head = [h for _, h, _ in columns]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(_cells(m)) + " |" for m in metrics.values()]
+    lines += ["| " + " | ".join(_cells(m, columns)) + " |" for m in metrics.values()]
     return "\n".join(lines)
 
 

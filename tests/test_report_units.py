@@ -1,0 +1,72 @@
+"""The report's columns and Targets hold each quantity in its own unit (issue 36, Build 4).
+
+On ``servo_link`` (a DC motor) the controllers command volts: the table shows the command with
+its unit, the hub torque in N m, the voltage and the current; the Targets check ``abs(u) <=
+V_max`` and ``abs(i) <= I_max``, not volts against ``tau_max`` in N m (before, every feedback
+controller was marked "no" at 3.5 V against 1.86 N m).
+"""
+
+import csv
+import math
+
+import pytest
+
+from hubbeam_ctrl.plant.rig import load_rig
+from hubbeam_ctrl.study import Slew, compare
+from hubbeam_ctrl.study.report import drive_limits_text, format_table, markdown_table, write_outputs
+
+
+@pytest.fixture(scope="module")
+def servo():
+    return compare("foam", Slew(math.pi / 2, 0.6), "openloop,lqr", rig=load_rig("servo_link"), t_end=3.0)
+
+
+def _column(table: str, header: str) -> list:
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in table.splitlines() if line.startswith("|")]
+    k = rows[0].index(header)
+    return [r[k] for r in rows[2:]]
+
+
+def test_servo_link_table_and_targets_in_the_drives_units(servo, tmp_path):
+    m = servo.metrics["lqr"]
+    rig = load_rig("servo_link")
+    assert m["command_unit"] == "V" and m["peak_command"] > rig.beam.tau_max      # volts above 1.86
+    assert m["peak_voltage_v"] == m["peak_command"] <= rig.drive.V_max
+    assert m["peak_hub_torque_nm"] < rig.beam.tau_max and m["peak_torque_nm"] == m["peak_hub_torque_nm"]
+    assert m["within_drive_limits"] is True
+    table = markdown_table(servo.metrics)
+    assert _column(table, "peak u") == [f"{servo.metrics[n]['peak_command']:.3g} V" for n in servo.metrics]
+    assert _column(table, "max du/sample") == [f"{servo.metrics[n]['peak_command_step']:.3g} V"
+                                               for n in servo.metrics]
+    assert _column(table, "peak tau_hub Nm") == [f"{servo.metrics[n]['peak_hub_torque_nm']:.4g}" for n in servo.metrics]
+    assert _column(table, "peak A") == [f"{servo.metrics[n]['peak_current_a']:.3g}" for n in servo.metrics]
+    assert _column(table, "u at limit s") == [f"{servo.metrics[n]['time_at_limit_s']:.3g}" for n in servo.metrics]
+    assert "peak A" in format_table(servo.metrics)
+    check = drive_limits_text(servo)
+    assert check == "abs(u) <= V_max = 10 V, abs(i) <= I_max = 4 A, hub torque within the drive's 3.12 N m"
+    write_outputs(servo, tmp_path / "out")
+    report = (tmp_path / "out" / "report.md").read_text()
+    targets = report.split("## Targets (slew)", 1)[1].split("\n## ", 1)[0]
+    assert _column(targets, check) == ["yes", "yes"]
+    assert "abs(tau) <= tau_max" not in report
+    assert "- Command: the DC motor's voltage [V] within +-V_max = 10 V (current limit I_max = 4 A)" in report
+    rows = list(csv.DictReader(open(tmp_path / "out" / "metrics.csv")))
+    assert [r["command_unit"] for r in rows] == ["V", "V"] and rows[1]["within_drive_limits"] == "True"
+
+
+def test_torque_source_table_has_no_voltage_columns():
+    from test_metrics import _run
+
+    from hubbeam_ctrl.study.metrics import closed_loop_metrics
+    m = closed_loop_metrics(_run(), 10.0, tau_max=100.0)
+    table = markdown_table({"toy": m})
+    assert _column(table, "peak u") == ["100 N m"] and _column(table, "peak tau_hub Nm") == ["100"]
+    assert "peak V" not in table and "peak A" not in table
+
+
+def test_command_figure_is_in_volts_with_v_max_on_a_dc_motor(servo):
+    from hubbeam_ctrl.study.report import _command_figure
+    ax = _command_figure(servo, "", None).axes[0]
+    assert ax.get_ylabel() == "command voltage [V]"
+    limits = sorted(line.get_ydata()[0] for line in ax.lines if line.get_linestyle() == ":")
+    assert limits == [-10.0, 10.0]
