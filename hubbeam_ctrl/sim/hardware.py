@@ -386,7 +386,7 @@ class Hardware:
         The drive linearised while motoring: ``eta_forward N k_t / R``.
         """
         d = self.drive
-        return 1.0 if d.is_ideal else d.eta_forward * d.N * d.k_t / d.R
+        return 1.0 if d.is_ideal else d.eta_forward * d.N * d.k_torque / d.R
 
     def back_emf_constant(self) -> float:
         """Voltage per hub rate of the back-EMF, ``k_e N`` [V s/rad] (0 for the torque drive)."""
