@@ -21,11 +21,12 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive
+from hubbeam_ctrl.sim.hardware import Hardware, drive_torque
 from hubbeam_ctrl.study.drive_metrics import command_limit, drive_metrics, drive_of, friction_of
 
 __all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time", "VERDICTS", "verdict", "Evidence",
-           "residual_growth", "saturated_fraction", "GROWTH_LIMIT", "SATURATION_LIMIT", "GrowthFit",
-           "envelope_growth", "GROWTH_RESOLUTION", "STOP_CAUSES"]
+           "residual_growth", "saturated_fraction", "GROWTH_LIMIT", "SATURATION_LIMIT", "FRICTION_HUNTING_BOUND",
+           "GrowthFit", "envelope_growth", "GROWTH_RESOLUTION", "STOP_CAUSES"]
 
 #: The verdicts of a closed-loop run, in the order they are tested (see :func:`verdict`).
 VERDICTS = ("failed", "diverged", "unstable", "settled", "not settled")
@@ -41,6 +42,9 @@ GROWTH_RESOLUTION = 1.5
 #: A run whose command sits at its limit (``tau_max``; ``V_max`` on a DC motor) for more than
 #: this fraction of the residual window is in a saturation limit cycle, i.e. unstable [-].
 SATURATION_LIMIT = 0.25
+#: A torque that rises in the residual window but stays within this many breakaway torques of the
+#: hub's friction, with a stable certificate and a quiet tip, is friction hunting, not growth [-].
+FRICTION_HUNTING_BOUND = 3.0
 
 #: Metric name -> (unit, description), in table order. The unit ``"command"`` is the command's,
 #: given per run in ``command_unit``: ``"V"`` on a DC motor, ``"N m"`` on a torque source.
@@ -279,6 +283,24 @@ class Evidence:
     saturated: float
     settled: bool
     certificate_grows: bool | None = None
+    friction_bound: float | None = None
+
+    @property
+    def friction_hunting(self) -> bool:
+        """Only the torque's ripple (and the hub-angle error) move, within a bound the hub's
+        Coulomb friction sets, in a loop whose linear certificate is stable.
+
+        Coulomb friction and an encoder's counts are bounded nonlinearities: a loop that is stable
+        without them stays bounded with them, and with integral action it hunts (stick-slip: the
+        command builds up to the breakaway torque, the hub slips by a count, sticks again). Its
+        torque envelope rises while the command works up to the breakaway torque, which is not
+        growth. ``friction_bound`` is the largest hub torque in the residual window over the
+        breakaway torque (None: no friction); at most :data:`FRICTION_HUNTING_BOUND` counts.
+        """
+        return (self.certificate_grows is False and self.friction_bound is not None
+                and self.friction_bound <= FRICTION_HUNTING_BOUND and "tip" not in self.growing
+                and set(self.growing) <= {"torque", "angle"} and bool(self.growing)
+                and not self.saturated > SATURATION_LIMIT)
 
     @property
     def torque_build_up(self) -> bool:
@@ -335,6 +357,8 @@ def verdict(evidence: Evidence) -> str:
         return "diverged" if evidence.stop_cause == "diverged" else "failed"
     if evidence.torque_build_up:
         return "settled"
+    if evidence.friction_hunting:
+        return "settled" if evidence.settled else "not settled"
     if evidence.certificate_grows or evidence.growing or evidence.saturated > SATURATION_LIMIT:
         return "unstable"
     return "settled" if evidence.settled else "not settled"
@@ -432,7 +456,8 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
     if result.stopped and cause is None:     # a run saved before stop causes were recorded
         cause = "diverged" if "left its range" in result.message else "failed"
     cert_grows = certificate.grows if certificate is not None and certificate.available else None
-    evidence = Evidence(cause, growing, saturated, settle is not None, cert_grows)
+    evidence = Evidence(cause, growing, saturated, settle is not None, cert_grows,
+                        _friction_bound(tau[window], result.v[window, 0], drive, friction_of(result)))
     out["verdict"] = verdict(evidence)
     out["verdict_reason"] = _reason(evidence, fits, certificate, result.message)
     out.update({
@@ -479,10 +504,27 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
     return out
 
 
+def _friction_bound(u, thd, drive, friction) -> float | None:
+    """Largest hub torque of the drive in the window over the breakaway torque (None: no friction)."""
+    if friction is None or friction.coulomb <= 0 or u.size == 0:
+        return None
+    ok = np.isfinite(u) & np.isfinite(thd)
+    if not np.any(ok):
+        return None
+    torque = drive_torque(u[ok], thd[ok], Hardware(drive, friction).values())
+    breakaway = max(friction.coulomb, friction.breakaway or 0.0)
+    return float(np.max(np.abs(torque)) / breakaway)
+
+
 def _reason(evidence: Evidence, fits: dict, certificate, message: str) -> str:
     """One sentence saying what decided the verdict."""
     if evidence.stop_cause is not None:
         return message
+    if evidence.friction_hunting:
+        return (f"the command works against the hub's Coulomb friction: the hub torque stays within "
+                f"{evidence.friction_bound:.2g} x the breakaway torque (stick-slip hunting, bounded) and the "
+                "linear certificate says stable; " + ("inside" if evidence.settled else "outside")
+                + " the settling bands at the end")
     parts = []
     if evidence.certificate_grows:
         parts.append(certificate.describe())
