@@ -124,7 +124,13 @@ def rig_settings(name: str, settings, rig: Rig, integral: bool | None = None):
 
 
 def rig_noise(noise, rig: Rig):
-    """The filter's noise model with the rig's encoder: its quantisation as angle noise.
+    """The filter's noise model with the rig's sensors: their stated noise and the encoder's
+    quantisation as angle noise.
+
+    Each assumed standard deviation is at least the rig's (``sensors.angle_noise``, ``rate_noise``,
+    ``strain_noise``, ``accel_noise``): a filter that trusts a sensor more than it deserves passes
+    its noise on to the command (measured on ``space_boom``: the command banged between the
+    wheels' limits).
 
     An encoder of step ``q`` reads the angle with an error spread uniformly over ``+-q/2``,
     of standard deviation ``q / sqrt(12)``; a filter that assumed less would trust the counts
@@ -143,10 +149,13 @@ def rig_noise(noise, rig: Rig):
         The same type, ``angle_noise_rad`` raised to ``sqrt(noise^2 + q^2 / 12)``.
     """
     q = rig.sensors.encoder_step
-    if rig.sensors.tip_accelerometer and rig.sensors.accel_noise > 0 and hasattr(noise, "accel_noise_m_s2"):
-        noise = dataclasses.replace(noise, accel_noise_m_s2=rig.sensors.accel_noise)
-    if not q:
-        return noise
+    sn = rig.sensors
+    # the filter never assumes less noise than the rig's sensors state (a star tracker, a gyro)
+    stated = {"angle_noise_rad": sn.angle_noise, "rate_noise_rad_s": sn.rate_noise,
+              "moment_noise_nm": sn.strain_noise, "accel_noise_m_s2": sn.accel_noise}
+    raised = {k: max(getattr(noise, k), v) for k, v in stated.items() if hasattr(noise, k) and v > getattr(noise, k)}
+    if raised:
+        noise = dataclasses.replace(noise, **raised)
     return dataclasses.replace(noise, angle_noise_rad=math.hypot(noise.angle_noise_rad, q / math.sqrt(12.0)))
 
 
