@@ -21,6 +21,8 @@ the plant's modal state in the simulator) through it, so it reads only the senso
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
@@ -306,7 +308,9 @@ class ObservedFeedback(Controller):
             xr, tff = self.inner._reference_acting(k)
             tau = saturate(float(self.inner._ff * tff - self.inner.K @ (x - xr) - d), self.tau_max)
         else:                                  # MPC: its plan within the limit, then the disturbance
-            tau = float(self.inner(t_act, x))
+            # the plan's reference sample where the command acts (the nearest, rounding half up:
+            # round() would alternate between two samples at half a sample of delay)
+            tau = float(self.inner((k + math.floor(fm.delay + 0.5)) * self.dt, x))
             if self.integral:
                 tau = saturate(tau - d, self.tau_max)
         self._tau = tau

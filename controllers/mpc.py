@@ -68,6 +68,13 @@ class MPCSettings(LQSettings):
                                       doc="Quadratic penalty on the bound's violation (same scale as "
                                           "the weights).")
     solver: str = setting("daqp", choices=QP_SOLVERS, doc="QP solver of CasADi's conic (QP_SOLVERS).")
+    emf_torque_limit: float | None = setting(None, unit="N m", lo=0.0, lo_open=True, kind=float,
+                                             doc="A DC drive's voltage limit as a torque: the torque per "
+                                                 "volt times V_max. With emf_damping the plan keeps "
+                                                 "abs(tau + emf_damping theta_dot) within it at every "
+                                                 "step (the voltage limit through back-EMF); None: none.")
+    emf_damping: float = setting(0.0, unit="N m s/rad", lo=0.0,
+                                 doc="The drive's back-EMF torque per hub rate (torque per volt times k_e N).")
     warm_start: bool = setting(True, doc="Start each QP from the previous plan, shifted by one sample.")
 
 
@@ -175,6 +182,23 @@ class MPC(Controller):
             A = np.ones((1, nz))     # an always-inactive row: qpOASES keeps its factorisation
         else:
             A = np.zeros((0, nz))
+        self._emf = None
+        if s.emf_torque_limit is not None:
+            # the voltage limit through back-EMF: |u_i + b theta_dot_i| <= g V_max, theta_dot_i the
+            # rate at the start of step i (x0's for i = 0, the prediction's after)
+            n, b = design.n_x // 2, float(s.emf_damping)
+            rate = np.zeros((N, design.n_x * N))
+            for i in range(1, N):
+                rate[i, (i - 1) * design.n_x + n] = 1.0
+            Av = np.eye(N) + b * rate @ Gamma
+            scale_v = 1.0 / np.max(np.abs(Av), axis=1)
+            Av *= scale_v[:, None]
+            off_x = b * (rate @ Phi)
+            off_x[0, n] = b
+            self._emf = (off_x * scale_v[:, None], float(s.emf_torque_limit) * scale_v)
+            if A.shape[0] == 1 and not soft:       # qpOASES's placeholder row is no longer needed
+                A = np.zeros((0, nz))
+            A = np.vstack([A, np.hstack([Av, np.zeros((N, nz - N))])])
         self._soft = soft
         self._H = ca.DM(H)
         self._A = ca.DM(A)
@@ -305,8 +329,14 @@ class MPC(Controller):
             vmax = s.tip_bound * self._row_scale
             lba = np.concatenate([np.full(N, -np.inf), -vmax - off])
             uba = np.concatenate([vmax - off, np.full(N, np.inf)])
-        elif self._n_a:
+        elif self._n_a and self._emf is None:
             lba, uba = np.array([-np.inf]), np.array([np.inf])
+        if self._emf is not None:
+            off_x, limit = self._emf
+            off = off_x @ y
+            lo, hi = -limit - off, limit - off
+            lba = lo if lba is None else np.concatenate([lba, lo])
+            uba = hi if uba is None else np.concatenate([uba, hi])
         if isinstance(self.solver, DirectDAQP):
             if H is not self._H:          # a scheduled design: the Hessian moves with the spin
                 self.solver.update_hessian(H)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from controllers import LQGSettings
+from controllers import LQGSettings, MPCSettings
 from controllers.drive import VoltageCommand
 from controllers.integral import ObservedFeedback
 from controllers.sensing import SensorLayout, observability_defect, rig_key
@@ -102,7 +102,8 @@ def rig_design(design, rig: Rig):
 
 
 def rig_settings(name: str, settings, rig: Rig, integral: bool | None = None):
-    """A controller's settings on ``rig``: LQG's integral action switched on where it applies.
+    """A controller's settings on ``rig``: LQG's integral action switched on where it applies, MPC's
+    voltage limit through back-EMF on a DC motor (:attr:`controllers.MPCSettings.emf_torque_limit`).
 
     Parameters
     ----------
@@ -120,6 +121,12 @@ def rig_settings(name: str, settings, rig: Rig, integral: bool | None = None):
     integral = integral_default(rig) if integral is None else bool(integral)
     if isinstance(settings, LQGSettings) and not rig.is_ideal:
         return dataclasses.replace(rig_noise(settings, rig), integral=integral)
+    if isinstance(settings, MPCSettings) and not rig.drive.is_ideal and settings.emf_torque_limit is None:
+        # the plan keeps the voltage within V_max through the back-EMF at every step
+        hw = Hardware.from_rig(rig)
+        g = hw.torque_per_volt()
+        return dataclasses.replace(settings, emf_torque_limit=g * rig.drive.V_max,
+                                   emf_damping=g * hw.back_emf_constant())
     return settings
 
 
