@@ -16,7 +16,7 @@ from hubbeam_ctrl import Params
 from hubbeam_ctrl.plant.rig import load_rig
 from hubbeam_ctrl.sim import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.hardware import Hardware
-from hubbeam_ctrl.study.drive_metrics import AT_LIMIT, drive_metrics, drive_of
+from hubbeam_ctrl.study.drive_figures import AT_LIMIT, drive_metrics, drive_of
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, closed_loop_metrics
 
 SERVO = load_rig("servo_link")

@@ -9,7 +9,7 @@ Units are the drive's: the controller's command is a voltage on a DC motor and a
 on a torque source, so the command's own figures (unit ``"command"`` in
 :data:`METRIC_UNITS`) are in ``command_unit`` (``"V"`` or ``"N m"``), and the voltage, the
 current and the hub torque each have their own metric in their own unit
-(:mod:`hubbeam_ctrl.study.drive_metrics`); no metric in N m ever holds volts.
+(:mod:`hubbeam_ctrl.study.drive_figures`); no metric in N m ever holds volts.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.sim.hardware import Hardware, drive_torque
-from hubbeam_ctrl.study.drive_metrics import command_limit, drive_metrics, drive_of, friction_of
+from hubbeam_ctrl.study.drive_figures import command_limit, drive_metrics, drive_of, friction_of
 
 __all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time", "VERDICTS", "verdict", "Evidence",
            "residual_growth", "saturated_fraction", "GROWTH_LIMIT", "SATURATION_LIMIT", "FRICTION_HUNTING_BOUND",
@@ -276,6 +276,9 @@ class Evidence:
         Inside the settling bands at the end.
     certificate_grows : bool or None
         The linear certificate's loop grows (None: no certificate).
+    friction_bound : float or None
+        Largest hub torque of the drive in the residual window over the hub's breakaway torque
+        [-] (None: no Coulomb friction); see :attr:`friction_hunting`.
     """
 
     stop_cause: str | None
@@ -406,7 +409,7 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         (e.g. ``qp_fallbacks``, ``fallback_fraction``), ``command_unit``, ``command_limit``
         and the limit checks ``within_voltage_limit``, ``within_current_limit``,
         ``within_torque_limit`` and ``within_drive_limits`` (each against its own limit;
-        :func:`~hubbeam_ctrl.study.drive_metrics.drive_metrics`; absent when there is no limit).
+        :func:`~hubbeam_ctrl.study.drive_figures.drive_metrics`; absent when there is no limit).
 
     Raises
     ------

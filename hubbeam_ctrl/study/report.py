@@ -13,7 +13,7 @@ import numpy as np
 from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json, write_folder
 from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
 from hubbeam_ctrl.plots.plant import save_figure
-from hubbeam_ctrl.study.drive_metrics import drive_of
+from hubbeam_ctrl.study.drive_figures import drive_of
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
 
 __all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
