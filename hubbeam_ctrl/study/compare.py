@@ -42,6 +42,7 @@ from hubbeam_ctrl.core.budget import (
 )
 from hubbeam_ctrl.core.compiled import resolve_backend
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.exact import require_exudyn
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.rig import Rig
@@ -50,7 +51,7 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
-from hubbeam_ctrl.study.scenarios import PLANTS, REFERENCES, Scenario, make_scenario
+from hubbeam_ctrl.study.scenarios import PLANTS, RANGES, REFERENCES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_t_end
@@ -188,6 +189,8 @@ def _check_runs_fit(t_end, dt, names, params: Params, sim_settings) -> None:
         return
     if not (math.isfinite(t_end) and math.isfinite(dt) and t_end > 0 and dt > 0):
         return                                  # make_scenario names the bad value
+    t_end, dt = (check_in_range(key, value, RANGES[key][2], *RANGES[key][:2])    # before t_end / dt
+                 for key, value in (("t_end", t_end), ("dt", dt)))
     limit = ClosedLoopSettings().max_memory_mb
     if isinstance(sim_settings, ClosedLoopSettings):
         limit = sim_settings.max_memory_mb
