@@ -95,10 +95,12 @@ _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", 
 
 
 def _controller_list(value) -> tuple:
-    """``study.controllers`` (a list, or a comma-separated string) checked against the registry."""
-    items = value.split(",") if isinstance(value, str) else value
+    """``study.controllers`` (a list of names) checked against the registry; a string is refused
+    (``controllers = "openloop"`` for ``["openloop"]``), not read as a list."""
+    items = value
     if not isinstance(items, (list, tuple)):
-        raise ParameterError(f"study.controllers must be a list of names, got {value!r}")
+        raise ParameterError(f"study.controllers must be a list of names (controllers = [\"lqr\"]), "
+                             f"got {value!r}"[:200])
     names = tuple(str(c).strip().lower() for c in items if str(c).strip())
     bad = [n for n in names if n not in CONTROLLERS]
     if not names or bad or len(set(names)) != len(names):
@@ -416,6 +418,9 @@ class StudySpec:
 
     @classmethod
     def _from_tables(cls, data: dict) -> "StudySpec":
+        if not set(data) - {"_dir"}:
+            raise ParameterError("spec is empty: a study names at least its controllers ([study] controllers = "
+                                 "[\"lqr\"]; docs/studies.md)")
         extra = sorted(set(data) - {"study", "params", "settings", "grid", "random", "tune", "_dir"})
         if extra:
             raise ParameterError(f"spec: unknown table(s) {', '.join(extra)}; allowed: study, params, "
