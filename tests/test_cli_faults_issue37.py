@@ -52,6 +52,12 @@ CASES = [
     ("tb", ["codegen", "--controller", "lqr", "--out", LONG_NAME], "--out: file name too long"),
     ("tb", ["codegen", "--controller", "lqr", "--rig", PAST_PATH_MAX, "--out", "cg"],
      "cannot be read (File name too long)"),
+    ("tb", ["identify", "--modal-table", PAST_PATH_MAX, "--rig", "servo_link", "--fit", "E", "--out", "o"],
+     "cannot be read (File name too long)"),
+    ("tb", ["sweep", "spec.toml", "--rig", PAST_PATH_MAX, "--out", "s", "--workers", "1"],
+     "cannot be read (File name too long)"),
+    ("nm", ["compare", "--schedule=1e308", "--controllers", "lqr", "--out", "c"],
+     "--schedule must be an integer >= 1 and <= 1000 (number of spin rates"),
     ("tb", ["tune", "spec.toml", "--controller", "lqr", "--out", "t", "--workers", "1", "--decades=1e308"],
      "--decades (tune.decades) must be in (0, 10]"),
     # silent wrong results

@@ -30,7 +30,7 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError, write_error
 
-__all__ = ["read_toml", "MAX_TOML_BYTES", "MAX_NPZ_BYTES",
+__all__ = ["read_toml", "path_exists", "MAX_TOML_BYTES", "MAX_NPZ_BYTES",
            "atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
            "check_regular_file", "check_writable", "output_folder", "write_folder", "read_manifest",
            "remove_stale_temporaries", "remove_temporaries", "TEMP_PREFIX", "MANIFEST"]
@@ -577,6 +577,20 @@ def _short_path(path) -> str:
     return text if len(text) <= 120 else f"{text[:60]}...{text[-40:]}"
 
 
+def path_exists(path) -> bool:
+    """``Path(path).exists()``, False for a name the system refuses (past NAME_MAX or PATH_MAX):
+    the reader that follows names the reason.
+
+    Parameters
+    ----------
+    path : str or Path
+    """
+    try:
+        return Path(path).exists()
+    except (OSError, ValueError):
+        return False
+
+
 def read_toml(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> dict:
     """The TOML document at ``path``, or a one-line :class:`ParameterError` naming the file.
 
@@ -644,10 +658,13 @@ def check_regular_file(path, option: str = "path") -> Path:
     Path
     """
     path = Path(path)
-    if not path.exists():
-        raise ParameterError(f"{option}: file {path} does not exist")
-    if not path.is_file():
-        raise ParameterError(f"{option}: {path} is not a regular file")
+    try:
+        if not path.exists():
+            raise ParameterError(f"{option}: file {_short_path(path)} does not exist")
+        if not path.is_file():
+            raise ParameterError(f"{option}: {_short_path(path)} is not a regular file")
+    except OSError as exc:             # a name past NAME_MAX or PATH_MAX
+        raise ParameterError(f"{option}: {_short_path(path)} cannot be read ({exc.strerror or exc})") from None
     return path
 
 

@@ -563,7 +563,8 @@ def _check_inputs(params: Params, slew_angle, tolerance, settings) -> tuple:
     if slew_angle == 0.0:
         raise ParameterError("slew_angle must be a finite number != 0 [rad], got 0")
     if tolerance is not None:
-        tolerance = check_in_range("tolerance", tolerance, "m", MIN_TOLERANCE * params.L, params.L,
+        tolerance = check_in_range("tolerance", check_positive("tolerance", tolerance, "m"), "m",
+                                   MIN_TOLERANCE * params.L, params.L,
                                    f"{MIN_TOLERANCE:g} L to the beam length L")
     else:
         tolerance = default_tolerance(params)

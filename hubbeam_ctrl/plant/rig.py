@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write_text, read_toml
+from hubbeam_ctrl.core.fileio import atomic_write_text, path_exists, read_toml
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.plant.params import MAX_MODES, MAX_PARAMS_FILE_BYTES, Params, _read_toml
 
@@ -513,7 +513,7 @@ def load_rig(source, what: str = "rig") -> Rig:
     if source is None or str(source).strip() == "":
         raise ParameterError(f"{what} must name a file or a preset ({', '.join(PRESETS)}), got {source!r}")
     path = Path(source)
-    exists = _exists(path)
+    exists = path_exists(path)
     if not exists and str(source) in PRESETS:
         with resources.as_file(_preset_path(str(source))) as preset:
             return rig_from_dict(_read_toml(preset), path=f"(preset {source})")
@@ -522,15 +522,6 @@ def load_rig(source, what: str = "rig") -> Rig:
                              f"({', '.join(PRESETS)})")
     data = read_toml(path, f"{what} file", MAX_PARAMS_FILE_BYTES)
     return rig_from_dict(data, path=path, what=f"{what} file")
-
-
-def _exists(path: Path) -> bool:
-    """``path.exists()``, False for a path the system refuses (a name past NAME_MAX or PATH_MAX:
-    :func:`read_toml` then names the reason)."""
-    try:
-        return path.exists()
-    except (OSError, ValueError):
-        return False
 
 
 def _toml_value(value) -> str:

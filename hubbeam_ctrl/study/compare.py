@@ -96,11 +96,21 @@ def _parse_controllers(controllers) -> tuple:
     return tuple(names)
 
 
+#: Most spin rates of a design schedule (each is a design; a few suffice, 1000 is far past use).
+MAX_SCHEDULE_POINTS = 1000
+
+
+def _check_schedule(points) -> int:
+    if isinstance(points, bool) or not isinstance(points, int) or not 1 <= points <= MAX_SCHEDULE_POINTS:
+        shown = repr(points) if len(repr(points)) <= 40 else repr(points)[:37] + "..."
+        raise ParameterError(f"schedule must be an integer >= 1 and <= {MAX_SCHEDULE_POINTS} (number of spin rates; "
+                             f"1 = a single design at the scenario's design spin), got {shown}")
+    return points
+
+
 def _design_schedule(sc: Scenario, points, design_modes):
     """The scenario's design schedule of ``points`` spins (None for a single design)."""
-    if isinstance(points, bool) or not isinstance(points, int) or points < 1:
-        raise ParameterError(f"schedule must be an integer >= 1 (number of spin rates; 1 = a single "
-                             f"design at the scenario's design spin), got {points!r}")
+    _check_schedule(points)
     return None if points == 1 else DesignSchedule.for_scenario(sc, points, design_modes)
 
 
@@ -389,7 +399,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                   for name, st in chosen.items()}
         noise = task_noise(sc, rig)
     chosen = {name: residual_modes_for(st, ev.modes) for name, st in chosen.items()}
-    _check_budget(sc, ev, chosen, m, sim, schedule)
+    _check_budget(sc, ev, chosen, m, sim, _check_schedule(schedule))
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
     shaper = None if shaping is None else as_shaper(design, shaping)
     sched = _design_schedule(sc, schedule, m)

@@ -68,7 +68,7 @@ from controllers import CONTROLLERS, SHAPERS
 from controllers.scaling import Tolerances, default_tolerances
 from hubbeam_ctrl.core.compiled import check_backend
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import read_toml
+from hubbeam_ctrl.core.fileio import path_exists, read_toml
 from hubbeam_ctrl.exact import require_exudyn
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
@@ -720,7 +720,7 @@ def _spec_rig(value, folder=None):
             return rig_from_dict(value)
         if isinstance(value, str) and value.strip():
             path = Path(folder) / value if folder is not None and not Path(value).is_absolute() else Path(value)
-            return load_rig(str(path) if path.exists() else value)
+            return load_rig(str(path) if path_exists(path) else value)
     except ParameterError as exc:
         raise ParameterError(f"study.rig: {exc}") from None
     raise ParameterError(f"study.rig must name a rig file or a preset (servo_link, paper), got {value!r}"[:200])
