@@ -68,6 +68,11 @@ CASES = [
     ("sw", ["compare", "--rig", "servo_link", "--dt", "0.01", "--controllers", "lqr", "--out", "c"],
      "--dt must be the rig's sample time timing.dt = 0.001 s"),
     ("sw", MODAL + ["--bounds", "E=-1:1e12"], "--bounds: E bounds -1:1e+12 must lie within its range [100000, 1e+13]"),
+    *[("tb", ["sweep", f"bad_{key}.toml", "--out", "s", "--workers", "1"], words) for key, words in (
+        ("t_end", "study.t_end = 1e+308 s at study.dt = 0.01 s (1e+15 samples per run) needs about"),
+        ("schedule", "study.schedule must be an integer >= 1 and <= 1000"),
+        ("plant_modes", "study.plant_modes must be an integer in 1..20, got 9223372036854775807"),
+        ("w_f", "study.w_f must be a finite number != 0 [rad/s] (a spin-up to rest is no task), got 0"))],
     ("sw", ["sweep", "empty.toml", "--out", "s", "--workers", "1"], "spec is empty"),
     ("sw", ["sweep", "string_controllers.toml", "--out", "s", "--workers", "1"],
      "study.controllers must be a list of names (controllers = [\"lqr\"]), got 'openloop'"),
@@ -113,6 +118,10 @@ def inputs(tmp_path_factory):
     (d / "string_controllers.toml").write_text('[study]\ncontrollers = "openloop"\n')
     (d / "spec.toml").write_text('[study]\ncontrollers = ["lqr"]\nt_f = 1.0\nt_end = 6.5\nplant_modes = 2\n'
                                  '[params]\nn_axial = 2\nn_transverse = 2\n[grid]\nm_t = [0.1]\n')
+    for key, value in (("t_end", "1e308"), ("schedule", "9223372036854775807"),
+                       ("plant_modes", "9223372036854775807"), ("w_f", '0.0\nscenario = "spinup"')):
+        (d / f"bad_{key}.toml").write_text(f'[study]\ncontrollers = ["lqr"]\n{key} = {value}\n'
+                                           '[params]\nn_axial = 2\nn_transverse = 2\n[grid]\nm_t = [0.1]\n')
     (d / "modal.csv").write_text("spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]\n"
                                  "0,0.0,1,2.0,0.01\n0,0.0,2,12.0,0.01\n")
     return d

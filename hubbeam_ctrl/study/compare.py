@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
 from controllers.analysis import loop_margins
 from controllers.scaling import Tolerances
+from controllers.schedule import MAX_SCHEDULE_POINTS
 from hubbeam_ctrl.core.budget import (
     CLOSED_LOOP_SECONDS_PER_SAMPLE,
     WallClock,
@@ -94,10 +95,6 @@ def _parse_controllers(controllers) -> tuple:
     if len(set(names)) != len(names):
         raise ParameterError(f"controllers: each may appear once, got {','.join(names)}")
     return tuple(names)
-
-
-#: Most spin rates of a design schedule (each is a design; a few suffice, 1000 is far past use).
-MAX_SCHEDULE_POINTS = 1000
 
 
 def _check_schedule(points) -> int:

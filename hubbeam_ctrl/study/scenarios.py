@@ -52,7 +52,9 @@ def register_scenario(name: str):
     ``params``, ``tau_max``, ``t_f``, ``dt``, ``t_ref_end`` (last reference sample [s]),
     ``w_f``, ``flatness`` and ``task`` (the task in physical terms,
     :mod:`hubbeam_ctrl.study.tasks`, already checked against ``tau_max``; None for a scenario
-    without one) (it takes those it needs and ``**_`` for the rest) and returns a dict with
+    without one), ``budget`` (how a message names ``tau_max``: ``"tau_max"`` when the caller
+    gave it, else the motor's ``Params.tau_max``) (it takes those it needs and ``**_`` for the
+    rest) and returns a dict with
     ``design_spin`` [rad/s], ``target``, ``target_key`` (its name with unit in summaries),
     ``baseline`` (the open-loop profile compared against: ``"eq44"`` or ``"feedforward"``),
     ``reference``, ``description`` and optionally ``baseline_tau_m`` (the Eq. 44 amplitude).

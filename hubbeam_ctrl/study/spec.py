@@ -66,6 +66,7 @@ import numpy as np
 
 from controllers import CONTROLLERS, SHAPERS
 from controllers.scaling import Tolerances, default_tolerances
+from controllers.schedule import MAX_SCHEDULE_POINTS
 from hubbeam_ctrl.core.compiled import check_backend
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import path_exists, read_toml
@@ -488,9 +489,10 @@ class StudySpec:
             raise ParameterError("settings must be a table of controller tables")
         if self.shaping is not None and self.shaping not in SHAPERS:
             raise ParameterError(f"study.shaping must be one of {', '.join(SHAPERS)}, got {self.shaping!r}")
-        if isinstance(self.schedule, bool) or not isinstance(self.schedule, int) or self.schedule < 1:
-            raise ParameterError(f"study.schedule must be an integer >= 1 (spin rates of the design schedule; "
-                                 f"1 = a single design), got {self.schedule!r}")
+        if isinstance(self.schedule, bool) or not isinstance(self.schedule, int) \
+                or not 1 <= self.schedule <= MAX_SCHEDULE_POINTS:
+            raise ParameterError(f"study.schedule must be an integer >= 1 and <= {MAX_SCHEDULE_POINTS} (spin rates "
+                                 f"of the design schedule; 1 = a single design), got {self.schedule!r}"[:300])
         if self.backend is not None:
             check_backend(self.backend, "study.backend")
         if self.tolerances is not None:
@@ -501,6 +503,10 @@ class StudySpec:
             if unknown:
                 raise ParameterError(f"study.tolerances: unknown field(s) {', '.join(unknown)}; allowed: "
                                      f"{', '.join(allowed)}")
+        for key in ("design_modes", "plant_modes"):
+            v = getattr(self, key)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_MODES):
+                raise ParameterError(f"study.{key} must be an integer in 1..{MAX_MODES}, got {v!r}")
         self._check_run_budget()                    # before the scenario: its reference spans t_end
         try:
             sc = self.scenario_for(self.params)
@@ -516,10 +522,6 @@ class StudySpec:
                     self.params.replace(**{name: v})
                 except ParameterError as exc:
                     raise ParameterError(f"grid.{name} = {v!r}: {exc}") from None
-        for key in ("design_modes", "plant_modes"):
-            v = getattr(self, key)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_MODES):
-                raise ParameterError(f"study.{key} must be an integer in 1..{MAX_MODES}, got {v!r}")
         self._check_size()
         self._check_samples()
 
@@ -547,7 +549,7 @@ class StudySpec:
         p = self.params
         modes = self.plant_modes if isinstance(self.plant_modes, int) else p.n_transverse
         n_q = 1 + p.n_axial + modes
-        steps = int(min(round(self.t_end / self.dt), 1e15))
+        steps = int(round(min(self.t_end / self.dt, 1e15)))      # t_end / dt may overflow to inf
         memory = 16.0 * (steps + 1) * (2 * n_q + 9)
         seconds = steps * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n_q / 11.0) ** 2
         what = f"study.t_end = {self.t_end:g} s at study.dt = {self.dt:g} s ({steps + 1:.6g} samples per run)"
