@@ -61,10 +61,13 @@ if TYPE_CHECKING:
     import control as ct
 
 __all__ = ["DesignSchedule", "ScheduledKalmanEstimator", "filter_schedule", "ScheduledLQR", "ScheduledLQG",
-           "ScheduledMPC", "scheduled_lqr_iosystem", "scheduled_lqg_iosystem", "DEFAULT_SCHEDULE_POINTS", "VARIABLES"]
+           "ScheduledMPC", "scheduled_lqr_iosystem", "scheduled_lqg_iosystem", "DEFAULT_SCHEDULE_POINTS",
+           "MAX_SCHEDULE_POINTS", "VARIABLES"]
 
 #: Spin rates of the default grid (0 to the top rate, evenly spaced).
 DEFAULT_SCHEDULE_POINTS = 9
+#: Most spin rates of a schedule (each is a design; a few suffice, 1000 is far past use).
+MAX_SCHEDULE_POINTS = 1000
 #: Scheduling variables.
 VARIABLES = ("measured", "reference")
 

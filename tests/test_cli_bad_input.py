@@ -83,7 +83,8 @@ SPECIFIC = [
     ("c5", "simulate", ["--tau-max", "1e6"], "--tau-max (tau_m) = 1e+06 N m over t_f = 10 s spins the hub"),
     ("c5", "simulate", ["--tf", "1e300"], "--tf (t_f) must be in [0.001, 1e+06] [s]"),
     ("c5", "compare", ["--tau-max", "1e7"], "--tau-max must be in (0, 200] N m (the motor's tau_max"),
-    ("c5", "compare", ["--tf", "1000", "--t-end", "7000"], "--tau-max = 200 N m over tf = 1000 s spins the hub"),
+    ("c5", "compare", ["--tf", "1000", "--t-end", "7000"],
+     "the motor's Params.tau_max (beam.tau_max of a rig) = 200 N m over tf = 1000 s spins the hub"),
     ("c5", "compare", ["--scenario", "spinup", "--wf", "1e5"], "--wf must be in [-78.73, 78.73] [rad/s]"),
     ("c5", "compare", ["--dt", "1e300"], "--dt must be in [1e-06, 10] [s]"),
     # c6: outputs checked before the run

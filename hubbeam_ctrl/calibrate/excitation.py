@@ -19,13 +19,19 @@ import numpy as np
 from hubbeam_ctrl.calibrate.model import ModelSettings, clamped_modes, simulate_sensors
 from hubbeam_ctrl.calibrate.records import Record
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.core.validation import check_in_range, check_positive
+from hubbeam_ctrl.core.validation import check_in_range, check_integer, check_positive
+from hubbeam_ctrl.linear.statespace import DT_RANGE
+from hubbeam_ctrl.plant.params import MAX_MODES
 from hubbeam_ctrl.plant.rig import Rig
 
 __all__ = ["excitation", "EXCITATION_KINDS", "excitation_band"]
 
 #: The signal kinds of :func:`excitation`.
 EXCITATION_KINDS = ("chirp", "prbs", "multisine", "step")
+
+#: Most samples of an excitation record (ten million: an hour at 0.36 ms; the record and its
+#: predicted response are simulated).
+MAX_SAMPLES = 10_000_000
 
 
 def excitation_band(rig: Rig, n_modes: int = 2) -> tuple:
@@ -114,7 +120,12 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     if kind not in EXCITATION_KINDS:
         raise ParameterError(f"kind must be one of {', '.join(EXCITATION_KINDS)}, got {kind!r}")
     duration = check_in_range("duration", duration, "s", 1e-3, 3600.0)
-    dt = check_positive("dt", dt if dt is not None else (rig.timing.dt or 1e-3), "s")
+    dt = check_in_range("dt", dt if dt is not None else (rig.timing.dt or 1e-3), "s", *DT_RANGE)
+    if duration / dt > MAX_SAMPLES:
+        raise ParameterError(f"dt = {dt:g} s over duration = {duration:g} s makes {duration / dt:.3g} samples, "
+                             f"at most {MAX_SAMPLES:.0e} (a longer dt or a shorter duration)")
+    n_modes = check_integer("n_modes", n_modes, 1, MAX_MODES)
+    seed = check_integer("seed", seed, 0, 2 ** 63 - 1)
     limit = rig.drive.V_max if not rig.drive.is_ideal else rig.beam.tau_max
     unit = "V" if not rig.drive.is_ideal else "N m"
     if amplitude is None:

@@ -45,7 +45,7 @@ from hubbeam_ctrl.plant.rig import RIG_TABLES, Rig
 
 __all__ = ["FitField", "FitSettings", "FitResult", "resolve_fields", "set_fields", "fit_rig", "fit_percent",
            "predict", "validate_record", "ModalTable", "load_modal_table", "fit_modal_table", "FIT_ALIASES",
-           "IDENTIFIABILITY_CONDITION", "check_record_for_rig", "MODAL_TABLE_COLUMNS"]
+           "IDENTIFIABILITY_CONDITION", "check_record_for_rig", "check_bounds", "MODAL_TABLE_COLUMNS"]
 
 #: Short names of ``--fit``: name -> (table, key, index or None).
 FIT_ALIASES = {"damping": ("damping", "ratios", 0), "friction": ("friction", "coulomb", None),
@@ -437,7 +437,28 @@ def validate_record(rig: Rig, record: Record, sensors=None, settings: ModelSetti
     return {s: fit_percent(record.columns[s], y[s]) for s in sensors}, y
 
 
-def _bounds(fit_fields, bounds, start, option="--bounds"):
+def check_bounds(fit_fields, bounds, option: str = "--bounds") -> tuple:
+    """The search bounds of the fitted fields: each field's range, narrowed by ``bounds``.
+
+    Parameters
+    ----------
+    fit_fields : sequence of FitField
+        The fitted fields (:func:`resolve_fields`).
+    bounds : dict or None
+        Field name (or path) -> ``(lo, hi)`` in the field's unit; each within the field's range.
+    option : str
+        The bounds' name as the caller spelled it (starts the messages).
+
+    Returns
+    -------
+    lo, hi : ndarray
+
+    Raises
+    ------
+    ParameterError
+        A name that is not fitted, bounds that are not finite, reversed, or outside the
+        field's range (refused, not clipped).
+    """
     lo = np.array([f.lo for f in fit_fields])
     hi = np.array([f.hi for f in fit_fields])
     for name, pair in (bounds or {}).items():
@@ -449,11 +470,16 @@ def _bounds(fit_fields, bounds, start, option="--bounds"):
             raise ParameterError(f"{option}: {name} bounds must be finite, got {a:g}:{b:g}")
         if a > b:
             raise ParameterError(f"{option}: {name} has lo = {a:g} > hi = {b:g}")
-        lo[k], hi[k] = max(lo[k], a), min(hi[k], b)
-        if lo[k] > hi[k]:
-            f = fit_fields[k]
-            raise ParameterError(f"{option}: {name} bounds {a:g}:{b:g} lie outside its range "
-                                 f"[{f.lo:g}, {f.hi:g}]")
+        f = fit_fields[k]
+        if a < f.lo or b > f.hi:        # refused, not clipped: the fit would not search what was asked
+            raise ParameterError(f"{option}: {name} bounds {a:g}:{b:g} must lie within its range "
+                                 f"[{f.lo:g}, {f.hi:g}] [{f.unit}]")
+        lo[k], hi[k] = a, b
+    return lo, hi
+
+
+def _bounds(fit_fields, bounds, start, option="--bounds"):
+    lo, hi = check_bounds(fit_fields, bounds, option)
     for k, f in enumerate(fit_fields):
         if not lo[k] <= start[k] <= hi[k]:
             raise ParameterError(f"{option}: the start of {f.name} ({start[k]:g}) is outside its bounds "

@@ -19,7 +19,7 @@ from pathlib import Path
 from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["params_from_args", "UNSTABLE_NOTE",
-           "stdout", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
+           "stdout", "check_rig_dt", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
            "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits",
            "terminate_as_interrupt"]
 
@@ -38,7 +38,13 @@ OPTION_NAMES = {
     "schedule": "--schedule", "shaping": "--shaping", "axial": "--axial", "scheduler": "--scheduler",
     "timeout": "--scheduler-timeout", "tune.popsize": "--popsize", "tune.maxiter": "--maxiter",
     "tune.objective": "--objective", "tune.decades": "--decades", "tune.seed": "--seed",
+    "max_tip_deflection": "--max-tip", "max_hub_travel": "--max-hub", "band_hz": "--band", "n_modes": "--modes",
+    "slew_angle": "--slew-angle", "tolerance": "--tolerance", "duration": "--duration",
 }
+
+#: Names set by a second option on the subcommands that lack the first (``identify`` sets the
+#: plant's ``n_transverse`` with ``--plant-modes``, not ``--n-modes``).
+OTHER_OPTION_NAMES = {"n_transverse": "--plant-modes"}
 
 #: What ``modes`` and ``linearize`` say about a model with a growing mode.
 UNSTABLE_NOTE = " (UNSTABLE: a mode has lost its stiffness)"
@@ -89,6 +95,23 @@ def rig_from_args(args):
     return rig if beam == rig.beam else rig.replace(beam=beam)
 
 
+def check_rig_dt(args, rig) -> None:
+    """Refuse a ``--dt`` other than the rig's sample time ``timing.dt`` (the controller runs at the
+    rig's rate: a design for another one is wrong on the rig), as the closed loop does.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (``dt``: ``--dt`` or None).
+    rig : Rig or None
+        The rig of ``--rig``.
+    """
+    dt = getattr(args, "dt", None)
+    rig_dt = None if rig is None else rig.timing.dt
+    if dt is not None and rig_dt is not None and abs(dt - rig_dt) > 1e-12 * rig_dt:
+        raise ParameterError(f"--dt must be the rig's sample time timing.dt = {rig_dt:g} s (or left out), got {dt:g}")
+
+
 def stdout(args):
     """The stream a subcommand prints its results to: the standard output saved before the
     run (during the run ``sys.stdout`` collects native and CasADi output, see
@@ -131,6 +154,8 @@ def rename_options(message: str, options) -> str:
         return message
     name = match.group(1)
     option = OPTION_NAMES.get(name)
+    if option not in options:
+        option = OTHER_OPTION_NAMES.get(name)
     if option is None or option not in options:
         # a message that names the option without its dashes (``tau-max must ...``,
         # ``design_modes must ...``): the option as typed
@@ -370,6 +395,7 @@ def design_task(args, rig, params):
     if args.tau_max is not None and args.tau_max > params.tau_max:
         whose = "the rig's drive" if rig is not None else "the motor's tau_max of the parameters"
         raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m ({whose}), got {args.tau_max:g}")
+    check_rig_dt(args, rig)
     dt = args.dt if args.dt is not None else (rig.timing.dt if rig is not None and rig.timing.dt else task_dt(params))
     modes = args.design_modes if args.design_modes is not None else params.n_transverse
     if not 1 <= modes <= 20:

@@ -75,12 +75,20 @@ def run(args) -> int:
     import sys
 
     from controllers import CONTROLLERS, make_controller
-    from hubbeam_ctrl.cli.args import design_task, params_from_args, refuse_inapplicable, rig_from_args, stdout
+    from hubbeam_ctrl.cli.args import (
+        check_output_dir,
+        design_task,
+        params_from_args,
+        refuse_inapplicable,
+        rig_from_args,
+        stdout,
+    )
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.deploy import CODEGEN_KINDS, NO_COMPILER, compile_c, compiler, to_c
     from hubbeam_ctrl.study.shaping import task_shaped_settings
 
     sink = stdout(args)
+    check_output_dir("--out", args.out)
     kinds = [k for k in CODEGEN_KINDS if k != "openloop"]
     if args.controller not in kinds:
         raise ParameterError(f"controller must be one of {', '.join(kinds)} (the kinds that can be generated "

@@ -13,6 +13,7 @@ from controllers import CONTROLLERS, QP_SOLVERS, SHAPERS, controller_names
 from hubbeam_ctrl.cli.args import (
     add_run_options,
     check_output_dir,
+    check_rig_dt,
     integer,
     nonempty,
     params_from_args,
@@ -207,6 +208,7 @@ def run(args) -> int:
         refuse_inapplicable(args, "--controllers " + ",".join(names), {"--horizon": ("mpc",),
                                                                        "--solver": ("mpc",)})
     rig = _rig(args)
+    check_rig_dt(args, rig)
     params = rig.plant_params if rig is not None else params_from_args(args)
     if args.tau_max is not None and args.tau_max > params.tau_max:
         raise ParameterError(f"--tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "

@@ -90,6 +90,7 @@ def run(args) -> int:
 
     from hubbeam_ctrl.calibrate.fit import (
         FitSettings,
+        check_bounds,
         check_record_for_rig,
         fit_rig,
         predict,
@@ -109,9 +110,11 @@ def run(args) -> int:
     if bool(args.records) == bool(args.modal_table):
         raise ParameterError("identify needs records or --modal-table TABLE.csv (one of the two)")
     out = check_output_dir("--out", args.out)
-    rig = load_rig(args.rig if args.rig is not None else args.params)
+    rig = load_rig(args.rig) if args.rig is not None else load_rig(args.params, "params")
     fit_fields = resolve_fields(args.fit, rig)
     bounds = _parse_bounds(args.bounds)
+    check_bounds(fit_fields, bounds)                 # before the records are read and simulated
+    model = ModelSettings(n_transverse=args.plant_modes)
     if args.modal_table:
         return _run_modal_table(args, rig, fit_fields, bounds, out, sink)
     sensors = None if args.sensors is None else tuple(s.strip() for s in args.sensors.split(","))
@@ -121,7 +124,7 @@ def run(args) -> int:
         check_record_for_rig(rec, rig, sensors)
     for rec in validation:
         check_record_for_rig(rec, rig, sensors, "--validate")
-    settings = FitSettings(model=ModelSettings(n_transverse=args.plant_modes), max_evaluations=args.max_evaluations)
+    settings = FitSettings(model=model, max_evaluations=args.max_evaluations)
     result = fit_rig(rig, records, [f.name for f in fit_fields], bounds=bounds, sensors=sensors, settings=settings,
                      progress=not args.json)
     valid = {}

@@ -304,7 +304,7 @@ def _print_simulation(args, res, integrator: str, sink) -> None:
         res.save(args.out)
     if args.plot:
         from hubbeam_ctrl.plots.plant import plot_result, save_figure
-        save_figure(plot_result(res), args.plot)
+        save_figure(plot_result(res), args.plot, option="plot")
     s = res.summary()
     out = {k: s[k] for k in ("peak_tip_m", "residual_tip_m", "peak_axial_m", "final_theta_rad",
                              "final_theta_dot_rad_s", "diverged", "wall_s")}
@@ -430,7 +430,7 @@ def main(argv=None) -> int:
         _refuse_missing_values(sys.argv[1:] if argv is None else argv)
         args = parser.parse_args(argv)
         if not getattr(args, "command", None):
-            parser.print_help()
+            print(parser.format_usage().strip() + "  (hubbeam --help lists the commands)", file=sys.stderr)
             return 2
         options = _options_of(parser, args.command)
         func = getattr(args, "func", None)
@@ -445,6 +445,8 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("hubbeam: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:            # the reader of the output left (hubbeam cache info | head)
+        return _closed_pipe()
     except MemoryError:
         return _fail(1, "out of memory (lower --t-end, --horizon or --n-modes)", args)
     except OSError as exc:
@@ -515,6 +517,20 @@ def _run(func, args) -> int:
         print(f"hubbeam: note: {lines} line{'s' if lines > 1 else ''} of solver output and warnings "
               f"suppressed{hint}", file=sys.stderr)
     return status
+
+
+def _closed_pipe() -> int:
+    """The reader of the standard output has gone: stop quietly, as a command killed by SIGPIPE
+    does (status 128 + 13), with the standard output pointed at ``/dev/null`` so that the
+    interpreter's last flush finds no pipe to fail on."""
+    import os
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):      # no file descriptor behind sys.stdout (tests, notebooks)
+        pass
+    return 141
 
 
 def _options_of(parser, command: str) -> set:

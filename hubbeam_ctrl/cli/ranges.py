@@ -16,18 +16,22 @@ from dataclasses import fields
 from pathlib import Path
 
 from controllers import CONTROLLERS
+from hubbeam_ctrl.calibrate.excitation import MAX_SAMPLES as EXCITATION_SAMPLES
 from hubbeam_ctrl.cli.args import OPTION_NAMES
 from hubbeam_ctrl.core.budget import T_END_MAX
 from hubbeam_ctrl.core.settings import Settings, range_text
 from hubbeam_ctrl.exact import MIN_ELEMENTS, MIN_STEPS_PER_PERIOD
+from hubbeam_ctrl.limit.optimal import MAX_DURATION, MIN_SLEW_ANGLE, MIN_TOLERANCE
 from hubbeam_ctrl.linear.statespace import DT_RANGE
 from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse
-from hubbeam_ctrl.plant.params import MAX_ROOT_STRAIN, RELATIONS, Params
+from hubbeam_ctrl.plant.params import MAX_MODES, MAX_ROOT_STRAIN, RELATIONS, Params
 from hubbeam_ctrl.plant.rig import RIG_RELATIONS, Rig
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.simulate import SimulationSettings
 from hubbeam_ctrl.study.scenarios import RANGES as SCENARIO_RANGES
+from hubbeam_ctrl.study.tasks import MIN_TARGET
+from hubbeam_ctrl.study.tune import MAX_DECADES
 
 __all__ = ["ranges_markdown", "settings_classes", "main"]
 
@@ -141,6 +145,21 @@ def _function_rows() -> list:
          "n_modes (`highest_mode_hz`); dt at most 200 / (12 f) otherwise", "`--substeps` (simulate)"),
         ("`simulate`", "maneuver", "-", "spin-up and constant spin: abs(rate) <= Params.max_spin; torque "
          "pulse: tau_m t_f / (pi J_total) <= Params.max_spin", "`--wf`, `--tau-max`"),
+        ("`make_scenario`, `compare`, `Slew`, `SpinUp`", "`slew_angle`, `wf`", "rad, rad/s",
+         f"abs(value) >= {MIN_TARGET:g} (0: no task); slew: abs(slew_angle) <= Params.max_spin "
+         f"{SCENARIO_RANGES['tf'][1]:g} s / 2", "`--slew-angle`, `--wf`"),
+        ("`time_optimal_slew`, `min_vibration_slew`", "`tolerance`", "m", f"[{MIN_TOLERANCE:g} L, L]",
+         "`--tolerance` (optimal)"),
+        ("`time_optimal_slew`, `min_vibration_slew`", "`slew_angle`", "rad",
+         f"abs(slew_angle) >= {MIN_SLEW_ANGLE:g}; time-optimal: sqrt(abs(slew_angle) tau_max / J_total) <= "
+         "Params.max_spin", "`--slew-angle` (optimal)"),
+        ("`min_vibration_slew`", "`duration`", "s", f"(0, {MAX_DURATION:g}], >= 2 abs(slew_angle) / "
+         "Params.max_spin", "`--duration` (optimal)"),
+        ("`excitation`", "`dt`, `duration`", "s", f"dt in [{lo_dt:g}, {hi_dt:g}], duration in [0.001, 3600], "
+         f"duration / dt <= {EXCITATION_SAMPLES:.0e} samples", "`--dt`, `--duration` (excite)"),
+        ("`excitation`", "`n_modes`, `seed`", "-", f"integer in 1..{MAX_MODES}; integer >= 0",
+         "`--modes`, `--seed` (excite)"),
+        ("`TuneOptions`", "`decades`", "-", f"(0, {MAX_DECADES:g}]", "`--decades` (tune)"),
     ]
     return [f"| {f} | {a} | {u} | {_cell(r)} | {o} |" for f, a, u, r, o in rows]
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError, write_error
 
-__all__ = ["read_toml", "MAX_TOML_BYTES", "MAX_NPZ_BYTES",
+__all__ = ["read_toml", "path_exists", "MAX_TOML_BYTES", "MAX_NPZ_BYTES",
            "atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
            "check_regular_file", "check_writable", "output_folder", "write_folder", "read_manifest",
            "remove_stale_temporaries", "remove_temporaries", "TEMP_PREFIX", "MANIFEST"]
@@ -227,7 +227,7 @@ def _probe(folder: Path, option: str) -> None:
         raise ParameterError(f"{option}: cannot write to folder {folder} ({exc.strerror or exc})") from None
 
 
-def atomic_write(path, write, suffix: str | None = None) -> Path:
+def atomic_write(path, write, suffix: str | None = None, option: str = "out") -> Path:
     """Write a file atomically.
 
     The content goes to a temporary file ``.hubbeam-tmp-<pid>-<random>-<name>`` in the target
@@ -245,6 +245,8 @@ def atomic_write(path, write, suffix: str | None = None) -> Path:
     suffix : str, optional
         Extension the temporary file must end with (some writers insist on one); by default
         the temporary name ends with the final name, so it has the final extension.
+    option : str
+        The path's name as the caller spelled it (``"out"``, ``"plot"``), starting the messages.
 
     Returns
     -------
@@ -254,7 +256,7 @@ def atomic_write(path, write, suffix: str | None = None) -> Path:
     Raises
     ------
     ParameterError
-        Naming the path (as option ``out``) when its folder is missing, it is a folder, or
+        Naming the path (as ``option``) when its folder is missing, it is a folder, or
         the system refuses the write; no file is left behind.
     ResourceError
         When the system runs out of space, quota or the device fails (not bad input).
@@ -265,10 +267,10 @@ def atomic_write(path, write, suffix: str | None = None) -> Path:
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise ParameterError(f"out: folder {folder} does not exist")
+        raise ParameterError(f"{option}: folder {folder} does not exist")
     if path.is_dir():
-        raise ParameterError(f"out: {path} is a folder, not a file name")
-    _check_name_length(path, "out")
+        raise ParameterError(f"{option}: {path} is a folder, not a file name")
+    _check_name_length(path, option)
     _install_cleanup()
     remove_stale_temporaries(folder)
     name = path.name if not suffix or path.name.endswith(suffix) else path.name + suffix
@@ -281,7 +283,7 @@ def atomic_write(path, write, suffix: str | None = None) -> Path:
         os.replace(tmp, path)
     except OSError as exc:
         _remove_entry(tmp)
-        raise write_error(exc, f"out: cannot write {path}") from None
+        raise write_error(exc, f"{option}: cannot write {path}") from None
     except BaseException:
         _remove_entry(tmp)
         raise
@@ -568,6 +570,27 @@ def output_folder(out_dir, option: str = "out", create: bool = True) -> Path:
 MAX_TOML_BYTES = 1_000_000
 
 
+def _short_path(path) -> str:
+    """``path`` as shown in a one-line message: at most 120 characters (a name past PATH_MAX is cut
+    in the middle, so the message still ends with its reason)."""
+    text = str(path)
+    return text if len(text) <= 120 else f"{text[:60]}...{text[-40:]}"
+
+
+def path_exists(path) -> bool:
+    """``Path(path).exists()``, False for a name the system refuses (past NAME_MAX or PATH_MAX):
+    the reader that follows names the reason.
+
+    Parameters
+    ----------
+    path : str or Path
+    """
+    try:
+        return Path(path).exists()
+    except (OSError, ValueError):
+        return False
+
+
 def read_toml(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> dict:
     """The TOML document at ``path``, or a one-line :class:`ParameterError` naming the file.
 
@@ -594,30 +617,31 @@ def read_toml(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> dict
             or "\x00" in str(path):
         raise ParameterError(f"{what} must be named by a path, got {path!r}")
     path = Path(path)
+    name = _short_path(path)
     try:
         if not path.exists():
-            raise ParameterError(f"{what} {path} does not exist")
+            raise ParameterError(f"{what} {name} does not exist")
         if not path.is_file():
-            raise ParameterError(f"{what} {path} is not a regular file")
+            raise ParameterError(f"{what} {name} is not a regular file")
         if path.stat().st_size > max_bytes:
-            raise ParameterError(f"{what} {path} is larger than {max_bytes} bytes")
+            raise ParameterError(f"{what} {name} is larger than {max_bytes} bytes")
         with open(path, "rb") as fh:
             data = fh.read(max_bytes + 1)
         if len(data) > max_bytes:
-            raise ParameterError(f"{what} {path} is larger than {max_bytes} bytes")
+            raise ParameterError(f"{what} {name} is larger than {max_bytes} bytes")
         text = data.decode("utf-8")
     except OSError as exc:
-        raise ParameterError(f"{what} {path} cannot be read ({exc.strerror or exc})") from None
+        raise ParameterError(f"{what} {name} cannot be read ({exc.strerror or exc})") from None
     except UnicodeDecodeError as exc:
-        raise ParameterError(f"{what} {path} is not UTF-8 text (byte {exc.start})") from None
+        raise ParameterError(f"{what} {name} is not UTF-8 text (byte {exc.start})") from None
     if "\x00" in text:
-        raise ParameterError(f"{what} {path} is not a text file (NUL byte)")
+        raise ParameterError(f"{what} {name} is not a text file (NUL byte)")
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"{what} {path} is not valid TOML: {' '.join(str(exc).split())[:200]}") from None
+        raise ParameterError(f"{what} {name} is not valid TOML: {' '.join(str(exc).split())[:200]}") from None
     except RecursionError:
-        raise ParameterError(f"{what} {path} is nested too deeply") from None
+        raise ParameterError(f"{what} {name} is nested too deeply") from None
 
 
 def check_regular_file(path, option: str = "path") -> Path:
@@ -634,10 +658,13 @@ def check_regular_file(path, option: str = "path") -> Path:
     Path
     """
     path = Path(path)
-    if not path.exists():
-        raise ParameterError(f"{option}: file {path} does not exist")
-    if not path.is_file():
-        raise ParameterError(f"{option}: {path} is not a regular file")
+    try:
+        if not path.exists():
+            raise ParameterError(f"{option}: file {_short_path(path)} does not exist")
+        if not path.is_file():
+            raise ParameterError(f"{option}: {_short_path(path)} is not a regular file")
+    except OSError as exc:             # a name past NAME_MAX or PATH_MAX
+        raise ParameterError(f"{option}: {_short_path(path)} cannot be read ({exc.strerror or exc})") from None
     return path
 
 

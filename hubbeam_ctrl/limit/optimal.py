@@ -42,7 +42,7 @@ import scipy.linalg as sla
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.native import capture_native_output
 from hubbeam_ctrl.core.settings import Settings, setting
-from hubbeam_ctrl.core.validation import check_finite, check_positive
+from hubbeam_ctrl.core.validation import check_finite, check_in_range, check_positive
 from hubbeam_ctrl.plant.linearization import second_order_linearization
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, build_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
@@ -53,6 +53,16 @@ __all__ = ["OptimalSettings", "OptimalSlew", "DEFAULT_TOLERANCE", "rigid_bang_ba
 
 #: Default residual tip vibration, relative to the beam length (the issue's 0.1 % of L).
 DEFAULT_TOLERANCE = 1e-3
+
+#: Smallest residual tolerance, relative to the beam length (the NLP divides the residual energy
+#: by the tolerance squared).
+MIN_TOLERANCE = 1e-9
+
+#: Smallest slew angle [rad] (as a task's, :data:`hubbeam_ctrl.study.tasks.MIN_TARGET`).
+MIN_SLEW_ANGLE = 1e-6
+
+#: Longest slew time [s] (as a task's ``tf``).
+MAX_DURATION = 1e6
 
 
 @dataclass(frozen=True)
@@ -552,10 +562,43 @@ def _check_inputs(params: Params, slew_angle, tolerance, settings) -> tuple:
     slew_angle = check_finite("slew_angle", slew_angle, "rad")
     if slew_angle == 0.0:
         raise ParameterError("slew_angle must be a finite number != 0 [rad], got 0")
-    tolerance = default_tolerance(params) if tolerance is None else check_positive("tolerance", tolerance, "m")
+    if tolerance is not None:
+        tolerance = check_in_range("tolerance", check_positive("tolerance", tolerance, "m"), "m",
+                                   MIN_TOLERANCE * params.L, params.L,
+                                   f"{MIN_TOLERANCE:g} L to the beam length L")
+    else:
+        tolerance = default_tolerance(params)
     if not isinstance(settings, OptimalSettings):
         raise ParameterError(f"settings must be an OptimalSettings, got {type(settings).__name__}")
     return slew_angle, tolerance
+
+
+def _check_slew(params: Params, slew_angle: float, duration: float | None = None, name: str = "duration") -> float:
+    """Refuse a slew from rest the models cannot describe; returns the checked ``duration`` (or None).
+
+    The slew's rigid peak rate must stay within ``Params.max_spin`` (the 1 % root-strain spin,
+    as :func:`~hubbeam_ctrl.study.scenarios.make_scenario` requires): ``sqrt(|Theta| tau_max /
+    J_total)`` for the time-optimal (bang-bang) slew, ``2 |Theta| / T`` in a given time ``T``;
+    ``|Theta| >= 1e-6 rad``; ``T <= MAX_DURATION``.
+    """
+    if abs(slew_angle) < MIN_SLEW_ANGLE:
+        raise ParameterError(f"slew_angle must be a finite number with |slew_angle| >= {MIN_SLEW_ANGLE:g} [rad], "
+                             f"got {slew_angle:g}")
+    J = params.total_inertia
+    if duration is not None:
+        duration = check_positive(name, duration, "s")
+        if duration > MAX_DURATION:
+            raise ParameterError(f"{name} must be in (0, {MAX_DURATION:g}] [s], got {duration:g}")
+        if 2 * abs(slew_angle) / duration > params.max_spin:
+            raise ParameterError(f"{name} must be >= {2 * abs(slew_angle) / params.max_spin:.5g} s (a slew by "
+                                 f"{slew_angle:g} rad in T reaches the rigid peak rate 2 |Theta| / T, at most "
+                                 f"Params.max_spin = {params.max_spin:.4g} rad/s), got {duration:g} s")
+        return duration
+    peak, how = math.sqrt(abs(slew_angle) * params.tau_max / J), "sqrt(|Theta| tau_max / J_total), bang-bang"
+    if peak > params.max_spin:
+        raise ParameterError(f"slew_angle = {slew_angle:g} rad spins the hub up to {peak:.4g} rad/s ({how}), above "
+                             f"Params.max_spin = {params.max_spin:.4g} rad/s (1 % centrifugal strain at the root)")
+    return duration
 
 
 def _result(kind: str, params: Params, slew_angle: float, tolerance: float, pb: _Problem, w, stats,
@@ -611,6 +654,7 @@ def time_optimal_slew(params: Params, slew_angle: float, *, tolerance: float | N
     """
     params, rig = _source(params)
     slew_angle, tolerance = _check_inputs(params, slew_angle, tolerance, settings)
+    _check_slew(params, slew_angle)
     pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, None, settings, rig)
     return _result("time-optimal", params, slew_angle, tolerance, pb, w, stats, iterations, wall, settings)
 
@@ -651,7 +695,7 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
     source = params
     params, rig = _source(params)
     slew_angle, tolerance = _check_inputs(params, slew_angle, tolerance, settings)
-    duration = check_positive(name, duration, "s")
+    duration = _check_slew(params, slew_angle, duration, name)
     quick = settings.replace(check=False)
 
     def refuse():

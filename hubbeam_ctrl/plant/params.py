@@ -62,7 +62,7 @@ class Params(Settings):
                                     doc="Per-mode damping ratios of transverse clamped modes 1, 2, ..., each "
                                         "in [0, 1); modes beyond the list take its last value; empty: "
                                         "damping_ratio for every mode (axial modes always take damping_ratio).")
-    tau_max: float = setting(200.0, unit="N m", lo=0.0, lo_open=True,
+    tau_max: float = setting(200.0, unit="N m", lo=0.0, lo_open=True, hi=1e9,
                              doc="Torque limit of the hub motor (default: the paper's Eq. 44 amplitude). "
                                  "Every controller saturates its output there, or at a smaller limit its "
                                  "settings give; a larger one is an error.")

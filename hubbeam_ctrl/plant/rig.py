@@ -44,9 +44,9 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.core.fileio import atomic_write_text, path_exists, read_toml
 from hubbeam_ctrl.core.settings import Settings, setting
-from hubbeam_ctrl.plant.params import MAX_MODES, Params, _read_toml
+from hubbeam_ctrl.plant.params import MAX_MODES, MAX_PARAMS_FILE_BYTES, Params, _read_toml
 from hubbeam_ctrl.plant.rig_parts import Damping, Drive, Friction, Sensors, Timing
 
 __all__ = ["Drive", "Friction", "Damping", "Sensors", "Timing", "Rig", "load_rig", "save_rig", "PRESETS",
@@ -183,9 +183,9 @@ def _check_tau_max(tau_max: float, drive: Drive) -> None:
 # the rig files (TOML): in their own module, re-exported here
 
 
-def _part(table: str, data, path) -> Settings:
+def _part(table: str, data, path, what: str = "rig file") -> Settings:
     cls = RIG_TABLES[table]
-    where = f"rig file {path}: " if path is not None else ""
+    where = f"{what} {path}: " if path is not None else ""
     if not isinstance(data, dict):
         raise ParameterError(f"{where}[{table}] must be a table of keys, got {type(data).__name__}")
     if cls is Params:
@@ -207,7 +207,7 @@ def _part(table: str, data, path) -> Settings:
         raise ParameterError(f"{where}[{table}]: {exc}") from None
 
 
-def rig_from_dict(data: dict, path=None) -> Rig:
+def rig_from_dict(data: dict, path=None, what: str = "rig file") -> Rig:
     """A :class:`Rig` from the tables of a rig file (or a flat :class:`Params` mapping).
 
     Parameters
@@ -217,12 +217,15 @@ def rig_from_dict(data: dict, path=None) -> Rig:
         tables (or with ``[params]`` only) is a flat parameter set: the beam alone, ideal hardware.
     path : str or Path, optional
         The file it came from (named in error messages).
+    what : str
+        What the file is, as error messages start (``"rig file"``; ``"params file"`` for a
+        parameter file read as a rig).
 
     Returns
     -------
     Rig
     """
-    where = f"rig file {path}: " if path is not None else ""
+    where = f"{what} {path}: " if path is not None else ""
     if not isinstance(data, dict):
         raise ParameterError(f"{where}a rig must be a mapping of tables, got {type(data).__name__}")
     if set(data) == {"params"} and isinstance(data["params"], dict):
@@ -238,7 +241,7 @@ def rig_from_dict(data: dict, path=None) -> Rig:
             shown = f"[{str(key)[:40]}]" if kind == "table" else str(key)[:40]
             raise ParameterError(f"{where}unknown {kind} {shown}; allowed tables: "
                                  f"{', '.join(f'[{t}]' for t in RIG_TABLES)}")
-    parts = {_ATTR[t]: _part(t, data[t], path) for t in RIG_TABLES if t in data}
+    parts = {_ATTR[t]: _part(t, data[t], path, what) for t in RIG_TABLES if t in data}
     try:
         drive = parts.get("drive", Drive())
         if "beam" in parts:           # beam.tau_max follows from the drive; a stated one must agree
@@ -255,7 +258,7 @@ def _preset_path(name: str):
     return resources.files("hubbeam_ctrl").joinpath("data", "rigs", f"{name}.toml")
 
 
-def load_rig(source) -> Rig:
+def load_rig(source, what: str = "rig") -> Rig:
     """Load a rig from a TOML file or a preset name.
 
     Parameters
@@ -264,6 +267,9 @@ def load_rig(source) -> Rig:
         A rig file (tables ``[beam]``, ``[motor]``, ``[friction]``, ``[damping]``,
         ``[sensors]``, ``[timing]``; or a flat parameter file: the beam alone), or the name
         of a preset (:data:`PRESETS`). An existing file wins over a preset of the same name.
+    what : str
+        The input's name as error messages start (``"rig"``: ``rig file x.toml does not
+        exist``; the command line puts its option in front, ``--rig file ...``).
 
     Returns
     -------
@@ -277,16 +283,17 @@ def load_rig(source) -> Rig:
     if isinstance(source, Rig):
         return source
     if source is None or str(source).strip() == "":
-        raise ParameterError(f"rig must name a file or a preset ({', '.join(PRESETS)}), got {source!r}")
+        raise ParameterError(f"{what} must name a file or a preset ({', '.join(PRESETS)}), got {source!r}")
     path = Path(source)
-    if not path.exists() and str(source) in PRESETS:
+    exists = path_exists(path)
+    if not exists and str(source) in PRESETS:
         with resources.as_file(_preset_path(str(source))) as preset:
             return rig_from_dict(_read_toml(preset), path=f"(preset {source})")
-    if not path.exists() and path.suffix == "" and "/" not in str(source):
-        raise ParameterError(f"rig {str(source)[:80]!r} is neither a file nor a preset "
+    if not exists and path.suffix == "" and "/" not in str(source):
+        raise ParameterError(f"{what} {str(source)[:80]!r} is neither a file nor a preset "
                              f"({', '.join(PRESETS)})")
-    data = _read_toml(path)
-    return rig_from_dict(data, path=path)
+    data = read_toml(path, f"{what} file", MAX_PARAMS_FILE_BYTES)
+    return rig_from_dict(data, path=path, what=f"{what} file")
 
 
 def _toml_value(value) -> str:

@@ -82,7 +82,7 @@ def plot_tip_comparison(results: dict, title: str = "") -> Figure:
     return fig
 
 
-def save_figure(fig: Figure, path, dpi: int = 120):
+def save_figure(fig: Figure, path, dpi: int = 120, option: str = "out"):
     """Save a figure atomically (PNG by the file's extension).
 
     Parameters
@@ -93,6 +93,9 @@ def save_figure(fig: Figure, path, dpi: int = 120):
         Output file (the extension sets the format).
     dpi : int
         Resolution [dots per inch].
+    option : str
+        The path's name as the caller spelled it, starting the one-line errors (``"plot"``
+        for ``--plot``).
 
     Notes
     -----
@@ -101,7 +104,7 @@ def save_figure(fig: Figure, path, dpi: int = 120):
     time, about three times faster.
     """
     extra = {"pil_kwargs": {"compress_level": 1}} if str(path).lower().endswith(".png") else {}
-    return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, **extra))
+    return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, **extra), option=option)
 
 
 def plot_campbell(spins, frequencies_hz, title: str = "Campbell diagram") -> Figure:

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
 from controllers.analysis import loop_margins
 from controllers.scaling import Tolerances
+from controllers.schedule import MAX_SCHEDULE_POINTS
 from hubbeam_ctrl.core.budget import (
     CLOSED_LOOP_SECONDS_PER_SAMPLE,
     WallClock,
@@ -42,6 +43,7 @@ from hubbeam_ctrl.core.budget import (
 )
 from hubbeam_ctrl.core.compiled import resolve_backend
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.exact import require_exudyn
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.rig import Rig
@@ -50,7 +52,7 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
-from hubbeam_ctrl.study.scenarios import PLANTS, REFERENCES, Scenario, make_scenario
+from hubbeam_ctrl.study.scenarios import PLANTS, RANGES, REFERENCES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_t_end
@@ -95,11 +97,17 @@ def _parse_controllers(controllers) -> tuple:
     return tuple(names)
 
 
+def _check_schedule(points) -> int:
+    if isinstance(points, bool) or not isinstance(points, int) or not 1 <= points <= MAX_SCHEDULE_POINTS:
+        shown = repr(points) if len(repr(points)) <= 40 else repr(points)[:37] + "..."
+        raise ParameterError(f"schedule must be an integer >= 1 and <= {MAX_SCHEDULE_POINTS} (number of spin rates; "
+                             f"1 = a single design at the scenario's design spin), got {shown}")
+    return points
+
+
 def _design_schedule(sc: Scenario, points, design_modes):
     """The scenario's design schedule of ``points`` spins (None for a single design)."""
-    if isinstance(points, bool) or not isinstance(points, int) or points < 1:
-        raise ParameterError(f"schedule must be an integer >= 1 (number of spin rates; 1 = a single "
-                             f"design at the scenario's design spin), got {points!r}")
+    _check_schedule(points)
     return None if points == 1 else DesignSchedule.for_scenario(sc, points, design_modes)
 
 
@@ -188,6 +196,8 @@ def _check_runs_fit(t_end, dt, names, params: Params, sim_settings) -> None:
         return
     if not (math.isfinite(t_end) and math.isfinite(dt) and t_end > 0 and dt > 0):
         return                                  # make_scenario names the bad value
+    t_end, dt = (check_in_range(key, value, RANGES[key][2], *RANGES[key][:2])    # before t_end / dt
+                 for key, value in (("t_end", t_end), ("dt", dt)))
     limit = ClosedLoopSettings().max_memory_mb
     if isinstance(sim_settings, ClosedLoopSettings):
         limit = sim_settings.max_memory_mb
@@ -386,7 +396,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                   for name, st in chosen.items()}
         noise = task_noise(sc, rig)
     chosen = {name: residual_modes_for(st, ev.modes) for name, st in chosen.items()}
-    _check_budget(sc, ev, chosen, m, sim, schedule)
+    _check_budget(sc, ev, chosen, m, sim, _check_schedule(schedule))
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
     if rig is not None:
         design = rig_design(design, rig)

@@ -32,7 +32,7 @@ from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.evaluation import PLANT_MODELS
-from hubbeam_ctrl.study.tasks import Slew, SpinUp
+from hubbeam_ctrl.study.tasks import Slew, SpinUp, check_target
 
 __all__ = ["RANGES", "SCENARIOS", "PLANTS", "REFERENCES", "Scenario", "make_scenario", "register_scenario"]
 
@@ -52,7 +52,9 @@ def register_scenario(name: str):
     ``params``, ``tau_max``, ``t_f``, ``dt``, ``t_ref_end`` (last reference sample [s]),
     ``w_f``, ``flatness`` and ``task`` (the task in physical terms,
     :mod:`hubbeam_ctrl.study.tasks`, already checked against ``tau_max``; None for a scenario
-    without one) (it takes those it needs and ``**_`` for the rest) and returns a dict with
+    without one), ``budget`` (how a message names ``tau_max``: ``"tau_max"`` when the caller
+    gave it, else the motor's ``Params.tau_max``) (it takes those it needs and ``**_`` for the
+    rest) and returns a dict with
     ``design_spin`` [rad/s], ``target``, ``target_key`` (its name with unit in summaries),
     ``baseline`` (the open-loop profile compared against: ``"eq44"`` or ``"feedforward"``),
     ``reference``, ``description`` and optionally ``baseline_tau_m`` (the Eq. 44 amplitude).
@@ -271,6 +273,7 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
     params = params if params is not None else Params()
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
+    budget = "tau_max" if tau_max is not None else "the motor's Params.tau_max (beam.tau_max of a rig)"
     tau_max = _budget(tau_max, params)
     t_f, t_end, dt = (check_in_range(key, value, RANGES[key][2], *RANGES[key][:2])
                       for key, value in (("tf", t_f), ("t_end", t_end), ("dt", dt)))
@@ -292,7 +295,7 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
         task.check_feasible(J, tau_max, tf_name)
     parts = SCENARIOS[name](params=params, tau_max=tau_max, t_f=t_f, dt=dt, t_ref_end=t_end + preview_s,
                             w_f=w_f, flatness=flatness, smoothing=smoothing, tolerances=tol, task=task,
-                            eq44=eq44, reference=reference)
+                            eq44=eq44, reference=reference, budget=budget)
     scale_reference = parts.pop("scale_reference", parts["reference"])
     return Scenario(name, plant, params, tau_max, t_f, t_end, dt, task=task, tolerances=tol,
                     **parts, **_scaled(params, tau_max, t_f, dt, task, dict(parts, reference=scale_reference), tol))
@@ -310,8 +313,6 @@ def _scaled(params: Params, tau_max: float, t_f: float, dt: float, task, parts: 
         return {"scales": None, "defaults": {}, "sensors": {},
                 "bands": {"settle_angle": 1e-3, "settle_tip": 1e-3, "residual_delay": 5.0}}
     angle = task.angle if task.name == "slew" else abs(task.rate) * t_f / 2
-    if angle == 0.0:                   # a spin-up to rest: scale by one radian
-        angle = 1.0
     design = _design_point(params, parts["design_spin"], dt)
     scales = task_scales(design, parts["reference"], angle, t_f, tau_max)
     return {"scales": scales, "defaults": scaled_defaults(scales, tol), "sensors": sensor_noise(scales, tol),
@@ -334,20 +335,22 @@ def _task(name: str, tau_max: float, t_f: float, w_f, slew_angle, params: Params
     if slew_angle is not None and name != "slew":
         raise ParameterError("slew_angle applies to the slew scenario only")
     if name == "spinup":
-        return SpinUp(check_spin("wf", w_f, params), t_f)
+        return SpinUp(check_target("wf", check_spin("wf", w_f, params), "rad/s", "a spin-up to rest is no task"), t_f)
     if name != "slew":
         return None
     if slew_angle is None:
         return Slew.eq44(tau_max, t_f, params.total_inertia)
-    angle = _number("slew_angle", slew_angle, "rad", positive=False)
-    if angle == 0.0:
-        raise ParameterError("slew_angle must be a finite number != 0 [rad], got 0")
+    angle = check_target("slew_angle", slew_angle, "rad", "a slew by 0 is no task")
+    largest = params.max_spin * RANGES["tf"][1] / 2     # 2 |Theta| / tf <= max_spin in the longest tf
+    if abs(angle) > largest:
+        raise ParameterError(f"slew_angle must be a finite number with |slew_angle| <= {largest:.5g} [rad] (a slew "
+                             f"in the longest tf, {RANGES['tf'][1]:g} s, within Params.max_spin), got {angle:g}")
     return Slew(angle, t_f)
 
 
 @register_scenario("slew")
 def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None, tolerances=None, task=None,
-          eq44=False, reference="task", **_) -> dict:
+          eq44=False, reference="task", budget="tau_max", **_) -> dict:
     """Rest-to-rest slew by ``task.angle`` in tf (default: the rigid-body angle of Eq. 44).
 
     Without an angle, ``Theta = tau_m t_f^2 / (2 pi J_total)`` with ``tau_m = tau_max``. The
@@ -363,7 +366,7 @@ def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None,
     theta = task.angle
     peak = 2 * abs(theta) / t_f            # the Eq. 44 profile's peak rigid rate for this angle
     if peak > params.max_spin:
-        what = f"tau_max = {tau_max:g} N m over tf = {t_f:g} s" if eq44 else f"a slew by {theta:g} rad in {t_f:g} s"
+        what = f"{budget} = {tau_max:g} N m over tf = {t_f:g} s" if eq44 else f"a slew by {theta:g} rad in {t_f:g} s"
         raise ParameterError(f"{what} spins the hub up to {peak:.4g} rad/s (2 Theta / tf), above "
                              f"Params.max_spin = {params.max_spin:.4g} rad/s (1 % centrifugal strain at the root)")
     shape = reference_shaping(theta, t_f, J, tau_max, first_mode(_design_point(params, 0.0, dt)),

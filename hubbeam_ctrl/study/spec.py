@@ -66,9 +66,10 @@ import numpy as np
 
 from controllers import CONTROLLERS, SHAPERS
 from controllers.scaling import Tolerances, default_tolerances
+from controllers.schedule import MAX_SCHEDULE_POINTS
 from hubbeam_ctrl.core.compiled import check_backend
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import read_toml
+from hubbeam_ctrl.core.fileio import path_exists, read_toml
 from hubbeam_ctrl.exact import require_exudyn
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
@@ -95,10 +96,12 @@ _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", 
 
 
 def _controller_list(value) -> tuple:
-    """``study.controllers`` (a list, or a comma-separated string) checked against the registry."""
-    items = value.split(",") if isinstance(value, str) else value
+    """``study.controllers`` (a list of names) checked against the registry; a string is refused
+    (``controllers = "openloop"`` for ``["openloop"]``), not read as a list."""
+    items = value
     if not isinstance(items, (list, tuple)):
-        raise ParameterError(f"study.controllers must be a list of names, got {value!r}")
+        raise ParameterError(f"study.controllers must be a list of names (controllers = [\"lqr\"]), "
+                             f"got {value!r}"[:200])
     names = tuple(str(c).strip().lower() for c in items if str(c).strip())
     bad = [n for n in names if n not in CONTROLLERS]
     if not names or bad or len(set(names)) != len(names):
@@ -416,6 +419,9 @@ class StudySpec:
 
     @classmethod
     def _from_tables(cls, data: dict) -> "StudySpec":
+        if not set(data) - {"_dir"}:
+            raise ParameterError("spec is empty: a study names at least its controllers ([study] controllers = "
+                                 "[\"lqr\"]; docs/studies.md)")
         extra = sorted(set(data) - {"study", "params", "settings", "grid", "random", "tune", "_dir"})
         if extra:
             raise ParameterError(f"spec: unknown table(s) {', '.join(extra)}; allowed: study, params, "
@@ -483,9 +489,10 @@ class StudySpec:
             raise ParameterError("settings must be a table of controller tables")
         if self.shaping is not None and self.shaping not in SHAPERS:
             raise ParameterError(f"study.shaping must be one of {', '.join(SHAPERS)}, got {self.shaping!r}")
-        if isinstance(self.schedule, bool) or not isinstance(self.schedule, int) or self.schedule < 1:
-            raise ParameterError(f"study.schedule must be an integer >= 1 (spin rates of the design schedule; "
-                                 f"1 = a single design), got {self.schedule!r}")
+        if isinstance(self.schedule, bool) or not isinstance(self.schedule, int) \
+                or not 1 <= self.schedule <= MAX_SCHEDULE_POINTS:
+            raise ParameterError(f"study.schedule must be an integer >= 1 and <= {MAX_SCHEDULE_POINTS} (spin rates "
+                                 f"of the design schedule; 1 = a single design), got {self.schedule!r}"[:300])
         if self.backend is not None:
             check_backend(self.backend, "study.backend")
         if self.tolerances is not None:
@@ -496,6 +503,10 @@ class StudySpec:
             if unknown:
                 raise ParameterError(f"study.tolerances: unknown field(s) {', '.join(unknown)}; allowed: "
                                      f"{', '.join(allowed)}")
+        for key in ("design_modes", "plant_modes"):
+            v = getattr(self, key)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_MODES):
+                raise ParameterError(f"study.{key} must be an integer in 1..{MAX_MODES}, got {v!r}")
         self._check_run_budget()                    # before the scenario: its reference spans t_end
         try:
             sc = self.scenario_for(self.params)
@@ -511,10 +522,6 @@ class StudySpec:
                     self.params.replace(**{name: v})
                 except ParameterError as exc:
                     raise ParameterError(f"grid.{name} = {v!r}: {exc}") from None
-        for key in ("design_modes", "plant_modes"):
-            v = getattr(self, key)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_MODES):
-                raise ParameterError(f"study.{key} must be an integer in 1..{MAX_MODES}, got {v!r}")
         self._check_size()
         self._check_samples()
 
@@ -542,7 +549,7 @@ class StudySpec:
         p = self.params
         modes = self.plant_modes if isinstance(self.plant_modes, int) else p.n_transverse
         n_q = 1 + p.n_axial + modes
-        steps = int(min(round(self.t_end / self.dt), 1e15))
+        steps = int(round(min(self.t_end / self.dt, 1e15)))      # t_end / dt may overflow to inf
         memory = 16.0 * (steps + 1) * (2 * n_q + 9)
         seconds = steps * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n_q / 11.0) ** 2
         what = f"study.t_end = {self.t_end:g} s at study.dt = {self.dt:g} s ({steps + 1:.6g} samples per run)"
@@ -715,7 +722,7 @@ def _spec_rig(value, folder=None):
             return rig_from_dict(value)
         if isinstance(value, str) and value.strip():
             path = Path(folder) / value if folder is not None and not Path(value).is_absolute() else Path(value)
-            return load_rig(str(path) if path.exists() else value)
+            return load_rig(str(path) if path_exists(path) else value)
     except ParameterError as exc:
         raise ParameterError(f"study.rig: {exc}") from None
     raise ParameterError(f"study.rig must name a rig file or a preset (servo_link, paper), got {value!r}"[:200])

@@ -43,7 +43,43 @@ from typing import ClassVar
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_finite, check_positive
 
-__all__ = ["Slew", "SpinUp", "TASKS"]
+__all__ = ["Slew", "SpinUp", "TASKS", "MIN_TARGET", "check_target"]
+
+#: Smallest size of a task's target, ``|angle|`` [rad] of a slew or ``|rate|`` [rad/s] of a
+#: spin-up: the task's scales (Bryson weights ~ 1 / angle^2, sensor noise, the yardstick's
+#: shortest time) degenerate below it (a Riccati equation without a solution at 1e-9 rad,
+#: an overflow at 1e-300, a division by zero at 0).
+MIN_TARGET = 1e-6
+
+
+def check_target(name: str, value, unit: str, what: str) -> float:
+    """Return ``float(value)``; raise unless it is a finite number with ``|value| >= MIN_TARGET``.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name as the caller spelled it (starts the message).
+    value : float
+        The slew angle [rad] or the spin-up's final rate [rad/s].
+    unit : str
+        Its unit (for the message).
+    what : str
+        What 0 would mean, for the message (``"a slew by 0 is no task"``).
+
+    Examples
+    --------
+    >>> check_target("rate", 1e-9, "rad/s", "a spin-up to rest is no task")
+    Traceback (most recent call last):
+    ...
+    hubbeam_ctrl.core.errors.ParameterError: rate must be a finite number with |rate| >= 1e-06 [rad/s], got 1e-09
+    """
+    value = check_finite(name, value, unit)
+    if value == 0.0:
+        raise ParameterError(f"{name} must be a finite number != 0 [{unit}] ({what}), got 0")
+    if abs(value) < MIN_TARGET:
+        raise ParameterError(f"{name} must be a finite number with |{name}| >= {MIN_TARGET:g} [{unit}], "
+                             f"got {value:g}")
+    return value
 
 
 def _shortest_message(name: str, t_min: float, what: str, got: float) -> str:
@@ -68,10 +104,7 @@ class Slew:
     name: ClassVar[str] = "slew"
 
     def __post_init__(self):
-        angle = check_finite("angle", self.angle, "rad")
-        if angle == 0.0:
-            raise ParameterError("angle must be a finite number != 0 [rad], got 0")
-        object.__setattr__(self, "angle", angle)
+        object.__setattr__(self, "angle", check_target("angle", self.angle, "rad", "a slew by 0 is no task"))
         object.__setattr__(self, "duration", check_positive("duration", self.duration, "s"))
 
     @property
@@ -189,7 +222,7 @@ class SpinUp:
     name: ClassVar[str] = "spinup"
 
     def __post_init__(self):
-        object.__setattr__(self, "rate", check_finite("rate", self.rate, "rad/s"))
+        object.__setattr__(self, "rate", check_target("rate", self.rate, "rad/s", "a spin-up to rest is no task"))
         object.__setattr__(self, "duration", check_positive("duration", self.duration, "s"))
 
     @property

@@ -52,6 +52,10 @@ FAILED_OBJECTIVE = 1.0
 #: Largest ``tune.maxiter`` and ``tune.popsize``, and most closed-loop runs one tuning may take.
 MAX_MAXITER, MAX_POPSIZE, MAX_TUNE_RUNS = 10_000, 1_000, 1_000_000
 
+#: Largest ``tune.decades``: the weights ``10^x`` searched stay within 1e-10..1e10 of the scaled
+#: defaults (far past any useful design; beyond it the optimiser's bounds overflow).
+MAX_DECADES = 10.0
+
 
 @dataclass(frozen=True)
 class TuneOptions:
@@ -68,7 +72,7 @@ class TuneOptions:
     angle_weight : float
         Penalty per unit of ``|final angle error| / angle scale`` [decades], >= 0.
     decades : float
-        Search ``x_k`` within this many decades of the scaled defaults, > 0.
+        Search ``x_k`` within this many decades of the scaled defaults, in (0, 10].
     maxiter : int
         Generations of differential evolution, >= 1.
     popsize : int
@@ -102,6 +106,9 @@ class TuneOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise ParameterError(f"tune.{name} must be a finite number > 0, got {v!r}")
+        if self.decades > MAX_DECADES:
+            raise ParameterError(f"tune.decades must be in (0, {MAX_DECADES:g}] (the weights searched within "
+                                 f"10^-decades..10^decades of the scaled defaults), got {self.decades:g}")
         for name, hi in (("maxiter", MAX_MAXITER), ("popsize", MAX_POPSIZE)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= hi:
