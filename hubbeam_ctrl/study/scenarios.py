@@ -381,6 +381,18 @@ def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None,
     if reference == "planned" or (reference == "task" and not eq44):
         planned = planned_slew_reference(params, theta, t_f, tau_max, dt, t_ref_end)
         parts.update(reference=planned, scale_reference=ref, description=f"{text}; {planned.description}")
+    elif reference == "task":
+        # the paper's Eq. 44 slew uses the whole torque limit at its peaks: the feedback designs
+        # follow a slew planned within the reference's share of it, which leaves them room to act
+        # without banging between the limits (issue 36)
+        share = (tolerances or Tolerances()).feedforward_share
+        try:
+            planned = planned_slew_reference(params, theta, t_f, share * tau_max, dt, t_ref_end)
+        except ParameterError:          # the share cannot turn the hub in t_f: the rigid reference
+            planned = None
+        if planned is not None:
+            parts.update(reference=planned, scale_reference=ref,
+                         description=f"{text}; {planned.description} within {share:g} x tau_max")
     return parts
 
 
