@@ -255,11 +255,12 @@ def test_cli_excite_and_identify(tmp_path, case, capsys):
                  "--out", str(tmp_path / "y")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "column theta has NaN at row 1" in err and "\n" not in err, err
-    # a fit that does not converge: the report with its last estimate, no calibrated rig, exit 1
+    # a fit that does not converge: the report with its last estimate, no calibrated rig, exit 2 naming --force
+    # (issue 38: a refusal to write is status 2; it was 1)
     code = main(["identify", str(tmp_path / "chirp.csv"), "--rig", str(tmp_path / "guess.toml"), "--fit", "E,J_h",
                  "--max-evaluations", "1", "--out", str(tmp_path / "nc")])
     err = capsys.readouterr().err
-    assert code == 1 and "did not converge" in err
+    assert code == 2 and "did not converge" in err and "--force" in err
     assert (tmp_path / "nc" / "report.md").exists() and not (tmp_path / "nc" / "rig.toml").exists()
     assert "did not converge" in (tmp_path / "nc" / "report.md").read_text()
 
@@ -275,7 +276,7 @@ def test_modal_table_fit_and_non_identifiable_warning(tmp_path):
     path = tmp_path / "modes.csv"
     path.write_text("spin [rad/s],mode [-],frequency [Hz],damping [-]\n"
                     + "".join(f"{w},{k},{float(f)!r},{float(z)!r}\n" for w, k, f, z in rows))
-    from hubbeam_ctrl.calibrate.fit import fit_modal_table, load_modal_table
+    from hubbeam_ctrl.calibrate.table import fit_modal_table, load_modal_table
     table = load_modal_table(path)
     res = fit_modal_table(guess, table, "E,m_t,damping", progress=False)
     assert res.converged
