@@ -13,16 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubbeam_ctrl.calibrate.fit import (
-    FitResult,
-    FitSettings,
-    _bounds,
-    _diagnose,
-    _least_squares,
-    _scales,
-    resolve_fields,
-    set_fields,
-)
+from hubbeam_ctrl.calibrate.fit import FitResult, FitSettings, resolve_fields, set_fields
+from hubbeam_ctrl.calibrate.solver import _bounds, _diagnose, _least_squares, _scales
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.rig import Rig
