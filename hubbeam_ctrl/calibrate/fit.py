@@ -600,8 +600,10 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
     # and a stage free to move it would leave it anywhere
     horizons = [h * period for h in settings.horizon_periods if h * period < 0.8 * longest] + [math.inf]
     slo, shi = lo / scale, hi / scale
-    if starts["won"] != "given":
-        slo, shi = np.maximum(slo, x / STAGE_BOUND), np.minimum(shi, x * STAGE_BOUND)
+    if starts["won"] != "given":               # the fields the frequency start placed
+        placed = np.array([f.name in starts["frequency response"]["fields"] for f in fit_fields]) & (x > 0)
+        slo = np.where(placed, np.maximum(slo, x / STAGE_BOUND), slo)
+        shi = np.where(placed, np.minimum(shi, x * STAGE_BOUND), shi)
     def run(x, staged):
         """The stages from ``x``: (solution, evaluations, stage reached, stages)."""
         stages = (horizons if staged else [math.inf]) + [math.inf] * settings.restarts
