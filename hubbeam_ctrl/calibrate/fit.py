@@ -19,9 +19,15 @@ At the solution, the Jacobian gives the covariance ``s^2 (J' J)^-1`` (``s^2`` th
 variance), the 95 % intervals and the correlations; a parameter is reported not identifiable
 when it has no effect on the sensors, when the scaled Jacobian is nearly rank-deficient
 (condition number above :data:`IDENTIFIABILITY_CONDITION`; the parameters of the weakest
-direction are named) or when its interval is wider than half its value. A fit that reaches
-its evaluation limit keeps the last estimate and says it did not converge
-(:attr:`FitResult.converged`).
+direction are named) or when its interval is wider than half its value.
+
+The defaults come from the records (issue 38): the plant's bending modes from the band
+they excite (:func:`~hubbeam_ctrl.calibrate.design.record_design`), the start from their
+frequency responses (:func:`~hubbeam_ctrl.calibrate.start.frequency_start`). A fit is
+``converged`` (:attr:`FitResult.status`) only when the optimiser stopped on its tolerance
+and every record's sensor is fitted within :attr:`FitSettings.floor_margin` of the ceiling
+its noise allows; otherwise the status says why ("not converged", "below the noise
+ceiling", "stopped at --max-wall") and the last (or best) estimate is kept.
 
 :func:`~hubbeam_ctrl.calibrate.table.fit_modal_table` fits the same fields to measured
 frequencies and damping ratios against spin rate and tip mass, by modal analysis.
@@ -524,8 +530,11 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
     Returns
     -------
     FitResult
-        With ``converged`` False (and the last estimate) when the optimiser stopped at its
-        evaluation limit.
+        ``converged`` False with the last (or best) estimate and ``status`` saying why when
+        the optimiser stopped at its evaluation limit or ``max_wall``, or the fit is below a
+        sensor's noise ceiling by more than ``floor_margin``; ``design``, ``ceiling``,
+        ``starts`` and ``model`` say what the records excite, the noise ceilings, the starts
+        tried (and which won) and the plant fitted.
     """
     settings = settings or FitSettings()
     if not isinstance(rig, Rig):
