@@ -307,3 +307,22 @@ def test_modal_table_fit_and_non_identifiable_warning(tmp_path):
     # E and I enter only as E I: the fit must say that they are not separately identifiable
     both = fit_modal_table(guess, table, "E,I", progress=False)
     assert any("not separately identifiable" in w and "E" in w and "I" in w for w in both.warnings), both.warnings
+
+
+def test_noise_ceiling_counts_the_encoder(case):
+    # issue 38: the ceiling a perfect model reaches, from the record alone; the encoder's rounding is not
+    # white where the angle moves slowly, so its level is at least q / sqrt(12)
+    from hubbeam_ctrl.calibrate.design import quantum, record_design
+    from hubbeam_ctrl.calibrate.fit import predict
+    guess, truth, (chirp, prbs, _) = case
+    sensors = ("theta", "root_moment")
+    design = record_design(guess, [chirp, prbs], [sensors] * 2)
+    q = 2 * np.pi / truth.sensors.encoder_counts
+    for rec in (chirp, prbs):
+        assert quantum(rec.columns["theta"]) == pytest.approx(q, rel=1e-6)
+        assert quantum(rec.columns["root_moment"]) == 0.0
+        assert design.noise[rec.source]["theta"] >= q / np.sqrt(12) * (1 - 1e-9)
+        assert design.noise[rec.source]["root_moment"] == pytest.approx(truth.sensors.strain_noise, rel=0.05)
+        y = predict(truth, rec, sensors, ModelSettings())
+        for s in sensors:
+            assert abs(fit_percent(rec.columns[s], y[s]) - design.ceiling[rec.source][s]) < 0.5, (rec.source, s)

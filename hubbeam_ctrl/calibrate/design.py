@@ -8,9 +8,10 @@ bending modes by the evaluation plant's rule
 beam below the band's top, plus the first above it) and names the modes whose frequency lies
 inside the band: those the records can identify.
 
-:func:`noise_level` estimates a sensor's white-noise standard deviation from its spectrum
-above the band (the median of the Welch power density there, where the response has
-little left but noise); :func:`fit_ceiling` turns it into the highest fit percentage
+:func:`noise_level` estimates a sensor's noise standard deviation from its spectrum above
+the band (the median of the Welch power density there, where the response has little left
+but noise), at least an encoder's quantisation ``q / sqrt(12)`` (:func:`quantum`);
+:func:`fit_ceiling` turns it into the highest fit percentage
 (:func:`~hubbeam_ctrl.calibrate.fit.fit_percent`) a perfect model can reach on that series,
 ``100 (1 - sigma sqrt(N) / ||y - mean(y)||)``.
 """
@@ -27,7 +28,8 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.evaluation import modes_to_cover
 
-__all__ = ["BAND_DB", "SHOW_DB", "RecordDesign", "excited_band", "noise_level", "fit_ceiling", "record_design"]
+__all__ = ["BAND_DB", "SHOW_DB", "quantum", "RecordDesign", "excited_band", "noise_level", "fit_ceiling",
+           "record_design"]
 
 #: The excited band starts where the input's power per octave is within this many dB of its peak.
 BAND_DB = 20.0
@@ -78,12 +80,41 @@ def excited_band(record: Record, sensors=None) -> tuple:
     return lo, max(hi, lo)
 
 
+def quantum(y) -> float:
+    """The quantisation step of a series whose values all lie on a grid (an encoder), else 0.
+
+    Parameters
+    ----------
+    y : array_like (N,)
+
+    Returns
+    -------
+    float
+        The grid's step [unit of y]: the smallest difference between two distinct values,
+        when every difference is a whole multiple of it and the series takes fewer than
+        ``N / 2`` distinct values; 0 otherwise.
+    """
+    v = np.unique(np.asarray(y, dtype=float))
+    if v.size < 2 or v.size > 0.5 * np.size(y):
+        return 0.0
+    d = np.diff(v)
+    q = float(d.min())
+    k = d / q
+    return q if np.all(np.abs(k - np.round(k)) < 1e-6 * max(1.0, float(k.max()))) else 0.0
+
+
 def noise_level(y, dt: float, f_above: float) -> float:
-    """White-noise standard deviation of a sensor series, from its spectrum above ``f_above``.
+    """Noise standard deviation of a sensor series: white noise from its spectrum above ``f_above``,
+    at least the quantisation's.
 
     The one-sided Welch power density of white noise of standard deviation ``sigma`` is
     ``2 sigma^2 dt``; its median over the frequencies above ``f_above`` (at least the top
-    half of the Nyquist band) is robust to the few resonances left there.
+    half of the Nyquist band) is robust to the few resonances left there. An encoder's
+    rounding error (step ``q``, :func:`quantum`) is not white where the angle moves slowly
+    (it stays on one count), so the spectrum sees only part of it: the level is at least
+    ``q / sqrt(12)``. Measured on the servo link's 6 s chirp (4096 counts): the spectrum
+    alone gave 0.22 mrad, the residual of the true rig is 0.40 mrad, ``q / sqrt(12)`` is
+    0.44 mrad.
 
     Parameters
     ----------
@@ -98,13 +129,13 @@ def noise_level(y, dt: float, f_above: float) -> float:
     float
         [the series' unit]; 0 for a series with no noise (it has no spectrum above the band).
     """
-    f, p = _welch(np.asarray(y, dtype=float), dt)
+    y = np.asarray(y, dtype=float)
+    f, p = _welch(y, dt)
     nyquist = 0.5 / dt
     lo = min(max(2.0 * f_above, 0.5 * nyquist), 0.9 * nyquist)
     band = p[(f >= lo) & (f < nyquist)]
-    if band.size == 0:
-        return 0.0
-    return float(math.sqrt(max(float(np.median(band)), 0.0) / (2.0 * dt)))
+    white = float(math.sqrt(max(float(np.median(band)), 0.0) / (2.0 * dt))) if band.size else 0.0
+    return max(white, quantum(y) / math.sqrt(12.0))
 
 
 def fit_ceiling(y, sigma: float) -> float:
