@@ -117,6 +117,10 @@ def run(args) -> int:
     sink = stdout(args)
     if bool(args.records) == bool(args.modal_table):
         raise ParameterError("identify needs records or --modal-table TABLE.csv (one of the two)")
+    if args.plant_modes is not None and not 1 <= args.plant_modes <= 20:
+        raise ParameterError(f"--plant-modes must be an integer in 1..20, got {args.plant_modes}")
+    if args.max_wall is not None and not args.max_wall > 0:
+        raise ParameterError(f"--max-wall must be > 0 [s], got {args.max_wall:g}")
     out = check_output_dir("--out", args.out)
     rig = load_rig(args.rig if args.rig is not None else args.params)
     fit_fields = resolve_fields(args.fit, rig)
@@ -130,10 +134,6 @@ def run(args) -> int:
         check_record_for_rig(rec, rig, sensors)
     for rec in validation:
         check_record_for_rig(rec, rig, sensors, "--validate")
-    if args.plant_modes is not None and not 1 <= args.plant_modes <= 20:
-        raise ParameterError(f"--plant-modes must be an integer in 1..20, got {args.plant_modes}")
-    if args.max_wall is not None and not args.max_wall > 0:
-        raise ParameterError(f"--max-wall must be > 0 [s], got {args.max_wall:g}")
     settings = FitSettings(model=ModelSettings(), plant_modes=args.plant_modes, max_evaluations=args.max_evaluations,
                            max_wall=args.max_wall)
     result = fit_rig(rig, records, [f.name for f in fit_fields], bounds=bounds, sensors=sensors, settings=settings,
