@@ -262,7 +262,7 @@ def _report(result, valid, series, written, np) -> str:
     else:
         lines += ["", "## Fit per record and sensor", "", "`100 (1 - ||y - y_model|| / ||y - mean(y)||)`", "",
                   "The noise ceiling is the fit a perfect model reaches with the record's noise (estimated from "
-                  "its spectrum above the excited band).", "",
+                  "its spectrum above the excited band, at least an encoder's rounding q / sqrt(12)).", "",
                   "| record | sensor | fit [%] | noise ceiling [%] | residual RMS |", "|---|---|---|---|---|"]
     for name, rec, y, fits in series:
         tag = " (validation)" if rec.source in valid else ""
