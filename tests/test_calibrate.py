@@ -200,6 +200,9 @@ def test_bad_fit_input_is_one_line(case):
         (lambda: fit_rig(guess, [chirp], "E", bounds={"E": (3e11, 1e11)}), "lo = 3e+11 > hi = 1e+11"),
         (lambda: fit_rig(guess, [Record(t=t, columns={"tau": chirp.input, "theta": chirp.columns["theta"]})], "E"),
          "give its voltage as V [V]"),
+        (lambda: FitSettings(plant_modes=0), "plant_modes must be an integer in 1..20 or None"),
+        (lambda: FitSettings(max_wall=-1.0), "max_wall must be in (0, 1e6] [s] or None, got -1.0"),
+        (lambda: FitSettings(floor_margin=-1.0), "floor_margin must be in [0, 100], got -1.0"),
     ]
     for call, message in cases:
         with pytest.raises(ParameterError) as exc:
