@@ -22,7 +22,9 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import load_rig
 
 T_RECORD = 2.0
-NO_RESTART = FitSettings(restarts=0)
+# the records are made by a 2-mode plant (the module docstring): the fit simulates the same (issue 38 made the
+# default the records' band, which counts the modes of the real beam and would model the records' own truncation)
+NO_RESTART = FitSettings(restarts=0, plant_modes=2)
 
 
 def _rigs():
@@ -100,8 +102,8 @@ def test_bad_start_converges_or_says_so(case):
     else:
         assert "did not converge" in res.message and res.warnings
     # with too few evaluations the fit keeps its last estimate and says it did not converge
-    short = fit_rig(start, [chirp], list(TRUE_NAMES), settings=FitSettings(max_evaluations=2, restarts=0),
-                    progress=False)
+    short = fit_rig(start, [chirp], list(TRUE_NAMES),
+                    settings=FitSettings(max_evaluations=2, restarts=0, plant_modes=2), progress=False)
     assert not short.converged and "did not converge" in short.message
     assert "not converge" in short.warnings[0]
     assert np.all(np.isfinite(short.estimate))
@@ -198,6 +200,9 @@ def test_bad_fit_input_is_one_line(case):
         (lambda: fit_rig(guess, [chirp], "E", bounds={"E": (3e11, 1e11)}), "lo = 3e+11 > hi = 1e+11"),
         (lambda: fit_rig(guess, [Record(t=t, columns={"tau": chirp.input, "theta": chirp.columns["theta"]})], "E"),
          "give its voltage as V [V]"),
+        (lambda: FitSettings(plant_modes=0), "plant_modes must be an integer in 1..20 or None"),
+        (lambda: FitSettings(max_wall=-1.0), "max_wall must be in (0, 1e6] [s] or None, got -1.0"),
+        (lambda: FitSettings(floor_margin=-1.0), "floor_margin must be in [0, 100], got -1.0"),
     ]
     for call, message in cases:
         with pytest.raises(ParameterError) as exc:
@@ -229,12 +234,22 @@ def test_cli_excite_and_identify(tmp_path, case, capsys):
     step = load_record(tmp_path / "step.csv")
     assert step.input_name == "V" and step.sensors == ()
     capsys.readouterr()
-    code = main(["identify", str(tmp_path / "chirp.csv"), "--rig", str(tmp_path / "guess.toml"), "--fit", "E,J_h",
-                 "--validate", str(tmp_path / "multi.csv"), "--out", str(tmp_path / "calib"), "--json"])
+    # E and J_h alone from the guess, whose damping (0.005) and Coulomb friction (0) are wrong: the model
+    # misses the root moment by tens of points, so no rig (issue 38: it used to be written), exit 2
+    argv = ["identify", str(tmp_path / "chirp.csv"), "--fit", "E,J_h", "--validate", str(tmp_path / "multi.csv"),
+            "--json", "--plant-modes", "2"]
+    code = main(argv + ["--rig", str(tmp_path / "guess.toml"), "--out", str(tmp_path / "wrong")])
+    cap = capsys.readouterr()
+    assert code == 2 and json.loads(cap.out)["status"] == "below the noise ceiling" and "--force" in cap.err
+    assert not (tmp_path / "wrong" / "rig.toml").exists()
+    # with only E and J_h wrong (the guess's), their fit reaches the noise floor: the rig is written
+    save_rig(truth.replace(beam=truth.beam.replace(E=guess.beam.E, J_h=guess.beam.J_h)), tmp_path / "guess.toml")
+    code = main(argv + ["--rig", str(tmp_path / "guess.toml"), "--out", str(tmp_path / "calib")])
     assert code == 0
     out = json.loads(capsys.readouterr().out)
     assert set(out["estimates"]) == {"E", "J_h"} and len(out["estimates"]["E"]["ci95"]) == 2
-    assert out["rig_written"] and (tmp_path / "calib" / "rig.toml").exists()
+    assert out["rig_written"] and (tmp_path / "calib" / "rig.toml").exists() and out["status"] == "converged"
+    assert out["plant_modes"] == 2 and next(iter(out["fit_ceiling_percent"].values()))["theta"] > 95
     assert "## Estimates" in (tmp_path / "calib" / "report.md").read_text()
     assert load_rig(tmp_path / "calib" / "rig.toml").beam.E == pytest.approx(out["estimates"]["E"]["estimate"])
     # bad input: exit 2, one line
@@ -255,11 +270,12 @@ def test_cli_excite_and_identify(tmp_path, case, capsys):
                  "--out", str(tmp_path / "y")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "column theta has NaN at row 1" in err and "\n" not in err, err
-    # a fit that does not converge: the report with its last estimate, no calibrated rig, exit 1
+    # a fit that does not converge: the report with its last estimate, no calibrated rig, exit 2 naming --force
+    # (issue 38: a refusal to write is status 2; it was 1)
     code = main(["identify", str(tmp_path / "chirp.csv"), "--rig", str(tmp_path / "guess.toml"), "--fit", "E,J_h",
                  "--max-evaluations", "1", "--out", str(tmp_path / "nc")])
     err = capsys.readouterr().err
-    assert code == 1 and "did not converge" in err
+    assert code == 2 and "did not converge" in err and "--force" in err
     assert (tmp_path / "nc" / "report.md").exists() and not (tmp_path / "nc" / "rig.toml").exists()
     assert "did not converge" in (tmp_path / "nc" / "report.md").read_text()
 
@@ -275,7 +291,7 @@ def test_modal_table_fit_and_non_identifiable_warning(tmp_path):
     path = tmp_path / "modes.csv"
     path.write_text("spin [rad/s],mode [-],frequency [Hz],damping [-]\n"
                     + "".join(f"{w},{k},{float(f)!r},{float(z)!r}\n" for w, k, f, z in rows))
-    from hubbeam_ctrl.calibrate.fit import fit_modal_table, load_modal_table
+    from hubbeam_ctrl.calibrate.table import fit_modal_table, load_modal_table
     table = load_modal_table(path)
     res = fit_modal_table(guess, table, "E,m_t,damping", progress=False)
     assert res.converged
@@ -294,3 +310,22 @@ def test_modal_table_fit_and_non_identifiable_warning(tmp_path):
     # E and I enter only as E I: the fit must say that they are not separately identifiable
     both = fit_modal_table(guess, table, "E,I", progress=False)
     assert any("not separately identifiable" in w and "E" in w and "I" in w for w in both.warnings), both.warnings
+
+
+def test_noise_ceiling_counts_the_encoder(case):
+    # issue 38: the ceiling a perfect model reaches, from the record alone; the encoder's rounding is not
+    # white where the angle moves slowly, so its level is at least q / sqrt(12)
+    from hubbeam_ctrl.calibrate.design import quantum, record_design
+    from hubbeam_ctrl.calibrate.fit import predict
+    guess, truth, (chirp, prbs, _) = case
+    sensors = ("theta", "root_moment")
+    design = record_design(guess, [chirp, prbs], [sensors] * 2)
+    q = 2 * np.pi / truth.sensors.encoder_counts
+    for rec in (chirp, prbs):
+        assert quantum(rec.columns["theta"]) == pytest.approx(q, rel=1e-6)
+        assert quantum(rec.columns["root_moment"]) == 0.0
+        assert design.noise[rec.source]["theta"] >= q / np.sqrt(12) * (1 - 1e-9)
+        assert design.noise[rec.source]["root_moment"] == pytest.approx(truth.sensors.strain_noise, rel=0.05)
+        y = predict(truth, rec, sensors, ModelSettings())
+        for s in sensors:
+            assert abs(fit_percent(rec.columns[s], y[s]) - design.ceiling[rec.source][s]) < 0.5, (rec.source, s)

@@ -19,12 +19,18 @@ At the solution, the Jacobian gives the covariance ``s^2 (J' J)^-1`` (``s^2`` th
 variance), the 95 % intervals and the correlations; a parameter is reported not identifiable
 when it has no effect on the sensors, when the scaled Jacobian is nearly rank-deficient
 (condition number above :data:`IDENTIFIABILITY_CONDITION`; the parameters of the weakest
-direction are named) or when its interval is wider than half its value. A fit that reaches
-its evaluation limit keeps the last estimate and says it did not converge
-(:attr:`FitResult.converged`).
+direction are named) or when its interval is wider than half its value.
 
-:func:`fit_modal_table` fits the same fields to measured frequencies and damping ratios
-against spin rate and tip mass (:class:`ModalTable`), by modal analysis.
+The defaults come from the records (issue 38): the plant's bending modes from the band
+they excite (:func:`~hubbeam_ctrl.calibrate.design.record_design`), the start from their
+frequency responses (:func:`~hubbeam_ctrl.calibrate.start.frequency_start`). A fit is
+``converged`` (:attr:`FitResult.status`) only when the optimiser stopped on its tolerance
+and every record's sensor is fitted within :attr:`FitSettings.floor_margin` of the ceiling
+its noise allows; otherwise the status says why ("not converged", "below the noise
+ceiling", "stopped at --max-wall") and the last (or best) estimate is kept.
+
+:func:`~hubbeam_ctrl.calibrate.table.fit_modal_table` fits the same fields to measured
+frequencies and damping ratios against spin rate and tip mass, by modal analysis.
 """
 
 from __future__ import annotations
@@ -38,24 +44,29 @@ import numpy as np
 
 from hubbeam_ctrl.calibrate.model import ModelSettings, _check_sensors, rig_sensors, simulate_sensors
 from hubbeam_ctrl.calibrate.records import Record
+from hubbeam_ctrl.calibrate.solver import (
+    IDENTIFIABILITY_CONDITION,
+    _bounds,
+    _diagnose,
+    _least_squares,
+    _scales,
+    check_bounds,
+)
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.core.progress import progress_bar
-from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.rig import RIG_TABLES, Rig
 
 __all__ = ["FitField", "FitSettings", "FitResult", "resolve_fields", "set_fields", "fit_rig", "fit_percent",
-           "predict", "validate_record", "ModalTable", "load_modal_table", "fit_modal_table", "FIT_ALIASES",
-           "IDENTIFIABILITY_CONDITION", "check_record_for_rig", "check_bounds", "MODAL_TABLE_COLUMNS"]
+           "predict", "validate_record", "FIT_ALIASES", "IDENTIFIABILITY_CONDITION", "check_record_for_rig",
+           "check_bounds"]
 
 #: Short names of ``--fit``: name -> (table, key, index or None).
 FIT_ALIASES = {"damping": ("damping", "ratios", 0), "friction": ("friction", "coulomb", None),
                "coulomb": ("friction", "coulomb", None), "viscous": ("friction", "viscous", None)}
-#: Condition number of the column-scaled Jacobian above which the fit warns that its
-#: parameters are not separately identifiable.
-IDENTIFIABILITY_CONDITION = 1e4
 _ATTR = {"beam": "beam", "motor": "drive", "friction": "friction", "damping": "damping", "sensors": "sensors",
          "timing": "timing"}
 _FITTABLE_TABLES = ("beam", "motor", "friction", "damping")
+#: After the frequency-response start, the short-horizon stages keep each field within this factor of it.
+STAGE_BOUND = 1.15
 _NAME = re.compile(r"^(?:(beam|motor|friction|damping)\.)?([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
 
 
@@ -221,7 +232,22 @@ class FitSettings:
     Attributes
     ----------
     model : ModelSettings
-        The simulated plant.
+        The simulated plant (its ``n_transverse`` is replaced by ``plant_modes``).
+    plant_modes : int or None
+        Bending modes of the fitted plant; None (default): from the records
+        (:func:`~hubbeam_ctrl.calibrate.design.record_design`: every mode of the guess below
+        the excited band's top, plus the first above it).
+    frequency_start : bool
+        Start from the records' frequency responses
+        (:func:`~hubbeam_ctrl.calibrate.start.frequency_start`) instead of the given rig
+        when they are coherent with the input (the given start's and this start's costs are
+        reported; the plant's modes are then counted on this start).
+    floor_margin : float
+        "Converged" needs every record's sensor fitted within this many points of its noise
+        ceiling (:func:`~hubbeam_ctrl.calibrate.design.fit_ceiling`) [%].
+    max_wall : float or None
+        Wall-time limit of the fit [s]: the optimiser stops, the best estimate so far is kept
+        and the result says "stopped at --max-wall".
     max_evaluations : int
         Most residual evaluations of the optimiser (each a simulation of every record; the
         Jacobian adds one per parameter).
@@ -254,8 +280,18 @@ class FitSettings:
     horizon_periods: tuple = (4.0, 12.0)
     restarts: int = 1
     warn_fit_percent: float = 90.0
+    plant_modes: int | None = None
+    frequency_start: bool = True
+    floor_margin: float = 1.0
+    max_wall: float | None = None
 
     def __post_init__(self):
+        pm = self.plant_modes
+        if pm is not None and (isinstance(pm, bool) or not isinstance(pm, int) or not 1 <= pm <= 20):
+            raise ParameterError(f"plant_modes must be an integer in 1..20 or None (from the records), got {pm!r}")
+        mw = self.max_wall
+        if mw is not None and (not isinstance(mw, (int, float)) or not 0 < mw <= 1e6):
+            raise ParameterError(f"max_wall must be in (0, 1e6] [s] or None, got {mw!r}")
         if not isinstance(self.max_evaluations, int) or not 1 <= self.max_evaluations <= 10000:
             raise ParameterError(f"max_evaluations must be an integer in 1..10000, got {self.max_evaluations!r}")
         if not isinstance(self.restarts, int) or not 0 <= self.restarts <= 10:
@@ -264,7 +300,7 @@ class FitSettings:
         if not isinstance(hp, tuple) or not all(isinstance(h, (int, float)) and 0.5 <= h <= 1e4 for h in hp):
             raise ParameterError(f"horizon_periods must be a tuple of numbers in [0.5, 10000], got {hp!r}")
         for name, lo, hi in (("tolerance", 1e-15, 0.1), ("difference_step", 1e-10, 0.1),
-                             ("warn_fit_percent", -1e9, 100.0)):
+                             ("warn_fit_percent", -1e9, 100.0), ("floor_margin", 0.0, 100.0)):
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or not lo <= v <= hi:
                 raise ParameterError(f"{name} must be in [{lo:g}, {hi:g}], got {v!r}")
@@ -295,6 +331,16 @@ class FitResult:
         Wall time of the fit [s].
     kind : str
         ``"records"`` or ``"modal_table"``.
+    design : RecordDesign or None
+        The excited band, the plant's modes and the noise floor (records only).
+    ceiling : dict
+        Record source -> sensor -> the fit ceiling the noise allows [%].
+    starts : dict
+        The starts tried: name -> ``{"values", "cost"}``, and ``"won"`` -> the name.
+    model : ModelSettings or None
+        The plant the fit simulated.
+    status : str
+        ``"converged"``, ``"not converged"``, ``"below the noise ceiling"`` or ``"stopped at --max-wall"``.
     """
 
     fields: list
@@ -310,6 +356,15 @@ class FitResult:
     rig: Rig
     wall_s: float
     kind: str = "records"
+    design: object = None
+    ceiling: dict = field(default_factory=dict)
+    starts: dict = field(default_factory=dict)
+    model: object = None
+    status: str = ""
+
+    def __post_init__(self):
+        if not self.status:
+            self.status = "converged" if self.converged else "not converged"
 
     @property
     def names(self) -> list:
@@ -330,17 +385,32 @@ class FitResult:
                                        "std": float(sd), "ci95": [float(lo), float(hi)]}
                               for f, s, e, sd, (lo, hi) in zip(self.fields, self.start, self.estimate, self.std, ci)},
                 "correlation": {"names": self.names, "matrix": np.round(self.correlation, 6).tolist()},
-                "fit_percent": self.fit, "warnings": list(self.warnings)}
+                "fit_percent": self.fit, "fit_ceiling_percent": self.ceiling, "status": self.status,
+                "starts": self.starts, "plant_modes": None if self.model is None else self.model.n_transverse,
+                "design": None if self.design is None else self.design.to_dict(), "warnings": list(self.warnings)}
 
     def summary(self) -> str:
         """Human-readable lines: estimates with intervals, fit per record and sensor, warnings."""
-        lines = [f"fit {'converged' if self.converged else 'DID NOT CONVERGE'}: {self.message} "
+        lines = [f"fit {'converged' if self.converged else self.status.upper()}: {self.message} "
                  f"({self.evaluations} evaluations, {self.wall_s:.1f} s)"]
+        if self.design is not None:
+            lines.append(f"  plant: {self.design.reason}" + ("" if self.model.n_transverse == self.design.plant_modes
+                                                              else f"; fitted with {self.model.n_transverse} modes"))
+        if "won" in self.starts:
+            tried = [k for k in ("given", "frequency response") if k in self.starts]
+            fits = self.starts.get("fits", {})
+            lines.append("  starts: " + ", ".join(f"{k} (cost {self.starts[k]['cost']:.4g})" for k in tried)
+                         + f"; fitted from {self.starts['won']}: "
+                         + ", ".join(f"{k} fit cost {v['cost']:.4g}" for k, v in fits.items())
+                         + (f"; the {self.starts['fit_won']} fit won" if len(fits) > 1 else ""))
         for f, s, e, (lo, hi) in zip(self.fields, self.start, self.estimate, self.interval):
             unit = "" if f.unit in ("", "-") else f" {f.unit}"
             lines.append(f"  {f.name:<12} {e:.6g}{unit}  95 % [{lo:.6g}, {hi:.6g}]  (start {s:.6g})")
         for src, per in self.fit.items():
-            lines.append(f"  fit {src}: " + ", ".join(f"{k} {v:.2f} %" for k, v in per.items()))
+            cap = self.ceiling.get(src, {})
+            lines.append(f"  fit {src}: " + ", ".join(f"{k} {v:.2f} %" + (f" (noise ceiling {cap[k]:.2f} %)"
+                                                                           if k in cap else "")
+                                                       for k, v in per.items()))
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -437,147 +507,6 @@ def validate_record(rig: Rig, record: Record, sensors=None, settings: ModelSetti
     return {s: fit_percent(record.columns[s], y[s]) for s in sensors}, y
 
 
-def check_bounds(fit_fields, bounds, option: str = "--bounds") -> tuple:
-    """The search bounds of the fitted fields: each field's range, narrowed by ``bounds``.
-
-    Parameters
-    ----------
-    fit_fields : sequence of FitField
-        The fitted fields (:func:`resolve_fields`).
-    bounds : dict or None
-        Field name (or path) -> ``(lo, hi)`` in the field's unit; each within the field's range.
-    option : str
-        The bounds' name as the caller spelled it (starts the messages).
-
-    Returns
-    -------
-    lo, hi : ndarray
-
-    Raises
-    ------
-    ParameterError
-        A name that is not fitted, bounds that are not finite, reversed, or outside the
-        field's range (refused, not clipped).
-    """
-    lo = np.array([f.lo for f in fit_fields])
-    hi = np.array([f.hi for f in fit_fields])
-    for name, pair in (bounds or {}).items():
-        k = next((i for i, f in enumerate(fit_fields) if name in (f.name, f.path)), None)
-        if k is None:
-            raise ParameterError(f"{option}: {name!r} is not a fitted field ({', '.join(f.name for f in fit_fields)})")
-        a, b = (float(v) for v in pair)
-        if not (math.isfinite(a) and math.isfinite(b)):
-            raise ParameterError(f"{option}: {name} bounds must be finite, got {a:g}:{b:g}")
-        if a > b:
-            raise ParameterError(f"{option}: {name} has lo = {a:g} > hi = {b:g}")
-        f = fit_fields[k]
-        if a < f.lo or b > f.hi:        # refused, not clipped: the fit would not search what was asked
-            raise ParameterError(f"{option}: {name} bounds {a:g}:{b:g} must lie within its range "
-                                 f"[{f.lo:g}, {f.hi:g}] [{f.unit}]")
-        lo[k], hi[k] = a, b
-    return lo, hi
-
-
-def _bounds(fit_fields, bounds, start, option="--bounds"):
-    lo, hi = check_bounds(fit_fields, bounds, option)
-    for k, f in enumerate(fit_fields):
-        if not lo[k] <= start[k] <= hi[k]:
-            raise ParameterError(f"{option}: the start of {f.name} ({start[k]:g}) is outside its bounds "
-                                 f"[{lo[k]:g}, {hi[k]:g}]")
-    return lo, hi
-
-
-def _scales(fit_fields, start, rig) -> np.ndarray:
-    out = []
-    for f, s in zip(fit_fields, start):
-        if s != 0.0:
-            out.append(abs(s))
-        elif f.table == "friction":
-            stall = rig.drive.stall_torque if not rig.drive.is_ideal else rig.beam.tau_max
-            out.append(0.01 * stall)
-        elif f.key == "ratios":
-            out.append(0.01)
-        else:
-            out.append(1.0)
-    return np.array(out)
-
-
-def _diagnose(J, scale, estimate, residual, fit_fields) -> tuple:
-    """Standard deviations, correlations and identifiability warnings from the Jacobian."""
-    m, p = J.shape
-    warnings = []
-    norms = np.linalg.norm(J, axis=0)
-    dead = norms <= 1e-12 * max(1.0, norms.max())
-    for k in np.nonzero(dead)[0]:
-        warnings.append(f"{fit_fields[k].name} is not identifiable from these records: it does not change "
-                        "the simulated sensors")
-    s2 = float(residual @ residual) / max(m - p, 1)
-    Jn = J[:, ~dead] / norms[~dead]
-    std = np.full(p, np.inf)
-    corr = np.full((p, p), np.nan)
-    if Jn.shape[1]:
-        u, sv, vt = np.linalg.svd(Jn, full_matrices=False)
-        cond = sv[0] / max(sv[-1], 1e-300)
-        cov_n = (vt.T / np.maximum(sv, 1e-300) ** 2) @ vt * s2
-        idx = np.nonzero(~dead)[0]
-        d = np.sqrt(np.diag(cov_n))
-        std[idx] = d / norms[~dead] * scale[idx]
-        corr[np.ix_(idx, idx)] = cov_n / np.outer(d, d)
-        if cond > IDENTIFIABILITY_CONDITION:
-            weak = vt[-1]
-            who = [fit_fields[idx[k]].name for k in np.argsort(-np.abs(weak)) if abs(weak[k]) > 0.3]
-            warnings.append(f"{', '.join(who)} are not separately identifiable from these records (condition "
-                            f"number {cond:.3g} of the scaled Jacobian): only a combination is determined")
-    for k, f in enumerate(fit_fields):
-        if not dead[k] and estimate[k] != 0 and 1.96 * std[k] > 0.5 * abs(estimate[k]):
-            warnings.append(f"{f.name} is poorly determined: its 95 % interval (+-{1.96 * std[k]:.3g}) is wider "
-                            f"than half its value")
-    return std, corr, warnings
-
-
-def _least_squares(residual_of, x0, lo, hi, n_params, settings, label, enabled, evals_per_call=1):
-    """SciPy's trf on a residual function with a forward-difference Jacobian and a progress bar."""
-    from scipy.optimize import least_squares
-
-    cache = {}
-    budget = settings.max_evaluations * (n_params + 1)
-    bar = progress_bar(budget, label, enabled=enabled)
-
-    def fun(x):
-        key = x.tobytes()
-        if key not in cache:
-            cache.clear()
-            cache[key] = residual_of(x)
-            bar.update(1)
-        return cache[key]
-
-    def jac(x):
-        r0 = fun(x)
-        J = np.empty((r0.size, x.size))
-        for k in range(x.size):
-            h = settings.difference_step * max(abs(x[k]), 1e-3)
-            xk = x.copy()
-            xk[k] = x[k] + h if x[k] + h <= hi[k] else x[k] - h
-            if settings.central and x[k] - h >= lo[k] and x[k] + h <= hi[k]:
-                xm = x.copy()
-                xm[k] = x[k] - h
-                J[:, k] = (residual_of(xk) - residual_of(xm)) / (2 * h)
-                bar.update(2)
-                continue
-            J[:, k] = (residual_of(xk) - r0) / (xk[k] - x[k])
-            bar.update(1)
-        return J
-
-    x0 = np.clip(x0, lo, hi)
-    tol = settings.tolerance
-    try:
-        sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
-                            max_nfev=settings.max_evaluations, ftol=tol, xtol=tol, gtol=tol)
-    finally:
-        bar.close()
-    return sol
-
-
 def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitSettings | None = None,
             progress: bool = True) -> FitResult:
     """Fit rig fields to records by least squares on the nonlinear plant with the hardware.
@@ -603,8 +532,11 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
     Returns
     -------
     FitResult
-        With ``converged`` False (and the last estimate) when the optimiser stopped at its
-        evaluation limit.
+        ``converged`` False with the last (or best) estimate and ``status`` saying why when
+        the optimiser stopped at its evaluation limit or ``max_wall``, or the fit is below a
+        sensor's noise ceiling by more than ``floor_margin``; ``design``, ``ceiling``,
+        ``starts`` and ``model`` say what the records excite, the noise ceilings, the starts
+        tried (and which won) and the plant fitted.
     """
     settings = settings or FitSettings()
     if not isinstance(rig, Rig):
@@ -624,10 +556,15 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
         for s, v in sp.items():
             if v == 0.0:
                 raise ParameterError(f"record {r.source}: sensor {s} is constant: nothing to fit")
+    from dataclasses import replace
+
+    from hubbeam_ctrl.calibrate.design import record_design
     from hubbeam_ctrl.calibrate.model import clamped_modes
-    period = 1.0 / float(clamped_modes(rig, 1)[0][0])
-    longest = max(r.duration for r in records)
-    horizons = [h * period for h in settings.horizon_periods if h * period < 0.8 * longest] + [math.inf]
+    from hubbeam_ctrl.calibrate.start import frequency_start
+    t0 = time.perf_counter()
+    deadline = math.inf if settings.max_wall is None else t0 + settings.max_wall
+    design = record_design(rig, records, used)
+    model = replace(settings.model, n_transverse=settings.plant_modes or design.plant_modes)
 
     def residual_function(recs):
         sp_k = [{s: float(np.linalg.norm(r.columns[s] - r.columns[s].mean())) or sp[s] for s in ss}
@@ -640,7 +577,7 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
                 trial = set_fields(rig, fit_fields, x * scale)
                 parts = []
                 for r, ss, sp in zip(recs, used, sp_k):
-                    y = predict(trial, r, ss, settings.model)
+                    y = predict(trial, r, ss, model)
                     parts += [(y[s] - r.columns[s]) / sp[s] for s in ss]
                 out = np.concatenate(parts)
                 return out if np.all(np.isfinite(out)) else failed
@@ -648,32 +585,105 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
                 return failed
         return residual_of
 
-    t0 = time.perf_counter()
-    x, evaluations = start / scale, 0
-    stages = horizons + [math.inf] * settings.restarts
-    cost = math.inf
-    for k, horizon in enumerate(stages):
-        recs = [r if r.duration <= horizon else r.window(r.t[0], r.t[0] + horizon) for r in records]
-        label = "fit" if len(stages) == 1 else f"fit {k + 1}/{len(stages)}"
-        trial = _least_squares(residual_function(recs), x, lo / scale, hi / scale, len(fit_fields), settings,
-                               label, progress)
-        evaluations += int(trial.nfev)
-        if k >= len(horizons):                  # a restart: kept only if it lowered the cost
-            if not trial.cost < cost * (1 - 1e-6):
+    whole = residual_function(records)
+    starts = {"given": {"values": start.tolist(), "cost": 0.5 * float(np.sum(whole(start / scale) ** 2))}}
+    x = start / scale
+    if settings.frequency_start:
+        fs = frequency_start(rig, records, used, fit_fields, start, lo, hi, design.band_hz, model.n_transverse)
+        if fs is not None:
+            xf = np.clip(fs.values / scale, lo / scale, hi / scale)
+            starts["frequency response"] = {"values": (xf * scale).tolist(),
+                                            "cost": 0.5 * float(np.sum(whole(xf) ** 2)),
+                                            "fields": list(fs.varied), "log_magnitude_rms": fs.misfit}
+            x = xf
+    # a whole-record cost does not rank starts whose oscillations slip against the records (both
+    # slip); the frequency responses do: their start is taken whenever there is one
+    starts["won"] = "frequency response" if "frequency response" in starts else "given"
+    start_rig = set_fields(rig, fit_fields, x * scale)
+    if starts["won"] != "given":                # the plant's modes from the start, not from the guess
+        design = record_design(start_rig, records, used)
+        model = replace(settings.model, n_transverse=settings.plant_modes or design.plant_modes)
+    period = 1.0 / float(clamped_modes(start_rig, 1)[0][0])
+    longest = max(r.duration for r in records)
+    # the short horizons guard a start whose oscillation slips against the records (a long PRBS slips
+    # even from a start 1 % off in E); after the frequency-response start the short stages may move each
+    # field only within STAGE_BOUND of it: the beginning of a log chirp holds little of the stiffness,
+    # and a stage free to move it would leave it anywhere
+    horizons = [h * period for h in settings.horizon_periods if h * period < 0.8 * longest] + [math.inf]
+    slo, shi = lo / scale, hi / scale
+    if starts["won"] != "given":               # the fields the frequency start placed
+        placed = np.array([f.name in starts["frequency response"]["fields"] for f in fit_fields]) & (x > 0)
+        slo = np.where(placed, np.maximum(slo, x / STAGE_BOUND), slo)
+        shi = np.where(placed, np.minimum(shi, x * STAGE_BOUND), shi)
+    def run(x, staged):
+        """The stages from ``x``: (solution, evaluations, stage reached, stages)."""
+        stages = (horizons if staged else [math.inf]) + [math.inf] * settings.restarts
+        n_main = len(stages) - settings.restarts
+        sol, cost, evaluations = None, math.inf, 0
+        for k, horizon in enumerate(stages):
+            recs = [r if r.duration <= horizon else r.window(r.t[0], r.t[0] + horizon) for r in records]
+            label = "fit" if len(stages) == 1 else f"fit {k + 1}/{len(stages)}"
+            final = math.isinf(horizon)
+            trial = _least_squares(residual_function(recs), x, lo / scale if final else slo,
+                                   hi / scale if final else shi, len(fit_fields), settings, label, progress,
+                                   deadline)
+            evaluations += int(trial.nfev)
+            if trial.status == -2:                  # --max-wall: the best point so far
+                return trial, evaluations, k, len(stages)
+            if k >= n_main and not trial.cost < cost * (1 - 1e-6):   # a restart that did not lower the cost
                 break
-        sol, x, cost = trial, trial.x, float(trial.cost)
+            sol, x, cost = trial, trial.x, float(trial.cost)
+        return sol, evaluations, k, len(stages)
+
+    def judge(sol):
+        est = sol.x * scale
+        trial_rig = set_fields(rig, fit_fields, est)
+        fits = {}
+        for r, ss in zip(records, used):
+            y = predict(trial_rig, r, ss, model)
+            fits[r.source or f"record {len(fits) + 1}"] = {s: fit_percent(r.columns[s], y[s]) for s in ss}
+        short = {(src, s): design.ceiling[src][s] - v for src, per in fits.items() for s, v in per.items()
+                 if not v >= design.ceiling[src][s] - settings.floor_margin}
+        return fits, short
+
+    # the plans: staged from the chosen start; after the frequency-response start, when the staged fit
+    # does not reach the noise floor, the whole records at once from it (a log chirp's first seconds hold
+    # little of the stiffness and the stages can leave it off): the lower cost wins
+    plans = [("staged", x, True)] + ([("whole records", x, False)] if starts["won"] != "given" else [])
+    evaluations, best = 0, None
+    for name, x0, staged in plans:
+        sol, n_ev, k, n_stages = run(x0, staged)
+        evaluations += n_ev
+        fits, short = judge(sol)
+        cost = 0.5 * float(np.sum(whole(sol.x) ** 2)) if sol.fun is not None else math.inf
+        starts.setdefault("fits", {})[name] = {"cost": cost, "values": (sol.x * scale).tolist()}
+        if best is None or cost < best[0]:
+            best = (cost, name, sol, fits, short, k, n_stages)
+        if (sol.status > 0 and not short) or sol.status == -2:
+            break
+    _, starts["fit_won"], sol, fits, short, k, n_stages = best
     estimate = sol.x * scale
-    converged = bool(sol.status > 0)
-    message = sol.message if converged else f"did not converge ({sol.message}); the last estimate is kept"
     calibrated = set_fields(rig, fit_fields, estimate)
-    std, corr, warnings = _diagnose(sol.jac, scale, estimate, sol.fun, fit_fields)
-    if not converged:
+    fun = sol.fun if sol.fun is not None else whole(sol.x)
+    std, corr, warnings = _diagnose(sol.jac, scale, estimate, fun, fit_fields) if sol.jac.size else (
+        np.full(len(fit_fields), np.inf), np.full((len(fit_fields),) * 2, np.nan), [])
+    if sol.status == -2:
+        status, converged = "stopped at --max-wall", False
+        message = (f"stopped at --max-wall ({settings.max_wall:g} s) in stage {k + 1} of {n_stages}; the best "
+                   "estimate so far is kept")
+    elif sol.status <= 0:
+        status, converged = "not converged", False
+        message = f"did not converge ({sol.message}); the last estimate is kept"
         warnings.insert(0, f"the fit did not converge in {settings.max_evaluations} evaluations; the last "
                            "estimate is kept and not checked")
-    fits = {}
-    for r, ss in zip(records, used):
-        y = predict(calibrated, r, ss, settings.model)
-        fits[r.source or f"record {len(fits) + 1}"] = {s: fit_percent(r.columns[s], y[s]) for s in ss}
+    elif short:
+        (src, s), gap = max(short.items(), key=lambda kv: kv[1])
+        status, converged = "below the noise ceiling", False
+        message = (f"the optimiser stopped ({sol.message}) but the fit of {s} on {src} is {gap:.2f} points below "
+                   f"the noise ceiling {design.ceiling[src][s]:.2f} % (more than {settings.floor_margin:g}): a "
+                   "local minimum or a model that lacks something")
+    else:
+        status, converged, message = "converged", True, sol.message
     for src, per in fits.items():
         for sensor, value in per.items():
             if not value >= settings.warn_fit_percent:
@@ -681,176 +691,5 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
                                 f"{settings.warn_fit_percent:g} %): a local minimum, a model that lacks something "
                                 "or a noisy sensor; check the plots before trusting the estimate")
     return FitResult(fit_fields, start, estimate, std, corr, converged, message, evaluations, fits, warnings,
-                     calibrated, time.perf_counter() - t0)
-
-
-# -- modal table ---------------------------------------------------------------------------
-
-#: Columns of a modal table: name -> unit.
-MODAL_TABLE_COLUMNS = {"spin": "rad/s", "m_t": "kg", "mode": "-", "frequency": "Hz", "damping": "-"}
-
-
-@dataclass(frozen=True)
-class ModalTable:
-    """Measured bending frequencies (and damping ratios) against spin rate and tip mass.
-
-    Parameters
-    ----------
-    spin : ndarray (K,)
-        Steady spin rate of each row [rad/s].
-    m_t : ndarray (K,)
-        Tip mass of each row [kg] (NaN: the rig's).
-    mode : ndarray of int (K,)
-        1-based bending mode.
-    frequency : ndarray (K,)
-        Measured frequency [Hz], > 0.
-    damping : ndarray (K,)
-        Measured damping ratio [-] (NaN: not measured).
-    """
-
-    spin: np.ndarray
-    m_t: np.ndarray
-    mode: np.ndarray
-    frequency: np.ndarray
-    damping: np.ndarray
-
-    def __post_init__(self):
-        n = len(np.atleast_1d(self.frequency))
-        for name in MODAL_TABLE_COLUMNS:
-            a = np.atleast_1d(np.asarray(getattr(self, name), dtype=float))
-            if a.shape != (n,):
-                raise ParameterError(f"modal table: column {name} has {a.size} values for {n} rows")
-            object.__setattr__(self, name, a)
-        if n == 0:
-            raise ParameterError("modal table: needs at least one row")
-        if not np.all(np.isfinite(self.frequency)) or np.any(self.frequency <= 0):
-            raise ParameterError("modal table: frequency [Hz] must be finite and > 0 in every row")
-        if not np.all(np.isfinite(self.spin)):
-            raise ParameterError("modal table: spin [rad/s] must be finite in every row")
-        if np.any(self.mode < 1) or np.any(self.mode != np.round(self.mode)):
-            raise ParameterError("modal table: mode must be an integer >= 1 in every row")
-        object.__setattr__(self, "mode", self.mode.astype(int))
-
-
-def load_modal_table(path) -> ModalTable:
-    """Read a modal table CSV (header ``spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]``;
-    ``m_t`` and ``damping`` optional).
-
-    Parameters
-    ----------
-    path : str or Path
-
-    Returns
-    -------
-    ModalTable
-    """
-    from hubbeam_ctrl.core.fileio import check_regular_file
-    path = check_regular_file(path, "modal table")
-    with open(path, encoding="utf-8") as fh:
-        header = fh.readline()
-        body = fh.read()
-    names = []
-    for item in header.strip().split(","):
-        m = re.match(r"^\s*(\w+)\s*\[([^\]]*)\]\s*$", item)
-        if not m or m.group(1) not in MODAL_TABLE_COLUMNS or m.group(2).strip() != MODAL_TABLE_COLUMNS[m.group(1)]:
-            raise ParameterError(f"modal table {path}: header item {item.strip()[:40]!r} is not one of "
-                                 + ", ".join(f"{k} [{u}]" for k, u in MODAL_TABLE_COLUMNS.items()))
-        names.append(m.group(1))
-    for need in ("spin", "mode", "frequency"):
-        if need not in names:
-            raise ParameterError(f"modal table {path}: needs a column {need} [{MODAL_TABLE_COLUMNS[need]}]")
-    try:
-        data = np.array([[float(c) for c in line.split(",")] for line in body.splitlines() if line.strip()])
-    except ValueError:
-        raise ParameterError(f"modal table {path}: a cell is not a number") from None
-    data = data.reshape(-1, len(names))
-    cols = {n: data[:, j] for j, n in enumerate(names)}
-    k = len(data)
-    return ModalTable(spin=cols["spin"], m_t=cols.get("m_t", np.full(k, np.nan)), mode=cols["mode"],
-                      frequency=cols["frequency"], damping=cols.get("damping", np.full(k, np.nan)))
-
-
-def _modal_predict(rig, table, n_modes, hub):
-    f_out = np.empty(len(table.frequency))
-    z_out = np.empty(len(table.frequency))
-    keys = {}
-    for k, (w, mt) in enumerate(zip(table.spin, table.m_t)):
-        keys.setdefault((float(w), float(mt)), []).append(k)
-    for (w, mt), rows in keys.items():
-        p = rig.plant_params.replace(n_transverse=n_modes, n_axial=2)
-        if not math.isnan(mt):
-            p = p.replace(m_t=mt)
-        r = modal_analysis("foam", w, hub, p)
-        for k in rows:
-            f_out[k] = r.bending_hz[table.mode[k] - 1]
-            z_out[k] = r.damping_ratios[table.mode[k] - 1]
-    return f_out, z_out
-
-
-def fit_modal_table(rig: Rig, table: ModalTable, fit, *, bounds=None, hub: str = "prescribed",
-                    settings: FitSettings | None = None, progress: bool = True) -> FitResult:
-    """Fit rig fields to measured frequencies and damping ratios by modal analysis (FOAM).
-
-    The residuals are the relative frequency errors ``f_model / f - 1`` and, where measured,
-    the damping errors ``(zeta_model - zeta) / zeta``.
-
-    Parameters
-    ----------
-    rig : Rig
-    table : ModalTable
-    fit : str or sequence of str
-    bounds : dict, optional
-    hub : {"prescribed", "free"}
-        Whether the measured modes are those of the held hub (clamped root turning at the
-        spin rate) or of the free hub.
-    settings : FitSettings, optional
-    progress : bool
-
-    Returns
-    -------
-    FitResult
-        ``fit`` holds the frequency (and damping) fit per mode as percentages of agreement.
-    """
-    settings = settings or FitSettings()
-    fit_fields = resolve_fields(fit, rig)
-    if hub not in ("prescribed", "free"):
-        raise ParameterError(f"hub must be 'prescribed' or 'free', got {hub!r}")
-    n_modes = int(min(20, table.mode.max() + 3))
-    start = np.array([f.get(rig) for f in fit_fields])
-    lo, hi = _bounds(fit_fields, bounds, start)
-    scale = _scales(fit_fields, start, rig)
-    has_z = np.isfinite(table.damping) & (table.damping > 0)
-    m = len(table.frequency) + int(has_z.sum())
-    if m < len(fit_fields):
-        raise ParameterError(f"modal table: {m} measured values cannot determine {len(fit_fields)} fields")
-
-    def residual_of(x):
-        try:
-            f, z = _modal_predict(set_fields(rig, fit_fields, x * scale), table, n_modes, hub)
-        except (HubbeamError, ParameterError, IndexError):
-            return np.full(m, 10.0)
-        return np.concatenate([f / table.frequency - 1.0, (z[has_z] - table.damping[has_z]) / table.damping[has_z]])
-
-    t0 = time.perf_counter()
-    sol = _least_squares(residual_of, start / scale, lo / scale, hi / scale, len(fit_fields), settings,
-                         "modal fit", progress)
-    estimate = sol.x * scale
-    converged = bool(sol.status > 0)
-    message = sol.message if converged else f"did not converge ({sol.message}); the last estimate is kept"
-    calibrated = set_fields(rig, fit_fields, estimate)
-    std, corr, warnings = _diagnose(sol.jac, scale, estimate, sol.fun, fit_fields)
-    f, z = _modal_predict(calibrated, table, n_modes, hub)
-    err = {f"mode {k} frequency error [%]": float(np.max(np.abs(f[table.mode == k] / table.frequency[table.mode == k]
-                                                                 - 1)) * 100) for k in np.unique(table.mode)}
-    worst = max(err.values())
-    if worst > 1.0:
-        warnings.append(f"the fitted model misses a measured frequency by {worst:.2f} % (more than 1 %): a field "
-                        "that should be fitted (e.g. damping, when damping ratios are in the table) or a model "
-                        "that lacks something; do not trust the estimate")
-    if has_z.any():
-        z_err = float(np.max(np.abs(z[has_z] / table.damping[has_z] - 1))) * 100
-        err["damping error [%]"] = z_err
-        if z_err > 20.0:
-            warnings.append(f"the fitted model misses a measured damping ratio by {z_err:.0f} % (more than 20 %)")
-    return FitResult(fit_fields, start, estimate, std, corr, converged, message, int(sol.nfev),
-                     {"modal table": err}, warnings, calibrated, time.perf_counter() - t0, kind="modal_table")
+                     calibrated, time.perf_counter() - t0, design=design, ceiling=design.ceiling, starts=starts,
+                     model=model, status=status)

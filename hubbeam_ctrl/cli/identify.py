@@ -8,8 +8,12 @@ Example::
 Writes into ``--out``: ``report.md`` (estimates with 95 % intervals, correlations, fit per
 record and sensor, residuals, warnings, measured-vs-model plots ``fit_<k>.png``),
 ``result.json`` and, only when the fit converged and the rig file reads back equal to the
-estimate, ``rig.toml``. A fit that does not converge keeps its last estimate in the report,
-writes no rig and exits with status 1.
+estimate, ``rig.toml``. "Converged" means the optimiser stopped on its tolerance and every
+record's sensor is fitted within a point of its noise ceiling (the fit a perfect model reaches
+with the record's noise). Otherwise the report keeps the last estimate and says why (not
+converged, below the noise ceiling by X points, stopped at ``--max-wall``), no rig is written
+unless ``--force`` is given, and the status is 2. The fitted plant's modes come from the
+records' excited band unless ``--plant-modes`` is given.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ def add_parser(subparsers, common) -> None:
     common : argparse.ArgumentParser
         Not used (the rig or parameter file holds the beam).
     """
-    from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty
+    from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty, real
 
     p = subparsers.add_parser(
         "identify", help="calibrate rig fields from measured records (least squares on FOAM with the hardware)",
@@ -54,8 +58,13 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--sensors", metavar="S1,S2", help="sensors to fit (default every rig sensor in the records)")
     p.add_argument("--max-evaluations", metavar="N", type=integer(), default=60,
                    help="most residual evaluations of the optimiser (default 60)")
-    p.add_argument("--plant-modes", metavar="N", type=integer(), default=2,
-                   help="bending modes of the simulated plant (default 2)")
+    p.add_argument("--plant-modes", metavar="N", type=integer(), default=None,
+                   help="bending modes of the simulated plant, 1..20 (default from the records: every mode of the "
+                        "guess below the excited band's top, plus the first above it)")
+    p.add_argument("--max-wall", metavar="SECONDS", type=real("s"), default=None,
+                   help="stop the fit after this wall time and keep its best estimate (the status says so)")
+    p.add_argument("--force", action="store_true",
+                   help="write the calibrated rig even when the fit did not converge to the records' noise floor")
     p.add_argument("--json", action="store_true", help="print each fitted field's estimate and interval as JSON")
     add_verbose(p)
     p.set_defaults(func=run)
@@ -109,12 +118,15 @@ def run(args) -> int:
     sink = stdout(args)
     if bool(args.records) == bool(args.modal_table):
         raise ParameterError("identify needs records or --modal-table TABLE.csv (one of the two)")
+    if args.plant_modes is not None and not 1 <= args.plant_modes <= 20:
+        raise ParameterError(f"--plant-modes (n_transverse) must be an integer in 1..20, got {args.plant_modes}")
+    if args.max_wall is not None and not args.max_wall > 0:
+        raise ParameterError(f"--max-wall must be > 0 [s], got {args.max_wall:g}")
     out = check_output_dir("--out", args.out)
     rig = load_rig(args.rig) if args.rig is not None else load_rig(args.params, "params")
     fit_fields = resolve_fields(args.fit, rig)
     bounds = _parse_bounds(args.bounds)
     check_bounds(fit_fields, bounds)                 # before the records are read and simulated
-    model = ModelSettings(n_transverse=args.plant_modes)
     if args.modal_table:
         return _run_modal_table(args, rig, fit_fields, bounds, out, sink)
     sensors = None if args.sensors is None else tuple(s.strip() for s in args.sensors.split(","))
@@ -124,20 +136,21 @@ def run(args) -> int:
         check_record_for_rig(rec, rig, sensors)
     for rec in validation:
         check_record_for_rig(rec, rig, sensors, "--validate")
-    settings = FitSettings(model=model, max_evaluations=args.max_evaluations)
+    settings = FitSettings(model=ModelSettings(), plant_modes=args.plant_modes, max_evaluations=args.max_evaluations,
+                           max_wall=args.max_wall)
     result = fit_rig(rig, records, [f.name for f in fit_fields], bounds=bounds, sensors=sensors, settings=settings,
                      progress=not args.json)
     valid = {}
     series = []
     for k, rec in enumerate(records):
         used = check_record_for_rig(rec, rig, sensors)
-        series.append((f"fit_{k + 1}.png", rec, predict(result.rig, rec, used, settings.model),
+        series.append((f"fit_{k + 1}.png", rec, predict(result.rig, rec, used, result.model),
                        result.fit[rec.source]))
     for k, rec in enumerate(validation):
-        fits, y = validate_record(result.rig, rec, sensors, settings.model)
+        fits, y = validate_record(result.rig, rec, sensors, result.model)
         valid[rec.source] = fits
         series.append((f"validate_{k + 1}.png", rec, y, fits))
-    rig_text = _checked_rig_text(result)
+    rig_text = _checked_rig_text(result, args.force)
     summary = result.to_dict()
     summary["validation_fit_percent"] = valid
     summary["rig_written"] = rig_text is not None
@@ -158,20 +171,29 @@ def run(args) -> int:
         for src, fits in valid.items():
             print(f"  validation {src}: " + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items()), file=sink)
         print(f"wrote {out}/report.md" + (f", {out}/rig.toml" if rig_text else " (no calibrated rig)"), file=sink)
-    if not result.converged:                 # the run failed (status 1), not bad input (2)
-        import sys
-        print(f"hubbeam: error: identify: the fit did not converge in {args.max_evaluations} evaluations; the "
-              f"last estimate is in {out}/report.md, no calibrated rig was written", file=sys.stderr)
-        return 1
-    return 0
+    return _refusal(result, out, rig_text is not None)
 
 
-def _checked_rig_text(result):
-    """The calibrated rig's TOML when the fit converged and the text reads back equal, else None."""
+def _refusal(result, out, written) -> int:
+    """Exit status: 0 when converged; else 2 with one line naming why and ``--force``."""
+    import sys
+    if result.converged:
+        return 0
+    if written:
+        print(f"hubbeam: warning: identify: {result.status}: {result.message}; {out}/rig.toml was written "
+              "because of --force", file=sys.stderr)
+        return 0
+    print(f"hubbeam: error: identify: {result.status}: {result.message}; no calibrated rig was written (--force "
+          f"writes it anyway); the last estimate is in {out}/report.md", file=sys.stderr)
+    return 2
+
+
+def _checked_rig_text(result, force=False):
+    """The calibrated rig's TOML when the fit converged (or ``force``) and the text reads back equal, else None."""
     import tomllib
 
     from hubbeam_ctrl.plant.rig import rig_from_dict, rig_to_toml
-    if not result.converged:
+    if not result.converged and not force:
         return None
     text = rig_to_toml(result.rig)
     if rig_from_dict(tomllib.loads(text)) == result.rig:
@@ -182,17 +204,17 @@ def _checked_rig_text(result):
 
 def _run_modal_table(args, rig, fit_fields, bounds, out, sink) -> int:
     """``identify --modal-table``: fit to measured frequencies by modal analysis."""
-    import sys
 
     import numpy as np
 
-    from hubbeam_ctrl.calibrate.fit import FitSettings, fit_modal_table, load_modal_table
+    from hubbeam_ctrl.calibrate.fit import FitSettings
+    from hubbeam_ctrl.calibrate.table import fit_modal_table, load_modal_table
     from hubbeam_ctrl.core.fileio import strict_json, write_folder
 
     table = load_modal_table(args.modal_table)
     result = fit_modal_table(rig, table, [f.name for f in fit_fields], bounds=bounds,
                              settings=FitSettings(max_evaluations=args.max_evaluations), progress=not args.json)
-    rig_text = _checked_rig_text(result)
+    rig_text = _checked_rig_text(result, args.force)
     summary = result.to_dict()
     summary["rig_written"] = rig_text is not None
 
@@ -203,18 +225,30 @@ def _run_modal_table(args, rig, fit_fields, bounds, out, sink) -> int:
             (folder / "rig.toml").write_text(rig_text, encoding="utf-8")
     write_folder(out, write, "--out")
     print(strict_json(summary) if args.json else result.summary(), file=sink)
-    if not result.converged:
-        print(f"hubbeam: error: identify: the fit did not converge; the last estimate is in {out}/report.md, "
-              "no calibrated rig was written", file=sys.stderr)
-        return 1
-    return 0
+    return _refusal(result, out, rig_text is not None)
 
 
 def _report(result, valid, series, written, np) -> str:
+    import math
     lines = ["# Calibration report", "",
-             f"Fit {'converged' if result.converged else '**did not converge**'}: {result.message} "
+             f"Fit {'converged' if result.converged else f'**{result.status}**'}: {result.message} "
              f"({result.evaluations} evaluations, {result.wall_s:.1f} s). "
-             + ("The calibrated rig is `rig.toml`." if written else "**No calibrated rig was written.**"), "",
+             + ("The calibrated rig is `rig.toml`." if written else "**No calibrated rig was written** (`--force` "
+                                                                   "writes it anyway)."), ""]
+    if result.design is not None:
+        lines += ["## Plant and starts", "", f"Plant: {result.design.reason}; fitted with "
+                  f"{result.model.n_transverse} modes.", ""]
+        for k in ("given", "frequency response"):
+            if k in result.starts:
+                v = result.starts[k]
+                lines.append(f"- start {k}: " + ", ".join(f"{f.name} = {x:.6g}" for f, x in zip(result.fields,
+                                                                                               v["values"]))
+                             + f" (whole-record cost {v['cost']:.4g})")
+        for k, v in result.starts.get("fits", {}).items():
+            lines.append(f"- fit {k} from the {result.starts['won']} start: cost {v['cost']:.4g}"
+                         + (" (won)" if k == result.starts.get("fit_won") else ""))
+        lines.append("")
+    lines += [
              "## Estimates (95 % intervals from the Jacobian)", "",
              "| name | field | start | estimate | 95 % interval | unit |", "|---|---|---|---|---|---|"]
     for f, s, e, (lo, hi) in zip(result.fields, result.start, result.estimate, result.interval):
@@ -229,12 +263,15 @@ def _report(result, valid, series, written, np) -> str:
         lines += [f"| {k} | {v:.4f} |" for k, v in result.fit.get("modal table", {}).items()]
     else:
         lines += ["", "## Fit per record and sensor", "", "`100 (1 - ||y - y_model|| / ||y - mean(y)||)`", "",
-                  "| record | sensor | fit [%] | residual RMS |", "|---|---|---|---|"]
+                  "The noise ceiling is the fit a perfect model reaches with the record's noise (estimated from "
+                  "its spectrum above the excited band, at least an encoder's rounding q / sqrt(12)).", "",
+                  "| record | sensor | fit [%] | noise ceiling [%] | residual RMS |", "|---|---|---|---|---|"]
     for name, rec, y, fits in series:
         tag = " (validation)" if rec.source in valid else ""
         for s, v in fits.items():
             rms = float(np.sqrt(np.mean((rec.columns[s] - y[s]) ** 2)))
-            lines.append(f"| {rec.source}{tag} | {s} | {v:.2f} | {rms:.4g} |")
+            cap = result.ceiling.get(rec.source, {}).get(s, math.nan) if not tag else math.nan
+            lines.append(f"| {rec.source}{tag} | {s} | {v:.2f} | {cap:.2f} | {rms:.4g} |")
     if result.warnings:
         lines += ["", "## Warnings", ""] + [f"- {w}" for w in result.warnings]
     if series:

@@ -26,7 +26,8 @@ from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.plant.modal import converged_bending_hz
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 
-__all__ = ["EXTRA_MODES", "PLANT_MODELS", "EvaluationPlant", "default_plant_modes", "evaluation_plant"]
+__all__ = ["EXTRA_MODES", "PLANT_MODELS", "EvaluationPlant", "default_plant_modes", "evaluation_plant",
+           "modes_to_cover"]
 
 #: The default evaluation plant has at least this many more transverse modes than the design.
 EXTRA_MODES = 3
@@ -72,6 +73,33 @@ def _check_modes(name: str, value, lo: int) -> int:
     return int(value)
 
 
+def modes_to_cover(params: Params, f_hz: float, spin: float = 0.0) -> tuple:
+    """The plant-mode rule: every bending mode below ``f_hz`` plus the first one above it.
+
+    Parameters
+    ----------
+    params : Params
+        Physical parameters (the mode counts are ignored).
+    f_hz : float
+        The frequency to cover [Hz], > 0 (a sampling frequency, an excitation band's top).
+    spin : float
+        Spin rate of the modal analysis [rad/s].
+
+    Returns
+    -------
+    n : int
+        ``(modes below f_hz) + 1``, at most :data:`~hubbeam_ctrl.plant.params.MAX_MODES`.
+    below : int
+        Modes below ``f_hz``.
+    f : ndarray
+        The converged free-hub bending frequencies [Hz]
+        (:func:`~hubbeam_ctrl.plant.modal.converged_bending_hz`).
+    """
+    f = converged_bending_hz(params, float(spin))
+    below = int(np.sum(f < check_positive("f_hz", f_hz, "Hz")))
+    return min(below + 1, MAX_MODES), below, f
+
+
 def default_plant_modes(params: Params, dt: float, design_modes: int, spin: float = 0.0):
     """Transverse modes of the default evaluation plant, and why.
 
@@ -101,8 +129,7 @@ def default_plant_modes(params: Params, dt: float, design_modes: int, spin: floa
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
     fs = 1.0 / check_positive("dt", dt, "s")
     design_modes = _check_modes("design_modes", design_modes, 1)
-    f = converged_bending_hz(params, float(spin))
-    below = int(np.sum(f < fs))
+    _, below, f = modes_to_cover(params, fs, spin)
     n = max(design_modes + EXTRA_MODES, below + 1)
     count = f"{below}" if below < MAX_MODES else f"at least {below}"
     reason = (f"{count} bending modes lie below the {fs:g} Hz sampling frequency; the plant keeps "
