@@ -30,7 +30,9 @@ def add_parser(subparsers, common) -> None:
                      "condensed) by Radau collocation with IPOPT and checked on an evaluation plant with "
                      "3 more bending modes. With --duration: the slew in that time with the smallest "
                      "residual vibration. Prints the duration, the rigid bang-bang bound "
-                     "2 sqrt(Theta J / tau_max) and the residuals."))
+                     "2 sqrt(Theta J / tau_max) (on a rig's DC drive: the bang-bang within its voltage limit "
+                     "through back-EMF, current limit and friction) and the residuals. Exits 1 with one line "
+                     "if IPOPT does not converge."))
     p.add_argument("--slew-angle", metavar="RAD", type=real("rad"), required=True, help="slew angle [rad], not 0")
     p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
                    help="a rig file or preset (servo_link, paper): its beam, and with a DC motor the voltage "
@@ -80,13 +82,27 @@ def run(args) -> int:
                                name="--duration")
     if args.json:
         print(strict_json(r.to_dict()), file=sink)
-        return 0
+        return _not_converged(r)
     plant = (f"{r.residual_plant:.4g} m on the evaluation plant ({r.plant})" if r.residual_plant is not None
              else "not checked on an evaluation plant")
-    print(f"{r.kind} slew by {r.slew_angle:g} rad with tau_max = {params.tau_max:g} N m: "
+    drive = (" within the DC drive's voltage (back-EMF), current and friction" if rig is not None
+             and not rig.drive.is_ideal else "")
+    print(f"{r.kind} slew by {r.slew_angle:g} rad with tau_max = {params.tau_max:g} N m{drive}: "
           f"{r.duration_s:.4f} s = {r.ratio:.4f} x the rigid bang-bang bound {r.rigid_bound_s:.4f} s", file=sink)
     print(f"  residual tip vibration {r.residual_design:.4g} m on the design model ({r.design}); {plant}; "
           f"tolerance {r.tolerance:.4g} m", file=sink)
     state = "converged" if r.converged else "DID NOT CONVERGE"
     print(f"  IPOPT {state} ({r.message}) in {r.iterations} iterations, {r.solve_s:.1f} s", file=sink)
-    return 0
+    return _not_converged(r)
+
+
+def _not_converged(r) -> int:
+    """0, or 1 with one line on stderr when IPOPT stopped before converging (the duration printed is
+    then not the optimum: issue 36)."""
+    if r.converged:
+        return 0
+    import sys
+    status = r.message.split(";")[0]
+    print(f"hubbeam: error: optimal: IPOPT did not converge ({status} after {r.iterations} iterations): "
+          f"{r.duration_s:.4g} s is its last iterate, not the {r.kind} slew's duration", file=sys.stderr)
+    return 1
