@@ -99,3 +99,20 @@ def test_optimal_that_does_not_converge_exits_1_in_one_line(monkeypatch, capsys)
     out, err = capsys.readouterr()
     assert "IPOPT converged" in out and err == ""
     assert np.isfinite(float(out.split(" s = ")[0].split()[-1]))
+
+
+def test_compare_yardstick_on_a_dc_drive_is_the_drive_bound():
+    """The rigid yardstick of a comparison on a rig with a DC motor is the drive's bang-bang (longer
+    than the constant-torque bound); on an ideal rig, a spin-up, or without a rig it is unchanged."""
+    from hubbeam_ctrl.study.scenarios import make_scenario
+    from hubbeam_ctrl.study.yardstick import DRIVE_BOUND, rigid_limit, task_limit
+    rig = load_rig("servo_link")
+    p = rig.plant_params
+    sc = make_scenario("slew", params=p, t_f=0.6, dt=rig.timing.dt, slew_angle=math.pi / 2, t_end=None)
+    lim = task_limit(sc, "rigid", rig)
+    assert lim["limit_kind"] == DRIVE_BOUND
+    assert lim["limit_s"] == pytest.approx(rigid_bound(p, math.pi / 2, rig), rel=1e-12)
+    assert lim["limit_s"] == pytest.approx(0.15687, rel=1e-4) and rigid_limit(sc) == pytest.approx(0.13295, rel=1e-4)
+    assert task_limit(sc, "rigid") == {"limit_s": rigid_limit(sc), "limit_kind": "rigid bound"}
+    spin = make_scenario("spinup", params=p, t_f=0.6, dt=rig.timing.dt, w_f=5.0, t_end=None)
+    assert task_limit(spin, "rigid", rig)["limit_kind"] == "rigid bound"

@@ -157,3 +157,63 @@ def test_compare_derives_t_end_from_a_long_task(tmp_path, capsys, fast_backend):
     assert c.results["openloop"].t[-1] == pytest.approx(120.0)
     short = compare("foam", "slew", "openloop", t_f=5.0).scenario    # the window is the longer: 20.55 s
     assert short.t_end == task_t_end(short) == pytest.approx(5.0 + 2.5 + 6 * 2.175, abs=0.01)
+
+
+#: ``hubbeam design``: a valid value other than the default for each option (choices: from the parser).
+DESIGN_SAMPLES = {"--params": "DAMPED", "--tip-mass": "0.2", "--tip-position": "7.5", "--n-modes": "4",
+                  "--slew-angle": "1", "--tf": "8", "--wf": "2", "--payload-range": "0,0.5", "--dt": "0.005",
+                  "--rig": "servo_link", "--design-modes": "1", "--tau-max": "150", "--out": "OTHER.json"}
+
+
+def _design_run(words, capsys, out):
+    """``(exit status, what it printed and saved)`` of ``hubbeam design``; the output path left out."""
+    from pathlib import Path
+    try:
+        status = main(["design", *words])
+    except SystemExit as exc:                 # argparse
+        status = exc.code
+    printed = capsys.readouterr()
+    saved = Path(out).read_bytes() if status == 0 and Path(out).exists() else b""
+    return status, printed.out.replace(str(out), "OUT"), saved, printed.err
+
+
+def test_every_design_option_acts_or_is_refused(tmp_path, files, capsys):
+    """``hubbeam design --controller lqr`` (the slew): each option of its parser changes what is
+    saved or printed, or exits 2 in one line naming it and what it conflicts with; --payload-range
+    (the one slow option, 8 s) with LQR designs for the range, with PD it is refused (it was
+    silently ignored)."""
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    design = sub.choices["design"]
+    out = tmp_path / "lqr.json"
+    files = dict(files, **{"OTHER.json": str(tmp_path / "other.json")})
+    base = ["--controller", "lqr", "--n-modes", "2", "--out", str(out)]
+    reference = _design_run(base, capsys, out)
+    assert reference[0] == 0
+    for action in design._actions:
+        if not action.option_strings or set(action.option_strings) & ENTRY_POINT:
+            continue
+        option = max(action.option_strings, key=len)
+        if option == "--controller":          # the mode
+            continue
+        if action.nargs == 0:
+            words = [option]
+        elif action.choices is not None:
+            words = [option, next(c for c in action.choices if c != action.default)]
+        else:
+            assert option in DESIGN_SAMPLES, f"design {option} has no sample value: add one to DESIGN_SAMPLES"
+            words = [option, files.get(DESIGN_SAMPLES[option], DESIGN_SAMPLES[option])]
+        target = tmp_path / "other.json" if option == "--out" else out
+        for path in (out, target):
+            path.unlink(missing_ok=True)
+        status, printed, saved, err = _design_run(base + words, capsys, target)
+        if option == "--out":                 # acts by writing there
+            assert status == 0 and saved == reference[2] and not out.exists()
+            continue
+        if status != 0:
+            assert status == 2 and err.count("\n") == 1 and option in err, (option, err)
+            assert {w for w in err.replace("(", " ").split() if w.startswith("--")} - {option}, err
+            continue
+        assert (printed, saved) != reference[1:3], f"design {' '.join(words)} accepted and ignored"
+    status, _, _, err = _design_run(["--controller", "pd", "--payload-range", "0,0.5", "--out", str(out)], capsys, out)
+    assert status == 2 and "--payload-range does not apply to --controller pd (only to lqr, lqg)" in err
