@@ -217,3 +217,35 @@ def test_every_design_option_acts_or_is_refused(tmp_path, files, capsys):
         assert (printed, saved) != reference[1:3], f"design {' '.join(words)} accepted and ignored"
     status, _, _, err = _design_run(["--controller", "pd", "--payload-range", "0,0.5", "--out", str(out)], capsys, out)
     assert status == 2 and "--payload-range does not apply to --controller pd (only to lqr, lqg)" in err
+
+
+#: ``hubbeam optimal``: its modes and a value other than the default for each option.
+OPTIMAL_MODES = {"time-optimal": [], "min-vibration": ["--duration", "3"], "rig": ["--rig", "servo_link"]}
+OPTIMAL_SAMPLES = {"--params": "DAMPED", "--tip-mass": "0.2", "--tip-position": {"rig": "0.3", None: "7.5"},
+                   "--n-modes": "4", "--rig": "servo_link", "--tolerance": "0.002", "--duration": "4",
+                   "--intervals": "24"}
+
+
+@pytest.mark.parametrize("mode", list(OPTIMAL_MODES))
+def test_every_optimal_option_acts_or_is_refused(mode, files):
+    """``hubbeam optimal``'s options, walked at the level where they become the run's values
+    (:func:`hubbeam_ctrl.cli.optimal.optimal_plan`), in each of its modes."""
+    from hubbeam_ctrl.cli.optimal import optimal_plan
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    base = ["optimal", "--slew-angle", "1", *OPTIMAL_MODES[mode]]
+    reference = optimal_plan(parser.parse_args(base))
+    for action in sub.choices["optimal"]._actions:
+        option = max(action.option_strings, key=len, default="")
+        if not option or option in ENTRY_POINT or option in base:
+            continue
+        sample = OPTIMAL_SAMPLES.get(option)
+        sample = sample.get(mode, sample[None]) if isinstance(sample, dict) else sample
+        assert action.nargs == 0 or sample is not None, f"optimal {option} has no sample value"
+        words = [option] if action.nargs == 0 else [option, files.get(sample, sample)]
+        try:
+            plan = optimal_plan(parser.parse_args(base + words))
+        except ParameterError as exc:
+            assert option in str(exc) and str(exc).count("--") >= 2, (mode, option, str(exc))
+            continue
+        assert plan != reference, f"optimal {mode}: {' '.join(words)} accepted and ignored"

@@ -8,7 +8,7 @@ Example::
 
 from __future__ import annotations
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "optimal_plan"]
 
 
 def add_parser(subparsers, common) -> None:
@@ -58,23 +58,15 @@ def run(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from hubbeam_ctrl.cli.args import params_from_args, rig_from_args, stdout
+    from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.core.fileio import strict_json
-    from hubbeam_ctrl.core.validation import check_finite, check_positive
-    from hubbeam_ctrl.limit import OptimalSettings, min_vibration_slew, time_optimal_slew
+    from hubbeam_ctrl.limit import min_vibration_slew, time_optimal_slew
 
     sink = stdout(args)
-    angle = check_finite("--slew-angle", args.slew_angle, "rad")
-    tolerance = None if args.tolerance is None else check_positive("--tolerance", args.tolerance, "m")
-    if args.duration is not None:
-        check_positive("--duration", args.duration, "s")
-    rig = rig_from_args(args)
-    params = rig.plant_params if rig is not None else params_from_args(args)
-    source = rig if rig is not None else params
-    changes = {"check": not args.no_check}
-    if args.intervals is not None:
-        changes["intervals"] = args.intervals
-    settings = OptimalSettings(**changes)
+    plan = optimal_plan(args)
+    source, angle, tolerance, settings = (plan[k] for k in ("source", "slew_angle", "tolerance", "settings"))
+    rig = source if plan["rig"] else None
+    params = source.plant_params if rig is not None else source
     if args.duration is None:
         r = time_optimal_slew(source, angle, tolerance=tolerance, settings=settings)
     else:
@@ -94,6 +86,37 @@ def run(args) -> int:
     state = "converged" if r.converged else "DID NOT CONVERGE"
     print(f"  IPOPT {state} ({r.message}) in {r.iterations} iterations, {r.solve_s:.1f} s", file=sink)
     return _not_converged(r)
+
+
+def optimal_plan(args) -> dict:
+    """``hubbeam optimal``'s command line as the values of the run, each option checked.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    dict
+        ``source`` (Params or Rig), ``rig`` (bool), ``slew_angle`` [rad], ``tolerance`` [m] (None:
+        the default), ``duration`` [s] (None: time-optimal), ``settings`` (OptimalSettings), ``json``.
+    """
+    from hubbeam_ctrl.cli.args import params_from_args, rig_from_args
+    from hubbeam_ctrl.core.validation import check_finite, check_positive
+    from hubbeam_ctrl.limit import OptimalSettings
+
+    angle = check_finite("--slew-angle", args.slew_angle, "rad")
+    tolerance = None if args.tolerance is None else check_positive("--tolerance", args.tolerance, "m")
+    if args.duration is not None:
+        check_positive("--duration", args.duration, "s")
+    rig = rig_from_args(args)
+    changes = {"check": not args.no_check}
+    if args.intervals is not None:
+        changes["intervals"] = args.intervals
+    return {"source": rig if rig is not None else params_from_args(args), "rig": rig is not None,
+            "slew_angle": angle, "tolerance": tolerance, "duration": args.duration,
+            "settings": OptimalSettings(**changes), "json": args.json}
 
 
 def _not_converged(r) -> int:
