@@ -159,64 +159,81 @@ def test_compare_derives_t_end_from_a_long_task(tmp_path, capsys, fast_backend):
     assert short.t_end == task_t_end(short) == pytest.approx(5.0 + 2.5 + 6 * 2.175, abs=0.01)
 
 
-#: ``hubbeam design``: a valid value other than the default for each option (choices: from the parser).
-DESIGN_SAMPLES = {"--params": "DAMPED", "--tip-mass": "0.2", "--tip-position": "7.5", "--n-modes": "4",
-                  "--slew-angle": "1", "--tf": "8", "--wf": "2", "--payload-range": "0,0.5", "--dt": "0.005",
-                  "--rig": "servo_link", "--design-modes": "1", "--tau-max": "150", "--out": "OTHER.json"}
+#: ``hubbeam design`` and ``codegen``: a valid value other than the default for each option
+#: (choices: from the parser).
+RUN_SAMPLES = {"--params": "DAMPED", "--tip-mass": "0.2", "--tip-position": "7.5", "--n-modes": "4",
+               "--slew-angle": "1", "--tf": "8", "--wf": "2", "--payload-range": "0,0.5", "--dt": "0.005",
+               "--rig": "servo_link", "--design-modes": "1", "--tau-max": "150", "--controller": "pd"}
 
 
-def _design_run(words, capsys, out):
-    """``(exit status, what it printed and saved)`` of ``hubbeam design``; the output path left out."""
+def _run(command, words, capsys, out):
+    """``(exit status, printed, saved, stderr)`` of a command writing to ``out`` (a file or a
+    folder), the path replaced in what it printed and saved (MANIFEST.json left out: its hashes)."""
     from pathlib import Path
     try:
-        status = main(["design", *words])
+        status = main([command, *words])
     except SystemExit as exc:                 # argparse
         status = exc.code
     printed = capsys.readouterr()
-    saved = Path(out).read_bytes() if status == 0 and Path(out).exists() else b""
+    out = Path(out)
+    files = sorted(out.iterdir()) if out.is_dir() else [out] if out.exists() else []
+    saved = {f.name if out.is_dir() else "out": f.read_bytes().replace(str(out).encode(), b"OUT")
+             for f in files if f.name != "MANIFEST.json"}
     return status, printed.out.replace(str(out), "OUT"), saved, printed.err
 
 
-def test_every_design_option_acts_or_is_refused(tmp_path, files, capsys):
-    """``hubbeam design --controller lqr`` (the slew): each option of its parser changes what is
-    saved or printed, or exits 2 in one line naming it and what it conflicts with; --payload-range
-    (the one slow option, 8 s) with LQR designs for the range, with PD it is refused (it was
-    silently ignored)."""
+def _walk_runs(command, base, out_name, tmp_path, files, capsys, skip=("--controller",)):
+    """Run ``command`` with ``base`` and with each of its parser's options added: each must change what
+    is printed or saved, or exit 2 in one line naming it and what it conflicts with."""
     parser = build_parser()
     sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
-    design = sub.choices["design"]
-    out = tmp_path / "lqr.json"
-    files = dict(files, **{"OTHER.json": str(tmp_path / "other.json")})
-    base = ["--controller", "lqr", "--n-modes", "2", "--out", str(out)]
-    reference = _design_run(base, capsys, out)
-    assert reference[0] == 0
-    for action in design._actions:
-        if not action.option_strings or set(action.option_strings) & ENTRY_POINT:
+    runs = iter(range(10 ** 6))
+    out = lambda: tmp_path / f"{next(runs)}{out_name}"      # noqa: E731  (a fresh output each run)
+    first = out()
+    reference = _run(command, base + ["--out", str(first)], capsys, first)
+    assert reference[0] == 0, reference[3]
+    for action in sub.choices[command]._actions:
+        option = max(action.option_strings, key=len, default="")
+        if not option or option in ENTRY_POINT or option in skip:
             continue
-        option = max(action.option_strings, key=len)
-        if option == "--controller":          # the mode
+        target = out()
+        if option == "--out":                 # acts by writing there
+            assert _run(command, base + ["--out", str(target)], capsys, target)[2] == reference[2]
+            continue
+        if option == "--force":               # acts by writing into a non-empty folder
+            assert _run(command, base + ["--out", str(first)], capsys, first)[0] == 2
+            assert _run(command, base + ["--out", str(first), "--force"], capsys, first)[0] == 0
             continue
         if action.nargs == 0:
             words = [option]
         elif action.choices is not None:
             words = [option, next(c for c in action.choices if c != action.default)]
         else:
-            assert option in DESIGN_SAMPLES, f"design {option} has no sample value: add one to DESIGN_SAMPLES"
-            words = [option, files.get(DESIGN_SAMPLES[option], DESIGN_SAMPLES[option])]
-        target = tmp_path / "other.json" if option == "--out" else out
-        for path in (out, target):
-            path.unlink(missing_ok=True)
-        status, printed, saved, err = _design_run(base + words, capsys, target)
-        if option == "--out":                 # acts by writing there
-            assert status == 0 and saved == reference[2] and not out.exists()
-            continue
+            assert option in RUN_SAMPLES, f"{command} {option} has no sample value: add one to RUN_SAMPLES"
+            words = [option, files.get(RUN_SAMPLES[option], RUN_SAMPLES[option])]
+        status, printed, saved, err = _run(command, base + words + ["--out", str(target)], capsys, target)
         if status != 0:
-            assert status == 2 and err.count("\n") == 1 and option in err, (option, err)
+            assert status == 2 and err.count("\n") == 1 and option in err, (command, option, err)
             assert {w for w in err.replace("(", " ").split() if w.startswith("--")} - {option}, err
             continue
-        assert (printed, saved) != reference[1:3], f"design {' '.join(words)} accepted and ignored"
-    status, _, _, err = _design_run(["--controller", "pd", "--payload-range", "0,0.5", "--out", str(out)], capsys, out)
+        assert (printed, saved) != reference[1:3], f"{command} {' '.join(base + words)} accepted and ignored"
+
+
+def test_every_design_option_acts_or_is_refused(tmp_path, files, capsys):
+    """``hubbeam design --controller lqr`` (the slew): each option changes what is saved or printed,
+    or is refused; --payload-range (the one slow option, 8 s) designs LQR for the range, and with PD
+    it is refused (it was silently ignored)."""
+    _walk_runs("design", ["--controller", "lqr", "--n-modes", "2"], ".json", tmp_path, files, capsys)
+    status, _, _, err = _run("design", ["--controller", "pd", "--payload-range", "0,0.5", "--out",
+                                        str(tmp_path / "pd.json")], capsys, tmp_path / "pd.json")
     assert status == 2 and "--payload-range does not apply to --controller pd (only to lqr, lqg)" in err
+
+
+@pytest.mark.parametrize("controller", ["lqr", "zvd"])
+def test_every_codegen_option_acts_or_is_refused(controller, tmp_path, files, capsys):
+    """``hubbeam codegen`` for a feedback controller and an input shaper: each option changes the
+    generated code or what is printed, or is refused."""
+    _walk_runs("codegen", ["--controller", controller, "--n-modes", "2"], "_c", tmp_path, files, capsys)
 
 
 #: ``hubbeam optimal``: its modes and a value other than the default for each option.
