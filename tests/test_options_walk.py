@@ -163,7 +163,9 @@ def test_compare_derives_t_end_from_a_long_task(tmp_path, capsys, fast_backend):
 #: (choices: from the parser).
 RUN_SAMPLES = {"--params": "DAMPED", "--tip-mass": "0.2", "--tip-position": "7.5", "--n-modes": "4",
                "--slew-angle": "1", "--tf": "8", "--wf": "2", "--payload-range": "0,0.5", "--dt": "0.005",
-               "--rig": "servo_link", "--design-modes": "1", "--tau-max": "150", "--controller": "pd"}
+               "--rig": "servo_link", "--design-modes": "1", "--tau-max": "150", "--controller": "pd",
+               "--duration": "5", "--amplitude": "0.5", "--band": "2:40", "--modes": "1", "--max-tip": "0.01",
+               "--max-hub": "0.05", "--seed": "3"}
 
 
 def _run(command, words, capsys, out):
@@ -266,3 +268,11 @@ def test_every_optimal_option_acts_or_is_refused(mode, files):
             assert option in str(exc) and str(exc).count("--") >= 2, (mode, option, str(exc))
             continue
         assert plan != reference, f"optimal {mode}: {' '.join(words)} accepted and ignored"
+
+
+@pytest.mark.parametrize("kind", ["chirp", "prbs", "multisine", "step"])
+def test_every_excite_option_acts_or_is_refused(kind, tmp_path, files, capsys):
+    """``hubbeam excite`` on ``servo_link``, each kind of record: each option changes the record or
+    what is printed, or is refused."""
+    _walk_runs("excite", ["--rig", "servo_link", "--kind", kind], ".csv", tmp_path, files, capsys,
+               skip=("--kind", "--rig"))
