@@ -276,3 +276,28 @@ def test_every_excite_option_acts_or_is_refused(kind, tmp_path, files, capsys):
     what is printed, or is refused."""
     _walk_runs("excite", ["--rig", "servo_link", "--kind", kind], ".csv", tmp_path, files, capsys,
                skip=("--kind", "--rig"))
+
+
+def test_fmu_refuses_spin_with_substeps(tmp_path, capsys):
+    """``--spin`` only sets the modal analysis of the substep rule: with ``--substeps`` it was ignored."""
+    out = tmp_path / "p.fmu"
+    assert main(["fmu", "--substeps", "3", "--spin", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--spin does not apply with --substeps" in err and not out.exists()
+
+
+@pytest.mark.parametrize("words, message", [
+    (["--scheduler-timeout", "1"], "--scheduler-timeout applies with --scheduler only"),
+    (["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"],
+     "--workers does not apply with --scheduler (the cluster's workers run the cases)")])
+@pytest.mark.parametrize("command", ["sweep", "tune"])
+def test_engine_options_that_do_not_apply_are_refused(command, words, message, tmp_path, capsys):
+    """sweep and tune: a scheduler timeout without a scheduler, local workers with a cluster (both
+    were accepted and ignored)."""
+    spec = tmp_path / "s.toml"
+    spec.write_text('[study]\ncontrollers = ["openloop", "lqr"]\nt_f = 1.0\nt_end = 6.5\n[params]\n'
+                    'n_axial = 2\nn_transverse = 2\n[grid]\nm_t = [0.0, 0.2]\n')
+    extra = ["--controller", "lqr"] if command == "tune" else []
+    assert main([command, str(spec), *extra, "--out", str(tmp_path / "o"), *words]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
