@@ -54,8 +54,8 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--sensors", metavar="S1,S2", help="sensors to fit (default every rig sensor in the records)")
     p.add_argument("--max-evaluations", metavar="N", type=integer(), default=60,
                    help="most residual evaluations of the optimiser (default 60)")
-    p.add_argument("--plant-modes", metavar="N", type=integer(), default=2,
-                   help="bending modes of the simulated plant (default 2)")
+    p.add_argument("--plant-modes", metavar="N", type=integer(),
+                   help="bending modes of the simulated plant (default 2; records only)")
     p.add_argument("--json", action="store_true", help="print each fitted field's estimate and interval as JSON")
     add_verbose(p)
     p.set_defaults(func=run)
@@ -108,6 +108,11 @@ def run(args) -> int:
     sink = stdout(args)
     if bool(args.records) == bool(args.modal_table):
         raise ParameterError("identify needs records or --modal-table TABLE.csv (one of the two)")
+    if args.modal_table:         # options of a fit to records
+        for option, value in (("--validate", args.validate or None), ("--sensors", args.sensors),
+                              ("--plant-modes", args.plant_modes)):
+            if value is not None:
+                raise ParameterError(f"{option} does not apply with --modal-table (it fits records)")
     out = check_output_dir("--out", args.out)
     rig = load_rig(args.rig if args.rig is not None else args.params)
     fit_fields = resolve_fields(args.fit, rig)
@@ -121,7 +126,8 @@ def run(args) -> int:
         check_record_for_rig(rec, rig, sensors)
     for rec in validation:
         check_record_for_rig(rec, rig, sensors, "--validate")
-    settings = FitSettings(model=ModelSettings(n_transverse=args.plant_modes), max_evaluations=args.max_evaluations)
+    modes = 2 if args.plant_modes is None else args.plant_modes
+    settings = FitSettings(model=ModelSettings(n_transverse=modes), max_evaluations=args.max_evaluations)
     result = fit_rig(rig, records, [f.name for f in fit_fields], bounds=bounds, sensors=sensors, settings=settings,
                      progress=not args.json)
     valid = {}
