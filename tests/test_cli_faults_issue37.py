@@ -62,11 +62,11 @@ CASES = [
      "--decades (tune.decades) must be in (0, 10]"),
     # silent wrong results
     ("sw", ["codegen", "--controller", "lqr", "--rig", "servo_link", "--dt", "0.01", "--out", "cg"],
-     "--dt must be the rig's sample time timing.dt = 0.001 s (or left out), got 0.01"),
+     "--dt must be the --rig's sample time timing.dt = 0.001 s (or left out), got 0.01"),
     ("sw", ["design", "--controller", "lqr", "--rig", "servo_link", "--dt", "0.01", "--out", "d.json"],
-     "--dt must be the rig's sample time timing.dt = 0.001 s"),
+     "--dt must be the --rig's sample time timing.dt = 0.001 s"),
     ("sw", ["compare", "--rig", "servo_link", "--dt", "0.01", "--controllers", "lqr", "--out", "c"],
-     "--dt must be the rig's sample time timing.dt = 0.001 s"),
+     "--dt must be the --rig's sample time timing.dt = 0.001 s"),
     ("sw", MODAL + ["--bounds", "E=-1:1e12"], "--bounds: E bounds -1:1e+12 must lie within its range [100000, 1e+13]"),
     *[("tb", ["sweep", f"bad_{key}.toml", "--out", "s", "--workers", "1"], words) for key, words in (
         ("t_end", "study.t_end = 1e+308 s at study.dt = 0.01 s (1e+15 samples per run) needs about"),

@@ -109,7 +109,7 @@ def check_rig_dt(args, rig) -> None:
     dt = getattr(args, "dt", None)
     rig_dt = None if rig is None else rig.timing.dt
     if dt is not None and rig_dt is not None and abs(dt - rig_dt) > 1e-12 * rig_dt:
-        raise ParameterError(f"--dt must be the rig's sample time timing.dt = {rig_dt:g} s (or left out), got {dt:g}")
+        raise ParameterError(f"--dt must be the --rig's sample time timing.dt = {rig_dt:g} s (or left out), got {dt:g}")
 
 
 def stdout(args):

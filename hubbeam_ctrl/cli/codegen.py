@@ -97,6 +97,9 @@ def run(args) -> int:
     rig = rig_from_args(args)
     if rig is not None:
         params = rig.plant_params
+        if args.controller not in ("pd", "lqr", "lqg") and not rig.drive.is_ideal:
+            raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor "
+                                 "takes a voltage command, generated as C for pd, lqr and lqg only)")
         if args.controller in ("lqr", "lqg") and 0.0 not in rig.sensors.strain_gauges:
             raise ParameterError(f"rig: {args.controller} reads the root bending moment, but the rig's "
                                  f"sensors.strain_gauges {list(rig.sensors.strain_gauges)} has no gauge at the "

@@ -8,6 +8,8 @@ import json
 import math
 import sys
 import time
+from dataclasses import dataclass
+from pathlib import Path
 
 from controllers import CONTROLLERS, QP_SOLVERS, SHAPERS, controller_names
 from hubbeam_ctrl.cli.args import (
@@ -28,7 +30,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
 
-__all__ = ["add_parser", "run", "stdout_to_stderr"]
+__all__ = ["add_parser", "run", "compare_plan", "ComparePlan", "stdout_to_stderr"]
 
 
 def add_parser(subparsers, common) -> argparse.ArgumentParser:
@@ -168,45 +170,80 @@ def parse_payload_range(text: str, nominal: float) -> tuple:
     return check_payload_range(values, nominal, "payload-range")
 
 
-def _run_payload(args, params, out, sink) -> int:
-    from hubbeam_ctrl.study.payload import payload_comparison, payload_table, write_payload_outputs
-    payload_range = parse_payload_range(args.payload_range, params.m_t)
-    learning = None
-    if args.learn_payload:
-        from controllers.payload_learning import PayloadLearningSettings
-        learning = PayloadLearningSettings(payload_min_kg=payload_range[0], payload_max_kg=payload_range[1])
-    pc = payload_comparison(args.plant, args.scenario, args.controllers, payload_range=payload_range,
-                            params=params, tau_max=args.tau_max, t_f=args.tf, t_end=args.t_end, dt=args.dt,
-                            w_f=3.0 if args.wf is None else args.wf, slew_angle=args.slew_angle,
-                            horizon=50 if args.horizon is None else args.horizon, solver=args.solver or "daqp",
-                            payload_learning=learning)
-    write_payload_outputs(pc, out)
-    if args.json:
-        print(strict_json(json.loads((out / "payload.json").read_text())), file=sink)
-    else:
-        print(payload_table(pc), file=sink)
-        print(f"wrote {out}/payload.json, payload_report.md", file=sink)
-    return 0
+@dataclass
+class ComparePlan:
+    """What ``hubbeam compare`` runs: every option of its command line turned into a value
+    (:func:`compare_plan`), before any work.
+
+    Attributes
+    ----------
+    options : dict
+        Keyword arguments of :func:`hubbeam_ctrl.study.compare.compare` or, with
+        ``--payload-range``, of :func:`hubbeam_ctrl.study.payload.payload_comparison` (the same
+        keywords, plus ``payload_range``).
+    payload : bool
+        The payload path (``--payload-range``).
+    ladder : bool
+        Run the rig ladder after the comparison.
+    out : Path
+        Output folder.
+    json : bool
+        Print JSON instead of a table.
+    """
+
+    options: dict
+    payload: bool = False
+    ladder: bool = False
+    out: Path | None = None
+    json: bool = False
 
 
-def run(args) -> int:
-    """Run ``hubbeam compare``; returns the exit status (0).
+#: Options of the plain comparison that the payload path refuses, with the reason.
+PAYLOAD_REFUSES = {"--plant-tip-mass": "the payload range sets the plant's tip masses",
+                   "--rig": "a rig's drive and sensors are not modelled over a payload range yet; give the "
+                            "rig's beam with --params"}
+#: Options that ``--learn-payload`` refuses: the re-planned controllers are built without them.
+LEARNING_REFUSES = {"--shaping": "the re-planned controllers follow the re-plan's reference unshaped",
+                    "--schedule": "the re-planned controllers are single design points"}
+
+
+def _refuse_with(args, mode: str, refused: dict) -> None:
+    """One line naming the first option of ``refused`` given and the option it conflicts with."""
+    for option, why in refused.items():
+        value = getattr(args, option.lstrip("-").replace("-", "_"), None)
+        if value is not None and value is not False and not (option == "--schedule" and value == 1):
+            raise ParameterError(f"{option} does not apply with {mode} ({why})")
+
+
+def compare_plan(args) -> ComparePlan:
+    """Turn ``hubbeam compare``'s command line into the run's values, checking each option.
+
+    Every option either sets a value of the plan or is refused in one line naming it and the
+    option it conflicts with; the plain comparison and the payload path take the same values.
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line.
+
+    Returns
+    -------
+    ComparePlan
     """
-    sink = stdout(args)
     from hubbeam_ctrl.plant.params import MAX_MODES
-    from hubbeam_ctrl.study.compare import _parse_controllers, compare
-    from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
+    from hubbeam_ctrl.study.compare import _parse_controllers
     out = check_output_dir("--out", args.out)
     names = _parse_controllers(args.controllers)
     refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",)})
     if "mpc" not in names:
         refuse_inapplicable(args, "--controllers " + ",".join(names), {"--horizon": ("mpc",),
                                                                        "--solver": ("mpc",)})
+    if args.learn_payload and (args.payload_range is None or args.scenario != "slew"):
+        raise ParameterError("--learn-payload needs --payload-range MIN,MAX and --scenario slew")
+    if args.payload_range is not None:
+        _refuse_with(args, "--payload-range", PAYLOAD_REFUSES)
+    if args.learn_payload:
+        _refuse_with(args, "--learn-payload", LEARNING_REFUSES)
     rig = _rig(args)
     check_rig_dt(args, rig)
     params = rig.plant_params if rig is not None else params_from_args(args)
@@ -217,6 +254,9 @@ def run(args) -> int:
         raise ParameterError("--slew-angle must be a finite number != 0 [rad], got 0")
     if args.slew_angle is not None and args.scenario != "slew":
         raise ParameterError("--slew-angle applies to --scenario slew only")
+    for option, value in (("--reference", args.reference), ("--limit", args.limit)):
+        if args.scenario != "slew" and value in ("planned", "optimal"):   # a spin-up: the rigid reference and bound
+            raise ParameterError(f"{option} {value} applies to --scenario slew only, not --scenario {args.scenario}")
     plant_params = _plant_params(args, params)
     if args.check_plant is not None and args.check_plant == args.plant:
         raise ParameterError(f"--check-plant must be a plant other than --plant {args.plant}, got {args.check_plant}")
@@ -230,30 +270,61 @@ def run(args) -> int:
     if args.plant_modes is not None and not design_modes <= args.plant_modes <= MAX_MODES:
         raise ParameterError(f"--plant-modes must be an integer in {design_modes}..{MAX_MODES} (at least "
                              f"the design model's {design_modes}), got {args.plant_modes}")
-    if args.learn_payload and (args.payload_range is None or args.scenario != "slew"):
-        raise ParameterError("--learn-payload needs --payload-range MIN,MAX and --scenario slew")
+    options = dict(plant=args.plant, scenario=args.scenario, controllers=names, params=params,
+                   limit=args.limit, reference=args.reference, plant_params=plant_params,
+                   design_modes=design_modes, plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
+                   t_end=args.t_end, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,
+                   slew_angle=args.slew_angle, horizon=50 if args.horizon is None else args.horizon,
+                   solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
+                   sim_settings={"range_limit": args.range_limit, **run_limits(args)},
+                   progress=not args.json, backend=args.backend, check_plant=args.check_plant)
+    if rig is not None:
+        options.update(params=None, rig=rig, integral={"auto": None, "on": True, "off": False}[args.integral])
     if args.payload_range is not None:
-        if rig is not None:
-            raise ParameterError("--payload-range does not take --rig yet (give the rig's beam with --params)")
-        return _run_payload(args, params, out, sink)
+        options["payload_range"] = parse_payload_range(args.payload_range, params.m_t)
+        if args.learn_payload:
+            from controllers.payload_learning import PayloadLearningSettings
+            lo, hi = options["payload_range"]
+            options["payload_learning"] = PayloadLearningSettings(payload_min_kg=lo, payload_max_kg=hi)
+    return ComparePlan(options, payload=args.payload_range is not None,
+                       ladder=rig is not None and not rig.is_ideal and not args.no_ladder, out=out, json=args.json)
+
+
+def _run_payload(plan: ComparePlan, sink) -> int:
+    from hubbeam_ctrl.study.payload import payload_comparison, payload_table, write_payload_outputs
+    pc = payload_comparison(**plan.options)
+    write_payload_outputs(pc, plan.out)
+    if plan.json:
+        print(strict_json(json.loads((plan.out / "payload.json").read_text())), file=sink)
+    else:
+        print(payload_table(pc), file=sink)
+        print(f"wrote {plan.out}/payload.json, payload_report.md", file=sink)
+    return 0
+
+
+def run(args) -> int:
+    """Run ``hubbeam compare``; returns the exit status (0).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    sink = stdout(args)
+    from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
+    plan = compare_plan(args)
+    if plan.payload:
+        return _run_payload(plan, sink)
     t0 = time.perf_counter()
-    integral = {"auto": None, "on": True, "off": False}[args.integral]
-    comparison = compare(args.plant, args.scenario, names, params=None if rig is not None else params,
-                         rig=rig, integral=integral, limit=args.limit, reference=args.reference,
-                         plant_params=plant_params, design_modes=design_modes,
-                         plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
-                         t_end=args.t_end, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,
-                         slew_angle=args.slew_angle,
-                         horizon=50 if args.horizon is None else args.horizon,
-                         solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
-                         sim_settings={"range_limit": args.range_limit, **run_limits(args)},
-                         progress=not args.json, backend=args.backend, check_plant=args.check_plant)
-    if rig is not None and not rig.is_ideal and not args.no_ladder:
+    opts = plan.options
+    names, rig, out = opts["controllers"], opts.get("rig"), plan.out
+    comparison = compare(**opts)
+    if plan.ladder:
         from hubbeam_ctrl.study.ladder import rig_ladder
         comparison.ladder = rig_ladder(
-            rig, args.scenario, names, plant=args.plant, t_end=comparison.scenario.t_end, tau_max=args.tau_max,
-            t_f=args.tf, dt=args.dt, w_f=3.0 if args.wf is None else args.wf, slew_angle=args.slew_angle,
-            horizon=50 if args.horizon is None else args.horizon, solver=args.solver or "daqp", integral=integral,
+            rig, opts["scenario"], names, plant=opts["plant"], t_end=comparison.scenario.t_end,
+            **{k: opts[k] for k in ("tau_max", "t_f", "dt", "w_f", "slew_angle", "horizon", "solver", "integral")},
             progress=None if args.json else (lambda step: print(f"ladder: {step}", file=sys.stderr)))
     paths = write_outputs(comparison, out)
     wall = time.perf_counter() - t0

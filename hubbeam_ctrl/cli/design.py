@@ -103,6 +103,7 @@ def run(args) -> int:
 
     sink = stdout(args)      # sys.stdout is captured during the run (native solver output)
     refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
+    refuse_inapplicable(args, f"--controller {args.controller}", {"--payload-range": ("lqr", "lqg")})
     out = Path(args.out)
     if out.suffix.lower() not in FORMATS:
         raise ParameterError(f"out must end in {', '.join(FORMATS)}, got {args.out!r}")
@@ -114,9 +115,8 @@ def run(args) -> int:
     settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
     if args.payload_range is not None:
         rng = parse_payload_range(args.payload_range, params.m_t)
-        if args.controller in ("lqr", "lqg"):
-            chosen = range_designs([args.controller], sc, design, rng, progress=not args.json)[args.controller]
-            design, settings = chosen.design, chosen.settings
+        chosen = range_designs([args.controller], sc, design, rng, progress=not args.json)[args.controller]
+        design, settings = chosen.design, chosen.settings
     ctrl = make_controller(args.controller, design, settings, sc.reference)
     save_controller(ctrl, out)
     m = loop_margins(ctrl)

@@ -40,12 +40,13 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--amplitude", metavar="V_OR_NM", type=real("V or N m"),
                    help="largest command (default the drive's limit)")
     p.add_argument("--band", metavar="LO:HI", help="band [Hz] (default 0.2 f1 : 1.5 f_n)")
-    p.add_argument("--modes", metavar="N", type=integer(), default=2, help="modes to identify (default 2)")
+    p.add_argument("--modes", metavar="N", type=integer(),
+                   help="modes to identify, which set the default band (default 2; not with --kind step)")
     p.add_argument("--max-tip", metavar="M", type=real("m"), help="largest predicted tip deflection [m] "
                    "(default 0.1 L)")
     p.add_argument("--max-hub", metavar="RAD", type=real("rad"), help="largest predicted hub travel [rad] "
                    "(default pi)")
-    p.add_argument("--seed", metavar="N", type=integer(), default=0, help="PRBS seed")
+    p.add_argument("--seed", metavar="N", type=integer(), help="PRBS seed (default 0; --kind prbs only)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     add_verbose(p)
     p.set_defaults(func=run)
@@ -74,16 +75,19 @@ def run(args) -> int:
     """
     from hubbeam_ctrl.calibrate.excitation import excitation
     from hubbeam_ctrl.calibrate.records import save_record
-    from hubbeam_ctrl.cli.args import check_output, stdout
+    from hubbeam_ctrl.cli.args import check_output, refuse_inapplicable, stdout
     from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.plant.rig import load_rig
 
     sink = stdout(args)
+    refuse_inapplicable(args, f"--kind {args.kind}", {"--band": ("chirp", "prbs", "multisine"),
+                                                        "--modes": ("chirp", "prbs", "multisine"), "--seed": ("prbs",)})
     check_output("--out", args.out, (".csv", ".npz"))
     rig = load_rig(args.rig)
     rec = excitation(rig, args.kind, args.duration, dt=args.dt, amplitude=args.amplitude,
-                     band_hz=_parse_band(args.band), n_modes=args.modes, max_tip_deflection=args.max_tip,
-                     max_hub_travel=args.max_hub, seed=args.seed)
+                     band_hz=_parse_band(args.band), n_modes=2 if args.modes is None else args.modes,
+                     max_tip_deflection=args.max_tip,
+                     max_hub_travel=args.max_hub, seed=0 if args.seed is None else args.seed)
     signal = type(rec)(t=rec.t, columns={rec.input_name: rec.input}, source=rec.source)
     save_record(signal, args.out)
     import numpy as np

@@ -35,8 +35,9 @@ def add_parser(subparsers, common) -> None:
                         "(default: the rig's timing.dt, else 0.01)")
     p.add_argument("--substeps", metavar="K", type=integer(),
                    help="integration steps per sample, 1..200 (default: the closed loop's substep rule)")
-    p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"), default=0.0,
-                   help="spin rate of the modal analysis behind the substep rule [rad/s] (default 0, a slew)")
+    p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"),
+                   help="spin rate of the modal analysis behind the substep rule [rad/s] (default 0, a slew; "
+                        "not with --substeps)")
     p.add_argument("--out", metavar="FILE.fmu", required=True, help="the FMU to write")
     p.add_argument("--force", action="store_true", help="replace an existing FILE.fmu")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -64,8 +65,11 @@ def run(args) -> int:
         source = params_from_args(args)
     if not str(args.out).endswith(".fmu"):
         raise ParameterError(f"--out must name a .fmu file, got {str(args.out)[:80]!r}")
+    if args.spin is not None and args.substeps is not None:
+        raise ParameterError("--spin does not apply with --substeps (the spin sets the substep rule's modal "
+                             "analysis only)")
     info = build_fmu(source, args.model, args.out, dt=args.dt, substeps=args.substeps,
-                     spin=args.spin, force=args.force)
+                     spin=0.0 if args.spin is None else args.spin, force=args.force)
     summary = {"out": str(info.path), "fmi_version": info.fmi_version, "model": info.model, "n_q": info.n_q,
                "dt_s": info.dt, "substeps": info.substeps, "command": info.command, "outputs": list(info.outputs),
                "parameters": len(info.parameters), "binary": info.binary, "build_s": round(info.build_s, 3)}

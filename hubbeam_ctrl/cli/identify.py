@@ -122,6 +122,11 @@ def run(args) -> int:
         raise ParameterError(f"--plant-modes (n_transverse) must be an integer in 1..20, got {args.plant_modes}")
     if args.max_wall is not None and not args.max_wall > 0:
         raise ParameterError(f"--max-wall must be > 0 [s], got {args.max_wall:g}")
+    if args.modal_table:         # options of a fit to records
+        for option, value in (("--validate", args.validate or None), ("--sensors", args.sensors),
+                              ("--plant-modes", args.plant_modes)):
+            if value is not None:
+                raise ParameterError(f"{option} does not apply with --modal-table (it fits records)")
     out = check_output_dir("--out", args.out)
     rig = load_rig(args.rig) if args.rig is not None else load_rig(args.params, "params")
     fit_fields = resolve_fields(args.fit, rig)

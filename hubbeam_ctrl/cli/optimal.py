@@ -8,7 +8,7 @@ Example::
 
 from __future__ import annotations
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "optimal_plan"]
 
 
 def add_parser(subparsers, common) -> None:
@@ -30,7 +30,9 @@ def add_parser(subparsers, common) -> None:
                      "condensed) by Radau collocation with IPOPT and checked on an evaluation plant with "
                      "3 more bending modes. With --duration: the slew in that time with the smallest "
                      "residual vibration. Prints the duration, the rigid bang-bang bound "
-                     "2 sqrt(Theta J / tau_max) and the residuals."))
+                     "2 sqrt(Theta J / tau_max) (on a rig's DC drive: the bang-bang within its voltage limit "
+                     "through back-EMF, current limit and friction) and the residuals. Exits 1 with one line "
+                     "if IPOPT does not converge."))
     p.add_argument("--slew-angle", metavar="RAD", type=real("rad"), required=True, help="slew angle [rad], not 0")
     p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
                    help="a rig file or preset (servo_link, paper): its beam, and with a DC motor the voltage "
@@ -56,23 +58,15 @@ def run(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from hubbeam_ctrl.cli.args import params_from_args, rig_from_args, stdout
+    from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.core.fileio import strict_json
-    from hubbeam_ctrl.core.validation import check_finite, check_positive
-    from hubbeam_ctrl.limit import OptimalSettings, min_vibration_slew, time_optimal_slew
+    from hubbeam_ctrl.limit import min_vibration_slew, time_optimal_slew
 
     sink = stdout(args)
-    angle = check_finite("--slew-angle", args.slew_angle, "rad")
-    tolerance = None if args.tolerance is None else check_positive("--tolerance", args.tolerance, "m")
-    if args.duration is not None:
-        check_positive("--duration", args.duration, "s")
-    rig = rig_from_args(args)
-    params = rig.plant_params if rig is not None else params_from_args(args)
-    source = rig if rig is not None else params
-    changes = {"check": not args.no_check}
-    if args.intervals is not None:
-        changes["intervals"] = args.intervals
-    settings = OptimalSettings(**changes)
+    plan = optimal_plan(args)
+    source, angle, tolerance, settings = (plan[k] for k in ("source", "slew_angle", "tolerance", "settings"))
+    rig = source if plan["rig"] else None
+    params = source.plant_params if rig is not None else source
     if args.duration is None:
         r = time_optimal_slew(source, angle, tolerance=tolerance, settings=settings)
     else:
@@ -80,13 +74,58 @@ def run(args) -> int:
                                name="--duration")
     if args.json:
         print(strict_json(r.to_dict()), file=sink)
-        return 0
+        return _not_converged(r)
     plant = (f"{r.residual_plant:.4g} m on the evaluation plant ({r.plant})" if r.residual_plant is not None
              else "not checked on an evaluation plant")
-    print(f"{r.kind} slew by {r.slew_angle:g} rad with tau_max = {params.tau_max:g} N m: "
+    drive = (" within the DC drive's voltage (back-EMF), current and friction" if rig is not None
+             and not rig.drive.is_ideal else "")
+    print(f"{r.kind} slew by {r.slew_angle:g} rad with tau_max = {params.tau_max:g} N m{drive}: "
           f"{r.duration_s:.4f} s = {r.ratio:.4f} x the rigid bang-bang bound {r.rigid_bound_s:.4f} s", file=sink)
     print(f"  residual tip vibration {r.residual_design:.4g} m on the design model ({r.design}); {plant}; "
           f"tolerance {r.tolerance:.4g} m", file=sink)
     state = "converged" if r.converged else "DID NOT CONVERGE"
     print(f"  IPOPT {state} ({r.message}) in {r.iterations} iterations, {r.solve_s:.1f} s", file=sink)
-    return 0
+    return _not_converged(r)
+
+
+def optimal_plan(args) -> dict:
+    """``hubbeam optimal``'s command line as the values of the run, each option checked.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    dict
+        ``source`` (Params or Rig), ``rig`` (bool), ``slew_angle`` [rad], ``tolerance`` [m] (None:
+        the default), ``duration`` [s] (None: time-optimal), ``settings`` (OptimalSettings), ``json``.
+    """
+    from hubbeam_ctrl.cli.args import params_from_args, rig_from_args
+    from hubbeam_ctrl.core.validation import check_finite, check_positive
+    from hubbeam_ctrl.limit import OptimalSettings
+
+    angle = check_finite("--slew-angle", args.slew_angle, "rad")
+    tolerance = None if args.tolerance is None else check_positive("--tolerance", args.tolerance, "m")
+    if args.duration is not None:
+        check_positive("--duration", args.duration, "s")
+    rig = rig_from_args(args)
+    changes = {"check": not args.no_check}
+    if args.intervals is not None:
+        changes["intervals"] = args.intervals
+    return {"source": rig if rig is not None else params_from_args(args), "rig": rig is not None,
+            "slew_angle": angle, "tolerance": tolerance, "duration": args.duration,
+            "settings": OptimalSettings(**changes), "json": args.json}
+
+
+def _not_converged(r) -> int:
+    """0, or 1 with one line on stderr when IPOPT stopped before converging (the duration printed is
+    then not the optimum: issue 36)."""
+    if r.converged:
+        return 0
+    import sys
+    status = r.message.split(";")[0]
+    print(f"hubbeam: error: optimal: IPOPT did not converge ({status} after {r.iterations} iterations): "
+          f"{r.duration_s:.4g} s is its last iterate, not the {r.kind} slew's duration", file=sys.stderr)
+    return 1

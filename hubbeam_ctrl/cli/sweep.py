@@ -30,8 +30,8 @@ def add_engine_options(p) -> None:
                    help="local worker processes (default: one per core; 1 runs in this process)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on the Dask cluster of this scheduler (e.g. tcp://host:8786) instead")
-    p.add_argument("--scheduler-timeout", metavar="S", type=positive_float("scheduler-timeout"), default=10.0,
-                   help="seconds to wait for the scheduler (default 10)")
+    p.add_argument("--scheduler-timeout", metavar="S", type=positive_float("scheduler-timeout"),
+                   help="seconds to wait for the scheduler (default 10; with --scheduler only)")
     p.add_argument("--json", action="store_true", help="print a JSON summary, no progress bar")
     add_verbose(p)
 
@@ -44,8 +44,15 @@ def engine_from_args(args):
     args : argparse.Namespace
         The parsed command line.
     """
+    from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.study.sweep import connect
-    return connect(args.scheduler, args.scheduler_timeout) if args.scheduler else None
+    if not args.scheduler:
+        if args.scheduler_timeout is not None:
+            raise ParameterError("--scheduler-timeout applies with --scheduler only")
+        return None
+    if args.workers is not None:      # the cluster's workers run the cases
+        raise ParameterError("--workers does not apply with --scheduler (the cluster's workers run the cases)")
+    return connect(args.scheduler, 10.0 if args.scheduler_timeout is None else args.scheduler_timeout)
 
 
 def add_parser(subparsers, common) -> None:

@@ -19,7 +19,9 @@ eta_i'^2/w_i^2) <= tol^2``, which implies it).
 
 **Time-optimal.** The smallest ``T`` (objective ``T``), started from the rigid bang-bang
 (``T_rigid = 2 sqrt(Theta J / tau_max)``, the angle of the rigid body) on a coarse grid and
-warm-started on the fine one. **Minimum vibration.** For a given ``T >= T_rigid``: the
+warm-started on the fine one; its yardstick ``rigid_bound_s`` is :func:`rigid_bound` (on a DC
+drive the rigid bang-bang within the voltage limit through back-EMF, the current limit and
+friction, :mod:`hubbeam_ctrl.limit.bound`). **Minimum vibration.** For a given ``T >= T_rigid``: the
 smallest residual (objective: the residual's modal energy).
 
 **Check.** The optimal torque (piecewise constant, zero after ``T``) is applied to the
@@ -43,12 +45,14 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.native import capture_native_output
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_finite, check_in_range, check_positive
+from hubbeam_ctrl.limit.bound import _drive_terms, drive_bang_bang_time, rigid_bang_bang_time, rigid_bound
 from hubbeam_ctrl.plant.linearization import second_order_linearization
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, build_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.rig import Rig
 
-__all__ = ["OptimalSettings", "OptimalSlew", "DEFAULT_TOLERANCE", "rigid_bang_bang_time", "default_tolerance",
+__all__ = ["OptimalSettings", "OptimalSlew", "DEFAULT_TOLERANCE", "rigid_bang_bang_time", "drive_bang_bang_time",
+           "rigid_bound", "default_tolerance",
            "time_optimal_slew", "min_vibration_slew"]
 
 #: Default residual tip vibration, relative to the beam length (the issue's 0.1 % of L).
@@ -130,7 +134,8 @@ class OptimalSlew:
     final_angle_plant : float or None
         Mean hub angle of the evaluation plant after ``T`` [rad].
     rigid_bound_s : float
-        ``2 sqrt(Theta J / tau_max)`` [s].
+        The rigid body's shortest slew [s] (:func:`rigid_bound`): ``2 sqrt(Theta J / tau_max)``,
+        or on a DC drive the bang-bang within its voltage (back-EMF), current and friction.
     converged : bool
         Whether IPOPT reported success.
     message : str
@@ -196,19 +201,6 @@ class OptimalSlew:
                 "design": self.design, "plant": self.plant, "tau_max": self.params.tau_max}
 
 
-def rigid_bang_bang_time(params: Params, slew_angle: float) -> float:
-    """Shortest rest-to-rest slew of the rigid body, ``2 sqrt(|Theta| J_total / tau_max)`` [s].
-
-    Parameters
-    ----------
-    params : Params
-        Beam and hub (``total_inertia``, ``tau_max``).
-    slew_angle : float
-        Theta [rad].
-    """
-    return 2.0 * math.sqrt(abs(slew_angle) * params.total_inertia / params.tau_max)
-
-
 def default_tolerance(params: Params) -> float:
     """Default residual tip vibration: :data:`DEFAULT_TOLERANCE` times the beam length [m].
 
@@ -243,29 +235,9 @@ class _Problem:
     tip_row: np.ndarray      # v_tip = tip_row @ q [m]
     tip_limit: float         # [m]
     drive: tuple | None      # (stall torque, back-EMF damping, current-limit torque, viscous, Coulomb, v_c)
+    bound: float = math.nan  # the yardstick [s]: the rigid bang-bang within the drive's limits (limit.bound)
     start: np.ndarray | None = None   # scaled initial state [q, v] (None: at rest; limit.replan)
     hold: np.ndarray | None = None    # scaled torques of the first intervals, fixed (limit.replan)
-
-
-def _drive_terms(rig) -> tuple | None:
-    """The DC drive's torque bounds at the hub, affine in the hub rate, and the friction to overcome.
-
-    ``|tau_drive + k_emf theta_dot| <= tau_stall`` (the voltage limit through back-EMF) and
-    ``|tau_drive| <= tau_current`` (the current limit), with ``tau_stall = eta N k_t V_max / R``,
-    ``k_emf = eta N^2 k_t k_e / R`` and ``tau_current = eta N k_t I_max`` (``eta`` the gear's
-    driving efficiency, also while braking: conservative); ``tau_drive`` is the net hub torque
-    plus viscous and Coulomb friction (the sign smoothed over ``v_c``). None without a DC motor.
-    """
-    if rig is None or rig.drive.is_ideal:
-        return None
-    d, f = rig.drive, rig.friction
-    gain = d.eta_forward * d.N * d.k_torque        # eta_motor k_t: the motor's own efficiency applied
-    stall = gain * min(d.V_max / d.R, d.I_max)
-    if f.static >= stall:
-        raise ParameterError(f"friction.breakaway ({f.static:g} N m) must be below the drive's stall torque "
-                             f"{stall:.4g} N m (eta_forward N k_t min(V_max / R, I_max)): the drive cannot start "
-                             "the slew in any time")
-    return (gain * d.V_max / d.R, gain * d.N * d.k_e / d.R, gain * d.I_max, f.viscous, f.coulomb, 0.05)
 
 
 def _problem(params: Params, slew_angle: float, settings: OptimalSettings, rig=None) -> _Problem:
@@ -296,8 +268,10 @@ def _problem(params: Params, slew_angle: float, settings: OptimalSettings, rig=N
     a_scale = v_scale * rate
     f_scale = np.full(n, params.tau_max)
     f_scale[1:] = np.diag(K0)[1:] * q_scale[1:]
+    drive = _drive_terms(rig)
     return _Problem(model, n, M0, Phi, w, tip @ Phi, q_scale, v_scale, a_scale, f_scale, T_rigid,
-                    float(slew_angle), params.tau_max, tip, settings.deflection_limit * params.L, _drive_terms(rig))
+                    float(slew_angle), params.tau_max, tip, settings.deflection_limit * params.L, drive,
+                    bound=rigid_bound(params, slew_angle, drive))
 
 
 def _interval_function(pb: _Problem, d: int, parametric: bool = False) -> tuple:
@@ -617,7 +591,7 @@ def _result(kind: str, params: Params, slew_angle: float, tolerance: float, pb: 
                       theta=tr["theta"], theta_dot=tr["theta_dot"], v_tip=tr["v_tip"], q2=tr["q2"], q2_dot=tr["q2_dot"],
                       tolerance=tolerance,
                       residual_design=tr["residual"], residual_plant=None, final_angle_plant=None,
-                      rigid_bound_s=pb.T_rigid, converged=converged, message=message, solve_s=wall,
+                      rigid_bound_s=pb.bound, converged=converged, message=message, solve_s=wall,
                       iterations=iterations, design=design, plant="", params=params)
     if settings.check:
         residual, angle, plant = _plant_check(params, out, settings, m.n_transverse)
@@ -705,7 +679,7 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
                                  f"residual <= {tolerance:.3g} m; the rigid bang-bang bound is "
                                  f"{fastest.rigid_bound_s:.5g} s), got {duration:g} s")
 
-    if duration < rigid_bang_bang_time(params, slew_angle):     # below the rigid bound: hardly ever feasible
+    if duration < rigid_bound(params, slew_angle, rig):          # below the rigid bound: hardly ever feasible
         refuse()
     pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, duration, settings, rig)
     out = _result("min-vibration", params, slew_angle, tolerance, pb, w, stats, iterations, wall, quick)

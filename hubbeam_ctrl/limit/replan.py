@@ -263,4 +263,4 @@ class ReplanSolver:
         w = np.array(sol["x"]).ravel()
         out = _result("min-vibration", params, self.slew_angle, self.tolerance, pb, w, stats,
                       int(stats["iter_count"]), time.perf_counter() - start, self.settings)
-        return dataclasses.replace(out, rigid_bound_s=own.T_rigid)
+        return dataclasses.replace(out, rigid_bound_s=own.bound)

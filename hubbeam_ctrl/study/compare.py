@@ -55,7 +55,7 @@ from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig
 from hubbeam_ctrl.study.scenarios import PLANTS, RANGES, REFERENCES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
-from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_t_end
+from hubbeam_ctrl.study.yardstick import task_dt, task_limit
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "REFERENCE_KINDS", "Comparison", "compare", "run_compare"]
 
@@ -370,9 +370,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                    slew_angle=slew_angle, tolerances=tolerances,
                    reference="rigid" if reference == "optimal" else reference)
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
-    sc = make_scenario(scenario, t_end=30.0 if t_end is None else t_end, **options)
-    if t_end is None and sc.t_end != task_t_end(sc):
-        sc = make_scenario(scenario, t_end=task_t_end(sc), **options)
+    sc = make_scenario(scenario, t_end=t_end, **options)    # None: the task's own
     m = _design_modes(design_modes, sc.params)
     ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
                           plant_params=plant_params if plant_params is not None else params,
@@ -421,8 +419,11 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         spec = CONTROLLERS[name]
         d = designs[name].design if name in designs else design
         st = designs[name].settings if name in designs else chosen[name]
+        own = sched
+        if name in designs and sched is not None:    # a payload range's design: its schedule at its payload
+            own = _design_schedule(dataclasses.replace(sc, params=d.params), schedule, m)
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
-                               schedule=sched if spec.scheduled else None)
+                               schedule=own if spec.scheduled else None)
         if payload_learning is not None and name in LEARNING_CONTROLLERS:
             ctrl = _learning(ctrl, payload_learning, sc, rig)
         if rig is not None:

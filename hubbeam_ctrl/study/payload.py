@@ -15,8 +15,10 @@ Example
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import time
 from dataclasses import dataclass, field
 
 from controllers.robust import check_payload_range
@@ -24,7 +26,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.range_design import ROBUST_CONTROLLERS, range_designs  # noqa: F401 (re-exported)
-from hubbeam_ctrl.study.yardstick import task_dt, task_t_end
+from hubbeam_ctrl.study.yardstick import task_dt
 
 __all__ = ["ROBUST_CONTROLLERS", "range_designs", "PayloadComparison", "payload_comparison", "payload_verdict",
            "payload_table", "write_payload_outputs"]
@@ -90,6 +92,9 @@ class PayloadComparison:
                              "residual_pct_of_openloop": mm.get("residual_pct_of_openloop"),
                              "final_angle_error_rad": mm["final_angle_error_rad"],
                              "peak_torque_nm": mm["peak_torque_nm"],
+                             "settling_over_limit": mm.get("settling_over_limit"),
+                             "loop_spectral_radius": mm.get("loop_spectral_radius"),
+                             "check_verdict": mm.get("check_verdict"),
                              "design_mass_kg": design_mass,
                              "design": design})
         return rows
@@ -111,7 +116,10 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
     masses : sequence of float, optional
         Plant payloads [kg] (default ``m_min``, nominal, ``m_max``), each in the range.
     **options
-        Keyword arguments of :func:`~hubbeam_ctrl.study.compare.compare`. With
+        Keyword arguments of :func:`~hubbeam_ctrl.study.compare.compare` (those ``hubbeam
+        compare`` gives, :func:`hubbeam_ctrl.cli.compare.compare_plan`). ``plant_params``: the
+        plant's beam (damping, stiffness...; default ``params``), its tip mass set to each
+        payload. A wall-time limit in ``sim_settings`` bounds the whole range. With
         ``payload_learning`` (a :class:`controllers.payload_learning.PayloadLearningSettings`,
         its range set to ``payload_range``) LQR, LQG and MPC keep the nominal design and learn
         the payload during the slew instead of a design for the range. ``dt`` and ``t_end``
@@ -131,16 +139,18 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
         if not (isinstance(m, (int, float)) and lo <= m <= hi):
             raise ParameterError(f"masses must lie in the payload range [{lo:g}, {hi:g}] kg, got {m!r}")
     names = _parse_controllers(controllers)
+    plant_params = options.pop("plant_params", None)   # the plant's beam, its tip mass each payload's
+    if plant_params is not None and not isinstance(plant_params, Params):
+        raise ParameterError(f"plant_params must be a Params, got {type(plant_params).__name__}")
+    plant_base = plant_params if plant_params is not None else params
     options = {k: v for k, v in options.items() if v is not None or k not in ("dt", "t_end")}
     options.setdefault("dt", task_dt(params))
     scenario_keys = ("tau_max", "t_f", "t_end", "dt", "w_f", "slew_angle", "tolerances")
     kind = options.get("reference", "task")          # the range designs see the scenario's reference
     scenario_options = dict(plant=plant, params=params, reference="rigid" if kind == "optimal" else kind,
                             **{k: options[k] for k in scenario_keys if k in options and k != "t_end"})
-    sc = make_scenario(scenario, t_end=options.get("t_end", 30.0), **scenario_options)
-    if "t_end" not in options:                       # the task's, as compare derives it
-        options["t_end"] = task_t_end(sc)
-        sc = make_scenario(scenario, t_end=options["t_end"], **scenario_options)
+    sc = make_scenario(scenario, t_end=options.get("t_end"), **scenario_options)   # None: the task's own
+    options["t_end"] = sc.t_end
     learning = options.get("payload_learning")
     if learning is not None:                         # the nominal design learns the payload instead
         from controllers.payload_learning import PayloadLearningSettings
@@ -153,16 +163,32 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
         designs = range_designs(names, sc, design, (lo, hi), options.get("settings"),
                                 horizon=options.get("horizon", 50), solver=options.get("solver", "daqp"),
                                 plant_modes=options.get("plant_modes"))
-    comparisons = {m: compare(plant, scenario, names, params=params, plant_params=params.replace(m_t=m),
-                              designs=designs or None, **options) for m in masses}
+    comparisons, clock = {}, time.perf_counter()
+    for m in masses:                                 # --max-wall bounds the whole range, not each payload
+        run = dict(options, sim_settings=_remaining(options.get("sim_settings"), time.perf_counter() - clock))
+        comparisons[m] = compare(plant, scenario, names, params=params, plant_params=plant_base.replace(m_t=m),
+                                 designs=designs or None, **run)
     return PayloadComparison((lo, hi), masses, comparisons, designs)
+
+
+def _remaining(sim_settings, elapsed: float):
+    """``sim_settings`` with its wall-time limit less the ``elapsed`` seconds (unchanged without one)."""
+    limit = sim_settings.get("max_wall_s") if isinstance(sim_settings, dict) else getattr(sim_settings, "max_wall_s",
+                                                                                           None)
+    if limit is None or sim_settings is None:
+        return sim_settings
+    left = max(1e-3, limit - elapsed)
+    return dict(sim_settings, max_wall_s=left) if isinstance(sim_settings, dict) else \
+        dataclasses.replace(sim_settings, max_wall_s=left)
 
 
 _COLUMNS = (("payload_kg", "payload kg", "{:g}"), ("controller", "controller", "{}"),
             ("verdict", "verdict", "{}"), ("settling_time_s", "settle s", "{:.3g}"),
             ("residual_pct_of_openloop", "% of OL", "{:.3g}"),
             ("residual_tip_max_m", "resid max m", "{:.2e}"), ("final_angle_error_rad", "err(end) rad", "{:.2e}"),
-            ("peak_torque_nm", "peak tau Nm", "{:.4g}"), ("design_mass_kg", "design kg", "{:g}"))
+            ("peak_torque_nm", "peak tau Nm", "{:.4g}"), ("settling_over_limit", "settle/limit", "{:.3g}"),
+            ("loop_spectral_radius", "radius", "{:.6g}"), ("check_verdict", "check plant", "{}"),
+            ("design_mass_kg", "design kg", "{:g}"))
 
 
 def _cell(value, fmt) -> str:
@@ -181,8 +207,10 @@ def payload_table(pc: PayloadComparison, markdown: bool = False) -> str:
     markdown : bool
         Markdown instead of plain text.
     """
-    head = [h for _, h, _ in _COLUMNS]
-    body = [[_cell(r[k], f) for k, _, f in _COLUMNS] for r in pc.rows()]
+    rows = pc.rows()
+    columns = [c for c in _COLUMNS if c[0] != "check_verdict" or any(r["check_verdict"] for r in rows)]
+    head = [h for _, h, _ in columns]
+    body = [[_cell(r[k], f) for k, _, f in columns] for r in rows]
     if markdown:
         return "\n".join(["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
                          + ["| " + " | ".join(r) + " |" for r in body])
@@ -222,7 +250,11 @@ def write_payload_outputs(pc: PayloadComparison, out_dir) -> dict:
     for n, d in pc.designs.items():
         lines.append(f"  - {n}: {d.choice}; worst linear score {d.score:.3g} (residual relative to the "
                      "open loop's; for a spin-up, the spectral radius)")
-    lines += ["", "Each plant is judged against the open loop (Eq. 44 baseline) on the same plant.", "",
+    from hubbeam_ctrl.study.report import _plant_lines
+    lines += ["", f"Plant at {pc.masses[0]:g} kg (each row's plant has that row's tip mass m_t):", ""]
+    lines += _plant_lines(next(iter(pc.comparisons.values())))
+    lines += ["", "Each plant is judged against the open loop (Eq. 44 baseline) on the same plant; radius: the "
+              "spectral radius of the sampled linear loop (the certificate; < 1 is stable).", "",
               payload_table(pc, markdown=True), ""]
     paths = {"json": atomic_write_text(out / "payload.json", json.dumps(doc, indent=1) + "\n"),
              "report": atomic_write_text(out / "payload_report.md", "\n".join(lines))}

@@ -15,6 +15,7 @@ from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, p
 from hubbeam_ctrl.plots.plant import save_figure
 from hubbeam_ctrl.study.drive_figures import drive_of
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
+from hubbeam_ctrl.study.yardstick import DRIVE_BOUND
 
 __all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
            "check_plant_lines", "ladder_lines", "drive_limits_text"]
@@ -344,6 +345,8 @@ def _yardstick_lines(comparison) -> list:
     sc = comparison.scenario
     what = ("the rigid body's shortest time with tau_max, 2 sqrt(|Theta| J / tau_max), a bound no flexible beam "
             "beats" if first["limit_kind"] == "rigid bound" else
+            "the rigid body's bang-bang within the DC drive's voltage limit through back-EMF, its current limit and "
+            "friction, a bound no flexible beam beats" if first["limit_kind"] == DRIVE_BOUND else
             "the time-optimal slew of the nonlinear beam within the drive's limits that ends with its residual "
             "vibration below 0.1 % of L (hubbeam_ctrl.limit)")
     if sc.name == "spinup" and first["limit_kind"] == "rigid bound":

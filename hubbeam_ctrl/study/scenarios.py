@@ -193,7 +193,7 @@ class Scenario:
 
 
 def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None = None,
-                  tau_max: float | None = None, t_f: float = 10.0, t_end: float = 30.0,
+                  tau_max: float | None = None, t_f: float = 10.0, t_end: float | None = 30.0,
                   dt: float = 0.01, w_f: float = 3.0, slew_angle: float | None = None,
                   flatness: float | None = None, smoothing: float | None = None,
                   tolerances: Tolerances | None = None, preview_s: float = 2.0,
@@ -216,9 +216,10 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
         must not exceed ``params.max_spin``.
     t_f : float
         Maneuver time [s], in [1e-3, 1e6].
-    t_end : float
+    t_end : float or None
         Simulated time [s], at most 1e9; must exceed the start of the residual window,
-        ``t_f (1 + tolerances.residual_delay)`` (15 s for the default 10 s slew).
+        ``t_f (1 + tolerances.residual_delay)`` (15 s for the default 10 s slew). None: the
+        task's own (:func:`hubbeam_ctrl.study.yardstick.task_t_end`), for a task of any length.
     dt : float
         Controller sample time [s], in [1e-6, 10] and at most ``t_f / 10``.
     w_f : float
@@ -274,14 +275,17 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
     budget = "tau_max" if tau_max is not None else "the motor's Params.tau_max (beam.tau_max of a rig)"
-    tau_max = _budget(tau_max, params)
-    t_f, t_end, dt = (check_in_range(key, value, RANGES[key][2], *RANGES[key][:2])
-                      for key, value in (("tf", t_f), ("t_end", t_end), ("dt", dt)))
+    tau_given, tau_max = tau_max, _budget(tau_max, params)
+    derive = t_end is None
+    t_f, dt = (check_in_range(key, value, RANGES[key][2], *RANGES[key][:2]) for key, value in (("tf", t_f), ("dt", dt)))
     tol = tolerances if tolerances is not None else default_tolerances(
         task.name if task is not None else name, params.J_h / params.total_inertia)
     if not isinstance(tol, Tolerances):
         raise ParameterError(f"tolerances must be a Tolerances, got {type(tol).__name__}")
     start = t_f * (1 + tol.residual_delay)
+    # the task's own t_end is read from a scenario built first with one past the window's start
+    t_end = check_in_range("t_end", max(3.0 * t_f, 2.0 * start) if derive else t_end, RANGES["t_end"][2],
+                           *RANGES["t_end"][:2])
     if t_end <= start:
         raise ParameterError(f"t_end must exceed tf + {tol.residual_delay:g} tf = {start:g} s (the "
                              f"residual-vibration window starts there), got {t_end:g} s")
@@ -297,8 +301,16 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
                             w_f=w_f, flatness=flatness, smoothing=smoothing, tolerances=tol, task=task,
                             eq44=eq44, reference=reference, budget=budget)
     scale_reference = parts.pop("scale_reference", parts["reference"])
-    return Scenario(name, plant, params, tau_max, t_f, t_end, dt, task=task, tolerances=tol,
-                    **parts, **_scaled(params, tau_max, t_f, dt, task, dict(parts, reference=scale_reference), tol))
+    sc = Scenario(name, plant, params, tau_max, t_f, t_end, dt, task=task, tolerances=tol,
+                  **parts, **_scaled(params, tau_max, t_f, dt, task, dict(parts, reference=scale_reference), tol))
+    if derive:
+        from hubbeam_ctrl.study.yardstick import task_t_end
+        own = task_t_end(sc)
+        if own != sc.t_end:
+            return make_scenario(scenario, plant=plant, params=params, tau_max=tau_given, t_f=t_f, t_end=own, dt=dt,
+                                 w_f=w_f, slew_angle=slew_angle, flatness=flatness, smoothing=smoothing,
+                                 tolerances=tolerances, preview_s=preview_s, reference=reference)
+    return sc
 
 
 @functools.lru_cache(maxsize=8)

@@ -27,6 +27,8 @@ __all__ = ["LIMIT_KINDS", "RESIDUAL_PERIODS", "rigid_limit", "task_limit", "yard
 
 #: The yardsticks a comparison can use.
 LIMIT_KINDS = ("rigid", "optimal")
+#: ``limit_kind`` of the rigid bound on a rig's DC drive.
+DRIVE_BOUND = "rigid bound on the drive"
 
 
 def rigid_limit(scenario) -> float:
@@ -59,7 +61,10 @@ def task_limit(scenario, kind: str = "rigid", rig=None) -> dict:
         ``"optimal"``: the time-optimal slew of the nonlinear beam (a slew only; seconds to a
         minute of IPOPT, see :mod:`hubbeam_ctrl.limit`).
     rig : Rig, optional
-        The rig whose drive bounds the time-optimal slew.
+        The rig whose drive bounds the slew: with a DC motor the rigid bound of a slew is the
+        bang-bang within its voltage limit through back-EMF, current limit and friction
+        (:func:`hubbeam_ctrl.limit.rigid_bound`; at least the bound with ``tau_max``),
+        ``limit_kind`` :data:`DRIVE_BOUND`; and the time-optimal slew.
 
     Returns
     -------
@@ -68,6 +73,10 @@ def task_limit(scenario, kind: str = "rigid", rig=None) -> dict:
     if kind not in LIMIT_KINDS:
         raise ParameterError(f"limit must be one of {', '.join(LIMIT_KINDS)}, got {kind!r}")
     if kind == "rigid" or scenario.name != "slew":
+        if rig is not None and scenario.name == "slew" and not rig.drive.is_ideal:
+            from hubbeam_ctrl.limit import rigid_bound  # back-EMF, current limit, friction (issue 36)
+            bound = rigid_bound(scenario.params, scenario.target, rig)
+            return {"limit_s": max(bound, rigid_limit(scenario)), "limit_kind": DRIVE_BOUND}
         return {"limit_s": rigid_limit(scenario), "limit_kind": "rigid bound"}
     from hubbeam_ctrl.limit import time_optimal_slew
     source = rig if rig is not None else scenario.params
