@@ -150,6 +150,8 @@ SPECIFIC = [
     ("c8", "compare", ["--settle-angle", "2counts"], "--settle-angle 2counts: counts need a rig with an angle sensor "
                                                      "(--rig with sensors.encoder_counts or sensors.angle_noise)"),
     ("c8", "compare", ["--rig", "paper", "--settle-angle", "1count"], "--settle-angle 1count: counts need a rig"),
+    ("c8", "compare", ["--settle-tip", "1mm", "--payload-range", "0,0.2"],
+     "--settle-angle and --settle-tip do not take --payload-range yet"),
     # hubbeam fmu (issue 26)
     ("c8", "fmu", ["--model", "tlam"], "--model: invalid choice: 'tlam'"),
     ("c8", "fmu", ["--rig", "servo_link", "--params", "L_big.toml"], "--rig and --params are exclusive"),
