@@ -43,9 +43,10 @@ __all__ = ["Band", "ANGLE_FLOOR_COUNTS", "ANGLE_FORMS", "TIP_FORMS", "parse_band
 #: Two, the issue's target ("final angle within 2 counts"): the encoder rounds the hub angle to
 #: the nearest count, so a loop at rest reads its angle only within half a count, and integral
 #: action against Coulomb friction stops or hunts within a count or two of the reference. Measured
-#: on ``servo_payload`` (1024 counts, 3x Coulomb, a full sample of delay; 90 degrees in 0.9 s):
-#: LQR, LQG and MPC end 1.6-1.8 counts off, inside the target; a one-count band would call that
-#: angle unsettled. For an absolute angle sensor a count is two standard deviations, so the floor
+#: on ``servo_payload`` (1024 counts, 3x Coulomb, a full sample of delay; 90 degrees at 1.5 x its
+#: T*, 0.626 s): LQR, LQG and MPC end 1.33-1.38 counts off, inside the target, and settle at
+#: 0.93-0.99 s in a two-count band (a run 4 x longer: the same, 0.46 counts off); a one-count band
+#: would call that angle unsettled. For an absolute angle sensor a count is two standard deviations, so the floor
 #: is four: below a slew of 0.1 rad the task's own band (1e-3 of the angle) is finer than that on
 #: ``space_boom`` (2.4e-5 rad), and ``--settle-angle`` sets a tighter one.
 ANGLE_FLOOR_COUNTS = 2
