@@ -95,8 +95,18 @@ def drive_limits_text(comparison) -> str:
 
 
 def band_lines(sc) -> list:
-    """Report lines saying where each settling band of the scenario ``sc`` came from
-    (:mod:`hubbeam_ctrl.study.bands`)."""
+    """Report lines saying where each settling band of a scenario came from.
+
+    Parameters
+    ----------
+    sc : Scenario
+        Its ``band_sources`` (:func:`hubbeam_ctrl.study.bands.with_task_bands`).
+
+    Returns
+    -------
+    list of str
+        ``"  - Angle band: raised to 2 counts of the encoder ... = 0.00307 rad ..."`` and the tip's.
+    """
     sources = sc.band_sources or {}
     return [f"  - {what} band: {sources[key]}." for key, what in (("settle_angle", "Angle"), ("settle_tip", "Tip"))
             if key in sources]
