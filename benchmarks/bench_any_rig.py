@@ -28,6 +28,7 @@ from benchjson import emit  # noqa: E402
 from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.plant.rig import load_rig  # noqa: E402
 from hubbeam_ctrl.study import Slew, compare  # noqa: E402
+from hubbeam_ctrl.study.bands import angle_count as sensor_count  # noqa: E402
 
 #: Slew angle per rig [rad]: 90 degrees, 30 on the space boom (a 0.1 N m wheel turns a 100 kg m^2
 #: spacecraft by 90 degrees in 1.5 minutes; 30 degrees is its everyday re-pointing).
@@ -45,8 +46,9 @@ def rig_named(name: str):
 
 
 def angle_count(rig) -> float:
-    """One count of the angle sensor [rad]: the encoder's, else 2 standard deviations of its noise."""
-    return rig.sensors.encoder_step or 2.0 * rig.sensors.angle_noise
+    """One count of the angle sensor [rad]: the encoder's, or 2 standard deviations of an absolute
+    angle sensor's noise (:func:`hubbeam_ctrl.study.bands.angle_count`)."""
+    return sensor_count(rig)[0]
 
 
 def case(name: str) -> dict:
@@ -71,6 +73,7 @@ def case(name: str) -> dict:
             "within_drive_limits": m.get("within_drive_limits"),
             "loop_spectral_radius": m.get("loop_spectral_radius"), "disk_margin": m.get("disk_margin"),
             "delay_margin_s": m.get("delay_margin_s"), "settling_time_s": m.get("settling_time_s"),
+            "settle_angle_rad": m.get("settle_angle_rad"), "settle_angle_source": m.get("settle_angle_source"),
             "verdict_reason": m["verdict_reason"]}
     return {"angle_rad": angle, "t_opt_s": t_opt, "t_opt_wall_s": t_opt_s, "t_f_s": task.duration,
             "t_end_s": c.scenario.t_end, "count_rad": count, "controllers": rows}

@@ -140,6 +140,18 @@ SPECIFIC = [
     ("c8", "compare", ["--rig", "tau_conflict.toml"],
      "--rig file tau_conflict.toml: beam.tau_max must be within 1 % of 1.861 N m (the DC motor's stall torque"),
     ("c8", "compare", ["--rig", "motor_tau.toml"], "motor.tau_max is the limit of a torque source"),
+    # hubbeam compare --settle-angle / --settle-tip (issue 36 item 6)
+    ("c8", "compare", ["--settle-angle", "2furlongs"], "--settle-angle must be a number [rad] or with a unit: "
+                                                       "1e-3rad, 1.5mrad, 0.05deg, 2counts"),
+    ("c8", "compare", ["--settle-angle=-1deg"], "--settle-angle must be > 0 and finite"),
+    ("c8", "compare", ["--settle-tip", "0.5 parsecs"], "--settle-tip must be a number [m] or with a unit: 1e-3m, "
+                                                       "0.5mm, 1e-3L (a fraction of L), got '0.5 parsecs'"),
+    ("c8", "compare", ["--settle-tip", "0L"], "--settle-tip must be > 0 and finite"),
+    ("c8", "compare", ["--settle-angle", "2counts"], "--settle-angle 2counts: counts need a rig with an angle sensor "
+                                                     "(--rig with sensors.encoder_counts or sensors.angle_noise)"),
+    ("c8", "compare", ["--rig", "paper", "--settle-angle", "1count"], "--settle-angle 1count: counts need a rig"),
+    ("c8", "compare", ["--settle-tip", "1mm", "--payload-range", "0,0.2"],
+     "--settle-angle and --settle-tip do not take --payload-range yet"),
     # hubbeam fmu (issue 26)
     ("c8", "fmu", ["--model", "tlam"], "--model: invalid choice: 'tlam'"),
     ("c8", "fmu", ["--rig", "servo_link", "--params", "L_big.toml"], "--rig and --params are exclusive"),

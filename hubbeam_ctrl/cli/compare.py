@@ -112,6 +112,12 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                    help="integral action of LQR, LQG and MPC on the rig (disturbance estimation; default auto: "
                         "on for rigs with friction or a DC motor); --rig only")
     p.add_argument("--no-ladder", action="store_true", help="skip the rig ladder (--rig only)")
+    p.add_argument("--settle-angle", metavar="BAND",
+                   help="settling band of the hub-angle error: a number [rad] or 1.5mrad, 0.05deg, 2counts (of the "
+                        "--rig's encoder, or 2 sd of its angle sensor); default: 1e-3 of the slew angle, on a rig at "
+                        "least 2 counts (the report says where each band came from)")
+    p.add_argument("--settle-tip", metavar="BAND",
+                   help="settling band of |v_tip|: a number [m] or 0.5mm, 1e-3L (a fraction of L); default 1.25e-4 L")
     p.add_argument("--reference", choices=("task", "rigid", "planned", "optimal"), default="task",
                    help="reference and feedforward of the tracking controllers: 'task' (default): a slew given by "
                         "--slew-angle planned on the design model to end with the beam at rest, the paper's Eq. 44 "
@@ -278,6 +284,10 @@ def compare_plan(args) -> ComparePlan:
                    solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,
                    sim_settings={"range_limit": args.range_limit, **run_limits(args)},
                    progress=not args.json, backend=args.backend, check_plant=args.check_plant)
+    bands = _bands(args, rig)
+    if bands and args.payload_range is not None:
+        raise ParameterError("--settle-angle and --settle-tip do not take --payload-range yet")
+    options.update(bands)
     if rig is not None:
         options.update(params=None, rig=rig, integral={"auto": None, "on": True, "off": False}[args.integral])
     if args.payload_range is not None:
@@ -325,6 +335,7 @@ def run(args) -> int:
         comparison.ladder = rig_ladder(
             rig, opts["scenario"], names, plant=opts["plant"], t_end=comparison.scenario.t_end,
             **{k: opts[k] for k in ("tau_max", "t_f", "dt", "w_f", "slew_angle", "horizon", "solver", "integral")},
+            settle_angle=comparison.scenario.bands["settle_angle"], settle_tip=comparison.scenario.bands["settle_tip"],
             progress=None if args.json else (lambda step: print(f"ladder: {step}", file=sys.stderr)))
     paths = write_outputs(comparison, out)
     wall = time.perf_counter() - t0
@@ -346,6 +357,18 @@ def run(args) -> int:
     if skipped:
         print(f"warning: not run (the wall-time limit was reached): {', '.join(skipped)}", file=sys.stderr)
     return 0
+
+
+def _bands(args, rig) -> dict:
+    """``--settle-angle`` and ``--settle-tip`` as keywords of ``compare`` (refused in one line, before
+    any work, naming the option, its accepted forms and ``--rig`` for counts)."""
+    from hubbeam_ctrl.study.bands import angle_count, parse_band
+    bands = {key: parse_band(f"--{key.replace('_', '-')}", getattr(args, key), kind)
+             for key, kind in (("settle_angle", "angle"), ("settle_tip", "tip")) if getattr(args, key) is not None}
+    if "settle_angle" in bands:
+        count = angle_count(rig)
+        bands["settle_angle"].si(count[0] if count else None, 1.0)      # counts need the rig's angle sensor
+    return bands
 
 
 def _rig(args):

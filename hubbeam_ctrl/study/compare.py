@@ -49,6 +49,7 @@ from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
+from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
@@ -234,7 +235,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
             tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
             progress: bool = False, backend=None, rig: Rig | None = None,
             integral: bool | None = None, limit: str = "rigid", reference: str = "task",
-            check_plant: str | None = None, payload_learning=None) -> Comparison:
+            check_plant: str | None = None, payload_learning=None, settle_angle=None,
+            settle_tip=None) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
@@ -298,6 +300,12 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         The dimensionless tolerances that scale the default weights, noise levels, settling
         bands, residual window and reference shaping to the beam and the task (see
         :mod:`controllers.scaling`; default: :func:`controllers.scaling.default_tolerances`).
+    settle_angle, settle_tip : float or str, optional
+        The task's own settling bands (a number in rad or m, or ``"2counts"``, ``"0.05deg"``,
+        ``"0.5mm"``, ``"1e-3L"``; :func:`hubbeam_ctrl.study.bands.parse_band`); default: the task's
+        fields, else its defaults, the angle band on a rig at least two counts of its angle
+        sensor (:func:`hubbeam_ctrl.study.bands.with_task_bands`; ``scenario.band_sources`` says
+        where each came from).
     payload_range : tuple of float, optional
         ``(m_min, m_max)`` [kg] that LQR, LQG and MPC are designed for
         (:func:`hubbeam_ctrl.study.range_design.range_designs`); must hold the design's ``m_t``.
@@ -371,6 +379,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                    reference="rigid" if reference == "optimal" else reference)
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
     sc = make_scenario(scenario, t_end=t_end, **options)    # None: the task's own
+    sc = with_task_bands(sc, rig, settle_angle, settle_tip)
     m = _design_modes(design_modes, sc.params)
     ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
                           plant_params=plant_params if plant_params is not None else params,

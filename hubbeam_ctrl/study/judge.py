@@ -44,7 +44,8 @@ def judge(result, controller, scenario, plant_params, name: str | None = None, l
     limit : dict, optional
         The task's yardstick (:func:`~hubbeam_ctrl.study.yardstick.task_limit`; default the
         rigid body's bound): the metrics get ``limit_s``, ``settling_over_limit`` and
-        ``residual_pct_of_L``.
+        ``residual_pct_of_L``; with the scenario's ``band_sources``, ``settle_angle_source``
+        and ``settle_tip_source`` (where each settling band came from).
 
     Returns
     -------
@@ -59,6 +60,8 @@ def judge(result, controller, scenario, plant_params, name: str | None = None, l
     metrics = closed_loop_metrics(result, scenario.t_f, tau_max=scenario.tau_max, block_s=block_s,
                                   certificate=cert, **(scenario.bands or {}))
     metrics.update(yardstick_metrics(metrics, scenario, limit or task_limit(scenario)))
+    for key, text in (getattr(scenario, "band_sources", None) or {}).items():
+        metrics[f"{key}_source"] = text        # where each settling band came from (study.bands)
     return metrics, cert
 
 

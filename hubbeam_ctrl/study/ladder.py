@@ -66,7 +66,9 @@ def rig_ladder(rig: Rig, scenario="slew", controllers=None, progress=None, **opt
         Called with each step's label before it runs.
     **options
         Further keywords of ``compare`` (``plant``, ``t_end``, ``integral``...); ``t_end``
-        defaults to the full rig's task time, so every step runs the same window.
+        defaults to the full rig's task time, so every step runs the same window; give the full rig's
+        bands (``settle_angle``, ``settle_tip``: its ``Comparison.scenario.bands``, as ``hubbeam compare
+        --rig`` does) to judge every step by them rather than by its own sensors' defaults.
 
     Returns
     -------

@@ -32,6 +32,7 @@ from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.evaluation import PLANT_MODELS
+from hubbeam_ctrl.study.bands import default_band_sources
 from hubbeam_ctrl.study.tasks import Slew, SpinUp, check_target
 
 __all__ = ["RANGES", "SCENARIOS", "PLANTS", "REFERENCES", "Scenario", "make_scenario", "register_scenario"]
@@ -138,6 +139,10 @@ class Scenario:
         :class:`~hubbeam_ctrl.plant.sensors.SensorSettings`).
     bands : dict
         ``settle_angle`` [rad], ``settle_tip`` [m] and ``residual_delay`` [s] of the metrics.
+    band_sources : dict
+        ``settle_angle`` and ``settle_tip`` -> where that band came from, one line (the task's
+        default here; a rig's angle sensor or the user's own bands through
+        :func:`hubbeam_ctrl.study.bands.with_task_bands`).
     """
 
     name: str
@@ -160,6 +165,7 @@ class Scenario:
     defaults: dict = None
     sensors: dict = None
     bands: dict = None
+    band_sources: dict = None
 
     def closed_loop_settings(self, seed: int | None = None):
         """The closed loop's default settings for this task: its sample time and the sensor
@@ -189,7 +195,7 @@ class Scenario:
                 "baseline_tau_m_nm": self.baseline_tau_m, "description": self.description,
                 "scales": self.scales.to_dict() if self.scales is not None else None,
                 "tolerances": self.tolerances.to_dict() if self.tolerances is not None else None,
-                "sensors": self.sensors, "bands": self.bands}
+                "sensors": self.sensors, "bands": self.bands, "band_sources": self.band_sources}
 
 
 def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None = None,
@@ -322,13 +328,15 @@ def _design_point(params: Params, spin: float, dt: float) -> DesignModel:
 def _scaled(params: Params, tau_max: float, t_f: float, dt: float, task, parts: dict, tol: Tolerances) -> dict:
     """Scales, scaled controller defaults, sensor noise and metric bands of a scenario."""
     if task is None:                   # a registered scenario without a task: the paper's numbers
-        return {"scales": None, "defaults": {}, "sensors": {},
-                "bands": {"settle_angle": 1e-3, "settle_tip": 1e-3, "residual_delay": 5.0}}
+        bands = {"settle_angle": 1e-3, "settle_tip": 1e-3, "residual_delay": 5.0}
+        return {"scales": None, "defaults": {}, "sensors": {}, "bands": bands,
+                "band_sources": default_band_sources(bands)}
     angle = task.angle if task.name == "slew" else abs(task.rate) * t_f / 2
     design = _design_point(params, parts["design_spin"], dt)
     scales = task_scales(design, parts["reference"], angle, t_f, tau_max)
+    bands = settling_bands(scales, tol)
     return {"scales": scales, "defaults": scaled_defaults(scales, tol), "sensors": sensor_noise(scales, tol),
-            "bands": settling_bands(scales, tol)}
+            "bands": bands, "band_sources": default_band_sources(bands, scales, tol)}
 
 
 def _budget(tau_max, params: Params) -> float:

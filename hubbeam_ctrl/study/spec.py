@@ -72,6 +72,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import path_exists, read_toml
 from hubbeam_ctrl.exact import require_exudyn
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
+from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
 
 __all__ = ["StudySpec", "load_spec", "load_settings", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
@@ -652,10 +653,11 @@ class StudySpec:
                 tol = default_tolerances(self.scenario, params.J_h / params.total_inertia).replace(**self.tolerances)
             except (ParameterError, TypeError) as exc:
                 raise ParameterError(f"study.tolerances: {_one_line(exc)}") from None
-        return make_scenario(self.scenario, plant=self.plant, params=params, tau_max=self.tau_max,
-                             t_f=self.t_f, t_end=self.t_end, dt=self.dt,
-                             w_f=self.w_f if w_f is None else w_f,
-                             slew_angle=self.slew_angle if self.scenario == "slew" else None, tolerances=tol)
+        sc = make_scenario(self.scenario, plant=self.plant, params=params, tau_max=self.tau_max,
+                           t_f=self.t_f, t_end=self.t_end, dt=self.dt,
+                           w_f=self.w_f if w_f is None else w_f,
+                           slew_angle=self.slew_angle if self.scenario == "slew" else None, tolerances=tol)
+        return with_task_bands(sc, self.rig)     # on a rig: the angle band at least two counts of its sensor
 
     # -- serialisation -------------------------------------------------------------------------
     def to_dict(self) -> dict:

@@ -42,6 +42,7 @@ from typing import ClassVar
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_finite, check_positive
+from hubbeam_ctrl.study.bands import parse_band
 
 __all__ = ["Slew", "SpinUp", "TASKS", "MIN_TARGET", "check_target"]
 
@@ -82,6 +83,13 @@ def check_target(name: str, value, unit: str, what: str) -> float:
     return value
 
 
+def _check_bands(task) -> None:
+    """Parse the task's own settling bands (:func:`~hubbeam_ctrl.study.bands.parse_band`)."""
+    for key, kind in (("settle_angle", "angle"), ("settle_tip", "tip")):
+        if getattr(task, key) is not None:
+            object.__setattr__(task, key, parse_band(key, getattr(task, key), kind))
+
+
 def _shortest_message(name: str, t_min: float, what: str, got: float) -> str:
     return f"{name} must be >= {t_min:.5g} s (the shortest in which {what}), got {got:g} s"
 
@@ -96,16 +104,27 @@ class Slew:
         Rotation Theta [rad], finite and not 0 (negative: the other way).
     duration : float
         Maneuver time t_f [s], > 0.
+    settle_angle : float or str, optional
+        The task's own settling band of the hub-angle error: a number [rad] or a text with a
+        unit or counts (``"0.05deg"``, ``"2counts"``; :func:`hubbeam_ctrl.study.bands.parse_band`).
+        Default: the task's (1e-3 of the angle, at least two counts of a rig's angle sensor).
+        Applied by :func:`~hubbeam_ctrl.study.compare.compare`, which knows the rig's sensors.
+    settle_tip : float or str, optional
+        The task's own settling band of the tip deflection: a number [m] or ``"0.5mm"``,
+        ``"1e-3L"`` (a fraction of L). Default: the task's (1.25e-4 L).
     """
 
     angle: float
     duration: float
+    settle_angle: object = None
+    settle_tip: object = None
     #: Scenario name of the task.
     name: ClassVar[str] = "slew"
 
     def __post_init__(self):
         object.__setattr__(self, "angle", check_target("angle", self.angle, "rad", "a slew by 0 is no task"))
         object.__setattr__(self, "duration", check_positive("duration", self.duration, "s"))
+        _check_bands(self)
 
     @property
     def target(self) -> float:
@@ -214,16 +233,27 @@ class SpinUp:
         Final hub rate w_f [rad/s], finite.
     duration : float
         Spin-up time t_f [s], > 0.
+    settle_angle : float or str, optional
+        The task's own settling band of the hub-angle error: a number [rad] or a text with a
+        unit or counts (``"0.05deg"``, ``"2counts"``; :func:`hubbeam_ctrl.study.bands.parse_band`).
+        Default: the task's (1e-3 of the angle, at least two counts of a rig's angle sensor).
+        Applied by :func:`~hubbeam_ctrl.study.compare.compare`, which knows the rig's sensors.
+    settle_tip : float or str, optional
+        The task's own settling band of the tip deflection: a number [m] or ``"0.5mm"``,
+        ``"1e-3L"`` (a fraction of L). Default: the task's (1.25e-4 L).
     """
 
     rate: float
     duration: float
+    settle_angle: object = None
+    settle_tip: object = None
     #: Scenario name of the task.
     name: ClassVar[str] = "spinup"
 
     def __post_init__(self):
         object.__setattr__(self, "rate", check_target("rate", self.rate, "rad/s", "a spin-up to rest is no task"))
         object.__setattr__(self, "duration", check_positive("duration", self.duration, "s"))
+        _check_bands(self)
 
     @property
     def target(self) -> float:
