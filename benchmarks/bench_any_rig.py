@@ -79,6 +79,25 @@ def case(name: str) -> dict:
             "t_end_s": c.scenario.t_end, "count_rad": count, "controllers": rows}
 
 
+def table_lines(doc: dict) -> list:
+    """The rows of docs/rig.md's table of these targets, from the JSON (a test keeps the two equal)."""
+    lines = ["| rig | T* [s] | t_f [s] | LQR / LQG / MPC | same 4 x longer | largest residual tip | "
+             "largest final error [counts] | within the drive's limits |",
+             "|---|---|---|---|---|---|---|---|"]
+    for name, case in doc["rigs"].items():
+        rows = case["controllers"].values()
+        verdicts = " / ".join(r["verdict"] for r in rows)
+        same = all(r["verdict"] == r["verdict_4x"] for r in rows)
+        resid = max(rows, key=lambda r: r["residual_tip_m"])
+        err = max(abs(r["final_angle_error_counts"]) for r in rows)
+        limits = all(r["within_drive_limits"] for r in rows)
+        lines.append(f"| `{name}` | {case['t_opt_s']:.4g} | {case['t_f_s']:.4g} | {verdicts} | "
+                     f"{'yes' if same else 'no'} | {resid['residual_tip_m']:.2g} m "
+                     f"({resid['residual_fraction_of_L']:.2g} L) | "
+                     f"{err:.2f} | {'yes' if limits else 'no'} |")
+    return lines
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rigs", default="servo_link,servo_link_delay1,accel_link,servo_payload,space_boom")

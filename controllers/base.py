@@ -302,9 +302,11 @@ class DesignModel:
         layout = sensors or DEFAULT_LAYOUT
         if layout.is_default and delay == 0.0 and self.sensors is None and self.delay == 0.0:
             return self
-        C, D = layout.rows(self.A, self.B, self.params, self.spin, self.C_tip[0])
-        if layout.is_default:
-            C = self.C_sensors if self.sensors is None else C
+        if layout.is_default:           # the beam alone's three sensors: the model's own rows and names
+            C, D, layout = (self.C_sensors if self.sensors is None else layout.rows(
+                self.A, self.B, self.params, self.spin, self.C_tip[0])[0]), None, None
+        else:
+            C, D = layout.rows(self.A, self.B, self.params, self.spin, self.C_tip[0])
         return dataclasses.replace(self, C_sensors=C, D_sensors=D, sensors=layout, delay=float(delay))
 
     def sensor_deviation(self, y, t: float) -> np.ndarray:

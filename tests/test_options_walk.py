@@ -30,7 +30,8 @@ SAMPLES = {"--params": "DAMPED", "--tip-mass": "0.2", "--tip-position": {"rig": 
            "--slew-angle": "1", "--tf": {"rig": "1", None: "8"}, "--t-end": {"rig": "5", None: "40"},
            "--wf": "2", "--dt": "0.005", "--rig": "servo_link", "--horizon": "30", "--schedule": "2",
            "--out": "OTHER", "--payload-range": "0,0.4", "--max-wall": "100", "--reference": "planned",
-           "--limit": "optimal", "--plant": "cfoam", "--check-plant": "cfoam", "--solver": "osqp"}
+           "--limit": "optimal", "--plant": "cfoam", "--check-plant": "cfoam", "--solver": "osqp",
+           "--settle-angle": "0.05deg", "--settle-tip": "0.5mm"}
 
 #: Handled by ``hubbeam``'s entry point for every command (:func:`hubbeam_ctrl.cli.main._run`).
 ENTRY_POINT = {"-h", "--help", "--verbose"}

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from hubbeam_ctrl.calibrate.model import ModelSettings, _check_sensors, rig_sensors, simulate_sensors
+from hubbeam_ctrl.calibrate.model import ModelSettings, _check_sensors, rig_sensors, set_fields, simulate_sensors
 from hubbeam_ctrl.calibrate.records import Record
 from hubbeam_ctrl.calibrate.solver import (
     IDENTIFIABILITY_CONDITION,
@@ -53,7 +53,7 @@ from hubbeam_ctrl.calibrate.solver import (
     check_bounds,
 )
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.plant.rig import RIG_TABLES, Rig
+from hubbeam_ctrl.plant.rig import _ATTR, RIG_TABLES, Rig
 
 __all__ = ["FitField", "FitSettings", "FitResult", "resolve_fields", "set_fields", "fit_rig", "fit_percent",
            "predict", "validate_record", "FIT_ALIASES", "IDENTIFIABILITY_CONDITION", "check_record_for_rig",
@@ -62,8 +62,6 @@ __all__ = ["FitField", "FitSettings", "FitResult", "resolve_fields", "set_fields
 #: Short names of ``--fit``: name -> (table, key, index or None).
 FIT_ALIASES = {"damping": ("damping", "ratios", 0), "friction": ("friction", "coulomb", None),
                "coulomb": ("friction", "coulomb", None), "viscous": ("friction", "viscous", None)}
-_ATTR = {"beam": "beam", "motor": "drive", "friction": "friction", "damping": "damping", "sensors": "sensors",
-         "timing": "timing"}
 _FITTABLE_TABLES = ("beam", "motor", "friction", "damping")
 #: After the frequency-response start, the short-horizon stages keep each field within this factor of it.
 STAGE_BOUND = 1.15
@@ -175,36 +173,6 @@ def resolve_fields(names, rig: Rig, option: str = "--fit") -> list:
             raise ParameterError(f"{option}: {name} is given twice")
         out.append(f)
     return out
-
-
-def set_fields(rig: Rig, fit_fields, values) -> Rig:
-    """A copy of ``rig`` with the fields set to ``values`` (validated as a rig).
-
-    Parameters
-    ----------
-    rig : Rig
-    fit_fields : sequence of FitField
-    values : sequence of float
-
-    Returns
-    -------
-    Rig
-    """
-    changes: dict = {}
-    for f, v in zip(fit_fields, values):
-        part = changes.setdefault(f.table, {})
-        if f.index is None:
-            part[f.key] = float(v)
-        else:
-            ratios = list(part.get("ratios", rig.damping.ratios) or [rig.beam.damping_ratio])
-            while len(ratios) <= f.index:
-                ratios.append(ratios[-1])
-            ratios[f.index] = float(v)
-            part["ratios"] = tuple(ratios)
-    parts = {_ATTR[t]: getattr(rig, _ATTR[t]).replace(**c) for t, c in changes.items()}
-    if "damping" in changes and rig.beam.damping_ratio > 0:
-        parts["beam"] = parts.get("beam", rig.beam).replace(damping_ratio=0.0)
-    return rig.replace(**parts)
 
 
 def fit_percent(y, y_model) -> float:

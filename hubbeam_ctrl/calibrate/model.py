@@ -25,12 +25,13 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import build_model
+from hubbeam_ctrl.plant.rig import _ATTR as _RIG_ATTR
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.plant.sensors import sensor_matrix
 from hubbeam_ctrl.sim.hardware import Hardware
 from hubbeam_ctrl.sim.stepper import StepperSettings, simulate_fixed_step, substep_rule
 
-__all__ = ["ModelSettings", "simulate_sensors", "synthetic_record", "rig_sensors", "clamped_modes",
+__all__ = ["set_fields", "ModelSettings", "simulate_sensors", "synthetic_record", "rig_sensors", "clamped_modes",
            "sliding_hub_modes", "hub_damping"]
 
 
@@ -276,3 +277,33 @@ def synthetic_record(rig: Rig, t, u, sensors=None, seed: int = 0, settings: Mode
         cols["theta"] = s.encoder_step * np.round(cols["theta"] / s.encoder_step)
     inp = "tau" if rig.drive.is_ideal else "V"
     return Record(t=np.asarray(t, dtype=float), columns={inp: np.asarray(u, dtype=float), **cols}, source=source)
+
+
+def set_fields(rig: Rig, fit_fields, values) -> Rig:
+    """A copy of ``rig`` with the fields set to ``values`` (validated as a rig).
+
+    Parameters
+    ----------
+    rig : Rig
+    fit_fields : sequence of FitField
+    values : sequence of float
+
+    Returns
+    -------
+    Rig
+    """
+    changes: dict = {}
+    for f, v in zip(fit_fields, values):
+        part = changes.setdefault(f.table, {})
+        if f.index is None:
+            part[f.key] = float(v)
+        else:
+            ratios = list(part.get("ratios", rig.damping.ratios) or [rig.beam.damping_ratio])
+            while len(ratios) <= f.index:
+                ratios.append(ratios[-1])
+            ratios[f.index] = float(v)
+            part["ratios"] = tuple(ratios)
+    parts = {_RIG_ATTR[t]: getattr(rig, _RIG_ATTR[t]).replace(**c) for t, c in changes.items()}
+    if "damping" in changes and rig.beam.damping_ratio > 0:
+        parts["beam"] = parts.get("beam", rig.beam).replace(damping_ratio=0.0)
+    return rig.replace(**parts)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubbeam_ctrl.calibrate.model import hub_damping
+from hubbeam_ctrl.calibrate.model import hub_damping, set_fields
 from hubbeam_ctrl.calibrate.records import Record
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.models import build_model
@@ -168,7 +168,6 @@ def frequency_start(rig: Rig, records, used, fit_fields, start, lo, hi, band_hz,
     from scipy.optimize import least_squares
     from scipy.stats import qmc
 
-    from hubbeam_ctrl.calibrate.fit import set_fields
     measured = []
     for r, ss in zip(records, used):
         for s, (f, h) in measured_response(r, ss, band_hz).items():

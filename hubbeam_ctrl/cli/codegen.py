@@ -113,6 +113,11 @@ def run(args) -> int:
         ctrl = make_controller(args.controller, design, settings, sc.reference)
     else:      # the controller that runs on the rig: integral action, observer, volts (as compare --rig)
         from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
+        if args.controller in ("lqr", "lqg") and not rig.sensors.rate:
+            raise ParameterError(f"rig: the generated {args.controller} reads the hub rate, but the rig has no "
+                                 "sensors.rate (an observer on another sensor set runs in Python, not yet in C)")
+        # the rig's delay in the design, as compare --rig has it; the C reads the beam alone's three sensors
+        design = design.on_rig(None, rig.timing.delay)
         ctrl = make_controller(args.controller, design, rig_settings(args.controller, settings, rig), sc.reference)
         ctrl = on_rig(ctrl, rig, task_noise(sc, rig), rig_closed_loop(rig, sc.closed_loop_settings())[1])
     cc = compiler()

@@ -133,7 +133,7 @@ def _plant_lines(comparison) -> list:
              f"(m_t = {design.m_t:g} kg, J_h = {design.J_h:g} kg m^2)."]
     if ev is not None:
         lines.append(f"- Evaluation plant: {ev.model.upper()} with {p.n_axial} axial and {p.n_transverse} "
-                     f"transverse modes ({ev.reason}), structural damping ratio {p.damping_ratio:g}.")
+                     f"transverse modes ({ev.reason}), {_damping_text(p)}.")
         differs = sorted(k for k, v in p.to_dict().items()
                          if k not in ("n_axial", "n_transverse") and v != design.to_dict()[k])
         values = ", ".join(f"{k} = {_number_text(v)}" for k, v in p.to_dict().items()
@@ -376,6 +376,15 @@ def _yardstick_lines(comparison) -> list:
             f"the beam's length L = {sc.params.L:g} m; `% of OL` (against the Eq. 44 open loop) comes second."]
 
 
+def _damping_text(p) -> str:
+    """The plant's structural damping as it applies: per mode when the rig gives ratios."""
+    ratios = p.transverse_damping(p.n_transverse)
+    if ratios.size and np.ptp(ratios) > 0:
+        more = " ..." if ratios.size > 4 else ""
+        return "structural damping ratios " + ", ".join(f"{z:.3g}" for z in ratios[:4]) + more
+    return f"structural damping ratio {float(ratios[0]) if ratios.size else p.damping_ratio:g}"
+
+
 def _rig_lines(comparison) -> list:
     """The rig the controllers ran on: hardware, damping (a warning without any), how they read it."""
     rig = getattr(comparison, "rig", None)
@@ -406,19 +415,49 @@ def _rig_lines(comparison) -> list:
     lines.append(f"- Damping: ratios {', '.join(f'{z:.3g}' for z in ratios[:4])}"
                  + (" ..." if len(ratios) > 4 else "") + " of the plant's first modes."
                  if damped else "- warning: the rig has no damping; every mode rings until a controller damps it.")
-    lines.append(f"- Sensors: encoder {sn.encoder_counts} counts/rev" if sn.encoder_counts else
-                 "- Sensors: ideal angle")
-    lines[-1] += (", strain gauges at " + ", ".join(f"{x:g} m" for x in sn.strain_gauges) + "; LQR and MPC read "
-                  "them through a Kalman filter (controllers.integral.ObservedFeedback); the filters count the "
-                  "encoder's quantisation as angle noise.")
+    lines += _sensor_lines(sn, comparison)
     lines.append(f"- Timing: sample {comparison.scenario.dt * 1e3:g} ms, computation delay {tm.delay:g} of a sample "
-                 "(the command acts that much after the sample it was computed from).")
+                 "(the command acts that much after the sample it was computed from"
+                 + ("; the design model, the filters and the certificate carry it)." if tm.delay else ")."))
     integral = {n: c.settings.integral if hasattr(getattr(c, "settings", None), "integral")
                 else getattr(c, "integral", None) for n, c in getattr(comparison, "controllers", {}).items()}
     on = [n for n, v in integral.items() if v]
     lines.append("- Integral action (disturbance estimation, controllers.integral): "
                  + (", ".join(on) if on else "none") + ".")
     return lines + [""]
+
+
+def _sensor_lines(sn, comparison) -> list:
+    """What the rig measures, sensor by sensor, and what the estimators read of it."""
+    if sn.encoder_counts:
+        angle = f"hub angle by an encoder of {sn.encoder_counts} counts/rev (the filters count its quantisation " \
+                "as angle noise)"
+    elif sn.angle_noise:
+        angle = f"hub angle by an absolute angle sensor, noise {sn.angle_noise:.3g} rad"
+    else:
+        angle = "hub angle exact"
+    if sn.angle_bias:
+        angle += f", bias {sn.angle_bias:.3g} rad"
+    if not sn.rate:
+        rate = "no hub-rate sensor (the estimators derive the rate)"
+    else:
+        parts = [f"noise {sn.rate_noise:.3g} rad/s"] if sn.rate_noise else ["exact"]
+        if sn.rate_bias:
+            parts.append(f"bias {sn.rate_bias:.3g} rad/s")
+        if sn.rate_bias_walk:
+            parts.append(f"bias drifting {sn.rate_bias_walk:.3g} rad/s/sqrt(s) (simulated, not estimated)")
+        rate = "hub rate " + ", ".join(parts)
+    gauges = ("strain gauges at " + ", ".join(f"{x:g} m" for x in sn.strain_gauges)
+              + (f" (noise {sn.strain_noise:.3g} N m)" if sn.strain_noise else "")) if sn.strain_gauges \
+        else "no strain gauge"
+    accel = (f"a tip accelerometer (noise {sn.accel_noise:.3g} m/s^2)" if sn.tip_accelerometer
+             else "no tip accelerometer")
+    filt = f"; anti-alias filter at {sn.anti_alias_hz:g} Hz" if sn.anti_alias_hz else ""
+    reads = sorted({tuple(s) for c in getattr(comparison, "controllers", {}).values()
+                    if (s := getattr(c, "signals", None))})
+    read = ("; the estimators (LQG, and the Kalman filter through which LQR and MPC run) read "
+            + " / ".join(", ".join(r) for r in reads)) if reads else ""
+    return [f"- Sensors: {angle}; {rate}; {gauges}; {accel}{filt}{read}."]
 
 
 def _margin_lines(margins: dict) -> list:
