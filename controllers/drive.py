@@ -54,6 +54,7 @@ class VoltageCommand:
                 raise ParameterError(f"controller {getattr(inner, 'name', '?')!r} on a DC motor needs the hub rate: "
                                      "the rig has no sensors.rate and the controller no estimator")
         self.last_torque = float("nan")
+        self._last_rate = 0.0
 
     def __getattr__(self, name):             # name, dt, design, n_modes, settings, reference...
         if name in ("inner", "hardware"):
@@ -64,6 +65,7 @@ class VoltageCommand:
         """Reset the torque controller."""
         self.inner.reset()
         self.last_torque = float("nan")
+        self._last_rate = 0.0
 
     def stats(self) -> dict:
         """The torque controller's statistics."""
@@ -100,4 +102,19 @@ class VoltageCommand:
         """Voltage [V] at time ``t`` [s] from measurement ``y``."""
         tau = float(self.inner(t, y))
         self.last_torque = tau
-        return self.hardware.voltage_for_torque(tau, self._rate(y))
+        self._last_rate = self._rate(y)
+        return self.hardware.voltage_for_torque(tau, self._last_rate)
+
+    def applied(self, command: float) -> None:
+        """The drive gave ``command`` [V], not the voltage just returned (an amplifier's slew-rate
+        limit): the torque law's filter predicts with the torque it makes at the rate it was computed
+        for (the drive linearised while motoring).
+
+        Parameters
+        ----------
+        command : float
+            The voltage applied [V].
+        """
+        if hasattr(self.inner, "applied"):
+            g = self.hardware.torque_per_volt()
+            self.inner.applied(g * (float(command) - self.hardware.back_emf_constant() * self._last_rate))

@@ -266,6 +266,16 @@ class ObservedFeedback(Controller):
         self.estimator.reset(x0)
         self._tau = None
 
+    def applied(self, tau: float) -> None:
+        """The filter's next prediction uses ``tau`` as this sample's torque (:meth:`Controller.applied`).
+
+        Parameters
+        ----------
+        tau : float
+            The torque applied [N m].
+        """
+        self._tau = float(tau)
+
     @property
     def disturbance(self) -> float:
         """The estimated input disturbance [N m] (0 without integral action)."""

@@ -156,3 +156,21 @@ def test_rig_doc_quotes_the_any_rig_benchmark():
     text = (root / "docs" / "rig.md").read_text()
     for line in bench.table_lines(doc):
         assert line in text, line
+
+
+def test_amplifier_slew_rate_limits_the_command_and_the_filters_know():
+    """motor.slew_rate = 40 V/s on servo_link (0.04 V per 1 ms sample): the command the drive gives
+    changes by at most 0.04 V a sample (it changes by 0.08 V without the limit), and the loop with
+    the filters told the limited command still settles."""
+    import dataclasses
+
+    from hubbeam_ctrl.study import Slew, compare
+    rig = load_rig("servo_link")
+    slow = dataclasses.replace(rig, drive=dataclasses.replace(rig.drive, slew_rate=40.0))
+    c = compare("foam", Slew(math.pi / 2, 0.4534), "lqr", rig=slow)
+    m = c.metrics["lqr"]
+    assert m["peak_command_step"] == pytest.approx(0.04, rel=1e-9)
+    assert np.max(np.abs(np.diff(c.results["lqr"].tau))) <= 0.04 * (1 + 1e-12)
+    assert m["verdict"] == "settled", m["verdict_reason"]
+    with pytest.raises(ParameterError, match=r"motor\.slew_rate"):
+        dataclasses.replace(rig.drive, slew_rate=-1.0)

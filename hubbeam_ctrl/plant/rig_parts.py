@@ -66,6 +66,10 @@ class Drive(Settings):
     eta_motor: float = setting(1.0, lo=0.0, lo_open=True, hi=1.0,
                                doc="Motor efficiency apart from the gear's: the motor's shaft torque is "
                                    "eta_motor k_t i.")
+    slew_rate: float | None = setting(None, unit="V/s or N m/s", lo=0.0, lo_open=True, hi=1e12, kind=float,
+                                      doc="The amplifier's slew-rate limit: the command changes by at most this "
+                                          "times the sample time from one sample to the next (volts on a DC "
+                                          "motor, newton-metres on a torque source); None: none.")
     tau_max: float | None = setting(None, unit="N m", lo=0.0, lo_open=True, hi=1e9, kind=float,
                                     doc='The torque source\'s limit at the hub (kind = "torque"); None: '
                                         "beam.tau_max. A DC motor's follows from its voltage and current "

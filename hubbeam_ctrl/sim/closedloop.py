@@ -397,6 +397,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" and chain is None \
         else None
     delay = 0.0 if hardware is None else hardware.delay
+    slew_step = None if hardware is None or hardware.drive.slew_rate is None else hardware.drive.slew_rate * settings.dt
+    last_command = 0.0                            # the amplifier's output before t = 0
     n_sub = plant_info["substeps"]
     n_late = int(round(delay * n_sub))            # substeps still under the previous command
     u_sub = np.empty(n_sub)
@@ -463,6 +465,13 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
                        f"t = {t[k]:.3f} s; run stopped")
             last = k
             break
+        if slew_step is not None:       # the amplifier's slew-rate limit: the filters predict with what it gives
+            limited = min(max(tau, last_command - slew_step), last_command + slew_step)
+            if limited != tau:
+                tau = taus[k] = limited
+                if hasattr(controller, "applied"):
+                    controller.applied(tau)
+            last_command = tau
         if k == N:
             break
         if n_late:                      # computation delay: the command acts delay * dt after the sample

@@ -313,7 +313,7 @@ class Hardware:
         """True for the ideal torque source without friction, ideal sensors (or none given) and no
         delay: the closed loop is then today's, bit for bit."""
         return (self.mechanics_ideal and (self.sensors is None or self.sensors.is_ideal)
-                and self.delay == 0.0)
+                and self.delay == 0.0 and self.drive.slew_rate is None)
 
     @property
     def command(self) -> str:
