@@ -174,3 +174,13 @@ def test_amplifier_slew_rate_limits_the_command_and_the_filters_know():
     assert m["verdict"] == "settled", m["verdict_reason"]
     with pytest.raises(ParameterError, match=r"motor\.slew_rate"):
         dataclasses.replace(rig.drive, slew_rate=-1.0)
+
+
+def test_one_law_two_rows_is_said():
+    """On servo_link the observer-fed LQR is the LQG (the same gain on the same filter): the row says
+    so (``same_law_as``) and the report's notes name it; the MPC (a constrained plan) is not named."""
+    from hubbeam_ctrl.study import Slew, compare
+    c = compare("foam", Slew(math.pi / 2, 0.4534), "lqr,lqg,mpc", rig=load_rig("servo_link"), t_end=1.0)
+    assert c.metrics["lqg"]["same_law_as"] == "lqr"
+    assert "same_law_as" not in c.metrics["mpc"] and "same_law_as" not in c.metrics["lqr"]
+    assert any(n.startswith("lqg is the same linear law as lqr") for n in c.notes)

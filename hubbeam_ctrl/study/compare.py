@@ -50,7 +50,7 @@ from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.bands import with_task_bands
-from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for
+from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import PLANTS, RANGES, REFERENCES, Scenario, make_scenario
@@ -472,6 +472,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         for mm in metrics.values():
             mm["residual_pct_of_openloop"] = (100.0 * mm["residual_tip_max_m"] / base_res
                                               if base_res and math.isfinite(base_res) else float("nan"))
+    notes = notes + same_laws(linear, metrics)
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
                       targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,

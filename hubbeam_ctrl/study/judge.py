@@ -14,12 +14,15 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from controllers.scaling import first_mode
+from hubbeam_ctrl.core.errors import HubbeamError
 from hubbeam_ctrl.study.certificate import certify
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 from hubbeam_ctrl.study.yardstick import task_limit, yardstick_metrics
 
-__all__ = ["judge", "residual_modes_for", "margin_cause", "THIN_DISK_MARGIN"]
+__all__ = ["judge", "residual_modes_for", "margin_cause", "same_laws", "THIN_DISK_MARGIN"]
 
 #: A loop whose disk margin (as it runs: drive, sensors, delay) is below this is called near
 #: instability in a verdict's reason [-].
@@ -117,3 +120,44 @@ def margin_cause(metrics: dict, margins, delay_s: float = 0.0) -> None:
     if delay_s > 0:
         what += f" (the rig's computation delay: {1e3 * delay_s:.3g} ms)"
     metrics["verdict_reason"] = f"{metrics.get('verdict_reason', '')}; cause: {what}, near instability".lstrip("; ")
+
+
+def same_laws(controllers: dict, metrics: dict) -> list:
+    """Notes for controllers that are one law by construction (on a rig the observer-fed LQR is the
+    LQG: the same gain on the same Kalman filter); each such row gets ``same_law_as`` (in place).
+
+    Parameters
+    ----------
+    controllers : dict
+        Name -> controller as it ran.
+    metrics : dict
+        Name -> metrics of its run.
+
+    Returns
+    -------
+    list of str
+        One note per controller whose law (:meth:`~controllers.Controller.feedback_matrices`) equals
+        an earlier one's within 1e-9 (MPC, whose plan has constraints, aside).
+    """
+    laws = {}
+    for name, ctrl in controllers.items():
+        inner = ctrl
+        while hasattr(inner, "inner"):
+            inner = inner.inner
+        if hasattr(inner, "horizon") or hasattr(getattr(inner, "settings", None), "horizon"):
+            continue                     # a constrained plan: its linear form is only its unconstrained law
+        try:
+            laws[name] = [np.asarray(M, dtype=float) for M in ctrl.feedback_matrices()[:4]]
+        except HubbeamError:
+            continue
+    out, names = [], list(laws)
+    for i, a in enumerate(names):
+        for b in names[:i]:
+            same = all(x.shape == y.shape and np.allclose(x, y, rtol=1e-9,
+                                                          atol=1e-12 * max(1.0, np.abs(y).max(initial=0)))
+                       for x, y in zip(laws[a], laws[b]))
+            if same and "same_law_as" not in metrics[a]:
+                metrics[a]["same_law_as"] = b
+                out.append(f"{a} is the same linear law as {b} here (the same gain on the same Kalman filter "
+                           f"of the rig's sensors): one controller, two rows")
+    return out
