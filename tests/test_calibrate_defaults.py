@@ -127,4 +127,4 @@ def test_a_wrong_minimum_is_not_converged_and_writes_nothing(link, tmp_path, cap
     assert (tmp_path / "f" / "rig.toml").exists()
     assert "because of --force" in capsys.readouterr().err
     assert main(argv + ["--plant-modes", "0", "--out", str(tmp_path / "p")]) == 2
-    assert "--plant-modes must be an integer in 1..20" in capsys.readouterr().err
+    assert "--plant-modes (n_transverse) must be an integer in 1..20" in capsys.readouterr().err

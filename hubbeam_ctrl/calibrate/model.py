@@ -31,7 +31,7 @@ from hubbeam_ctrl.plant.sensors import sensor_matrix
 from hubbeam_ctrl.sim.hardware import Hardware
 from hubbeam_ctrl.sim.stepper import StepperSettings, simulate_fixed_step, substep_rule
 
-__all__ = ["set_fields", "ModelSettings", "simulate_sensors", "synthetic_record", "rig_sensors", "clamped_modes",
+__all__ = ["ModelSettings", "simulate_sensors", "synthetic_record", "rig_sensors", "clamped_modes",
            "sliding_hub_modes", "hub_damping"]
 
 

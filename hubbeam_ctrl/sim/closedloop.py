@@ -203,6 +203,39 @@ _RIG_KEYS = {"theta": "sensors.encoder_counts", "moment": "sensors.strain_gauges
              "accel": "sensors.tip_accelerometer"}
 
 
+def _delay_substeps(n: int, delay: float, dt: float) -> dict:
+    """The rule's substeps raised (by at most half) to a count on which the delay falls on a substep.
+
+    The command changes at the end of a substep, so the delay acts rounded to ``dt / n``; the
+    controllers on a rig compensate the exact delay (:meth:`controllers.DesignModel.on_rig`), so
+    the plant should apply it. Among ``n .. 1.5 n`` the first count that holds the delay exactly
+    (within 1e-9 of a substep), else the one that holds it best.
+
+    Parameters
+    ----------
+    n : int
+        The rule's substeps.
+    delay : float
+        Fraction of the sample [-].
+    dt : float
+        Sample time [s].
+
+    Returns
+    -------
+    dict
+        ``substeps``, ``step_s`` and, when raised, a note on ``step_reason``'s key ``delay_substeps_reason``.
+    """
+    candidates = range(n, min(MAX_SUBSTEPS, int(math.ceil(1.5 * n))) + 1)
+    def error(k):                      # the applied delay's error as a fraction of the sample
+        return abs(delay * k - round(delay * k)) / k
+    exact = [k for k in candidates if error(k) * k <= 1e-9]
+    best = exact[0] if exact else min(candidates, key=error)
+    out = {"substeps": best, "step_s": dt / best}
+    if best != n:
+        out["delay_substeps_reason"] = f"{best} substeps instead of the rule's {n} so that the delay falls on a substep"
+    return out
+
+
 def _rig_key(signal: str) -> str:
     return "sensors.rate" if signal == "theta_dot" else _RIG_KEYS.get(signal.split("_")[0], signal)
 
@@ -361,6 +394,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         raise ParameterError(f"controller {name!r}: measurement must be 'state' or 'sensors', got {kind!r}")
     model, plant_info = _plant_and_rule(plant, controller, params, design_params, plant_params,
                                         plant_modes, settings)
+    if settings.substeps is None and hardware is not None and hardware.delay:
+        plant_info.update(_delay_substeps(plant_info["substeps"], hardware.delay, settings.dt))
     n = model.n_q
     n1, n2 = model.n_axial, model.n_transverse
     m = int(getattr(controller, "state_modes", None) or getattr(controller, "n_modes", None) or n2)
