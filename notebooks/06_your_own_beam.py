@@ -15,6 +15,7 @@
 
 # %%
 import math
+import tempfile
 from pathlib import Path
 
 import control
@@ -36,7 +37,9 @@ from hubbeam_ctrl.study import Slew, compare, format_table, make_scenario, paylo
 # them. Three transverse modes are plenty for this short notebook.
 
 # %%
-Path("arm.toml").write_text("""# lab arm: 1 m x 30 mm x 3 mm aluminium strip
+OUT = Path(tempfile.mkdtemp(prefix="hubbeam_own_beam_"))   # change to keep the files
+print("writing to", OUT)
+(OUT / "arm.toml").write_text("""# lab arm: 1 m x 30 mm x 3 mm aluminium strip
 L = 1.0          # [m]
 rho = 2700.0     # [kg/m^3]
 A = 9e-5         # [m^2]
@@ -49,7 +52,7 @@ tau_max = 1.5    # [N m], the motor
 n_axial = 2
 n_transverse = 3
 """)
-p = load_params("arm.toml")
+p = load_params(OUT / "arm.toml")
 modes = modal_analysis("sfoam", 0.0, "free", p)
 print(f"J_total = {p.total_inertia:.4f} kg m^2 (hub share {p.J_h / p.total_inertia:.2f})")
 print("bending modes, hub free [Hz]:", np.round(modes.bending_hz, 2))
@@ -134,10 +137,10 @@ print(payload_table(pc))
 
 # %%
 lqg = ctrls["lqg"]
-save_controller(lqg, "lqg.mat")
+save_controller(lqg, OUT / "lqg.mat")
 plant = linearize("sfoam", 0.0, p, outputs="theta,theta_dot,root_moment,tip_deflection")
-save_model(discretize(plant, sc.dt), "plant.mat")
-P, K = load_model("plant.mat").sys, load_controller("lqg.mat").sys
+save_model(discretize(plant, sc.dt), OUT / "plant.mat")
+P, K = load_model(OUT / "plant.mat").sys, load_controller(OUT / "lqg.mat").sys
 closed = control.interconnect([P, K], inplist=["tau"], inputs=["d"], outlist=["tip_deflection"],
                               outputs=["tip_deflection"], check_unused=False)
 design_poles = closed_loop_poles(lqg)

@@ -197,3 +197,26 @@ def test_torque_ripple_rising_alone_in_a_settled_certified_loop_is_noise_not_gro
                                                                  rate_noise_rad_s=0.0, moment_noise_nm=0.0))
     q = compare("foam", task, "lqg", params=LAB, sim_settings=quiet).metrics["lqg"]
     assert q["verdict"] == "settled" and q["torque_growth_rate_per_s"] < 0.0
+
+
+def test_unstable_run_reports_no_settling_time():
+    """Issue 37: a run judged "unstable" (here by a growing linear certificate) reports no
+    settling time even when its window sat inside the bands; the same run judged on its own
+    settles at the time :func:`settling_time` finds from its signals."""
+    from types import SimpleNamespace
+
+    from hubbeam_ctrl.study.metrics import settling_time
+
+    sc, ctrl = _controller("lab", "lqr")
+    ref = sc.reference
+    res = simulate_closed_loop("foam", ctrl, sc.t_end, reference=(ref.theta_at, ref.theta_dot_at))
+    bands = sc.bands
+    expected = settling_time(res.t, res.theta - res.theta_ref, res.v_tip, bands["settle_angle"], bands["settle_tip"])
+    plain = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, **bands)
+    assert plain["verdict"] == "settled" and expected is not None
+    assert plain["settling_time_s"] == pytest.approx(expected, rel=1e-12)
+    growing = SimpleNamespace(grows=True, available=True, worst=None, metrics=dict,
+                              describe=lambda: "the linear loop GROWS (stand-in certificate)")
+    m = closed_loop_metrics(res, sc.t_f, tau_max=sc.tau_max, certificate=growing, **bands)
+    assert m["verdict"] == "unstable" and "GROWS" in m["verdict_reason"]
+    assert m["settling_time_s"] is None

@@ -68,10 +68,10 @@ def run(args) -> int:
     rig = source if plan["rig"] else None
     params = source.plant_params if rig is not None else source
     if args.duration is None:
-        r = time_optimal_slew(source, angle, tolerance=tolerance, settings=settings)
+        r = time_optimal_slew(source, angle, tolerance=tolerance, settings=settings, progress=not args.json)
     else:
         r = min_vibration_slew(source, angle, args.duration, tolerance=tolerance, settings=settings,
-                               name="--duration")
+                               name="--duration", progress=not args.json)
     if args.json:
         print(strict_json(r.to_dict()), file=sink)
         return _not_converged(r)

@@ -43,9 +43,11 @@ import scipy.linalg as sla
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.native import capture_native_output
+from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_finite, check_in_range, check_positive
 from hubbeam_ctrl.limit.bound import _drive_terms, drive_bang_bang_time, rigid_bang_bang_time, rigid_bound
+from hubbeam_ctrl.limit.ipopt_progress import iteration_callback
 from hubbeam_ctrl.plant.linearization import second_order_linearization
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, build_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
@@ -447,12 +449,17 @@ def _resample(pb: _Problem, w: np.ndarray, N0: int, N: int, d: int, points) -> n
     return np.concatenate([[T], u, X.ravel(order="F"), Z.reshape(3 * n * d, N, order="F").ravel(order="F")])
 
 
-def _solve(pb: _Problem, N: int, d: int, tolerance: float, duration, w0, settings: OptimalSettings) -> tuple:
+def _solve(pb: _Problem, N: int, d: int, tolerance: float, duration, w0, settings: OptimalSettings,
+           bar=None) -> tuple:
     nlp, lbw, ubw, lbg, ubg, points = _nlp(pb, N, d, tolerance, duration, smoothing=settings.torque_smoothing)
     ipopt = {"print_level": 0, "max_iter": settings.max_iter, "sb": "yes", "tol": 1e-8, "acceptable_tol": 1e-6}
     if settings.max_wall_s is not None:
         ipopt["max_wall_time"] = max(float(settings.max_wall_s), 1e-3)
-    solver = ca.nlpsol("optimal_slew", "ipopt", nlp, {"print_time": False, "ipopt": ipopt})
+    options = {"print_time": False, "ipopt": ipopt}
+    callback = iteration_callback(nlp, bar)          # None unless a progress bar is drawn
+    if callback is not None:
+        options["iteration_callback"] = callback
+    solver = ca.nlpsol("optimal_slew", "ipopt", nlp, options)
     with capture_native_output():
         sol = solver(x0=w0, lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
     stats = solver.stats()
@@ -466,24 +473,29 @@ def _fallback_guess(pb: _Problem, N: int, d: int, duration) -> tuple:
 
 
 def _optimise(params: Params, slew_angle: float, tolerance: float, duration, settings: OptimalSettings,
-              rig=None) -> tuple:
-    return _optimise_problem(_problem(params, slew_angle, settings, rig), tolerance, duration, settings)
+              rig=None, progress: bool = False) -> tuple:
+    return _optimise_problem(_problem(params, slew_angle, settings, rig), tolerance, duration, settings, progress)
 
 
-def _optimise_problem(pb: _Problem, tolerance: float, duration, settings: OptimalSettings) -> tuple:
+def _optimise_problem(pb: _Problem, tolerance: float, duration, settings: OptimalSettings,
+                      progress: bool = False) -> tuple:
     N, d = settings.intervals, settings.degree
     iterations, statuses = 0, []
     start = time.perf_counter()
     w0, points = _fallback_guess(pb, N, d, duration)
     N0 = settings.coarse_intervals
-    if 0 < N0 < N:
-        wc, points = _fallback_guess(pb, N0, d, duration)
-        wc, stats, points = _solve(pb, N0, d, tolerance, duration, wc, settings)
-        iterations += stats["iter_count"]
-        statuses.append(stats["return_status"])
-        if stats["success"]:
-            w0 = _resample(pb, wc, N0, N, d, points)
-    w, stats, points = _solve(pb, N, d, tolerance, duration, w0, settings)
+    coarse = 0 < N0 < N
+    # the bar's total is the iteration limit of the solves (IPOPT stops sooner when it converges)
+    with progress_bar(settings.max_iter * (2 if coarse else 1), "optimal: IPOPT iterations",
+                      enabled=progress) as bar:
+        if coarse:
+            wc, points = _fallback_guess(pb, N0, d, duration)
+            wc, stats, points = _solve(pb, N0, d, tolerance, duration, wc, settings, bar)
+            iterations += stats["iter_count"]
+            statuses.append(stats["return_status"])
+            if stats["success"]:
+                w0 = _resample(pb, wc, N0, N, d, points)
+        w, stats, points = _solve(pb, N, d, tolerance, duration, w0, settings, bar)
     iterations += stats["iter_count"]
     return pb, w, stats, iterations, time.perf_counter() - start
 
@@ -604,7 +616,7 @@ def _replace(result: OptimalSlew, **changes) -> OptimalSlew:
 
 
 def time_optimal_slew(params: Params, slew_angle: float, *, tolerance: float | None = None,
-                      settings: OptimalSettings = OptimalSettings()) -> OptimalSlew:
+                      settings: OptimalSettings = OptimalSettings(), progress: bool = False) -> OptimalSlew:
     """The minimum-time rest-to-rest slew within ``|tau| <= tau_max`` and the residual tolerance.
 
     Parameters
@@ -619,6 +631,8 @@ def time_optimal_slew(params: Params, slew_angle: float, *, tolerance: float | N
         Allowed residual tip vibration [m], > 0 (default :func:`default_tolerance`, 1e-3 L).
     settings : OptimalSettings
         Grid, design model and check.
+    progress : bool
+        Show IPOPT's iterations on a progress bar (on a terminal only; default False).
 
     Returns
     -------
@@ -629,12 +643,13 @@ def time_optimal_slew(params: Params, slew_angle: float, *, tolerance: float | N
     params, rig = _source(params)
     slew_angle, tolerance = _check_inputs(params, slew_angle, tolerance, settings)
     _check_slew(params, slew_angle)
-    pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, None, settings, rig)
+    pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, None, settings, rig, progress)
     return _result("time-optimal", params, slew_angle, tolerance, pb, w, stats, iterations, wall, settings)
 
 
 def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, tolerance: float | None = None,
-                       settings: OptimalSettings = OptimalSettings(), name: str = "duration") -> OptimalSlew:
+                       settings: OptimalSettings = OptimalSettings(), name: str = "duration",
+                       progress: bool = False) -> OptimalSlew:
     """The rest-to-rest slew in a given time with the smallest residual vibration.
 
     Parameters
@@ -653,6 +668,8 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
         Grid, design model and check.
     name : str
         The duration's name as the caller spelled it (``--duration`` on the command line).
+    progress : bool
+        Show IPOPT's iterations on a progress bar (on a terminal only; default False).
 
     Returns
     -------
@@ -681,7 +698,7 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
 
     if duration < rigid_bound(params, slew_angle, rig):          # below the rigid bound: hardly ever feasible
         refuse()
-    pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, duration, settings, rig)
+    pb, w, stats, iterations, wall = _optimise(params, slew_angle, tolerance, duration, settings, rig, progress)
     out = _result("min-vibration", params, slew_angle, tolerance, pb, w, stats, iterations, wall, quick)
     if out.residual_design > tolerance * 1.0001:
         refuse()

@@ -20,37 +20,42 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass
-from functools import lru_cache
 
-import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.budget import T_END_MAX, check_budget
-from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function
+from hubbeam_ctrl.core.compiled import OPT_HOT, compile_function
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.core.validation import check_in_range
-from hubbeam_ctrl.core.validation import check_positive as _check_positive
-from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, jacobian_columns, resolve_model
+from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.sim.hardware import (
-    HW_LAYOUT,
-    Hardware,
-    drive_torque,
-    friction_torque,
-    hub_torque,
-    inductive_current,
-    motor_torque,
-)
+from hubbeam_ctrl.sim.hardware import Hardware, drive_torque
 from hubbeam_ctrl.sim.results import Result, describe_input
+
+# the compiled step (settings, CasADi functions) and the scheme's accuracy with the substep rule;
+# their names stay importable from here
+from hubbeam_ctrl.sim.step_functions import (  # noqa: F401
+    StepperSettings,
+    _fast_step_function,
+    _hold_function,
+    _iteration_matrix_function,
+    _robust_step_function,
+    _substep_expressions,
+    step_functions,
+)
+from hubbeam_ctrl.sim.step_rule import (  # noqa: F401
+    MAX_SUBSTEPS,
+    SubstepRule,
+    generalized_alpha_coefficients,
+    max_step_for_frequency,
+    period_error,
+    substep_rule,
+)
 
 __all__ = ["StepperSettings", "PlantStepper", "simulate_fixed_step", "generalized_alpha_coefficients",
            "period_error", "max_step_for_frequency", "SubstepRule", "substep_rule", "MAX_SUBSTEPS",
            "step_functions"]
 
-#: Largest number of integration steps per sample that :func:`substep_rule` accepts.
-MAX_SUBSTEPS = 200
 #: A fast step that does not converge is tried again with this many times its Newton iterations
 #: (at most 20) before the rootfinder: measured on the 1 m lab arm's LQR slew, the fast step
 #: missed its tolerance by 1-20x on 55 of 600 samples, each costing the rootfinder ~30 ms.
@@ -58,224 +63,6 @@ PATIENCE = 3
 #: The patient step is kept only when its last Newton increment is this fraction of ``newton_tol``
 #: (a slowly converging step is not trusted: the rootfinder takes those).
 PATIENT_TOLERANCE = 1e-3
-
-
-def generalized_alpha_coefficients(rho_inf: float) -> tuple:
-    """Chung-Hulbert parameters ``(alpha_m, alpha_f, gamma, beta)`` for ``rho_inf`` in [0, 1].
-
-    Parameters
-    ----------
-    rho_inf : float
-        Spectral radius of the amplification matrix at infinite frequency [-]; 1 keeps
-        every mode undamped (trapezoidal rule), smaller values damp the high frequencies.
-
-    Returns
-    -------
-    tuple of float
-    """
-    am = (2 * rho_inf - 1) / (rho_inf + 1)
-    af = rho_inf / (rho_inf + 1)
-    gamma = 0.5 + af - am
-    beta = 0.25 * (gamma + 0.5) ** 2
-    return am, af, gamma, beta
-
-
-def _amplification_matrix(omega_h: float, rho_inf: float) -> np.ndarray:
-    """One step of the method on ``a + w^2 q = 0`` (step 1, ``w = omega_h``), state ``[q, v, a, p]``."""
-    am, af, gamma, beta = generalized_alpha_coefficients(rho_inf)
-    w2 = omega_h * omega_h
-    c1 = (1 - af) / (1 - am)
-    G = np.empty((4, 4))
-    for j, (q0, v0, a0, p0) in enumerate(np.eye(4)):
-        c0 = (af * a0 - am * p0) / (1 - am)
-        q_pred = q0 + v0 + (0.5 - beta) * p0 + beta * c0
-        a1 = -w2 * q_pred / (1 + w2 * beta * c1)
-        p1 = c1 * a1 + c0
-        G[:, j] = [q_pred + beta * c1 * a1, v0 + (1 - gamma) * p0 + gamma * p1, a1, p1]
-    return G
-
-
-def period_error(omega_h: float, rho_inf: float = 0.9) -> float:
-    """Relative frequency error of the generalized-alpha method on an undamped oscillator.
-
-    Measured from the method's amplification matrix on ``a + w^2 q = 0`` with step ``h``:
-    its principal eigenvalue pair ``|lambda| exp(+-i w_num h)`` gives the frequency the
-    integrator reproduces, ``w_num``.
-
-    Parameters
-    ----------
-    omega_h : float
-        Frequency times step, ``w h`` [rad], > 0.
-    rho_inf : float
-        Spectral radius at infinity [-], 0..1.
-
-    Returns
-    -------
-    float
-        ``w_num / w - 1`` [-] (negative: the simulated oscillation is too slow).
-
-    Examples
-    --------
-    >>> round(period_error(0.2, 1.0), 5)      # trapezoidal rule: about -(w h)^2 / 12
-    -0.00331
-    """
-    lam = np.linalg.eigvals(_amplification_matrix(float(omega_h), float(rho_inf)))
-    principal = lam[np.argmax(np.abs(lam.imag))]
-    return float(abs(np.angle(principal)) / omega_h - 1.0)
-
-
-@lru_cache(maxsize=32)
-def _largest_omega_h(tolerance: float, rho_inf: float) -> float:
-    """Largest ``w h`` whose :func:`period_error` stays within ``tolerance`` (bisection)."""
-    lo, hi = 1e-4, 2.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if abs(period_error(mid, rho_inf)) <= tolerance else (lo, mid)
-    return lo
-
-
-def max_step_for_frequency(frequency_hz: float, tolerance: float = 0.005, rho_inf: float = 0.9) -> float:
-    """Largest step [s] that integrates an oscillation of ``frequency_hz`` within ``tolerance``.
-
-    Parameters
-    ----------
-    frequency_hz : float
-        Natural frequency [Hz], > 0.
-    tolerance : float
-        Largest accepted relative frequency error [-], in (0, 0.1].
-    rho_inf : float
-        Spectral radius at infinity of the method [-].
-
-    Returns
-    -------
-    float
-        Step [s].
-
-    Examples
-    --------
-    >>> round(1e3 * max_step_for_frequency(100.0), 4)    # 0.5 % at 100 Hz
-    0.3892
-    """
-    _check_positive("frequency_hz", frequency_hz, "Hz")
-    if not (isinstance(tolerance, (int, float)) and 0 < tolerance <= 0.1):
-        raise ParameterError(f"frequency_tolerance must be in (0, 0.1] [-], got {tolerance!r}")
-    return _largest_omega_h(float(tolerance), float(rho_inf)) / (2 * np.pi * frequency_hz)
-
-
-@dataclass(frozen=True)
-class SubstepRule:
-    """The integration step of the closed loop and why (see :func:`substep_rule`).
-
-    Attributes
-    ----------
-    substeps : int
-        Integration steps per sample.
-    step_s : float
-        Integration step ``dt / substeps`` [s].
-    mode : int
-        The bending mode that sets the step (the highest, 1-based).
-    frequency_hz : float
-        Its frequency from modal analysis [Hz].
-    frequency_error : float
-        The method's relative frequency error at that mode and step [-].
-    tolerance : float
-        The accepted relative frequency error [-].
-    """
-
-    substeps: int
-    step_s: float
-    mode: int
-    frequency_hz: float
-    frequency_error: float
-    tolerance: float
-
-    @property
-    def reason(self) -> str:
-        """One sentence for reports and result settings."""
-        return (f"{self.substeps} steps of {1e3 * self.step_s:.4g} ms per sample: the highest bending "
-                f"mode ({self.mode}, {self.frequency_hz:.4g} Hz by modal analysis) is integrated with a "
-                f"frequency error of {100 * self.frequency_error:+.3f} % (limit "
-                f"{100 * self.tolerance:g} %); lower modes are more accurate, axial modes are "
-                "followed quasi-statically")
-
-    def to_dict(self) -> dict:
-        """Plain-data summary (JSON-ready)."""
-        return {"substeps": self.substeps, "step_s": self.step_s, "step_mode": self.mode,
-                "step_mode_hz": self.frequency_hz, "step_mode_frequency_error": self.frequency_error,
-                "frequency_tolerance": self.tolerance, "step_reason": self.reason}
-
-
-def substep_rule(frequencies_hz, dt: float, *, tolerance: float = 0.005, rho_inf: float = 0.9,
-                 max_substeps: int = MAX_SUBSTEPS) -> SubstepRule:
-    """Integration steps per sample that keep every bending frequency within ``tolerance``.
-
-    The generalized-alpha method's frequency error grows with ``w h`` (about
-    ``-0.084 (w h)^2`` at ``rho_inf = 0.9``, :func:`period_error`), so the highest mode sets
-    the step: ``substeps = ceil(dt / h_max)`` with ``h_max`` from :func:`max_step_for_frequency`.
-
-    Parameters
-    ----------
-    frequencies_hz : array_like
-        Bending frequencies of the plant [Hz] (e.g. ``modal_analysis(...).bending_hz``).
-    dt : float
-        Sample period [s], > 0.
-    tolerance : float
-        Largest accepted relative frequency error [-] (default 0.5 %).
-    rho_inf : float
-        Spectral radius at infinity of the method [-].
-    max_substeps : int
-        Largest accepted count (default 200).
-
-    Returns
-    -------
-    SubstepRule
-
-    Raises
-    ------
-    ParameterError
-        If the highest mode needs more than ``max_substeps`` steps per sample; the message
-        names the mode, its frequency and the options.
-
-    Examples
-    --------
-    >>> substep_rule([0.46, 2.66, 113.9], 0.01).substeps
-    30
-    """
-    f = np.asarray(frequencies_hz, dtype=float).ravel()
-    if not f.size or not np.all(np.isfinite(f)) or np.any(f <= 0):
-        raise ParameterError("frequencies_hz must hold at least one finite frequency > 0 [Hz]")
-    _check_positive("dt", dt, "s")
-    k = int(np.argmax(f))
-    h_max = max_step_for_frequency(f[k], tolerance, rho_inf)
-    n = max(1, int(np.ceil(dt / h_max * (1 - 1e-12))))
-    if n > max_substeps:
-        raise ParameterError(
-            f"plant bending mode {k + 1} at {f[k]:.4g} Hz needs {n} integration steps per "
-            f"{1e3 * dt:g} ms sample to stay within {100 * tolerance:g} % of its frequency "
-            f"(at most {max_substeps}); use fewer plant modes (plant_modes / --plant-modes) "
-            f"or a smaller sample time (dt / --dt)")
-    h = dt / n
-    return SubstepRule(n, h, k + 1, float(f[k]), period_error(2 * np.pi * f[k] * h, rho_inf),
-                       float(tolerance))
-
-
-@dataclass(frozen=True)
-class StepperSettings(Settings):
-    """Settings of the fixed-step plant integrator :class:`PlantStepper`."""
-
-    dt: float = setting(0.01, unit="s", lo=1e-6, hi=10.0,
-                        doc="Sample period: one call of the stepper advances the plant by dt.")
-    substeps: int = setting(2, lo=1, hi=MAX_SUBSTEPS,
-                            doc="Integration steps per sample; the step is dt / substeps. Two steps of "
-                                "5 ms reproduce a tight IDAS run of the Eq. 44 slew on the 5-mode plant to "
-                                "~0.04 % of the peak deflection; substep_rule gives the count that "
-                                "resolves every bending mode.")
-    rho_inf: float = setting(0.9, lo=0.0, hi=1.0,
-                             doc="Spectral radius at infinity of the generalized-alpha method.")
-    newton_iterations: int = setting(3, lo=1, hi=20, doc="Newton iterations per step in the fast path.")
-    newton_tol: float = setting(1e-6, unit="m/s^2, rad/s^2", lo=1e-14, hi=1.0,
-                                doc="Largest accepted last Newton correction of the accelerations; a "
-                                    "step above it is recomputed by the exact rootfinder.")
 
 
 class PlantStepper:
@@ -588,197 +375,6 @@ class PlantStepper:
         if not np.all(np.isfinite(out)):
             raise HubbeamError(f"{self.model.name.upper()}: the implicit step returned non-finite values")
         return out
-
-
-def _substep_expressions(model: ParametricModel, settings: StepperSettings, hardware: bool | str = False):
-    """Symbolic generalized-alpha update: residual and new state as functions of ``a``.
-
-    With ``hardware``, three more items: ``hw`` (:data:`~hubbeam_ctrl.sim.hardware.HW_LAYOUT`),
-    the residual without the hardware's torque and ``d_hub``, the derivative of the hardware's
-    part of the hub row in ``a_0``. The hub row of the residual is ``f_0 - (drive -
-    friction)(tau, thd_1)`` when sliding, ``J (a_0 - a_stick)`` when held (``a_stick`` brings
-    the hub rate to zero at the end of the substep; ``J = J_h + J`` of the parameters scales
-    the row like the mass matrix).
-    """
-    n = model.n_q
-    h = settings.dt / settings.substeps
-    am, af, gamma, beta = generalized_alpha_coefficients(settings.rho_inf)
-    sym = model.sym                      # MX for CFOAM (see ParametricModel), else SX
-    inductive = hardware == "inductive"
-    s = sym.sym("s", 4 * n + (1 if inductive else 0))
-    tau = sym.sym("tau")
-    a = sym.sym("a", n)
-    p = sym.sym("p", model.n_p)
-    q0, v0, a0, p0 = s[:n], s[n:2 * n], s[2 * n:3 * n], s[3 * n:4 * n] if inductive else s[3 * n:]
-    p1 = ((1 - af) * a + af * a0 - am * p0) / (1 - am)
-    q1 = q0 + h * v0 + h * h * (0.5 - beta) * p0 + h * h * beta * p1
-    v1 = v0 + h * (1 - gamma) * p0 + h * gamma * p1
-    if hardware:
-        hw = sym.sym("hw", len(HW_LAYOUT))
-        f = model.inverse_dynamics(q1, v1, a, p)
-        stick = hw[-1] > 0.5
-        if inductive:                    # the current at the end of the substep (backward Euler)
-            current = inductive_current(tau, v1[0], s[4 * n], h, hw)
-            hub = motor_torque(current, v1[0], hw) - friction_torque(v1[0], hw)
-            new = (q1, v1, p1, current)
-        else:
-            hub = hub_torque(tau, v1[0], hw)
-            new = (q1, v1, p1)
-        p1_stick = -(v0[0] + h * (1 - gamma) * p0[0]) / (h * gamma)
-        a_stick = ((1 - am) * p1_stick - af * a0[0] + am * p0[0]) / (1 - af)
-        held = (p[0] + p[1]) * (a[0] - a_stick)
-        residual = ca.vertcat(ca.if_else(stick, held, f[0] - hub), f[1:])
-        mechanical = ca.vertcat(ca.if_else(stick, held, f[0]), f[1:])
-        d_hub = ca.if_else(stick, 0, -ca.jacobian(hub, a)[0])
-        return s, tau, a, p, new, residual, hw, mechanical, d_hub
-    force = ca.vertcat(tau, sym.zeros(n - 1))
-    residual = model.inverse_dynamics(q1, v1, a, p) - force
-    return s, tau, a, p, (q1, v1, p1), residual
-
-
-@lru_cache(maxsize=16)
-def _iteration_matrix_function(model: ParametricModel, settings: StepperSettings,
-                               hardware: bool | str = False) -> ca.Function:
-    """Jacobian of the step residual in the new accelerations, at the predictor ``a = a_n``."""
-    n = model.n_q
-    s, tau, a, p, _, residual, *hw = _substep_expressions(model, settings, hardware)
-    if hardware:        # the hardware's derivative is added in each Newton iteration (_fast_step_function)
-        hw, residual = hw[:1], hw[1]
-    if model.sym is ca.MX:
-        R = ca.Function("residual", [a, s, tau, p, *hw], [residual])
-        J = ca.densify(jacobian_columns(R, [s[2 * n:3 * n], s, tau, p, *hw], 0))
-    else:
-        J = ca.densify(ca.substitute(ca.jacobian(residual, a), a, s[2 * n:3 * n]))
-    # no common-subexpression pass: it found 2 % on CFOAM 10+10 and took 2.6 s of its 8.4 s build
-    return ca.Function("iteration_matrix", [s, tau, p, *hw], [J], ["s", "tau", "p"] + ["hw"] * len(hw), ["J"])
-
-
-def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None, hardware: bool | str = False) -> tuple:
-    """The plant step and its iteration matrix on a backend.
-
-    Both take the model's parameter vector ``p`` (:attr:`HubBeamModel.p`) as their last
-    input, so they are built (and compiled) once per model family, mode counts and
-    settings, whatever the tip mass, tip position, material or geometry.
-
-    Parameters
-    ----------
-    model : HubBeamModel
-    settings : StepperSettings
-    backend : {"auto", "compiled", "vm"}, optional
-    hardware : bool or "inductive"
-        Functions with a last input ``hw`` (:data:`~hubbeam_ctrl.sim.hardware.HW_LAYOUT`):
-        ``tau`` is then the command and the hub torque the hardware's; ``"inductive"``: the
-        armature current is one more state, the last entry of ``s``
-        (:func:`~hubbeam_ctrl.sim.hardware.inductive_current`).
-
-    Returns
-    -------
-    step : casadi.Function
-        ``(s, tau (1, substeps), J_inv, p) -> (s_next, err)``, compiled at -O1 when compiled.
-    iteration_matrix : casadi.Function
-        ``(s, tau, p) -> J`` (dense), compiled at -O0 (refreshed only now and then; MX models,
-        whose code is compact, at the hot functions' level).
-    backend : str
-        ``"compiled"`` or ``"vm"``: the backend the step runs on.
-    """
-    extra = (hardware,) if hardware else ()    # the ideal functions exactly as before (same cache keys)
-    vm_step = _fast_step_function(model.parametric, settings, *extra)
-    step = compile_function(vm_step, backend, opt=OPT_HOT)
-    # SX: a large scalar graph, rarely called (-O0); MX: compact code whose products are worth -O3
-    jac_opt = OPT_HOT if model.parametric.sym is ca.MX else OPT_COLD
-    jac = compile_function(_iteration_matrix_function(model.parametric, settings, *extra), backend, opt=jac_opt)
-    return step, jac, "vm" if step is vm_step else "compiled"
-
-
-@lru_cache(maxsize=16)
-def _fast_step_function(model: ParametricModel, settings: StepperSettings, hardware: bool | str = False) -> ca.Function:
-    """One sample: ``substeps`` steps of modified Newton with the inverse iteration matrix given."""
-    n = model.n_q
-    s, tau, a, p, new, residual, *hw = _substep_expressions(model, settings, hardware)
-    n_s = s.shape[0]
-    opts = {"cse": True}
-    HW = [ca.MX.sym("hw", len(HW_LAYOUT))] if hardware else []
-    if hardware:
-        hw, d_hub = hw[:1], hw[2]
-        R = ca.Function("residual", [a, s, tau, p, *hw], [residual, d_hub], opts)
-    else:
-        R = ca.Function("residual", [a, s, tau, p, *hw], [residual], opts)
-    more = [tau, *hw] if hardware == "inductive" else []     # the new current depends on them
-    update = ca.Function("update", [a, s, *more], [ca.vertcat(*new[:2], a, *new[2:])], opts)
-    S = ca.MX.sym("s", n_s)
-    T = ca.MX.sym("tau")
-    P = ca.MX.sym("p", model.n_p)
-    Jm = ca.MX.sym("J_inv", n, n)           # inverse of the iteration matrix: no factorisation per step
-    A = S[2 * n:3 * n]
-    delta = ca.MX.zeros(n)
-    for _ in range(settings.newton_iterations):
-        if hardware:
-            # Jm inverts the mechanical iteration matrix; the hardware adds d e0 e0' to it, whose
-            # inverse is Sherman-Morrison's: an exact Newton step in the drive's and friction's
-            # derivative (stiff near zero rate), at no factorisation
-            r, d = R(A, S, T, P, *HW)
-            y = ca.mtimes(Jm, r)
-            delta = y - Jm[:, 0] * (d * y[0] / (1 + d * Jm[0, 0]))
-        else:
-            delta = ca.mtimes(Jm, R(A, S, T, P, *HW))
-        A = A - delta
-    sub = ca.Function("substep", [S, T, Jm, P, *HW], [update(A, S, *([T, *HW] if more else [])), ca.norm_inf(delta)])
-    k = settings.substeps
-    accum = sub.mapaccum("substeps", k)
-    X = ca.MX.sym("x", n_s)
-    U = ca.MX.sym("u", 1, k)
-    xs, errs = accum(X, U, Jm, P, *HW)
-    name = {False: "plant_step", True: "plant_step_hw", "inductive": "plant_step_hw_l"}[hardware]
-    return ca.Function(name, [X, U, Jm, P, *HW],
-                       [xs[:, -1], ca.mmax(errs)], ["s", "tau", "J_inv", "p"] + ["hw"] * len(HW),
-                       ["s_next", "err"])
-
-
-@lru_cache(maxsize=16)
-def _hold_function(model: ParametricModel, inductive: bool = False) -> ca.Function:
-    """``(s, tau, p, hw) -> hold``: the friction torque that holds the hub in state ``s`` [N m].
-
-    ``hold = drive(tau, 0) - f_0(q, v, a)``, the hub row of the equations of motion at the
-    state's accelerations: what friction must supply for the hub to stay at rest. With
-    ``inductive`` the drive's torque is that of the state's current (its last entry).
-    """
-    n = model.n_q
-    sym = model.sym
-    s, tau, p = sym.sym("s", 4 * n + (1 if inductive else 0)), sym.sym("tau"), sym.sym("p", model.n_p)
-    hw = sym.sym("hw", len(HW_LAYOUT))
-    f = model.inverse_dynamics(s[:n], s[n:2 * n], s[2 * n:3 * n], p)
-    drive = motor_torque(s[4 * n], 0.0 * tau, hw) if inductive else drive_torque(tau, 0.0 * tau, hw)
-    hold = drive - f[0]
-    return ca.Function("hub_hold", [s, tau, p, hw], [hold], ["s", "tau", "p", "hw"], ["hold"], {"cse": True})
-
-
-@lru_cache(maxsize=16)
-def _robust_step_function(model: ParametricModel, settings: StepperSettings,
-                          hardware: bool | str = False) -> ca.Function:
-    n = model.n_q
-    s, tau, a, p, new, residual, *hw = _substep_expressions(model, settings, hardware)
-    n_s = s.shape[0]
-    hw = hw[:1]
-    n_hw = len(HW_LAYOUT) if hardware else 0
-    R = ca.Function("R", [a, s, tau, p, *hw], [residual])
-    A_, W = ca.MX.sym("a", n), ca.MX.sym("w", n_s + 1 + model.n_p + n_hw)   # an MX input must be one symbol
-    k_p = n_s + 1 + model.n_p
-    G = ca.Function("G", [A_, W], [R(A_, W[:n_s], W[n_s], W[n_s + 1:k_p], *([W[k_p:]] if hardware else []))])
-    rf = ca.rootfinder("rf", "newton", G, {"abstol": 1e-9, "abstolStep": 1e-13, "max_iter": 50,
-                                          "line_search": bool(hardware), "error_on_fail": True})
-    more = [tau, *hw] if hardware == "inductive" else []
-    update = ca.Function("update", [a, s, *more], [ca.vertcat(*new[:2], a, *new[2:])])
-    S = ca.MX.sym("s", n_s)
-    T = ca.MX.sym("tau")
-    P = ca.MX.sym("p", model.n_p)
-    HW = [ca.MX.sym("hw", n_hw)] if hardware else []
-    A = rf(S[2 * n:3 * n], ca.vertcat(S, T, P, *HW))
-    sub = ca.Function("substep", [S, T, P, *HW], [update(A, S, *([T, *HW] if more else []))])
-    k = settings.substeps
-    X = ca.MX.sym("x", n_s)
-    U = ca.MX.sym("u", 1, k)
-    xs = sub.mapaccum("substeps", k)(X, U, P, *HW)
-    return ca.Function("plant_step_robust", [X, U, P, *HW], [xs[:, -1]])
 
 
 def simulate_fixed_step(plant, torque, t_end: float, *, params: Params | None = None,

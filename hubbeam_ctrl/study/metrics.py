@@ -30,6 +30,8 @@ __all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time", "VERDICTS", "
 
 #: The verdicts of a closed-loop run, in the order they are tested (see :func:`verdict`).
 VERDICTS = ("failed", "diverged", "unstable", "settled", "not settled")
+#: The verdicts whose run reports no settling time (``settling_time_s`` None).
+_NOT_SETTLING = ("failed", "diverged", "unstable")
 #: Why a run stopped early (``result.stats["stop_cause"]``): ``"diverged"`` is the plant
 #: leaving its range; the others are failures of the run, not of the loop's stability.
 STOP_CAUSES = ("diverged", "integrator", "controller", "wall_clock")
@@ -471,7 +473,8 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         "residual_tip_max_m": float(np.max(np.abs(res))) if res.size else nan,
         "angle_error_tf_rad": float(err[k_f]) if t[-1] >= t_f - 1e-9 else nan,
         "final_angle_error_rad": float(err[-1]),
-        "settling_time_s": settle,
+        # a run that grows, diverged or failed has not settled, whatever its window showed
+        "settling_time_s": None if out["verdict"] in _NOT_SETTLING else settle,
         "settle_angle_rad": settle_angle,
         "settle_tip_m": settle_tip,
         "peak_torque_nm": drive_out["peak_hub_torque_nm"],

@@ -235,7 +235,7 @@ def _report(comparison) -> str:
               f"grows, or the envelope of the tip, the torque ripple or the angle error grows at a "
               f"resolved rate, or the command is at its limit more than {100 * SATURATION_LIMIT:g} % of the "
               f"residual window), settled, not settled.",
-              f"- Wall time of the comparison: {comparison.wall_s:.1f} s.", ""]
+              _wall_line(comparison), ""]
     lines += _yardstick_lines(comparison)
     lines += ["",
               markdown_table(comparison.metrics), ""]
@@ -331,6 +331,15 @@ def check_plant_lines(comparison) -> list:
     if notes:
         lines += notes + [""]
     return lines
+
+
+def _wall_line(comparison) -> str:
+    """The report's wall-time line: the comparison's, and with a rig ladder the two together."""
+    ladder_s = getattr(comparison, "ladder_wall_s", None)
+    if ladder_s is None:
+        return f"- Wall time of the comparison: {comparison.wall_s:.1f} s."
+    return (f"- Wall time of the comparison and the rig ladder: {comparison.wall_s:.1f} s "
+            f"(the ladder {ladder_s:.1f} s).")
 
 
 def ladder_lines(rows: list) -> list:

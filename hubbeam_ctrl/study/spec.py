@@ -75,20 +75,26 @@ from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
 
+# controller settings as plain data; their names stay importable from here
+from hubbeam_ctrl.study.settings_table import controller_settings, settings_to_toml
+
+# the plant spread (factors, [grid], [random]); its names stay importable from here
+from hubbeam_ctrl.study.spread import (  # noqa: F401
+    DISTRIBUTIONS,
+    FACTORS_EXTRA,
+    MAX_CASES,
+    SAMPLERS,
+    Distribution,
+    _grid,
+    _random,
+    _unit_samples,
+)
+
 __all__ = ["StudySpec", "load_spec", "load_settings", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
            "SAMPLERS", "settings_to_toml"]
 
-#: Most cases one sweep runs (grid points times random samples).
-MAX_CASES = 100_000
 #: Largest spec or settings file read [bytes].
 MAX_SPEC_BYTES = 4_000_000
-#: Factors beyond the Params fields: the spin-up rate [rad/s] and the sensor-noise seed.
-FACTORS_EXTRA = {"w_f": "rad/s", "seed": "-"}
-#: Distributions of ``[random]`` factors and their keys.
-DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "lognormal": ("median", "sigma")}
-#: Samplers of ``[random]``: Latin hypercube (default), scrambled Sobol and Halton, plain Monte Carlo.
-SAMPLERS = ("lhs", "sobol", "halton", "random")
-_INTEGER_FACTORS = ("n_axial", "n_transverse", "seed")
 _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", "lqr"), "design": "base",
                "tau_max": None, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
                "solver": "daqp", "design_modes": None, "plant_modes": None, "slew_angle": None,
@@ -111,20 +117,6 @@ def _controller_list(value) -> tuple:
     return names
 
 
-def _factor_names() -> tuple:
-    return tuple(f.name for f in dataclasses.fields(Params)) + tuple(FACTORS_EXTRA)
-
-
-def _check_factor(name: str, where: str, scenario: str) -> None:
-    if name not in _factor_names():
-        raise ParameterError(f"{where}: unknown factor {name!r}; allowed: Params fields "
-                             f"({', '.join(f.name for f in dataclasses.fields(Params))}) and "
-                             f"{', '.join(FACTORS_EXTRA)}")
-    if name == "w_f" and scenario != "spinup":
-        raise ParameterError(f"{where}.w_f: the spin rate varies only in a spinup study, "
-                             f"this one is {scenario!r}")
-
-
 #: The names make_scenario's messages start with -> the spec key that sets them.
 _SCENARIO_KEYS = {"tau_max": "study.tau_max", "tf": "study.t_f", "t_f": "study.t_f", "t_end": "study.t_end",
                   "dt": "study.dt", "wf": "study.w_f", "w_f": "study.w_f", "slew_angle": "study.slew_angle"}
@@ -137,177 +129,6 @@ def _as_study_key(message: str) -> str:
     head, _, rest = message.partition(" ")
     key = _SCENARIO_KEYS.get(head.rstrip(":"))
     return f"{key}{head[len(head.rstrip(':')):]} {rest}" if key else f"study: {message}"
-
-
-def _number(where: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ParameterError(f"{where} must be a finite number, got {value!r}")
-    return float(value)
-
-
-@dataclass(frozen=True)
-class Distribution:
-    """One ``[random]`` factor: ``uniform(low, high)``, ``normal(mean, std)`` or
-    ``lognormal(median, sigma)`` (``sigma`` the standard deviation of its log), optionally
-    truncated to ``[low, high]`` (normal, lognormal).
-
-    Attributes
-    ----------
-    dist : {"uniform", "normal", "lognormal"}
-        The distribution.
-    a : float
-        ``low`` (uniform), ``mean`` (normal) or ``median`` (lognormal), in the factor's unit.
-    b : float
-        ``high`` (uniform), ``std`` (normal) or the log-space ``sigma`` (lognormal).
-    low : float, optional
-        Truncation below (normal, lognormal).
-    high : float, optional
-        Truncation above.
-    """
-
-    dist: str
-    a: float
-    b: float
-    low: float | None = None
-    high: float | None = None
-
-    @classmethod
-    def from_dict(cls, where: str, table) -> "Distribution":
-        """Validate one factor's table (``where`` names it in errors).
-
-        Parameters
-        ----------
-        where : str
-            The factor's name in the spec (``random.m_t``), for messages.
-        table : dict
-            The factor's TOML table (``dist`` and its parameters).
-        """
-        if not isinstance(table, dict) or table.get("dist") not in DISTRIBUTIONS:
-            raise ParameterError(f"{where} must be a table with dist = one of "
-                                 f"{', '.join(DISTRIBUTIONS)}, got {table!r}")
-        dist = table["dist"]
-        keys = DISTRIBUTIONS[dist]
-        allowed = {"dist", *keys} | ({"low", "high"} if dist != "uniform" else set())
-        extra = sorted(set(table) - allowed)
-        if extra or any(k not in table for k in keys):
-            raise ParameterError(f"{where}: a {dist} distribution takes {', '.join(sorted(allowed - {'dist'}))}"
-                                 f"{' (low/high optional)' if dist != 'uniform' else ''}, got "
-                                 f"{', '.join(sorted(set(table) - {'dist'})) or 'nothing'}")
-        a, b = (_number(f"{where}.{k}", table[k]) for k in keys)
-        low = _number(f"{where}.low", table["low"]) if "low" in table and dist != "uniform" else None
-        high = _number(f"{where}.high", table["high"]) if "high" in table and dist != "uniform" else None
-        out = cls(dist, a, b, low, high)
-        out._check(where)
-        return out
-
-    def _check(self, where: str) -> None:
-        if self.dist == "uniform" and not self.a < self.b:
-            raise ParameterError(f"{where}: uniform needs low < high, got low = {self.a:g}, high = {self.b:g}")
-        if self.dist == "normal" and not self.b > 0:
-            raise ParameterError(f"{where}: normal needs std > 0, got {self.b:g}")
-        if self.dist == "lognormal" and not (self.a > 0 and self.b > 0):
-            raise ParameterError(f"{where}: lognormal needs median > 0 and sigma > 0, got "
-                                 f"median = {self.a:g}, sigma = {self.b:g}")
-        if self.low is not None and self.high is not None and not self.low < self.high:
-            raise ParameterError(f"{where}: needs low < high, got low = {self.low:g}, high = {self.high:g}")
-        lo, hi = self._u_range()
-        if not hi > lo:
-            raise ParameterError(f"{where}: the truncation [low, high] holds no probability")
-
-    def _cdf(self, x: float) -> float:
-        from scipy.stats import norm
-        if self.dist == "normal":
-            return float(norm.cdf((x - self.a) / self.b))
-        return float(norm.cdf(math.log(x / self.a) / self.b)) if x > 0 else 0.0
-
-    def _u_range(self) -> tuple:
-        if self.dist == "uniform":
-            return 0.0, 1.0
-        lo = self._cdf(self.low) if self.low is not None else 0.0
-        hi = self._cdf(self.high) if self.high is not None else 1.0
-        return lo, hi
-
-    def ppf(self, u: np.ndarray) -> np.ndarray:
-        """Map uniform samples ``u`` in [0, 1) to this distribution (inverse CDF).
-
-        Parameters
-        ----------
-        u : ndarray
-            Uniform samples in [0, 1).
-        """
-        from scipy.stats import norm
-        if self.dist == "uniform":
-            return self.a + u * (self.b - self.a)
-        lo, hi = self._u_range()
-        z = norm.ppf(lo + u * (hi - lo))
-        x = self.a + self.b * z if self.dist == "normal" else self.a * np.exp(self.b * z)
-        return np.clip(x, self.low if self.low is not None else -np.inf,
-                       self.high if self.high is not None else np.inf)
-
-    def to_dict(self) -> dict:
-        """The TOML table of this distribution."""
-        out = {"dist": self.dist, **dict(zip(DISTRIBUTIONS[self.dist], (self.a, self.b)))}
-        out.update({k: v for k, v in (("low", self.low), ("high", self.high)) if v is not None})
-        return out
-
-
-def _unit_samples(method: str, d: int, n: int, seed: int) -> np.ndarray:
-    from scipy.stats import qmc
-    if method == "random":
-        return np.random.default_rng(seed).random((n, d))
-    if method == "lhs":
-        return qmc.LatinHypercube(d=d, rng=np.random.default_rng(seed)).random(n)
-    engine = qmc.Sobol if method == "sobol" else qmc.Halton
-    return engine(d=d, scramble=True, rng=np.random.default_rng(seed)).random(n)
-
-
-def _grid(where: str, table: dict, scenario: str) -> dict:
-    if not isinstance(table, dict):
-        raise ParameterError(f"{where} must be a table of factor = [values], got {table!r}")
-    out = {}
-    for name, values in table.items():
-        _check_factor(name, where, scenario)
-        if not isinstance(values, list) or not values:
-            raise ParameterError(f"{where}.{name} must be a non-empty list of values, got {values!r}")
-        if name == "l":
-            vals = [None if v == "L" else _number(f"{where}.l", v) for v in values]
-        else:
-            vals = [_number(f"{where}.{name}", v) for v in values]
-        if name in _INTEGER_FACTORS:
-            if any(v != int(v) for v in vals):
-                raise ParameterError(f"{where}.{name} must hold integers, got {values!r}")
-            vals = [int(v) for v in vals]
-        if len(set(vals)) != len(vals):
-            raise ParameterError(f"{where}.{name} repeats a value: {values!r}"[:300])
-        out[name] = vals
-    return out
-
-
-def _random(where: str, table: dict, scenario: str, grid: dict) -> tuple:
-    if not isinstance(table, dict):
-        raise ParameterError(f"{where} must be a table, got {table!r}")
-    n = table.get("n")
-    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_CASES:
-        raise ParameterError(f"{where}.n must be an integer in 1..{MAX_CASES} (number of samples), got {n!r}")
-    seed = table.get("seed", 0)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ParameterError(f"{where}.seed must be an integer >= 0, got {seed!r}")
-    method = table.get("method", "lhs")
-    if method not in SAMPLERS:
-        raise ParameterError(f"{where}.method must be one of {', '.join(SAMPLERS)}, got {method!r}")
-    dists = {}
-    for name, sub in table.items():
-        if name in ("n", "seed", "method"):
-            continue
-        _check_factor(name, where, scenario)
-        if name in _INTEGER_FACTORS:
-            raise ParameterError(f"{where}.{name}: integer factors vary only in [grid]")
-        if name in grid:
-            raise ParameterError(f"{where}.{name}: already a [grid] factor; vary it in one place")
-        dists[name] = Distribution.from_dict(f"{where}.{name}", sub)
-    if not dists:
-        raise ParameterError(f"{where} names no factor (give e.g. m_t = {{dist = \"uniform\", low = 0, high = 0.5}})")
-    return n, seed, method, dists
 
 
 @dataclass(frozen=True)
@@ -800,93 +621,3 @@ def load_settings(spec: StudySpec, path) -> StudySpec:
             raise ParameterError(f"settings: {path} must hold [settings.NAME] tables, got {name} = {table!r}")
         merged.setdefault(name, {}).update(table)
     return spec.replace(settings=merged)
-
-
-def controller_settings(name: str, table: dict | None, scenario, horizon: int = 50, solver: str = "daqp"):
-    """A controller's settings object: the registry's defaults for ``scenario`` (its settings
-    class's ``for_scenario``, as in the comparison) with the entries of ``table`` replacing
-    them (a nested table updates a dataclass-valued setting, e.g. ``weights = {tip = 1e4}``).
-
-    This is the one place that knows how settings are built from plain data.
-
-    Parameters
-    ----------
-    name : str
-        Controller name.
-    table : dict or None
-        Setting name -> value.
-    scenario : Scenario
-    horizon : int
-        MPC horizon [samples] (default setting).
-    solver : str
-        MPC QP solver (default setting).
-
-    Returns
-    -------
-    ControllerSettings
-        The controller's settings (validated).
-    """
-    if name not in CONTROLLERS:
-        raise ParameterError(f"controllers: unknown controller {name!r}; allowed: {', '.join(CONTROLLERS)}")
-    base = CONTROLLERS[name].settings.for_scenario(scenario, horizon=horizon, solver=solver)
-    table = dict(table or {})
-    known = {f.name: f for f in dataclasses.fields(base)}
-    bad = sorted(set(table) - set(known))
-    if bad:
-        raise ParameterError(f"settings.{name}: unknown setting(s) {', '.join(bad)}; allowed: {', '.join(known)}")
-    changes = {}
-    for key, value in table.items():
-        current = getattr(base, key)
-        if isinstance(value, dict) and dataclasses.is_dataclass(current):
-            sub = {f.name for f in dataclasses.fields(current)}
-            unknown = sorted(set(value) - sub)
-            if unknown:
-                raise ParameterError(f"settings.{name}.{key}: unknown {', '.join(unknown)}; allowed: "
-                                     f"{', '.join(sorted(sub))}")
-            value = _replaced(name, current, value)
-        changes[key] = value
-    if "error_decay" in changes and "tip_noise_budget_m" in known and "tip_noise_budget_m" not in changes:
-        changes["tip_noise_budget_m"] = None        # a decay the spec gives is used, not derived
-    return _replaced(name, base, changes)
-
-
-def _replaced(name: str, settings, changes: dict):
-    """``settings`` with ``changes``, its validation error prefixed by ``settings.NAME``."""
-    try:
-        return dataclasses.replace(settings, **changes)
-    except (TypeError, ParameterError) as exc:
-        raise ParameterError(f"settings.{name}: {exc}") from None
-
-
-def settings_to_toml(settings: dict) -> str:
-    """TOML text of ``{controller: {setting: value or {sub: value}}}`` (as ``[settings.NAME]``
-    tables, which :func:`load_spec` and ``hubbeam sweep`` read).
-
-    Parameters
-    ----------
-    settings : dict
-
-    Returns
-    -------
-    str
-    """
-    lines = []
-    for name, table in settings.items():
-        plain = [f"{k} = {_toml_value(v)}" for k, v in table.items() if not isinstance(v, dict) and v is not None]
-        if plain or not any(isinstance(v, dict) for v in table.values()):
-            lines += [f"[settings.{name}]", *plain, ""]
-        for key, value in table.items():
-            if isinstance(value, dict):
-                lines += [f"[settings.{name}.{key}]"]
-                lines += [f"{k} = {_toml_value(v)}" for k, v in value.items() if v is not None] + [""]
-    return "\n".join(lines)
-
-
-def _toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float)):
-        return repr(float(value)) if isinstance(value, float) else str(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    raise ParameterError(f"settings: cannot write {value!r} to TOML")
