@@ -184,3 +184,17 @@ def test_one_law_two_rows_is_said():
     assert c.metrics["lqg"]["same_law_as"] == "lqr"
     assert "same_law_as" not in c.metrics["mpc"] and "same_law_as" not in c.metrics["lqr"]
     assert any(n.startswith("lqg is the same linear law as lqr") for n in c.notes)
+
+
+def test_the_default_controllers_on_a_rig_without_a_rate_sensor_leave_pd_out(tmp_path, capsys):
+    """accel_link has no rate sensor: the default list runs without PD (a note says why), before any
+    run; an explicit PD is refused in one line naming sensors.rate (exit 2 from the CLI)."""
+    from hubbeam_ctrl.cli.main import main
+    from hubbeam_ctrl.study import Slew, compare
+    c = compare("foam", Slew(math.pi / 2, 1.32), rig=load_rig("accel_link"), t_end=3.0)
+    assert "pd" not in c.metrics and "lqg" in c.metrics
+    assert any("pd left out" in n and "sensors.rate" in n for n in c.notes)
+    code = main(["compare", "--rig", "accel_link", "--controllers", "openloop,pd", "--slew-angle", "1.5708",
+                 "--tf", "1.32", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and "sensors.rate" in err and "Traceback" not in err and not (tmp_path / "o").exists()

@@ -252,6 +252,10 @@ def compare_plan(args) -> ComparePlan:
         _refuse_with(args, "--learn-payload", LEARNING_REFUSES)
     rig = _rig(args)
     check_rig_dt(args, rig)
+    if rig is not None and not rig.sensors.rate and "pd" in names \
+            and args.controllers == ",".join(controller_names(default=True)):
+        names = tuple(n for n in names if n != "pd")   # the default list on a rig without a rate sensor
+        print("hubbeam: pd left out: it reads the hub rate and the rig has no sensors.rate", file=sys.stderr)
     params = rig.plant_params if rig is not None else params_from_args(args)
     if args.tau_max is not None and args.tau_max > params.tau_max:
         raise ParameterError(f"--tau-max must be in (0, {params.tau_max:g}] N m (the motor's tau_max of "

@@ -365,6 +365,13 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     names = _parse_controllers(controllers)
     if rig is not None and not isinstance(rig, Rig):
         raise ParameterError(f"rig must be a Rig (hubbeam_ctrl.plant.rig.load_rig), got {type(rig).__name__}")
+    rate_notes = []
+    if rig is not None and not rig.sensors.rate and "pd" in names:
+        if controllers is not None:         # refused before any run, naming the rig key
+            raise ParameterError("controllers: pd reads the hub rate, and the rig has no rate sensor "
+                                 "(sensors.rate = false); leave pd out")
+        names = tuple(n for n in names if n != "pd")
+        rate_notes = ["pd left out: it reads the hub rate, and the rig has no rate sensor (sensors.rate = false)"]
     if rig is not None:
         params = params if params is not None else rig.plant_params
         dt = dt if dt is not None else rig.timing.dt
@@ -472,7 +479,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         for mm in metrics.values():
             mm["residual_pct_of_openloop"] = (100.0 * mm["residual_tip_max_m"] / base_res
                                               if base_res and math.isfinite(base_res) else float("nan"))
-    notes = notes + same_laws(linear, metrics)
+    notes = rate_notes + notes + same_laws(linear, metrics)
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
                       targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,
