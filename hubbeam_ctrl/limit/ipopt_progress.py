@@ -10,12 +10,20 @@ from __future__ import annotations
 
 import casadi as ca
 
-__all__ = ["iteration_callback"]
+__all__ = ["iteration_callback"]   # _IterationCallback: CasADi plumbing, limit.replan uses it too
 
 
-class _Iterations(ca.Callback):
-    """A CasADi callback over ``nlpsol``'s outputs that calls ``on_iteration()`` and returns 0
-    (IPOPT goes on)."""
+class _IterationCallback(ca.Callback):
+    """IPOPT's ``iteration_callback`` over ``nlpsol``'s outputs: calls ``on_iteration()`` once per
+    iteration; a true result asks IPOPT to stop (the re-plan's deadline), else it goes on.
+
+    Parameters
+    ----------
+    nlp : dict
+        The NLP given to ``nlpsol`` (``x``, ``f``, optional ``g`` and ``p``).
+    on_iteration : callable
+        ``() -> bool or None``: whether to stop.
+    """
 
     def __init__(self, nlp: dict, on_iteration):
         ca.Callback.__init__(self)
@@ -44,8 +52,7 @@ class _Iterations(ca.Callback):
         return ca.Sparsity.dense(n) if n else ca.Sparsity(0, 0)
 
     def eval(self, arg):
-        self._on()
-        return [0]
+        return [1 if self._on() else 0]
 
 
 def iteration_callback(nlp: dict, bar):
@@ -66,4 +73,4 @@ def iteration_callback(nlp: dict, bar):
     """
     if bar is None or bar.disable:
         return None
-    return _Iterations(nlp, lambda: bar.update(1))
+    return _IterationCallback(nlp, lambda: bar.update(1) and False)

@@ -28,6 +28,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.native import capture_native_output
 from hubbeam_ctrl.core.validation import check_positive
+from hubbeam_ctrl.limit.ipopt_progress import _IterationCallback
 from hubbeam_ctrl.limit.optimal import (
     OptimalSettings,
     OptimalSlew,
@@ -137,33 +138,14 @@ def _held(hold, intervals: int, tau_max: float):
     return held / tau_max
 
 
-class _Deadline(ca.Callback):
-    """IPOPT's iteration callback: asks it to stop once ``deadline`` (``time.perf_counter()``) is past."""
+class _Deadline:
+    """Stops IPOPT once ``deadline`` (``time.perf_counter()``) is past (None: never)."""
 
-    def __init__(self, nx: int, ng: int, np_: int):
-        ca.Callback.__init__(self)
-        self._sizes = {"x": nx, "lam_x": nx, "g": ng, "lam_g": ng, "lam_p": np_, "f": 1}
+    def __init__(self):
         self.deadline = None
-        self.construct("replan_deadline", {})
 
-    def get_n_in(self):
-        return ca.nlpsol_n_out()
-
-    def get_n_out(self):
-        return 1
-
-    def get_name_in(self, i):
-        return ca.nlpsol_out(i)
-
-    def get_name_out(self, i):
-        return "stop"
-
-    def get_sparsity_in(self, i):
-        n = self._sizes.get(ca.nlpsol_out(i))
-        return ca.Sparsity.dense(n) if n is not None else ca.Sparsity(0, 0)
-
-    def eval(self, arg):
-        return [1 if self.deadline is not None and time.perf_counter() > self.deadline else 0]
+    def __call__(self) -> bool:
+        return self.deadline is not None and time.perf_counter() > self.deadline
 
 
 class ReplanSolver:
@@ -199,12 +181,13 @@ class ReplanSolver:
         nlp, self._lbw, self._ubw, self._lbg, self._ubg, self._points = _nlp(
             self._pb, settings.intervals, settings.degree, self.tolerance, 1.0, parametric=True,
             smoothing=settings.torque_smoothing)
-        self._stop = _Deadline(nlp["x"].shape[0], nlp["g"].shape[0], nlp["p"].shape[0])
+        self._stop = _Deadline()
+        self._stop_callback = _IterationCallback(nlp, self._stop)
         ipopt = {"print_level": 0, "max_iter": settings.max_iter, "sb": "yes", "tol": 1e-8, "acceptable_tol": 1e-6}
         with capture_native_output():
             self._solver = ca.nlpsol("replan", "ipopt", nlp, {"print_time": False, "ipopt": ipopt,
                                                               "expand": bool(expand),
-                                                              "iteration_callback": self._stop})
+                                                              "iteration_callback": self._stop_callback})
         self.build_s = time.perf_counter() - start
 
     @property
