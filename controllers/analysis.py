@@ -44,7 +44,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from .base import DesignModel
 
 __all__ = ["LoopMargins", "FrequencyResponse", "design_plant", "loop_transfer", "loop_matrices", "closed_loop_poles",
-           "loop_margins", "frequency_grid", "hardware_plant", "rig_plant"]
+           "loop_margins", "margins_of_loop", "frequency_grid", "hardware_plant", "rig_plant"]
 
 #: Signals a controller may read, with the row of the design model that gives them.
 _SENSOR_ROWS = {"theta": ("C_sensors", 0), "theta_dot": ("C_sensors", 1),
@@ -525,8 +525,28 @@ def loop_margins(ctrl, n_points: int = 3000, plant=None, check: bool = False) ->
     -------
     LoopMargins
     """
-    A, B, C, D = loop_matrices(ctrl, plant)
-    dt = ctrl.dt
+    return margins_of_loop(*loop_matrices(ctrl, plant), ctrl.dt, ctrl.name, n_points, check)
+
+
+def margins_of_loop(A, B, C, D, dt: float, name: str = "", n_points: int = 3000, check: bool = False) -> LoopMargins:
+    """Disk, gain, phase and delay margins of a sampled SISO loop ``L = C (zI - A)^-1 B + D``
+    closed by ``u = -L u`` (:func:`loop_margins` on any loop, e.g. a plant of an uncertainty set).
+
+    Parameters
+    ----------
+    A, B, C, D : ndarray
+        The broken loop (as :func:`loop_matrices` gives it).
+    dt : float
+        Sample time [s].
+    name : str
+        The controller's name (kept in the result).
+    n_points, check
+        As :func:`loop_margins`.
+
+    Returns
+    -------
+    LoopMargins
+    """
     cl = np.linalg.eigvals(A - B @ C)
     rho = float(np.max(np.abs(cl)))
     w = frequency_grid(np.concatenate([np.linalg.eigvals(A), cl]), dt, n_points)
@@ -561,7 +581,7 @@ def loop_margins(ctrl, n_points: int = 3000, plant=None, check: bool = False) ->
     if rho >= 1.0:
         pm, delay, upper, lower = 0.0, 0.0, math.nan, math.nan
     return LoopMargins(
-        controller=ctrl.name, stable=rho < 1.0, spectral_radius=rho, disk_margin=float(alpha),
+        controller=name, stable=rho < 1.0, spectral_radius=rho, disk_margin=float(alpha),
         disk_margin_frequency_rad_s=float(w_peak), disk_margin_grid=float(1.0 / np.max(on_grid)),
         disk_margin_control=_disk_margin_control(A, B, C, D, dt, w) if rho < 1.0 and check else None,
         disk_gain_margin=disk_gm, disk_phase_margin_deg=math.degrees(2 * math.atan(a)),

@@ -30,7 +30,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
 
-__all__ = ["add_parser", "run", "compare_plan", "ComparePlan", "stdout_to_stderr"]
+__all__ = ["add_parser", "add_compare_options", "run", "compare_plan", "ComparePlan", "stdout_to_stderr"]
 
 
 def add_parser(subparsers, common) -> argparse.ArgumentParser:
@@ -52,6 +52,20 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                      "design and the plant; --plant-params and --plant-tip-mass make the plant differ. "
                      "Writes metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
                      "torque.png and report.md to --out."))
+    add_compare_options(p)
+    p.set_defaults(func=run)
+    return p
+
+
+def add_compare_options(p, controllers: bool = True) -> None:
+    """The options of ``hubbeam compare`` on parser ``p`` (``hubbeam certify`` takes them too).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+    controllers : bool
+        Add ``--controllers`` (False: the command names its controller otherwise).
+    """
     # explicit metavars: argparse would otherwise read the choices (importing the study layer)
     # when the parser is built, not only when --help is shown or a value is checked
     p.add_argument("--plant", metavar="PLANT", choices=RegistryChoices("hubbeam_ctrl.study.scenarios", "PLANTS"),
@@ -76,11 +90,12 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
                                                                          "SCENARIOS"),
                    default="slew", help="registered scenario: %(choices)s (default %(default)s; see "
                                         "hubbeam_ctrl.study.scenarios)")
-    default = ",".join(controller_names(default=True))
-    p.add_argument("--controllers", metavar="LIST", default=default,
-                   help="comma-separated subset of the registered controllers "
-                        + ", ".join(f"{n} ({s.label})" for n, s in CONTROLLERS.items())
-                        + f" (default: {default})")
+    if controllers:
+        default = ",".join(controller_names(default=True))
+        p.add_argument("--controllers", metavar="LIST", default=default,
+                       help="comma-separated subset of the registered controllers "
+                            + ", ".join(f"{n} ({s.label})" for n, s in CONTROLLERS.items())
+                            + f" (default: {default})")
     p.add_argument("--shaping", choices=list(SHAPERS), default=None,
                    help="filter the reference of the controllers that track one ("
                         + ",".join(n for n, s in CONTROLLERS.items() if s.tracks_reference)
@@ -151,8 +166,6 @@ def add_parser(subparsers, common) -> argparse.ArgumentParser:
     add_backend_option(p)
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     add_run_options(p)
-    p.set_defaults(func=run)
-    return p
 
 
 def parse_payload_range(text: str, nominal: float) -> tuple:

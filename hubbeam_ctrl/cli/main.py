@@ -46,7 +46,8 @@ CRITICAL_SPEED_MODELS = tuple(n for n, spec in MODEL_SPECS.items() if spec.fores
 EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.design",
                   "hubbeam_ctrl.cli.sweep", "hubbeam_ctrl.cli.tune", "hubbeam_ctrl.cli.cache",
                   "hubbeam_ctrl.cli.optimal", "hubbeam_ctrl.cli.fmu", "hubbeam_ctrl.cli.demo",
-                  "hubbeam_ctrl.cli.codegen", "hubbeam_ctrl.cli.excite", "hubbeam_ctrl.cli.identify")
+                  "hubbeam_ctrl.cli.codegen", "hubbeam_ctrl.cli.excite", "hubbeam_ctrl.cli.identify",
+                  "hubbeam_ctrl.cli.certify")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -48,6 +48,7 @@ from hubbeam_ctrl.core.fileio import atomic_write_text, path_exists, read_toml
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.plant.params import MAX_MODES, MAX_PARAMS_FILE_BYTES, Params, _read_toml
 from hubbeam_ctrl.plant.rig_parts import Damping, Drive, Friction, Sensors, Timing
+from hubbeam_ctrl.plant.uncertainty import Uncertainty
 
 __all__ = ["Drive", "Friction", "Damping", "Sensors", "Timing", "Rig", "load_rig", "save_rig", "PRESETS",
            "RIG_TABLES", "RIG_RELATIONS", "rig_from_dict", "rig_to_toml", "TAU_MAX_TOLERANCE"]
@@ -99,6 +100,8 @@ class Rig(Settings):
     damping: Damping = setting(factory=Damping, doc="Damping of the beam's modes.")
     sensors: Sensors = setting(factory=Sensors, doc="The sensors.")
     timing: Timing = setting(factory=Timing, doc="Sample time and computation delay.")
+    uncertainty: Uncertainty = setting(factory=Uncertainty, doc="What is not known: ranges on the physical "
+                                       "parameters ([uncertainty]; empty: the rig is taken as exact).")
 
     def __post_init__(self):
         super().__post_init__()
@@ -117,6 +120,8 @@ class Rig(Settings):
         if self.damping.is_set and self.beam.damping_ratio > 0:
             raise ParameterError(f"beam.damping_ratio must be 0 when [damping] is given (one source of "
                                  f"damping), got {self.beam.damping_ratio:g}")
+        if self.uncertainty.is_set:
+            self.uncertainty.check(self.replace(uncertainty=Uncertainty()))
 
     @property
     def is_ideal(self) -> bool:
@@ -235,12 +240,14 @@ def rig_from_dict(data: dict, path=None, what: str = "rig file") -> Rig:
             return Rig(beam=Params.from_dict(data))
         except ParameterError as exc:
             raise ParameterError(f"{where}{exc}") from None
+    uncertainty = Uncertainty.from_table(data["uncertainty"], where) if "uncertainty" in data else Uncertainty()
+    data = {k: v for k, v in data.items() if k != "uncertainty"}
     for key, value in data.items():
         if key not in RIG_TABLES:
             kind = "table" if isinstance(value, dict) else "key"
             shown = f"[{str(key)[:40]}]" if kind == "table" else str(key)[:40]
             raise ParameterError(f"{where}unknown {kind} {shown}; allowed tables: "
-                                 f"{', '.join(f'[{t}]' for t in RIG_TABLES)}")
+                                 f"{', '.join(f'[{t}]' for t in RIG_TABLES)}, [uncertainty]")
     parts = {_ATTR[t]: _part(t, data[t], path, what) for t in RIG_TABLES if t in data}
     try:
         drive = parts.get("drive", Drive())
@@ -249,7 +256,7 @@ def rig_from_dict(data: dict, path=None, what: str = "rig file") -> Rig:
                 _check_tau_max(parts["beam"].tau_max, drive)
             elif drive.torque_limit is not None:
                 parts["beam"] = parts["beam"].replace(tau_max=drive.torque_limit)
-        return Rig(**parts)
+        return Rig(**parts, uncertainty=uncertainty)
     except ParameterError as exc:
         raise ParameterError(f"{where}{exc}") from None
 
@@ -327,6 +334,10 @@ def rig_to_toml(rig: Rig) -> str:
                 lines.append(f"# {key} unset")
                 continue
             lines.append(f"{key} = {_toml_value(value)}" + ("" if unit in ("", "-") else f"  # [{unit}]"))
+    if rig.uncertainty.is_set:
+        lines += ["", "[uncertainty]"]
+        for r in rig.uncertainty.ranges:
+            lines.append(f"{r.name} = [{r.lo!r}, {r.hi!r}]" + ("" if r.unit == "-" else f"  # [{r.unit}]"))
     return "\n".join(lines) + "\n"
 
 

@@ -42,7 +42,7 @@ from hubbeam_ctrl.linear.statespace import linear_matrices
 from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["RADIUS_TOLERANCE", "DAMPING_SEARCH_MAX", "LoopCertificate", "Certificate", "linear_points",
-           "certify", "loop_matrix"]
+           "certify", "loop_matrix", "broken_loop", "AS_DESIGNED"]
 
 #: A sampled loop whose spectral radius exceeds ``1 + RADIUS_TOLERANCE`` grows [-] (a pole
 #: of an undamped mode the controller cannot reach stays within it of the unit circle).
@@ -251,7 +251,12 @@ def _measurement(controller: Controller, inputs, C_sensors: np.ndarray, n_plant:
     return np.array(rows).reshape(len(inputs), n_plant)
 
 
-def loop_matrix(controller: Controller, params: Params, spin: float, damping_ratio: float = 0.0) -> tuple:
+#: ``loop_matrix(hardware=AS_DESIGNED)``: the plant carries the hardware the controller was put on.
+AS_DESIGNED = "as designed"
+
+
+def loop_matrix(controller: Controller, params: Params, spin: float, damping_ratio: float = 0.0,
+                hardware=AS_DESIGNED) -> tuple:
     """The sampled closed-loop matrix of ``controller`` on the linear SFOAM of ``params``.
 
     Parameters
@@ -264,6 +269,10 @@ def loop_matrix(controller: Controller, params: Params, spin: float, damping_rat
         Spin rate of the linearisation [rad/s].
     damping_ratio : float
         Modal damping ratio of every bending mode [-], >= 0.
+    hardware : Hardware or None, optional
+        The plant's drive, friction and delay (default :data:`AS_DESIGNED`: the
+        ``rig_hardware`` the controller was put on; a robust certificate passes the hardware
+        of another point of an uncertainty set).
 
     Returns
     -------
@@ -271,6 +280,41 @@ def loop_matrix(controller: Controller, params: Params, spin: float, damping_rat
         ``(A_loop, plant_poles_s)``: the loop matrix (plant state, then the controller's) and
         the continuous-time poles of the plant [1/s].
     """
+    Ad, Bd, Cm, (Ak, Bk, Ck, Dk), A = _loop_parts(controller, params, spin, damping_ratio, hardware)
+    nk = Ak.shape[0] if Ak.size else 0
+    if nk == 0:
+        A_loop = Ad + Bd @ Dk @ Cm
+    else:
+        A_loop = np.block([[Ad + Bd @ Dk @ Cm, Bd @ Ck], [Bk @ Cm, Ak]])
+    return A_loop, np.linalg.eigvals(A)
+
+
+def broken_loop(controller: Controller, params: Params, spin: float, damping_ratio: float = 0.0,
+                hardware=AS_DESIGNED) -> tuple:
+    """The loop of :func:`loop_matrix` broken at the plant input, for its margins.
+
+    Parameters
+    ----------
+    controller, params, spin, damping_ratio, hardware
+        As :func:`loop_matrix`.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(A, B, C, D)`` of the return ratio ``L`` with the loop ``u = -L u``
+        (:func:`controllers.analysis.margins_of_loop` takes them).
+    """
+    Ad, Bd, Cm, (Ak, Bk, Ck, Dk), _ = _loop_parts(controller, params, spin, damping_ratio, hardware)
+    n, nk = Ad.shape[0], (Ak.shape[0] if Ak.size else 0)
+    A = np.block([[Ad, np.zeros((n, nk))], [Bk @ Cm, Ak]]) if nk else Ad
+    B = np.vstack([Bd, np.zeros((nk, Bd.shape[1]))])
+    C = -np.hstack([Dk @ Cm, Ck]) if nk else -(Dk @ Cm)
+    return A, B, C, np.zeros((1, 1))
+
+
+def _loop_parts(controller: Controller, params: Params, spin: float, damping_ratio: float, hardware) -> tuple:
+    """``(Ad, Bd, Cm, (Ak, Bk, Ck, Dk), A)``: the sampled plant as the loop sees it, the
+    controller's matrices and the continuous plant matrix."""
     needed = int(getattr(controller, "state_modes", controller.n_modes))
     if params.n_transverse < needed:
         raise ParameterError(f"plant_modes must be at least the {needed} modes the controller's gain "
@@ -280,7 +324,7 @@ def loop_matrix(controller: Controller, params: Params, spin: float, damping_rat
     A = A0 + damping_ratio * A1
     Ak, Bk, Ck, Dk, _, inputs = controller.feedback_matrices()
     Ak, Bk, Ck, Dk = (np.atleast_2d(np.asarray(M, dtype=float)) for M in (Ak, Bk, Ck, Dk))
-    hw = getattr(controller, "rig_hardware", None)
+    hw = getattr(controller, "rig_hardware", None) if hardware is AS_DESIGNED else hardware
     design = getattr(controller, "design", None)
     layout = getattr(design, "sensors", None)
     if hw is None and layout is None:
@@ -296,12 +340,7 @@ def loop_matrix(controller: Controller, params: Params, spin: float, damping_rat
             Dm = np.zeros((Cm.shape[0], 1))
         Ad, Bd = delay_augmented(A, Bu, dt, delay)
         Cm = np.hstack([Cm, Dm])
-    nk = Ak.shape[0] if Ak.size else 0
-    if nk == 0:
-        A_loop = Ad + Bd @ Dk @ Cm
-    else:
-        A_loop = np.block([[Ad + Bd @ Dk @ Cm, Bd @ Ck], [Bk @ Cm, Ak]])
-    return A_loop, np.linalg.eigvals(A)
+    return Ad, Bd, Cm, (Ak, Bk, Ck, Dk), A
 
 
 def _source(z: complex, plant_poles_s: np.ndarray, dt: float, n_plant: int, n_loop: int):

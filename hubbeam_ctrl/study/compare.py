@@ -56,6 +56,7 @@ from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig
 from hubbeam_ctrl.study.scenarios import PLANTS, RANGES, REFERENCES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
+from hubbeam_ctrl.study.worst_case import certify_set
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "REFERENCE_KINDS", "Comparison", "compare", "run_compare"]
@@ -152,6 +153,9 @@ class Comparison:
         The second plant of ``compare(check_plant=...)`` (same parameters and modes).
     check_results, check_metrics : dict
         Controller name -> its result and metrics on ``check_plant`` (empty without one).
+    robust : dict
+        Controller name -> :class:`~hubbeam_ctrl.study.worst_case.WorstCase` over the rig's
+        ``[uncertainty]`` (empty when the rig has none).
     """
 
     scenario: Scenario
@@ -171,6 +175,7 @@ class Comparison:
     check_plant: EvaluationPlant | None = None
     check_results: dict = field(default_factory=dict)
     check_metrics: dict = field(default_factory=dict)
+    robust: dict = field(default_factory=dict)
 
 
 def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
@@ -426,7 +431,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
                                    solver=solver, sim=sim, plant_modes=plant_modes), **designs}
     results, metrics, margins, certificates, linear = {}, {}, {}, {}, {}
-    check_results, check_metrics = {}, {}
+    check_results, check_metrics, robust = {}, {}, {}
     yardstick = task_limit(sc, limit, rig)
     clock = WallClock(sim.max_wall_s)        # the whole comparison's wall-time limit
     for name in names:
@@ -453,6 +458,10 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         results[name] = res
         metrics[name], certificates[name] = judge(res, ctrl, sc, ev.params, name, limit=yardstick)
         metrics[name]["scenario"] = sc.name
+        if rig is not None and rig.uncertainty.is_set and margins[name] is not None:
+            robust[name] = certify_set(ctrl, rig, plant_modes=ev.modes, name=name,
+                                       spins=(float(res.v[0, 0]), float(res.v[-1, 0])))
+            metrics[name].update(robust[name].metrics())
         if ev_check is not None:
             res_c = simulate_closed_loop(ev_check, ctrl, sc.t_end, settings=run_sim,
                                          reference=(ref.theta_at, ref.theta_dot_at), backend=backend,
@@ -486,7 +495,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                       margins={n: lm for n, lm in margins.items() if lm is not None},
                       certificates=certificates,
                       controllers={n: c for n, c in linear.items() if margins[n] is not None}, rig=rig,
-                      notes=notes, check_plant=ev_check, check_results=check_results, check_metrics=check_metrics)
+                      notes=notes, check_plant=ev_check, check_results=check_results, check_metrics=check_metrics,
+                      robust=robust)
 
 
 def _check_plant(check_plant, sc: Scenario, ev: EvaluationPlant, design_modes: int):

@@ -253,6 +253,7 @@ def _report(comparison) -> str:
     lines += _rig_lines(comparison)
     lines += ladder_lines(getattr(comparison, "ladder", []))
     lines += _certificate_lines(comparison)
+    lines += _robust_lines(comparison)
     lines += _margin_lines(getattr(comparison, "margins", {}))
     notes = [f"- {name}: {m['message']}" for name, m in comparison.metrics.items()
              if not m["completed"] or m.get("outside_validated_range")]
@@ -504,6 +505,27 @@ def _certificate_lines(comparison) -> list:
         cert = certs.get(name)
         text = cert.describe() if cert is not None else "-"
         lines.append(f"| {name} | {m['verdict']} | {text} | {m.get('verdict_reason', '')} |")
+    return lines + [""]
+
+
+def _robust_lines(comparison) -> list:
+    """The robust certificates over the rig's ``[uncertainty]`` (issue 39)."""
+    robust = getattr(comparison, "robust", {}) or {}
+    if not robust:
+        return []
+    first = next(iter(robust.values()))
+    lines = ["## Robust certificate over the rig's uncertainty", "",
+             f"The set: {first.uncertainty.describe()}. The loop as it runs (drive, sensors, delay, estimator) "
+             "with the linear plant of each point the search visits (a grid with its corners, then local "
+             "searches from the worst points): the worst radius is searched, not proven; the first-order bound "
+             "is said beside it (hubbeam_ctrl.study.worst_case).", "",
+             "| controller | verdict | worst radius | worst plant | nominal radius | bound | smallest disk margin |",
+             "|---|---|---|---|---|---|---|"]
+    for name, wc in robust.items():
+        where = ", ".join(f"{k} = {v:.4g}" for k, v in wc.worst.values.items())
+        dm = "-" if wc.disk_margin is None else f"{wc.disk_margin:.3g}"
+        lines.append(f"| {name} | {wc.verdict()} | {wc.worst.radius:.8f} | {where} | {wc.nominal.radius:.8f} | "
+                     f"{wc.bound:.3g} | {dm} |")
     return lines + [""]
 
 

@@ -1,0 +1,179 @@
+"""``hubbeam certify``: a controller's robust certificate over what the user does not know
+(:mod:`hubbeam_ctrl.study.worst_case`), checked by nonlinear runs at the worst plant found.
+
+Exit status: 0 when every controller is certified, 1 when one is not (a plant of the set was
+found where its loop does not decay), 2 for bad input.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+from hubbeam_ctrl.cli.args import stdout
+from hubbeam_ctrl.cli.compare import add_compare_options, compare_plan
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json
+
+__all__ = ["add_parser", "run", "parse_uncertainty", "CHECKS"]
+
+#: Where the nonlinear check runs: the worst plant found, also the set's corners, or nowhere.
+CHECKS = ("worst", "corners", "none")
+#: Options of ``compare`` that certify refuses, with the reason.
+REFUSES = {"--payload-range": "give the payload range as --uncertainty m_t=LO:HI",
+           "--learn-payload": "a learning controller has no fixed linear loop to certify"}
+
+
+def add_parser(subparsers, common):
+    """Add the ``certify`` subcommand.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+    common : argparse.ArgumentParser
+        Parent parser with ``--tip-mass``, ``--tip-position``, ``--n-modes``, ``--params``.
+    """
+    p = subparsers.add_parser(
+        "certify", parents=[common], help="robust certificate of controllers over an uncertainty set",
+        description=("Design CONTROLLER as compare does (same options), then search the uncertainty set (the "
+                     "rig's [uncertainty] table, or --uncertainty) for the plant where the sampled loop as it runs "
+                     "(drive, sensors, delay, estimator) decays slowest, and run the controller and the open loop "
+                     "on the nonlinear plant there. Certified: worst spectral radius found <= 1 - 1e-6. Writes "
+                     "certificate.json and certificate.md to --out. Exit 1 when a controller is not certified."))
+    p.add_argument("controller", metavar="CONTROLLER",
+                   help="registered controller(s) with a linear feedback law, comma-separated (lqr, lqg, mpc, pd...)")
+    p.add_argument("--uncertainty", metavar="NAME=LO:HI,...",
+                   help="the uncertainty set, e.g. m_t=0:0.5,damping=0.0005:0.02,delay=0.3:0.7 (SI units; names: "
+                        "m_t l E J_h damping viscous coulomb k_t k_e R delay); default the rig's [uncertainty]")
+    p.add_argument("--grid", metavar="N", type=int, default=3,
+                   help="grid points per uncertain parameter before the local searches, 2..9 (default 3)")
+    p.add_argument("--check", choices=CHECKS, default="worst",
+                   help="nonlinear runs: at the worst plant found (default), also at every corner of the set, "
+                        "or none")
+    add_compare_options(p, controllers=False)
+    p.set_defaults(func=run)
+    return p
+
+
+def parse_uncertainty(text: str):
+    """``NAME=LO:HI,...`` (a single value fixes a parameter) as an :class:`Uncertainty`.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    Uncertainty
+    """
+    from hubbeam_ctrl.plant.uncertainty import Uncertainty
+    table = {}
+    for item in str(text).split(","):
+        item = item.strip()
+        if not item:
+            continue
+        name, sep, rng = item.partition("=")
+        if not sep:
+            raise ParameterError(f"--uncertainty must be NAME=LO:HI,..., got {item!r}")
+        lo, _, hi = rng.partition(":")
+        try:
+            pair = (float(lo), float(hi if hi else lo))
+        except ValueError:
+            raise ParameterError(f"--uncertainty {name.strip()} must be LO:HI (two numbers), got {rng!r}") from None
+        table[name.strip()] = pair
+    if not table:
+        raise ParameterError(f"--uncertainty must name at least one parameter (NAME=LO:HI), got {text!r}")
+    try:
+        return Uncertainty.from_table(table)
+    except ParameterError as exc:
+        raise ParameterError(f"--uncertainty: {str(exc).removeprefix('uncertainty.')}") from None
+
+
+def _plan(args):
+    from hubbeam_ctrl.plant.rig import Rig
+    for option, why in REFUSES.items():
+        if getattr(args, option.lstrip("-").replace("-", "_"), None):
+            raise ParameterError(f"{option} does not apply to certify ({why})")
+    if not 2 <= args.grid <= 9:
+        raise ParameterError(f"--grid must be an integer in [2, 9], got {args.grid}")
+    args.controllers = args.controller
+    plan = compare_plan(args)
+    opts = dict(plan.options)
+    rig = opts.get("rig")
+    if rig is None:
+        rig = Rig(beam=opts["params"])
+        opts.update(params=None, rig=rig)
+    u = parse_uncertainty(args.uncertainty) if args.uncertainty is not None else rig.uncertainty
+    if not u.is_set:
+        raise ParameterError("certify needs an uncertainty set: --uncertainty NAME=LO:HI,... or a rig with an "
+                             "[uncertainty] table")
+    try:
+        opts["rig"] = rig.replace(uncertainty=u)
+    except ParameterError as exc:
+        raise ParameterError(f"--uncertainty: {exc}") from None
+    if "openloop" in opts["controllers"]:
+        raise ParameterError("controller openloop has no feedback law to certify")
+    opts["controllers"] = ("openloop",) + tuple(opts["controllers"])
+    return plan, opts
+
+
+def run(args) -> int:
+    """Run ``hubbeam certify``; returns the exit status (0 certified, 1 not).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+    """
+    sink = stdout(args)
+    import itertools
+
+    from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.robust_check import run_at
+    plan, opts = _plan(args)
+    rig = opts["rig"]
+    comparison = compare(**opts)
+    names = [n for n in opts["controllers"] if n != "openloop"]
+    missing = [n for n in names if n not in comparison.robust]
+    if missing:
+        raise ParameterError(f"controller {missing[0]!r} has no linear feedback law to certify")
+    u = rig.uncertainty
+    bare = rig.replace(uncertainty=type(u)())
+    doc = {"set": u.to_table(), "controllers": {}}
+    lines = [f"# Robust certificate: {comparison.scenario.description}", "", f"Set: {u.describe()}.", ""]
+    for name in names:
+        wc = comparison.robust[name]
+        points = [("worst", wc.worst.values)]
+        if args.check == "corners":
+            vary = u.varying
+            for corner in itertools.product((0.0, 1.0), repeat=len(vary)):
+                points.append(("corner", u.values_at(corner)))
+        checks = [] if args.check == "none" else \
+            [{"point": kind, **run_at(comparison, name, bare, values, u)} for kind, values in points]
+        nominal = comparison.metrics[name]
+        doc["controllers"][name] = {"certificate": wc.metrics(), "nominal_run": {
+            k: nominal.get(k) for k in ("verdict", "settling_time_s", "residual_pct_of_openloop",
+                                        "peak_torque_nm", "within_drive_limits")}, "checks": checks}
+        print(wc.describe(), file=sink)
+        lines += [f"## {name}: {wc.verdict()}", "", wc.describe(), ""]
+        if checks:
+            lines += ["| point | plant | verdict | settle s | % of OL | peak tau N m | within limits |",
+                      "|---|---|---|---|---|---|---|"]
+            for c in checks:
+                where = ", ".join(f"{k} = {v:.4g}" for k, v in c["values"].items())
+                settle = "-" if c["settling_time_s"] is None else f"{c['settling_time_s']:.2f}"
+                pct = c["residual_pct_of_openloop"]
+                lines.append(f"| {c['point']} | {where} | {c['verdict']} | {settle} | "
+                             f"{'-' if pct is None or not math.isfinite(pct) else f'{pct:.3g}'} | "
+                             f"{c['peak_torque_nm']:.4g} | {c['within_drive_limits']} |")
+                print(f"  nonlinear at {c['point']} ({where}): {c['verdict']}, settle "
+                      f"{settle} s, {pct:.3g} % of its open loop, peak {c['peak_torque_nm']:.4g} N m", file=sink)
+            lines.append("")
+    plan.out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(plan.out / "certificate.json", strict_json(doc, indent=2) + "\n")
+    atomic_write_text(plan.out / "certificate.md", "\n".join(lines) + "\n")
+    print(f"wrote {plan.out}/certificate.json, certificate.md", file=sink)
+    failed = [n for n in names if not comparison.robust[n].certified]
+    if failed:
+        print(f"hubbeam: not certified: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,85 @@
+"""The robust certificate checked: the controller and the open loop run on the nonlinear plant
+at chosen points of the uncertainty set (the worst plant the certificate found, the corners).
+
+The controller is the one the comparison ran (designed on the nominal rig, as it runs); the
+plant is the evaluation plant of the comparison (same model, modes and sample time) with the
+physical parameters and hardware of the rig at that point
+(:meth:`~hubbeam_ctrl.plant.uncertainty.Uncertainty.apply`). Each point gets its own open-loop
+run, so the residual is a share of *that* plant's open loop, as the targets ask.
+"""
+
+from __future__ import annotations
+
+import math
+
+from controllers import CONTROLLERS, make_controller
+from controllers.design_model import DesignModel
+from hubbeam_ctrl.plant.rig import Rig
+from hubbeam_ctrl.plant.uncertainty import Uncertainty
+from hubbeam_ctrl.sim.closedloop import simulate_closed_loop
+from hubbeam_ctrl.sim.evaluation import evaluation_plant
+from hubbeam_ctrl.study.judge import judge
+from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, task_noise
+from hubbeam_ctrl.study.yardstick import task_limit
+
+__all__ = ["run_at", "CHECK_KEYS"]
+
+#: Metrics a check keeps for each point.
+CHECK_KEYS = ("verdict", "settling_time_s", "residual_tip_max_m", "residual_pct_of_openloop", "peak_torque_nm",
+              "peak_command", "command_unit", "within_drive_limits", "loop_spectral_radius", "completed",
+              "final_angle_error_rad")
+
+
+def run_at(comparison, name: str, rig: Rig, values: dict, uncertainty: Uncertainty) -> dict:
+    """The controller ``name`` of ``comparison`` and the open loop on the plant at ``values``.
+
+    Parameters
+    ----------
+    comparison : Comparison
+        A comparison that ran ``name`` (:func:`~hubbeam_ctrl.study.compare.compare`).
+    name : str
+        The controller.
+    rig : Rig
+        The nominal rig of the comparison (``Rig(beam=params)`` for the beam alone).
+    values : dict
+        Uncertain parameter -> value: the plant's point of the set.
+    uncertainty : Uncertainty
+        The set (applies ``values`` to ``rig``).
+
+    Returns
+    -------
+    dict
+        The :data:`CHECK_KEYS` of the controller's run, ``openloop_residual_tip_max_m`` and the
+        point's ``values``.
+    """
+    sc, ev = comparison.scenario, comparison.plant
+    ctrl = comparison.controllers[name]
+    point = uncertainty.apply(rig, values)
+    plant = evaluation_plant(sc.plant, sc.params, sc.dt, int(ctrl.n_modes), sc.design_spin,
+                             plant_params=point.plant_params, plant_modes=ev.modes)
+    sim, hardware = rig_closed_loop(point, sc.closed_loop_settings())
+    ref = sc.reference
+    spec = CONTROLLERS["openloop"]
+    design = DesignModel.build(sc.params, sc.design_spin, sc.dt, int(ctrl.n_modes))
+    on_a_rig = comparison.rig is not None
+    if on_a_rig:
+        design = rig_design(design, rig)
+    ol = make_controller("openloop", design, spec.settings.for_scenario(sc), ref)
+    if on_a_rig:
+        ol = on_rig(ol, point, task_noise(sc, point), hardware)
+    else:
+        hardware = None
+    limit = task_limit(sc, "rigid", point if on_a_rig else None)
+    out = {"values": dict(values)}
+    runs = {}
+    for label, c in (("openloop", ol), (name, ctrl)):
+        res = simulate_closed_loop(plant, c, sc.t_end, settings=sim, reference=(ref.theta_at, ref.theta_dot_at),
+                                   hardware=hardware)
+        runs[label], _ = judge(res, c, sc, plant.params, label, limit=limit)
+    base = runs["openloop"]["residual_tip_max_m"]
+    m = runs[name]
+    m["residual_pct_of_openloop"] = (100.0 * m["residual_tip_max_m"] / base
+                                     if base and math.isfinite(base) else float("nan"))
+    out.update({k: m.get(k) for k in CHECK_KEYS})
+    out["openloop_residual_tip_max_m"] = base
+    return out

@@ -1,0 +1,142 @@
+"""Issue 39: the uncertainty set as a value, the worst-case certificate over it, and its check
+by nonlinear runs at the worst plant found."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import numpy as np
+import pytest
+
+from hubbeam_ctrl import Params
+from hubbeam_ctrl.cli.main import main
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.rig import Rig, load_rig, rig_from_dict, rig_to_toml
+from hubbeam_ctrl.plant.uncertainty import Uncertainty
+from hubbeam_ctrl.study.certificate import certify, loop_matrix
+from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.robust_check import run_at
+from hubbeam_ctrl.study.worst_case import RADIUS_MARGIN, certify_set
+
+PAYLOAD = Uncertainty.from_table({"m_t": (0.0, 0.5), "damping": (0.0005, 0.0005)})
+
+
+# --- the set as a value ---------------------------------------------------------------
+
+def test_uncertainty_table_round_trips_through_the_rig_file():
+    rig = load_rig("servo_link")
+    u = Uncertainty.from_table({"m_t": [0.0, 0.03], "E": [185e9, 200e9], "damping": [0.0005, 0.034],
+                                "delay": [0.3, 0.7], "k_t": [7e-3, 8e-3]})
+    r2 = rig.replace(uncertainty=u)
+    back = rig_from_dict(tomllib.loads(rig_to_toml(r2)))
+    assert back == r2
+    assert back.uncertainty.names == ("m_t", "E", "damping", "k_t", "delay")    # the module's order
+    at = u.apply(rig, u.values_at([1.0, 0.0, 0.0, 1.0, 1.0]))
+    assert at.beam.m_t == 0.03 and at.beam.E == 185e9 and at.drive.k_t == 8e-3 and at.timing.delay == 0.7
+    assert at.plant_params.damping_ratios[:3] == (0.0005, 0.0005, 0.0005)
+    assert not at.uncertainty.is_set            # a point of the set is exact
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"m_t": [1, 0]}, "uncertainty.m_t must have lo <= hi"),
+    ({"foo": [1, 2]}, "unknown key uncertainty.foo"),
+    ({"m_t": "x"}, "uncertainty.m_t must be a range [lo, hi]"),
+    ({"delay": [0, 2]}, "uncertainty.delay = [0, 2] does not fit the rig"),
+    ({"E": [1, float("inf")]}, "uncertainty.E must be finite"),
+])
+def test_bad_sets_are_refused_naming_the_key(table, message):
+    with pytest.raises(ParameterError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        load_rig("servo_link").replace(uncertainty=Uncertainty.from_table(table))
+
+
+def test_motor_constants_need_a_dc_motor():
+    with pytest.raises(ParameterError, match="uncertainty.k_t needs a DC motor"):
+        Rig().replace(uncertainty=Uncertainty.from_table({"k_t": (0.1, 0.2)}))
+
+
+def test_calibration_intervals_become_a_set():
+    u = Uncertainty.from_intervals({"E": (6.7e10, 7.0e10), "J_h": (190.0, 210.0), "friction.viscous": (0.1, 0.2),
+                                    "motor.k_t": (7e-3, 8e-3), "not_a_field": (1, 2)})
+    assert u.names == ("E", "J_h", "viscous", "k_t")
+
+
+# --- the certificate -------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def table1():
+    """Table 1's slew, LQR and LQG designed at the nominal 0.1 kg, on a rig carrying the set."""
+    rig = Rig(beam=Params(), uncertainty=PAYLOAD)
+    return rig, compare("foam", "slew", ["openloop", "lqr", "lqg"], rig=rig)
+
+
+def test_a_zero_width_set_is_the_linear_certificate(table1):
+    rig, cmp = table1
+    ctrl = cmp.controllers["lqr"]
+    point = Uncertainty.from_table({"m_t": 0.1, "damping": 0.0005})
+    wc = certify_set(ctrl, rig, point, plant_modes=cmp.plant.modes, margins=False)
+    ref = certify(ctrl, cmp.plant.params.replace(damping_ratio=0.0005), name="lqr")
+    assert wc.worst.radius == pytest.approx(ref.worst.spectral_radius, abs=1e-12)
+
+
+def test_the_search_finds_the_worst_payload_of_a_dense_scan(table1):
+    """The search (3 grid points, local climbs) against 41 payloads evaluated directly."""
+    rig, cmp = table1
+    for name in ("lqr", "lqg"):
+        ctrl, wc = cmp.controllers[name], cmp.robust[name]
+        dense = []
+        for m in np.linspace(0.0, 0.5, 41):
+            p = cmp.plant.params.replace(m_t=float(m))
+            dense.append(max(np.max(np.abs(np.linalg.eigvals(loop_matrix(ctrl, p, s, 0.0005)[0])))
+                             for s in (0.0, wc.worst.spin)))
+        assert wc.worst.radius >= max(dense) - 1e-7, name
+        assert wc.evaluations < 41
+
+
+def test_nominal_lqr_is_certified_and_nominal_lqg_fails_at_the_heavy_end(table1):
+    """Table 1, 0-0.5 kg at a 0.05 % damping floor: the nominal LQR decays everywhere; the nominal
+    LQG's filter pumps mode 6 at 0.5 kg, and the certificate names that plant."""
+    _, cmp = table1
+    lqr, lqg = cmp.robust["lqr"], cmp.robust["lqg"]
+    assert lqr.certified and lqr.worst.radius <= 1 - RADIUS_MARGIN
+    assert lqr.undamped_radius > lqr.worst.radius            # the floor matters: reported
+    assert not lqg.certified
+    assert lqg.worst.values["m_t"] == pytest.approx(0.5)
+    assert "mode" in lqg.worst_source
+    assert cmp.metrics["lqg"]["robust_verdict"] == "not certified"
+
+
+def test_the_worst_plant_found_agrees_with_a_nonlinear_run(table1):
+    rig, cmp = table1
+    bare = rig.replace(uncertainty=Uncertainty())
+    bad = run_at(cmp, "lqg", bare, cmp.robust["lqg"].worst.values, PAYLOAD)
+    assert bad["verdict"] == "unstable"
+    good = run_at(cmp, "lqr", bare, cmp.robust["lqr"].worst.values, PAYLOAD)
+    assert good["verdict"] == "settled" and good["residual_pct_of_openloop"] <= 2.0
+    assert good["peak_torque_nm"] <= 200.0 + 1e-9
+
+
+# --- the command -----------------------------------------------------------------------
+
+def test_certify_cli_writes_the_certificate_and_exits_1_when_not_certified(tmp_path, capsys):
+    code = main(["certify", "lqg", "--uncertainty", "m_t=0:0.5,damping=0.0005:0.0005", "--check", "none",
+                 "--out", str(tmp_path)])
+    assert code == 1
+    doc = json.loads((tmp_path / "certificate.json").read_text())
+    assert doc["set"] == {"m_t": [0.0, 0.5], "damping": [0.0005, 0.0005]}
+    assert doc["controllers"]["lqg"]["certificate"]["robust_verdict"] == "not certified"
+    assert "not certified: lqg" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--uncertainty", "m_t=0.5:0"], "--uncertainty: m_t must have lo <= hi"),
+    (["--uncertainty", "mass=0:1"], "unknown key uncertainty.mass"),
+    (["--uncertainty", "m_t"], "--uncertainty must be NAME=LO:HI"),
+    ([], "certify needs an uncertainty set"),
+    (["--uncertainty", "m_t=0:0.5", "--payload-range", "0,0.5"], "--payload-range does not apply to certify"),
+    (["--uncertainty", "m_t=0:0.5", "--grid", "1"], "--grid must be an integer in [2, 9]"),
+])
+def test_certify_refuses_bad_input_in_one_line(tmp_path, capsys, argv, message):
+    code = main(["certify", "lqr", *argv, "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and "Traceback" not in err
