@@ -4,10 +4,10 @@ by nonlinear runs at the worst plant found."""
 from __future__ import annotations
 
 import json
-import tomllib
 
 import numpy as np
 import pytest
+import tomllib
 
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.cli.main import main

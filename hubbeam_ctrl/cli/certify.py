@@ -15,10 +15,12 @@ from hubbeam_ctrl.cli.compare import add_compare_options, compare_plan
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json
 
-__all__ = ["add_parser", "run", "parse_uncertainty", "CHECKS"]
+__all__ = ["add_parser", "run", "parse_uncertainty", "CHECKS", "DESIGNS"]
 
 #: Where the nonlinear check runs: the worst plant found, also the set's corners, or nowhere.
 CHECKS = ("worst", "corners", "none")
+#: What is certified: the nominal design, or the design chosen over the set.
+DESIGNS = ("nominal", "robust")
 #: Options of ``compare`` that certify refuses, with the reason.
 REFUSES = {"--payload-range": "give the payload range as --uncertainty m_t=LO:HI",
            "--learn-payload": "a learning controller has no fixed linear loop to certify"}
@@ -48,8 +50,12 @@ def add_parser(subparsers, common):
     p.add_argument("--grid", metavar="N", type=int, default=3,
                    help="grid points per uncertain parameter before the local searches, 2..9 (default 3)")
     p.add_argument("--check", choices=CHECKS, default="worst",
-                   help="nonlinear runs: at the worst plant found (default), also at every corner of the set, "
-                        "or none")
+                   help="nonlinear runs: at the worst plant found (default), also at every corner and the centre of "
+                        "the set, or none")
+    p.add_argument("--design", choices=DESIGNS, default="nominal",
+                   help="nominal: certify the design compare makes for the nominal rig (default); robust: search the "
+                        "design's choices (design point, gain and filter modes, filter noise, weighting) for the "
+                        "smallest worst-case radius over the set, and certify that (hubbeam_ctrl.study.robust_design)")
     add_compare_options(p, controllers=False)
     p.set_defaults(func=run)
     return p
@@ -125,10 +131,8 @@ def run(args) -> int:
     args : argparse.Namespace
     """
     sink = stdout(args)
-    import itertools
-
     from hubbeam_ctrl.study.compare import compare
-    from hubbeam_ctrl.study.robust_check import run_at
+    from hubbeam_ctrl.study.robust_check import check_points, run_at
     plan, opts = _plan(args)
     rig = opts["rig"]
     comparison = compare(**opts)
@@ -139,22 +143,32 @@ def run(args) -> int:
     u = rig.uncertainty
     bare = rig.replace(uncertainty=type(u)())
     doc = {"set": u.to_table(), "controllers": {}}
+    verdicts = {}
     lines = [f"# Robust certificate: {comparison.scenario.description}", "", f"Set: {u.describe()}.", ""]
     for name in names:
-        wc = comparison.robust[name]
-        points = [("worst", wc.worst.values)]
-        if args.check == "corners":
-            vary = u.varying
-            for corner in itertools.product((0.0, 1.0), repeat=len(vary)):
-                points.append(("corner", u.values_at(corner)))
+        ctrl, wc, design_doc = comparison.controllers[name], comparison.robust[name], {"kind": "nominal"}
+        if args.design == "robust":
+            from hubbeam_ctrl.study.robust_check import residual_score
+            from hubbeam_ctrl.study.robust_design import design_for_set
+            sd = design_for_set(comparison, name, bare, u, score=residual_score(comparison, bare, u),
+                                progress=not args.json)
+            ctrl, wc = sd.controller, sd.certificate
+            design_doc = {"kind": "robust", "choice": sd.label(), "knobs": sd.choice,
+                          "nominal_design_radius": sd.nominal_radius,
+                          "tried": [{"candidate": k, "worst_radius": r, "worst_residual_pct_of_openloop": p}
+                                    for k, r, p in sd.tried]}
+            print(f"{name}: robust design {sd.label()} (worst radius {wc.worst.radius:.8f}; nominal design "
+                  f"{sd.nominal_radius:.8f}; {len(sd.tried)} candidates)", file=sink)
+        points = check_points(u, wc.worst.values) if args.check == "corners" else [("worst", wc.worst.values)]
         checks = [] if args.check == "none" else \
-            [{"point": kind, **run_at(comparison, name, bare, values, u)} for kind, values in points]
+            [{"point": kind, **run_at(comparison, ctrl, bare, values, u)} for kind, values in points]
         nominal = comparison.metrics[name]
-        doc["controllers"][name] = {"certificate": wc.metrics(), "nominal_run": {
+        doc["controllers"][name] = {"design": design_doc, "certificate": wc.metrics(), "nominal_run": {
             k: nominal.get(k) for k in ("verdict", "settling_time_s", "residual_pct_of_openloop",
                                         "peak_torque_nm", "within_drive_limits")}, "checks": checks}
         print(wc.describe(), file=sink)
-        lines += [f"## {name}: {wc.verdict()}", "", wc.describe(), ""]
+        lines += [f"## {name}: {wc.verdict()}", "", f"Design: {design_doc.get('choice', 'nominal')}.", "",
+                  wc.describe(), ""]
         if checks:
             lines += ["| point | plant | verdict | settle s | % of OL | peak tau N m | within limits |",
                       "|---|---|---|---|---|---|---|"]
@@ -162,17 +176,18 @@ def run(args) -> int:
                 where = ", ".join(f"{k} = {v:.4g}" for k, v in c["values"].items())
                 settle = "-" if c["settling_time_s"] is None else f"{c['settling_time_s']:.2f}"
                 pct = c["residual_pct_of_openloop"]
-                lines.append(f"| {c['point']} | {where} | {c['verdict']} | {settle} | "
-                             f"{'-' if pct is None or not math.isfinite(pct) else f'{pct:.3g}'} | "
+                pct_text = "-" if pct is None or not math.isfinite(pct) else f"{pct:.3g}"
+                lines.append(f"| {c['point']} | {where} | {c['verdict']} | {settle} | {pct_text} | "
                              f"{c['peak_torque_nm']:.4g} | {c['within_drive_limits']} |")
-                print(f"  nonlinear at {c['point']} ({where}): {c['verdict']}, settle "
-                      f"{settle} s, {pct:.3g} % of its open loop, peak {c['peak_torque_nm']:.4g} N m", file=sink)
+                print(f"  nonlinear at {c['point']} ({where}): {c['verdict']}, settle {settle} s, {pct_text} % of "
+                      f"its open loop, peak {c['peak_torque_nm']:.4g} N m", file=sink)
             lines.append("")
+        verdicts[name] = wc.certified
     plan.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(plan.out / "certificate.json", strict_json(doc, indent=2) + "\n")
     atomic_write_text(plan.out / "certificate.md", "\n".join(lines) + "\n")
     print(f"wrote {plan.out}/certificate.json, certificate.md", file=sink)
-    failed = [n for n in names if not comparison.robust[n].certified]
+    failed = [n for n in names if not verdicts[n]]
     if failed:
         print(f"hubbeam: not certified: {', '.join(failed)}", file=sys.stderr)
         return 1

@@ -22,7 +22,7 @@ from hubbeam_ctrl.study.judge import judge
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, task_noise
 from hubbeam_ctrl.study.yardstick import task_limit
 
-__all__ = ["run_at", "CHECK_KEYS"]
+__all__ = ["run_at", "CHECK_KEYS", "check_points", "residual_score"]
 
 #: Metrics a check keeps for each point.
 CHECK_KEYS = ("verdict", "settling_time_s", "residual_tip_max_m", "residual_pct_of_openloop", "peak_torque_nm",
@@ -30,21 +30,27 @@ CHECK_KEYS = ("verdict", "settling_time_s", "residual_tip_max_m", "residual_pct_
               "final_angle_error_rad")
 
 
-def run_at(comparison, name: str, rig: Rig, values: dict, uncertainty: Uncertainty) -> dict:
-    """The controller ``name`` of ``comparison`` and the open loop on the plant at ``values``.
+def run_at(comparison, controller, rig: Rig, values: dict, uncertainty: Uncertainty,
+           openloop: dict | None = None) -> dict:
+    """A controller and the open loop on the plant at ``values``.
 
     Parameters
     ----------
     comparison : Comparison
-        A comparison that ran ``name`` (:func:`~hubbeam_ctrl.study.compare.compare`).
-    name : str
-        The controller.
+        The comparison whose task and evaluation plant the runs take
+        (:func:`~hubbeam_ctrl.study.compare.compare`).
+    controller : str or Controller
+        A controller the comparison ran (its name), or one built for the same task and rig
+        (e.g. :func:`~hubbeam_ctrl.study.robust_design.design_for_set`'s).
     rig : Rig
         The nominal rig of the comparison (``Rig(beam=params)`` for the beam alone).
     values : dict
         Uncertain parameter -> value: the plant's point of the set.
     uncertainty : Uncertainty
         The set (applies ``values`` to ``rig``).
+    openloop : dict, optional
+        A cache of the open loop's metrics by point (filled here): the open loop does not
+        depend on the controller, so a search over candidates runs it once per point.
 
     Returns
     -------
@@ -53,7 +59,8 @@ def run_at(comparison, name: str, rig: Rig, values: dict, uncertainty: Uncertain
         point's ``values``.
     """
     sc, ev = comparison.scenario, comparison.plant
-    ctrl = comparison.controllers[name]
+    ctrl = comparison.controllers[controller] if isinstance(controller, str) else controller
+    name = ctrl.name
     point = uncertainty.apply(rig, values)
     plant = evaluation_plant(sc.plant, sc.params, sc.dt, int(ctrl.n_modes), sc.design_spin,
                              plant_params=point.plant_params, plant_modes=ev.modes)
@@ -72,10 +79,17 @@ def run_at(comparison, name: str, rig: Rig, values: dict, uncertainty: Uncertain
     limit = task_limit(sc, "rigid", point if on_a_rig else None)
     out = {"values": dict(values)}
     runs = {}
+    key = tuple(sorted(values.items()))
+    if openloop is not None and key in openloop:
+        runs["openloop"] = openloop[key]
     for label, c in (("openloop", ol), (name, ctrl)):
+        if label in runs:
+            continue
         res = simulate_closed_loop(plant, c, sc.t_end, settings=sim, reference=(ref.theta_at, ref.theta_dot_at),
                                    hardware=hardware)
         runs[label], _ = judge(res, c, sc, plant.params, label, limit=limit)
+    if openloop is not None:
+        openloop[key] = runs["openloop"]
     base = runs["openloop"]["residual_tip_max_m"]
     m = runs[name]
     m["residual_pct_of_openloop"] = (100.0 * m["residual_tip_max_m"] / base
@@ -83,3 +97,57 @@ def run_at(comparison, name: str, rig: Rig, values: dict, uncertainty: Uncertain
     out.update({k: m.get(k) for k in CHECK_KEYS})
     out["openloop_residual_tip_max_m"] = base
     return out
+
+
+def check_points(uncertainty: Uncertainty, worst: dict | None = None) -> list:
+    """``(kind, values)`` of the points a check runs at: the worst plant (if given), every corner
+    of the varying ranges and the centre.
+
+    Parameters
+    ----------
+    uncertainty : Uncertainty
+    worst : dict, optional
+        The worst plant the certificate found.
+
+    Returns
+    -------
+    list of tuple
+    """
+    import itertools
+    vary = uncertainty.varying
+    out = [("worst", dict(worst))] if worst is not None else []
+    out += [("corner", uncertainty.values_at(c)) for c in itertools.product((0.0, 1.0), repeat=len(vary))]
+    if vary:
+        out.append(("centre", uncertainty.values_at([0.5] * len(vary))))
+    return out
+
+
+def residual_score(comparison, rig: Rig, uncertainty: Uncertainty):
+    """``score(ctrl)``: the worst residual over the set's corners and centre, each relative to
+    that plant's open loop [%] (inf for a run that is unstable, fails or does not settle).
+
+    Parameters
+    ----------
+    comparison : Comparison
+        Its task and evaluation plant.
+    rig : Rig
+        The nominal rig, without its uncertainty.
+    uncertainty : Uncertainty
+
+    Returns
+    -------
+    callable
+    """
+    points = [values for _, values in check_points(uncertainty)]
+    openloop = {}
+
+    def score(ctrl) -> float:
+        worst = 0.0
+        for values in points:
+            m = run_at(comparison, ctrl, rig, values, uncertainty, openloop)
+            pct = m["residual_pct_of_openloop"]
+            if m["verdict"] != "settled" or pct is None or not math.isfinite(pct):
+                return math.inf
+            worst = max(worst, float(pct))
+        return worst
+    return score
