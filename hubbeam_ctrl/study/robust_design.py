@@ -23,12 +23,15 @@ choices that decide that are few and physical:
 
 :func:`design_for_set` measures every pair of ``design_at`` and ``structure`` (their effects
 combine: on Table 1's LQG over 0-0.5 kg neither the design-mode gain, the Nyquist filter nor
-the residual noise alone helps, the three together certify it), then changes one of the other
-knobs at a time from the best pair (coordinate descent, :data:`PASSES` passes), keeping a
-change when the worst spectral radius over the set
-(:func:`~hubbeam_ctrl.study.worst_case.certify_set`, the loop as it runs) drops. Every candidate and its radius are kept, so the report can show the
-measured alternatives. The result is certified or not by the same certificate; nothing is
-called robust that the certificate does not accept.
+the residual noise alone helps, the three together certify it), then changes one group of
+the other knobs at a time from the best pair (coordinate descent over :data:`GROUPS`,
+:data:`PASSES` passes). A candidate is ranked first by the robust certificate
+(:func:`~hubbeam_ctrl.study.worst_case.certify_set`, the loop as it runs): certified ones
+before the others, which are ranked by their worst radius; among the certified, by the
+caller's score (the study passes the worst nonlinear residual over the set's corners and
+centre, :func:`~hubbeam_ctrl.study.robust_check.residual_score`), else by the radius.
+Every candidate is kept with its radius and score, so the report shows the measured
+alternatives; nothing is called robust that the certificate does not accept.
 """
 
 from __future__ import annotations
