@@ -460,7 +460,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         metrics[name]["scenario"] = sc.name
         if rig is not None and rig.uncertainty.is_set and margins[name] is not None:
             robust[name] = certify_set(ctrl, rig, plant_modes=ev.modes, name=name,
-                                       spins=(float(res.v[0, 0]), float(res.v[-1, 0])))
+                                       spins=(float(ref.theta_dot[0]), float(ref.theta_dot[-1])))
             metrics[name].update(robust[name].metrics())
         if ev_check is not None:
             res_c = simulate_closed_loop(ev_check, ctrl, sc.t_end, settings=run_sim,

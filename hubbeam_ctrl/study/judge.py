@@ -57,7 +57,10 @@ def judge(result, controller, scenario, plant_params, name: str | None = None, l
         ``verdict_reason`` and the ``loop_*`` entries) and the
         :class:`~hubbeam_ctrl.study.certificate.Certificate`.
     """
-    spins = (float(result.v[0, 0]), float(result.v[-1, 0]))
+    # the hub rates at the start and the end of the run (a run that diverged past the model's
+    # spin range gives no linearisation there: its verdict is the run's)
+    spins = tuple(w for w in (float(result.v[0, 0]), float(result.v[-1, 0]))
+                  if math.isfinite(w) and abs(w) <= plant_params.max_spin)
     cert = certify(controller, plant_params, spins=spins, name=name)
     block_s = math.pi / first_mode(controller.design)     # half a period of the first bending mode
     metrics = closed_loop_metrics(result, scenario.t_f, tau_max=scenario.tau_max, block_s=block_s,

@@ -13,11 +13,18 @@ choices that decide that are few and physical:
     ``design``: the gain on the design modes only; ``range``: that gain and a filter on the
     modes below Nyquist and the first above, trusting its model of the residual modes no
     more than the sensors (residual noise 1).
+``plan_at``
+    A planned slew's reference and feedforward planned on the nominal rig or at the middle of
+    the set (a payload other than the plan's shifts the rigid angle the feedforward reaches,
+    in proportion to the inertia: planning at the middle halves the worst shift).
 ``model_error``
     LQG: the multi-model filter over the set's payloads (shares 0.003, 0.03).
 ``weighting``, ``vibration_weight``
     The weights as given or the deflection rates only; the weights on the tip and modal
     deflection rates scaled by 1, 4 or 1/4.
+``tracking_weight``
+    The weight on the hub-angle error scaled by 1, 10 or 100: how fast the feedback corrects
+    the angle a wrong feedforward leaves (a payload other than the plan's).
 ``error_decay``
     The filter's prescribed decay: the default or the plain Kalman filter (0).
 
@@ -57,15 +64,17 @@ __all__ = ["KNOBS", "PAIRED", "GROUPS", "PASSES", "SetDesign", "design_for_set",
 KNOBS = {
     "design_at": ("nominal", 0.25, 0.5, 0.75, "worst"),
     "structure": ("plant", "design", "range"),
+    "plan_at": ("nominal", 0.5),
     "model_error": (None, 0.003, 0.03),
     "weighting": ("full", "rates"),
     "vibration_weight": (1.0, 4.0, 0.25),
+    "tracking_weight": (1.0, 10.0, 100.0),
     "error_decay": ("default", 0.0),
 }
 #: Knobs measured in every combination before the coordinate descent over the others.
 PAIRED = ("design_at", "structure")
 #: The coordinate descent's steps: each group's knobs change together (every combination).
-GROUPS = (("model_error",), ("weighting", "vibration_weight"), ("error_decay",))
+GROUPS = (("plan_at",), ("tracking_weight",), ("model_error",), ("weighting", "vibration_weight"), ("error_decay",))
 #: Coordinate-descent passes over :data:`KNOBS`.
 PASSES = 2
 
@@ -135,6 +144,9 @@ class _Builder:
     def values(self, knob: str) -> tuple:
         """The values of ``knob`` that apply to this controller (the first: the nominal design's)."""
         st, values = self.settings, KNOBS[knob]
+        if knob == "plan_at":
+            planned = self.sc.name == "slew" and getattr(self.sc.reference, "planned_on_design", False)
+            return values if planned else values[:1]
         if knob == "model_error":
             return values if self.is_lqg and "m_t" in self.set.names else values[:1]
         if knob == "structure":
@@ -153,11 +165,23 @@ class _Builder:
         d = DesignModel.build(point.plant_params, self.sc.design_spin, self.sc.dt, self.design.n_modes)
         return rig_design(d, point) if self.on_a_rig else d
 
+    def reference(self, choice: dict):
+        """The reference of a candidate: the task's, or the same task planned at the design point."""
+        sc, at = self.sc, choice["plan_at"]
+        if at == "nominal":
+            return sc.reference
+        from hubbeam_ctrl.study.scenarios import make_scenario
+        point = self.set.apply(self.rig, self.points[at])
+        return make_scenario(sc.name, plant=sc.plant, params=point.plant_params, tau_max=sc.tau_max, t_f=sc.t_f,
+                             t_end=sc.t_end, dt=sc.dt, slew_angle=sc.target).reference
+
     def build(self, choice: dict):
         d = self.design_model(choice["design_at"])
         st, noise = self.settings, self.noise
         if choice["weighting"] == "rates":
             st = st.replace(weights=rates_only(st.weights))
+        if choice["tracking_weight"] != 1.0 and st.weights.state_matrix is None:
+            st = st.replace(weights=st.weights.replace(angle=float(choice["tracking_weight"]) * st.weights.angle))
         if choice["vibration_weight"] != 1.0:
             w, k = st.weights, float(choice["vibration_weight"])
             if w.state_matrix is None:
@@ -178,7 +202,7 @@ class _Builder:
                 noise = noise.replace(residual_noise=1.0)
             if choice["error_decay"] != "default":
                 noise = noise.replace(error_decay=float(choice["error_decay"]))
-        ctrl = make_controller(self.name, d, st, self.sc.reference)
+        ctrl = make_controller(self.name, d, st, self.reference(choice))
         return on_rig(ctrl, self.rig, noise, self.hardware) if self.on_a_rig else ctrl
 
 
