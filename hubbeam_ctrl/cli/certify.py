@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import sys
 
-from hubbeam_ctrl.cli.args import stdout
+from hubbeam_ctrl.cli.args import check_output_dir, stdout
 from hubbeam_ctrl.cli.compare import add_compare_options, compare_plan
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json
@@ -56,6 +56,10 @@ def add_parser(subparsers, common):
                    help="nominal: certify the design compare makes for the nominal rig (default); robust: search the "
                         "design's choices (design point, gain and filter modes, filter noise, weighting) for the "
                         "smallest worst-case radius over the set, and certify that (hubbeam_ctrl.study.robust_design)")
+    p.add_argument("--c-out", metavar="DIR",
+                   help="also write each certified controller as C99 into DIR/NAME (hubbeam codegen's output, with "
+                        "the certificate in the header's first comment and NAME.json); controllers the code "
+                        "generator cannot export are named on stderr")
     add_compare_options(p, controllers=False)
     p.set_defaults(func=run)
     return p
@@ -144,6 +148,7 @@ def run(args) -> int:
     bare = rig.replace(uncertainty=type(u)())
     doc = {"set": u.to_table(), "controllers": {}}
     verdicts = {}
+    c_root = None if args.c_out is None else check_output_dir("--c-out", args.c_out)
     lines = [f"# Robust certificate: {comparison.scenario.description}", "", f"Set: {u.describe()}.", ""]
     for name in names:
         ctrl, wc, design_doc = comparison.controllers[name], comparison.robust[name], {"kind": "nominal"}
@@ -183,6 +188,8 @@ def run(args) -> int:
                       f"its open loop, peak {c['peak_torque_nm']:.4g} N m", file=sink)
             lines.append("")
         verdicts[name] = wc.certified
+        if args.c_out is not None and wc.certified:
+            doc["controllers"][name]["c_code"] = _write_c(ctrl, c_root / name, wc)
     plan.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(plan.out / "certificate.json", strict_json(doc, indent=2) + "\n")
     atomic_write_text(plan.out / "certificate.md", "\n".join(lines) + "\n")
@@ -192,3 +199,21 @@ def run(args) -> int:
         print(f"hubbeam: not certified: {', '.join(failed)}", file=sys.stderr)
         return 1
     return 0
+
+
+def _write_c(ctrl, folder, wc) -> dict:
+    """The certified controller as C (:func:`hubbeam_ctrl.deploy.to_c`) with its certificate; a kind
+    the generator cannot export is said, not fatal."""
+    from hubbeam_ctrl.deploy import to_c
+    if getattr(ctrl, "measurement", None) == "state":
+        reason = ("the certified loop reads the plant's modal states; its C runs an observer the certificate "
+                  "did not close the loop with (certify it on a rig, --rig, where the observer is part of the loop)")
+        print(f"hubbeam: {ctrl.name} not written as C: {reason}", file=sys.stderr)
+        return {"written": False, "reason": reason}
+    try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        code = to_c(ctrl, folder, certificate=wc.metrics(), force=True)
+    except ParameterError as exc:
+        print(f"hubbeam: {ctrl.name} not written as C: {exc}", file=sys.stderr)
+        return {"written": False, "reason": str(exc)}
+    return {"written": True, "header": str(code.header_path), "source": str(code.source_path)}

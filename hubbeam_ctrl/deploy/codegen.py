@@ -47,8 +47,8 @@ from .observed import ObservedLQR, ObservedMPC
 #: The drive's numbers a voltage-commanding law carries (controllers.drive.VoltageCommand).
 _DRIVE_SCALARS = ("R", "N", "k_t", "k_e", "eta_forward", "eta_backward", "v_eps", "V_max")
 
-__all__ = ["CODEGEN_KINDS", "SENSOR_UNITS", "ControlLaw", "GeneratedCode", "control_law", "render_c", "to_c",
-           "command_text"]
+__all__ = ["CODEGEN_KINDS", "SENSOR_UNITS", "ControlLaw", "GeneratedCode", "certificate_comment", "control_law",
+           "render_c", "to_c", "command_text"]
 
 #: Controller kinds that can be generated, and what each exports.
 CODEGEN_KINDS = {
@@ -644,6 +644,10 @@ class GeneratedCode:
     precision : {"double", "single"}
     law : ControlLaw
         What the code computes.
+    certificate : dict or None
+        The robust certificate the code was exported with (``robust_*`` entries of
+        :meth:`hubbeam_ctrl.study.worst_case.WorstCase.metrics`), also in the header's first
+        comment and the metadata.
     """
 
     name: str
@@ -652,6 +656,7 @@ class GeneratedCode:
     source: str
     precision: str
     law: ControlLaw
+    certificate: dict | None = None
 
     @property
     def header_path(self) -> Path:
@@ -677,7 +682,8 @@ class GeneratedCode:
                 "measurements": [{"name": s, "unit": SENSOR_UNITS[s]} for s in law.sensors],
                 "reference": law.reference_layout, "n_reference": law.n_reference,
                 "command": ({"name": "V", "unit": "V", "V_max": law.scalars["V_max"]} if "V_max" in law.scalars
-                            else {"name": "tau", "unit": "N m"}), "data_bytes": self.data_bytes}
+                            else {"name": "tau", "unit": "N m"}), "data_bytes": self.data_bytes,
+                **({"robust_certificate": self.certificate} if self.certificate is not None else {})}
 
 
 def _check_name(name: str) -> str:
@@ -699,7 +705,8 @@ def _check_out(out_dir, force: bool) -> Path:
 
 
 def to_c(controller: Controller, out_dir=None, precision: str = "double", *, name: str | None = None,
-         force: bool = False, noise: KalmanNoise | None = None, check=None) -> GeneratedCode:
+         force: bool = False, noise: KalmanNoise | None = None, check=None,
+         certificate: dict | None = None) -> GeneratedCode:
     """Write ``controller`` as portable C99 (``<name>.h``, ``<name>.c``, ``<name>.json``).
 
     Parameters
@@ -723,6 +730,10 @@ def to_c(controller: Controller, out_dir=None, precision: str = "double", *, nam
         ``check(folder, name)`` run on the written files before they are moved into place
         (e.g. a compile, :func:`hubbeam_ctrl.deploy.sil.compile_c`); if it raises, nothing
         is left.
+    certificate : dict, optional
+        The robust certificate of the controller over its rig's uncertainty set
+        (:meth:`hubbeam_ctrl.study.worst_case.WorstCase.metrics`): its verdict, worst radius
+        and worst plant open the header, and the metadata carries it whole.
 
     Returns
     -------
@@ -739,7 +750,9 @@ def to_c(controller: Controller, out_dir=None, precision: str = "double", *, nam
     law = control_law(controller, noise)
     name = _check_name(law.controller if name is None else name)
     header, source = render_c(law, name, precision)
-    code = GeneratedCode(name, None, header, source, precision, law)
+    if certificate is not None:
+        header = certificate_comment(certificate) + header
+    code = GeneratedCode(name, None, header, source, precision, law, certificate)
     if out_dir is None:
         return code
     out = _check_out(out_dir, force)
@@ -753,7 +766,28 @@ def to_c(controller: Controller, out_dir=None, precision: str = "double", *, nam
             check(folder, name)
 
     write_folder(out, write, "out")
-    return GeneratedCode(name, out, header, source, precision, law)
+    return GeneratedCode(name, out, header, source, precision, law, certificate)
+
+
+def certificate_comment(certificate: dict) -> str:
+    """The C comment that opens a certified controller's header.
+
+    Parameters
+    ----------
+    certificate : dict
+        ``robust_*`` entries (:meth:`hubbeam_ctrl.study.worst_case.WorstCase.metrics`).
+
+    Returns
+    -------
+    str
+    """
+    worst = ", ".join(f"{k} = {v:.6g}" for k, v in (certificate.get("robust_worst") or {}).items())
+    box = ", ".join(f"{k} [{lo:.6g}, {hi:.6g}]" for k, (lo, hi) in (certificate.get("robust_set") or {}).items())
+    text = (f"/* Robust certificate: {str(certificate.get('robust_verdict', '?')).upper()} over {box}.\n"
+            f"   Worst spectral radius of the sampled loop found {certificate.get('robust_radius', float('nan')):.8f} "
+            f"at {worst} (searched, {certificate.get('robust_evaluations')} loops of "
+            f"{certificate.get('robust_plant_modes')} bending modes; hubbeam_ctrl.study.worst_case). */\n")
+    return text + "\n"
 
 
 def _mpc_law(ctrl) -> ControlLaw:

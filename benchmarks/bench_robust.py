@@ -1,0 +1,138 @@
+"""Issue 39's targets: designs certified over a payload set, checked by nonlinear runs, and the
+certificate's cost.
+
+Prints one JSON object (``--out FILE`` also writes it). Run:
+``.venv/bin/python benchmarks/bench_robust.py --out benchmarks/results/bench_robust.json``.
+
+Cases (every option default but the set and the task):
+
+* ``table1``: the paper's beam and its default slew, payload 0-0.5 kg, damping floor 0.05 %
+  in every mode (and the undamped radius of each design reported);
+* ``lab``: the 1 m aluminium lab arm of the limit benchmarks, a 90 degree slew in 1.5 T*
+  (its own time-optimal slew), payload 0-0.2 kg, floor 0.05 %;
+* ``servo_link``: the rig preset (drive in volts, friction, encoder, 1 ms, half a sample of
+  delay, its measured 3.4 % damping), a 90 degree slew in 1.5 T*, payload 0-30 g.
+
+For each controller: the nominal design's certificate, the robust design
+(:func:`hubbeam_ctrl.study.robust_design.design_for_set`) and its certificate, and nonlinear runs
+of it and of the open loop at the worst plant found, every corner and the centre of the set.
+
+``timing``: the certificate of Table 1's nominal LQR (10-mode plant) over a 4-parameter set
+(payload, E, J_h, damping), the search (a 3-point grid and 3 local climbs) against the named
+alternative, a 6-point grid alone (1296 loops), in the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(__file__))
+from benchjson import emit  # noqa: E402
+
+from hubbeam_ctrl import Params  # noqa: E402
+from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
+from hubbeam_ctrl.plant.rig import Rig, load_rig  # noqa: E402
+from hubbeam_ctrl.plant.uncertainty import Uncertainty  # noqa: E402
+from hubbeam_ctrl.study import Slew, compare  # noqa: E402
+from hubbeam_ctrl.study.robust_check import check_points, residual_score, run_at  # noqa: E402
+from hubbeam_ctrl.study.robust_design import design_for_set  # noqa: E402
+from hubbeam_ctrl.study.worst_case import certify_set  # noqa: E402
+
+LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
+CONTROLLERS = ("lqr", "lqg", "mpc")
+FACTOR = 1.5
+FLOOR = 0.0005
+
+
+def _task(rig: Rig):
+    t_opt = time_optimal_slew(rig, math.pi / 2).duration_s
+    return Slew(math.pi / 2, FACTOR * t_opt), t_opt
+
+
+def setup(name: str):
+    """``(rig with its set, task or None, T* or None)`` of a case."""
+    if name == "table1":
+        return Rig(beam=Params(), uncertainty=Uncertainty.from_table({"m_t": (0.0, 0.5), "damping": (FLOOR, FLOOR)})), \
+            None, None
+    if name == "lab":
+        rig = Rig(beam=LAB, uncertainty=Uncertainty.from_table({"m_t": (0.0, 0.2), "damping": (FLOOR, FLOOR)}))
+        return (rig, *_task(rig))
+    rig = load_rig("servo_link").replace(uncertainty=Uncertainty.from_table({"m_t": (0.0, 0.03)}))
+    return (rig, *_task(rig))
+
+
+def case(name: str) -> dict:
+    rig, task, t_opt = setup(name)
+    start = time.perf_counter()
+    cmp = compare("foam", task or "slew", ("openloop",) + CONTROLLERS, rig=rig)
+    u, bare = rig.uncertainty, rig.replace(uncertainty=Uncertainty())
+    score = residual_score(cmp, bare, u)
+    out = {"set": u.to_table(), "task": cmp.scenario.description, "t_opt_s": t_opt, "controllers": {}}
+    for ctrl_name in CONTROLLERS:
+        t0 = time.perf_counter()
+        nominal = cmp.robust[ctrl_name]
+        sd = design_for_set(cmp, ctrl_name, bare, u, score=score)
+        wc = sd.certificate
+        undamped = None
+        if "damping" in u.names:
+            zero = Uncertainty.from_table({**u.to_table(), "damping": (0.0, 0.0)})
+            undamped = certify_set(sd.controller, bare, zero, plant_modes=cmp.plant.modes, margins=False).worst.radius
+        checks = []
+        for kind, values in check_points(u, wc.worst.values):
+            m = run_at(cmp, sd.controller, bare, values, u)
+            checks.append({"point": kind, **m})
+        out["controllers"][ctrl_name] = {
+            "nominal_radius": nominal.worst.radius, "nominal_verdict": nominal.verdict(),
+            "nominal_worst": nominal.worst.values, "design": sd.label(), "candidates": len(sd.tried),
+            "radius": wc.worst.radius, "verdict": wc.verdict(), "worst": wc.worst.values,
+            "worst_source": wc.worst_source, "undamped_radius": undamped, "disk_margin": wc.disk_margin,
+            "checks": checks,
+            "all_settled": all(c["verdict"] == "settled" for c in checks),
+            "worst_residual_pct_of_openloop": max((c["residual_pct_of_openloop"] for c in checks), default=None),
+            "peak_torque_nm": max(c["peak_torque_nm"] for c in checks),
+            "all_within_drive_limits": all(bool(c["within_drive_limits"]) for c in checks),
+            "wall_s": time.perf_counter() - t0}
+    out["wall_s"] = time.perf_counter() - start
+    return out
+
+
+def timing() -> dict:
+    """The certificate of a 10-mode loop over a 4-parameter set: search vs a grid alone."""
+    p = Params()
+    u = Uncertainty.from_table({"m_t": (0.0, 0.5), "E": (0.95 * p.E, 1.05 * p.E), "J_h": (180.0, 220.0),
+                                "damping": (FLOOR, 0.01)})
+    rig = Rig(beam=p)
+    cmp = compare("foam", "slew", ["lqr"], rig=rig, plant_modes=10)
+    ctrl = cmp.controllers["lqr"]
+    t0 = time.perf_counter()
+    search = certify_set(ctrl, rig, u, plant_modes=10)
+    t_search = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    grid = certify_set(ctrl, rig, u, plant_modes=10, grid=6, local_starts=0, margins=False)
+    t_grid = time.perf_counter() - t0
+    return {"set": u.to_table(), "plant_modes": 10, "loop_states": None,
+            "search": {"wall_s": t_search, "evaluations": search.evaluations, "radius": search.worst.radius,
+                       "worst": search.worst.values, "bound": search.bound},
+            "grid6_alone": {"wall_s": t_grid, "evaluations": grid.evaluations, "radius": grid.worst.radius,
+                            "worst": grid.worst.values},
+            "cores": os.cpu_count()}
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", default="table1,lab,servo_link")
+    ap.add_argument("--out", default=None, help="also write the JSON here")
+    args = ap.parse_args(argv)
+    doc = {"floor": FLOOR, "factor": FACTOR, "cases": {}}
+    for name in args.cases.split(","):
+        doc["cases"][name] = case(name)
+    doc["timing"] = timing()
+    emit(doc, args.out)
+
+
+if __name__ == "__main__":
+    main()
