@@ -122,6 +122,25 @@ def timing() -> dict:
             "cores": os.cpu_count()}
 
 
+def table_lines(doc: dict) -> list:
+    """The rows of docs/robust.md's table of results (a test keeps the page equal to the JSON)."""
+    lines = ["| case | controller | nominal design: worst radius | robust design | worst radius (undamped) | "
+             "settled everywhere | worst residual, % of that plant's OL | peak torque |",
+             "|---|---|---|---|---|---|---|---|"]
+    for case_name, c in doc["cases"].items():
+        for name, r in c["controllers"].items():
+            undamped = "" if r["undamped_radius"] is None else f" ({r['undamped_radius']:.6f})"
+            lines.append(f"| {case_name} | {name} | {r['nominal_radius']:.6f} ({r['nominal_verdict']}) | "
+                         f"{r['design']} | {r['radius']:.6f}{undamped} | {'yes' if r['all_settled'] else 'no'} | "
+                         f"{r['worst_residual_pct_of_openloop']:.3g} | {r['peak_torque_nm']:.4g} N m |")
+    t = doc["timing"]
+    lines.append(f"Certificate of a {t['plant_modes']}-mode loop over a {len(t['set'])}-parameter set: "
+                 f"{t['search']['wall_s']:.2f} s ({t['search']['evaluations']} loops, worst radius "
+                 f"{t['search']['radius']:.7f}) against {t['grid6_alone']['wall_s']:.2f} s for a 6-point grid alone "
+                 f"({t['grid6_alone']['evaluations']} loops, worst radius {t['grid6_alone']['radius']:.7f}).")
+    return lines
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default="table1,lab,servo_link")

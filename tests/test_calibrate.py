@@ -251,7 +251,11 @@ def test_cli_excite_and_identify(tmp_path, case, capsys):
     assert out["rig_written"] and (tmp_path / "calib" / "rig.toml").exists() and out["status"] == "converged"
     assert out["plant_modes"] == 2 and next(iter(out["fit_ceiling_percent"].values()))["theta"] > 95
     assert "## Estimates" in (tmp_path / "calib" / "report.md").read_text()
-    assert load_rig(tmp_path / "calib" / "rig.toml").beam.E == pytest.approx(out["estimates"]["E"]["estimate"])
+    calibrated = load_rig(tmp_path / "calib" / "rig.toml")
+    assert calibrated.beam.E == pytest.approx(out["estimates"]["E"]["estimate"])
+    # the calibrated rig carries its intervals as [uncertainty] (issue 39)
+    assert calibrated.uncertainty["E"].lo == pytest.approx(out["estimates"]["E"]["ci95"][0])
+    assert calibrated.uncertainty["J_h"].hi == pytest.approx(out["estimates"]["J_h"]["ci95"][1])
     # bad input: exit 2, one line
     for argv, message in [
         (["--fit", "E,nope"], "'nope' is not a rig field"),

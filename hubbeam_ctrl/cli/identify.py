@@ -200,11 +200,35 @@ def _checked_rig_text(result, force=False):
     from hubbeam_ctrl.plant.rig import rig_from_dict, rig_to_toml
     if not result.converged and not force:
         return None
-    text = rig_to_toml(result.rig)
-    if rig_from_dict(tomllib.loads(text)) == result.rig:
+    rig = _with_intervals(result)
+    text = rig_to_toml(rig)
+    if rig_from_dict(tomllib.loads(text)) == rig:
         return text
     result.warnings.append("the calibrated rig did not read back equal from its TOML: not written")
     return None
+
+
+def _with_intervals(result):
+    """The calibrated rig carrying the fit's 95 % intervals as its ``[uncertainty]`` (issue 39): the
+    parameters an uncertainty set knows, each clipped to what the rig accepts; one that does not
+    fit is left out with a warning."""
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.plant.uncertainty import Uncertainty
+    kept = {}
+    for f, (lo, hi) in zip(result.fields, result.interval):
+        field = getattr(f, "name", f)
+        one = Uncertainty.from_intervals({field: (float(min(lo, hi)), float(max(lo, hi)))})
+        if not one.is_set:
+            continue
+        r = one.ranges[0]
+        lo_ok = max(r.lo, 0.0) if r.name != "E" else r.lo
+        try:
+            Uncertainty.from_table({r.name: (lo_ok, r.hi)}).check(result.rig)
+        except ParameterError as exc:
+            result.warnings.append(f"interval of {field} left out of [uncertainty]: {exc}")
+            continue
+        kept[r.name] = (lo_ok, r.hi)
+    return result.rig.replace(uncertainty=Uncertainty.from_table(kept)) if kept else result.rig
 
 
 def _run_modal_table(args, rig, fit_fields, bounds, out, sink) -> int:
