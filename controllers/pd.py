@@ -58,6 +58,11 @@ class PDSettings(TrackingSettings):
                                doc="Angle gain; overrides the bandwidth design.")
     kd: float | None = setting(None, unit="N m s/rad", lo=0.0, kind=float,
                                doc="Rate gain; overrides the bandwidth design.")
+    roll_off_hz: float | None = setting(None, unit="Hz", lo=0.0, lo_open=True, hi=1e6, kind=float,
+                                        doc="Corner of a first-order low-pass on the feedback torque (sampled "
+                                            "exactly, pole exp(-2 pi f dt)): a static PD under a zero-order hold "
+                                            "pumps the modes above Nyquist; the roll-off takes its gain off them "
+                                            "(None: no filter).")
 
 
 class PD(Controller):
@@ -89,11 +94,22 @@ class PD(Controller):
         self.kp = float(settings.kp) if settings.kp is not None else kp
         self.kd = float(settings.kd) if settings.kd is not None else kd
         self._ff = 1.0 if settings.feedforward else 0.0
+        f = settings.roll_off_hz
+        self._a = 0.0 if f is None else float(np.exp(-2.0 * np.pi * f * self.dt))
+        self._x = 0.0
+
+    def reset(self) -> None:
+        """Clear the roll-off filter."""
+        self._x = 0.0
 
     def feedback_matrices(self) -> tuple:
-        """Static output feedback ``u = -kp e_theta - kd e_theta_dot``: no states."""
-        return (np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((1, 0)), np.array([[-self.kp, -self.kd]]),
-                [], ["theta", "theta_dot"])
+        """Output feedback ``u = -kp e_theta - kd e_theta_dot``: static, or through the roll-off's
+        one state ``x_k = a x_{k-1} + (1 - a) u_k`` (``u = x_k``)."""
+        D = np.array([[-self.kp, -self.kd]])
+        if self.settings.roll_off_hz is None:
+            return np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((1, 0)), D, [], ["theta", "theta_dot"]
+        a = self._a
+        return (np.array([[a]]), (1 - a) * D, np.array([[a]]), (1 - a) * D, ["roll_off"], ["theta", "theta_dot"])
 
     def __call__(self, t: float, y) -> float:
         ref = self.reference
@@ -102,5 +118,7 @@ class PD(Controller):
             th, thd, tff = ref.theta[k], ref.theta_dot[k], ref.torque[k]
         else:
             (th,), (thd,), (tff,) = ref.window(k, 1)
-        tau = self._ff * tff + self.kp * (th - y[0]) + self.kd * (thd - y[1])
-        return saturate(float(tau), self.tau_max)
+        fb = self.kp * (th - y[0]) + self.kd * (thd - y[1])
+        if self.settings.roll_off_hz is not None:
+            self._x = fb = self._a * self._x + (1.0 - self._a) * fb
+        return saturate(float(self._ff * tff + fb), self.tau_max)

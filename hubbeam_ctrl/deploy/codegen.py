@@ -243,6 +243,9 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
     elif type(ctrl) is MPC:
         ctrl = ObservedMPC(ctrl, noise)
     if type(ctrl) is PD:
+        if ctrl.settings.roll_off_hz is not None:
+            raise ParameterError("controller: a PD with a roll_off_hz cannot be generated as C yet (the template is "
+                                 "the static PD); use roll_off_hz=None")
         ref = ctrl.reference
         law = ControlLaw(
             kind="pd", controller="pd", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=float(ctrl._ff),

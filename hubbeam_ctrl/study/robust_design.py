@@ -27,6 +27,9 @@ choices that decide that are few and physical:
     the angle a wrong feedforward leaves (a payload other than the plan's).
 ``error_decay``
     The filter's prescribed decay: the default or the plain Kalman filter (0).
+``roll_off``
+    PD: a first-order low-pass on its feedback torque with its corner at 2, 1 or 1/2 times
+    the design model's first bending frequency (``PDSettings.roll_off_hz``), or none.
 
 :func:`design_for_set` measures every pair of ``design_at`` and ``structure`` (their effects
 combine: on Table 1's LQG over 0-0.5 kg neither the design-mode gain, the Nyquist filter nor
@@ -70,11 +73,13 @@ KNOBS = {
     "vibration_weight": (1.0, 4.0, 0.25),
     "tracking_weight": (1.0, 10.0, 100.0),
     "error_decay": ("default", 0.0),
+    "roll_off": ("none", 2.0, 1.0, 0.5),
 }
 #: Knobs measured in every combination before the coordinate descent over the others.
 PAIRED = ("design_at", "structure")
 #: The coordinate descent's steps: each group's knobs change together (every combination).
-GROUPS = (("plan_at",), ("tracking_weight",), ("model_error",), ("weighting", "vibration_weight"), ("error_decay",))
+GROUPS = (("plan_at",), ("tracking_weight",), ("model_error",), ("weighting", "vibration_weight"), ("error_decay",),
+          ("roll_off",))
 #: Coordinate-descent passes over :data:`KNOBS`.
 PASSES = 2
 
@@ -155,6 +160,10 @@ class _Builder:
             return values if (self.is_lqg or self.on_a_rig) else values[:2]
         if knob == "error_decay":
             return values if (self.is_lqg or self.on_a_rig) else values[:1]
+        if knob == "roll_off":
+            return values if hasattr(st, "roll_off_hz") else values[:1]
+        if knob in ("weighting", "vibration_weight", "tracking_weight"):
+            return values if hasattr(st, "weights") else values[:1]
         return values
 
     def design_model(self, at: str) -> DesignModel:
@@ -178,6 +187,9 @@ class _Builder:
     def build(self, choice: dict):
         d = self.design_model(choice["design_at"])
         st, noise = self.settings, self.noise
+        if choice["roll_off"] != "none":
+            from controllers.scaling import first_mode
+            st = st.replace(roll_off_hz=float(choice["roll_off"]) * first_mode(d) / (2 * np.pi))
         if choice["weighting"] == "rates":
             st = st.replace(weights=rates_only(st.weights))
         if choice["tracking_weight"] != 1.0 and st.weights.state_matrix is None:
