@@ -217,14 +217,14 @@ def _with_intervals(result):
     kept = {}
     for f, (lo, hi) in zip(result.fields, result.interval):
         field = getattr(f, "name", f)
-        one = Uncertainty.from_intervals({field: (float(min(lo, hi)), float(max(lo, hi)))})
-        if not one.is_set:
-            continue
-        r = one.ranges[0]
-        lo_ok = max(r.lo, 0.0) if r.name != "E" else r.lo
         try:
+            one = Uncertainty.from_intervals({field: (float(min(lo, hi)), float(max(lo, hi)))})
+            if not one.is_set:
+                continue
+            r = one.ranges[0]
+            lo_ok = max(r.lo, 0.0)
             Uncertainty.from_table({r.name: (lo_ok, r.hi)}).check(result.rig)
-        except ParameterError as exc:
+        except ParameterError as exc:        # a non-finite interval (a fit that did not converge), out of range
             result.warnings.append(f"interval of {field} left out of [uncertainty]: {exc}")
             continue
         kept[r.name] = (lo_ok, r.hi)

@@ -85,7 +85,17 @@ PASSES = 2
 
 
 def innermost(controller):
-    """The designed controller inside the rig's wrappers (observer, voltage command)."""
+    """The designed controller inside the rig's wrappers (observer, voltage command).
+
+    Parameters
+    ----------
+    controller : Controller
+        As it runs (``ObservedFeedback``, ``VoltageCommand`` keep theirs in ``inner``).
+
+    Returns
+    -------
+    Controller
+    """
     while hasattr(controller, "inner"):
         controller = controller.inner
     return controller
