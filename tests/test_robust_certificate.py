@@ -227,7 +227,9 @@ def test_docs_quote_the_robust_benchmark_and_it_meets_the_targets():
         assert r["verdict"] == "certified" and r["radius"] <= 1 - RADIUS_MARGIN, name
         assert r["all_settled"] and r["worst_residual_pct_of_openloop"] <= 2.0, name
         assert r["peak_torque_nm"] <= 200.0 + 1e-9, name
-    for name, r in doc["cases"]["servo_link"]["controllers"].items():
-        assert r["verdict"] == "certified" and r["all_settled"] and r["all_within_drive_limits"], name
+    for case in ("servo_link", "servo_identified"):
+        for name, r in doc["cases"][case]["controllers"].items():
+            assert r["verdict"] == "certified" and r["all_settled"] and r["all_within_drive_limits"], (case, name)
+    assert all(doc["cases"]["servo_identified"]["identify"]["truth_inside"].values())
     assert doc["timing"]["search"]["wall_s"] <= 30.0
     assert doc["timing"]["search"]["radius"] >= doc["timing"]["grid6_alone"]["radius"] - 1e-9

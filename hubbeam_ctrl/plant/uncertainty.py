@@ -186,6 +186,7 @@ class Uncertainty:
         """
         short = {f"{part if part != 'drive' else 'motor'}.{fld}": name for name, (part, fld, _, _) in UNCERTAIN.items()}
         short.update({f"beam.{n}": n for n in ("m_t", "l", "E", "J_h")})
+        short["friction"] = "coulomb"          # identify's "friction" field is the Coulomb level
         table = {}
         for key, value in intervals.items():
             name = key if key in UNCERTAIN else short.get(key)
