@@ -118,7 +118,8 @@ class PD(Controller):
             th, thd, tff = ref.theta[k], ref.theta_dot[k], ref.torque[k]
         else:
             (th,), (thd,), (tff,) = ref.window(k, 1)
+        if self.settings.roll_off_hz is None:       # the static PD (this order of operations, bit for bit)
+            return saturate(float(self._ff * tff + self.kp * (th - y[0]) + self.kd * (thd - y[1])), self.tau_max)
         fb = self.kp * (th - y[0]) + self.kd * (thd - y[1])
-        if self.settings.roll_off_hz is not None:
-            self._x = fb = self._a * self._x + (1.0 - self._a) * fb
-        return saturate(float(self._ff * tff + fb), self.tau_max)
+        self._x = self._a * self._x + (1.0 - self._a) * fb
+        return saturate(float(self._ff * tff + self._x), self.tau_max)
