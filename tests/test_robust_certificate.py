@@ -120,12 +120,14 @@ def test_the_worst_plant_found_agrees_with_a_nonlinear_run(table1):
 
 def test_certify_cli_writes_the_certificate_and_exits_1_when_not_certified(tmp_path, capsys):
     code = main(["certify", "lqg", "--uncertainty", "m_t=0:0.5,damping=0.0005:0.0005", "--check", "none",
-                 "--out", str(tmp_path)])
+                 "--out", str(tmp_path), "--json"])
     assert code == 1
     doc = json.loads((tmp_path / "certificate.json").read_text())
+    cap = capsys.readouterr()
+    assert json.loads(cap.out) == doc                   # --json: the document alone on stdout
     assert doc["set"] == {"m_t": [0.0, 0.5], "damping": [0.0005, 0.0005]}
     assert doc["controllers"]["lqg"]["certificate"]["robust_verdict"] == "not certified"
-    assert "not certified: lqg" in capsys.readouterr().err
+    assert "not certified: lqg" in cap.err
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -135,6 +137,11 @@ def test_certify_cli_writes_the_certificate_and_exits_1_when_not_certified(tmp_p
     ([], "certify needs an uncertainty set"),
     (["--uncertainty", "m_t=0:0.5", "--payload-range", "0,0.5"], "--payload-range does not apply to certify"),
     (["--uncertainty", "m_t=0:0.5", "--grid", "1"], "--grid must be an integer in [2, 9]"),
+    (["--uncertainty", "m_t=0:0.5", "--check-plant", "cfoam"], "--check-plant does not apply to certify"),
+    (["--uncertainty", "m_t=0:0.5", "--design", "robust", "--shaping", "zvd"],
+     "--shaping does not apply with --design robust"),
+    (["--uncertainty", "delay=0:2", "--rig", "servo_link", "--slew-angle", "1.5708", "--tf", "0.5"],
+     "--uncertainty: uncertainty.delay = [0, 2] does not fit the rig"),
 ])
 def test_certify_refuses_bad_input_in_one_line(tmp_path, capsys, argv, message):
     code = main(["certify", "lqr", *argv, "--out", str(tmp_path)])

@@ -7,6 +7,7 @@ found where its loop does not decay), 2 for bad input.
 
 from __future__ import annotations
 
+import io
 import math
 import sys
 
@@ -23,7 +24,12 @@ CHECKS = ("worst", "corners", "none")
 DESIGNS = ("nominal", "robust")
 #: Options of ``compare`` that certify refuses, with the reason.
 REFUSES = {"--payload-range": "give the payload range as --uncertainty m_t=LO:HI",
-           "--learn-payload": "a learning controller has no fixed linear loop to certify"}
+           "--learn-payload": "a learning controller has no fixed linear loop to certify",
+           "--no-ladder": "certify runs no rig ladder",
+           "--check-plant": "the certificate's nonlinear checks run on --plant"}
+#: Options that ``--design robust`` refuses: its candidates are built without them.
+ROBUST_REFUSES = {"--shaping": "the robust design's candidates follow the task's reference unshaped",
+                  "--schedule": "the robust design's candidates are single design points"}
 
 
 def add_parser(subparsers, common):
@@ -104,6 +110,11 @@ def _plan(args):
     for option, why in REFUSES.items():
         if getattr(args, option.lstrip("-").replace("-", "_"), None):
             raise ParameterError(f"{option} does not apply to certify ({why})")
+    if args.design == "robust":
+        for option, why in ROBUST_REFUSES.items():
+            value = getattr(args, option.lstrip("-").replace("-", "_"), None)
+            if value is not None and not (option == "--schedule" and value == 1):
+                raise ParameterError(f"{option} does not apply with --design robust ({why})")
     if not 2 <= args.grid <= 9:
         raise ParameterError(f"--grid must be an integer in [2, 9], got {args.grid}")
     args.controllers = args.controller
@@ -134,7 +145,8 @@ def run(args) -> int:
     ----------
     args : argparse.Namespace
     """
-    sink = stdout(args)
+    real_sink = stdout(args)
+    sink = io.StringIO() if args.json else real_sink      # --json: the JSON alone on stdout
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.robust_check import check_points, run_at
     plan, opts = _plan(args)
@@ -193,7 +205,10 @@ def run(args) -> int:
     plan.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(plan.out / "certificate.json", strict_json(doc, indent=2) + "\n")
     atomic_write_text(plan.out / "certificate.md", "\n".join(lines) + "\n")
-    print(f"wrote {plan.out}/certificate.json, certificate.md", file=sink)
+    if args.json:
+        print(strict_json(doc), file=real_sink)
+    else:
+        print(f"wrote {plan.out}/certificate.json, certificate.md", file=sink)
     failed = [n for n in names if not verdicts[n]]
     if failed:
         print(f"hubbeam: not certified: {', '.join(failed)}", file=sys.stderr)
