@@ -185,6 +185,11 @@ def table_lines(doc: dict) -> list:
             lines.append(f"| {case_name} | {name} | {r['nominal_radius']:.6f} ({r['nominal_verdict']}) | "
                          f"{r['design']} | {r['radius']:.6f}{undamped} | {'yes' if r['all_settled'] else 'no'} | "
                          f"{r['worst_residual_pct_of_openloop']:.3g} | {r['peak_torque_nm']:.4g} N m |")
+    alt = doc["cases"].get("table1", {}).get("range_designs")
+    if alt:
+        parts = [f"{n.upper()} {alt[n]['radius']:.6f} ({alt[n]['verdict']})" for n in CONTROLLERS if n in alt]
+        lines.append("The named alternative on table1, the payload-range designs of `compare --payload-range` under the "
+                     "same certificate: " + ", ".join(parts) + ".")
     t = doc["timing"]
     lines.append(f"Certificate of a {t['plant_modes']}-mode loop over a {len(t['set'])}-parameter set: "
                  f"{t['search']['wall_s']:.2f} s ({t['search']['evaluations']} loops, worst radius "
