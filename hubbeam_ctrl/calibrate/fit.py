@@ -42,6 +42,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from hubbeam_ctrl.calibrate.intervals import rough_intervals
 from hubbeam_ctrl.calibrate.model import ModelSettings, _check_sensors, rig_sensors, set_fields, simulate_sensors
 from hubbeam_ctrl.calibrate.records import Record
 from hubbeam_ctrl.calibrate.solver import (
@@ -213,6 +214,12 @@ class FitSettings:
     floor_margin : float
         "Converged" needs every record's sensor fitted within this many points of its noise
         ceiling (:func:`~hubbeam_ctrl.calibrate.design.fit_ceiling`) [%].
+    rough_intervals : bool
+        The 95 % intervals by :func:`~hubbeam_ctrl.calibrate.intervals.rough_intervals` (the
+        cost probed at the intervals' scale: they hold when stick-slip friction makes it rough;
+        about ``20 p`` more simulations of every record for ``p`` fields) instead of the
+        Jacobian's ``s^2 (J' J)^-1`` alone (kept in :attr:`FitResult.std_jacobian`; the only one
+        after a stop at ``max_wall``).
     max_wall : float or None
         Wall-time limit of the fit [s]: the optimiser stops, the best estimate so far is kept
         and the result says "stopped at --max-wall".
@@ -252,6 +259,7 @@ class FitSettings:
     frequency_start: bool = True
     floor_margin: float = 1.0
     max_wall: float | None = None
+    rough_intervals: bool = True
 
     def __post_init__(self):
         pm = self.plant_modes
@@ -282,7 +290,9 @@ class FitResult:
     ----------
     fields : list of FitField
     start, estimate, std : ndarray
-        Start, estimate and standard deviation of each field [its unit].
+        Start, estimate and standard deviation of each field [its unit]; ``1.96 std`` is the
+        95 % half-width (:func:`~hubbeam_ctrl.calibrate.intervals.rough_intervals` for a fit
+        to records, which includes the cost's roughness).
     correlation : ndarray (p, p)
     converged : bool
     message : str
@@ -309,6 +319,13 @@ class FitResult:
         The plant the fit simulated.
     status : str
         ``"converged"``, ``"not converged"``, ``"below the noise ceiling"`` or ``"stopped at --max-wall"``.
+    std_jacobian : ndarray or None
+        The Jacobian's standard deviations, ``s^2 (J' J)^-1`` with white residuals [its unit].
+    intervals : dict
+        How the intervals were found: ``method`` (``"rough"`` or ``"jacobian"``) and, for
+        ``"rough"``, the cost's ``roughness`` and ``noise_cost``, the ``evaluations`` spent, the
+        noise's part of each 95 % half-width ``noise_half_width`` and the smoothed minimum's
+        offset from the estimate ``shift`` [each field's unit].
     """
 
     fields: list
@@ -329,6 +346,8 @@ class FitResult:
     starts: dict = field(default_factory=dict)
     model: object = None
     status: str = ""
+    std_jacobian: np.ndarray | None = None
+    intervals: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if not self.status:
@@ -355,7 +374,9 @@ class FitResult:
                 "correlation": {"names": self.names, "matrix": np.round(self.correlation, 6).tolist()},
                 "fit_percent": self.fit, "fit_ceiling_percent": self.ceiling, "status": self.status,
                 "starts": self.starts, "plant_modes": None if self.model is None else self.model.n_transverse,
-                "design": None if self.design is None else self.design.to_dict(), "warnings": list(self.warnings)}
+                "design": None if self.design is None else self.design.to_dict(), "warnings": list(self.warnings),
+                "intervals": {**self.intervals, **({} if self.std_jacobian is None else {
+                    "std_jacobian": dict(zip(self.names, np.asarray(self.std_jacobian, dtype=float).tolist()))})}}
 
     def summary(self) -> str:
         """Human-readable lines: estimates with intervals, fit per record and sensor, warnings."""
@@ -635,6 +656,14 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
     fun = sol.fun if sol.fun is not None else whole(sol.x)
     std, corr, warnings = _diagnose(sol.jac, scale, estimate, fun, fit_fields) if sol.jac.size else (
         np.full(len(fit_fields), np.inf), np.full((len(fit_fields),) * 2, np.nan), [])
+    std_jacobian, intervals = std, {"method": "jacobian"}
+    if sol.jac.size and settings.rough_intervals and sol.status != -2:     # not past --max-wall
+        segments = [len(r.t) for r, ss in zip(records, used) for _ in ss]
+        iv = rough_intervals(whole, sol.x, fun, sol.jac, segments, lo / scale, hi / scale,
+                             step=settings.difference_step)
+        std, corr, warnings = _diagnose(sol.jac, scale, estimate, fun, fit_fields, interval=iv)
+        intervals = iv.summary(scale)
+        warnings += iv.warnings()
     if sol.status == -2:
         status, converged = "stopped at --max-wall", False
         message = (f"stopped at --max-wall ({settings.max_wall:g} s) in stage {k + 1} of {n_stages}; the best "
@@ -660,4 +689,4 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
                                 "or a noisy sensor; check the plots before trusting the estimate")
     return FitResult(fit_fields, start, estimate, std, corr, converged, message, evaluations, fits, warnings,
                      calibrated, time.perf_counter() - t0, design=design, ceiling=design.ceiling, starts=starts,
-                     model=model, status=status)
+                     model=model, status=status, std_jacobian=std_jacobian, intervals=intervals)
