@@ -13,7 +13,8 @@ from scipy.stats import binom
 from test_calibrate import _inputs, _rigs
 
 from hubbeam_ctrl.calibrate import FitSettings, fit_rig, resolve_fields, set_fields, synthetic_record
-from hubbeam_ctrl.calibrate.intervals import sandwich_covariance
+from hubbeam_ctrl.calibrate.intervals import rough_intervals, sandwich_covariance
+from hubbeam_ctrl.core.errors import ParameterError
 
 N_RECORDS = 8
 NAMES = "E,J_h,m_t"
@@ -44,6 +45,49 @@ def test_sandwich_covariance_matches_the_spread_of_estimates():
     assert np.median(stds, axis=0) == pytest.approx(spread, rel=0.15)
     # the white, pooled formula is off by more than that here (the measure of the test's power)
     assert np.max(np.abs(np.median(naive, axis=0) / spread - 1)) > 0.25
+
+
+def _staircase(amplitude, width=0.7e-4):
+    """A residual linear in x (slope g, truth 1, noise 0.01) plus a square wave of jumps along a fixed direction."""
+    rng = np.random.default_rng(3)
+    m = 400
+    g = np.sin(np.linspace(0.0, 20.0, m))
+    e = 0.01 * rng.standard_normal(m)
+    u = rng.standard_normal(m)
+    u /= np.linalg.norm(u)
+
+    def residual_of(x):
+        return g * (x[0] - 1.0) - e + amplitude * ((np.floor(x[0] / width) % 2) - (np.floor(1.0 / width) % 2)) * u
+    return residual_of, g, e
+
+
+def _intervals_at(residual_of, xhat):
+    x = np.array([xhat])
+    r0 = residual_of(x)
+    h = 1e-4 * xhat
+    J = ((residual_of(x + h) - r0) / h)[:, None]
+    iv = rough_intervals(residual_of, x, r0, J, [r0.size], np.array([0.0]), np.array([2.0]))
+    naive = 1.96 * np.sqrt(float(r0 @ r0) / (r0.size - 1) / float(J[:, 0] @ J[:, 0]))
+    return iv, naive
+
+
+def test_rough_intervals_on_a_staircase():
+    # smooth: the half-width of least squares, 1.96 sigma / ||g||
+    residual_of, g, e = _staircase(0.0)
+    iv, _ = _intervals_at(residual_of, 1.0 + float(g @ e) / float(g @ g))
+    assert iv.half_width[0] == pytest.approx(1.96 * 0.01 / np.linalg.norm(g), rel=0.2)
+    assert iv.roughness < 1e-6 * iv.noise_cost
+    # jumps of the cost (2-3 times the noise's 95 % level): an estimate stopped in a notch 2-3 noise
+    # half-widths from the truth is inside its interval; the forward difference spans a jump, and
+    # the Jacobian's interval does not reach the truth
+    for amplitude, xhat in ((0.05, 1.003), (0.05, 0.9975), (0.03, 1.002)):
+        residual_of, _, _ = _staircase(amplitude)
+        iv, naive = _intervals_at(residual_of, xhat)
+        assert abs(xhat - 1.0) <= iv.half_width[0] < 3 * abs(xhat - 1.0), (amplitude, xhat, iv.half_width)
+        assert naive < abs(xhat - 1.0)
+    with pytest.raises(ParameterError, match="iterations must be an integer in 1..100"):
+        rough_intervals(residual_of, np.ones(1), residual_of(np.ones(1)), np.ones((400, 1)), [400], [0.0], [2.0],
+                        iterations=0)
 
 
 @pytest.fixture(scope="module")

@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hubbeam_ctrl.core.errors import ParameterError
+
 __all__ = ["IntervalEstimate", "sandwich_covariance", "rough_intervals"]
 
 #: Two-sided 95 % quantile of the standard normal.
@@ -175,6 +177,8 @@ def rough_intervals(residual_of, x, residual, J, segments, lo, hi, *, step: floa
     roughness above its minimum (a jump of the cost, e.g. stick-slip sticking, held it there);
     the residual is close to linear in the parameters over the interval (the probes are at the
     interval's scale, so a curved response widens the interval rather than narrowing it).
+    Not covered: an estimate in another basin of the cost (a wrong local minimum, not a notch),
+    a model whose structure is wrong.
 
     Parameters
     ----------
@@ -186,12 +190,12 @@ def rough_intervals(residual_of, x, residual, J, segments, lo, hi, *, step: floa
         ``residual_of(x)``.
     J : ndarray (m, p)
         The optimiser's Jacobian at ``x`` (the first scale).
-    step : float
-        The relative difference step of the roughness probes (the optimiser's) [-].
     segments : sequence of int
         Lengths of the residual's segments (one record's sensor each).
     lo, hi : ndarray (p,)
         Bounds [scaled]: the probes stay within them.
+    step : float
+        The relative difference step of the roughness probes (the optimiser's) [-].
     iterations : int
         Most rounds of probes at the intervals' scale (``4 p`` evaluations each; ``4 p`` more
         for the roughness).
@@ -201,7 +205,17 @@ def rough_intervals(residual_of, x, residual, J, segments, lo, hi, *, step: floa
     Returns
     -------
     IntervalEstimate
+
+    Raises
+    ------
+    ParameterError
+        ``iterations`` not in 1..100, ``tolerance`` or ``step`` not in (0, 1].
     """
+    if isinstance(iterations, bool) or not isinstance(iterations, int) or not 1 <= iterations <= 100:
+        raise ParameterError(f"iterations must be an integer in 1..100, got {iterations!r}")
+    for name, v in (("tolerance", tolerance), ("step", step)):
+        if not isinstance(v, (int, float)) or not 0 < v <= 1:
+            raise ParameterError(f"{name} must be in (0, 1], got {v!r}")
     x = np.asarray(x, dtype=float)
     r0 = np.asarray(residual, dtype=float)
     m, p = J.shape
