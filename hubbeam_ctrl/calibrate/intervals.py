@@ -15,10 +15,11 @@ not what breaks them.
 :func:`rough_intervals` therefore measures the cost at the scale of the intervals instead of
 at the difference step: a Jacobian regressed over points spread by twice the current
 half-widths along each field, the cost's roughness (how far it departs from the quadratic
-model of that Jacobian at 1 and 10 difference steps) and the smoothed minimum; the
-half-widths become the distance at which the smoothed cost rises by the noise's 95 % quantile
-plus the roughness (a jump the optimiser may have stopped against), plus the distance to the
-smoothed minimum; repeated until the scale is consistent. On a smooth cost it gives about
+models of that Jacobian and of the local slope at 1 and 10 difference steps, the smaller of
+the two) and the smoothed minimum; the half-widths become the distance at which the
+smoothed cost rises by the noise's 95 % quantile plus the roughness (a jump the optimiser
+may have stopped against), plus the distance to the smoothed minimum; repeated until the
+scale is consistent. On a smooth cost it gives about
 the Jacobian's intervals (with a sandwich covariance that gives each record's sensor its own
 residual variance and autocorrelation). Measured by ``benchmarks/bench_interval_coverage.py``.
 
@@ -164,11 +165,12 @@ def rough_intervals(residual_of, x, residual, J, segments, lo, hi, *, step: floa
     ``w_k = max(sqrt(Z95^2 C_kk + 2 R (G'G)^-1_kk) + |shift_k|, w0_k)``
 
     (``w0`` the first, the noise's alone)
-    with ``C`` the :func:`sandwich_covariance` with ``G``, ``R`` the roughness (the largest
-    departure of the cost ``||r||^2 / 2`` from ``||r_0 + G d||^2 / 2`` at ``d`` = +-1 and
-    +-:data:`JUMP_STEPS` difference steps along each parameter: what departs from the trend
-    there is the cost's jumps, or the curvature of a response that is smooth but bends within
-    ten steps, which widens the interval) and
+    with ``C`` the :func:`sandwich_covariance` with ``G``, ``R`` the roughness (at ``d`` = +-1
+    and +-:data:`JUMP_STEPS` difference steps along each parameter, the smaller departure of
+    the cost ``||r||^2 / 2`` from ``||r_0 + L d||^2 / 2`` and from ``||r_0 + G d||^2 / 2``,
+    ``L`` the local slope by central differences over one step; the largest over the probes:
+    what neither the local slope of a smooth response nor the trend explains is the cost's
+    jumps) and
     ``shift = -(G'G)^-1 G' r_0`` the smoothed minimum; until no half-width changes by more than
     ``tolerance`` (relative) or ``iterations`` are spent.
 
@@ -242,6 +244,16 @@ def rough_intervals(residual_of, x, residual, J, segments, lo, hi, *, step: floa
     h = step * np.maximum(np.abs(x), 1e-3)
     jumps = [(k, d, probe(k, d)) for k in range(p) for d in (h[k], -h[k], JUMP_STEPS * h[k], -JUMP_STEPS * h[k])]
     jumps = [(k, d, rk) for k, d, rk in jumps if rk is not None]
+    # the local slope (central differences over +-h): a cost smooth at the probes' scale follows it
+    local = J.copy()
+    for k in range(p):
+        pair = [(d, rk) for kk, d, rk in jumps if kk == k and abs(d) <= 1.5 * h[k]]
+        if pair:
+            steps = np.array([d for d, _ in pair])
+            local[:, k] = np.array([rk - r0 for _, rk in pair]).T @ steps / float(steps @ steps)
+
+    def departure(slope, k, d, rk):
+        return abs(0.5 * float(rk @ rk) - 0.5 * float(np.sum((r0 + slope[:, k] * d) ** 2)))
     G, shift = J, np.zeros(p)
     for _ in range(iterations):
         G = J.copy()
@@ -252,8 +264,8 @@ def rough_intervals(residual_of, x, residual, J, segments, lo, hi, *, step: floa
                 steps = np.array([d for d, _ in wide])
                 G[:, k] = np.array([rk - r0 for _, rk in wide]).T @ steps / float(steps @ steps)
         A_inv = np.linalg.pinv(G.T @ G)
-        rough = max((abs(0.5 * float(rk @ rk) - 0.5 * float(np.sum((r0 + G[:, k] * d) ** 2)))
-                     for k, d, rk in jumps), default=0.0)
+        # roughness: what neither the local slope nor the trend at the interval's scale explains
+        rough = max((min(departure(local, k, d, rk), departure(G, k, d, rk)) for k, d, rk in jumps), default=0.0)
         shift = -A_inv @ (G.T @ r0)
         cov = sandwich_covariance(G, r0, segments)
         new = np.sqrt(Z95 ** 2 * np.maximum(np.diag(cov), 0.0) + 2.0 * rough * np.maximum(np.diag(A_inv), 0.0))
