@@ -8,7 +8,7 @@ hardware's Karnopp sticking decides at each sample whether the hub sticks, so a 
 notch of this staircase, up to 1.6 % off in m_t with a cost 38 % above the truth's, and the
 forward-difference Jacobian (step 1e-4) spans a jump, so ``s^2 (J' J)^-1`` gives a standard
 deviation of 0.01 %: the truth lay 12-900 of them away. Without Coulomb friction the same fit
-reaches the minimum and the Jacobian's intervals cover (39, 40 and 38 of 40 records for E,
+reaches the minimum and the Jacobian's intervals cover (39, 40 and 39 of 40 records for E,
 J_h, m_t); the residuals' autocorrelation (the encoder's rounding: 0.05-0.16 at lag 1) is
 not what breaks them.
 
