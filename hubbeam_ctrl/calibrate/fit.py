@@ -36,12 +36,13 @@ frequencies and damping ratios against spin rate and tip mass, by modal analysis
 from __future__ import annotations
 
 import math
-import re
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from hubbeam_ctrl.calibrate.fields import FIT_ALIASES, FitField, resolve_fields  # noqa: F401 (re-exported)
+from hubbeam_ctrl.calibrate.intervals import rough_intervals
 from hubbeam_ctrl.calibrate.model import ModelSettings, _check_sensors, rig_sensors, set_fields, simulate_sensors
 from hubbeam_ctrl.calibrate.records import Record
 from hubbeam_ctrl.calibrate.solver import (
@@ -53,126 +54,13 @@ from hubbeam_ctrl.calibrate.solver import (
     check_bounds,
 )
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.plant.rig import _ATTR, RIG_TABLES, Rig
+from hubbeam_ctrl.plant.rig import Rig
 
-__all__ = ["FitField", "FitSettings", "FitResult", "resolve_fields", "set_fields", "fit_rig", "fit_percent",
-           "predict", "validate_record", "FIT_ALIASES", "IDENTIFIABILITY_CONDITION", "check_record_for_rig",
-           "check_bounds"]
+__all__ = ["FitSettings", "FitResult", "set_fields", "fit_rig", "fit_percent", "predict", "validate_record",
+           "IDENTIFIABILITY_CONDITION", "check_record_for_rig", "check_bounds"]
 
-#: Short names of ``--fit``: name -> (table, key, index or None).
-FIT_ALIASES = {"damping": ("damping", "ratios", 0), "friction": ("friction", "coulomb", None),
-               "coulomb": ("friction", "coulomb", None), "viscous": ("friction", "viscous", None)}
-_FITTABLE_TABLES = ("beam", "motor", "friction", "damping")
 #: After the frequency-response start, the short-horizon stages keep each field within this factor of it.
 STAGE_BOUND = 1.15
-_NAME = re.compile(r"^(?:(beam|motor|friction|damping)\.)?([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?$")
-
-
-@dataclass(frozen=True)
-class FitField:
-    """One fitted rig field.
-
-    Attributes
-    ----------
-    name : str
-        As the caller spelled it (``"E"``, ``"damping"``, ``"friction.coulomb"``).
-    table, key : str
-        Its table in a rig file and key (``"damping"``, ``"ratios"``).
-    index : int or None
-        The entry of a list field (``damping.ratios[0]``).
-    unit : str
-    lo, hi : float
-        Its allowed range (from the field's metadata).
-    """
-
-    name: str
-    table: str
-    key: str
-    index: int | None
-    unit: str
-    lo: float
-    hi: float
-
-    @property
-    def path(self) -> str:
-        """``table.key`` or ``table.key[i]``."""
-        return f"{self.table}.{self.key}" + ("" if self.index is None else f"[{self.index}]")
-
-    def get(self, rig: Rig) -> float:
-        """Its value in ``rig`` [its unit].
-
-        Parameters
-        ----------
-        rig : Rig
-        """
-        value = getattr(getattr(rig, _ATTR[self.table]), self.key)
-        if self.index is None:
-            return float(value)
-        if not value:
-            return 0.0
-        return float(value[min(self.index, len(value) - 1)])
-
-
-def _allowed_names() -> str:
-    beam = [f.name for f in fields(RIG_TABLES["beam"]) if f.metadata["kind"] is float]
-    return ", ".join(beam + list(FIT_ALIASES)) + ", or table.key (motor.k_t, friction.viscous, ...)"
-
-
-def resolve_fields(names, rig: Rig, option: str = "--fit") -> list:
-    """The :class:`FitField` of each name: a beam field (``E``), an alias (:data:`FIT_ALIASES`),
-    a key of one table (``k_t``) or ``table.key`` (``damping.ratios[1]``).
-
-    Parameters
-    ----------
-    names : sequence of str or str
-        Comma-separated text or a sequence.
-    rig : Rig
-    option : str
-        The argument's name as the caller spelled it.
-
-    Returns
-    -------
-    list of FitField
-    """
-    if isinstance(names, str):
-        names = [n.strip() for n in names.split(",")]
-    names = list(names)
-    if not names or any(not isinstance(n, str) or not n for n in names):
-        raise ParameterError(f"{option} must name at least one rig field ({_allowed_names()})")
-    out = []
-    for name in names:
-        if name in FIT_ALIASES:
-            table, key, index = FIT_ALIASES[name]
-        else:
-            m = _NAME.match(name)
-            if not m:
-                raise ParameterError(f"{option}: {name[:40]!r} is not a rig field; allowed: {_allowed_names()}")
-            table, key, index = m.group(1), m.group(2), None if m.group(3) is None else int(m.group(3))
-            if table is None:
-                hits = [t for t in _FITTABLE_TABLES if key in {f.name for f in fields(RIG_TABLES[t])}]
-                if not hits:
-                    raise ParameterError(f"{option}: {name[:40]!r} is not a rig field; allowed: {_allowed_names()}")
-                table = hits[0]
-        cls = RIG_TABLES[table]
-        meta = {f.name: f.metadata for f in fields(cls)}.get(key)
-        if meta is None:
-            raise ParameterError(f"{option}: {name[:40]!r} is not a rig field; allowed: {_allowed_names()}")
-        if key == "ratios":
-            index = 0 if index is None else index
-            lo, hi, unit = 0.0, 0.999, "-"
-        else:
-            if index is not None or meta["kind"] is not float:
-                raise ParameterError(f"{option}: {name[:40]!r} is not a number field that can be fitted")
-            lo = meta["lo"] if isinstance(meta["lo"], (int, float)) else 0.0
-            hi = meta["hi"] if isinstance(meta["hi"], (int, float)) else math.inf
-            if meta["lo_open"]:
-                lo = lo + max(abs(lo) * 1e-9, 1e-300)
-            unit = meta["unit"]
-        f = FitField(name, table, key, index, unit, float(lo), float(hi))
-        if any(g.path == f.path for g in out):
-            raise ParameterError(f"{option}: {name} is given twice")
-        out.append(f)
-    return out
 
 
 def fit_percent(y, y_model) -> float:
@@ -213,6 +101,12 @@ class FitSettings:
     floor_margin : float
         "Converged" needs every record's sensor fitted within this many points of its noise
         ceiling (:func:`~hubbeam_ctrl.calibrate.design.fit_ceiling`) [%].
+    rough_intervals : bool
+        The 95 % intervals by :func:`~hubbeam_ctrl.calibrate.intervals.rough_intervals` (the
+        cost probed at the intervals' scale: they hold when stick-slip friction makes it rough;
+        about ``20 p`` more simulations of every record for ``p`` fields) instead of the
+        Jacobian's ``s^2 (J' J)^-1`` alone (kept in :attr:`FitResult.std_jacobian`; the only one
+        after a stop at ``max_wall``).
     max_wall : float or None
         Wall-time limit of the fit [s]: the optimiser stops, the best estimate so far is kept
         and the result says "stopped at --max-wall".
@@ -252,6 +146,7 @@ class FitSettings:
     frequency_start: bool = True
     floor_margin: float = 1.0
     max_wall: float | None = None
+    rough_intervals: bool = True
 
     def __post_init__(self):
         pm = self.plant_modes
@@ -282,7 +177,9 @@ class FitResult:
     ----------
     fields : list of FitField
     start, estimate, std : ndarray
-        Start, estimate and standard deviation of each field [its unit].
+        Start, estimate and standard deviation of each field [its unit]; ``1.96 std`` is the
+        95 % half-width (:func:`~hubbeam_ctrl.calibrate.intervals.rough_intervals` for a fit
+        to records, which includes the cost's roughness).
     correlation : ndarray (p, p)
     converged : bool
     message : str
@@ -309,6 +206,13 @@ class FitResult:
         The plant the fit simulated.
     status : str
         ``"converged"``, ``"not converged"``, ``"below the noise ceiling"`` or ``"stopped at --max-wall"``.
+    std_jacobian : ndarray or None
+        The Jacobian's standard deviations, ``s^2 (J' J)^-1`` with white residuals [its unit].
+    intervals : dict
+        How the intervals were found: ``method`` (``"rough"`` or ``"jacobian"``) and, for
+        ``"rough"``, the cost's ``roughness`` and ``noise_cost``, the ``evaluations`` spent, the
+        noise's part of each 95 % half-width ``noise_half_width`` and the smoothed minimum's
+        offset from the estimate ``shift`` [each field's unit].
     """
 
     fields: list
@@ -329,6 +233,8 @@ class FitResult:
     starts: dict = field(default_factory=dict)
     model: object = None
     status: str = ""
+    std_jacobian: np.ndarray | None = None
+    intervals: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if not self.status:
@@ -355,7 +261,9 @@ class FitResult:
                 "correlation": {"names": self.names, "matrix": np.round(self.correlation, 6).tolist()},
                 "fit_percent": self.fit, "fit_ceiling_percent": self.ceiling, "status": self.status,
                 "starts": self.starts, "plant_modes": None if self.model is None else self.model.n_transverse,
-                "design": None if self.design is None else self.design.to_dict(), "warnings": list(self.warnings)}
+                "design": None if self.design is None else self.design.to_dict(), "warnings": list(self.warnings),
+                "intervals": {**self.intervals, **({} if self.std_jacobian is None else {
+                    "std_jacobian": dict(zip(self.names, np.asarray(self.std_jacobian, dtype=float).tolist()))})}}
 
     def summary(self) -> str:
         """Human-readable lines: estimates with intervals, fit per record and sensor, warnings."""
@@ -635,6 +543,14 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
     fun = sol.fun if sol.fun is not None else whole(sol.x)
     std, corr, warnings = _diagnose(sol.jac, scale, estimate, fun, fit_fields) if sol.jac.size else (
         np.full(len(fit_fields), np.inf), np.full((len(fit_fields),) * 2, np.nan), [])
+    std_jacobian, intervals = std, {"method": "jacobian"}
+    if sol.jac.size and settings.rough_intervals and sol.status != -2:     # not past --max-wall
+        segments = [len(r.t) for r, ss in zip(records, used) for _ in ss]
+        iv = rough_intervals(whole, sol.x, fun, sol.jac, segments, lo / scale, hi / scale,
+                             step=settings.difference_step)
+        std, corr, warnings = _diagnose(sol.jac, scale, estimate, fun, fit_fields, interval=iv)
+        intervals = iv.summary(scale)
+        warnings += iv.warnings()
     if sol.status == -2:
         status, converged = "stopped at --max-wall", False
         message = (f"stopped at --max-wall ({settings.max_wall:g} s) in stage {k + 1} of {n_stages}; the best "
@@ -660,4 +576,4 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
                                 "or a noisy sensor; check the plots before trusting the estimate")
     return FitResult(fit_fields, start, estimate, std, corr, converged, message, evaluations, fits, warnings,
                      calibrated, time.perf_counter() - t0, design=design, ceiling=design.ceiling, starts=starts,
-                     model=model, status=status)
+                     model=model, status=status, std_jacobian=std_jacobian, intervals=intervals)

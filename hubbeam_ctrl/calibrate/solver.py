@@ -10,6 +10,7 @@ import time
 
 import numpy as np
 
+from hubbeam_ctrl.calibrate.intervals import Z95
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.progress import progress_bar
 
@@ -85,8 +86,13 @@ def _scales(fit_fields, start, rig) -> np.ndarray:
     return np.array(out)
 
 
-def _diagnose(J, scale, estimate, residual, fit_fields) -> tuple:
-    """Standard deviations, correlations and identifiability warnings from the Jacobian."""
+def _diagnose(J, scale, estimate, residual, fit_fields, interval=None) -> tuple:
+    """Standard deviations, correlations and identifiability warnings from the Jacobian.
+
+    With ``interval`` (an :class:`~hubbeam_ctrl.calibrate.intervals.IntervalEstimate` in the
+    scaled variables) the standard deviations are its 95 % half-widths / 1.96 and the
+    correlations its covariance's; the identifiability warnings stay the Jacobian's.
+    """
     m, p = J.shape
     warnings = []
     norms = np.linalg.norm(J, axis=0)
@@ -106,6 +112,11 @@ def _diagnose(J, scale, estimate, residual, fit_fields) -> tuple:
         d = np.sqrt(np.diag(cov_n))
         std[idx] = d / norms[~dead] * scale[idx]
         corr[np.ix_(idx, idx)] = cov_n / np.outer(d, d)
+        if interval is not None:
+            std[idx] = interval.half_width[idx] / Z95 * scale[idx]
+            sd = np.sqrt(np.diag(interval.covariance))[idx]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                corr[np.ix_(idx, idx)] = interval.covariance[np.ix_(idx, idx)] / np.outer(sd, sd)
         if cond > IDENTIFIABILITY_CONDITION:
             weak = vt[-1]
             who = [fit_fields[idx[k]].name for k in np.argsort(-np.abs(weak)) if abs(weak[k]) > 0.3]

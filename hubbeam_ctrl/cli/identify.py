@@ -278,11 +278,17 @@ def _report(result, valid, series, written, np) -> str:
                          + (" (won)" if k == result.starts.get("fit_won") else ""))
         lines.append("")
     lines += [
-             "## Estimates (95 % intervals from the Jacobian)", "",
+             "## Estimates (95 % intervals" + (" probed at their own scale" if result.intervals.get("method") == "rough"
+                                               else " from the Jacobian") + ")", "",
              "| name | field | start | estimate | 95 % interval | unit |", "|---|---|---|---|---|---|"]
     for f, s, e, (lo, hi) in zip(result.fields, result.start, result.estimate, result.interval):
         lines.append(f"| {f.name} | {f.path} | {s:.6g} | {e:.6g} | [{lo:.6g}, {hi:.6g}] | {f.unit} |")
-    lines += ["", "The intervals assume white residuals; model error and coloured noise make them optimistic.", "",
+    note = ("The intervals assume white residuals; model error and coloured noise make them optimistic."
+            if result.intervals.get("method") != "rough" else
+            "The intervals hold the noise (a sandwich covariance, per record and sensor) and the cost's roughness at "
+            f"the estimate ({result.intervals['roughness'] / result.intervals['noise_cost']:.3g} times the noise's "
+            "95 % level; stick-slip sticking makes it jump); they assume the model's structure is right.")
+    lines += ["", note, "",
               "## Correlations", "", "| | " + " | ".join(result.names) + " |",
               "|---" * (len(result.names) + 1) + "|"]
     for name, row in zip(result.names, result.correlation):
