@@ -188,8 +188,8 @@ def table_lines(doc: dict) -> list:
     alt = doc["cases"].get("table1", {}).get("range_designs")
     if alt:
         parts = [f"{n.upper()} {alt[n]['radius']:.6f} ({alt[n]['verdict']})" for n in CONTROLLERS if n in alt]
-        lines.append("The named alternative on table1, the payload-range designs of `compare --payload-range` under the "
-                     "same certificate: " + ", ".join(parts) + ".")
+        lines.append("The named alternative on table1, the payload-range designs of `compare --payload-range` "
+                     "under the same certificate: " + ", ".join(parts) + ".")
     t = doc["timing"]
     lines.append(f"Certificate of a {t['plant_modes']}-mode loop over a {len(t['set'])}-parameter set: "
                  f"{t['search']['wall_s']:.2f} s ({t['search']['evaluations']} loops, worst radius "

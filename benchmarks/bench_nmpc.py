@@ -1,0 +1,80 @@
+"""Issue 40's table, first slice: slews at 1.1, 1.2 and 1.3 T* (each beam's own
+time-optimal slew) with the NMPC (controllers.nmpc), the linear MPC and LQR, and the NMPC's step time.
+
+Prints one JSON object (``--out FILE`` also writes it). Run:
+``.venv/bin/python benchmarks/bench_nmpc.py --out benchmarks/results/bench_nmpc.json``.
+
+Each case is ``compare`` on FOAM (the evaluation plant's modes, every option default) with the
+task ``Slew(pi/2, factor * T*)``. Reported per controller: verdict, settling time after t_f in
+first-mode periods (issue 40 asks for at most one), residual tip vibration in % of L (at most
+0.1 %), the final angle error against the task's band, the peak torque against the limit; for
+the NMPC the median and 99th percentile of its step's wall time against the sample time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from benchjson import emit  # noqa: E402
+
+from controllers.scaling import first_mode  # noqa: E402
+from hubbeam_ctrl import Params  # noqa: E402
+from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
+from hubbeam_ctrl.study import Slew, compare  # noqa: E402
+
+LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
+BEAMS = {"table1": Params(), "lab": LAB}
+#: Slew angles [rad]: 90 degrees on the lab arm; 1 rad on Table 1's beam, whose 90 degrees at 1.1 T*
+#: (3.33 s) is shorter than the 3.50 s in which its Eq. 44 open-loop baseline can turn it.
+ANGLES = {"table1": 1.0, "lab": math.pi / 2}
+CONTROLLERS = ("lqr", "mpc", "nmpc")
+
+
+def case(beam: str, factor: float, t_opt: float) -> dict:
+    params = BEAMS[beam]
+    task = Slew(ANGLES[beam], factor * t_opt)
+    t0 = time.perf_counter()
+    c = compare("foam", task, CONTROLLERS, params=params)
+    period = 2 * math.pi / first_mode(c.controllers["lqr"].design)
+    out = {"t_f_s": task.duration, "first_period_s": period, "wall_s": time.perf_counter() - t0,
+           "settle_angle_rad": c.scenario.bands["settle_angle"], "controllers": {}}
+    for name in CONTROLLERS:
+        m = c.metrics[name]
+        settle = m.get("settling_time_s")
+        row = {"verdict": m["verdict"], "settling_time_s": settle,
+               "settle_after_tf_periods": None if settle is None else (settle - task.duration) / period,
+               "residual_pct_of_L": m.get("residual_pct_of_L"), "final_angle_error_rad": m["final_angle_error_rad"],
+               "peak_torque_nm": m["peak_torque_nm"], "tau_max_nm": params.tau_max,
+               "loop_spectral_radius": m.get("loop_spectral_radius")}
+        if name == "nmpc":
+            steps = np.asarray(c.controllers[name].step_times_s)
+            row.update(step_median_s=float(np.median(steps)), step_p99_s=float(np.percentile(steps, 99)),
+                       dt_s=float(c.scenario.dt), model_modes=c.controllers[name].model_modes)
+        out["controllers"][name] = row
+    return out
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--beams", default="table1,lab")
+    ap.add_argument("--factors", default="1.1,1.2,1.3")
+    ap.add_argument("--out", default=None, help="also write the JSON here")
+    args = ap.parse_args(argv)
+    doc = {"beams": {}}
+    for beam in args.beams.split(","):
+        t_opt = time_optimal_slew(BEAMS[beam], ANGLES[beam]).duration_s
+        doc["beams"][beam] = {"t_opt_s": t_opt, "factors": {}}
+        for f in (float(x) for x in args.factors.split(",")):
+            doc["beams"][beam]["factors"][f"{f:g}"] = case(beam, f, t_opt)
+    emit(doc, args.out)
+
+
+if __name__ == "__main__":
+    main()
