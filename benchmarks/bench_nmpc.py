@@ -62,6 +62,25 @@ def case(beam: str, factor: float, t_opt: float) -> dict:
     return out
 
 
+def table_lines(doc: dict) -> list:
+    """docs/limit.md's table of this benchmark (a test keeps the page equal to the JSON)."""
+    lines = ["| beam | t_f / T* | controller | verdict | settled after t_f [first-mode periods] | residual [% of L] | "
+             "final angle error [rad] | peak torque [N m] | step median / p99 [ms] (sample) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for beam, b in doc["beams"].items():
+        for f, c in b["factors"].items():
+            if "not_run" in c:
+                lines.append(f"| {beam} | {f} | - | not run: {c['not_run'].split(' (')[0]} | | | | | |")
+                continue
+            for name, r in c["controllers"].items():
+                after = "-" if r["settle_after_tf_periods"] is None else f"{r['settle_after_tf_periods']:.2f}"
+                step = (f"{1e3 * r['step_median_s']:.1f} / {1e3 * r['step_p99_s']:.1f} ({1e3 * r['dt_s']:g})"
+                        if "step_median_s" in r else "")
+                lines.append(f"| {beam} | {f} | {name} | {r['verdict']} | {after} | {r['residual_pct_of_L']:.3g} | "
+                             f"{r['final_angle_error_rad']:.2g} | {r['peak_torque_nm']:.4g} | {step} |")
+    return lines
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--beams", default="table1,lab")

@@ -74,3 +74,26 @@ def test_nmpc_linear_form_is_certified_like_the_lqr(lab_slew):
     evaluation plant's linear model (the certificate every verdict carries)."""
     c = certify(lab_slew.controllers["nmpc"], lab_slew.plant.params)
     assert not c.grows and c.worst.spectral_radius < 1.0
+
+
+def test_docs_quote_the_nmpc_benchmark():
+    """docs/limit.md's NMPC table is benchmarks/results/bench_nmpc.json's, and in that run the NMPC settles
+    every slew it ran with at most 0.1 % of L of residual vibration and within the torque limit."""
+    import importlib.util
+    import json
+    from pathlib import Path
+    root = Path(__file__).resolve().parent.parent
+    spec = importlib.util.spec_from_file_location("bench_nmpc", root / "benchmarks" / "bench_nmpc.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    doc = json.loads((root / "benchmarks" / "results" / "bench_nmpc.json").read_text())
+    text = (root / "docs" / "limit.md").read_text()
+    for line in bench.table_lines(doc):
+        assert line in text, line
+    for beam, b in doc["beams"].items():
+        for f, c in b["factors"].items():
+            if "not_run" in c:
+                continue
+            r = c["controllers"]["nmpc"]
+            assert r["verdict"] == "settled" and r["residual_pct_of_L"] <= 0.1, (beam, f)
+            assert r["peak_torque_nm"] <= r["tau_max_nm"] * (1 + 1e-9), (beam, f)
