@@ -38,11 +38,17 @@ ANGLES = {"table1": 1.0, "lab": math.pi / 2}
 CONTROLLERS = ("lqr", "mpc", "nmpc")
 
 
-def case(beam: str, factor: float, t_opt: float) -> dict:
+def case(beam: str, factor: float, t_opt: float, horizon: int | None = None) -> dict:
     params = BEAMS[beam]
     task = Slew(ANGLES[beam], factor * t_opt)
     t0 = time.perf_counter()
-    c = compare("foam", task, CONTROLLERS, params=params)
+    settings = None
+    if horizon is not None:           # the NMPC's horizon other than its default
+        from controllers import NMPCSettings
+        from hubbeam_ctrl.study.scenarios import make_scenario
+        sc = make_scenario(task, params=params, t_end=None)
+        settings = {"nmpc": NMPCSettings.for_scenario(sc).replace(horizon=horizon)}
+    c = compare("foam", task, CONTROLLERS, params=params, settings=settings)
     period = 2 * math.pi / first_mode(c.controllers["lqr"].design)
     out = {"t_f_s": task.duration, "first_period_s": period, "wall_s": time.perf_counter() - t0,
            "settle_angle_rad": c.scenario.bands["settle_angle"], "controllers": {}}
@@ -85,15 +91,16 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--beams", default="table1,lab")
     ap.add_argument("--factors", default="1.1,1.2,1.3")
+    ap.add_argument("--horizon", type=int, default=None, help="the NMPC's horizon [samples] (default its own)")
     ap.add_argument("--out", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
-    doc = {"beams": {}}
+    doc = {"horizon": args.horizon, "beams": {}}
     for beam in args.beams.split(","):
         t_opt = time_optimal_slew(BEAMS[beam], ANGLES[beam]).duration_s
         doc["beams"][beam] = {"t_opt_s": t_opt, "factors": {}}
         for f in (float(x) for x in args.factors.split(",")):
             try:
-                doc["beams"][beam]["factors"][f"{f:g}"] = case(beam, f, t_opt)
+                doc["beams"][beam]["factors"][f"{f:g}"] = case(beam, f, t_opt, args.horizon)
             except ParameterError as exc:      # a task the Eq. 44 baseline cannot do: said, not run
                 doc["beams"][beam]["factors"][f"{f:g}"] = {"not_run": str(exc)}
     emit(doc, args.out)

@@ -35,6 +35,7 @@ from .estimator import KalmanEstimator, KalmanNoise, kalman_gain
 from .lqg import LQG, LQGSettings
 from .lqr import LQR, LQRSettings, dlqr_gain
 from .mpc import MPC, QP_SOLVERS, MPCSettings, condensed_matrices
+from .nmpc import NMPC, NMPCSettings
 from .openloop import OpenLoop, OpenLoopSettings
 from .pd import PD, PDSettings, pd_gains
 from .planning import planned_slew_reference
@@ -66,7 +67,7 @@ __all__ = [
     "OpenLoop", "OpenLoopSettings", "PD", "PDSettings", "pd_gains",
     "LQR", "LQRSettings", "dlqr_gain", "LQG", "LQGSettings",
     "KalmanEstimator", "KalmanNoise", "kalman_gain",
-    "MPC", "MPCSettings", "QP_SOLVERS", "condensed_matrices",
+    "MPC", "MPCSettings", "QP_SOLVERS", "condensed_matrices", "NMPC", "NMPCSettings",
     "slew_reference", "spinup_reference", "eq44_reference", "optimal_reference", "planned_slew_reference",
     "CONTROLLERS", "ControllerSpec", "register_controller", "unregister_controller",
     "make_controller", "controller_names", "controller_styles",

@@ -68,6 +68,24 @@ class NMPCSettings(LQSettings):
                            doc="The shooting map on CasADi's virtual machine (vm, the default: no build) or as "
                                "generated C (auto/compiled: when a C compiler is there; built once and cached, "
                                "minutes for a large model).")
+    @classmethod
+    def for_scenario(cls, scenario, **options) -> "NMPCSettings":
+        """The task's settings (as LQR's), keeping the NMPC's own horizon and QP solver: the study-wide
+        ``horizon`` and ``solver`` are the linear MPC's (a 50-sample horizon would double the step).
+
+        Parameters
+        ----------
+        scenario : Scenario
+        **options
+            Study-wide controller options; ``horizon`` and ``solver`` are left out.
+
+        Returns
+        -------
+        NMPCSettings
+        """
+        options = {k: v for k, v in options.items() if k not in ("horizon", "solver")}
+        return super().for_scenario(scenario, **options)
+
     qp_solver: str = setting("daqp", choices=QP_PLUGINS, doc="Solver of the step's condensed QP (DAQP, linked: "
                                                                "the daqp package).")
 
