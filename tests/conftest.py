@@ -48,3 +48,17 @@ def fast_backend_module():
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("HUBBEAM_BACKEND", FAST_BACKEND)
         yield FAST_BACKEND
+
+
+def bench_module(name: str):
+    """``(module, root)``: the benchmark ``benchmarks/<name>.py`` loaded as a module (its table
+    functions keep the docs equal to its JSON) and the project root."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(root / "benchmarks"))
+    spec = importlib.util.spec_from_file_location(name, root / "benchmarks" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module, root

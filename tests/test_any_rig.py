@@ -121,15 +121,8 @@ def test_pd_on_a_rig_without_tachometer_is_refused_naming_the_rig_key():
 
 
 def _bench(name):
-    import importlib.util
-    import sys
-    from pathlib import Path
-    root = Path(__file__).resolve().parents[1]
-    sys.path.insert(0, str(root / "benchmarks"))
-    spec = importlib.util.spec_from_file_location(name, root / "benchmarks" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module, root
+    from conftest import bench_module
+    return bench_module(name)
 
 
 def test_readme_quotes_the_command_benchmark():

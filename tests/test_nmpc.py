@@ -80,13 +80,10 @@ def test_docs_quote_the_nmpc_benchmark():
     """docs/limit.md's NMPC table is benchmarks/results/bench_nmpc.json's, and in that run the NMPC settles
     every slew it ran with at most 0.1 % of L of residual vibration, within the torque limit, and its step's
     99th percentile within the sample."""
-    import importlib.util
     import json
-    from pathlib import Path
-    root = Path(__file__).resolve().parent.parent
-    spec = importlib.util.spec_from_file_location("bench_nmpc", root / "benchmarks" / "bench_nmpc.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+
+    from conftest import bench_module
+    bench, root = bench_module("bench_nmpc")
     doc = json.loads((root / "benchmarks" / "results" / "bench_nmpc.json").read_text())
     text = (root / "docs" / "limit.md").read_text()
     for line in bench.table_lines(doc):

@@ -220,12 +220,8 @@ def test_docs_quote_the_robust_benchmark_and_it_meets_the_targets():
     """docs/robust.md's table is benchmarks/results/bench_robust.json's; that run meets issue 39's
     Table 1 targets (certified, settled everywhere, <= 2 % of each plant's open loop, <= 200 N m), the
     servo_link ones (certified, settled, within the drive's limits) and the 30 s certificate budget."""
-    import importlib.util
-    from pathlib import Path
-    root = Path(__file__).resolve().parent.parent
-    spec = importlib.util.spec_from_file_location("bench_robust", root / "benchmarks" / "bench_robust.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    from conftest import bench_module
+    bench, root = bench_module("bench_robust")
     doc = json.loads((root / "benchmarks" / "results" / "bench_robust.json").read_text())
     text = (root / "docs" / "robust.md").read_text()
     for line in bench.table_lines(doc):
