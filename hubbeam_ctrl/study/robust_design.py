@@ -58,6 +58,7 @@ from hubbeam_ctrl.core.errors import HubbeamError
 from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.plant.uncertainty import Uncertainty
+from hubbeam_ctrl.study.range_design import _nyquist_modes
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, task_noise
 from hubbeam_ctrl.study.worst_case import RADIUS_MARGIN, WorstCase, certify_set
 
@@ -213,7 +214,7 @@ class _Builder:
             st = st.replace(residual_control=False)
         if self.is_lqg:
             if choice["structure"] == "range":
-                st = st.replace(residual_modes=_nyquist_modes(d, self.modes), residual_noise=1.0)
+                st = st.replace(residual_modes=min(self.modes, _nyquist_modes(d)), residual_noise=1.0)
             if choice["error_decay"] != "default":
                 st = st.replace(error_decay=float(choice["error_decay"]))
             if choice["model_error"] is not None:
@@ -226,13 +227,6 @@ class _Builder:
                 noise = noise.replace(error_decay=float(choice["error_decay"]))
         ctrl = make_controller(self.name, d, st, self.reference(choice))
         return on_rig(ctrl, self.rig, noise, self.hardware) if self.on_a_rig else ctrl
-
-
-def _nyquist_modes(design: DesignModel, plant_modes: int) -> int:
-    """Every bending mode below the Nyquist frequency and the first above it (design..plant modes)."""
-    from hubbeam_ctrl.plant.modal import converged_bending_hz
-    f = converged_bending_hz(design.params, design.spin)
-    return int(min(plant_modes, max(design.n_modes, int((f < 0.5 / design.dt).sum()) + 1)))
 
 
 def design_for_set(comparison, name: str, rig: Rig, uncertainty: Uncertainty | None = None, *,
