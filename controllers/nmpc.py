@@ -22,6 +22,15 @@ problem over ``horizon`` samples:
   (:data:`QP_PLUGINS`; OSQP by default, linked through CasADi, not copied), warm-started by
   the shift.
 
+**Unknown payload** (``learn_payload``): each sample the payload is fitted to the hub's
+angular-momentum balance (:class:`controllers.payload_estimate.PayloadMomentum`: the torque's
+impulse against the momentum of the measured state, exact whatever the modes the prediction
+leaves out), the shooting map predicts with that payload's parameter vector (a table over the
+range, no model built during the slew) and the reference is the task planned again for it
+(:func:`controllers.planning.replanned` on :data:`REFERENCE_POINTS` payloads over the range
+before the slew, interpolated at the estimate). No separate re-planning step: the estimate
+converges in the slew's first 0.05-0.2 s (``benchmarks/bench_nmpc_payload.py``).
+
 The command is the first move. The NMPC reads the design model's state (``measurement ==
 "state"``): on a rig the comparison closes it through the same Kalman filter as LQR and MPC.
 """
@@ -49,6 +58,9 @@ NMPC_MODES = 2
 #: RK4 keeps ``|lambda h|`` below this for the fastest modelled mode (its stability limit on the
 #: imaginary axis is 2.83).
 RK4_REACH = 1.5
+#: Payloads over the range on which a learning NMPC plans its task again before the slew (the
+#: reference is interpolated between them at the estimate).
+REFERENCE_POINTS = 17
 
 
 @dataclass(frozen=True)
@@ -88,6 +100,25 @@ class NMPCSettings(LQSettings):
 
     qp_solver: str = setting("daqp", choices=QP_PLUGINS, doc="Solver of the step's condensed QP (DAQP, linked: "
                                                                "the daqp package).")
+    learn_payload: bool = setting(False, doc="Estimate the payload online from the hub's momentum balance "
+                                             "(controllers.payload_estimate.PayloadMomentum), predict with it and "
+                                             "follow the task planned for it; payload_min_kg..payload_max_kg.")
+    payload_min_kg: float = setting(0.0, unit="kg", lo=0.0, doc="Lightest payload the estimate may take.")
+    payload_max_kg: float | None = setting(None, unit="kg", lo=0.0, hi=1e6,
+                                           doc="Heaviest payload the estimate may take; None: the design's payload "
+                                               "plus the beam's mass.")
+    payload_momentum_error: float = setting(1e-7, lo=1e-12, hi=1.0,
+                                            doc="Standard deviation of the momentum balance per sample, as a share "
+                                                "of the reference's peak momentum (J_total times its peak rate; "
+                                                "controllers.payload_estimate.PayloadMomentum): how much the "
+                                                "estimator trusts each sample.")
+
+    def __post_init__(self):
+        super().__post_init__()
+        if (self.learn_payload and self.payload_max_kg is not None
+                and not self.payload_max_kg > self.payload_min_kg):
+            raise ParameterError(f"payload_max_kg must be > payload_min_kg = {self.payload_min_kg:g} kg, "
+                                 f"got {self.payload_max_kg:g}")
 
 
 def rk4_substeps(omega_max: float, dt: float) -> int:
@@ -171,6 +202,7 @@ class NMPC(Controller):
         # the LQR's gain on the states the prediction leaves out (the residual modes): added to the move
         self._K_res = self.K.copy()
         self._K_res[self._pick] = 0.0
+        self._K_res0 = self._K_res.copy()
         Q, R = settings.weights.matrices(design)            # the stage weights on the design model's states
         hd = design.n_x // 2
         pick_d = np.r_[0, 1:1 + m, hd, hd + 1:hd + 1 + m]
@@ -178,24 +210,28 @@ class NMPC(Controller):
         self._R = float(np.asarray(R).reshape(-1)[0])
         self._Pt = np.asarray(self.P)[np.ix_(self._pick, self._pick)]
         from hubbeam_ctrl.core.compiled import compile_function
-        self._F = compile_function(self._shooting(model), settings.backend)      # C when a compiler is there
+        self.payload = None
+        if settings.learn_payload:
+            self._learning_setup(model, settings)
+        else:
+            self._F = compile_function(self._shooting(model), settings.backend)      # C when a compiler is there
         self._build_qp(settings)
         self.K_end = self._end_gain()
         self.step_times_s = []
         self.reset()
 
     # -- construction -------------------------------------------------------------
-    def _shooting(self, model) -> ca.Function:
-        """``(x, u) -> (x+, dx+/dx, dx+/du)``: RK4 over the sample in ``substeps`` steps."""
-        n, nx = self._n, self._nx
-        x, u = ca.SX.sym("x", nx), ca.SX.sym("u")      # scalar expressions: no linear-solver call inside
-        Mf, cf = model.mass_matrix_function, model.bias_function
+    def _rk4(self, model, x, u, p):
+        """The state after one sample from ``x`` under ``u``: RK4 in ``substeps`` steps, the model's
+        parameter vector ``p`` (a symbol, or its numbers)."""
+        n = self._n
+        M, c = model.parametric.mass_matrix, model.parametric.bias
         B = np.zeros(n)
         B[0] = 1.0
 
         def f(z):
             q, v = z[:n], z[n:]
-            return ca.vertcat(v, ca.solve(Mf(q, v), B * u - cf(q, v)))
+            return ca.vertcat(v, ca.solve(M(q, v, p), B * u - c(q, v, p)))
 
         h = self.dt / self.substeps
         z = x
@@ -205,7 +241,99 @@ class NMPC(Controller):
             k3 = f(z + h / 2 * k2)
             k4 = f(z + h * k3)
             z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return z
+
+    def _shooting(self, model) -> ca.Function:
+        """``(x, u) -> (x+, dx+/dx, dx+/du)``: RK4 over the sample in ``substeps`` steps."""
+        x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")      # scalar expressions: no linear-solver call inside
+        z = self._rk4(model, x, u, ca.DM(model.p))
         return ca.Function("nmpc_shoot", [x, u], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
+
+    def _learning_setup(self, model, s: NMPCSettings) -> None:
+        """The shooting map with the parameter vector as an input, and the payload's estimator
+        (:class:`controllers.payload_estimate.PayloadMomentum`)."""
+        from hubbeam_ctrl.core.compiled import compile_function
+        from hubbeam_ctrl.plant.models import build_model
+
+        from .payload_estimate import PayloadMomentum, payload_table
+        params = self.design.params
+        hi = s.payload_max_kg if s.payload_max_kg is not None else params.m_t + params.rho * params.A * params.L
+        lo = s.payload_min_kg
+        if not lo <= params.m_t <= hi:
+            raise ParameterError(f"payload range {lo:g}..{hi:g} kg must hold the design's payload m_t = "
+                                 f"{params.m_t:g} kg")
+        x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")
+        p = ca.SX.sym("p", model.parametric.n_p)
+        z = self._rk4(model, x, u, p)
+        step = ca.Function("nmpc_shoot_p", [x, u, p], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
+        self._F = compile_function(step, s.backend)
+        table = payload_table(params, self.model_modes, lo, hi)
+        # the balance on every mode the design state carries (the prediction's 2 leave 0.5 % of the
+        # momentum early in Table 1's slew out: a 0.03 kg bias)
+        whole = build_model("foam", params.replace(n_transverse=self.design.n_modes), axial="quasi-static")
+        peak_rate = float(np.max(np.abs(self.reference.theta_dot))) or 1.0
+        noise = s.payload_momentum_error * params.total_inertia * peak_rate
+        self.payload = PayloadMomentum(whole.parametric.momentum,
+                                       payload_table(params, self.design.n_modes, lo, hi, points=2),
+                                       params.m_t, self.dt, noise)
+        self._table = table
+        # the reference follows the estimate: the task planned again on payloads over the range
+        # (controllers.planning.replanned), interpolated at the estimate (a reference that is not
+        # a reference that is not a plan on the design model stays as it is); the terminal cost and the
+        # gain on the modes the prediction leaves out are the LQR's of each payload's design model
+        from .base import DesignModel
+        from .lqr import LQR, LQRSettings
+        masses = np.linspace(lo, hi, REFERENCE_POINTS)
+        common = {f: getattr(s, f) for f in LQRSettings.__dataclass_fields__ if hasattr(s, f)}
+        from .scaling import first_mode
+        w1 = first_mode(self.design)
+        stage, terminal, residual, refs = [], [], [], []
+        for m in masses:
+            own = params.replace(m_t=float(m))
+            ref = self.reference
+            if ref.plan is not None:
+                from .planning import replanned
+                ref = replanned(ref, own)
+                X, tff = self._tabulate(ref, s.elastic_reference, s.horizon + 1)
+                refs.append((X, tff))
+            design = DesignModel.build(own, 0.0, self.dt, self.design.n_modes)
+            # the rate weights follow the first mode, as Bryson's rule of the task sets them
+            # (controllers.scaling.bryson_weights: a rate error of the allowed deflection times w1)
+            scale = (w1 / first_mode(design)) ** 2
+            wts = s.weights.replace(tip_rate=s.weights.tip_rate * scale,
+                                    modal_rate=None if s.weights.modal_rate is None else s.weights.modal_rate * scale)
+            lqr = LQR(design, LQRSettings(**{**common, "weights": wts}), ref)
+            Q = np.asarray(wts.matrices(design)[0])
+            hd, mm = design.n_x // 2, self.model_modes
+            pick = np.r_[0, 1:1 + mm, hd, hd + 1:hd + 1 + mm]
+            stage.append(Q[np.ix_(pick, pick)])
+            terminal.append(np.asarray(lqr.P)[np.ix_(self._pick, self._pick)])
+            k_res = lqr.K.copy()
+            k_res[self._pick] = 0.0
+            residual.append(k_res)
+        self._grid = (masses, np.array(terminal), np.array(residual),
+                      (np.array([X for X, _ in refs]), np.array([t for _, t in refs])) if refs else None,
+                      np.array(stage))
+
+    def _grid_at(self, mass: float) -> tuple:
+        """``(a, w)``: ``mass`` [kg] lies at ``(1 - w)`` of grid point ``a`` and ``w`` of ``a + 1``."""
+        masses = self._grid[0]
+        m = float(np.clip(mass, masses[0], masses[-1]))
+        a = int(np.clip(np.searchsorted(masses, m, side="right") - 1, 0, len(masses) - 2))
+        return a, (m - masses[a]) / (masses[a + 1] - masses[a])
+
+    def _reference_window(self, k: int, N: int) -> tuple:
+        """``(x_ref, u_ff)`` on the predicted states over samples ``k .. k + N``: the table's, and with
+        a learnt payload moved by what the estimate changes in the reference's quasi-static motion."""
+        xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
+        ur = np.array([self._reference_at(k + j)[1] * self._ff for j in range(N)])
+        if self.payload is not None and self._grid[3] is not None:
+            a, w = self._grid_at(self.payload.mass)
+            X, T = self._grid[3]
+            idx = np.minimum(np.arange(k, k + N + 1), X.shape[1] - 1)
+            xr = ((1.0 - w) * X[a, idx] + w * X[a + 1, idx])[:, self._pick]
+            ur = self._ff * ((1.0 - w) * T[a, idx[:N]] + w * T[a + 1, idx[:N]])
+        return xr, ur
 
     def _build_qp(self, s: NMPCSettings) -> None:
         """The per-stage weights of the condensed QP and the stages' map (built once)."""
@@ -220,6 +348,23 @@ class NMPC(Controller):
         self._X = X.T.copy()                                  # (nx, N + 1)
         self._U = np.array([self._reference_at(k)[1] * self._ff for k in range(N)], dtype=float)
         self._k_last = None
+        self._u_last = None                 # the command applied at the previous sample [N m]
+        if self.payload is not None:            # the design's payload until the first estimate
+            self.payload.reset()
+            self._W = [self._Q] * self.settings.horizon + [self._Pt]
+            self._K_res = self._K_res0.copy()
+
+    def applied(self, tau: float) -> None:
+        """Record the command the plant got at this sample [N m] (what the payload's estimator
+        predicts with).
+
+        Parameters
+        ----------
+        tau : float
+            The command applied [N m].
+        """
+        if self._u_last is not None:
+            self._u_last = float(tau)
 
     # -- the step ------------------------------------------------------------------
     def __call__(self, t: float, y) -> float:
@@ -228,15 +373,24 @@ class NMPC(Controller):
         s = self.settings
         N, nx = s.horizon, self._nx
         k = int(round(t / self.dt))
+        consecutive = self._k_last is not None and k == self._k_last + 1
         if self._k_last is not None and k > self._k_last:        # shift the previous solution
             shift = min(k - self._k_last, N)
             self._X = np.hstack([self._X[:, shift:], np.repeat(self._X[:, -1:], shift, axis=1)])
             self._U = np.r_[self._U[shift:], np.repeat(self._U[-1:], shift)]
         self._k_last = k
         x_meas = np.asarray(y, dtype=float)[self._pick]
-        xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
-        ur = np.array([self._reference_at(k + j)[1] * self._ff for j in range(N)])
-        Xn, Ax, Bu = (np.asarray(M) for M in self._F_map(self._X[:, :N], self._U[None, :]))
+        extra = ()
+        if self.payload is not None:                 # the payload from the momentum the last command gave
+            self.payload.update(y, self._u_last if consecutive else None)
+            extra = (self._table.at(self.payload.mass)[0],)
+            a, w = self._grid_at(self.payload.mass)
+            Q = (1.0 - w) * self._grid[4][a] + w * self._grid[4][a + 1]
+            self._W[:-1] = [Q] * N
+            self._W[-1] = (1.0 - w) * self._grid[1][a] + w * self._grid[1][a + 1]
+            self._K_res = (1.0 - w) * self._grid[2][a] + w * self._grid[2][a + 1]
+        xr, ur = self._reference_window(k, N)
+        Xn, Ax, Bu = (np.asarray(M) for M in self._F_map(self._X[:, :N], self._U[None, :], *extra))
         # condense: dX_j = S_j dU + c_j, with dX_0 = x_meas - X_0 and the stages' defects
         S = np.zeros((nx, N))
         c = x_meas - self._X[:, 0]
@@ -266,8 +420,15 @@ class NMPC(Controller):
                 c = Aj @ c + Bj * dU[j] + Xn[:, j] - self._X[:, j + 1]
                 X[:, j + 1] = self._X[:, j + 1] + c
             self._X, self._U = X, U
-        e = np.asarray(y, dtype=float) - self._reference_at(k)[0]
+        if self.payload is not None and self._grid[3] is not None:     # the estimate's own plan
+            a, w = self._grid_at(self.payload.mass)
+            X = self._grid[3][0]
+            j = min(k, X.shape[1] - 1)
+            e = np.asarray(y, dtype=float) - ((1.0 - w) * X[a, j] + w * X[a + 1, j])
+        else:
+            e = np.asarray(y, dtype=float) - self._reference_at(k)[0]
         u0 = saturate(float(self._U[0] - self._K_res @ e), self.tau_max)
+        self._u_last = u0
         self.step_times_s.append(time.perf_counter() - start)
         return u0
 
@@ -278,7 +439,8 @@ class NMPC(Controller):
         N, nx = self.settings.horizon, self._nx
         x_end = np.asarray(self._xref[-1], dtype=float)[self._pick].copy()
         x_end[self._n:] = 0.0
-        _, A, B = (np.asarray(M) for M in self._F(x_end, 0.0))
+        nominal = (self._table.at(self.design.params.m_t)[0],) if self.payload is not None else ()
+        _, A, B = (np.asarray(M) for M in self._F(x_end, 0.0, *nominal))
         B = B.ravel()
         S, Phi = np.zeros((nx, N)), np.eye(nx)
         H, G = self._R * np.eye(N), np.zeros((N, nx))
