@@ -166,7 +166,7 @@ class NMPC(Controller):
         The LQR gain and Riccati solution of the same weights on the design model (``P``, on the
         predicted states, is the terminal cost).
     K_end : ndarray
-        The step's linear law at the end point (:meth:`feedback_matrices`).
+        The step's linear law at the end point (:meth:`feedback_matrices`), at the design's payload.
     step_times_s : list of float
         Wall time of each step [s].
     """
@@ -439,8 +439,8 @@ class NMPC(Controller):
         N, nx = self.settings.horizon, self._nx
         x_end = np.asarray(self._xref[-1], dtype=float)[self._pick].copy()
         x_end[self._n:] = 0.0
-        nominal = (self._table.at(self.design.params.m_t)[0],) if self.payload is not None else ()
-        _, A, B = (np.asarray(M) for M in self._F(x_end, 0.0, *nominal))
+        estimate = (self._table.at(self.payload.mass)[0],) if self.payload is not None else ()
+        _, A, B = (np.asarray(M) for M in self._F(x_end, 0.0, *estimate))
         B = B.ravel()
         S, Phi = np.zeros((nx, N)), np.eye(nx)
         H, G = self._R * np.eye(N), np.zeros((N, nx))
@@ -470,7 +470,10 @@ class NMPC(Controller):
     def feedback_matrices(self) -> tuple:
         """The NMPC's linear form at the end point (:attr:`K_end`: its step's unconstrained law there,
         the dynamics linearised at rest on the target), a static state feedback ``u = -K e`` on the
-        design model's states; the modes it does not predict get no gain (what the certificate closes)."""
+        design model's states; the modes it does not predict get no gain (what the certificate closes).
+        A learning NMPC's law is at its current estimate of the payload (after a run: the one it
+        learnt), with that payload's weights and residual-mode gain."""
         n = self.design.n_x
-        return (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((1, 0)), -self.K_end[None, :], [],
+        K = self._end_gain() if self.payload is not None else self.K_end
+        return (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((1, 0)), -K[None, :], [],
                 list(self.design.state_names))
