@@ -2,7 +2,8 @@
 time-optimal slew) with the NMPC (controllers.nmpc), the linear MPC and LQR, and the NMPC's step time.
 
 Prints one JSON object (``--out FILE`` also writes it). Run:
-``.venv/bin/python benchmarks/bench_nmpc.py --out benchmarks/results/bench_nmpc.json``.
+``.venv/bin/python benchmarks/bench_nmpc.py --out benchmarks/results/bench_nmpc.json`` (and
+``--backend compiled --out benchmarks/results/bench_nmpc_compiled.json``: the step as its generated C).
 
 Each case is ``compare`` on FOAM (the evaluation plant's modes, every option default) with the
 task ``Slew(pi/2, factor * T*)``. Reported per controller: verdict, settling time after t_f in
@@ -38,16 +39,17 @@ ANGLES = {"table1": 1.0, "lab": math.pi / 2}
 CONTROLLERS = ("lqr", "mpc", "nmpc")
 
 
-def case(beam: str, factor: float, t_opt: float, horizon: int | None = None) -> dict:
+def case(beam: str, factor: float, t_opt: float, horizon: int | None = None, backend: str = "vm") -> dict:
     params = BEAMS[beam]
     task = Slew(ANGLES[beam], factor * t_opt)
     t0 = time.perf_counter()
     settings = None
-    if horizon is not None:           # the NMPC's horizon other than its default
+    if horizon is not None or backend != "vm":      # the NMPC's horizon or backend other than its default
         from controllers import NMPCSettings
         from hubbeam_ctrl.study.scenarios import make_scenario
         sc = make_scenario(task, params=params, t_end=None)
-        settings = {"nmpc": NMPCSettings.for_scenario(sc).replace(horizon=horizon)}
+        own = NMPCSettings.for_scenario(sc).replace(backend=backend)
+        settings = {"nmpc": own if horizon is None else own.replace(horizon=horizon)}
     c = compare("foam", task, CONTROLLERS, params=params, settings=settings)
     period = 2 * math.pi / first_mode(c.controllers["lqr"].design)
     out = {"t_f_s": task.duration, "first_period_s": period, "wall_s": time.perf_counter() - t0,
@@ -92,15 +94,17 @@ def main(argv=None) -> None:
     ap.add_argument("--beams", default="table1,lab")
     ap.add_argument("--factors", default="1.1,1.2,1.3")
     ap.add_argument("--horizon", type=int, default=None, help="the NMPC's horizon [samples] (default its own)")
+    ap.add_argument("--backend", default="vm", choices=("vm", "compiled"),
+                    help="the NMPC's step on CasADi's virtual machine or as its generated C")
     ap.add_argument("--out", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
-    doc = {"horizon": args.horizon, "beams": {}}
+    doc = {"horizon": args.horizon, "backend": args.backend, "beams": {}}
     for beam in args.beams.split(","):
         t_opt = time_optimal_slew(BEAMS[beam], ANGLES[beam]).duration_s
         doc["beams"][beam] = {"t_opt_s": t_opt, "factors": {}}
         for f in (float(x) for x in args.factors.split(",")):
             try:
-                doc["beams"][beam]["factors"][f"{f:g}"] = case(beam, f, t_opt, args.horizon)
+                doc["beams"][beam]["factors"][f"{f:g}"] = case(beam, f, t_opt, args.horizon, args.backend)
             except ParameterError as exc:      # a task the Eq. 44 baseline cannot do: said, not run
                 doc["beams"][beam]["factors"][f"{f:g}"] = {"not_run": str(exc)}
     emit(doc, args.out)

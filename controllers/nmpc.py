@@ -18,9 +18,10 @@ problem over ``horizon`` samples:
   NMPC's linear form at the end point is that LQR: :meth:`NMPC.feedback_matrices`, which the
   certificate closes);
 * the QP in the step's deltas (dynamics linearised at the shifted previous solution, the
-  torque bounds ``|u| <= tau_max`` as simple bounds) is solved by a QP plugin of CasADi
-  (:data:`QP_PLUGINS`; OSQP by default, linked through CasADi, not copied), warm-started by
-  the shift.
+  torque bounds ``|u| <= tau_max`` as simple bounds) is condensed and solved by CasADi's
+  active-set ``qrqp`` (:data:`QP_PLUGINS`) inside one CasADi function of the whole step
+  (:func:`rti_step_function`), warm-started by the shift: the Python step calls it, and its
+  generated C (:func:`hubbeam_ctrl.deploy.nmpc_c.nmpc_to_c`) is the same step.
 
 **Unknown payload** (``learn_payload``): each sample the payload is fitted to the hub's
 angular-momentum balance (:class:`controllers.payload_estimate.PayloadMomentum`: the torque's
@@ -49,10 +50,10 @@ from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
 
-__all__ = ["NMPCSettings", "NMPC", "QP_PLUGINS", "NMPC_MODES", "rk4_substeps"]
+__all__ = ["NMPCSettings", "NMPC", "QP_PLUGINS", "NMPC_MODES", "rk4_substeps", "rti_step_function"]
 
 #: Solvers of the step's condensed QP.
-QP_PLUGINS = ("daqp",)
+QP_PLUGINS = ("qrqp",)
 #: Bending modes of the prediction model by default (:attr:`NMPCSettings.modes`).
 NMPC_MODES = 2
 #: RK4 keeps ``|lambda h|`` below this for the fastest modelled mode (its stability limit on the
@@ -77,9 +78,9 @@ class NMPCSettings(LQSettings):
                                    doc="RK4 substeps per sample; None: enough for the fastest modelled mode "
                                        "(rk4_substeps).")
     backend: str = setting("vm", choices=("auto", "compiled", "vm"),
-                           doc="The shooting map on CasADi's virtual machine (vm, the default: no build) or as "
-                               "generated C (auto/compiled: when a C compiler is there; built once and cached, "
-                               "minutes for a large model).")
+                           doc="The step (rti_step_function) on CasADi's virtual machine (vm, the default: no "
+                               "build) or as its generated C (auto/compiled: when a C compiler is there; built "
+                               "once and cached: 30 s for Table 1's 2-mode model).")
     @classmethod
     def for_scenario(cls, scenario, **options) -> "NMPCSettings":
         """The task's settings (as LQR's), keeping the NMPC's own horizon and QP solver: the study-wide
@@ -98,8 +99,9 @@ class NMPCSettings(LQSettings):
         options = {k: v for k, v in options.items() if k not in ("horizon", "solver")}
         return super().for_scenario(scenario, **options)
 
-    qp_solver: str = setting("daqp", choices=QP_PLUGINS, doc="Solver of the step's condensed QP (DAQP, linked: "
-                                                               "the daqp package).")
+    qp_solver: str = setting("qrqp", choices=QP_PLUGINS,
+                             doc="Solver of the step's condensed box QP: CasADi's active-set qrqp, part of the "
+                                 "step's CasADi function, so that the generated C carries it.")
     learn_payload: bool = setting(False, doc="Estimate the payload online from the hub's momentum balance "
                                              "(controllers.payload_estimate.PayloadMomentum), predict with it and "
                                              "follow the task planned for it; payload_min_kg..payload_max_kg.")
@@ -149,6 +151,65 @@ def _model_modes(design: DesignModel, modes: int | None) -> tuple:
     return modes, w[:modes]
 
 
+def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, tau_max: float,
+                      parametric: bool = False) -> ca.Function:
+    """One real-time iteration of the NMPC as a CasADi function (its C is the generated step).
+
+    ``(x, X, U, XR, UR, Q, P[, p]) -> (X+, U+)``: the shooting map linearised along the
+    previous plan ``(X, U)`` (``nx x N+1``, ``1 x N``), the condensed QP in the moves' deltas
+    (cost ``sum |x_j - XR_j|^2_Q + r (u_j - UR_j)^2 + |x_N - XR_N|^2_P``, dynamics with the
+    stages' defects, ``|u| <= tau_max``) solved by CasADi's active-set ``qrqp``, and the new plan
+    rolled out along the linearisation from the measured state ``x``.
+
+    Parameters
+    ----------
+    shooting : casadi.Function
+        ``(x, u[, p]) -> (x+, dx+/dx, dx+/du)`` over one sample.
+    horizon : int
+        ``N`` [samples].
+    nx : int
+        States of the prediction.
+    r : float
+        Weight of the command [1/(N m)^2].
+    tau_max : float
+        Command limit [N m].
+    parametric : bool
+        The shooting map takes the model's parameter vector ``p`` (a learnt payload).
+
+    Returns
+    -------
+    casadi.Function
+    """
+    N = int(horizon)
+    x, X, U = ca.MX.sym("x", nx), ca.MX.sym("X", nx, N + 1), ca.MX.sym("U", 1, N)
+    XR, UR = ca.MX.sym("XR", nx, N + 1), ca.MX.sym("UR", 1, N)
+    Q, P = ca.MX.sym("Q", nx, nx), ca.MX.sym("P", nx, nx)
+    extra = [ca.MX.sym("p", shooting.size1_in(2))] if parametric else []
+    Xn, Ax, Bu = shooting.map(N)(X[:, :N], U, *extra)
+    eye = ca.DM.eye(N)
+    S, c = ca.MX.zeros(nx, N), x - X[:, 0]        # dX_j = S_j dU + c_j, dX_0 the measured offset
+    H, g = r * ca.MX.eye(N), r * (U - UR).T
+    for j in range(N + 1):
+        if j > 0:
+            WS = ca.mtimes(P if j == N else Q, S)
+            H = H + ca.mtimes(S.T, WS)
+            g = g + ca.mtimes(WS.T, X[:, j] - XR[:, j] + c)
+        if j < N:
+            A = Ax[:, nx * j:nx * (j + 1)]
+            S = ca.mtimes(A, S) + ca.mtimes(Bu[:, j], eye[j, :])
+            c = ca.mtimes(A, c) + Xn[:, j] - X[:, j + 1]
+    qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity(0, N)},
+                  {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False})
+    dU = qp(h=0.5 * (H + H.T), g=g, lbx=-tau_max - U.T, ubx=tau_max - U.T)["x"]
+    c = x - X[:, 0]
+    cols = [x]
+    for j in range(N):                         # the new plan, rolled out along the linearisation
+        c = ca.mtimes(Ax[:, nx * j:nx * (j + 1)], c) + Bu[:, j] * dU[j] + Xn[:, j] - X[:, j + 1]
+        cols.append(X[:, j + 1] + c)
+    return ca.Function("nmpc_rti", [x, X, U, XR, UR, Q, P, *extra], [ca.horzcat(*cols), U + dU.T],
+                       ["x", "X", "U", "XR", "UR", "Q", "P", *(["p"] if parametric else [])], ["X_next", "U_next"])
+
+
 class NMPC(Controller):
     """Real-time-iteration NMPC on the reduced FOAM of the design (see the module docstring).
 
@@ -169,6 +230,11 @@ class NMPC(Controller):
         The step's linear law at the end point (:meth:`feedback_matrices`), at the design's payload.
     step_times_s : list of float
         Wall time of each step [s].
+    symbolic_step, step_function : casadi.Function
+        The step (:func:`rti_step_function`) as built, and as called (its generated C with
+        ``backend="compiled"``).
+    prediction_states : ndarray of int
+        The design state's entries the prediction model holds, in its order.
     """
 
     measurement = "state"
@@ -198,7 +264,7 @@ class NMPC(Controller):
         self._n, self._nx = n, 2 * n
         # the (residual) design state's rows this model uses: theta, q2_1..m, theta_dot, q2_dot_1..m
         h = self.design.n_x // 2
-        self._pick = np.r_[0, 1:1 + m, h, h + 1:h + 1 + m]
+        self._pick = self.prediction_states = np.r_[0, 1:1 + m, h, h + 1:h + 1 + m]
         # the LQR's gain on the states the prediction leaves out (the residual modes): added to the move
         self._K_res = self.K.copy()
         self._K_res[self._pick] = 0.0
@@ -209,12 +275,11 @@ class NMPC(Controller):
         self._Q = Q[np.ix_(pick_d, pick_d)]
         self._R = float(np.asarray(R).reshape(-1)[0])
         self._Pt = np.asarray(self.P)[np.ix_(self._pick, self._pick)]
-        from hubbeam_ctrl.core.compiled import compile_function
         self.payload = None
         if settings.learn_payload:
             self._learning_setup(model, settings)
         else:
-            self._F = compile_function(self._shooting(model), settings.backend)      # C when a compiler is there
+            self._F = self._shooting(model)
         self._build_qp(settings)
         self.K_end = self._end_gain()
         self.step_times_s = []
@@ -252,7 +317,6 @@ class NMPC(Controller):
     def _learning_setup(self, model, s: NMPCSettings) -> None:
         """The shooting map with the parameter vector as an input, and the payload's estimator
         (:class:`controllers.payload_estimate.PayloadMomentum`)."""
-        from hubbeam_ctrl.core.compiled import compile_function
         from hubbeam_ctrl.plant.models import build_model
 
         from .payload_estimate import PayloadMomentum, payload_table
@@ -266,7 +330,7 @@ class NMPC(Controller):
         p = ca.SX.sym("p", model.parametric.n_p)
         z = self._rk4(model, x, u, p)
         step = ca.Function("nmpc_shoot_p", [x, u, p], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
-        self._F = compile_function(step, s.backend)
+        self._F = step
         table = payload_table(params, self.model_modes, lo, hi)
         # the balance on every mode the design state carries (the prediction's 2 leave 0.5 % of the
         # momentum early in Table 1's slew out: a 0.03 kg bias)
@@ -336,10 +400,12 @@ class NMPC(Controller):
         return xr, ur
 
     def _build_qp(self, s: NMPCSettings) -> None:
-        """The per-stage weights of the condensed QP and the stages' map (built once)."""
-        N = s.horizon
-        self._W = [self._Q] * N + [self._Pt]          # stage weights on x_0 .. x_N
-        self._F_map = self._F.map(N)
+        """The step as one CasADi function (:attr:`step_function`, built once)."""
+        self._W = [self._Q] * s.horizon + [self._Pt]          # stage weights on x_0 .. x_N
+        from hubbeam_ctrl.core.compiled import compile_function
+        self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.tau_max,
+                                               parametric=self.payload is not None)
+        self.step_function = compile_function(self.symbolic_step, s.backend)    # C when asked and a compiler is there
 
     def reset(self) -> None:
         """Start from the reference: the previous solution is the planned motion."""
@@ -371,7 +437,7 @@ class NMPC(Controller):
         """Hub torque [N m] at time ``t`` [s] from the design-ordered state ``y``."""
         start = time.perf_counter()
         s = self.settings
-        N, nx = s.horizon, self._nx
+        N = s.horizon
         k = int(round(t / self.dt))
         consecutive = self._k_last is not None and k == self._k_last + 1
         if self._k_last is not None and k > self._k_last:        # shift the previous solution
@@ -390,36 +456,11 @@ class NMPC(Controller):
             self._W[-1] = (1.0 - w) * self._grid[1][a] + w * self._grid[1][a + 1]
             self._K_res = (1.0 - w) * self._grid[2][a] + w * self._grid[2][a + 1]
         xr, ur = self._reference_window(k, N)
-        Xn, Ax, Bu = (np.asarray(M) for M in self._F_map(self._X[:, :N], self._U[None, :], *extra))
-        # condense: dX_j = S_j dU + c_j, with dX_0 = x_meas - X_0 and the stages' defects
-        S = np.zeros((nx, N))
-        c = x_meas - self._X[:, 0]
-        H = self._R * np.eye(N)
-        g = self._R * (self._U - ur)
-        for j in range(N + 1):
-            z = self._X[:, j] - xr[j] + c
-            if j > 0:
-                WS = self._W[j] @ S
-                H += S.T @ WS
-                g += WS.T @ z
-            if j < N:
-                Aj, Bj = Ax[:, nx * j:nx * (j + 1)], Bu[:, j]
-                S = Aj @ S
-                S[:, j] += Bj
-                c = Aj @ c + Xn[:, j] - self._X[:, j + 1]
-        dU = self._box_qp(0.5 * (H + H.T), g, -self.tau_max - self._U, self.tau_max - self._U)
-        if dU is not None:
-            U = self._U + dU
-            X = np.empty_like(self._X)             # the new plan: the stages rolled out with U (one more pass)
-            X[:, 0] = x_meas
-            S = np.zeros((nx, N))
-            c = x_meas - self._X[:, 0]
-            X[:, 0] = self._X[:, 0] + c
-            for j in range(N):
-                Aj, Bj = Ax[:, nx * j:nx * (j + 1)], Bu[:, j]
-                c = Aj @ c + Bj * dU[j] + Xn[:, j] - self._X[:, j + 1]
-                X[:, j + 1] = self._X[:, j + 1] + c
-            self._X, self._U = X, U
+        X, U = (np.asarray(a) for a in self.step_function(x_meas, self._X, self._U[None, :], xr.T, ur[None, :],
+                                                            self._W[0], self._W[-1], *extra))
+        self.qp_status = int(np.all(np.isfinite(U)) and np.all(np.isfinite(X)))
+        if self.qp_status:                             # else keep the shifted plan
+            self._X, self._U = X, U.ravel()
         if self.payload is not None and self._grid[3] is not None:     # the estimate's own plan
             a, w = self._grid_at(self.payload.mass)
             X = self._grid[3][0]
@@ -456,16 +497,6 @@ class NMPC(Controller):
         K = self._K_res.copy()
         K[self._pick] = k_pick
         return K
-
-    def _box_qp(self, H, g, lo, hi):
-        """``min 1/2 dU' H dU + g' dU`` within ``lo <= dU <= hi`` (DAQP, dense); None if it fails."""
-        import daqp
-        n = len(g)
-        x, _, flag, _ = daqp.solve(np.ascontiguousarray(H), np.ascontiguousarray(g), np.zeros((0, n)),
-                                   np.ascontiguousarray(hi), np.ascontiguousarray(lo), np.zeros(n, dtype=np.int32))
-        self.qp_status = int(flag)
-        x = np.asarray(x, dtype=float)
-        return x if flag > 0 and np.all(np.isfinite(x)) else None
 
     def feedback_matrices(self) -> tuple:
         """The NMPC's linear form at the end point (:attr:`K_end`: its step's unconstrained law there,
