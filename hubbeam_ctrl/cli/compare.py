@@ -339,6 +339,7 @@ def run(args) -> int:
     """
     sink = stdout(args)
     from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.compare_values import compare_arguments
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     plan = compare_plan(args)
     if plan.payload:
@@ -346,7 +347,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     opts = plan.options
     names, rig, out = opts["controllers"], opts.get("rig"), plan.out
-    comparison = compare(**opts)
+    comparison = compare(**compare_arguments(**opts))
     if plan.ladder:
         from hubbeam_ctrl.study.ladder import rig_ladder
         t_ladder = time.perf_counter()

@@ -14,6 +14,7 @@ import math
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Damping, Drive, Friction, Rig, Sensors, Timing
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import compare_arguments
 
 __all__ = ["LADDER_STEPS", "ladder_rigs", "rig_ladder"]
 
@@ -82,7 +83,7 @@ def rig_ladder(rig: Rig, scenario="slew", controllers=None, progress=None, **opt
     for label, step_rig in ladder_rigs(rig):
         if progress is not None:
             progress(label)
-        c = compare(plant, scenario, controllers, rig=step_rig, t_end=t_end, **options)
+        c = compare(**compare_arguments(plant, scenario, controllers, rig=step_rig, t_end=t_end, **options))
         t_end = c.scenario.t_end if t_end is None else t_end
         for name, m in c.metrics.items():
             res = c.results[name]

@@ -131,6 +131,7 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
     """
     from controllers import DesignModel
     from hubbeam_ctrl.study.compare import _parse_controllers, compare
+    from hubbeam_ctrl.study.compare_values import compare_arguments
     from hubbeam_ctrl.study.scenarios import make_scenario
     params = params if params is not None else Params()
     lo, hi = check_payload_range(payload_range, params.m_t)
@@ -166,8 +167,9 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
     comparisons, clock = {}, time.perf_counter()
     for m in masses:                                 # --max-wall bounds the whole range, not each payload
         run = dict(options, sim_settings=_remaining(options.get("sim_settings"), time.perf_counter() - clock))
-        comparisons[m] = compare(plant, scenario, names, params=params, plant_params=plant_base.replace(m_t=m),
-                                 designs=designs or None, **run)
+        comparisons[m] = compare(**compare_arguments(plant, scenario, names, params=params,
+                                                     plant_params=plant_base.replace(m_t=m),
+                                                     designs=designs or None, **run))
     return PayloadComparison((lo, hi), masses, comparisons, designs)
 
 
