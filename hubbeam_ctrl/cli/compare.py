@@ -197,7 +197,8 @@ class ComparePlan:
     Attributes
     ----------
     options : dict
-        Keyword arguments of :func:`hubbeam_ctrl.study.compare.compare` or, with
+        The options by name, as :func:`hubbeam_ctrl.study.compare_values.compare_arguments`
+        routes them into :func:`hubbeam_ctrl.study.compare.compare`'s values or, with
         ``--payload-range``, of :func:`hubbeam_ctrl.study.payload.payload_comparison` (the same
         keywords, plus ``payload_range``).
     payload : bool

@@ -138,7 +138,7 @@ class Comparison:
     notes : list of str
         One line each for the report's notes (e.g. a shaped slew longer than ``t_f``).
     check_plant : EvaluationPlant or None
-        The second plant of ``compare(check_plant=...)`` (same parameters and modes).
+        The second plant of ``PlantChoice(check_plant=...)`` of ``compare`` (same parameters and modes).
     check_results, check_metrics : dict
         Controller name -> its result and metrics on ``check_plant`` (empty without one).
     robust : dict
@@ -423,8 +423,8 @@ def _reference(sc: Scenario, kind: str, rig):
     return optimal_reference(opt, sc.dt, sc.t_end)
 
 
-#: Controllers that learn the payload with ``compare(payload_learning=...)`` (state feedback, and the
-#: LQG from its filter's estimate).
+#: Controllers that learn the payload with ``PayloadChoice(payload_learning=...)`` of ``compare`` (state
+#: feedback, and the LQG from its filter's estimate).
 LEARNING_CONTROLLERS = ("lqr", "mpc", "lqg")
 
 

@@ -329,5 +329,6 @@ def as_rig(rig) -> tuple:
         return rig, None
     if isinstance(rig, Params):
         return None, rig
+    hint = "; the plant is PlantChoice(plant=...) of CompareSettings" if isinstance(rig, str) else ""
     raise ParameterError(f"rig must be a Rig (hubbeam_ctrl.plant.rig.load_rig), a Params (the beam alone) or None, "
-                         f"got {type(rig).__name__}")
+                         f"got {type(rig).__name__}{hint}")

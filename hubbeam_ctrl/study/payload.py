@@ -116,7 +116,8 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
     masses : sequence of float, optional
         Plant payloads [kg] (default ``m_min``, nominal, ``m_max``), each in the range.
     **options
-        Keyword arguments of :func:`~hubbeam_ctrl.study.compare.compare` (those ``hubbeam
+        Options of :func:`~hubbeam_ctrl.study.compare.compare` by name
+        (:func:`~hubbeam_ctrl.study.compare_values.compare_arguments`; those ``hubbeam
         compare`` gives, :func:`hubbeam_ctrl.cli.compare.compare_plan`). ``plant_params``: the
         plant's beam (damping, stiffness...; default ``params``), its tip mass set to each
         payload. A wall-time limit in ``sim_settings`` bounds the whole range. With
