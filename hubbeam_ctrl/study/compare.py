@@ -58,7 +58,7 @@ from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit
 
-__all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "REFERENCE_KINDS", "Comparison", "compare", "run_compare"]
+__all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
 #: The controllers a comparison runs by default (the built-ins; see :func:`controllers.controller_names`).
 DEFAULT_CONTROLLERS = controller_names(default=True)

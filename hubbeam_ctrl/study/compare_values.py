@@ -54,7 +54,17 @@ def _params_or_none(name: str, value) -> None:
 
 
 def check_schedule(points) -> int:
-    """``points`` if it is a valid number of design spins (1..MAX_SCHEDULE_POINTS), else a one-line refusal."""
+    """``points`` if it is a valid number of design spins, else a one-line refusal naming ``schedule``.
+
+    Parameters
+    ----------
+    points : int
+        Spin rates of a design schedule, 1..MAX_SCHEDULE_POINTS.
+
+    Returns
+    -------
+    int
+    """
     if isinstance(points, bool) or not isinstance(points, int) or not 1 <= points <= MAX_SCHEDULE_POINTS:
         shown = repr(points) if len(repr(points)) <= 40 else repr(points)[:37] + "..."
         raise ParameterError(f"schedule must be an integer >= 1 and <= {MAX_SCHEDULE_POINTS} (number of spin rates; "
@@ -324,7 +334,17 @@ def compare_arguments(plant: str = "foam", scenario="slew", controllers=None, *,
 
 
 def as_rig(rig) -> tuple:
-    """``(rig or None, beam parameters or None)`` of compare's ``rig`` argument."""
+    """``(rig or None, beam parameters or None)`` of compare's ``rig`` argument.
+
+    Parameters
+    ----------
+    rig : Rig or Params or None
+        A rig, the beam alone (SI units), or None (Table 1).
+
+    Returns
+    -------
+    tuple
+    """
     if rig is None or isinstance(rig, Rig):
         return rig, None
     if isinstance(rig, Params):
