@@ -97,7 +97,7 @@ print(f"without integral action: final error {(r.q[-1, 0] - r.theta_ref[-1]) / e
 # added one at a time (`hubbeam compare --rig servo_link` puts this table in its report).
 
 # %%
-rows = rig_ladder(rig, task, "lqg", t_end=2.0)
+rows = rig_ladder(rig, task, "lqg", CompareSettings(run=RunChoice(t_end=2.0)))
 print("\n".join(ladder_lines(rows)))
 
 # %% [markdown]

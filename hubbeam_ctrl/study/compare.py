@@ -48,7 +48,7 @@ from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.bands import with_task_bands
-from hubbeam_ctrl.study.compare_values import REFERENCE_KINDS, CompareSettings, as_rig, check_schedule
+from hubbeam_ctrl.study.compare_values import CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
