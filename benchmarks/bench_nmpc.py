@@ -30,6 +30,7 @@ from hubbeam_ctrl import Params  # noqa: E402
 from hubbeam_ctrl.core.errors import ParameterError  # noqa: E402
 from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.study import Slew, compare  # noqa: E402
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
 
 LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
 BEAMS = {"table1": Params(), "lab": LAB}
@@ -50,7 +51,7 @@ def case(beam: str, factor: float, t_opt: float, horizon: int | None = None, bac
         sc = make_scenario(task, params=params, t_end=None)
         own = NMPCSettings.for_scenario(sc).replace(backend=backend)
         settings = {"nmpc": own if horizon is None else own.replace(horizon=horizon)}
-    c = compare("foam", task, CONTROLLERS, params=params, settings=settings)
+    c = compare(params, task, CONTROLLERS, CompareSettings(design=DesignChoice(settings=settings)))
     period = 2 * math.pi / first_mode(c.controllers["lqr"].design)
     out = {"t_f_s": task.duration, "first_period_s": period, "wall_s": time.perf_counter() - t0,
            "settle_angle_rad": c.scenario.bands["settle_angle"], "controllers": {}}

@@ -33,6 +33,7 @@ from controllers import NMPCSettings  # noqa: E402
 from hubbeam_ctrl import Params  # noqa: E402
 from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.study import Slew, compare  # noqa: E402
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, PlantChoice  # noqa: E402
 from hubbeam_ctrl.study.scenarios import make_scenario  # noqa: E402
 
 #: beam, slew angle [rad], payload range [kg], plants' payloads [kg]; every design at 0.1 kg
@@ -53,8 +54,8 @@ def run(beam: str, learn: bool) -> dict:
     runs = {}
     for m in masses:
         t0 = time.perf_counter()
-        c = compare("foam", task, ["nmpc"], params=params, plant_params=params.replace(m_t=m),
-                    settings={"nmpc": settings})
+        c = compare(params, task, ["nmpc"], CompareSettings(plant=PlantChoice(plant_params=params.replace(m_t=m)),
+                                                             design=DesignChoice(settings={"nmpc": settings})))
         row = _judge(c, params.replace(m_t=m), angle, params.tau_max)["nmpc"]
         ctrl = c.controllers["nmpc"]
         steps = np.asarray(ctrl.step_times_s)

@@ -57,7 +57,7 @@ def test_bad_settings_are_refused_in_one_line():
 def lab_slew():
     """The lab arm, 90 degrees in 1.5 s, on FOAM with the evaluation plant's modes (8: more than the
     NMPC's 2 predicted and the design's 5: no inverse crime)."""
-    return compare("foam", Slew(math.pi / 2, 1.5), ["openloop", "lqr", "nmpc"], params=LAB)
+    return compare(LAB, Slew(math.pi / 2, 1.5), ["openloop", "lqr", "nmpc"])
 
 
 def test_nmpc_settles_a_slew_on_the_evaluation_plant_within_the_limit(lab_slew):

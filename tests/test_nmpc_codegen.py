@@ -39,12 +39,14 @@ def test_a_slew_with_the_generated_c_step_is_the_python_steps():
     """Software in the loop: the lab arm's slew with the step's generated C (backend "compiled")
     and with CasADi's virtual machine give commands within 1e-8 of the torque limit at every sample."""
     from hubbeam_ctrl.study import Slew, compare
+    from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
     from hubbeam_ctrl.study.scenarios import make_scenario
     task, beam = Slew(math.pi / 2, 1.3), LAB.replace(n_transverse=3)
     own = NMPCSettings.for_scenario(make_scenario(task, params=beam, t_end=None)).replace(horizon=10)
     runs = {}
     for backend in ("vm", "compiled"):
-        c = compare("foam", task, ["nmpc"], params=beam, settings={"nmpc": own.replace(backend=backend)})
+        c = compare(beam, task, ["nmpc"],
+                    CompareSettings(design=DesignChoice(settings={"nmpc": own.replace(backend=backend)})))
         runs[backend] = np.asarray(c.results["nmpc"].tau, dtype=float)
         assert c.metrics["nmpc"]["verdict"] == "settled"
     assert np.max(np.abs(runs["vm"] - runs["compiled"])) <= 1e-8 * LAB.tau_max

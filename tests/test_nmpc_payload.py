@@ -106,11 +106,13 @@ def test_the_learning_nmpc_settles_the_lab_arm_with_twice_the_design_payload():
     from controllers.scaling import first_mode
     from hubbeam_ctrl.limit import time_optimal_slew
     from hubbeam_ctrl.study import Slew, compare
+    from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, PlantChoice
     from hubbeam_ctrl.study.scenarios import make_scenario
     task = Slew(math.pi / 2, 1.5 * time_optimal_slew(LAB.replace(m_t=0.2), math.pi / 2).duration_s)
     s = NMPCSettings.for_scenario(make_scenario(task, params=LAB, t_end=None)).replace(
         learn_payload=True, payload_max_kg=0.2)
-    c = compare("foam", task, ["nmpc"], params=LAB, plant_params=LAB.replace(m_t=0.2), settings={"nmpc": s})
+    c = compare(LAB, task, ["nmpc"], CompareSettings(plant=PlantChoice(plant_params=LAB.replace(m_t=0.2)),
+                                                     design=DesignChoice(settings={"nmpc": s})))
     m, ctrl = c.metrics["nmpc"], c.controllers["nmpc"]
     period = 2 * math.pi / first_mode(ctrl.design)     # the design's (0.1 kg): shorter than the plant's
     assert m["verdict"] == "settled"
