@@ -115,3 +115,17 @@ def test_the_learning_nmpc_settles_the_lab_arm_with_twice_the_design_payload():
     assert abs(ctrl.payload.mass - 0.2) <= 0.002
     assert ctrl.payload.history[int(round(0.1 / c.scenario.dt))] == pytest.approx(0.2, abs=0.004)
     assert max(abs(float(t)) for t in c.results["nmpc"].tau) <= LAB.tau_max * (1 + 1e-9)
+
+
+def test_compare_payload_learning_turns_the_nmpcs_own_learning_on():
+    """``PayloadChoice(payload_learning=...)`` (the CLI's --learn-payload) wraps LQR, LQG and MPC in the
+    re-planning learner; the NMPC's settings get learn_payload over the same range instead."""
+    from controllers.payload_learning import PayloadLearningSettings
+    from hubbeam_ctrl.study.compare import _learning
+    from hubbeam_ctrl.study.scenarios import make_scenario
+    from hubbeam_ctrl.study.tasks import Slew
+    sc = make_scenario(Slew(1.0, 4.6), params=Params(), t_end=None)
+    own = _learning(NMPCSettings(), PayloadLearningSettings(payload_min_kg=0.0, payload_max_kg=0.5), sc, None)
+    assert own.learn_payload and (own.payload_min_kg, own.payload_max_kg) == (0.0, 0.5)
+    with pytest.raises(ParameterError, match="without a rig"):
+        _learning(NMPCSettings(), PayloadLearningSettings(payload_max_kg=0.5), sc, object())
