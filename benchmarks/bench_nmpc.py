@@ -84,9 +84,25 @@ def case(beam: str, factor: float, t_opt: float, horizon: int | None = None, bac
             nmpc = _inner(c.controllers[name])
             steps = np.asarray(nmpc.step_times_s)
             row.update(step_median_s=float(np.median(steps)), step_p99_s=float(np.percentile(steps, 99)),
-                       dt_s=float(c.scenario.dt), model_modes=nmpc.model_modes)
+                       dt_s=float(c.scenario.dt), model_modes=nmpc.model_modes, backend=backend)
+            row.update(_function_times(nmpc))
         out["controllers"][name] = row
     return out
+
+
+def _function_times(nmpc, calls: int = 300) -> dict:
+    """The step function alone (its generated C with ``backend="compiled"``), without the Python
+    around it (reference window, shift, residual gain): median and 99th percentile of ``calls``
+    calls on the controller's last plan [s]."""
+    x = nmpc._X[:, 0]
+    xr, ur = nmpc._reference_window(0, nmpc.settings.horizon)
+    args = (x, nmpc._X, nmpc._U[None, :], xr.T, ur[None, :], nmpc._W[0], nmpc._W[-1])
+    times = []
+    for _ in range(calls):
+        t0 = time.perf_counter()
+        nmpc.step_function(*args)
+        times.append(time.perf_counter() - t0)
+    return {"function_median_s": float(np.median(times)), "function_p99_s": float(np.percentile(times, 99))}
 
 
 def table_lines(doc: dict) -> list:
