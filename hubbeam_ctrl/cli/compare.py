@@ -162,7 +162,9 @@ def add_compare_options(p, controllers: bool = True) -> None:
     p.add_argument("--learn-payload", action="store_true",
                    help="with --payload-range and --scenario slew: LQR, LQG and MPC keep the nominal design and "
                         "learn the payload during the slew (identified at 25 %% and 50 %% of it, the rest "
-                        "re-planned on the nonlinear model within 1 s) instead of a design for the range")
+                        "re-planned on the nonlinear model within 1 s) instead of a design for the range; "
+                        "the NMPC (--controllers nmpc) estimates it every sample from the hub's momentum "
+                        "and predicts with it")
     add_backend_option(p)
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     add_run_options(p)

@@ -344,6 +344,8 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         own = sched
         if name in designs and sched is not None:    # a payload range's design: its schedule at its payload
             own = _design_schedule(dataclasses.replace(sc, params=d.params), schedule, m)
+        if payload_learning is not None and hasattr(st, "learn_payload"):    # learns it itself (NMPC)
+            st = _learning(st, payload_learning, sc, rig)
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=own if spec.scheduled else None)
         if payload_learning is not None and name in LEARNING_CONTROLLERS:
@@ -423,17 +425,22 @@ def _reference(sc: Scenario, kind: str, rig):
     return optimal_reference(opt, sc.dt, sc.t_end)
 
 
-#: Controllers that learn the payload with ``PayloadChoice(payload_learning=...)`` of ``compare`` (state
-#: feedback, and the LQG from its filter's estimate).
+#: Controllers that learn the payload with ``PayloadChoice(payload_learning=...)`` of ``compare`` by
+#: re-planning (state feedback, and the LQG from its filter's estimate); a controller whose settings
+#: have a ``learn_payload`` field (the NMPC) learns it itself over the same range.
 LEARNING_CONTROLLERS = ("lqr", "mpc", "lqg")
 
 
-def _learning(ctrl, settings, sc, rig):
-    """``ctrl`` wrapped in :class:`controllers.payload_learning.PayloadLearning` for the slew ``sc``."""
+def _learning(ctrl_or_settings, settings, sc, rig):
+    """``ctrl`` wrapped in :class:`controllers.payload_learning.PayloadLearning` for the slew ``sc``,
+    or a self-learning controller's settings with the range of ``settings``."""
     from controllers.payload_learning import PayloadLearning
     if rig is not None or not isinstance(sc.task, Slew):
         raise ParameterError("payload_learning works on slew tasks without a rig (a rig's drive and sensors: not yet)")
-    return PayloadLearning(ctrl, settings, float(sc.reference.theta[-1]), sc.t_f, make_controller)
+    if hasattr(ctrl_or_settings, "learn_payload"):
+        return ctrl_or_settings.replace(learn_payload=True, payload_min_kg=settings.payload_min_kg,
+                                        payload_max_kg=settings.payload_max_kg)
+    return PayloadLearning(ctrl_or_settings, settings, float(sc.reference.theta[-1]), sc.t_f, make_controller)
 
 
 def _margins(ctrl):
