@@ -54,7 +54,13 @@ from hubbeam_ctrl import Params  # noqa: E402
 from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.plant.rig import Rig, load_rig  # noqa: E402
 from hubbeam_ctrl.study.compare import compare  # noqa: E402
-from hubbeam_ctrl.study.compare_values import CompareSettings, PayloadChoice, PlantChoice, compare_arguments
+from hubbeam_ctrl.study.compare_values import (  # noqa: E402
+    CompareSettings,
+    DesignChoice,
+    PayloadChoice,
+    PlantChoice,
+    compare_arguments,
+)
 from hubbeam_ctrl.study.payload import payload_comparison  # noqa: E402
 from hubbeam_ctrl.study.tasks import Slew  # noqa: E402
 
@@ -143,8 +149,10 @@ def _payload_case(paper: Params, t_opt: float, factor: float = FACTOR) -> dict:
     payload = {"t_opt_s": t_opt, "t_f_s": t_f, "runs": {}}
     for reference in REFERENCES:
         t0 = time.perf_counter()
-        pc = payload_comparison("foam", Slew(1.0, t_f), "openloop," + NAMES, payload_range=PAYLOAD_RANGE,
-                                masses=PAYLOADS, reference=reference)
+        pc = payload_comparison(None, Slew(1.0, t_f), "openloop," + NAMES,
+                                CompareSettings(design=DesignChoice(reference=reference),
+                                                payload=PayloadChoice(payload_range=PAYLOAD_RANGE)),
+                                masses=PAYLOADS)
         by_mass = {}
         for m, c in pc.comparisons.items():
             c.metrics.pop("openloop", None)

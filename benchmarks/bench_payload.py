@@ -20,7 +20,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from benchjson import emit  # noqa: E402
 
-from hubbeam_ctrl.study import payload_comparison, payload_table  # noqa: E402
+from hubbeam_ctrl.study import CompareSettings, PayloadChoice, payload_comparison, payload_table  # noqa: E402
 
 MASSES = (0.0, 0.1, 0.3, 0.5)
 
@@ -28,7 +28,8 @@ MASSES = (0.0, 0.1, 0.3, 0.5)
 def run() -> dict:
     """All three controllers at the four payloads; rows and whether each meets the target."""
     t0 = time.perf_counter()
-    pc = payload_comparison("foam", "slew", "openloop,lqr,lqg,mpc", payload_range=(0.0, 0.5), masses=MASSES)
+    pc = payload_comparison(None, "slew", "openloop,lqr,lqg,mpc",
+                            CompareSettings(payload=PayloadChoice(payload_range=(0.0, 0.5))), masses=MASSES)
     print(payload_table(pc), file=sys.stderr)
     rows = []
     for r in pc.rows():

@@ -30,7 +30,7 @@ from hubbeam_ctrl.linear.export import load_model, save_model
 from hubbeam_ctrl.linear.statespace import discretize
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.study import Slew, compare, format_table, make_scenario, payload_comparison, payload_table
-from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
+from hubbeam_ctrl.study.compare_values import CompareSettings, PayloadChoice, RunChoice
 
 # %% [markdown]
 # ## 1. The beam, from a TOML file
@@ -127,7 +127,8 @@ for name, c in ctrls.items():
 # report runs the nonlinear plant at those payloads.
 
 # %%
-pc = payload_comparison("foam", task, "openloop,lqr", payload_range=(0.0, 0.1), params=p, t_end=5.0)
+pc = payload_comparison(p, task, "openloop,lqr",
+                        CompareSettings(run=RunChoice(t_end=5.0), payload=PayloadChoice(payload_range=(0.0, 0.1))))
 print(payload_table(pc))
 
 # %% [markdown]

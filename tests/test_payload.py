@@ -19,7 +19,7 @@ from hubbeam_ctrl import Params
 from hubbeam_ctrl.cli.main import main
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study import make_scenario, payload_comparison, payload_table, write_payload_outputs
-from hubbeam_ctrl.study.compare_values import CompareSettings, PlantChoice
+from hubbeam_ctrl.study.compare_values import CompareSettings, PayloadChoice, PlantChoice
 
 
 @pytest.mark.parametrize("rng, words", [
@@ -78,7 +78,8 @@ def test_paper_beam_designed_for_0_to_half_a_kilo(tmp_path, fast_backend):
     payloads with the same conditions.
     """
     names, masses = "openloop,lqr", (0.0, 0.5)
-    pc = payload_comparison("foam", "slew", names, payload_range=(0.0, 0.5), masses=masses)
+    pc = payload_comparison(None, "slew", names, CompareSettings(payload=PayloadChoice(payload_range=(0.0, 0.5))),
+                            masses=masses)
     print()
     print(payload_table(pc))
     rows = {(r["payload_kg"], r["controller"]): r for r in pc.rows()}

@@ -143,13 +143,16 @@ def test_bad_settings_and_controllers_are_refused_in_one_line():
 
 @pytest.mark.slow
 def test_payload_comparison_and_the_cli_learn_the_payload(tmp_path, capsys):
-    """``payload_comparison(payload_learning=...)`` and ``hubbeam compare --learn-payload``: no
+    """``PayloadChoice(payload_learning=...)`` of ``payload_comparison`` and ``hubbeam compare --learn-payload``: no
     range design, the nominal LQR learns 0.5 kg and settles in time; the rows and the report say
     what it learned (the table's design column is the payload it ended with)."""
     from hubbeam_ctrl.cli.main import main
     from hubbeam_ctrl.study import payload_comparison, write_payload_outputs
-    pc = payload_comparison("foam", Slew(1.0, TF), "lqr", payload_range=(0.1, 0.5), masses=(0.5,),
-                            payload_learning=PayloadLearningSettings(real_time=False))
+    pc = payload_comparison(None, Slew(1.0, TF), "lqr",
+                            CompareSettings(payload=PayloadChoice(payload_range=(0.1, 0.5),
+                                                                  payload_learning=PayloadLearningSettings(
+                                                                      real_time=False))),
+                            masses=(0.5,))
     assert pc.designs == {}
     (row,) = pc.rows()
     heavy = Params(m_t=0.5)

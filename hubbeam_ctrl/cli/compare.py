@@ -321,8 +321,9 @@ def compare_plan(args) -> ComparePlan:
 
 
 def _run_payload(plan: ComparePlan, sink) -> int:
+    from hubbeam_ctrl.study.compare_values import compare_arguments
     from hubbeam_ctrl.study.payload import payload_comparison, payload_table, write_payload_outputs
-    pc = payload_comparison(**plan.options)
+    pc = payload_comparison(**compare_arguments(**plan.options))
     write_payload_outputs(pc, plan.out)
     if plan.json:
         print(strict_json(json.loads((plan.out / "payload.json").read_text())), file=sink)

@@ -9,8 +9,10 @@ and judges each run against the open loop on the same plant, with a verdict.
 Example
 -------
 >>> from hubbeam_ctrl.study import payload_comparison, payload_table
->>> pc = payload_comparison("foam", "slew", "openloop,lqr", payload_range=(0.0, 0.5))  # doctest: +SKIP
->>> print(payload_table(pc))                                                           # doctest: +SKIP
+>>> from hubbeam_ctrl.study import CompareSettings, PayloadChoice
+>>> s = CompareSettings(payload=PayloadChoice(payload_range=(0.0, 0.5)))
+>>> pc = payload_comparison(None, "slew", "openloop,lqr", s)     # doctest: +SKIP
+>>> print(payload_table(pc))                                    # doctest: +SKIP
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from controllers.robust import check_payload_range
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.study.compare_values import CompareSettings, PayloadChoice, as_rig
 from hubbeam_ctrl.study.range_design import ROBUST_CONTROLLERS, range_designs  # noqa: F401 (re-exported)
 from hubbeam_ctrl.study.yardstick import task_dt
 
@@ -104,31 +107,32 @@ class PayloadComparison:
         return rows
 
 
-def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *, payload_range,
-                       params: Params | None = None, masses=None, **options) -> PayloadComparison:
+def payload_comparison(rig=None, task="slew", controllers=None, settings: CompareSettings | None = None, *,
+                       masses=None, progress: bool = False) -> PayloadComparison:
     """Design for a payload range and run every controller at ``m_min``, nominal and ``m_max``.
 
     Parameters
     ----------
-    plant : {"foam", "cfoam"}
-    scenario : str or Slew or SpinUp
+    rig : Params, optional
+        The nominal beam (SI units; default Table 1, 0.1 kg at the tip). A rig's drive and
+        sensors are not modelled over a payload range yet.
+    task : str or Slew or SpinUp
+        As for :func:`~hubbeam_ctrl.study.compare.compare`.
     controllers : str or sequence of str, optional
-    payload_range : tuple of float
-        ``(m_min, m_max)`` [kg], ``0 <= m_min <= m_max``, holding ``params.m_t`` (the nominal).
-    params : Params, optional
-        The nominal beam (default Table 1, 0.1 kg at the tip).
+        As for ``compare``.
+    settings : CompareSettings
+        As for ``compare``; ``settings.payload.payload_range`` ``(m_min, m_max)`` [kg],
+        ``0 <= m_min <= m_max``, holding the nominal ``m_t``, is required.
+        ``plant.plant_params``: the plant's beam (damping, stiffness...; default the nominal),
+        its tip mass set to each payload. A wall-time limit in ``run.sim_settings`` bounds the
+        whole range. With ``payload.payload_learning`` (its range set to the payload range) LQR,
+        LQG and MPC keep the nominal design and learn the payload during the slew instead of a
+        design for the range. ``run.dt`` and ``run.t_end`` default to the task's
+        (:func:`~hubbeam_ctrl.study.yardstick.task_dt`, ``task_t_end``).
     masses : sequence of float, optional
         Plant payloads [kg] (default ``m_min``, nominal, ``m_max``), each in the range.
-    **options
-        Options of :func:`~hubbeam_ctrl.study.compare.compare` by name
-        (:func:`~hubbeam_ctrl.study.compare_values.compare_arguments`; those ``hubbeam
-        compare`` gives, :func:`hubbeam_ctrl.cli.compare.compare_plan`). ``plant_params``: the
-        plant's beam (damping, stiffness...; default ``params``), its tip mass set to each
-        payload. A wall-time limit in ``sim_settings`` bounds the whole range. With
-        ``payload_learning`` (a :class:`controllers.payload_learning.PayloadLearningSettings`,
-        its range set to ``payload_range``) LQR, LQG and MPC keep the nominal design and learn
-        the payload during the slew instead of a design for the range. ``dt`` and ``t_end``
-        default to the task's (:func:`~hubbeam_ctrl.study.yardstick.task_dt`, ``task_t_end``).
+    progress : bool
+        Print one line per controller and payload on stderr.
 
     Returns
     -------
@@ -136,45 +140,43 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
     """
     from controllers import DesignModel
     from hubbeam_ctrl.study.compare import _parse_controllers, compare
-    from hubbeam_ctrl.study.compare_values import compare_arguments
     from hubbeam_ctrl.study.scenarios import make_scenario
+    settings = CompareSettings() if settings is None else settings
+    if not isinstance(settings, CompareSettings):
+        raise ParameterError(f"settings must be a CompareSettings, got {type(settings).__name__}")
+    rig_value, params = as_rig(rig)
+    if rig_value is not None:
+        raise ParameterError("rig: a rig's drive and sensors are not modelled over a payload range yet; "
+                             "give the rig's beam (Rig.plant_params)")
     params = params if params is not None else Params()
-    lo, hi = check_payload_range(payload_range, params.m_t)
+    pc, dc, rc, scn, pay = settings.plant, settings.design, settings.run, settings.scenario, settings.payload
+    lo, hi = check_payload_range(pay.payload_range, params.m_t)
     masses = tuple(sorted({lo, params.m_t, hi})) if masses is None else tuple(masses)
     for m in masses:
         if not (isinstance(m, (int, float)) and lo <= m <= hi):
             raise ParameterError(f"masses must lie in the payload range [{lo:g}, {hi:g}] kg, got {m!r}")
     names = _parse_controllers(controllers)
-    plant_params = options.pop("plant_params", None)   # the plant's beam, its tip mass each payload's
-    if plant_params is not None and not isinstance(plant_params, Params):
-        raise ParameterError(f"plant_params must be a Params, got {type(plant_params).__name__}")
-    plant_base = plant_params if plant_params is not None else params
-    options = {k: v for k, v in options.items() if v is not None or k not in ("dt", "t_end")}
-    options.setdefault("dt", task_dt(params))
-    scenario_keys = ("tau_max", "t_f", "t_end", "dt", "w_f", "slew_angle", "tolerances")
-    kind = options.get("reference", "task")          # the range designs see the scenario's reference
-    scenario_options = dict(plant=plant, params=params, reference="rigid" if kind == "optimal" else kind,
-                            **{k: options[k] for k in scenario_keys if k in options and k != "t_end"})
-    sc = make_scenario(scenario, t_end=options.get("t_end"), **scenario_options)   # None: the task's own
-    options["t_end"] = sc.t_end
-    learning = options.get("payload_learning")
+    plant_base = pc.plant_params if pc.plant_params is not None else params  # its tip mass each payload's
+    dt = rc.dt if rc.dt is not None else task_dt(params)
+    sc = make_scenario(task, plant=pc.plant, params=params,          # the range designs see the task's reference
+                       reference="rigid" if dc.reference == "optimal" else dc.reference, tau_max=scn.tau_max,
+                       t_f=scn.t_f, t_end=rc.t_end, dt=dt, w_f=scn.w_f, slew_angle=scn.slew_angle,
+                       tolerances=dc.tolerances)                     # t_end None: the task's own
+    learning = pay.payload_learning
     if learning is not None:                         # the nominal design learns the payload instead
-        from controllers.payload_learning import PayloadLearningSettings
-        if not isinstance(learning, PayloadLearningSettings):
-            raise ParameterError(f"payload_learning must be a PayloadLearningSettings, got {type(learning).__name__}")
-        options["payload_learning"] = learning.replace(payload_min_kg=lo, payload_max_kg=hi)
+        learning = learning.replace(payload_min_kg=lo, payload_max_kg=hi)
         designs = {}
     else:
-        design = DesignModel.build(sc.params, sc.design_spin, sc.dt, options.get("design_modes"))
-        designs = range_designs(names, sc, design, (lo, hi), options.get("settings"),
-                                horizon=options.get("horizon", 50), solver=options.get("solver", "daqp"),
-                                plant_modes=options.get("plant_modes"))
+        design = DesignModel.build(sc.params, sc.design_spin, sc.dt, dc.design_modes)
+        designs = range_designs(names, sc, design, (lo, hi), dc.settings, horizon=dc.horizon, solver=dc.solver,
+                                plant_modes=pc.plant_modes)
     comparisons, clock = {}, time.perf_counter()
     for m in masses:                                 # --max-wall bounds the whole range, not each payload
-        run = dict(options, sim_settings=_remaining(options.get("sim_settings"), time.perf_counter() - clock))
-        comparisons[m] = compare(**compare_arguments(plant, scenario, names, params=params,
-                                                     plant_params=plant_base.replace(m_t=m),
-                                                     designs=designs or None, **run))
+        run = dataclasses.replace(rc, dt=dt, t_end=sc.t_end,
+                                  sim_settings=_remaining(rc.sim_settings, time.perf_counter() - clock))
+        each = dataclasses.replace(settings, plant=dataclasses.replace(pc, plant_params=plant_base.replace(m_t=m)),
+                                   run=run, payload=PayloadChoice(payload_learning=learning))
+        comparisons[m] = compare(params, task, names, each, designs=designs or None, progress=progress)
     return PayloadComparison((lo, hi), masses, comparisons, designs)
 
 
