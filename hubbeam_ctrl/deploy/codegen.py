@@ -29,6 +29,7 @@ The step's interface is double precision whatever ``precision``; with
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from dataclasses import dataclass, field
@@ -64,9 +65,25 @@ CODEGEN_KINDS = {
     "openloop": "feedforward open-loop torque table (profile='feedforward')",
 }
 
-#: Units of the sensors a generated controller can read (the closed-loop simulator's order).
-SENSOR_UNITS = {"theta": "rad", "theta_dot": "rad/s", "root_moment": "N m"}
+#: Units of the sensors a generated controller can read (the closed-loop simulator's order); a
+#: rig's strain gauges ``moment_<i>`` read N m (:func:`sensor_unit`).
+SENSOR_UNITS = {"theta": "rad", "theta_dot": "rad/s", "root_moment": "N m", "accel_tangential": "m/s^2"}
 _SENSORS = ("theta", "theta_dot", "root_moment")
+
+
+def sensor_unit(name: str) -> str:
+    """Unit of a measurement a generated step reads (``moment_<i>``: a strain gauge, N m).
+
+    Parameters
+    ----------
+    name : str
+        A signal name (:data:`SENSOR_UNITS` or ``moment_<i>``).
+
+    Returns
+    -------
+    str
+    """
+    return "N m" if name.startswith("moment_") else SENSOR_UNITS[name]
 _PRECISIONS = {"double": "double", "single": "float"}
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,30}$")
 
@@ -98,6 +115,9 @@ class ControlLaw:
         Length of the optional external reference vector of the step.
     reference_layout : str
         What that vector holds.
+    gauges : tuple of float
+        Positions of the strain gauges ``moment_<i>`` reads, from the root [m] (a rig's
+        ``sensors.strain_gauges``; empty for the beam alone's root moment).
     """
 
     kind: str
@@ -110,6 +130,19 @@ class ControlLaw:
     sensors: tuple = ()
     n_reference: int = 0
     reference_layout: str = ""
+    gauges: tuple = ()
+
+    def sensor_text(self) -> list:
+        """Each measurement as the header names it: ``name [unit]`` (with a gauge's position)."""
+        out = []
+        for s in self.sensors:
+            text = f"{s} [{sensor_unit(s)}]"
+            if s.startswith("moment_") and int(s[7:]) <= len(self.gauges):
+                text += f" (strain gauge at {self.gauges[int(s[7:]) - 1]:.6g} m from the root)"
+            elif s == "accel_tangential":
+                text += " (tip accelerometer, tangential)"
+            out.append(text)
+        return out
 
     def check_finite(self) -> None:
         """Refuse a non-finite gain, table entry or scalar (one line naming it).
@@ -138,24 +171,40 @@ def _reference_table(ctrl: Controller, table=None, embed=None) -> tuple:
     return np.array(rows), np.asarray(ctrl._tff, dtype=float)
 
 
+def _filter_arrays(estimator) -> dict:
+    """The steady-state filter's data: ``A``, ``B`` (prediction), ``IMLC = I - L C``, ``L``."""
+    return {"A": np.asarray(estimator._A, dtype=float), "B": np.asarray(estimator._b, dtype=float),
+            "IMLC": np.asarray(estimator._IminusLC, dtype=float), "L": np.asarray(estimator.L, dtype=float)}
+
+
+def _offset_rows(offset, nz: int) -> np.ndarray:
+    """The plan's prediction offsets on the filter's ``nz`` states (none on ``u_prev`` or ``d``)."""
+    D = np.zeros((len(offset), nz))
+    D[:, :np.shape(offset)[1]] = offset
+    return D
+
+
+def _model_sensors(model) -> tuple:
+    """``(sensors, gauges)`` a filter on ``model`` reads (the beam alone's three without a rig layout)."""
+    if model is None or model.sensors is None:
+        return _SENSORS, ()
+    return tuple(model.sensor_labels), tuple(model.sensors.gauges)
+
+
 def _observer_law(ctrl, controller: str, K, estimator, X, tff, spin: float, ff: float, x0,
-                  offset=None) -> ControlLaw:
-    A = np.asarray(estimator._A, dtype=float)
-    b = np.asarray(estimator._b, dtype=float)
-    nx = A.shape[0]
-    arrays = {"A": A, "B": b, "IMLC": np.asarray(estimator._IminusLC, dtype=float),
-              "L": np.asarray(estimator.L, dtype=float), "K": np.asarray(K, dtype=float),
+                  offset=None, model=None) -> ControlLaw:
+    nx = len(estimator._b)
+    arrays = {**_filter_arrays(estimator), "K": np.asarray(K, dtype=float),
               "X0": np.asarray(x0, dtype=float), "XREF": X, "TFF": tff}
     if offset is not None and len(offset):   # the filter predicts along the plan (plan_prediction)
-        D = np.zeros((len(offset), nx))
-        D[:, :np.shape(offset)[1]] = offset         # none on a disturbance state
-        arrays["OFFSET"] = D
+        arrays["OFFSET"] = _offset_rows(offset, nx)
+    sensors, gauges = _model_sensors(model)
     return ControlLaw(
         kind="observer", controller=controller, dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=ff,
         arrays=arrays,
-        scalars={"spin": float(spin)}, sensors=_SENSORS, n_reference=nx + 1,
+        scalars={"spin": float(spin)}, sensors=sensors, n_reference=nx + 1,
         reference_layout=f"x_ref[0..{nx - 1}] (the filter model's states, absolute hub angle and rate), "
-                         f"then tau_ff [N m]")
+                         f"then tau_ff [N m]", gauges=gauges)
 
 
 def _acting(ctrl, fm, K, X, x0, reference_at) -> tuple:
@@ -216,16 +265,28 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         d, f = controller.hardware.drive, controller.hardware.friction
         drive = {"R": d.R, "N": d.N, "k_t": d.k_torque, "k_e": d.k_e, "eta_forward": d.eta_forward,
                  "eta_backward": d.eta_backward, "v_eps": f.v_eps, "V_max": d.V_max}
-        law = ControlLaw(law.kind, law.controller, law.dt, law.tau_max, law.feedforward, law.arrays,
-                         {**law.scalars, **{k: float(v) for k, v in drive.items()}}, law.sensors, law.n_reference,
-                         law.reference_layout)
+        arrays = dict(law.arrays)
+        if controller._rate_index is None:      # no rate sensor: the estimator's rate where the command acts
+            est, fm = controller.inner.estimator, controller.inner.filter_model
+            r = fm.action_gain(np.eye(fm.n_x)[fm.n_x // 2][None, :])[0]
+            arrays["RATE"] = np.r_[r, np.zeros(est.A.shape[0] - len(r))]
+        scalars = {**law.scalars, **{k: float(v) for k, v in drive.items()}}
+        law = dataclasses.replace(law, arrays=arrays, scalars=scalars)
         law.check_finite()
         return law
     ctrl = controller
+    if type(ctrl) is LQR:                 # not the scheduled subclasses: they interpolate in the spin
+        ctrl = ObservedLQR(ctrl, noise)
+    elif type(ctrl) is MPC:
+        ctrl = ObservedMPC(ctrl, noise)
+    if isinstance(ctrl, ObservedFeedback) and type(ctrl.inner) is MPC:
+        law = _mpc_law(ctrl)
+        law.check_finite()
+        return law
     if isinstance(ctrl, ObservedFeedback):
-        if not isinstance(ctrl.inner, LQR) or type(ctrl.inner) is not LQR:
-            raise ParameterError("controller: only an LQR closed through ObservedFeedback can be generated as C "
-                                 "(an MPC with integral action cannot yet)")
+        if type(ctrl.inner) is not LQR:
+            raise ParameterError(f"controller: an observer-fed {type(ctrl.inner).__name__} cannot be generated as "
+                                 "C (an LQR or an MPC can)")
         inner = ctrl.inner
         X, tff = _reference_table(inner)
         K, x0 = np.asarray(inner.K, float), np.array(X[0])
@@ -235,13 +296,9 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         if ctrl.integral:
             K, X, x0 = _with_disturbance(K, X, x0)
         law = _observer_law(ctrl, "lqr", K, ctrl.estimator, X, tff, ctrl.design.spin, float(inner._ff), x0,
-                            ctrl._defect)
+                            ctrl._defect, ctrl.filter_model)
         law.check_finite()
         return law
-    if type(ctrl) is LQR:                 # not the scheduled subclasses: they interpolate in the spin
-        ctrl = ObservedLQR(ctrl, noise)
-    elif type(ctrl) is MPC:
-        ctrl = ObservedMPC(ctrl, noise)
     if type(ctrl) is PD:
         if ctrl.settings.roll_off_hz is not None:
             raise ParameterError("controller: a PD with a roll_off_hz cannot be generated as C yet (the template is "
@@ -253,13 +310,6 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
                     "TFF": np.asarray(ref.torque, float)},
             scalars={"kp": float(ctrl.kp), "kd": float(ctrl.kd)}, sensors=_SENSORS[:2], n_reference=3,
             reference_layout="theta_ref [rad], theta_dot_ref [rad/s], tau_ff [N m]")
-    elif isinstance(ctrl, ObservedLQR):
-        X, tff = _reference_table(ctrl.lqr)
-        x0 = np.array(X[0])                             # ObservedLQR.reset: the first reference state
-        x0[ctrl._n] -= ctrl.design.spin
-        law = _observer_law(ctrl, "lqr", ctrl.K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0)
-    elif isinstance(ctrl, ObservedMPC):
-        law = _mpc_law(ctrl)
     elif type(ctrl) is ScheduledLQG:
         law = _scheduled_lqg_law(ctrl)
     elif type(ctrl) is LQG:
@@ -272,7 +322,7 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         if ctrl.settings.integral:                      # the estimated disturbance is cancelled
             K, X, x0 = _with_disturbance(K, X, x0)
         law = _observer_law(ctrl, "lqg", K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0,
-                            ctrl._defect)
+                            ctrl._defect, ctrl.filter_model)
     elif isinstance(ctrl, ShapedOpenLoop):
         law = ControlLaw(kind="table", controller=ctrl.kind, dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
                          feedforward=1.0, arrays={"TORQUE": np.asarray(ctrl.torques, float)},
@@ -350,14 +400,15 @@ def command_text(law: ControlLaw) -> str:
 
 def _header(name: str, law: ControlLaw, real: str, struct_body: str, n_meas: int) -> str:
     up = name.upper()
-    sensors = ", ".join(f"{s} [{SENSOR_UNITS[s]}]" for s in law.sensors) or "none (open loop)"
+    sensors = "".join(f"\n *                 {i}: {text}" for i, text in enumerate(law.sensor_text())) \
+        or " none (open loop)"
     volts = f"#define {up}_V_MAX {law.scalars['V_max']:.17g}  /* [V] */\n" if "V_max" in law.scalars else ""
     return f"""/* {name}.h: {CODEGEN_KINDS[law.controller]}.
  * Generated by hubbeam-ctrl (hubbeam_ctrl.deploy.to_c); C99, no dynamic memory, no I/O.
  *
  * Call {name}_step once per sample, every {law.dt:.17g} s, starting at t = 0 after
  * {name}_init or {name}_reset (the step counts the samples itself).
- *   measurements: {n_meas} value(s): {sensors}
+ *   measurements: {n_meas} value(s):{sensors}
  *   reference:    NULL for the built-in reference table, or {law.n_reference} value(s):
  *                 {law.reference_layout}
  *   command:      {command_text(law)}
@@ -383,6 +434,93 @@ void {name}_step({name}_instance *inst, const double *measurements, const double
 unsigned long {name}_instance_size(void);
 
 #endif
+"""
+
+
+def _measurements(law: ControlLaw, R: str) -> str:
+    """C lines that take the measurements in deviation from the steady rotation (``yd``), as
+    :meth:`controllers.DesignModel.sensor_deviation`: the angle less ``SPIN t``, the rate less ``SPIN``."""
+    lines = ["    /* measurements in deviation from the steady rotation at the design spin */"]
+    for i, s in enumerate(law.sensors):
+        less = {"theta": " - SPIN * t", "theta_dot": " - SPIN"}.get(s, "")
+        lines.append(f"    yd[{i}] = ({R})measurements[{i}]{less};  /* {s} [{sensor_unit(s)}] */")
+    return "\n".join(lines) + "\n"
+
+
+def _innovation(law: ControlLaw) -> str:
+    """``L[i][0] * yd[0] + ...``: the filter gain's row ``i`` on the measurements."""
+    return " + ".join(f"L[i][{j}] * yd[{j}]" for j in range(len(law.sensors)))
+
+
+def _filter_fields(R: str, nx: int) -> str:
+    """Instance fields of a steady-state filter's template (prediction, estimate, held command)."""
+    return (f"    {R} x_pred[{nx}];  /* prediction of the filter's state (deviation from steady spin) */\n"
+            f"    {R} x_hat[{nx}];   /* estimate after the last measurement */\n"
+            f"    {R} tau_prev;    /* torque held since the last sample [N m] */\n"
+            f"    int has_tau;      /* 0 until the first step after reset */\n"
+            f"    long k;           /* sample index */")
+
+
+def _filter_reset() -> str:
+    """C lines of a reset that starts the filter at ``X0`` with no command held."""
+    return """    for (i = 0; i < NX; ++i) {
+        inst->x_pred[i] = X0[i];
+        inst->x_hat[i] = X0[i];
+    }
+    inst->tau_prev = 0;
+    inst->has_tau = 0;
+    inst->k = 0;
+"""
+
+
+def _filter_step(law: ControlLaw, R: str) -> str:
+    """C lines of one sample of the steady-state filter (:meth:`controllers.KalmanEstimator.update`):
+    the prediction with the command held since the last sample (plus the plan's offset when the
+    law has one), then ``x_hat = (I - L C) x_pred + L yd``."""
+    offset = ("\n            if (inst->k >= 1 && inst->k - 1 < KOFF) s += OFFSET[inst->k - 1][i];  "
+              "/* along the plan */") if "OFFSET" in law.arrays else ""
+    return f"""    /* predict with the torque held since the last sample */
+    if (inst->has_tau) {{
+        for (i = 0; i < NX; ++i) {{
+            {R} s = 0;
+            for (j = 0; j < NX; ++j) s += A[i][j] * inst->x_hat[j];{offset}
+            inst->x_pred[i] = s + B[i] * inst->tau_prev;
+        }}
+    }}
+    /* measurement update: x_hat = (I - L C) x_pred + L y */
+    for (i = 0; i < NX; ++i) {{
+        {R} s = 0;
+        for (j = 0; j < NX; ++j) s += IMLC[i][j] * inst->x_pred[j];
+        inst->x_hat[i] = s + ({_innovation(law)});
+    }}
+"""
+
+
+def _filter_data(law: ControlLaw, R: str, single: bool, names) -> str:
+    """``static const`` arrays of the filter (``A B IMLC L``), ``names`` and the plan's ``OFFSET``."""
+    data = "".join(_array(k, law.arrays[k], R, single) for k in ("A", "B", "IMLC", "L", *names))
+    if "OFFSET" in law.arrays:
+        data += _array("OFFSET", law.arrays["OFFSET"], R, single)
+    return data
+
+
+def _source(name: str, precision: str, data: str, code: str) -> str:
+    """A generated ``.c`` file: the data, a template's code, ``_init`` and ``_instance_size``."""
+    return f"""/* {name}.c: generated by hubbeam-ctrl (hubbeam_ctrl.deploy.to_c). {precision} precision. */
+#include <math.h>
+#include "{name}.h"
+
+{data}
+{code}
+void {name}_init({name}_instance *inst)
+{{
+    {name}_reset(inst);
+}}
+
+unsigned long {name}_instance_size(void)
+{{
+    return (unsigned long)sizeof({name}_instance);
+}}
 """
 
 
@@ -416,7 +554,22 @@ def render_c(law: ControlLaw, name: str, precision: str = "double") -> tuple:
         return header, source
     R = f"{name}_real"
     sc = {k: _number(law.scalars[k], precision == "single") for k in _DRIVE_SCALARS}
-    stage = f"""
+    if "theta_dot" in law.sensors:
+        rate, estimate = f"({R})measurements[{law.sensors.index('theta_dot')}]", ""
+    else:
+        rate = "rate_estimate(inst)"
+        estimate = (_array("RATE", law.arrays["RATE"], R, precision == "single")
+                    + f"""
+/* no rate sensor: the filter's hub rate where the command acts (absolute) [rad/s] */
+static {R} rate_estimate(const {name}_instance *inst)
+{{
+    {R} s = 0;
+    int i;
+    for (i = 0; i < NX; ++i) s += RATE[i] * inst->x_hat[i];
+    return s + SPIN;
+}}
+""")
+    stage = estimate + f"""
 /* the DC drive's static inverse (controllers.drive.VoltageCommand): the voltage that gives the hub
    torque tau at the measured hub rate thd, through back-EMF and the gear's efficiency, clipped */
 static {R} drive_voltage({R} tau, {R} thd)
@@ -434,7 +587,6 @@ static {R} drive_voltage({R} tau, {R} thd)
     if sat not in source:
         raise HubbeamError("the voltage stage needs the template's saturate()")
     source = source.replace(sat, sat + stage, 1)
-    rate = f"({R})measurements[1]"
     for old in ("*command = (double)tau;", "*command = (double)saturate(tau);"):
         inner = old[len("*command = (double)"):-1]
         source = source.replace(old, f"*command = (double)drive_voltage({inner}, {rate});")
@@ -474,19 +626,12 @@ def _render_law(law: ControlLaw, name: str, precision: str = "double") -> tuple:
         nx = len(law.arrays["K"])
         nh = nx // 2
         kt = len(law.arrays["TFF"])
-        body = (f"    {R} x_pred[{nx}];  /* prediction of the filter's state (deviation from steady spin) */\n"
-                f"    {R} x_hat[{nx}];   /* estimate after the last measurement */\n"
-                f"    {R} tau_prev;    /* torque held since the last sample [N m] */\n"
-                f"    int has_tau;      /* 0 until the first step after reset */\n"
-                f"    long k;           /* sample index */")
-        data = "".join(_array(k, law.arrays[k], R, single) for k in ("A", "B", "IMLC", "L", "K", "X0", "XREF", "TFF"))
+        body = _filter_fields(R, nx)
+        data = _filter_data(law, R, single, ("K", "X0", "XREF", "TFF"))
         kd = len(law.arrays["OFFSET"]) if "OFFSET" in law.arrays else 0
-        if kd:
-            data += _array("OFFSET", law.arrays["OFFSET"], R, single)
-        offset = ("\n            if (inst->k >= 1 && inst->k - 1 < KOFF) s += OFFSET[inst->k - 1][i];  "
-                  "/* along the plan */") if kd else ""
         code = f"""#define NX {nx}
 #define NH {nh}
+#define NY {len(law.sensors)}
 #define KT {kt}
 #define KOFF {kd}
 {common}static const {R} SPIN = {num(law.scalars["spin"])};
@@ -495,28 +640,17 @@ def _render_law(law: ControlLaw, name: str, precision: str = "double") -> tuple:
 void {name}_reset({name}_instance *inst)
 {{
     int i;
-    for (i = 0; i < NX; ++i) {{
-        inst->x_pred[i] = X0[i];
-        inst->x_hat[i] = X0[i];
-    }}
-    inst->tau_prev = 0;
-    inst->has_tau = 0;
-    inst->k = 0;
-}}
+{_filter_reset()}}}
 
 void {name}_step({name}_instance *inst, const double *measurements, const double *reference,
 {' ' * (len(name) + 10)}double *command)
 {{
     {R} t = ({R})inst->k * DT;
-    {R} yd[3];
+    {R} yd[NY];
     {R} xr[NX];
     {R} tff, u, tau;
     int i, j;
-    /* measurements in deviation from the steady rotation at the design spin */
-    yd[0] = ({R})measurements[0] - SPIN * t;
-    yd[1] = ({R})measurements[1] - SPIN;
-    yd[2] = ({R})measurements[2];
-    if (reference) {{
+{_measurements(law, R)}    if (reference) {{
         for (i = 0; i < NX; ++i) xr[i] = ({R})reference[i];
         tff = ({R})reference[NX];
     }} else if (inst->k < KT) {{
@@ -527,21 +661,7 @@ void {name}_step({name}_instance *inst, const double *measurements, const double
         xr[0] = XREF[KT - 1][0] + XREF[KT - 1][NH] * ({R})(inst->k - KT + 1) * DT;
         tff = TFF[KT - 1];
     }}
-    /* predict with the torque held since the last sample */
-    if (inst->has_tau) {{
-        for (i = 0; i < NX; ++i) {{
-            {R} s = 0;
-            for (j = 0; j < NX; ++j) s += A[i][j] * inst->x_hat[j];{offset}
-            inst->x_pred[i] = s + B[i] * inst->tau_prev;
-        }}
-    }}
-    /* measurement update: x_hat = (I - L C) x_pred + L y */
-    for (i = 0; i < NX; ++i) {{
-        {R} s = 0;
-        for (j = 0; j < NX; ++j) s += IMLC[i][j] * inst->x_pred[j];
-        inst->x_hat[i] = s + (L[i][0] * yd[0] + L[i][1] * yd[1] + L[i][2] * yd[2]);
-    }}
-    /* gain on the tracking error (x_hat is a deviation, x_ref absolute) */
+{_filter_step(law, R)}    /* gain on the tracking error (x_hat is a deviation, x_ref absolute) */
     u = 0;
     for (i = 0; i < NX; ++i) u += K[i] * (inst->x_hat[i] - xr[i]);
     u = u + K[0] * SPIN * t + K[NH] * SPIN;
@@ -613,22 +733,7 @@ void {name}_step({name}_instance *inst, const double *measurements, const double
         raise HubbeamError(f"unknown control-law template {law.kind!r}")
     n_meas = len(law.sensors)
     header = _header(name, law, real, body, n_meas)
-    source = f"""/* {name}.c: generated by hubbeam-ctrl (hubbeam_ctrl.deploy.to_c). {precision} precision. */
-#include <math.h>
-#include "{name}.h"
-
-{data}
-{code}
-void {name}_init({name}_instance *inst)
-{{
-    {name}_reset(inst);
-}}
-
-unsigned long {name}_instance_size(void)
-{{
-    return (unsigned long)sizeof({name}_instance);
-}}
-"""
+    source = _source(name, precision, data, code)
     return header, source
 
 
@@ -682,7 +787,7 @@ class GeneratedCode:
         law = self.law
         return {"name": self.name, "controller": law.controller, "precision": self.precision,
                 "dt_s": law.dt, "tau_max_nm": law.tau_max,
-                "measurements": [{"name": s, "unit": SENSOR_UNITS[s]} for s in law.sensors],
+                "measurements": [{"name": s, "unit": sensor_unit(s)} for s in law.sensors],
                 "reference": law.reference_layout, "n_reference": law.n_reference,
                 "command": ({"name": "V", "unit": "V", "V_max": law.scalars["V_max"]} if "V_max" in law.scalars
                             else {"name": "tau", "unit": "N m"}), "data_bytes": self.data_bytes,
@@ -793,29 +898,42 @@ def certificate_comment(certificate: dict) -> str:
     return text + "\n"
 
 
-def _mpc_law(ctrl) -> ControlLaw:
-    """The observed MPC (:class:`ObservedMPC`) as arrays: filter, condensed QP, reference terms."""
-    mpc = ctrl.mpc
+def _mpc_law(ctrl: ObservedFeedback) -> ControlLaw:
+    """An MPC closed through its observer (:class:`controllers.integral.ObservedFeedback`) as
+    arrays: the filter (any sensor set, the previous command and the disturbance as states), the
+    map ``P`` from the filter's state to the MPC's state where the command acts, the condensed QP
+    and its reference terms."""
+    mpc, fm, est = ctrl.inner, ctrl.filter_model, ctrl.estimator
     s = mpc.settings
     if s.tip_bound is not None:
         raise ParameterError("controller: an MPC with a tip_bound cannot be generated as C yet (the generated "
                              "QP solver handles the torque bounds only); use tip_bound=None")
+    if s.emf_torque_limit is not None:
+        raise ParameterError("controller: an MPC with an emf_torque_limit (a DC motor's voltage limit) cannot be "
+                             "generated as C yet; use emf_torque_limit=None")
     N = s.horizon
-    est = ctrl.estimator
-    x0 = np.array(mpc._reference_at(0)[0], dtype=float)
-    x0[ctrl._n] -= ctrl.design.spin
+    nz = est.A.shape[0]
+    Phi, G = fm.action_map()
+    act = np.zeros((fm.n_x, nz))                   # the acting state (controllers.DesignModel.acting_state)
+    act[:, :fm.n_x] = Phi
+    if fm.delay > 0.0:
+        act[:, fm.n_x] = G
     H = np.asarray(mpc._H.full(), dtype=float)
     table = np.asarray(mpc._ref_term, dtype=float)
     kt = len(table)
     r0 = np.asarray(mpc._reference_term(kt), dtype=float)
     r1 = np.asarray(mpc._reference_term(kt + 1), dtype=float) - r0
+    arrays = {**_filter_arrays(est), "X0": ctrl.initial_state(), "P": act[ctrl._pick],
+              "GX": np.asarray(mpc._Gx, float), "H": H, "HL": np.linalg.cholesky(H), "REFT": table, "R0": r0, "R1": r1}
+    if ctrl._defect is not None and len(ctrl._defect):
+        arrays["OFFSET"] = _offset_rows(ctrl._defect, nz)
+    sensors, gauges = _model_sensors(fm)
     return ControlLaw(
         kind="mpc", controller="mpc", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=1.0,
-        arrays={"A": np.asarray(est._A, float), "B": np.asarray(est._b, float),
-                "IMLC": np.asarray(est._IminusLC, float), "L": np.asarray(est.L, float), "X0": x0,
-                "GX": np.asarray(mpc._Gx, float), "H": H, "HL": np.linalg.cholesky(H), "REFT": table,
-                "R0": r0, "R1": r1},
-        scalars={"spin": float(ctrl.design.spin), "horizon": float(N)}, sensors=_SENSORS, n_reference=N,
+        arrays=arrays,
+        scalars={"spin": float(ctrl.design.spin), "horizon": float(N), "delay": float(fm.delay),
+                 "plan_shift": float(np.floor(fm.delay + 0.5)), "integral": 1.0 if ctrl.integral else 0.0},
+        sensors=sensors, n_reference=N, gauges=gauges,
         reference_layout=f"r[0..{N - 1}]: the QP gradient's reference term (g = Gx x - r)")
 
 
@@ -830,11 +948,7 @@ def _render_mpc(law: ControlLaw, name: str, precision: str) -> tuple:
     kt = len(law.arrays["REFT"])
     sqrt = "sqrtf" if single else "sqrt"
     fabs = "fabsf" if single else "fabs"
-    body = (f"    {R} x_pred[{nx}];  /* prediction of the filter's state (deviation from steady spin) */\n"
-            f"    {R} x_hat[{nx}];   /* estimate after the last measurement */\n"
-            f"    {R} tau_prev;    /* torque held since the last sample [N m] */\n"
-            f"    int has_tau;      /* 0 until the first step after reset */\n"
-            f"    long k;           /* sample index */\n"
+    body = (_filter_fields(R, nx) + "\n"
             f"    {R} z[{N}];       /* the plan (the QP's solution) */\n"
             f"    int st[{N}];      /* active set: 0 free, -1 at -tau_max, +1 at +tau_max */\n"
             f"    {R} g[{N}];       /* the QP's linear term */\n"
@@ -843,34 +957,35 @@ def _render_mpc(law: ControlLaw, name: str, precision: str) -> tuple:
             f"    int fidx[{N}];\n"
             f"    int iterations;   /* active-set iterations of the last solve */\n"
             f"    long failures;    /* solves that hit the iteration limit (plan kept feasible) */")
-    data = "".join(_array(k, law.arrays[k], R, single)
-                   for k in ("A", "B", "IMLC", "L", "X0", "GX", "H", "HL", "REFT", "R0", "R1"))
+    data = _filter_data(law, R, single, ("X0", "P", "GX", "H", "HL", "REFT", "R0", "R1"))
+    nu = len(law.arrays["P"])
+    kd = len(law.arrays["OFFSET"]) if "OFFSET" in law.arrays else 0
     num = (lambda v: _number(v, single))
     code = f"""#define NX {nx}
 #define NH {nh}
+#define NY {len(law.sensors)}
+#define NU {nu}
+#define NUH {nu // 2}
 #define NZ {N}
 #define KT {kt}
+#define KOFF {kd}
+#define PLAN_SHIFT {int(law.scalars["plan_shift"])}
+#define INTEGRAL {int(law.scalars["integral"])}
 #define MAXIT (4 * NZ + 10)
 static const {R} DT = {num(law.dt)};
 static const {R} TAU_MAX = {num(law.tau_max)};
 static const {R} SPIN = {num(law.scalars["spin"])};
+static const {R} DELAY = {num(law.scalars["delay"])};
 static const {R} LAM_TOL = {num(1e-5 if single else 1e-11)};
 
 {_saturate(name)}
 void {name}_reset({name}_instance *inst)
 {{
     int i;
-    for (i = 0; i < NX; ++i) {{
-        inst->x_pred[i] = X0[i];
-        inst->x_hat[i] = X0[i];
-    }}
-    for (i = 0; i < NZ; ++i) {{
+{_filter_reset()}    for (i = 0; i < NZ; ++i) {{
         inst->z[i] = 0;
         inst->st[i] = 0;
     }}
-    inst->tau_prev = 0;
-    inst->has_tau = 0;
-    inst->k = 0;
     inst->iterations = 0;
     inst->failures = 0;
 }}
@@ -976,36 +1091,26 @@ void {name}_step({name}_instance *inst, const double *measurements, const double
 {' ' * (len(name) + 10)}double *command)
 {{
     {R} t = ({R})inst->k * DT;
-    {R} yd[3];
-    {R} xa[NX];
+    {R} yd[NY];
+    {R} xa[NU];
     {R} tau;
+    long kr = inst->k + PLAN_SHIFT;  /* the plan's reference sample where the command acts */
     int i, j;
-    yd[0] = ({R})measurements[0] - SPIN * t;
-    yd[1] = ({R})measurements[1] - SPIN;
-    yd[2] = ({R})measurements[2];
-    if (inst->has_tau) {{
-        for (i = 0; i < NX; ++i) {{
-            {R} s = 0;
-            for (j = 0; j < NX; ++j) s += A[i][j] * inst->x_hat[j];
-            inst->x_pred[i] = s + B[i] * inst->tau_prev;
-        }}
-    }}
-    for (i = 0; i < NX; ++i) {{
+{_measurements(law, R)}{_filter_step(law, R)}    /* the MPC's state where the command acts (absolute) */
+    for (i = 0; i < NU; ++i) {{
         {R} s = 0;
-        for (j = 0; j < NX; ++j) s += IMLC[i][j] * inst->x_pred[j];
-        inst->x_hat[i] = s + (L[i][0] * yd[0] + L[i][1] * yd[1] + L[i][2] * yd[2]);
+        for (j = 0; j < NX; ++j) s += P[i][j] * inst->x_hat[j];
+        xa[i] = s;
     }}
-    /* the estimated absolute state */
-    for (i = 0; i < NX; ++i) xa[i] = inst->x_hat[i];
-    xa[0] = xa[0] + SPIN * t;
-    xa[NH] = xa[NH] + SPIN;
+    xa[0] = xa[0] + SPIN * (t + DELAY * DT);
+    xa[NUH] = xa[NUH] + SPIN;
     /* the QP's linear term g = Gx x - r_k */
     for (i = 0; i < NZ; ++i) {{
         {R} s = 0, r;
-        for (j = 0; j < NX; ++j) s += GX[i][j] * xa[j];
+        for (j = 0; j < NU; ++j) s += GX[i][j] * xa[j];
         if (reference) r = ({R})reference[i];
-        else if (inst->k < KT) r = REFT[inst->k][i];
-        else r = R0[i] + ({R})(inst->k - KT) * R1[i];
+        else if (kr < KT) r = REFT[kr][i];
+        else r = R0[i] + ({R})(kr - KT) * R1[i];
         inst->g[i] = s - r;
     }}
     /* warm start: the previous active set and plan (kept feasible) */
@@ -1018,6 +1123,7 @@ void {name}_step({name}_instance *inst, const double *measurements, const double
     inst->iterations = qp_solve(inst);
     if (inst->iterations < 0) inst->failures += 1;
     tau = saturate(inst->z[0]);
+    if (INTEGRAL) tau = saturate(tau - inst->x_hat[NX - 1]);  /* the estimated disturbance */
     inst->tau_prev = tau;
     inst->has_tau = 1;
     inst->k += 1;
@@ -1025,22 +1131,7 @@ void {name}_step({name}_instance *inst, const double *measurements, const double
 }}
 """
     header = _header(name, law, real, body, len(law.sensors))
-    source = f"""/* {name}.c: generated by hubbeam-ctrl (hubbeam_ctrl.deploy.to_c). {precision} precision. */
-#include <math.h>
-#include "{name}.h"
-
-{data}
-{code}
-void {name}_init({name}_instance *inst)
-{{
-    {name}_reset(inst);
-}}
-
-unsigned long {name}_instance_size(void)
-{{
-    return (unsigned long)sizeof({name}_instance);
-}}
-"""
+    source = _source(name, precision, data, code)
     return header, source
 
 
@@ -1181,20 +1272,5 @@ void {name}_step({name}_instance *inst, const double *measurements, const double
 }}
 """
     header = _header(name, law, real, body, len(law.sensors))
-    source = f"""/* {name}.c: generated by hubbeam-ctrl (hubbeam_ctrl.deploy.to_c). {precision} precision. */
-#include <math.h>
-#include "{name}.h"
-
-{data}
-{code}
-void {name}_init({name}_instance *inst)
-{{
-    {name}_reset(inst);
-}}
-
-unsigned long {name}_instance_size(void)
-{{
-    return (unsigned long)sizeof({name}_instance);
-}}
-"""
+    source = _source(name, precision, data, code)
     return header, source

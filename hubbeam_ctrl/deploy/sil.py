@@ -128,7 +128,7 @@ class CController:
         self._step.argtypes = [ctypes.c_void_p, dbl_p, dbl_p, dbl_p]
         self._step.restype = None
         n_meas = max(len(code.law.sensors), 1)
-        self._y = (ctypes.c_double * 3)()
+        self._y = (ctypes.c_double * max(n_meas, 3))()
         self._n_meas = n_meas
         self._tau = ctypes.c_double(0.0)
         self._tau_p = ctypes.pointer(self._tau)
@@ -137,6 +137,9 @@ class CController:
         self.name = f"{prefix}_c"
         self.dt = code.law.dt
         self.measurement = "sensors" if code.law.sensors else "state"
+        #: the rig signals the step reads (None: the closed loop's default three), as the Python law's
+        self.signals = None if tuple(code.law.sensors) in (("theta", "theta_dot", "root_moment"),
+                                                          ("theta", "theta_dot")) else tuple(code.law.sensors)
         self._k = 0
         if python_controller is not None:
             for attr in ("design", "n_modes", "state_modes"):
