@@ -94,21 +94,7 @@ static {R} drive_voltage({R} tau, {R} thd)
 
 
 def _render_law(law: ControlLaw, name: str, precision: str = "double") -> tuple:
-    """The header and source text of a control law's template.
-
-    Parameters
-    ----------
-    law : ControlLaw
-    name : str
-        C identifier prefix and file stem.
-    precision : {"double", "single"}
-        Type of the stored data and the arithmetic.
-
-    Returns
-    -------
-    tuple of str
-        ``(header, source)``.
-    """
+    """``(header, source)`` of the law's own template, before any drive stage (see :func:`render_c`)."""
     if law.kind == "mpc":
         return _render_mpc(law, name, precision)
     if law.kind == "scheduled_lqg":

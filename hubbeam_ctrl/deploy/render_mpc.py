@@ -27,13 +27,16 @@ from .cfile import (
 from .laws import ControlLaw
 
 
+def _sizes(law: ControlLaw, name: str, precision: str) -> tuple:
+    """``(real, single, R, nx, nh)``: the C type, single precision or not, the real typedef's name,
+    the filter's state count and half of it."""
+    nx = len(law.arrays["X0"])
+    return PRECISIONS[precision], precision == "single", f"{name}_real", nx, nx // 2
+
+
 def _render_mpc(law: ControlLaw, name: str, precision: str) -> tuple:
     """Body of the MPC template: Kalman filter, then a primal active-set solve of the box QP."""
-    real = PRECISIONS[precision]
-    single = precision == "single"
-    R = f"{name}_real"
-    nx = len(law.arrays["X0"])
-    nh = nx // 2
+    real, single, R, nx, nh = _sizes(law, name, precision)
     N = int(law.scalars["horizon"])
     kt = len(law.arrays["REFT"])
     sqrt = "sqrtf" if single else "sqrt"
@@ -226,11 +229,7 @@ static int qp_solve({name}_instance *inst)
 
 def _render_scheduled_lqg(law: ControlLaw, name: str, precision: str) -> tuple:
     """The gain-scheduled LQG: every gain and model interpolated in the spin rate per sample."""
-    real = PRECISIONS[precision]
-    single = precision == "single"
-    R = f"{name}_real"
-    nx = len(law.arrays["X0"])
-    nh = nx // 2
+    real, single, R, nx, nh = _sizes(law, name, precision)
     S = len(law.arrays["SPINS"])
     kt = len(law.arrays["TFF"])
     fabs = "fabsf" if single else "fabs"
