@@ -12,16 +12,24 @@ digits (``%.17g``), so double precision reproduces the Python numbers.
 Kinds (:data:`CODEGEN_KINDS`):
 
 * ``pd``: :class:`controllers.PD` (reads ``theta``, ``theta_dot``);
-* ``lqr``: :class:`controllers.LQR` with its observer (:class:`ObservedLQR`): the
+* ``lqr``: :class:`controllers.LQR` with its observer
+  (:class:`controllers.integral.ObservedFeedback`, :class:`ObservedLQR` for a bare LQR): the
   full-state LQR reads modal coordinates no sensor measures, so the exported LQR is its
-  gain on a Kalman filter of its model (reads ``theta``, ``theta_dot``, ``root_moment``);
-* ``lqg``: :class:`controllers.LQG` (the same three sensors), and the gain-scheduled
-  :class:`controllers.ScheduledLQG` (gains, filter gains and models interpolated on the
-  measured spin rate);
-* ``mpc``: :class:`controllers.MPC` with its observer (:class:`ObservedMPC`): the condensed
-  box-constrained QP solved by a generated primal active-set method (no tip bound);
+  gain on a Kalman filter of its model, reading the sensors that model names (the beam
+  alone's ``theta``, ``theta_dot``, ``root_moment``, or a rig's own set:
+  :meth:`controllers.DesignModel.on_rig`);
+* ``lqg``: :class:`controllers.LQG` (the same sensors), and the gain-scheduled
+  :class:`controllers.ScheduledLQG` (the beam alone's three sensors; gains, filter gains and
+  models interpolated on the measured spin rate);
+* ``mpc``: :class:`controllers.MPC` with its observer (``ObservedFeedback``,
+  :class:`ObservedMPC`): the condensed box-constrained QP solved by a generated primal
+  active-set method (no tip bound);
 * ``zv``, ``zvd``, ``ei``, ``openloop`` (profile ``feedforward``): the held torque table
   of an input-shaped or feedforward open loop (reads nothing).
+
+The roles: :mod:`~hubbeam_ctrl.deploy.laws` (the law as arrays),
+:mod:`~hubbeam_ctrl.deploy.cfile` (the C text family), :mod:`~hubbeam_ctrl.deploy.render`
+and :mod:`~hubbeam_ctrl.deploy.render_mpc` (the templates), this module (files).
 
 The step's interface is double precision whatever ``precision``; with
 ``precision="single"`` the arithmetic and the stored data are ``float``.

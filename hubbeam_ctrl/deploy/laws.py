@@ -357,6 +357,9 @@ def _mpc_law(ctrl: ObservedFeedback) -> ControlLaw:
 def _scheduled_lqg_law(ctrl) -> ControlLaw:
     """A :class:`controllers.ScheduledLQG` as arrays: gains, filter gains and models per spin."""
     est = ctrl.estimator
+    if np.shape(est._C)[0] != 3 or ctrl.filter_model.sensors is not None:
+        raise ParameterError("controller: a scheduled LQG on a rig's own sensors cannot be generated as C yet "
+                             "(the template reads the beam alone's theta, theta_dot, root_moment)")
     E = ctrl._E
     K = len(ctrl._tff)
     X = np.array([E @ ctrl._reference_at(k)[0] for k in range(K)])
