@@ -49,15 +49,18 @@ def test_header_names_the_rigs_inputs_in_order_with_units():
 
 
 @needs_cc
-@pytest.mark.parametrize("rig_name, t_f, t_end", [("accel_link", 1.5, 2.5), ("servo_link_norate", 0.6, 1.0),
-                                                  ("servo_link_delay1", 0.6, 1.0)])
-def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, t_f, t_end, tmp_path):
+@pytest.mark.parametrize("rig_name, angle, t_f, t_end", [
+    ("accel_link", math.pi / 2, 1.5, 2.5),            # encoder + tip accelerometer: no gauge, no rate
+    ("servo_link_norate", math.pi / 2, 0.6, 1.0),     # DC motor, no tachometer: back-EMF on the filter's rate
+    ("servo_link_delay1", math.pi / 2, 0.6, 1.0),     # one full sample of computation delay
+    ("space_boom", math.pi / 6, 90.0, 140.0)])        # star tracker + gyro, no gauge, 10 Hz, one sample of delay
+def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, angle, t_f, t_end, tmp_path):
     from hubbeam_ctrl.study import Slew, compare
     from hubbeam_ctrl.study.judge import judge
     rig = _rig(rig_name)
     volts = Hardware.from_rig(rig).command == "voltage"
     names = ("lqr", "lqg") if volts else ("lqr", "lqg", "mpc")     # MPC in C: on a torque source
-    c = compare("foam", Slew(math.pi / 2, t_f), ",".join(names), rig=rig, t_end=t_end)
+    c = compare("foam", Slew(angle, t_f), ",".join(names), rig=rig, t_end=t_end)
     sc = c.scenario
     limit = rig.drive.V_max if volts else c.controllers["lqg"].tau_max
     for name in names:
@@ -75,3 +78,20 @@ def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, t_f, t_end, tmp_p
         assert err <= 1e-8, (name, err)
         assert np.max(np.abs(py.tau)) > 0.05 * limit           # the loop did work
         assert judge(run, py_ctrl, sc, c.plant.params, name)[0]["verdict"] == c.metrics[name]["verdict"]
+
+
+@pytest.mark.parametrize("kind", ["lqr", "mpc"])
+def test_cli_codegen_on_a_rig_without_gauge_or_rate(kind, tmp_path, capsys):
+    """``hubbeam codegen --rig accel_link``: once refused (no root gauge, no sensors.rate), now the
+    step reads the encoder and the tip accelerometer, in that order."""
+    import json
+
+    from hubbeam_ctrl.cli.main import main
+    out = tmp_path / kind
+    assert main(["codegen", "--rig", "accel_link", "--controller", kind, "--slew-angle", "1.5", "--tf", "2",
+                 "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert [(m["name"], m["unit"]) for m in summary["measurements"]] == [("theta", "rad"),
+                                                                         ("accel_tangential", "m/s^2")]
+    assert summary["command"] == {"name": "tau", "unit": "N m"}
+    assert (out / f"{kind}.c").is_file()

@@ -138,8 +138,10 @@ class CController:
         self.dt = code.law.dt
         self.measurement = "sensors" if code.law.sensors else "state"
         #: the rig signals the step reads (None: the closed loop's default three), as the Python law's
-        self.signals = None if tuple(code.law.sensors) in (("theta", "theta_dot", "root_moment"),
-                                                          ("theta", "theta_dot")) else tuple(code.law.sensors)
+        self.signals = None if (code.law.kind == "pd" or tuple(code.law.sensors) == (
+            "theta", "theta_dot", "root_moment")) else tuple(code.law.sensors)
+        if python_controller is not None and getattr(python_controller, "signals", None) is not None:
+            self.signals = tuple(python_controller.signals)
         self._k = 0
         if python_controller is not None:
             for attr in ("design", "n_modes", "state_modes"):
