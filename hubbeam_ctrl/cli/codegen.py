@@ -99,8 +99,9 @@ def run(args) -> int:
     if rig is not None:
         params = rig.plant_params
         if args.controller not in ("pd", "lqr", "lqg") and not rig.drive.is_ideal:
-            raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor "
-                                 "takes a voltage command, generated as C for pd, lqr and lqg only)")
+            raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor, "
+                                 "motor.kind = 'dc_motor', takes a voltage command, generated as C for pd, lqr "
+                                 "and lqg only)")
     else:
         params = params_from_args(args)
     sc, design = design_task(args, rig, params)
