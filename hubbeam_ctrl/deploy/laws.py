@@ -215,10 +215,12 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
     Parameters
     ----------
     controller : controllers.Controller
-        A PD, LQR, LQG, input-shaped open loop or feedforward open loop (or an
-        :class:`ObservedLQR`).
+        A PD, LQR, MPC, LQG, scheduled LQG, input-shaped open loop or feedforward open loop;
+        an LQR or MPC closed through :class:`controllers.integral.ObservedFeedback` (the rig
+        path: any sensor set, delay, integral action); any of these behind a DC drive's
+        :class:`controllers.drive.VoltageCommand`.
     noise : controllers.KalmanNoise, optional
-        The observer's noise model for an LQR (default: the simulator's sensors).
+        The observer's noise model for a bare LQR or MPC (default: the simulator's sensors).
 
     Returns
     -------
@@ -261,8 +263,7 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
                                  "C (an LQR or an MPC can)")
         inner = ctrl.inner
         X, tff = _reference_table(inner)
-        K, x0 = np.asarray(inner.K, float), np.array(X[0])
-        x0[ctrl._n_f] -= ctrl.design.spin
+        K, x0 = np.asarray(inner.K, float), ctrl.initial_state()[:ctrl.filter_model.n_x]
         K, X, x0, tff_act = _acting(inner, ctrl.filter_model, K, X, x0, lambda k: inner._reference_at(k)[0])
         tff = tff if tff_act is None else tff_act
         if ctrl.integral:
