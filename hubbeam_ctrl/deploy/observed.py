@@ -22,11 +22,11 @@ from hubbeam_ctrl.core.errors import ParameterError
 __all__ = ["ObservedLQR", "ObservedMPC"]
 
 
-def _noise(noise) -> KalmanNoise:
-    noise = KalmanNoise() if noise is None else noise
-    if not isinstance(noise, KalmanNoise):
-        raise ParameterError(f"noise must be a KalmanNoise, got {type(noise).__name__}")
-    return noise
+def _checked(value, kind: type, rule: str):
+    """``value`` if it is a ``kind``, else a one-line :class:`ParameterError`: ``rule, got <type>``."""
+    if not isinstance(value, kind):
+        raise ParameterError(f"{rule}, got {type(value).__name__}")
+    return value
 
 
 class ObservedLQR(ObservedFeedback):
@@ -49,12 +49,10 @@ class ObservedLQR(ObservedFeedback):
     """
 
     def __init__(self, lqr: LQR, noise: KalmanNoise | None = None):
-        if not isinstance(lqr, LQR):
-            raise ParameterError(f"lqr must be an LQR, got {type(lqr).__name__}")
-        self.noise = _noise(noise)
-        super().__init__(lqr, self.noise)
-        self.lqr = lqr
-        self.K = lqr.K
+        self.noise = _checked(KalmanNoise() if noise is None else noise, KalmanNoise,
+                              "noise must be a KalmanNoise")
+        super().__init__(_checked(lqr, LQR, "lqr must be an LQR"), self.noise)
+        self.lqr, self.K = lqr, lqr.K
 
     @property
     def L(self) -> np.ndarray:
@@ -73,8 +71,7 @@ class ObservedMPC(ObservedFeedback):
     """
 
     def __init__(self, mpc: MPC, noise: KalmanNoise | None = None):
-        if not isinstance(mpc, MPC):
-            raise ParameterError(f"mpc must be an MPC, got {type(mpc).__name__}")
-        self.noise = _noise(noise)
-        super().__init__(mpc, self.noise)
+        self.noise = _checked(KalmanNoise() if noise is None else noise, KalmanNoise,
+                              "noise must be a KalmanNoise")
+        super().__init__(_checked(mpc, MPC, "mpc must be an MPC"), self.noise)
         self.mpc = mpc
