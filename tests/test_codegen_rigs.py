@@ -95,3 +95,44 @@ def test_cli_codegen_on_a_rig_without_gauge_or_rate(kind, tmp_path, capsys):
                                                                          ("accel_tangential", "m/s^2")]
     assert summary["command"] == {"name": "tau", "unit": "N m"}
     assert (out / f"{kind}.c").is_file()
+
+
+@needs_cc
+@pytest.mark.parametrize("integral", [True, False])
+def test_mpc_with_integral_action_and_plan_prediction_in_c_equals_python(integral, tmp_path):
+    """The MPC closed through ObservedFeedback with a disturbance state (integral action) and the
+    filter predicting along the plan, on accel_link with half a sample of delay: the C (filter
+    state [x, u_prev, d], plan offsets, disturbance subtracted after the QP) given the sensor
+    values the Python controller read in its closed loop returns its commands."""
+    from controllers.integral import ObservedFeedback
+    from hubbeam_ctrl.study import Slew, compare
+    from hubbeam_ctrl.study.rig_loop import DISTURBANCE_FRACTION, task_noise
+    rig = _rig("accel_link")
+    rig = dataclasses.replace(rig, timing=dataclasses.replace(rig.timing, delay=0.5))
+    c = compare("foam", Slew(math.pi / 2, 1.5), "mpc", rig=rig, t_end=2.5)
+    sc = c.scenario
+    inner = c.controllers["mpc"].inner
+    py_ctrl = ObservedFeedback(inner, task_noise(sc, rig), DISTURBANCE_FRACTION * inner.tau_max if integral else None,
+                               plan_prediction=True)
+    code = to_c(py_ctrl, tmp_path / "mpc")
+    assert {"OFFSET", "P"} <= set(code.law.arrays) and code.law.scalars["integral"] == float(integral)
+    assert code.law.scalars["plan_shift"] == 1.0            # floor(0.5 + 0.5): the next sample's plan
+    cc = CController(compile_c(code, "-O2", tmp_path), code, py_ctrl)
+    seen = []
+
+    class Recorder:                       # the Python controller, recording what it reads and returns
+        def __getattr__(self, name):
+            return getattr(py_ctrl, name)
+
+        def __call__(self, t, y):
+            tau = py_ctrl(t, y)
+            seen.append((t, np.array(y, dtype=float), tau))
+            return tau
+    simulate_closed_loop(c.plant, Recorder(), sc.t_end, settings=sc.closed_loop_settings(),
+                         reference=(sc.reference.theta_at, sc.reference.theta_dot_at), hardware=Hardware.from_rig(rig))
+    cc.reset()
+    err = max(abs(cc(t, y) - tau) for t, y, tau in seen) / inner.tau_max
+    print(f"accel_link delay 0.5 mpc (integral {integral}) + plan prediction: max |C - Python| / tau_max = {err:.2e}")
+    assert len(seen) == round(sc.t_end / sc.dt) + 1
+    assert err <= 1e-8, err
+    assert (abs(py_ctrl.disturbance) > 0) == integral             # the disturbance state moved
