@@ -26,6 +26,9 @@ def _rig(name: str):
     if name == "servo_link_delay1":
         rig = load_rig("servo_link")
         return dataclasses.replace(rig, timing=dataclasses.replace(rig.timing, delay=1.0))
+    if name == "accel_link_slew":         # an amplifier that moves the torque by at most 20 N m/s
+        rig = load_rig("accel_link")
+        return dataclasses.replace(rig, drive=dataclasses.replace(rig.drive, slew_rate=20.0))
     if name == "servo_link_norate":
         rig = load_rig("servo_link")
         return dataclasses.replace(rig, sensors=dataclasses.replace(rig.sensors, rate=False))
@@ -136,3 +139,49 @@ def test_mpc_with_integral_action_and_plan_prediction_in_c_equals_python(integra
     assert len(seen) == round(sc.t_end / sc.dt) + 1
     assert err <= 1e-8, err
     assert (abs(py_ctrl.disturbance) > 0) == integral             # the disturbance state moved
+
+
+@needs_cc
+def test_the_c_filter_predicts_with_the_command_the_amplifier_gave(tmp_path):
+    """accel_link with a slew-rate limit (motor.slew_rate 20 N m/s): the closed loop tells the
+    controller the limited command (``applied``); the C's ``<name>_applied`` does the same. The
+    C replaying the Python closed loop's sensor values and applied commands returns its commands.
+    (Compared in closed loop instead, the two LQR loops part from 1e-9 at t = 0.26 s: the command
+    sits on the slew limit in 87 % of the samples, a loop that magnifies rounding.)"""
+    from hubbeam_ctrl.study import Slew, compare
+    rig = _rig("accel_link_slew")
+    c = compare("foam", Slew(math.pi / 2, 1.5), "lqr,mpc", rig=rig, t_end=2.5)
+    sc = c.scenario
+    for name in ("lqr", "mpc"):
+        py_ctrl = c.controllers[name]
+        code = to_c(py_ctrl, tmp_path / name)
+        assert f"void {name}_applied({name}_instance *inst, double command);" in code.header
+        cc = CController(compile_c(code, "-O2", tmp_path), code, py_ctrl)
+        seen = []
+
+        class Recorder:                   # the Python controller, recording what it reads, returns, is given
+            def __getattr__(self, attr):
+                return getattr(py_ctrl, attr)
+
+            def __call__(self, t, y):
+                seen.append([t, np.array(y, dtype=float), py_ctrl(t, y), None])
+                return seen[-1][2]
+
+            def applied(self, tau):
+                seen[-1][3] = tau
+                py_ctrl.applied(tau)
+        simulate_closed_loop(c.plant, Recorder(), sc.t_end, settings=sc.closed_loop_settings(),
+                             reference=(sc.reference.theta_at, sc.reference.theta_dot_at),
+                             hardware=Hardware.from_rig(rig))
+        limited = sum(given is not None for *_, given in seen)
+        assert limited > 0.5 * len(seen)                        # the amplifier's limit was at work
+        cc.reset()
+        err = 0.0
+        for t, y, tau, given in seen:
+            err = max(err, abs(cc(t, y) - tau))
+            if given is not None:
+                cc.applied(given)
+        err /= py_ctrl.tau_max
+        print(f"accel_link slew 20 N m/s {name}: {limited} of {len(seen)} samples limited, "
+              f"max |C - Python| / tau_max = {err:.2e}")
+        assert err <= 1e-8, (name, err)

@@ -233,6 +233,10 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         or a non-finite gain.
     """
     if isinstance(controller, VoltageCommand):      # the torque law, then the drive's static inverse
+        if controller.hardware.drive.slew_rate is not None:
+            raise ParameterError("controller: a voltage command through an amplifier with a slew-rate limit "
+                                 "(motor.slew_rate) cannot be generated as C yet (the filter would need the torque "
+                                 "the limited voltage gives)")
         law = control_law(controller.inner, noise)
         if law.kind not in ("pd", "observer", "mpc"):
             raise ParameterError(f"controller: a voltage command of {law.controller!r} cannot be generated as C")

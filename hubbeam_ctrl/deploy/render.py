@@ -206,5 +206,5 @@ void {name}_reset({name}_instance *inst)
         raise HubbeamError(f"unknown control-law template {law.kind!r}")
     n_meas = len(law.sensors)
     header = _header(name, law, real, body, n_meas)
-    source = _source(name, precision, data, code)
+    source = _source(name, precision, data, code, law)
     return header, source

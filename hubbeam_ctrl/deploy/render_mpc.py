@@ -223,7 +223,7 @@ static int qp_solve({name}_instance *inst)
 }}
 """
     header = _header(name, law, real, body, len(law.sensors))
-    source = _source(name, precision, data, code)
+    source = _source(name, precision, data, code, law)
     return header, source
 
 
@@ -315,5 +315,5 @@ void {name}_reset({name}_instance *inst)
 }}
 """
     header = _header(name, law, real, body, len(law.sensors))
-    source = _source(name, precision, data, code)
+    source = _source(name, precision, data, code, law)
     return header, source

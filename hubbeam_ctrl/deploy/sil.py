@@ -124,6 +124,9 @@ class CController:
         self._init = getattr(self._lib, f"{prefix}_init")
         self._reset = getattr(self._lib, f"{prefix}_reset")
         self._step = getattr(self._lib, f"{prefix}_step")
+        self._applied = getattr(self._lib, f"{prefix}_applied")
+        self._applied.argtypes = [ctypes.c_void_p, ctypes.c_double]
+        self._applied.restype = None
         dbl_p = ctypes.POINTER(ctypes.c_double)
         self._step.argtypes = [ctypes.c_void_p, dbl_p, dbl_p, dbl_p]
         self._step.restype = None
@@ -173,6 +176,16 @@ class CController:
         self._step(self._inst, self._y_p, self._null, self._tau_p)
         self._k += 1
         return self._tau.value
+
+    def applied(self, command: float) -> None:
+        """``<name>_applied``: the drive gave ``command``, not what the step returned (a slew-rate limit).
+
+        Parameters
+        ----------
+        command : float
+            The command applied [N m].
+        """
+        self._applied(self._inst, float(command))
 
     def step(self, y, reference=None) -> float:
         """One raw ``<name>_step`` call, without the time check (for benchmarks and tests).
