@@ -29,6 +29,7 @@ from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.plant.rig import load_rig  # noqa: E402
 from hubbeam_ctrl.study import Slew, compare  # noqa: E402
 from hubbeam_ctrl.study.bands import angle_count as sensor_count  # noqa: E402
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
 
 #: Slew angle per rig [rad]: 90 degrees, 30 on the space boom (a 0.1 N m wheel turns a 100 kg m^2
 #: spacecraft by 90 degrees in 1.5 minutes; 30 degrees is its everyday re-pointing).
@@ -58,8 +59,8 @@ def case(name: str) -> dict:
     t_opt = time_optimal_slew(rig, angle).duration_s
     t_opt_s = time.perf_counter() - start
     task = Slew(angle, FACTOR * t_opt)
-    c = compare("foam", task, ",".join(CONTROLLERS), rig=rig)
-    longer = compare("foam", task, ",".join(CONTROLLERS), rig=rig, t_end=4 * c.scenario.t_end)
+    c = compare(rig, task, ",".join(CONTROLLERS))
+    longer = compare(rig, task, ",".join(CONTROLLERS), CompareSettings(run=RunChoice(t_end=4 * c.scenario.t_end)))
     count = angle_count(rig)
     rows = {}
     for ctrl in CONTROLLERS:

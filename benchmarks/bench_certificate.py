@@ -21,6 +21,7 @@ import time
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.study import Slew, compare
 from hubbeam_ctrl.study.certificate import _linear_plant, certify
+from hubbeam_ctrl.study.compare_values import compare_arguments
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 
 LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
@@ -32,9 +33,9 @@ def main() -> None:
     args = ap.parse_args()
     kw = {} if args.beam == "paper" else {"scenario": Slew(1.5708, 1.2), "params": LAB}
     load0 = os.getloadavg()
-    compare("foam", **kw)                                   # warm-up: plant build and compile
+    compare(**compare_arguments("foam", **kw))                                   # warm-up: plant build and compile
     t0, c0 = time.perf_counter(), time.process_time()
-    comp = compare("foam", **kw)
+    comp = compare(**compare_arguments("foam", **kw))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     ctrls = comp.controllers
     _linear_plant.cache_clear()

@@ -21,12 +21,13 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from benchjson import emit  # noqa: E402
 
 from hubbeam_ctrl.study import compare  # noqa: E402
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
 
 CONTROLLERS = ("lqr", "lqg", "mpc")
 
 
 def run(reference: str) -> dict:
-    c = compare("foam", "slew", ("openloop",) + CONTROLLERS, reference=reference)
+    c = compare(None, "slew", ("openloop",) + CONTROLLERS, CompareSettings(design=DesignChoice(reference=reference)))
     out = {}
     for name in CONTROLLERS:
         m = c.metrics[name]

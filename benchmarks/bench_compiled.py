@@ -59,6 +59,7 @@ from hubbeam_ctrl.sim.stepper import (
     _iteration_matrix_function,
     simulate_fixed_step,
 )
+from hubbeam_ctrl.study.compare_values import CompareSettings, PlantChoice
 
 BACKENDS = ("vm", "compiled")
 PULSE = TorquePulse(200.0, 10.0)
@@ -259,8 +260,13 @@ def compare_cfoam(plant_modes: int | None) -> dict:
     from hubbeam_ctrl.study.compare import compare
     out = {"plant_modes": plant_modes}
     for b in BACKENDS:
-        compare("cfoam", plant_modes=plant_modes, backend=b)          # warm: design, build, compile
-        cpu, wall, _ = _cpu(lambda: compare("cfoam", plant_modes=plant_modes, backend=b))
+        compare(None, "slew", None,
+                CompareSettings(plant=PlantChoice("cfoam",
+                                                  plant_modes=plant_modes,
+                                                  backend=b)))          # warm: design, build, compile
+        cpu, wall, _ = _cpu(lambda: compare(None, "slew", None,
+                                            CompareSettings(plant=PlantChoice("cfoam", plant_modes=plant_modes,
+                                                                              backend=b))))
         out[b] = {"cpu_s": cpu, "wall_s": wall}
     out["speedup_cpu"] = _ratio(out, "cpu_s")
     return out

@@ -30,6 +30,7 @@ from hubbeam_ctrl.core.fileio import atomic_write_text
 from hubbeam_ctrl.exact import ExactBeamPlant, element_rule
 from hubbeam_ctrl.sim import simulate_exact
 from hubbeam_ctrl.study import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, PlantChoice, RunChoice
 
 
 def eq44(t_end: float) -> dict:
@@ -112,7 +113,7 @@ def main() -> None:
     runs = {}
     for plant in (("foam", "ancf") if "slew" in sections else ()):
         t0 = time.perf_counter()
-        comp = compare(plant, "slew", names, t_end=args.t_end)
+        comp = compare(None, "slew", names, CompareSettings(plant=PlantChoice(plant), run=RunChoice(t_end=args.t_end)))
         runs[plant] = {"wall_s": time.perf_counter() - t0,
                        "controllers": {n: {"verdict": m["verdict"], "peak_tip_m": m["peak_tip_m"],
                                            "residual_tip_rms_m": m["residual_tip_rms_m"],

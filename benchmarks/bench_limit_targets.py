@@ -54,6 +54,7 @@ from hubbeam_ctrl import Params  # noqa: E402
 from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.plant.rig import Rig, load_rig  # noqa: E402
 from hubbeam_ctrl.study.compare import compare  # noqa: E402
+from hubbeam_ctrl.study.compare_values import CompareSettings, PayloadChoice, PlantChoice, compare_arguments
 from hubbeam_ctrl.study.payload import payload_comparison  # noqa: E402
 from hubbeam_ctrl.study.tasks import Slew  # noqa: E402
 
@@ -102,7 +103,7 @@ def _case(label, beam, angle, t_opt, limit, factor=FACTOR, **options) -> dict:
     out = {"t_opt_s": t_opt, "t_f_s": t_f, "angle_rad": angle, "runs": {}}
     for reference in REFERENCES:
         t0 = time.perf_counter()
-        c = compare("foam", Slew(angle, t_f), NAMES, reference=reference, **options)
+        c = compare(**compare_arguments("foam", Slew(angle, t_f), NAMES, reference=reference, **options))
         run = _judge(c, beam, angle, limit)
         out["runs"][reference] = {"controllers": run, "wall_s": time.perf_counter() - t0}
         print(f"{label:10s} {reference:8s} " + "  ".join(
@@ -121,8 +122,9 @@ def _learning_case(beam: Params, angle: float, t_f: float, payload_range, payloa
     runs = {}
     for m in payloads:
         t0 = time.perf_counter()
-        c = compare("foam", Slew(angle, t_f), NAMES, params=beam, plant_params=beam.replace(m_t=m),
-                    payload_learning=settings)
+        c = compare(beam, Slew(angle, t_f), NAMES,
+                    CompareSettings(plant=PlantChoice(plant_params=beam.replace(m_t=m)),
+                                    payload=PayloadChoice(payload_learning=settings)))
         rows = _judge(c, beam.replace(m_t=m), angle, beam.tau_max)
         for name, row in rows.items():
             row["replans"] = c.controllers[name].log

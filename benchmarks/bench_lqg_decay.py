@@ -25,6 +25,7 @@ from controllers.lqg import DECAY_LADDER, noise_tip_std  # noqa: E402
 from hubbeam_ctrl import Params  # noqa: E402
 from hubbeam_ctrl.plant.rig import load_rig  # noqa: E402
 from hubbeam_ctrl.study.compare import compare  # noqa: E402
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
 from hubbeam_ctrl.study.rig_loop import rig_noise  # noqa: E402
 from hubbeam_ctrl.study.scenarios import make_scenario  # noqa: E402
 from hubbeam_ctrl.study.tasks import Slew  # noqa: E402
@@ -66,9 +67,10 @@ def margins() -> dict:
     out = {}
     for decay in DECAY_LADDER:
         st = LQGSettings.for_scenario(sc, error_decay=decay)
-        m = compare("foam", Slew(1.0, PAPER_TF), "lqg", params=p, settings={"lqg": st}).metrics["lqg"]
+        m = compare(p, Slew(1.0, PAPER_TF), "lqg",
+                    CompareSettings(design=DesignChoice(settings={"lqg": st}))).metrics["lqg"]
         out[f"lqg {decay}"] = {"settling_time_s": m["settling_time_s"], **{k: m[k] for k in MARGINS}}
-    m = compare("foam", Slew(1.0, PAPER_TF), "lqr", params=p).metrics["lqr"]
+    m = compare(p, Slew(1.0, PAPER_TF), "lqr").metrics["lqr"]
     out["lqr"] = {"settling_time_s": m["settling_time_s"], **{k: m[k] for k in MARGINS}}
     for name, row in out.items():
         print(f"{name:8s} " + "  ".join(f"{k} {v:.4g}" for k, v in row.items()), file=sys.stderr)

@@ -2,7 +2,8 @@
 time-optimal slew) with the NMPC (controllers.nmpc), the linear MPC and LQR, and the NMPC's step time.
 
 Prints one JSON object (``--out FILE`` also writes it). Run:
-``.venv/bin/python benchmarks/bench_nmpc.py --out benchmarks/results/bench_nmpc.json``.
+``.venv/bin/python benchmarks/bench_nmpc.py --out benchmarks/results/bench_nmpc.json`` (and
+``--backend compiled --out benchmarks/results/bench_nmpc_compiled.json``: the step as its generated C).
 
 Each case is ``compare`` on FOAM (the evaluation plant's modes, every option default) with the
 task ``Slew(pi/2, factor * T*)``. Reported per controller: verdict, settling time after t_f in
@@ -29,26 +30,43 @@ from hubbeam_ctrl import Params  # noqa: E402
 from hubbeam_ctrl.core.errors import ParameterError  # noqa: E402
 from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.study import Slew, compare  # noqa: E402
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
 
 LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
-BEAMS = {"table1": Params(), "lab": LAB}
-#: Slew angles [rad]: 90 degrees on the lab arm; 1 rad on Table 1's beam, whose 90 degrees at 1.1 T*
+BEAMS = {"table1": Params(), "lab": LAB, "servo_link": "servo_link"}
+#: Slew angles [rad]: 90 degrees on the lab arm and servo_link (its DC drive in volts, friction,
+#: encoder and half a sample of delay; the NMPC runs through the rig's filter and drive stage,
+#: the drive is not in its prediction); 1 rad on Table 1's beam, whose 90 degrees at 1.1 T*
 #: (3.33 s) is shorter than the 3.50 s in which its Eq. 44 open-loop baseline can turn it.
-ANGLES = {"table1": 1.0, "lab": math.pi / 2}
+ANGLES = {"table1": 1.0, "lab": math.pi / 2, "servo_link": math.pi / 2}
+
+
+def _beam(name: str):
+    """The beam's Params, or the preset rig."""
+    from hubbeam_ctrl.plant.rig import load_rig
+    return load_rig(BEAMS[name]) if isinstance(BEAMS[name], str) else BEAMS[name]
+
+
+def _inner(ctrl):
+    """The NMPC inside the rig's filter and drive stages."""
+    while not hasattr(ctrl, "step_times_s") and hasattr(ctrl, "inner"):
+        ctrl = ctrl.inner
+    return ctrl
 CONTROLLERS = ("lqr", "mpc", "nmpc")
 
 
-def case(beam: str, factor: float, t_opt: float, horizon: int | None = None) -> dict:
-    params = BEAMS[beam]
+def case(beam: str, factor: float, t_opt: float, horizon: int | None = None, backend: str = "vm") -> dict:
+    params = _beam(beam)
     task = Slew(ANGLES[beam], factor * t_opt)
     t0 = time.perf_counter()
     settings = None
-    if horizon is not None:           # the NMPC's horizon other than its default
+    if horizon is not None or backend != "vm":      # the NMPC's horizon or backend other than its default
         from controllers import NMPCSettings
         from hubbeam_ctrl.study.scenarios import make_scenario
-        sc = make_scenario(task, params=params, t_end=None)
-        settings = {"nmpc": NMPCSettings.for_scenario(sc).replace(horizon=horizon)}
-    c = compare("foam", task, CONTROLLERS, params=params, settings=settings)
+        sc = make_scenario(task, params=getattr(params, "plant_params", params), t_end=None)
+        own = NMPCSettings.for_scenario(sc).replace(backend=backend)
+        settings = {"nmpc": own if horizon is None else own.replace(horizon=horizon)}
+    c = compare(params, task, CONTROLLERS, CompareSettings(design=DesignChoice(settings=settings)))
     period = 2 * math.pi / first_mode(c.controllers["lqr"].design)
     out = {"t_f_s": task.duration, "first_period_s": period, "wall_s": time.perf_counter() - t0,
            "settle_angle_rad": c.scenario.bands["settle_angle"], "controllers": {}}
@@ -58,12 +76,15 @@ def case(beam: str, factor: float, t_opt: float, horizon: int | None = None) -> 
         row = {"verdict": m["verdict"], "settling_time_s": settle,
                "settle_after_tf_periods": None if settle is None else (settle - task.duration) / period,
                "residual_pct_of_L": m.get("residual_pct_of_L"), "final_angle_error_rad": m["final_angle_error_rad"],
-               "peak_torque_nm": m["peak_torque_nm"], "tau_max_nm": params.tau_max,
+               "peak_torque_nm": m["peak_torque_nm"], "tau_max_nm": getattr(params, "plant_params", params).tau_max,
+               "peak_command": m["peak_command"], "command_unit": m.get("command_unit", "N m"),
+               "within_drive_limits": bool(m["within_drive_limits"]),
                "loop_spectral_radius": m.get("loop_spectral_radius")}
         if name == "nmpc":
-            steps = np.asarray(c.controllers[name].step_times_s)
+            nmpc = _inner(c.controllers[name])
+            steps = np.asarray(nmpc.step_times_s)
             row.update(step_median_s=float(np.median(steps)), step_p99_s=float(np.percentile(steps, 99)),
-                       dt_s=float(c.scenario.dt), model_modes=c.controllers[name].model_modes)
+                       dt_s=float(c.scenario.dt), model_modes=nmpc.model_modes)
         out["controllers"][name] = row
     return out
 
@@ -71,7 +92,7 @@ def case(beam: str, factor: float, t_opt: float, horizon: int | None = None) -> 
 def table_lines(doc: dict) -> list:
     """docs/limit.md's table of this benchmark (a test keeps the page equal to the JSON)."""
     lines = ["| beam | t_f / T* | controller | verdict | settled after t_f [first-mode periods] | residual [% of L] | "
-             "final angle error [rad] | peak torque [N m] | step median / p99 [ms] (sample) |",
+             "final angle error [rad] | peak command | step median / p99 [ms] (sample) |",
              "|---|---|---|---|---|---|---|---|---|"]
     for beam, b in doc["beams"].items():
         for f, c in b["factors"].items():
@@ -82,8 +103,9 @@ def table_lines(doc: dict) -> list:
                 after = "-" if r["settle_after_tf_periods"] is None else f"{r['settle_after_tf_periods']:.2f}"
                 step = (f"{1e3 * r['step_median_s']:.1f} / {1e3 * r['step_p99_s']:.1f} ({1e3 * r['dt_s']:g})"
                         if "step_median_s" in r else "")
+                peak = f"{r['peak_command']:.4g} {r['command_unit']}"
                 lines.append(f"| {beam} | {f} | {name} | {r['verdict']} | {after} | {r['residual_pct_of_L']:.3g} | "
-                             f"{r['final_angle_error_rad']:.2g} | {r['peak_torque_nm']:.4g} | {step} |")
+                             f"{r['final_angle_error_rad']:.2g} | {peak} | {step} |")
     return lines
 
 
@@ -92,15 +114,17 @@ def main(argv=None) -> None:
     ap.add_argument("--beams", default="table1,lab")
     ap.add_argument("--factors", default="1.1,1.2,1.3")
     ap.add_argument("--horizon", type=int, default=None, help="the NMPC's horizon [samples] (default its own)")
+    ap.add_argument("--backend", default="vm", choices=("vm", "compiled"),
+                    help="the NMPC's step on CasADi's virtual machine or as its generated C")
     ap.add_argument("--out", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
-    doc = {"horizon": args.horizon, "beams": {}}
+    doc = {"horizon": args.horizon, "backend": args.backend, "beams": {}}
     for beam in args.beams.split(","):
-        t_opt = time_optimal_slew(BEAMS[beam], ANGLES[beam]).duration_s
+        t_opt = time_optimal_slew(_beam(beam), ANGLES[beam]).duration_s
         doc["beams"][beam] = {"t_opt_s": t_opt, "factors": {}}
         for f in (float(x) for x in args.factors.split(",")):
             try:
-                doc["beams"][beam]["factors"][f"{f:g}"] = case(beam, f, t_opt, args.horizon)
+                doc["beams"][beam]["factors"][f"{f:g}"] = case(beam, f, t_opt, args.horizon, args.backend)
             except ParameterError as exc:      # a task the Eq. 44 baseline cannot do: said, not run
                 doc["beams"][beam]["factors"][f"{f:g}"] = {"not_run": str(exc)}
     emit(doc, args.out)

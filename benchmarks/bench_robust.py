@@ -42,6 +42,7 @@ from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.plant.rig import Rig, load_rig  # noqa: E402
 from hubbeam_ctrl.plant.uncertainty import Uncertainty  # noqa: E402
 from hubbeam_ctrl.study import Slew, compare  # noqa: E402
+from hubbeam_ctrl.study.compare_values import CompareSettings, PlantChoice
 from hubbeam_ctrl.study.robust_check import check_points, residual_score, run_at  # noqa: E402
 from hubbeam_ctrl.study.robust_design import design_for_set  # noqa: E402
 from hubbeam_ctrl.study.worst_case import certify_set  # noqa: E402
@@ -98,7 +99,7 @@ def setup(name: str):
 def case(name: str) -> dict:
     rig, task, t_opt, notes = setup(name)
     start = time.perf_counter()
-    cmp = compare("foam", task or "slew", ("openloop",) + CONTROLLERS, rig=rig)
+    cmp = compare(rig, task or "slew", ("openloop",) + CONTROLLERS)
     u, bare = rig.uncertainty, rig.replace(uncertainty=Uncertainty())
     score = residual_score(cmp, bare, u)
     out = {"set": u.to_table(), "task": cmp.scenario.description, "t_opt_s": t_opt, "controllers": {}, **notes}
@@ -158,7 +159,7 @@ def timing() -> dict:
     u = Uncertainty.from_table({"m_t": (0.0, 0.5), "E": (0.95 * p.E, 1.05 * p.E), "J_h": (180.0, 220.0),
                                 "damping": (FLOOR, 0.01)})
     rig = Rig(beam=p)
-    cmp = compare("foam", "slew", ["lqr"], rig=rig, plant_modes=10)
+    cmp = compare(rig, "slew", ["lqr"], CompareSettings(plant=PlantChoice(plant_modes=10)))
     ctrl = cmp.controllers["lqr"]
     t0 = time.perf_counter()
     search = certify_set(ctrl, rig, u, plant_modes=10)

@@ -31,6 +31,7 @@ import time
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import compare_arguments
 from hubbeam_ctrl.study.tasks import Slew
 
 FREQUENCY_TOLERANCE = ClosedLoopSettings().frequency_tolerance
@@ -45,7 +46,8 @@ def run(beam: str, substeps: int, damping_ratio: float = 0.0, controllers=None) 
     if damping_ratio:
         kw["plant_params"] = dataclasses.replace(design, damping_ratio=damping_ratio)
     t0 = time.perf_counter()
-    c = compare(**kw) if beam == "paper" else compare(scenario=Slew(1.5708, 1.2), params=LAB_ARM, **kw)
+    task = {} if beam == "paper" else {"scenario": Slew(1.5708, 1.2), "params": LAB_ARM}
+    c = compare(**compare_arguments(**task, **kw))
     return {"substeps": {n: r.settings.get("substeps") for n, r in c.results.items()},
             "residual_tip_max_m": {n: m["residual_tip_max_m"] for n, m in c.metrics.items()},
             "residual_tip_rms_m": {n: m["residual_tip_rms_m"] for n, m in c.metrics.items()},

@@ -58,6 +58,7 @@ from controllers.mpc import DirectDAQP  # noqa: E402
 from controllers.payload_learning import identify_payload  # noqa: E402
 from controllers.scaling import first_mode  # noqa: E402
 from hubbeam_ctrl import Params  # noqa: E402
+from hubbeam_ctrl.study.compare_values import CompareSettings, PlantChoice  # noqa: E402
 from hubbeam_ctrl.study.scenarios import make_scenario  # noqa: E402
 from hubbeam_ctrl.study.tasks import Slew  # noqa: E402
 
@@ -319,8 +320,8 @@ def main(argv=None) -> int:
     for mass in (float(m) for m in o.masses.split(",")):
         t0 = time.perf_counter()
         wrappers.clear()
-        c = compare_module.compare("foam", Slew(1.0, tf), o.controller, params=NOMINAL,
-                                   plant_params=NOMINAL.replace(m_t=mass))
+        c = compare_module.compare(NOMINAL, Slew(1.0, tf), o.controller,
+                                   CompareSettings(plant=PlantChoice(plant_params=NOMINAL.replace(m_t=mass))))
         m = c.metrics[o.controller]
         period = 2 * math.pi / first_mode(DesignModel.build(NOMINAL.replace(m_t=mass), 0.0, c.scenario.dt, 1))
         settle = m.get("settling_time_s")

@@ -151,6 +151,10 @@ class Reference:
         (:func:`controllers.planning.planned_slew_reference`): a filter that predicts with the
         applied torque already follows it, so the filters do not predict along it by default
         (``plan_prediction``); False for a plan of the nonlinear model (an optimal slew).
+    plan : tuple or None
+        ``(angle, duration, tau_max, n_modes)`` of a plan on the design model
+        (:func:`controllers.planning.planned_slew_reference`), so that a controller can plan the
+        same task for other parameters (:func:`controllers.planning.replanned`); None otherwise.
     """
 
     dt: float
@@ -161,6 +165,7 @@ class Reference:
     description: str = ""
     elastic: np.ndarray | None = None
     planned_on_design: bool = False
+    plan: tuple | None = None
 
     @classmethod
     def from_profile(cls, profile, dt: float, t_end: float, description: str = "") -> "Reference":
@@ -459,7 +464,11 @@ class Controller:
 
     def _prepare_reference(self, elastic: bool, extra: int = 0) -> None:
         """Tabulate reference states and feedforward torques (plus ``extra`` samples)."""
-        ref = self.reference
+        self._xref, self._tff = self._tabulate(self.reference, elastic, extra)
+
+    def _tabulate(self, ref: "Reference", elastic: bool, extra: int = 0) -> tuple:
+        """``(X, tau_ff)``: the design states and feedforward torques of ``ref`` at its samples plus
+        ``extra`` more (held at its end)."""
         K = len(ref.theta) + extra + 1
         th, thd, tff = ref.window(0, K)
         X = np.zeros((K, self.design.n_x))
@@ -469,8 +478,7 @@ class Controller:
         X[len(ref.theta):, n] = thd[len(ref.theta):]
         if elastic and len(ref.theta) > 1:      # hold the last deflection
             X[len(ref.theta):, 1:n] = X[len(ref.theta) - 1, 1:n]
-        self._xref = X
-        self._tff = np.asarray(tff, dtype=float)
+        return X, np.asarray(tff, dtype=float)
 
     def _reference_states(self, reference: "Reference", elastic: bool) -> np.ndarray:
         """Reference states at the reference's samples (a scheduled controller overrides it)."""

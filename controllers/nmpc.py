@@ -18,9 +18,19 @@ problem over ``horizon`` samples:
   NMPC's linear form at the end point is that LQR: :meth:`NMPC.feedback_matrices`, which the
   certificate closes);
 * the QP in the step's deltas (dynamics linearised at the shifted previous solution, the
-  torque bounds ``|u| <= tau_max`` as simple bounds) is solved by a QP plugin of CasADi
-  (:data:`QP_PLUGINS`; OSQP by default, linked through CasADi, not copied), warm-started by
-  the shift.
+  torque bounds ``|u| <= tau_max`` as simple bounds) is condensed and solved by CasADi's
+  active-set ``qrqp`` (:data:`QP_PLUGINS`) inside one CasADi function of the whole step
+  (:func:`rti_step_function`), warm-started by the shift: the Python step calls it, and its
+  generated C (:func:`hubbeam_ctrl.deploy.nmpc_c.nmpc_to_c`) is the same step.
+
+**Unknown payload** (``learn_payload``): each sample the payload is fitted to the hub's
+angular-momentum balance (:class:`controllers.payload_estimate.PayloadMomentum`: the torque's
+impulse against the momentum of the measured state, exact whatever the modes the prediction
+leaves out), the shooting map predicts with that payload's parameter vector (a table over the
+range, no model built during the slew) and the reference is the task planned again for it
+(:func:`controllers.planning.replanned` on :data:`REFERENCE_POINTS` payloads over the range
+before the slew, interpolated at the estimate). No separate re-planning step: the estimate
+converges in the slew's first 0.05-0.2 s (``benchmarks/bench_nmpc_payload.py``).
 
 The command is the first move. The NMPC reads the design model's state (``measurement ==
 "state"``): on a rig the comparison closes it through the same Kalman filter as LQR and MPC.
@@ -40,15 +50,18 @@ from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
 
-__all__ = ["NMPCSettings", "NMPC", "QP_PLUGINS", "NMPC_MODES", "rk4_substeps"]
+__all__ = ["NMPCSettings", "NMPC", "QP_PLUGINS", "NMPC_MODES", "rk4_substeps", "rti_step_function"]
 
 #: Solvers of the step's condensed QP.
-QP_PLUGINS = ("daqp",)
+QP_PLUGINS = ("qrqp",)
 #: Bending modes of the prediction model by default (:attr:`NMPCSettings.modes`).
 NMPC_MODES = 2
 #: RK4 keeps ``|lambda h|`` below this for the fastest modelled mode (its stability limit on the
 #: imaginary axis is 2.83).
 RK4_REACH = 1.5
+#: Payloads over the range on which a learning NMPC plans its task again before the slew (the
+#: reference is interpolated between them at the estimate).
+REFERENCE_POINTS = 17
 
 
 @dataclass(frozen=True)
@@ -65,9 +78,9 @@ class NMPCSettings(LQSettings):
                                    doc="RK4 substeps per sample; None: enough for the fastest modelled mode "
                                        "(rk4_substeps).")
     backend: str = setting("vm", choices=("auto", "compiled", "vm"),
-                           doc="The shooting map on CasADi's virtual machine (vm, the default: no build) or as "
-                               "generated C (auto/compiled: when a C compiler is there; built once and cached, "
-                               "minutes for a large model).")
+                           doc="The step (rti_step_function) on CasADi's virtual machine (vm, the default: no "
+                               "build) or as its generated C (auto/compiled: when a C compiler is there; built "
+                               "once and cached: 30 s for Table 1's 2-mode model).")
     @classmethod
     def for_scenario(cls, scenario, **options) -> "NMPCSettings":
         """The task's settings (as LQR's), keeping the NMPC's own horizon and QP solver: the study-wide
@@ -86,8 +99,28 @@ class NMPCSettings(LQSettings):
         options = {k: v for k, v in options.items() if k not in ("horizon", "solver")}
         return super().for_scenario(scenario, **options)
 
-    qp_solver: str = setting("daqp", choices=QP_PLUGINS, doc="Solver of the step's condensed QP (DAQP, linked: "
-                                                               "the daqp package).")
+    qp_solver: str = setting("qrqp", choices=QP_PLUGINS,
+                             doc="Solver of the step's condensed box QP: CasADi's active-set qrqp, part of the "
+                                 "step's CasADi function, so that the generated C carries it.")
+    learn_payload: bool = setting(False, doc="Estimate the payload online from the hub's momentum balance "
+                                             "(controllers.payload_estimate.PayloadMomentum), predict with it and "
+                                             "follow the task planned for it; payload_min_kg..payload_max_kg.")
+    payload_min_kg: float = setting(0.0, unit="kg", lo=0.0, doc="Lightest payload the estimate may take.")
+    payload_max_kg: float | None = setting(None, unit="kg", lo=0.0, hi=1e6,
+                                           doc="Heaviest payload the estimate may take; None: the design's payload "
+                                               "plus the beam's mass.")
+    payload_momentum_error: float = setting(1e-7, lo=1e-12, hi=1.0,
+                                            doc="Standard deviation of the momentum balance per sample, as a share "
+                                                "of the reference's peak momentum (J_total times its peak rate; "
+                                                "controllers.payload_estimate.PayloadMomentum): how much the "
+                                                "estimator trusts each sample.")
+
+    def __post_init__(self):
+        super().__post_init__()
+        if (self.learn_payload and self.payload_max_kg is not None
+                and not self.payload_max_kg > self.payload_min_kg):
+            raise ParameterError(f"payload_max_kg must be > payload_min_kg = {self.payload_min_kg:g} kg, "
+                                 f"got {self.payload_max_kg:g}")
 
 
 def rk4_substeps(omega_max: float, dt: float) -> int:
@@ -118,6 +151,65 @@ def _model_modes(design: DesignModel, modes: int | None) -> tuple:
     return modes, w[:modes]
 
 
+def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, tau_max: float,
+                      parametric: bool = False) -> ca.Function:
+    """One real-time iteration of the NMPC as a CasADi function (its C is the generated step).
+
+    ``(x, X, U, XR, UR, Q, P[, p]) -> (X+, U+)``: the shooting map linearised along the
+    previous plan ``(X, U)`` (``nx x N+1``, ``1 x N``), the condensed QP in the moves' deltas
+    (cost ``sum |x_j - XR_j|^2_Q + r (u_j - UR_j)^2 + |x_N - XR_N|^2_P``, dynamics with the
+    stages' defects, ``|u| <= tau_max``) solved by CasADi's active-set ``qrqp``, and the new plan
+    rolled out along the linearisation from the measured state ``x``.
+
+    Parameters
+    ----------
+    shooting : casadi.Function
+        ``(x, u[, p]) -> (x+, dx+/dx, dx+/du)`` over one sample.
+    horizon : int
+        ``N`` [samples].
+    nx : int
+        States of the prediction.
+    r : float
+        Weight of the command [1/(N m)^2].
+    tau_max : float
+        Command limit [N m].
+    parametric : bool
+        The shooting map takes the model's parameter vector ``p`` (a learnt payload).
+
+    Returns
+    -------
+    casadi.Function
+    """
+    N = int(horizon)
+    x, X, U = ca.MX.sym("x", nx), ca.MX.sym("X", nx, N + 1), ca.MX.sym("U", 1, N)
+    XR, UR = ca.MX.sym("XR", nx, N + 1), ca.MX.sym("UR", 1, N)
+    Q, P = ca.MX.sym("Q", nx, nx), ca.MX.sym("P", nx, nx)
+    extra = [ca.MX.sym("p", shooting.size1_in(2))] if parametric else []
+    Xn, Ax, Bu = shooting.map(N)(X[:, :N], U, *extra)
+    eye = ca.DM.eye(N)
+    S, c = ca.MX.zeros(nx, N), x - X[:, 0]        # dX_j = S_j dU + c_j, dX_0 the measured offset
+    H, g = r * ca.MX.eye(N), r * (U - UR).T
+    for j in range(N + 1):
+        if j > 0:
+            WS = ca.mtimes(P if j == N else Q, S)
+            H = H + ca.mtimes(S.T, WS)
+            g = g + ca.mtimes(WS.T, X[:, j] - XR[:, j] + c)
+        if j < N:
+            A = Ax[:, nx * j:nx * (j + 1)]
+            S = ca.mtimes(A, S) + ca.mtimes(Bu[:, j], eye[j, :])
+            c = ca.mtimes(A, c) + Xn[:, j] - X[:, j + 1]
+    qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity(0, N)},
+                  {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False})
+    dU = qp(h=0.5 * (H + H.T), g=g, lbx=-tau_max - U.T, ubx=tau_max - U.T)["x"]
+    c = x - X[:, 0]
+    cols = [x]
+    for j in range(N):                         # the new plan, rolled out along the linearisation
+        c = ca.mtimes(Ax[:, nx * j:nx * (j + 1)], c) + Bu[:, j] * dU[j] + Xn[:, j] - X[:, j + 1]
+        cols.append(X[:, j + 1] + c)
+    return ca.Function("nmpc_rti", [x, X, U, XR, UR, Q, P, *extra], [ca.horzcat(*cols), U + dU.T],
+                       ["x", "X", "U", "XR", "UR", "Q", "P", *(["p"] if parametric else [])], ["X_next", "U_next"])
+
+
 class NMPC(Controller):
     """Real-time-iteration NMPC on the reduced FOAM of the design (see the module docstring).
 
@@ -135,9 +227,14 @@ class NMPC(Controller):
         The LQR gain and Riccati solution of the same weights on the design model (``P``, on the
         predicted states, is the terminal cost).
     K_end : ndarray
-        The step's linear law at the end point (:meth:`feedback_matrices`).
+        The step's linear law at the end point (:meth:`feedback_matrices`), at the design's payload.
     step_times_s : list of float
         Wall time of each step [s].
+    symbolic_step, step_function : casadi.Function
+        The step (:func:`rti_step_function`) as built, and as called (its generated C with
+        ``backend="compiled"``).
+    prediction_states : ndarray of int
+        The design state's entries the prediction model holds, in its order.
     """
 
     measurement = "state"
@@ -167,35 +264,39 @@ class NMPC(Controller):
         self._n, self._nx = n, 2 * n
         # the (residual) design state's rows this model uses: theta, q2_1..m, theta_dot, q2_dot_1..m
         h = self.design.n_x // 2
-        self._pick = np.r_[0, 1:1 + m, h, h + 1:h + 1 + m]
+        self._pick = self.prediction_states = np.r_[0, 1:1 + m, h, h + 1:h + 1 + m]
         # the LQR's gain on the states the prediction leaves out (the residual modes): added to the move
         self._K_res = self.K.copy()
         self._K_res[self._pick] = 0.0
+        self._K_res0 = self._K_res.copy()
         Q, R = settings.weights.matrices(design)            # the stage weights on the design model's states
         hd = design.n_x // 2
         pick_d = np.r_[0, 1:1 + m, hd, hd + 1:hd + 1 + m]
         self._Q = Q[np.ix_(pick_d, pick_d)]
         self._R = float(np.asarray(R).reshape(-1)[0])
         self._Pt = np.asarray(self.P)[np.ix_(self._pick, self._pick)]
-        from hubbeam_ctrl.core.compiled import compile_function
-        self._F = compile_function(self._shooting(model), settings.backend)      # C when a compiler is there
+        self.payload = None
+        if settings.learn_payload:
+            self._learning_setup(model, settings)
+        else:
+            self._F = self._shooting(model)
         self._build_qp(settings)
         self.K_end = self._end_gain()
         self.step_times_s = []
         self.reset()
 
     # -- construction -------------------------------------------------------------
-    def _shooting(self, model) -> ca.Function:
-        """``(x, u) -> (x+, dx+/dx, dx+/du)``: RK4 over the sample in ``substeps`` steps."""
-        n, nx = self._n, self._nx
-        x, u = ca.SX.sym("x", nx), ca.SX.sym("u")      # scalar expressions: no linear-solver call inside
-        Mf, cf = model.mass_matrix_function, model.bias_function
+    def _rk4(self, model, x, u, p):
+        """The state after one sample from ``x`` under ``u``: RK4 in ``substeps`` steps, the model's
+        parameter vector ``p`` (a symbol, or its numbers)."""
+        n = self._n
+        M, c = model.parametric.mass_matrix, model.parametric.bias
         B = np.zeros(n)
         B[0] = 1.0
 
         def f(z):
             q, v = z[:n], z[n:]
-            return ca.vertcat(v, ca.solve(Mf(q, v), B * u - cf(q, v)))
+            return ca.vertcat(v, ca.solve(M(q, v, p), B * u - c(q, v, p)))
 
         h = self.dt / self.substeps
         z = x
@@ -205,13 +306,106 @@ class NMPC(Controller):
             k3 = f(z + h / 2 * k2)
             k4 = f(z + h * k3)
             z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return z
+
+    def _shooting(self, model) -> ca.Function:
+        """``(x, u) -> (x+, dx+/dx, dx+/du)``: RK4 over the sample in ``substeps`` steps."""
+        x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")      # scalar expressions: no linear-solver call inside
+        z = self._rk4(model, x, u, ca.DM(model.p))
         return ca.Function("nmpc_shoot", [x, u], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
 
+    def _learning_setup(self, model, s: NMPCSettings) -> None:
+        """The shooting map with the parameter vector as an input, and the payload's estimator
+        (:class:`controllers.payload_estimate.PayloadMomentum`)."""
+        from hubbeam_ctrl.plant.models import build_model
+
+        from .payload_estimate import PayloadMomentum, payload_table
+        params = self.design.params
+        hi = s.payload_max_kg if s.payload_max_kg is not None else params.m_t + params.rho * params.A * params.L
+        lo = s.payload_min_kg
+        if not lo <= params.m_t <= hi:
+            raise ParameterError(f"payload range {lo:g}..{hi:g} kg must hold the design's payload m_t = "
+                                 f"{params.m_t:g} kg")
+        x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")
+        p = ca.SX.sym("p", model.parametric.n_p)
+        z = self._rk4(model, x, u, p)
+        step = ca.Function("nmpc_shoot_p", [x, u, p], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
+        self._F = step
+        table = payload_table(params, self.model_modes, lo, hi)
+        # the balance on every mode the design state carries (the prediction's 2 leave 0.5 % of the
+        # momentum early in Table 1's slew out: a 0.03 kg bias)
+        whole = build_model("foam", params.replace(n_transverse=self.design.n_modes), axial="quasi-static")
+        peak_rate = float(np.max(np.abs(self.reference.theta_dot))) or 1.0
+        noise = s.payload_momentum_error * params.total_inertia * peak_rate
+        self.payload = PayloadMomentum(whole.parametric.momentum,
+                                       payload_table(params, self.design.n_modes, lo, hi, points=2),
+                                       params.m_t, self.dt, noise)
+        self._table = table
+        # the reference follows the estimate: the task planned again on payloads over the range
+        # (controllers.planning.replanned), interpolated at the estimate (a reference that is not
+        # a reference that is not a plan on the design model stays as it is); the terminal cost and the
+        # gain on the modes the prediction leaves out are the LQR's of each payload's design model
+        from .base import DesignModel
+        from .lqr import LQR, LQRSettings
+        masses = np.linspace(lo, hi, REFERENCE_POINTS)
+        common = {f: getattr(s, f) for f in LQRSettings.__dataclass_fields__ if hasattr(s, f)}
+        from .scaling import first_mode
+        w1 = first_mode(self.design)
+        stage, terminal, residual, refs = [], [], [], []
+        for m in masses:
+            own = params.replace(m_t=float(m))
+            ref = self.reference
+            if ref.plan is not None:
+                from .planning import replanned
+                ref = replanned(ref, own)
+                X, tff = self._tabulate(ref, s.elastic_reference, s.horizon + 1)
+                refs.append((X, tff))
+            design = DesignModel.build(own, 0.0, self.dt, self.design.n_modes)
+            # the rate weights follow the first mode, as Bryson's rule of the task sets them
+            # (controllers.scaling.bryson_weights: a rate error of the allowed deflection times w1)
+            scale = (w1 / first_mode(design)) ** 2
+            wts = s.weights.replace(tip_rate=s.weights.tip_rate * scale,
+                                    modal_rate=None if s.weights.modal_rate is None else s.weights.modal_rate * scale)
+            lqr = LQR(design, LQRSettings(**{**common, "weights": wts}), ref)
+            Q = np.asarray(wts.matrices(design)[0])
+            hd, mm = design.n_x // 2, self.model_modes
+            pick = np.r_[0, 1:1 + mm, hd, hd + 1:hd + 1 + mm]
+            stage.append(Q[np.ix_(pick, pick)])
+            terminal.append(np.asarray(lqr.P)[np.ix_(self._pick, self._pick)])
+            k_res = lqr.K.copy()
+            k_res[self._pick] = 0.0
+            residual.append(k_res)
+        self._grid = (masses, np.array(terminal), np.array(residual),
+                      (np.array([X for X, _ in refs]), np.array([t for _, t in refs])) if refs else None,
+                      np.array(stage))
+
+    def _grid_at(self, mass: float) -> tuple:
+        """``(a, w)``: ``mass`` [kg] lies at ``(1 - w)`` of grid point ``a`` and ``w`` of ``a + 1``."""
+        masses = self._grid[0]
+        m = float(np.clip(mass, masses[0], masses[-1]))
+        a = int(np.clip(np.searchsorted(masses, m, side="right") - 1, 0, len(masses) - 2))
+        return a, (m - masses[a]) / (masses[a + 1] - masses[a])
+
+    def _reference_window(self, k: int, N: int) -> tuple:
+        """``(x_ref, u_ff)`` on the predicted states over samples ``k .. k + N``: the table's, and with
+        a learnt payload moved by what the estimate changes in the reference's quasi-static motion."""
+        xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
+        ur = np.array([self._reference_at(k + j)[1] * self._ff for j in range(N)])
+        if self.payload is not None and self._grid[3] is not None:
+            a, w = self._grid_at(self.payload.mass)
+            X, T = self._grid[3]
+            idx = np.minimum(np.arange(k, k + N + 1), X.shape[1] - 1)
+            xr = ((1.0 - w) * X[a, idx] + w * X[a + 1, idx])[:, self._pick]
+            ur = self._ff * ((1.0 - w) * T[a, idx[:N]] + w * T[a + 1, idx[:N]])
+        return xr, ur
+
     def _build_qp(self, s: NMPCSettings) -> None:
-        """The per-stage weights of the condensed QP and the stages' map (built once)."""
-        N = s.horizon
-        self._W = [self._Q] * N + [self._Pt]          # stage weights on x_0 .. x_N
-        self._F_map = self._F.map(N)
+        """The step as one CasADi function (:attr:`step_function`, built once)."""
+        self._W = [self._Q] * s.horizon + [self._Pt]          # stage weights on x_0 .. x_N
+        from hubbeam_ctrl.core.compiled import compile_function
+        self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.tau_max,
+                                               parametric=self.payload is not None)
+        self.step_function = compile_function(self.symbolic_step, s.backend)    # C when asked and a compiler is there
 
     def reset(self) -> None:
         """Start from the reference: the previous solution is the planned motion."""
@@ -220,54 +414,62 @@ class NMPC(Controller):
         self._X = X.T.copy()                                  # (nx, N + 1)
         self._U = np.array([self._reference_at(k)[1] * self._ff for k in range(N)], dtype=float)
         self._k_last = None
+        self._u_last = None                 # the command applied at the previous sample [N m]
+        if self.payload is not None:            # the design's payload until the first estimate
+            self.payload.reset()
+            self._W = [self._Q] * self.settings.horizon + [self._Pt]
+            self._K_res = self._K_res0.copy()
+
+    def applied(self, tau: float) -> None:
+        """Record the command the plant got at this sample [N m] (what the payload's estimator
+        predicts with).
+
+        Parameters
+        ----------
+        tau : float
+            The command applied [N m].
+        """
+        if self._u_last is not None:
+            self._u_last = float(tau)
 
     # -- the step ------------------------------------------------------------------
     def __call__(self, t: float, y) -> float:
         """Hub torque [N m] at time ``t`` [s] from the design-ordered state ``y``."""
         start = time.perf_counter()
         s = self.settings
-        N, nx = s.horizon, self._nx
+        N = s.horizon
         k = int(round(t / self.dt))
+        consecutive = self._k_last is not None and k == self._k_last + 1
         if self._k_last is not None and k > self._k_last:        # shift the previous solution
             shift = min(k - self._k_last, N)
             self._X = np.hstack([self._X[:, shift:], np.repeat(self._X[:, -1:], shift, axis=1)])
             self._U = np.r_[self._U[shift:], np.repeat(self._U[-1:], shift)]
         self._k_last = k
         x_meas = np.asarray(y, dtype=float)[self._pick]
-        xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
-        ur = np.array([self._reference_at(k + j)[1] * self._ff for j in range(N)])
-        Xn, Ax, Bu = (np.asarray(M) for M in self._F_map(self._X[:, :N], self._U[None, :]))
-        # condense: dX_j = S_j dU + c_j, with dX_0 = x_meas - X_0 and the stages' defects
-        S = np.zeros((nx, N))
-        c = x_meas - self._X[:, 0]
-        H = self._R * np.eye(N)
-        g = self._R * (self._U - ur)
-        for j in range(N + 1):
-            z = self._X[:, j] - xr[j] + c
-            if j > 0:
-                WS = self._W[j] @ S
-                H += S.T @ WS
-                g += WS.T @ z
-            if j < N:
-                Aj, Bj = Ax[:, nx * j:nx * (j + 1)], Bu[:, j]
-                S = Aj @ S
-                S[:, j] += Bj
-                c = Aj @ c + Xn[:, j] - self._X[:, j + 1]
-        dU = self._box_qp(0.5 * (H + H.T), g, -self.tau_max - self._U, self.tau_max - self._U)
-        if dU is not None:
-            U = self._U + dU
-            X = np.empty_like(self._X)             # the new plan: the stages rolled out with U (one more pass)
-            X[:, 0] = x_meas
-            S = np.zeros((nx, N))
-            c = x_meas - self._X[:, 0]
-            X[:, 0] = self._X[:, 0] + c
-            for j in range(N):
-                Aj, Bj = Ax[:, nx * j:nx * (j + 1)], Bu[:, j]
-                c = Aj @ c + Bj * dU[j] + Xn[:, j] - self._X[:, j + 1]
-                X[:, j + 1] = self._X[:, j + 1] + c
-            self._X, self._U = X, U
-        e = np.asarray(y, dtype=float) - self._reference_at(k)[0]
+        extra = ()
+        if self.payload is not None:                 # the payload from the momentum the last command gave
+            self.payload.update(y, self._u_last if consecutive else None)
+            extra = (self._table.at(self.payload.mass)[0],)
+            a, w = self._grid_at(self.payload.mass)
+            Q = (1.0 - w) * self._grid[4][a] + w * self._grid[4][a + 1]
+            self._W[:-1] = [Q] * N
+            self._W[-1] = (1.0 - w) * self._grid[1][a] + w * self._grid[1][a + 1]
+            self._K_res = (1.0 - w) * self._grid[2][a] + w * self._grid[2][a + 1]
+        xr, ur = self._reference_window(k, N)
+        X, U = (np.asarray(a) for a in self.step_function(x_meas, self._X, self._U[None, :], xr.T, ur[None, :],
+                                                            self._W[0], self._W[-1], *extra))
+        self.qp_status = int(np.all(np.isfinite(U)) and np.all(np.isfinite(X)))
+        if self.qp_status:                             # else keep the shifted plan
+            self._X, self._U = X, U.ravel()
+        if self.payload is not None and self._grid[3] is not None:     # the estimate's own plan
+            a, w = self._grid_at(self.payload.mass)
+            X = self._grid[3][0]
+            j = min(k, X.shape[1] - 1)
+            e = np.asarray(y, dtype=float) - ((1.0 - w) * X[a, j] + w * X[a + 1, j])
+        else:
+            e = np.asarray(y, dtype=float) - self._reference_at(k)[0]
         u0 = saturate(float(self._U[0] - self._K_res @ e), self.tau_max)
+        self._u_last = u0
         self.step_times_s.append(time.perf_counter() - start)
         return u0
 
@@ -278,7 +480,8 @@ class NMPC(Controller):
         N, nx = self.settings.horizon, self._nx
         x_end = np.asarray(self._xref[-1], dtype=float)[self._pick].copy()
         x_end[self._n:] = 0.0
-        _, A, B = (np.asarray(M) for M in self._F(x_end, 0.0))
+        estimate = (self._table.at(self.payload.mass)[0],) if self.payload is not None else ()
+        _, A, B = (np.asarray(M) for M in self._F(x_end, 0.0, *estimate))
         B = B.ravel()
         S, Phi = np.zeros((nx, N)), np.eye(nx)
         H, G = self._R * np.eye(N), np.zeros((N, nx))
@@ -295,20 +498,13 @@ class NMPC(Controller):
         K[self._pick] = k_pick
         return K
 
-    def _box_qp(self, H, g, lo, hi):
-        """``min 1/2 dU' H dU + g' dU`` within ``lo <= dU <= hi`` (DAQP, dense); None if it fails."""
-        import daqp
-        n = len(g)
-        x, _, flag, _ = daqp.solve(np.ascontiguousarray(H), np.ascontiguousarray(g), np.zeros((0, n)),
-                                   np.ascontiguousarray(hi), np.ascontiguousarray(lo), np.zeros(n, dtype=np.int32))
-        self.qp_status = int(flag)
-        x = np.asarray(x, dtype=float)
-        return x if flag > 0 and np.all(np.isfinite(x)) else None
-
     def feedback_matrices(self) -> tuple:
         """The NMPC's linear form at the end point (:attr:`K_end`: its step's unconstrained law there,
         the dynamics linearised at rest on the target), a static state feedback ``u = -K e`` on the
-        design model's states; the modes it does not predict get no gain (what the certificate closes)."""
+        design model's states; the modes it does not predict get no gain (what the certificate closes).
+        A learning NMPC's law is at its current estimate of the payload (after a run: the one it
+        learnt), with that payload's weights and residual-mode gain."""
         n = self.design.n_x
-        return (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((1, 0)), -self.K_end[None, :], [],
+        K = self._end_gain() if self.payload is not None else self.K_end
+        return (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((1, 0)), -K[None, :], [],
                 list(self.design.state_names))

@@ -42,7 +42,7 @@ from hubbeam_ctrl.plant.params import Params
 
 from .base import DesignModel, Reference
 
-__all__ = ["planned_slew_reference", "terminal_map"]
+__all__ = ["planned_slew_reference", "replanned", "terminal_map"]
 
 #: At most this many unknowns: a longer slew's torque is piecewise linear between this many
 #: evenly spaced knots (sampled and held at every sample), so that a slow task at a fast
@@ -273,4 +273,27 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
     accel[:m - 1] = np.diff(rate[:m]) / dt                  # mean acceleration over each sample
     text = (f"slew {angle:.4g} rad in {n * dt:.4g} s planned on the design model at rest and at "
             f"{spin:.3g} rad/s ({how}; peak torque {np.max(np.abs(u)):.4g} N m)")
-    return Reference(dt, theta, rate, accel, torque, text, elastic=modal, planned_on_design=True)
+    return Reference(dt, theta, rate, accel, torque, text, elastic=modal, planned_on_design=True,
+                     plan=(angle, n * dt, tau_max, n_modes))
+
+
+def replanned(reference: Reference, params: Params) -> Reference:
+    """The task of a planned reference (:attr:`Reference.plan`) planned again on ``params``.
+
+    Parameters
+    ----------
+    reference : Reference
+        A reference of :func:`planned_slew_reference`.
+    params : Params
+        The beam to plan on (e.g. another payload).
+
+    Returns
+    -------
+    Reference
+        Over the same samples as ``reference``.
+    """
+    if reference.plan is None:
+        raise ParameterError("reference: not a plan on the design model (no Reference.plan to plan again)")
+    angle, duration, tau_max, n_modes = reference.plan
+    return planned_slew_reference(params, angle, duration, tau_max, reference.dt,
+                                  (len(reference.theta) - 1) * reference.dt, n_modes)

@@ -30,6 +30,7 @@ from hubbeam_ctrl.linear.export import load_model, save_model
 from hubbeam_ctrl.linear.statespace import discretize
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.study import Slew, compare, format_table, make_scenario, payload_comparison, payload_table
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
 
 # %% [markdown]
 # ## 1. The beam, from a TOML file
@@ -92,7 +93,7 @@ print("reference:", sc.reference.description)
 # All defaults; the table gives the residual vibration as a share of the open loop's.
 
 # %%
-cmp = compare("foam", task, "openloop,lqr,lqg,mpc", params=p, t_end=5.0)
+cmp = compare(p, task, "openloop,lqr,lqg,mpc", CompareSettings(run=RunChoice(t_end=5.0)))
 print(format_table(cmp.metrics))
 fig, ax = plt.subplots(figsize=(7, 3))
 for name, res in cmp.results.items():

@@ -36,6 +36,7 @@ from controllers.shaping import design_modes, shaper_sensitivity
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.plots import plot_campbell, plot_shaper_sensitivity, plot_tip_deflection
 from hubbeam_ctrl.study import compare, plant_sensitivity
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
 
 params = Params()
 
@@ -63,8 +64,8 @@ plot_campbell(schedule.spins, freqs_hz[:, :3], title="SFOAM design model, free h
 # scheduled version, which takes the same settings (`LQRSettings.for_scenario`).
 
 # %%
-fixed = compare("foam", "spinup", "openloop,lqr")
-scheduled = compare("foam", "spinup", "lqr", schedule=9)
+fixed = compare(None, "spinup", "openloop,lqr")
+scheduled = compare(None, "spinup", "lqr", CompareSettings(design=DesignChoice(schedule=9)))
 print("scheduled version of lqr:", CONTROLLERS["lqr"].scheduled.__name__)
 base = fixed.metrics["openloop"]["residual_tip_max_m"]
 for label, m in (("fixed (3 rad/s)", fixed.metrics["lqr"]), ("scheduled (9 spins)", scheduled.metrics["lqr"])):
@@ -86,7 +87,7 @@ plot_tip_deflection({"openloop": fixed.results["openloop"], "lqr": fixed.results
 # come from `ShapedSettings.for_scenario`: a smooth profile, since the reference ends at rest.
 
 # %%
-slew = compare("foam", "slew", "openloop,zv,zvd,ei")
+slew = compare(None, "slew", "openloop,zv,zvd,ei")
 for name, m in slew.metrics.items():
     print(f"{name:8s} residual {m['residual_tip_max_m']:.2e} m = {m['residual_pct_of_openloop']:7.2f} % "
           f"of Eq. 44, peak torque {m['peak_torque_nm']:.1f} N m")

@@ -29,6 +29,7 @@ from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.rig import load_rig
 from hubbeam_ctrl.sim.hardware import Hardware
 from hubbeam_ctrl.study import Slew, compare, format_table
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, RunChoice
 from hubbeam_ctrl.study.ladder import rig_ladder
 from hubbeam_ctrl.study.report import ladder_lines
 
@@ -56,7 +57,7 @@ print(f"encoder step {encoder * 1e3:.3f} mrad")
 
 # %%
 task = Slew(math.pi / 2, 0.6)
-c = compare("foam", task, "lqr,lqg,mpc", rig=rig, t_end=2.2)
+c = compare(rig, task, "lqr,lqg,mpc", CompareSettings(run=RunChoice(t_end=2.2)))
 print(format_table(c.metrics))
 for name, r in c.results.items():
     after = r.t >= 0.6 + 1.0
@@ -85,7 +86,7 @@ fig.tight_layout()
 
 # %%
 sticky = rig.replace(friction=rig.friction.replace(coulomb=0.05))
-ci = compare("foam", task, "lqg", rig=sticky, integral=False, t_end=2.0)
+ci = compare(sticky, task, "lqg", CompareSettings(design=DesignChoice(integral=False), run=RunChoice(t_end=2.0)))
 r = ci.results["lqg"]
 print(f"without integral action: final error {(r.q[-1, 0] - r.theta_ref[-1]) / encoder:+.2f} counts, "
       f"verdict {ci.metrics['lqg']['verdict']} (with it, on the rig as it is: see section 2)")
@@ -96,7 +97,7 @@ print(f"without integral action: final error {(r.q[-1, 0] - r.theta_ref[-1]) / e
 # added one at a time (`hubbeam compare --rig servo_link` puts this table in its report).
 
 # %%
-rows = rig_ladder(rig, task, "lqg", t_end=2.0)
+rows = rig_ladder(rig, task, "lqg", CompareSettings(run=RunChoice(t_end=2.0)))
 print("\n".join(ladder_lines(rows)))
 
 # %% [markdown]
@@ -109,7 +110,7 @@ print("\n".join(ladder_lines(rows)))
 
 # %%
 accel = load_rig("accel_link")
-ca = compare("foam", Slew(math.pi / 2, 1.32), "lqr,lqg,mpc", rig=accel, t_end=4.0)
+ca = compare(accel, Slew(math.pi / 2, 1.32), "lqr,lqg,mpc", CompareSettings(run=RunChoice(t_end=4.0)))
 print("the estimators read:", ca.controllers["lqg"].signals)
 print(format_table(ca.metrics))
 
@@ -122,7 +123,7 @@ print(format_table(ca.metrics))
 
 # %%
 late = rig.replace(timing=rig.timing.replace(delay=1.0))
-cd = compare("foam", task, "lqr,lqg,mpc", rig=late, t_end=2.2)
+cd = compare(late, task, "lqr,lqg,mpc", CompareSettings(run=RunChoice(t_end=2.2)))
 for name, m in cd.metrics.items():
     print(f"{name}: {m['verdict']}, final error {m['final_angle_error_rad'] / encoder:+.2f} counts, "
           f"disk margin {m['disk_margin']:.2f}, delay margin {1e3 * m['delay_margin_s']:.2f} ms beyond "

@@ -61,7 +61,7 @@ print(rig_to_toml(rig).split("[uncertainty]")[1])
 # linear model at every point the search visits.
 
 # %%
-cmp = compare("foam", "slew", ["openloop", "lqg"], rig=rig)
+cmp = compare(rig, "slew", ["openloop", "lqg"])
 nominal = cmp.robust["lqg"]
 print(nominal.describe())
 

@@ -13,6 +13,7 @@ from controllers.sensing import DEFAULT_LAYOUT, SensorLayout, observability_defe
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import load_rig
 from hubbeam_ctrl.study.certificate import certify
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
 from hubbeam_ctrl.study.rig_loop import rig_design
 
 
@@ -104,7 +105,7 @@ def test_full_delay_servo_settles():
     residual tip within 1e-3 L, and the certificate of the loop with its delay and drive stable."""
     from hubbeam_ctrl.study import Slew, compare
     rig = _servo_full_delay()
-    c = compare("foam", Slew(math.pi / 2, 0.4533), "lqr,lqg,mpc", rig=rig)
+    c = compare(rig, Slew(math.pi / 2, 0.4533), "lqr,lqg,mpc")
     count = 2 * math.pi / rig.sensors.encoder_counts
     for name in ("lqr", "lqg", "mpc"):
         m = c.metrics[name]
@@ -117,7 +118,7 @@ def test_full_delay_servo_settles():
 def test_pd_on_a_rig_without_tachometer_is_refused_naming_the_rig_key():
     from hubbeam_ctrl.study import Slew, compare
     with pytest.raises(ParameterError, match=r"sensors\.rate"):
-        compare("foam", Slew(math.pi / 2, 1.5), "pd", rig=load_rig("accel_link"), t_end=2.5)
+        compare(load_rig("accel_link"), Slew(math.pi / 2, 1.5), "pd", CompareSettings(run=RunChoice(t_end=2.5)))
 
 
 def _bench(name):
@@ -160,7 +161,7 @@ def test_amplifier_slew_rate_limits_the_command_and_the_filters_know():
     from hubbeam_ctrl.study import Slew, compare
     rig = load_rig("servo_link")
     slow = dataclasses.replace(rig, drive=dataclasses.replace(rig.drive, slew_rate=40.0))
-    c = compare("foam", Slew(math.pi / 2, 0.4534), "lqr", rig=slow)
+    c = compare(slow, Slew(math.pi / 2, 0.4534), "lqr")
     m = c.metrics["lqr"]
     assert m["peak_command_step"] == pytest.approx(0.04, rel=1e-9)
     assert np.max(np.abs(np.diff(c.results["lqr"].tau))) <= 0.04 * (1 + 1e-12)
@@ -173,7 +174,8 @@ def test_one_law_two_rows_is_said():
     """On servo_link the observer-fed LQR is the LQG (the same gain on the same filter): the row says
     so (``same_law_as``) and the report's notes name it; the MPC (a constrained plan) is not named."""
     from hubbeam_ctrl.study import Slew, compare
-    c = compare("foam", Slew(math.pi / 2, 0.4534), "lqr,lqg,mpc", rig=load_rig("servo_link"), t_end=1.0)
+    c = compare(load_rig("servo_link"), Slew(math.pi / 2, 0.4534), "lqr,lqg,mpc",
+                CompareSettings(run=RunChoice(t_end=1.0)))
     assert c.metrics["lqg"]["same_law_as"] == "lqr"
     assert "same_law_as" not in c.metrics["mpc"] and "same_law_as" not in c.metrics["lqr"]
     assert any(n.startswith("lqg is the same linear law as lqr") for n in c.notes)
@@ -184,7 +186,7 @@ def test_the_default_controllers_on_a_rig_without_a_rate_sensor_leave_pd_out(tmp
     run; an explicit PD is refused in one line naming sensors.rate (exit 2 from the CLI)."""
     from hubbeam_ctrl.cli.main import main
     from hubbeam_ctrl.study import Slew, compare
-    c = compare("foam", Slew(math.pi / 2, 1.32), rig=load_rig("accel_link"), t_end=3.0)
+    c = compare(load_rig("accel_link"), Slew(math.pi / 2, 1.32), None, CompareSettings(run=RunChoice(t_end=3.0)))
     assert "pd" not in c.metrics and "lqg" in c.metrics
     assert any("pd left out" in n and "sensors.rate" in n for n in c.notes)
     code = main(["compare", "--rig", "accel_link", "--controllers", "openloop,pd", "--slew-angle", "1.5708",

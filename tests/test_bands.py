@@ -225,7 +225,7 @@ def test_servo_payload_settles_in_two_counts_not_in_one():
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.metrics import settling_time
     rig = load_rig("servo_payload")
-    c = compare("foam", Slew(math.pi / 2, 1.5 * 0.417), "lqg", rig=rig)
+    c = compare(rig, Slew(math.pi / 2, 1.5 * 0.417), "lqg")
     m, res = c.metrics["lqg"], c.results["lqg"]
     assert m["settle_angle_rad"] == pytest.approx(2 * COARSE_COUNT, rel=1e-15)
     assert m["settle_angle_source"].startswith("raised to 2 counts of the encoder (2 pi / 1024")

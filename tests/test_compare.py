@@ -18,6 +18,7 @@ from hubbeam_ctrl.study import (
     run_compare,
     write_outputs,
 )
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, PlantChoice, RunChoice
 from hubbeam_ctrl.study.metrics import METRIC_UNITS
 
 
@@ -25,7 +26,7 @@ from hubbeam_ctrl.study.metrics import METRIC_UNITS
 def slew_foam(fast_backend_module):
     """The default slew (tau_m = 200 N m, tf = 10 s, m_t = 0.1 kg, 30 s) on the default
     evaluation plant (FOAM, 10 transverse modes, no damping), all five."""
-    return compare(plant="foam", scenario="slew")
+    return compare()
 
 
 @pytest.mark.slow
@@ -111,8 +112,9 @@ def test_print_table(slew_foam, capsys):
 
 def test_spinup_scenario_runs(tmp_path):
     p = Params(n_axial=2, n_transverse=2)
-    m = run_compare(plant="foam", scenario="spinup", controllers=("openloop", "lqr", "mpc"),
-                    params=p, t_end=16.0, horizon=20, out_dir=tmp_path / "spin")
+    m = run_compare(p, "spinup", ("openloop", "lqr", "mpc"),
+                    CompareSettings(design=DesignChoice(horizon=20), run=RunChoice(t_end=16.0)),
+                    out_dir=tmp_path / "spin")
     assert (tmp_path / "spin" / "report.md").exists()
     for name in m:
         assert m[name]["completed"]
@@ -132,11 +134,12 @@ def test_bad_inputs():
     with pytest.raises(ParameterError, match="plant"):
         make_scenario("slew", plant="tlam")
     with pytest.raises(ParameterError, match="unknown 'pid'"):
-        compare(plant="foam", controllers="lqr,pid")
+        compare(None, "slew", "lqr,pid")
     with pytest.raises(ParameterError, match="design_modes"):
-        compare(plant="foam", controllers="lqr", design_modes=21)
+        compare(None, "slew", "lqr", CompareSettings(design=DesignChoice(design_modes=21)))
     with pytest.raises(ParameterError, match="plant_modes"):
-        compare(plant="foam", controllers="lqr", design_modes=5, plant_modes=4)
+        compare(None, "slew", "lqr",
+                CompareSettings(plant=PlantChoice(plant_modes=4), design=DesignChoice(design_modes=5)))
 
 
 def test_cli_compare_json(tmp_path, capsys):
@@ -175,4 +178,4 @@ def test_huge_t_end_is_refused_before_the_reference_is_tabulated(monkeypatch):
     monkeypatch.setattr(cmp, "make_scenario", tabulate)
     with pytest.raises(ParameterError, match=r"^t_end = 1e\+06 s at dt = 0.01 s \(2 runs of 100000001 samples\) "
                                              r"needs about .* GB of memory, above max_memory_mb"):
-        cmp.compare("foam", "slew", "lqr,lqg", t_end=1e6)
+        cmp.compare(None, "slew", "lqr,lqg", CompareSettings(run=RunChoice(t_end=1e6)))

@@ -44,6 +44,7 @@ from hubbeam_ctrl.deploy import (
 )
 from hubbeam_ctrl.sim import simulate_closed_loop
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 
 needs_cc = pytest.mark.skipif(compiler() is None, reason=NO_COMPILER)
@@ -301,7 +302,7 @@ def test_rig_controllers_with_integral_action_and_voltage_in_c_equal_python(tmp_
     from hubbeam_ctrl.study import Slew, compare
     from hubbeam_ctrl.study.judge import judge
     rig = load_rig("servo_link")
-    c = compare("foam", Slew(math.pi / 2, 0.6), "lqr,lqg", rig=rig, t_end=1.0)
+    c = compare(rig, Slew(math.pi / 2, 0.6), "lqr,lqg", CompareSettings(run=RunChoice(t_end=1.0)))
     hw = c.results["lqg"].settings["hardware"]
     assert hw["command"] == "voltage"
     from hubbeam_ctrl.sim.hardware import Hardware

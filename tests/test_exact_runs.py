@@ -14,6 +14,7 @@ from hubbeam_ctrl.cli.main import main
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.exact import EXUDYN_INSTALL, exudyn_available
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, PlantChoice, RunChoice, ScenarioChoice
 from hubbeam_ctrl.study.spec import load_spec
 from hubbeam_ctrl.study.sweep import sweep
 
@@ -105,8 +106,9 @@ def test_sweep_on_the_exact_plant_equals_compare():
     assert spec.plant == "ancf"
     df = sweep(spec, workers=1, progress=False)
     assert list(df["plant"]) == ["ancf"] * 4
-    ref = compare("ancf", "slew", "openloop,lqr", params=p, plant_params=p.replace(m_t=0.3), t_f=1.0, t_end=2.0,
-                  plant_modes=2).metrics
+    ref = compare(p, "slew", "openloop,lqr",
+                  CompareSettings(plant=PlantChoice("ancf", plant_params=p.replace(m_t=0.3), plant_modes=2),
+                                  run=RunChoice(t_end=2.0), scenario=ScenarioChoice(t_f=1.0))).metrics
     for name, m in ref.items():
         row = df[(df["m_t"] == 0.3) & (df["controller"] == name)].iloc[0]
         assert row["peak_tip_m"] == m["peak_tip_m"] and row["residual_tip_max_m"] == m["residual_tip_max_m"]
@@ -140,4 +142,5 @@ def test_compare_past_foams_range_reports_both_plants(tmp_path, capsys):
     assert capsys.readouterr().err == ("hubbeam: error: --check-plant must be a plant other than --plant foam, "
                                        "got foam\n")
     with pytest.raises(ParameterError, match=r"^check_plant must be one of foam, cfoam \(a plant other than "):
-        compare("ancf", "slew", "openloop", params=Params(n_transverse=3), check_plant="ancf")
+        compare(Params(n_transverse=3), "slew", "openloop",
+                CompareSettings(plant=PlantChoice("ancf", check_plant="ancf")))

@@ -22,8 +22,8 @@ def test_calling_the_module_calls_the_function(monkeypatch):
     seen = []
     monkeypatch.setattr(module, "compare", lambda *a, **k: seen.append((a, k)) or "result")
     from hubbeam_ctrl import study
-    assert study.compare("foam", controllers="lqr") == "result"
-    assert seen == [(("foam",), {"controllers": "lqr"})]
+    assert study.compare(None, "slew", "lqr") == "result"
+    assert seen == [((None, "slew", "lqr"), {})]
 
 
 # -- import circles ------------------------------------------------------------------------------

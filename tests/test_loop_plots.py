@@ -19,6 +19,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.htmlpage import markdown_to_html
 from hubbeam_ctrl.plots.loops import disk_margin_disk, plot_loop, sensitivity_peaks
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, PlantChoice
 from hubbeam_ctrl.study.loops import evaluation_model, loop_figure, loop_response
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.spillover import loop_poles
@@ -143,8 +144,8 @@ def test_markdown_page(tmp_path):
 @pytest.fixture(scope="module")
 def report_dir(tmp_path_factory, fast_backend_module):
     out = tmp_path_factory.mktemp("loops") / "cmp"
-    write_outputs(compare(plant="foam", scenario="slew", controllers="openloop,pd,lqr", design_modes=2,
-                          plant_modes=3), out)
+    write_outputs(compare(None, "slew", "openloop,pd,lqr",
+                          CompareSettings(plant=PlantChoice(plant_modes=3), design=DesignChoice(design_modes=2))), out)
     return out
 
 

@@ -16,6 +16,7 @@ import pytest
 from hubbeam_ctrl.cli.compare import compare_plan
 from hubbeam_ctrl.cli.main import build_parser, main
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.study.compare_values import CompareSettings, ScenarioChoice
 
 #: The modes of ``compare``: the options that select each.
 MODES = {"slew": [], "payload range": ["--payload-range", "0,0.5"],
@@ -155,10 +156,11 @@ def test_compare_derives_t_end_from_a_long_task(tmp_path, capsys, fast_backend):
     assert main(["compare", "--tf", "40", "--controllers", "openloop", "--out", str(tmp_path / "o"), "--json"]) == 0
     (row,) = json.loads(capsys.readouterr().out)
     assert row["completed"] and row["limit_s"] == pytest.approx(2 * (12.807 * 16 * 248.5 / 200) ** 0.5, rel=1e-3)
-    c = compare("foam", "slew", "openloop", t_f=40.0)
+    c = compare(None, "slew", "openloop", CompareSettings(scenario=ScenarioChoice(t_f=40.0)))
     assert c.scenario.t_end == task_t_end(c.scenario) == pytest.approx(120.0)
     assert c.results["openloop"].t[-1] == pytest.approx(120.0)
-    short = compare("foam", "slew", "openloop", t_f=5.0).scenario    # the window is the longer: 20.55 s
+    short = compare(None, "slew", "openloop",
+                    CompareSettings(scenario=ScenarioChoice(t_f=5.0))).scenario    # the window is the longer: 20.55 s
     assert short.t_end == task_t_end(short) == pytest.approx(5.0 + 2.5 + 6 * 2.175, abs=0.01)
 
 

@@ -19,6 +19,7 @@ from hubbeam_ctrl import Params
 from hubbeam_ctrl.cli.main import main
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study import make_scenario, payload_comparison, payload_table, write_payload_outputs
+from hubbeam_ctrl.study.compare_values import CompareSettings, PlantChoice
 
 
 @pytest.mark.parametrize("rng, words", [
@@ -119,9 +120,10 @@ def test_the_range_task_needs_the_payload_to_about_one_percent():
 
     heavy = Params().replace(m_t=0.5)
     tf = 1.5 * 3.0763
-    own = compare("foam", Slew(1.0, tf), "lqr", params=heavy).metrics["lqr"]
+    own = compare(heavy, Slew(1.0, tf), "lqr").metrics["lqr"]
     target = tf + 2 * math.pi / first_mode(DesignModel.build(heavy, 0.0, 0.01, 1))
-    off = compare("foam", Slew(1.0, tf), "lqr", params=heavy.replace(m_t=0.49), plant_params=heavy).metrics["lqr"]
+    off = compare(heavy.replace(m_t=0.49), Slew(1.0, tf), "lqr",
+                  CompareSettings(plant=PlantChoice(plant_params=heavy))).metrics["lqr"]
     assert own["verdict"] == "settled" and own["settling_time_s"] <= target, (own["settling_time_s"], target)
     assert own["residual_pct_of_L"] <= 0.1 and off["residual_pct_of_L"] <= 0.1
     assert off["settling_time_s"] is None or off["settling_time_s"] > target + 1.0, (off["settling_time_s"], target)

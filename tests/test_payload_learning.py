@@ -17,6 +17,7 @@ from controllers.scaling import first_mode
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, PayloadChoice, PlantChoice, ScenarioChoice
 from hubbeam_ctrl.study.tasks import Slew
 
 TF = 1.5 * 3.0763          # 1.5 x the 0.5 kg beam's time-optimal 1 rad slew [s] (docs/limit.md)
@@ -27,7 +28,7 @@ def test_the_hub_rate_identifies_the_payload_by_half_the_slew():
     """The nominal plan open loop on the 0.3 kg beam (FOAM, 10 modes): the 5-mode design models'
     hub rate identifies 0.3 kg within 1 % from the first half of the slew (measured 0.301 kg)."""
     p = Params()
-    c = compare("foam", Slew(1.0, TF), "openloop", params=p, plant_params=p.replace(m_t=0.3))
+    c = compare(p, Slew(1.0, TF), "openloop", CompareSettings(plant=PlantChoice(plant_params=p.replace(m_t=0.3))))
     r, dt = c.results["openloop"], c.scenario.dt
     k = int(round(0.5 * TF / dt))
     m = identify_payload(p, dt, 5, np.asarray(r.tau[:k]), np.asarray(r.theta_dot[:k + 1]), np.linspace(0, 0.5, 26))
@@ -40,8 +41,9 @@ def _meets_the_targets_learning(name: str, payload: float):
     period after the slew, residual <= 0.1 % of L, final error <= 1e-3 rad. Returns the comparison."""
     p = Params()
     heavy = p.replace(m_t=payload)
-    c = compare("foam", Slew(1.0, TF), name, params=p, plant_params=heavy,
-                payload_learning=PayloadLearningSettings(real_time=False))
+    c = compare(p, Slew(1.0, TF), name,
+                CompareSettings(plant=PlantChoice(plant_params=heavy),
+                                payload=PayloadChoice(payload_learning=PayloadLearningSettings(real_time=False))))
     m = c.metrics[name]
     target = TF + 2 * math.pi / first_mode(DesignModel.build(heavy, 0.0, 0.01, 1))
     assert m["verdict"] == "settled" and m["settling_time_s"] <= target, (m["settling_time_s"], target)
@@ -70,9 +72,10 @@ def test_a_re_plan_past_its_deadline_is_dropped_and_the_run_is_the_plain_lqrs():
     its plan and gain, and the run equals the plain LQR's sample for sample."""
     p = Params()
     task, heavy = Slew(1.0, TF), p.replace(m_t=0.3)
-    plain = compare("foam", task, "lqr", params=p, plant_params=heavy)
-    c = compare("foam", task, "lqr", params=p, plant_params=heavy,
-                payload_learning=PayloadLearningSettings(allowance_s=0.02))
+    plain = compare(p, task, "lqr", CompareSettings(plant=PlantChoice(plant_params=heavy)))
+    c = compare(p, task, "lqr",
+                CompareSettings(plant=PlantChoice(plant_params=heavy),
+                                payload=PayloadChoice(payload_learning=PayloadLearningSettings(allowance_s=0.02))))
     log = c.controllers["lqr"].log
     assert len(log) == 2 and all(e["dropped"] and not e["converged"] and e["applied_s"] is None for e in log)
     np.testing.assert_array_equal(np.asarray(c.results["lqr"].tau), np.asarray(plain.results["lqr"].tau))
@@ -133,7 +136,9 @@ def test_bad_settings_and_controllers_are_refused_in_one_line():
     with pytest.raises(ParameterError, match="must hold the design's m_t = 0.1 kg"):
         PayloadLearning(lqr, PayloadLearningSettings(payload_min_kg=0.2), 1.0, TF, make_controller)
     with pytest.raises(ParameterError, match="payload_learning works on slew tasks without a rig"):
-        compare("foam", "spinup", "lqr", t_f=10.0, payload_learning=PayloadLearningSettings())
+        compare(None, "spinup", "lqr",
+                CompareSettings(scenario=ScenarioChoice(t_f=10.0),
+                                payload=PayloadChoice(payload_learning=PayloadLearningSettings())))
 
 
 @pytest.mark.slow
@@ -178,8 +183,9 @@ def test_a_fast_slew_caps_the_allowance_at_the_next_switch_and_half_the_time_lef
     switch (0.45 s away) and at half the time left, and the run completes. The grid's default step
     (a fiftieth of the range, 4 g) identifies the nominal 0.05 kg within 0.5 %."""
     lab = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
-    c = compare("foam", Slew(math.pi / 2, 1.7930), "lqr", params=lab,
-                payload_learning=PayloadLearningSettings(payload_max_kg=0.2, real_time=False))
+    c = compare(lab, Slew(math.pi / 2, 1.7930), "lqr",
+                CompareSettings(payload=PayloadChoice(
+                    payload_learning=PayloadLearningSettings(payload_max_kg=0.2, real_time=False))))
     assert c.metrics["lqr"]["verdict"] == "settled"
     log = c.controllers["lqr"].log
     assert [e["allowance_s"] for e in log] == pytest.approx([0.45, 0.45], abs=0.011)

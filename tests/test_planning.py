@@ -14,6 +14,7 @@ from controllers.scaling import first_mode
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
 from hubbeam_ctrl.study.scenarios import make_scenario
 from hubbeam_ctrl.study.tasks import Slew
 
@@ -90,19 +91,20 @@ def test_the_scenario_plans_a_slew_task_and_keeps_the_papers_rigid_reference():
     with pytest.raises(ParameterError, match="reference = 'planned' applies to a slew, not a spinup"):
         make_scenario("spinup", reference="planned")
     with pytest.raises(ParameterError, match="reference must be one of task, rigid, planned, optimal"):
-        compare(reference="smooth")
+        compare(None, "slew", None, CompareSettings(design=DesignChoice(reference="smooth")))
 
 
 def test_default_lqr_and_mpc_settle_within_one_period_of_the_slews_end_on_the_lab_arm():
     """Issue 22's settling target on the lab arm at 1.5 x its time-optimal slew, all defaults."""
-    c = compare("foam", Slew(ANGLE, TF), "lqr,mpc", params=LAB)
+    c = compare(LAB, Slew(ANGLE, TF), "lqr,mpc")
     period = 2 * math.pi / first_mode(DesignModel.build(LAB, 0.0, c.scenario.dt, 1))
     for name, m in c.metrics.items():
         assert m["verdict"] == "settled", name
         assert m["settling_time_s"] <= TF + period, (name, m["settling_time_s"], TF + period)
         assert m["residual_pct_of_L"] <= 0.1, name
         assert abs(m["final_angle_error_rad"]) <= 1e-3 * ANGLE, name
-    rigid = compare("foam", Slew(ANGLE, TF), "lqr", params=LAB, reference="rigid").metrics["lqr"]
+    rigid = compare(LAB, Slew(ANGLE, TF), "lqr",
+                    CompareSettings(design=DesignChoice(reference="rigid"))).metrics["lqr"]
     assert rigid["settling_time_s"] > TF + period          # the smooth rigid reference misses it
 
 
@@ -145,14 +147,15 @@ def test_the_papers_lqg_settles_within_one_period_and_does_not_predict_along_its
     sc = make_scenario(Slew(1.0, tf), params=p)
     slow = LQGSettings.for_scenario(sc, error_decay=0.3)
     assert slow.tip_noise_budget_m is None
-    c = compare("foam", Slew(1.0, tf), "lqg", params=p, settings={"lqg": slow})
+    c = compare(p, Slew(1.0, tf), "lqg", CompareSettings(design=DesignChoice(settings={"lqg": slow})))
     assert c.scenario.reference.planned_on_design
     period = 2 * math.pi / first_mode(DesignModel.build(p, 0.0, c.scenario.dt, 1))
     m = c.metrics["lqg"]
     assert m["verdict"] == "settled" and m["settling_time_s"] <= tf + period, (m["settling_time_s"], tf + period)
     assert m["residual_pct_of_L"] <= 0.1 and abs(m["final_angle_error_rad"]) <= 1e-3
     forced = dataclasses.replace(slow, plan_prediction=True)
-    along = compare("foam", Slew(1.0, tf), "lqg", params=p, settings={"lqg": forced}).metrics["lqg"]
+    along = compare(p, Slew(1.0, tf), "lqg",
+                    CompareSettings(design=DesignChoice(settings={"lqg": forced}))).metrics["lqg"]
     assert along["settling_time_s"] > tf + period > m["settling_time_s"]
 
 
@@ -162,7 +165,7 @@ def test_the_papers_default_lqg_derives_a_fast_filter_from_its_sensor_noise_and_
     the LQG settles within 0.1 s of the LQR (measured 4.93 s and 4.95 s; 6.11 s at 0.3 w_1)."""
     p = Params()
     tf = 1.5 * 2.6419525
-    c = compare("foam", Slew(1.0, tf), "lqr,lqg", params=p)
+    c = compare(p, Slew(1.0, tf), "lqr,lqg")
     assert c.controllers["lqg"].settings.error_decay == 1.0
     m, lqr = c.metrics["lqg"], c.metrics["lqr"]
     assert m["verdict"] == "settled" and abs(m["settling_time_s"] - lqr["settling_time_s"]) <= 0.1

@@ -27,6 +27,7 @@ from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim import ClosedLoopSettings
 from hubbeam_ctrl.study import DEFAULT_CONTROLLERS, compare, make_scenario
+from hubbeam_ctrl.study.compare_values import compare_arguments
 from hubbeam_ctrl.study.scenarios import SCENARIOS, register_scenario
 
 P2 = Params(n_axial=2, n_transverse=2)
@@ -69,8 +70,9 @@ def toy():
 @pytest.fixture(scope="module")
 def runs(toy):
     """The toy and the built-in PD with the same gains, on noise-free sensors (same loop)."""
-    return compare("foam", "slew", "pd,toy", settings={"pd": PDSettings(kp=300.0, kd=600.0, tau_max=50.0)},
-                   sim_settings=NOISE_FREE, **SHORT)
+    return compare(**compare_arguments("foam", "slew", "pd,toy",
+                                       settings={"pd": PDSettings(kp=300.0, kd=600.0, tau_max=50.0)},
+                                       sim_settings=NOISE_FREE, **SHORT))
 
 
 def test_registration_fills_the_registry(toy):
@@ -116,7 +118,7 @@ def test_unregistered_controller_is_gone():
     assert CONTROLLERS["toy2"].label == "toy2"
     unregister_controller("toy2")
     with pytest.raises(ParameterError, match="unknown 'toy2'"):
-        compare("foam", "slew", "toy2", **SHORT)
+        compare(**compare_arguments("foam", "slew", "toy2", **SHORT))
     with pytest.raises(ParameterError, match="not registered"):
         unregister_controller("toy2")
 

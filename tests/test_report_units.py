@@ -13,12 +13,14 @@ import pytest
 
 from hubbeam_ctrl.plant.rig import load_rig
 from hubbeam_ctrl.study import Slew, compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
 from hubbeam_ctrl.study.report import drive_limits_text, format_table, markdown_table, write_outputs
 
 
 @pytest.fixture(scope="module")
 def servo():
-    return compare("foam", Slew(math.pi / 2, 0.6), "openloop,lqr", rig=load_rig("servo_link"), t_end=3.0)
+    return compare(load_rig("servo_link"), Slew(math.pi / 2, 0.6), "openloop,lqr",
+                   CompareSettings(run=RunChoice(t_end=3.0)))
 
 
 def _column(table: str, header: str) -> list:

@@ -16,6 +16,13 @@ from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.plant.rig import Rig, load_rig
 from hubbeam_ctrl.sim.hardware import Hardware
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import (
+    CompareSettings,
+    DesignChoice,
+    RunChoice,
+    ScenarioChoice,
+    compare_arguments,
+)
 from hubbeam_ctrl.study.tasks import Slew
 
 ENCODER = 2 * math.pi / 4096
@@ -96,8 +103,8 @@ def _strip(metrics):
 
 def test_ideal_rig_is_the_beam_alone_bit_for_bit():
     kw = dict(controllers="lqg", t_end=16.0)
-    beam = compare("foam", "slew", **kw)
-    rig = compare("foam", "slew", rig=Rig(beam=Params()), **kw)
+    beam = compare(**compare_arguments("foam", "slew", **kw))
+    rig = compare(**compare_arguments("foam", "slew", rig=Rig(beam=Params()), **kw))
     for name in beam.results:
         a, b = beam.results[name], rig.results[name]
         assert np.array_equal(a.q, b.q) and np.array_equal(a.tau, b.tau)
@@ -112,7 +119,7 @@ def test_servo_link_targets():
     18, 20 and 29, the one run at the old rule's count; over the whole task it decays at every count
     tried, issue 28.)"""
     rig = load_rig("servo_link")
-    c = compare("foam", Slew(math.pi / 2, 0.6), "lqr,lqg,mpc", rig=rig)
+    c = compare(rig, Slew(math.pi / 2, 0.6), "lqr,lqg,mpc")
     for name, r in c.results.items():
         m = c.metrics[name]
         assert m["verdict"] == "settled", (name, m["verdict_reason"])
@@ -128,7 +135,8 @@ def test_friction_leaves_a_steady_error_without_integral_action():
     (with it, test_servo_link_targets: within 2 counts)."""
     rig = load_rig("servo_link")
     rig = dataclasses.replace(rig, friction=dataclasses.replace(rig.friction, coulomb=0.05))
-    c = compare("foam", Slew(math.pi / 2, 0.6), "lqg", rig=rig, integral=False, t_end=2.0)
+    c = compare(rig, Slew(math.pi / 2, 0.6), "lqg",
+                CompareSettings(design=DesignChoice(integral=False), run=RunChoice(t_end=2.0)))
     r = c.results["lqg"]
     error = abs(r.q[-1, 0] - r.theta_ref[-1])
     Ac, Bc, Cc, Dc, _, _ = c.controllers["lqg"].inner.feedback_matrices()     # the torque law (not the volts)
@@ -150,7 +158,8 @@ def test_cli_compare_on_a_rig_writes_the_rig_and_its_ladder(tmp_path, capsys):
             "--controllers", "lqg", "--t-end", "1.0", "--out", str(out), "--json"]
     assert main(argv) == 0
     cli = json.loads(capsys.readouterr().out)
-    api = compare("foam", "slew", "lqg", rig=rig, slew_angle=1.5708, t_f=0.6, t_end=1.0)
+    api = compare(rig, "slew", "lqg",
+                  CompareSettings(run=RunChoice(t_end=1.0), scenario=ScenarioChoice(slew_angle=1.5708, t_f=0.6)))
     assert cli[0]["residual_tip_max_m"] == api.metrics["lqg"]["residual_tip_max_m"]
     report = (out / "report.md").read_text()
     assert "## The rig" in report and "DC motor R = 2.6 ohm" in report and "integral action" in report.lower()
@@ -183,7 +192,8 @@ def test_sweep_on_a_rig_gives_the_rows_of_compare(tmp_path):
     spec = load_spec({"study": study, "grid": {"m_t": [0.0, 0.005]}})
     assert spec.dt == 1e-3 and spec.rig == load_rig("servo_link")
     df = sweep(spec, workers=1, progress=False)
-    ref = compare("foam", "slew", "lqg", rig=load_rig("servo_link"), t_f=0.6, slew_angle=1.5708, t_end=1.0)
+    ref = compare(load_rig("servo_link"), "slew", "lqg",
+                  CompareSettings(run=RunChoice(t_end=1.0), scenario=ScenarioChoice(t_f=0.6, slew_angle=1.5708)))
     row = df[df["m_t"] == 0.0].iloc[0]
     for key in ("peak_tip_m", "residual_tip_max_m", "final_angle_error_rad", "torque_squared_integral_n2m2s"):
         assert row[key] == ref.metrics["lqg"][key], key

@@ -67,7 +67,7 @@ def test_calibration_intervals_become_a_set():
 def table1():
     """Table 1's slew, LQR and LQG designed at the nominal 0.1 kg, on a rig carrying the set."""
     rig = Rig(beam=Params(), uncertainty=PAYLOAD)
-    return rig, compare("foam", "slew", ["openloop", "lqr", "lqg"], rig=rig)
+    return rig, compare(rig, "slew", ["openloop", "lqr", "lqg"])
 
 
 def test_a_zero_width_set_is_the_linear_certificate(table1):
@@ -208,7 +208,7 @@ def test_a_pd_roll_off_is_what_the_certificate_accepts_on_the_lab_arm():
     lab = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
     u = Uncertainty.from_table({"m_t": (0.0, 0.2), "damping": (0.0005, 0.0005)})
     rig = Rig(beam=lab, uncertainty=u)
-    cmp = compare("foam", Slew(math.pi / 2, 1.5), ["pd"], rig=rig)
+    cmp = compare(rig, Slew(math.pi / 2, 1.5), ["pd"])
     assert not cmp.robust["pd"].certified
     pd = cmp.controllers["pd"]
     f1 = first_mode(pd.design) / (2 * math.pi)

@@ -19,6 +19,7 @@ from controllers.scaling import (
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study import Slew, compare, make_scenario
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
 
 #: The issue's lab arm (a 1 m x 30 mm x 3 mm aluminium strip on a small hub, 1.5 N m motor).
 LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
@@ -103,8 +104,8 @@ def test_a_geometrically_similar_beam_gives_the_same_dimensionless_results():
     runs = {}
     for scale in (1.0, k):
         p = similar(base, scale) if scale != 1.0 else base
-        runs[scale] = (compare("foam", Slew(math.pi / 2, 1.2 * scale), "openloop,lqr,lqg,mpc", params=p,
-                               t_end=3.0 * scale, dt=0.01 * scale), p)
+        runs[scale] = (compare(p, Slew(math.pi / 2, 1.2 * scale), "openloop,lqr,lqg,mpc",
+                               CompareSettings(run=RunChoice(t_end=3.0 * scale, dt=0.01 * scale))), p)
     a, b = (_dimensionless(*runs[s]) for s in (1.0, k))
     # the LQG's filter decay derived from the sensor noise (issue 22) is the same rule's: 0.7 w_1
     decays = [runs[s][0].controllers["lqg"].settings.error_decay for s in (1.0, k)]
@@ -122,7 +123,7 @@ def test_a_geometrically_similar_beam_gives_the_same_dimensionless_results():
 @pytest.mark.slow
 def test_lab_arm_target_all_defaults(fast_backend):
     """The issue's lab arm, 90 degrees in 1.2 s with its 1.5 N m motor, every default."""
-    c = compare("foam", Slew(math.pi / 2, 1.2), "openloop,lqr,lqg,mpc", params=LAB, t_end=8.0)
+    c = compare(LAB, Slew(math.pi / 2, 1.2), "openloop,lqr,lqg,mpc", CompareSettings(run=RunChoice(t_end=8.0)))
     m = c.metrics
     print({n: (round(mm["residual_pct_of_openloop"], 3), mm["settling_time_s"]) for n, mm in m.items()})
     for name in ("lqr", "lqg", "mpc"):

@@ -29,6 +29,7 @@ from controllers.residual import embedding
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
 from hubbeam_ctrl.study.scenarios import make_scenario
 
 P2 = Params(n_axial=2, n_transverse=2)
@@ -173,7 +174,8 @@ def test_bad_schedule_is_one_line(spins, match):
     (lambda s: ScheduledMPC(s, MPCSettings(horizon=5, tip_bound=0.1)), "tip_bound is not available"),
     (lambda s: scheduled_lqr_iosystem(s, gainsched_indices="omega"), "unknown signal 'omega'"),
     (lambda s: DesignSchedule.build(P2, points=1), "points must be an integer >= 2"),
-    (lambda s: compare("foam", "spinup", "lqr", schedule=0), "schedule must be an integer >= 1"),
+    (lambda s: compare(None, "spinup", "lqr",
+                       CompareSettings(design=DesignChoice(schedule=0))), "schedule must be an integer >= 1"),
 ])
 def test_bad_scheduled_input_is_one_line(sched, call, match):
     with pytest.raises(ParameterError, match=match) as exc:
@@ -185,9 +187,9 @@ def test_bad_scheduled_input_is_one_line(sched, call, match):
 @pytest.fixture(scope="module")
 def spinup_runs(fast_backend_module):
     """Spin-up to 3 rad/s in 10 s on FOAM: fixed design at 3 rad/s, and schedules of 9 and 17 spins."""
-    runs = {1: compare("foam", "spinup", "openloop,lqr,mpc").metrics}
+    runs = {1: compare(None, "spinup", "openloop,lqr,mpc").metrics}
     for n in (9, 17):
-        runs[n] = compare("foam", "spinup", "lqr,mpc", schedule=n).metrics
+        runs[n] = compare(None, "spinup", "lqr,mpc", CompareSettings(design=DesignChoice(schedule=n))).metrics
     return runs
 
 

@@ -39,6 +39,14 @@ from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.sim import simulate_closed_loop
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import (
+    CompareSettings,
+    DesignChoice,
+    PlantChoice,
+    RunChoice,
+    ScenarioChoice,
+    compare_arguments,
+)
 from hubbeam_ctrl.study.scenarios import make_scenario
 from hubbeam_ctrl.study.shaping import plant_sensitivity, plant_variant, residual_after
 
@@ -333,7 +341,8 @@ def test_shaped_settings_for_a_scenario():
                           eq44_reference(200.0, 10.0, d.inertia, 0.01, 12.0)), "more than tau_max = 10 N m"),
     (lambda d: make_controller("lqr", d, shaping="zvdd"), "shaper must be one of zv, zvd, ei"),
     (lambda d: make_controller("openloop", d, shaping="zv"), "'openloop' does not track a reference"),
-    (lambda d: compare("foam", "slew", "lqr", shaping="zvdd"), "shaper must be one of zv, zvd, ei"),
+    (lambda d: compare(None, "slew", "lqr",
+                       CompareSettings(design=DesignChoice(shaping="zvdd"))), "shaper must be one of zv, zvd, ei"),
     (lambda d: shape_reference([0.0], zv_shaper(1.0)), "reference must be a Reference"),
 ])
 def test_bad_design_level_input_is_one_line(design3, call, match):
@@ -346,7 +355,7 @@ def test_bad_design_level_input_is_one_line(design3, call, match):
 @pytest.mark.slow
 def test_target_zvd_open_loop_on_the_paper_slew():
     """ZVD-shaped open loop, default paper slew on FOAM: within tau_max, <= 2 % of Eq. 44's residual."""
-    m = compare("foam", "slew", "openloop,zvd").metrics["zvd"]
+    m = compare(None, "slew", "openloop,zvd").metrics["zvd"]
     assert m["completed"] and m["within_torque_limit"]
     assert m["residual_pct_of_openloop"] <= 2.0          # measured 0.94 %
     assert abs(m["final_angle_error_rad"]) < 0.01         # open loop: FOAM's inertia is not J_total
@@ -400,23 +409,25 @@ def test_shaped_slew_honours_the_tasks_duration_or_refuses_it(capsys, tmp_path):
     from hubbeam_ctrl.cli.main import main
     from hubbeam_ctrl.study.report import _report
     kw = dict(slew_angle=0.5, t_end=9.0, design_modes=2, plant_modes=3)
-    c = compare("foam", "slew", "zvd", t_f=4.0, **kw)
+    c = compare(**compare_arguments("foam", "slew", "zvd", t_f=4.0, **kw))
     r = c.results["zvd"]
     moving = r.t[np.abs(r.tau) > 1e-9]
     assert 3.9 < moving[-1] <= 4.0 + 1e-9                    # the last torque sample is inside t_f
     assert c.notes == [] and abs(r.theta[-1] - 0.5) < 0.01    # FOAM's inertia is not J_total
     with pytest.raises(ParameterError, match=r"^t_f = 2 s is too short for zvd: .*shortest feasible "
                                              r"duration (\d+\.\d+) s$") as exc:
-        compare("foam", "slew", "zvd", t_f=2.0, **kw)
+        compare(**compare_arguments("foam", "slew", "zvd", t_f=2.0, **kw))
     shortest = float(str(exc.value).rsplit(" ", 2)[-2])
     assert 2.0 < shortest < 4.0
-    compare("foam", "slew", "zvd", t_f=shortest, **kw)      # the value quoted (rounded up) runs
+    compare(**compare_arguments("foam", "slew", "zvd", t_f=shortest, **kw))      # the value quoted (rounded up) runs
     assert main(["compare", "--controllers", "zvd", "--tf", "2", "--slew-angle", "0.5", "--out",
                  str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--tf" in err[0] and "shortest feasible duration" in err[0], err
     assert not (tmp_path / "o").exists()
     # the Eq. 44 task at the full budget: the shortest shaped slew, said in the report
-    eq44 = compare("foam", "slew", "zvd", t_f=4.0, t_end=9.0, design_modes=2, plant_modes=3)
+    eq44 = compare(None, "slew", "zvd",
+                   CompareSettings(plant=PlantChoice(plant_modes=3), design=DesignChoice(design_modes=2),
+                                   run=RunChoice(t_end=9.0), scenario=ScenarioChoice(t_f=4.0)))
     assert len(eq44.notes) == 1 and eq44.notes[0].startswith("zvd: its shaped slew takes")
     assert f"- {eq44.notes[0]}" in _report(eq44).splitlines()

@@ -29,6 +29,7 @@ from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.evaluation import evaluation_plant
 from hubbeam_ctrl.sim.stepper import substep_rule
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice, compare_arguments
 from hubbeam_ctrl.study.tasks import Slew
 
 LAB_ARM = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
@@ -53,8 +54,10 @@ def _residuals(beam: str, substeps: int | None, controllers: str = "lqr,mpc") ->
     params, task, t_end = BEAMS[beam]
     # the rigid reference on the lab arm: its planned slew (the default since issue 22) leaves
     # 3e-6 m, 30 times less, where a 4 % change is 1.4e-7 m and says nothing about the verdict
-    c = compare(params=params, plant_params=params.replace(damping_ratio=0.005), controllers=controllers,
-                t_end=t_end, sim_settings={"substeps": substeps} if substeps else None, reference="rigid", **task)
+    c = compare(**compare_arguments(params=params, plant_params=params.replace(damping_ratio=0.005),
+                                    controllers=controllers, t_end=t_end,
+                                    sim_settings={"substeps": substeps} if substeps else None, reference="rigid",
+                                    **task))
     return {n: (m["residual_tip_max_m"], c.results[n].settings["substeps"]) for n, m in c.metrics.items()}
 
 
@@ -82,7 +85,7 @@ def test_the_rigs_verdict_at_the_rule_equals_a_converged_runs(fast_backend):
 
     def run(tolerance):
         sim = ClosedLoopSettings() if tolerance is None else ClosedLoopSettings(frequency_tolerance=tolerance)
-        c = compare("foam", Slew(math.pi / 2, 0.4531), "lqr", rig=rig, t_end=1.0, sim_settings=sim)
+        c = compare(rig, Slew(math.pi / 2, 0.4531), "lqr", CompareSettings(run=RunChoice(t_end=1.0, sim_settings=sim)))
         m = c.metrics["lqr"]
         return m["settling_time_s"], m["residual_tip_max_m"], max(abs(float(v)) for v in c.results["lqr"].tau)
 

@@ -16,6 +16,7 @@ from hubbeam_ctrl.cli.main import main
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, PlantChoice, RunChoice, ScenarioChoice
 from hubbeam_ctrl.study.spec import load_spec
 from hubbeam_ctrl.study.sweep import TIMING_COLUMNS, CaseCache, plan_batches, read_results, run_case, sweep
 
@@ -54,8 +55,8 @@ def test_matched_rows_equal_single_comparisons():
     df = sweep(spec, workers=1, progress=False)
     assert len(df) == 6 and list(df["controller"][:3]) == ["openloop", "lqr", "lqg"]
     for m_t in (0.0, 0.3):
-        ref = compare("foam", "slew", "openloop,lqr,lqg", params=Params(m_t=m_t, n_axial=2, n_transverse=2),
-                      t_f=1.0, t_end=6.5).metrics
+        ref = compare(Params(m_t=m_t, n_axial=2, n_transverse=2), "slew", "openloop,lqr,lqg",
+                      CompareSettings(run=RunChoice(t_end=6.5), scenario=ScenarioChoice(t_f=1.0))).metrics
         for name, m in ref.items():
             row = df[(df["m_t"] == m_t) & (df["controller"] == name)].iloc[0]
             for key in ("peak_tip_m", "residual_tip_max_m", "final_angle_error_rad", "residual_pct_of_openloop",
@@ -71,9 +72,11 @@ def test_task_keys_give_the_numbers_of_compare():
     spec = load_spec(small(controllers=("openloop", "lqr", "mpc"), study={"slew_angle": 0.1, "shaping": "zv",
                                                                       "schedule": 2, "tolerances": tol}))
     df = sweep(spec, workers=1, progress=False)
-    ref = compare("foam", "slew", "openloop,lqr,mpc", params=Params(n_axial=2, n_transverse=2), t_f=1.0,
-                  t_end=6.5, slew_angle=0.1, shaping="zv", schedule=2, plant_modes=ENGINE_PLANT_MODES,
-                  tolerances=spec.scenario_for(spec.params).tolerances).metrics
+    ref = compare(Params(n_axial=2, n_transverse=2), "slew", "openloop,lqr,mpc",
+                  CompareSettings(plant=PlantChoice(plant_modes=ENGINE_PLANT_MODES),
+                                  design=DesignChoice(shaping="zv", schedule=2,
+                                                      tolerances=spec.scenario_for(spec.params).tolerances),
+                                  run=RunChoice(t_end=6.5), scenario=ScenarioChoice(t_f=1.0, slew_angle=0.1))).metrics
     for name, m in ref.items():
         row = df[df["controller"] == name].iloc[0]
         for key in ("peak_tip_m", "residual_tip_max_m", "final_angle_error_rad", "residual_pct_of_openloop"):
@@ -89,11 +92,13 @@ def test_base_design_stays_at_the_base_and_the_cache_changes_nothing():
     fresh = run_case({"m_t": 0.4, "seed": 5}, spec, CaseCache())
     assert [r["residual_tip_max_m"] for r in fresh] == [r["residual_tip_max_m"] for r in rows[(0.4, 5)]]
     # base design: at m_t = 0.1 (the base) the rows equal compare's on the base parameters
-    ref = compare("foam", "slew", "lqr", params=Params(n_axial=2, n_transverse=2), t_f=1.0, t_end=6.5,
-                  plant_modes=ENGINE_PLANT_MODES).metrics
+    ref = compare(Params(n_axial=2, n_transverse=2), "slew", "lqr",
+                  CompareSettings(plant=PlantChoice(plant_modes=ENGINE_PLANT_MODES), run=RunChoice(t_end=6.5),
+                                  scenario=ScenarioChoice(t_f=1.0))).metrics
     assert rows[(0.1, 0)][1]["residual_tip_max_m"] == ref["lqr"]["residual_tip_max_m"]
-    matched = compare("foam", "slew", "lqr", params=Params(m_t=0.4, n_axial=2, n_transverse=2), t_f=1.0,
-                      t_end=6.5, plant_modes=ENGINE_PLANT_MODES).metrics
+    matched = compare(Params(m_t=0.4, n_axial=2, n_transverse=2), "slew", "lqr",
+                      CompareSettings(plant=PlantChoice(plant_modes=ENGINE_PLANT_MODES),
+                                      run=RunChoice(t_end=6.5), scenario=ScenarioChoice(t_f=1.0))).metrics
     assert rows[(0.4, 0)][1]["residual_tip_max_m"] != matched["lqr"]["residual_tip_max_m"]
     # the seed moves only the sensor noise: LQG (sensors) changes, LQR (state) does not
     assert rows[(0.4, 0)][1]["residual_tip_max_m"] == rows[(0.4, 5)][1]["residual_tip_max_m"]
@@ -105,10 +110,14 @@ def test_spin_rate_factor_keeps_the_design_at_the_base_rate():
                            grid={"w_f": [2.0, 3.0]}))
     df = sweep(spec, workers=1, progress=False)
     p = Params(n_axial=2, n_transverse=2)
-    at_base = compare("foam", "spinup", "lqr", params=p, t_f=10.0, t_end=16.0, w_f=3.0,
-                      plant_modes=ENGINE_PLANT_MODES).metrics["lqr"]
-    matched = compare("foam", "spinup", "lqr", params=p, t_f=10.0, t_end=16.0, w_f=2.0,
-                      plant_modes=ENGINE_PLANT_MODES).metrics["lqr"]
+    at_base = compare(p, "spinup", "lqr",
+                      CompareSettings(plant=PlantChoice(plant_modes=ENGINE_PLANT_MODES),
+                                      run=RunChoice(t_end=16.0),
+                                      scenario=ScenarioChoice(t_f=10.0, w_f=3.0))).metrics["lqr"]
+    matched = compare(p, "spinup", "lqr",
+                      CompareSettings(plant=PlantChoice(plant_modes=ENGINE_PLANT_MODES),
+                                      run=RunChoice(t_end=16.0),
+                                      scenario=ScenarioChoice(t_f=10.0, w_f=2.0))).metrics["lqr"]
     assert df.loc[df["w_f"] == 3.0, "residual_tip_max_m"].item() == at_base["residual_tip_max_m"]
     # at 2 rad/s the task changes but the design stays linearised at 3 rad/s
     assert df.loc[df["w_f"] == 2.0, "residual_tip_max_m"].item() != matched["residual_tip_max_m"]

@@ -22,6 +22,7 @@ from hubbeam_ctrl.sim import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import default_plant_modes
 from hubbeam_ctrl.study import Slew, compare, make_scenario
 from hubbeam_ctrl.study.certificate import RADIUS_TOLERANCE, certify, loop_matrix
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice, ScenarioChoice
 from hubbeam_ctrl.study.judge import judge
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 from hubbeam_ctrl.study.sweep_report import summarize
@@ -153,8 +154,9 @@ def test_cli_compare_equals_api_compare(tmp_path):
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     (cli,) = [m for m in json.loads(proc.stdout) if m["controller"] == "lqg"]
-    api = compare("foam", "slew", "lqg", params=LAB.replace(n_axial=5, n_transverse=5), slew_angle=1.5708,
-                  t_f=1.2, t_end=4.0).metrics["lqg"]
+    api = compare(LAB.replace(n_axial=5, n_transverse=5), "slew", "lqg",
+                  CompareSettings(run=RunChoice(t_end=4.0),
+                                  scenario=ScenarioChoice(slew_angle=1.5708, t_f=1.2))).metrics["lqg"]
     for key in ("verdict", "residual_tip_max_m", "residual_tip_rms_m", "final_angle_error_rad", "peak_torque_nm",
                 "loop_spectral_radius", "torque_growth_rate_per_s"):
         assert cli[key] == api[key], key
@@ -163,7 +165,7 @@ def test_cli_compare_equals_api_compare(tmp_path):
 def test_report_states_the_certificate(tmp_path):
     """The report says what decided each verdict: the certificate's sentence and the reason."""
     from hubbeam_ctrl.study.report import format_table, write_outputs
-    comp = compare("foam", "slew", "pd", t_end=16.0)
+    comp = compare(None, "slew", "pd", CompareSettings(run=RunChoice(t_end=16.0)))
     write_outputs(comp, tmp_path)
     text = (tmp_path / "report.md").read_text()
     assert "## Stability: linear certificate and verdict" in text
@@ -187,7 +189,7 @@ def test_torque_ripple_rising_alone_in_a_settled_certified_loop_is_noise_not_gro
     assert verdict(Evidence(None, ("torque",), 0.0, False, certificate_grows=False)) == "unstable"
     assert verdict(Evidence(None, ("torque",), 0.5, True, certificate_grows=False)) == "unstable"
     task = Slew(math.pi / 2, 1.3 * 0.8404)
-    c = compare("foam", task, "lqg", params=LAB)
+    c = compare(LAB, task, "lqg")
     m = c.metrics["lqg"]
     assert m["verdict"] == "settled" and m["settling_time_s"] < 1.2, m["verdict_reason"]
     assert m["torque_growth_rate_per_s"] > 1.0                 # 1.19 1/s: the old rule said 'unstable'
@@ -195,7 +197,7 @@ def test_torque_ripple_rising_alone_in_a_settled_certified_loop_is_noise_not_gro
     sim = c.scenario.closed_loop_settings()
     quiet = dataclasses.replace(sim, sensors=dataclasses.replace(sim.sensors, angle_noise_rad=0.0,
                                                                  rate_noise_rad_s=0.0, moment_noise_nm=0.0))
-    q = compare("foam", task, "lqg", params=LAB, sim_settings=quiet).metrics["lqg"]
+    q = compare(LAB, task, "lqg", CompareSettings(run=RunChoice(sim_settings=quiet))).metrics["lqg"]
     assert q["verdict"] == "settled" and q["torque_growth_rate_per_s"] < 0.0
 
 

@@ -8,6 +8,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study import Slew, SpinUp, make_scenario
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, RunChoice
 from hubbeam_ctrl.study.yardstick import rigid_limit, task_limit, yardstick_metrics
 
 LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
@@ -37,7 +38,7 @@ def test_optimal_limit_is_the_time_optimal_slew_and_never_undercuts_the_rigid_bo
 
 
 def test_metrics_state_settling_against_the_limit_and_the_residual_in_percent_of_L():
-    c = compare("foam", "slew", "lqr", t_end=20.0)
+    c = compare(None, "slew", "lqr", CompareSettings(run=RunChoice(t_end=20.0)))
     m = c.metrics["lqr"]
     assert m["limit_kind"] == "rigid bound" and m["limit_s"] == pytest.approx(rigid_limit(c.scenario))
     assert m["settling_over_limit"] == pytest.approx(m["settling_time_s"] / m["limit_s"], rel=1e-12)
@@ -83,7 +84,7 @@ def test_optimal_reference_meets_the_limit_targets_on_the_lab_arm(fast_backend):
     from controllers import DesignModel
     from controllers.scaling import first_mode
     t_f = 1.5 * 0.8404
-    c = compare("foam", Slew(1.5708, t_f), "lqr,mpc", params=LAB, reference="optimal")
+    c = compare(LAB, Slew(1.5708, t_f), "lqr,mpc", CompareSettings(design=DesignChoice(reference="optimal")))
     period = 2 * math.pi / first_mode(DesignModel.build(LAB, 0.0, 0.01, 1))
     for name, m in c.metrics.items():
         assert m["verdict"] == "settled", name

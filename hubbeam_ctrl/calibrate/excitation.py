@@ -170,5 +170,13 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
         a = a * 0.95 / ratio
     else:
         raise ParameterError(f"no amplitude keeps the tip within {tip:g} m and the hub within {travel:g} rad")
+    # a record whose hub motion the angle sensor cannot see identifies nothing
+    resolution = max(2.0 * rig.sensors.encoder_step, 2.0 * rig.sensors.angle_noise)
+    if peak_hub <= resolution:
+        seen = (f"2 counts of the encoder ({resolution:.3g} rad)" if rig.sensors.encoder_step >= rig.sensors.angle_noise
+                else f"2 standard deviations of the angle sensor's noise ({resolution:.3g} rad)")
+        raise ParameterError(f"amplitude = {amplitude:.3g} {unit} moves the hub at most {peak_hub:.3g} rad, not more "
+                             f"than {seen}: the record would show nothing to fit; give a larger amplitude "
+                             f"(at most {limit:g} {unit})")
     return Record(t=t, columns={inp: a * shape, "theta": y["theta"], "v_tip": y["v_tip"]},
                   source=f"{kind} excitation")

@@ -148,10 +148,11 @@ def run(args) -> int:
     real_sink = stdout(args)
     sink = io.StringIO() if args.json else real_sink      # --json: the JSON alone on stdout
     from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.compare_values import compare_arguments
     from hubbeam_ctrl.study.robust_check import check_points, run_at
     plan, opts = _plan(args)
     rig = opts["rig"]
-    comparison = compare(**opts)
+    comparison = compare(**compare_arguments(**opts))
     names = [n for n in opts["controllers"] if n != "openloop"]
     missing = [n for n in names if n not in comparison.robust]
     if missing:

@@ -162,7 +162,9 @@ def add_compare_options(p, controllers: bool = True) -> None:
     p.add_argument("--learn-payload", action="store_true",
                    help="with --payload-range and --scenario slew: LQR, LQG and MPC keep the nominal design and "
                         "learn the payload during the slew (identified at 25 %% and 50 %% of it, the rest "
-                        "re-planned on the nonlinear model within 1 s) instead of a design for the range")
+                        "re-planned on the nonlinear model within 1 s) instead of a design for the range; "
+                        "the NMPC (--controllers nmpc) estimates it every sample from the hub's momentum "
+                        "and predicts with it")
     add_backend_option(p)
     p.add_argument("--json", action="store_true", help="print the metrics as JSON instead of a table")
     add_run_options(p)
@@ -197,7 +199,8 @@ class ComparePlan:
     Attributes
     ----------
     options : dict
-        Keyword arguments of :func:`hubbeam_ctrl.study.compare.compare` or, with
+        The options by name, as :func:`hubbeam_ctrl.study.compare_values.compare_arguments`
+        routes them into :func:`hubbeam_ctrl.study.compare.compare`'s values or, with
         ``--payload-range``, of :func:`hubbeam_ctrl.study.payload.payload_comparison` (the same
         keywords, plus ``payload_range``).
     payload : bool
@@ -339,6 +342,7 @@ def run(args) -> int:
     """
     sink = stdout(args)
     from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.compare_values import compare_arguments
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     plan = compare_plan(args)
     if plan.payload:
@@ -346,15 +350,13 @@ def run(args) -> int:
     t0 = time.perf_counter()
     opts = plan.options
     names, rig, out = opts["controllers"], opts.get("rig"), plan.out
-    comparison = compare(**opts)
+    comparison = compare(**compare_arguments(**opts))
     if plan.ladder:
         from hubbeam_ctrl.study.ladder import rig_ladder
         t_ladder = time.perf_counter()
-        comparison.ladder = rig_ladder(
-            rig, opts["scenario"], names, plant=opts["plant"], t_end=comparison.scenario.t_end,
-            **{k: opts[k] for k in ("tau_max", "t_f", "dt", "w_f", "slew_angle", "horizon", "solver", "integral")},
-            settle_angle=comparison.scenario.bands["settle_angle"], settle_tip=comparison.scenario.bands["settle_tip"],
-            progress=None if args.json else (lambda step: print(f"ladder: {step}", file=sys.stderr)))
+        comparison.ladder = rig_ladder(rig, opts["scenario"], names, _ladder_settings(opts, comparison.scenario),
+                                       progress=None if args.json else (lambda step: print(f"ladder: {step}",
+                                                                                           file=sys.stderr)))
         # the report's wall time covers the ladder too (said apart in the report)
         comparison.ladder_wall_s = time.perf_counter() - t_ladder
         comparison.wall_s = time.perf_counter() - t0
@@ -378,6 +380,25 @@ def run(args) -> int:
     if skipped:
         print(f"warning: not run (the wall-time limit was reached): {', '.join(skipped)}", file=sys.stderr)
     return 0
+
+
+def _ladder_settings(opts: dict, sc):
+    """The ladder's values: the comparison's plant, task shape, step, MPC and integral action, its
+    simulated time and bands (the rest at their defaults, so each step is the rig's plain comparison)."""
+    from hubbeam_ctrl.study.compare_values import (
+        CompareSettings,
+        DesignChoice,
+        PlantChoice,
+        RunChoice,
+        ScenarioChoice,
+    )
+    return CompareSettings(
+        plant=PlantChoice(opts["plant"]),
+        design=DesignChoice(horizon=opts["horizon"], solver=opts["solver"], integral=opts["integral"]),
+        run=RunChoice(dt=opts["dt"], t_end=sc.t_end),
+        scenario=ScenarioChoice(t_f=opts["t_f"], w_f=opts["w_f"], slew_angle=opts["slew_angle"],
+                                tau_max=opts["tau_max"], settle_angle=sc.bands["settle_angle"],
+                                settle_tip=sc.bands["settle_tip"]))
 
 
 def _bands(args, rig) -> dict:

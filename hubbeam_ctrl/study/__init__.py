@@ -13,6 +13,7 @@ import types as _types
 
 from hubbeam_ctrl.study.certificate import *  # noqa: F401,F403
 from hubbeam_ctrl.study.compare import *  # noqa: F401,F403
+from hubbeam_ctrl.study.compare_values import *  # noqa: F401,F403
 from hubbeam_ctrl.study.judge import *  # noqa: F401,F403
 from hubbeam_ctrl.study.ladder import *  # noqa: F401,F403
 from hubbeam_ctrl.study.loops import *  # noqa: F401,F403
@@ -30,8 +31,8 @@ from hubbeam_ctrl.study.tasks import *  # noqa: F401,F403
 from hubbeam_ctrl.study.tune import *  # noqa: F401,F403
 
 __all__ = [name for _m in ('metrics', 'tasks', 'scenarios', 'certificate', 'judge', 'compare', 'report', 'shaping',
-                           'payload', 'spec', 'spillover', 'sweep', 'sweep_report', 'tune', 'loops', 'rig_loop',
-                           'ladder')
+                           'compare_values', 'payload', 'spec', 'spillover', 'sweep', 'sweep_report', 'tune',
+                           'loops', 'rig_loop', 'ladder')
            for name in _sys.modules[f"hubbeam_ctrl.study.{_m}"].__all__]
 
 

@@ -9,7 +9,7 @@ the end (:func:`~hubbeam_ctrl.study.metrics.settling_time`). Each band comes fro
 * on a rig, the default angle band raised to :data:`ANGLE_FLOOR_COUNTS` counts of its angle
   sensor when it is finer (:func:`angle_count`: one encoder count, or two standard deviations of
   an absolute angle sensor): a band the sensor cannot resolve judges the quantiser, not the loop;
-* the user's own: ``compare(settle_angle=..., settle_tip=...)``, the task's fields
+* the user's own: ``ScenarioChoice(settle_angle=..., settle_tip=...)`` of ``compare``, the task's fields
   (:class:`~hubbeam_ctrl.study.tasks.Slew`, :class:`~hubbeam_ctrl.study.tasks.SpinUp`) or
   ``hubbeam compare --settle-angle / --settle-tip``, in physical units or counts
   (:func:`parse_band`).

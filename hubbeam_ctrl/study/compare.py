@@ -17,7 +17,7 @@ gain-scheduled version of those that have one on ``N`` design spins
 Examples
 --------
 >>> from hubbeam_ctrl.study import run_compare, print_table
->>> m = run_compare(plant="foam", controllers="openloop,lqr", out_dir=None)  # doctest: +SKIP
+>>> m = run_compare(None, "slew", "openloop,lqr", out_dir=None)              # doctest: +SKIP
 >>> print_table(m)                                                           # doctest: +SKIP
 """
 
@@ -31,8 +31,6 @@ from dataclasses import dataclass, field
 
 from controllers import CONTROLLERS, DesignModel, DesignSchedule, as_shaper, controller_names, make_controller
 from controllers.analysis import loop_margins
-from controllers.scaling import Tolerances
-from controllers.schedule import MAX_SCHEDULE_POINTS
 from hubbeam_ctrl.core.budget import (
     CLOSED_LOOP_SECONDS_PER_SAMPLE,
     WallClock,
@@ -45,29 +43,27 @@ from hubbeam_ctrl.core.compiled import resolve_backend
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.exact import require_exudyn
-from hubbeam_ctrl.plant.params import MAX_MODES, Params
+from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.bands import with_task_bands
+from hubbeam_ctrl.study.compare_values import CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
-from hubbeam_ctrl.study.scenarios import PLANTS, RANGES, REFERENCES, Scenario, make_scenario
+from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit
 
-__all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "REFERENCE_KINDS", "Comparison", "compare", "run_compare"]
+__all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
 #: The controllers a comparison runs by default (the built-ins; see :func:`controllers.controller_names`).
 DEFAULT_CONTROLLERS = controller_names(default=True)
 #: The controllers held to the targets of the slew (the others, e.g. PD, are only reported).
 TARGET_CONTROLLERS = controller_names(target=True)
-#: The references :func:`compare` accepts: the scenario's (:data:`~hubbeam_ctrl.study.scenarios.REFERENCES`)
-#: and the nonlinear minimum-vibration slew.
-REFERENCE_KINDS = (*REFERENCES, "optimal")
 
 
 def _shaped_durations(names, chosen, settings, design, sc) -> tuple:
@@ -99,17 +95,9 @@ def _parse_controllers(controllers) -> tuple:
     return tuple(names)
 
 
-def _check_schedule(points) -> int:
-    if isinstance(points, bool) or not isinstance(points, int) or not 1 <= points <= MAX_SCHEDULE_POINTS:
-        shown = repr(points) if len(repr(points)) <= 40 else repr(points)[:37] + "..."
-        raise ParameterError(f"schedule must be an integer >= 1 and <= {MAX_SCHEDULE_POINTS} (number of spin rates; "
-                             f"1 = a single design at the scenario's design spin), got {shown}")
-    return points
-
-
 def _design_schedule(sc: Scenario, points, design_modes):
     """The scenario's design schedule of ``points`` spins (None for a single design)."""
-    _check_schedule(points)
+    check_schedule(points)
     return None if points == 1 else DesignSchedule.for_scenario(sc, points, design_modes)
 
 
@@ -150,7 +138,7 @@ class Comparison:
     notes : list of str
         One line each for the report's notes (e.g. a shaped slew longer than ``t_f``).
     check_plant : EvaluationPlant or None
-        The second plant of ``compare(check_plant=...)`` (same parameters and modes).
+        The second plant of ``PlantChoice(check_plant=...)`` of ``compare`` (same parameters and modes).
     check_results, check_metrics : dict
         Controller name -> its result and metrics on ``check_plant`` (empty without one).
     robust : dict
@@ -183,14 +171,8 @@ def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
     default = sc.closed_loop_settings()
     if sim_settings is None:
         return default
-    if isinstance(sim_settings, dict):
-        unknown = sorted(set(sim_settings) - {f.name for f in dataclasses.fields(ClosedLoopSettings)})
-        if unknown:
-            raise ParameterError(f"sim_settings: unknown field(s) {', '.join(unknown)} of ClosedLoopSettings")
+    if isinstance(sim_settings, dict):                # fields checked by RunChoice
         return dataclasses.replace(default, **sim_settings)
-    if not isinstance(sim_settings, ClosedLoopSettings):
-        raise ParameterError(f"sim_settings must be a ClosedLoopSettings or a dict, got "
-                             f"{type(sim_settings).__name__}")
     return sim_settings
 
 
@@ -223,153 +205,74 @@ def _run_bytes(steps: int, params: Params) -> float:
 
 
 def _design_modes(design_modes, design: Params) -> int:
-    if design_modes is None:
-        return design.n_transverse
-    if isinstance(design_modes, bool) or not isinstance(design_modes, int) or not 1 <= design_modes <= MAX_MODES:
-        raise ParameterError(f"design_modes must be an integer in 1..{MAX_MODES}, got {design_modes!r}")
-    return design_modes
+    """The design model's modes: DesignChoice's (checked there), else the design parameters'."""
+    return design.n_transverse if design_modes is None else design_modes
 
 
-def compare(plant: str = "foam", scenario="slew", controllers=None, *,
-            params: Params | None = None, design_params: Params | None = None,
-            plant_params: Params | None = None, tau_max: float | None = None, t_f: float = 10.0,
-            t_end: float | None = None, dt: float | None = None, w_f: float = 3.0, slew_angle: float | None = None,
-            design_modes: int | None = None, plant_modes: int | None = None, horizon: int = 50,
-            solver: str = "daqp", settings: dict | None = None,
-            sim_settings: ClosedLoopSettings | None = None, shaping=None, schedule: int = 1,
-            tolerances: Tolerances | None = None, payload_range=None, designs: dict | None = None,
-            progress: bool = False, backend=None, rig: Rig | None = None,
-            integral: bool | None = None, limit: str = "rigid", reference: str = "task",
-            check_plant: str | None = None, payload_learning=None, settle_angle=None,
-            settle_tip=None) -> Comparison:
+def compare(rig=None, task="slew", controllers=None, settings: CompareSettings | None = None, *,
+            designs: dict | None = None, progress: bool = False) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
-    The design model is SFOAM with ``design_params`` and ``design_modes``; the plant is
-    ``plant`` (FOAM by default) with ``plant_params`` (default: the design's) and, unless
-    ``plant_modes`` says otherwise, every bending mode below the sampling frequency and at
-    least three more than the design (:func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`).
+    The design model is SFOAM with the rig's beam (or ``settings.design.design_params``) and
+    ``design_modes``; the plant is ``settings.plant.plant`` (FOAM by default) with
+    ``plant_params`` (default: the design's) and, unless ``plant_modes`` says otherwise, every
+    bending mode below the sampling frequency and at least three more than the design
+    (:func:`~hubbeam_ctrl.sim.evaluation.evaluation_plant`).
 
     Parameters
     ----------
-    plant : {"foam", "cfoam"}
-        Nonlinear plant (:data:`~hubbeam_ctrl.study.scenarios.PLANTS`; default FOAM: it tracks
-        an exact beam more closely than CFOAM at large deflection, see docs/physics.md).
-    scenario : str or Slew or SpinUp
-        A registered scenario (``slew``, ``spinup``...) or a task in physical terms
-        (:mod:`hubbeam_ctrl.study.tasks`; see :func:`make_scenario`).
+    rig : Rig or Params, optional
+        The physical rig (:func:`hubbeam_ctrl.plant.rig.load_rig`): its beam is the parameters
+        (with the reflected rotor inertia and the rig's damping), its sample time ``dt``
+        (unless ``settings.run.dt``), and the evaluation plant carries its drive, friction and
+        sensors; the controllers run as :func:`hubbeam_ctrl.study.rig_loop.on_rig` makes them
+        (observer, integral action, voltage). A rig with ideal hardware gives the beam alone's
+        numbers bit for bit. A :class:`~hubbeam_ctrl.plant.params.Params`: the beam alone
+        (SI units); None: Table 1.
+    task : str or Slew or SpinUp
+        A registered scenario (``slew``, ``spinup``..., shaped by ``settings.scenario``) or a
+        task in physical terms (:mod:`hubbeam_ctrl.study.tasks`; see :func:`make_scenario`).
     controllers : str or sequence of str, optional
         Registered controllers (``openloop, pd, lqr, lqg, mpc``...; a comma-separated string
         is accepted). Default: those registered as default.
-    params : Params, optional
-        Parameters of both the design and the plant (default Table 1).
-    design_params, plant_params : Params, optional
-        Override ``params`` for the design model or the plant.
-    tau_max : float, optional
-        Torque budget [N m], at most the motor's ``Params.tau_max`` (default: that limit).
-    t_f, t_end, dt : float
-        Maneuver time, simulated time and sample time [s] (``dt`` default: the rig's, else
-        :func:`hubbeam_ctrl.study.yardstick.task_dt`, 10 ms unless the beam's first mode needs less;
-        ``t_end`` default: the task's, :func:`hubbeam_ctrl.study.yardstick.task_t_end`: 30 s for
-        the paper's slew, a few seconds for a lab arm's).
-    w_f : float
-        Spin-up final rate [rad/s].
-    slew_angle : float, optional
-        Slew angle [rad] (default: the Eq. 44 angle of ``tau_max`` and ``t_f``).
-    design_modes : int, optional
-        Transverse modes of the design model, 1..20 (default ``design_params.n_transverse``).
-    plant_modes : int, optional
-        Transverse modes of the plant, ``design_modes..20`` (default: the rule above).
-    horizon : int
-        MPC horizon [samples] (passed to every controller's ``for_scenario``).
-    solver : str
-        MPC QP solver (see :data:`controllers.QP_SOLVERS`; passed likewise).
-    settings : dict, optional
-        Controller name -> settings object, replacing the defaults
-        (``SettingsClass.for_scenario(scenario, horizon=..., solver=...)``).
-    sim_settings : ClosedLoopSettings or dict, optional
-        Plant integration and sensor settings (its ``dt`` is replaced by ``dt``); default:
-        the sensor noise of the task (``scenario.sensors``, relative to its signals' ranges).
-        A dict gives fields of :class:`ClosedLoopSettings` that replace those of the default
-        (the CLI passes ``range_limit`` and its run limits this way, so ``hubbeam compare``
-        runs exactly what ``compare()`` runs).
-    shaping : {"zv", "zvd", "ei"} or Shaper, optional
-        Filter the reference of the controllers that track it (pd, lqr, lqg, mpc: see
-        :attr:`controllers.ControllerSpec.tracks_reference`) through this input shaper,
-        designed on the design model's first mode.
-    schedule : int
-        Spin rates of the design schedule of the controllers with a scheduled version (lqr,
-        lqg, mpc), evenly spaced from 0 to the reference's top rate
-        (:meth:`controllers.DesignSchedule.for_scenario`); 1: a single design at the
-        scenario's design spin.
-    tolerances : controllers.scaling.Tolerances, optional
-        The dimensionless tolerances that scale the default weights, noise levels, settling
-        bands, residual window and reference shaping to the beam and the task (see
-        :mod:`controllers.scaling`; default: :func:`controllers.scaling.default_tolerances`).
-    settle_angle, settle_tip : float or str, optional
-        The task's own settling bands (a number in rad or m, or ``"2counts"``, ``"0.05deg"``,
-        ``"0.5mm"``, ``"1e-3L"``; :func:`hubbeam_ctrl.study.bands.parse_band`); default: the task's
-        fields, else its defaults, the angle band on a rig at least two counts of its angle
-        sensor (:func:`hubbeam_ctrl.study.bands.with_task_bands`; ``scenario.band_sources`` says
-        where each came from).
-    payload_range : tuple of float, optional
-        ``(m_min, m_max)`` [kg] that LQR, LQG and MPC are designed for
-        (:func:`hubbeam_ctrl.study.range_design.range_designs`); must hold the design's ``m_t``.
+    settings : CompareSettings, optional
+        The plant, the design, the run, the scenario's shape and the payload
+        (:mod:`hubbeam_ctrl.study.compare_values`; each field documented there with its units).
+        ``design.reference`` ``"task"`` (default) is the scenario's reference: for a slew given by
+        its angle, the slew planned on the design model so that the beam ends at rest
+        (:func:`controllers.planning.planned_slew_reference`); for the paper's Eq. 44 slew and
+        spin-ups, the rigid body's smooth reference. ``"optimal"``: the minimum-vibration slew of
+        the nonlinear beam in ``t_f`` within the drive's limits
+        (:func:`hubbeam_ctrl.limit.min_vibration_slew`; a ``t_f`` shorter than the time-optimal
+        slew is refused naming the shortest). ``plant.check_plant``: every controller also runs
+        on that plant; its results are in :attr:`Comparison.check_results` and
+        :attr:`Comparison.check_metrics`, and each controller's metrics get ``check_plant``,
+        ``check_verdict``, ``check_peak_tip_m``, ``check_residual_tip_max_m`` and
+        ``check_outside_range_time_s``.
     designs : dict, optional
         Controller name -> :class:`controllers.robust.RangeDesign` (design model and
         settings) chosen beforehand.
-    payload_learning : controllers.payload_learning.PayloadLearningSettings, optional
-        LQR, MPC and LQG learn the payload during a slew and re-plan for it
-        (:class:`controllers.payload_learning.PayloadLearning`; each re-plan within a 1 s
-        allowance by default);
-        slew tasks without a rig only.
     progress : bool
         Print one line per controller on stderr.
-    backend : {"auto", "compiled", "vm"}, optional
-        How the plant is evaluated (see :class:`~hubbeam_ctrl.sim.stepper.PlantStepper`);
-        default ``$HUBBEAM_BACKEND`` or ``"auto"``.
-    rig : Rig, optional
-        The physical rig (:func:`hubbeam_ctrl.plant.rig.load_rig`): its beam is ``params``
-        (unless given; with the reflected rotor inertia and the rig's damping), its sample time
-        ``dt`` (unless given), and the evaluation plant carries its drive, friction and
-        sensors; the controllers run as :func:`hubbeam_ctrl.study.rig_loop.on_rig` makes them
-        (observer, integral action, voltage). A rig with ideal hardware gives the beam alone's
-        numbers bit for bit.
-    integral : bool, optional
-        Integral action of LQR, LQG and MPC on the rig (default: on when the rig has friction
-        or a DC motor, :func:`hubbeam_ctrl.study.rig_loop.integral_default`).
-    limit : {"rigid", "optimal"}
-        The yardstick of the settling times (:mod:`hubbeam_ctrl.study.yardstick`): the rigid
-        body's shortest time (default, closed form) or the time-optimal slew of the nonlinear
-        beam on the rig (seconds to a minute of optimisation).
-    reference : {"task", "rigid", "planned", "optimal"}
-        The reference and feedforward of the controllers that track one. ``"task"`` (default):
-        the scenario's (:func:`~hubbeam_ctrl.study.scenarios.make_scenario`): for a slew given
-        by its angle, the slew planned on the design model so that the beam ends at rest
-        (:func:`controllers.planning.planned_slew_reference`, milliseconds); for the paper's
-        Eq. 44 slew and spin-ups, the rigid body's smooth reference as in the paper.
-        ``"rigid"``: the rigid body's smooth reference; ``"planned"``: the planned slew.
-        ``"optimal"``: the minimum-vibration slew of the nonlinear beam in ``t_f`` within the
-        drive's limits (:func:`hubbeam_ctrl.limit.min_vibration_slew`,
-        :func:`controllers.optimal_reference`; seconds of optimisation; a ``t_f`` shorter than
-        the time-optimal slew is refused naming the shortest). Planned and optimal apply to a
-        slew only; with them the feedback only corrects model error.
-    check_plant : {"foam", "cfoam", "ancf"}, optional
-        Run every controller also on this plant (same modes, step, sensors and hardware as
-        ``plant``) and judge it there: e.g. ``plant="ancf", check_plant="foam"`` shows where FOAM
-        leaves its validated range and the exact beam does not. Its results and metrics are in
-        :attr:`Comparison.check_results` and :attr:`Comparison.check_metrics`; each controller's
-        metrics get ``check_plant``, ``check_verdict``, ``check_peak_tip_m``,
-        ``check_residual_tip_max_m`` and ``check_outside_range_time_s``; the report a section.
 
     Returns
     -------
     Comparison
     """
     start = time.perf_counter()
-    backend = resolve_backend(backend)
+    settings = CompareSettings() if settings is None else settings
+    if not isinstance(settings, CompareSettings):
+        raise ParameterError(f"settings must be a CompareSettings (hubbeam_ctrl.study.compare_values), "
+                             f"got {type(settings).__name__}")
+    rig, params = as_rig(rig)
+    pc, dc, rc, scn, pay = settings.plant, settings.design, settings.run, settings.scenario, settings.payload
+    plant, plant_params, plant_modes, check_plant = pc.plant, pc.plant_params, pc.plant_modes, pc.check_plant
+    design_params, design_modes, horizon, solver = dc.design_params, dc.design_modes, dc.horizon, dc.solver
+    integral, limit, reference, shaping, schedule = dc.integral, dc.limit, dc.reference, dc.shaping, dc.schedule
+    dt, t_end, sim_settings = rc.dt, rc.t_end, rc.sim_settings
+    payload_range, payload_learning = pay.payload_range, pay.payload_learning
+    backend = resolve_backend(pc.backend)
     names = _parse_controllers(controllers)
-    if rig is not None and not isinstance(rig, Rig):
-        raise ParameterError(f"rig must be a Rig (hubbeam_ctrl.plant.rig.load_rig), got {type(rig).__name__}")
     rate_notes = []
     if rig is not None and not rig.sensors.rate and "pd" in names:
         if controllers is not None:         # refused before any run, naming the rig key
@@ -384,20 +287,18 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
     if dt is None:
         dt = task_dt(design_params if design_params is not None else base)
     design_p = design_params if design_params is not None else base
-    if reference not in REFERENCE_KINDS:
-        raise ParameterError(f"reference must be one of {', '.join(REFERENCE_KINDS)}, got {reference!r}")
-    options = dict(plant=plant, params=design_p, tau_max=tau_max, t_f=t_f, dt=dt, w_f=w_f,
-                   slew_angle=slew_angle, tolerances=tolerances,
+    options = dict(plant=plant, params=design_p, tau_max=scn.tau_max, t_f=scn.t_f, dt=dt, w_f=scn.w_f,
+                   slew_angle=scn.slew_angle, tolerances=dc.tolerances,
                    reference="rigid" if reference == "optimal" else reference)
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
-    sc = make_scenario(scenario, t_end=t_end, **options)    # None: the task's own
-    sc = with_task_bands(sc, rig, settle_angle, settle_tip)
+    sc = make_scenario(task, t_end=t_end, **options)    # None: the task's own
+    sc = with_task_bands(sc, rig, scn.settle_angle, scn.settle_tip)
     m = _design_modes(design_modes, sc.params)
     ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
                           plant_params=plant_params if plant_params is not None else params,
                           plant_modes=plant_modes)
     ev_check = _check_plant(check_plant, sc, ev, m)
-    settings = dict(settings or {})
+    settings = dict(dc.settings or {})
     unknown = sorted(set(settings) - set(names))
     if unknown:
         raise ParameterError(f"settings given for controllers not run: {', '.join(unknown)}")
@@ -415,7 +316,7 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
                   for name, st in chosen.items()}
         noise = task_noise(sc, rig)
     chosen = {name: residual_modes_for(st, ev.modes) for name, st in chosen.items()}
-    _check_budget(sc, ev, chosen, m, sim, _check_schedule(schedule))
+    _check_budget(sc, ev, chosen, m, sim, schedule)
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
     if rig is not None:
         design = rig_design(design, rig)
@@ -443,6 +344,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
         own = sched
         if name in designs and sched is not None:    # a payload range's design: its schedule at its payload
             own = _design_schedule(dataclasses.replace(sc, params=d.params), schedule, m)
+        if payload_learning is not None and hasattr(st, "learn_payload"):    # learns it itself (NMPC)
+            st = _learning(st, payload_learning, sc, rig)
         ctrl = make_controller(name, d, st, ref, shaping=shaper if spec.tracks_reference else None,
                                schedule=own if spec.scheduled else None)
         if payload_learning is not None and name in LEARNING_CONTROLLERS:
@@ -502,12 +405,8 @@ def compare(plant: str = "foam", scenario="slew", controllers=None, *,
 def _check_plant(check_plant, sc: Scenario, ev: EvaluationPlant, design_modes: int):
     """The second plant of ``check_plant=`` (None without one): the evaluation plant's
     parameters and modes on another model."""
-    if check_plant is None:
+    if check_plant is None:                  # its name is checked by PlantChoice
         return None
-    if check_plant not in PLANTS or check_plant == ev.model:
-        others = ", ".join(p for p in PLANTS if p != ev.model)
-        raise ParameterError(f"check_plant must be one of {others} (a plant other than plant = {ev.model!r}), "
-                             f"got {check_plant!r}")
     if check_plant == "ancf":
         require_exudyn("check_plant='ancf'")
     return evaluation_plant(check_plant, sc.params, sc.dt, design_modes, sc.design_spin,
@@ -526,19 +425,22 @@ def _reference(sc: Scenario, kind: str, rig):
     return optimal_reference(opt, sc.dt, sc.t_end)
 
 
-#: Controllers that learn the payload with ``compare(payload_learning=...)`` (state feedback, and the
-#: LQG from its filter's estimate).
+#: Controllers that learn the payload with ``PayloadChoice(payload_learning=...)`` of ``compare`` by
+#: re-planning (state feedback, and the LQG from its filter's estimate); a controller whose settings
+#: have a ``learn_payload`` field (the NMPC) learns it itself over the same range.
 LEARNING_CONTROLLERS = ("lqr", "mpc", "lqg")
 
 
-def _learning(ctrl, settings, sc, rig):
-    """``ctrl`` wrapped in :class:`controllers.payload_learning.PayloadLearning` for the slew ``sc``."""
-    from controllers.payload_learning import PayloadLearning, PayloadLearningSettings
-    if not isinstance(settings, PayloadLearningSettings):
-        raise ParameterError(f"payload_learning must be a PayloadLearningSettings, got {type(settings).__name__}")
+def _learning(ctrl_or_settings, settings, sc, rig):
+    """``ctrl`` wrapped in :class:`controllers.payload_learning.PayloadLearning` for the slew ``sc``,
+    or a self-learning controller's settings with the range of ``settings``."""
+    from controllers.payload_learning import PayloadLearning
     if rig is not None or not isinstance(sc.task, Slew):
         raise ParameterError("payload_learning works on slew tasks without a rig (a rig's drive and sensors: not yet)")
-    return PayloadLearning(ctrl, settings, float(sc.reference.theta[-1]), sc.t_f, make_controller)
+    if hasattr(ctrl_or_settings, "learn_payload"):
+        return ctrl_or_settings.replace(learn_payload=True, payload_min_kg=settings.payload_min_kg,
+                                        payload_max_kg=settings.payload_max_kg)
+    return PayloadLearning(ctrl_or_settings, settings, float(sc.reference.theta[-1]), sc.t_f, make_controller)
 
 
 def _margins(ctrl):
@@ -581,24 +483,26 @@ def _check_budget(sc: Scenario, ev, chosen: dict, design_modes: int, sim: Closed
                  max_wall_s=sim.max_wall_s)
 
 
-def run_compare(plant: str = "foam", scenario: str = "slew", controllers=None,
-                out_dir=None, **options) -> dict:
+def run_compare(rig=None, task="slew", controllers=None, settings: CompareSettings | None = None, *,
+                out_dir=None, designs: dict | None = None, progress: bool = False) -> dict:
     """Run :func:`compare` and write its outputs to ``out_dir`` (if given).
 
     Parameters
     ----------
-    plant : {"foam", "cfoam"}
-        Nonlinear plant (default FOAM).
-    scenario : str
-        A registered scenario.
+    rig : Rig or Params, optional
+        The rig, the beam alone, or None (Table 1).
+    task : str or Slew or SpinUp
+        A registered scenario or a task.
     controllers : str or sequence of str, optional
         Registered controllers (default: those registered as default).
+    settings : CompareSettings, optional
+        The plant, design, run, scenario and payload values (:mod:`hubbeam_ctrl.study.compare_values`).
     out_dir : str or Path, optional
         Folder for metrics.csv, metrics.json, the PNG plots and report.md.
-    **options
-        Keyword arguments of :func:`compare` (``params``, ``design_params``, ``plant_params``,
-        ``tau_max``, ``t_f``, ``t_end``, ``dt``, ``w_f``, ``design_modes``, ``plant_modes``,
-        ``horizon``, ``solver``, ``settings``, ``shaping``, ``schedule``...).
+    designs : dict, optional
+        Controller name -> :class:`controllers.robust.RangeDesign` chosen beforehand.
+    progress : bool
+        Print one line per controller on stderr.
 
     Returns
     -------
@@ -606,7 +510,7 @@ def run_compare(plant: str = "foam", scenario: str = "slew", controllers=None,
         Controller name -> metrics (see :data:`hubbeam_ctrl.study.metrics.METRIC_UNITS`), in the
         order run; pass it to :func:`print_table`.
     """
-    comparison = compare(plant, scenario, controllers, **options)
+    comparison = compare(rig, task, controllers, settings, designs=designs, progress=progress)
     if out_dir is not None:
         write_outputs(comparison, out_dir)
     return comparison.metrics

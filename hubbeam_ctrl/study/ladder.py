@@ -9,11 +9,13 @@ and final angle error at every step. Steps whose part is ideal in the rig are le
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Damping, Drive, Friction, Rig, Sensors, Timing
 from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare_values import CompareSettings
 
 __all__ = ["LADDER_STEPS", "ladder_rigs", "rig_ladder"]
 
@@ -52,23 +54,24 @@ def ladder_rigs(rig: Rig) -> list:
     return out
 
 
-def rig_ladder(rig: Rig, scenario="slew", controllers=None, progress=None, **options) -> list:
+def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSettings | None = None, *,
+               progress=None) -> list:
     """Run :func:`~hubbeam_ctrl.study.compare.compare` on each rig of :func:`ladder_rigs`.
 
     Parameters
     ----------
     rig : Rig
-    scenario : str or Slew or SpinUp
+    task : str or Slew or SpinUp
         The task (as for ``compare``).
     controllers : str or sequence of str, optional
         As for ``compare``.
+    settings : CompareSettings, optional
+        As for ``compare``; ``settings.run.t_end`` defaults to the full rig's task time, so every
+        step runs the same window; give the full rig's bands (``settings.scenario.settle_angle``,
+        ``settle_tip``: its ``Comparison.scenario.bands``, as ``hubbeam compare --rig`` does) to
+        judge every step by them rather than by its own sensors' defaults.
     progress : callable, optional
         Called with each step's label before it runs.
-    **options
-        Further keywords of ``compare`` (``plant``, ``t_end``, ``integral``...); ``t_end``
-        defaults to the full rig's task time, so every step runs the same window; give the full rig's
-        bands (``settle_angle``, ``settle_tip``: its ``Comparison.scenario.bands``, as ``hubbeam compare
-        --rig`` does) to judge every step by them rather than by its own sensors' defaults.
 
     Returns
     -------
@@ -77,12 +80,13 @@ def rig_ladder(rig: Rig, scenario="slew", controllers=None, progress=None, **opt
         ``residual_tip_max_m``, ``final_angle_error_rad``, ``settling_time_s``, ``command_max``
         (N m or V), ``command`` (``"torque"`` or ``"voltage"``).
     """
-    plant = options.pop("plant", "foam")
-    rows, t_end = [], options.pop("t_end", None)
+    settings = CompareSettings() if settings is None else settings
+    rows, t_end = [], settings.run.t_end
     for label, step_rig in ladder_rigs(rig):
         if progress is not None:
             progress(label)
-        c = compare(plant, scenario, controllers, rig=step_rig, t_end=t_end, **options)
+        c = compare(step_rig, task, controllers,
+                    dataclasses.replace(settings, run=dataclasses.replace(settings.run, t_end=t_end)))
         t_end = c.scenario.t_end if t_end is None else t_end
         for name, m in c.metrics.items():
             res = c.results[name]

@@ -116,7 +116,8 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
     masses : sequence of float, optional
         Plant payloads [kg] (default ``m_min``, nominal, ``m_max``), each in the range.
     **options
-        Keyword arguments of :func:`~hubbeam_ctrl.study.compare.compare` (those ``hubbeam
+        Options of :func:`~hubbeam_ctrl.study.compare.compare` by name
+        (:func:`~hubbeam_ctrl.study.compare_values.compare_arguments`; those ``hubbeam
         compare`` gives, :func:`hubbeam_ctrl.cli.compare.compare_plan`). ``plant_params``: the
         plant's beam (damping, stiffness...; default ``params``), its tip mass set to each
         payload. A wall-time limit in ``sim_settings`` bounds the whole range. With
@@ -131,6 +132,7 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
     """
     from controllers import DesignModel
     from hubbeam_ctrl.study.compare import _parse_controllers, compare
+    from hubbeam_ctrl.study.compare_values import compare_arguments
     from hubbeam_ctrl.study.scenarios import make_scenario
     params = params if params is not None else Params()
     lo, hi = check_payload_range(payload_range, params.m_t)
@@ -166,8 +168,9 @@ def payload_comparison(plant: str = "foam", scenario="slew", controllers=None, *
     comparisons, clock = {}, time.perf_counter()
     for m in masses:                                 # --max-wall bounds the whole range, not each payload
         run = dict(options, sim_settings=_remaining(options.get("sim_settings"), time.perf_counter() - clock))
-        comparisons[m] = compare(plant, scenario, names, params=params, plant_params=plant_base.replace(m_t=m),
-                                 designs=designs or None, **run)
+        comparisons[m] = compare(**compare_arguments(plant, scenario, names, params=params,
+                                                     plant_params=plant_base.replace(m_t=m),
+                                                     designs=designs or None, **run))
     return PayloadComparison((lo, hi), masses, comparisons, designs)
 
 

@@ -277,7 +277,7 @@ def _range_text(res, L: float) -> tuple:
 
 
 def check_plant_lines(comparison) -> list:
-    """The report's section on ``compare(check_plant=...)``: every controller on both plants, their
+    """The report's section on ``PlantChoice(check_plant=...)`` of ``compare``: every controller on both plants, their
     peak ``|v_tip|/L`` and range, and which plant left its validated range (lines; none without a
     check plant).
 

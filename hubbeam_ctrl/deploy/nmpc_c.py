@@ -1,0 +1,68 @@
+"""The NMPC's real-time iteration as C: CasADi's code generation of :attr:`controllers.NMPC.step_function`.
+
+The step (:func:`controllers.nmpc.rti_step_function`: the shooting map and its Jacobians over
+the horizon, the condensed QP and CasADi's active-set ``qrqp``, the new plan) is one CasADi
+function; its generated C is self-contained (no CasADi at run time) and is the very function
+the Python NMPC calls, so the two agree to rounding (the software-in-the-loop check runs a
+whole slew with each, ``tests/test_nmpc_codegen.py``). The caller keeps the plan between samples
+(shift by one), the reference window and the saturation, as :meth:`controllers.NMPC.__call__`
+does; ``<name>.json`` gives the sizes, weights and limits it needs.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.fileio import atomic_write_text
+
+__all__ = ["nmpc_to_c"]
+
+
+def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti") -> dict:
+    """Write the NMPC's step as C: ``<name>.c``, ``<name>.h`` and ``<name>.json``.
+
+    Parameters
+    ----------
+    controller : controllers.NMPC
+        A built NMPC (any backend: the C is generated from the step's CasADi expression).
+    out_dir : str or Path
+        An existing folder.
+    name : str
+        The C function's name (a C identifier).
+
+    Returns
+    -------
+    dict
+        What ``<name>.json`` holds: the function's inputs and outputs with their shapes, the
+        horizon, the sample time [s], the command limit [N m], the stage and terminal weights.
+    """
+    from controllers import NMPC
+    if not isinstance(controller, NMPC):
+        raise ParameterError(f"controller must be an NMPC, got {type(controller).__name__}")
+    if not (isinstance(name, str) and name.isidentifier() and len(name) <= 31):
+        raise ParameterError(f"name must be a C identifier of at most 31 characters, got {name!r}")
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise ParameterError(f"out_dir: {out} is not a folder")
+    step = controller.symbolic_step
+    args = step.mx_in()
+    fn = ca.Function(name, args, step.call(args), step.name_in(), step.name_out())
+    gen = ca.CodeGenerator(f"{name}.c", {"with_header": True})
+    gen.add(fn)
+    gen.generate(str(out) + "/")
+    info = {"function": name, "horizon": controller.settings.horizon, "dt_s": controller.dt,
+            "tau_max_nm": controller.tau_max,
+            "states": [controller.design.state_names[i] for i in controller.prediction_states],
+            "inputs": {fn.name_in(i): list(fn.size_in(i)) for i in range(fn.n_in())},
+            "outputs": {fn.name_out(i): list(fn.size_out(i)) for i in range(fn.n_out())},
+            "Q": np.asarray(controller._W[0]).tolist(), "P": np.asarray(controller._W[-1]).tolist(),
+            "call": "X_next, U_next = f(x, X, U, XR, UR, Q, P): x the measured prediction state, (X, U) "
+                    "the previous plan shifted by one sample, (XR, UR) the reference window; the command "
+                    "is U_next[0] (plus the residual-mode gain of the Python NMPC), saturated"}
+    atomic_write_text(out / f"{name}.json", json.dumps(info, indent=1) + "\n")
+    return info
