@@ -17,6 +17,7 @@ from hubbeam_ctrl.deploy import NO_COMPILER, CController, compile_c, compiler, t
 from hubbeam_ctrl.plant.rig import load_rig
 from hubbeam_ctrl.sim import simulate_closed_loop
 from hubbeam_ctrl.sim.hardware import Hardware
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
 
 needs_cc = pytest.mark.skipif(compiler() is None, reason=NO_COMPILER)
 
@@ -63,7 +64,7 @@ def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, angle, t_f, t_end
     rig = _rig(rig_name)
     volts = Hardware.from_rig(rig).command == "voltage"
     names = ("lqr", "lqg") if volts else ("lqr", "lqg", "mpc")     # MPC in C: on a torque source
-    c = compare("foam", Slew(angle, t_f), ",".join(names), rig=rig, t_end=t_end)
+    c = compare(rig, Slew(angle, t_f), ",".join(names), CompareSettings(run=RunChoice(t_end=t_end)))
     sc = c.scenario
     limit = rig.drive.V_max if volts else c.controllers["lqg"].tau_max
     for name in names:
@@ -112,7 +113,7 @@ def test_mpc_with_integral_action_and_plan_prediction_in_c_equals_python(integra
     from hubbeam_ctrl.study.rig_loop import DISTURBANCE_FRACTION, task_noise
     rig = _rig("accel_link")
     rig = dataclasses.replace(rig, timing=dataclasses.replace(rig.timing, delay=0.5))
-    c = compare("foam", Slew(math.pi / 2, 1.5), "mpc", rig=rig, t_end=2.5)
+    c = compare(rig, Slew(math.pi / 2, 1.5), "mpc", CompareSettings(run=RunChoice(t_end=2.5)))
     sc = c.scenario
     inner = c.controllers["mpc"].inner
     py_ctrl = ObservedFeedback(inner, task_noise(sc, rig), DISTURBANCE_FRACTION * inner.tau_max if integral else None,
@@ -150,7 +151,7 @@ def test_the_c_filter_predicts_with_the_command_the_amplifier_gave(tmp_path):
     sits on the slew limit in 87 % of the samples, a loop that magnifies rounding.)"""
     from hubbeam_ctrl.study import Slew, compare
     rig = _rig("accel_link_slew")
-    c = compare("foam", Slew(math.pi / 2, 1.5), "lqr,mpc", rig=rig, t_end=2.5)
+    c = compare(rig, Slew(math.pi / 2, 1.5), "lqr,mpc", CompareSettings(run=RunChoice(t_end=2.5)))
     sc = c.scenario
     for name in ("lqr", "mpc"):
         py_ctrl = c.controllers[name]
