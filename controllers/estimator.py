@@ -512,9 +512,10 @@ class KalmanEstimator:
         u_prev : float or None
             Torque held since the previous update [N m]; ``None`` for the first sample after
             :meth:`reset` (the guess is then the prediction).
-        offset : array_like (nx,), optional
-            Added to the prediction ``Ad x_hat + Bd u_prev``: what a planned trajectory does
-            that the model does not (see :class:`controllers.lqg.LQG`'s ``plan_prediction``).
+        offset : array_like (n_x,), optional
+            Added to the prediction ``Ad x_hat + Bd u_prev`` of the model's states (not to a
+            carried previous command): what a planned trajectory does that the model does not
+            (see :class:`controllers.lqg.LQG`'s ``plan_prediction``).
 
         Returns
         -------
@@ -523,7 +524,8 @@ class KalmanEstimator:
         """
         if u_prev is not None:
             self.x_pred = self.predict(u_prev)
-            if offset is not None:
-                self.x_pred = self.x_pred + offset
+            if offset is not None:         # on the model's states (none on a carried previous command)
+                self.x_pred = self.x_pred.copy()
+                self.x_pred[:len(offset)] += offset
         self.x_hat = self._IminusLC @ self.x_pred + self.L @ y
         return self.x_hat

@@ -254,16 +254,27 @@ class ObservedFeedback(Controller):
             self._defect = plan_offsets(model, X, ff * np.asarray(inner.reference.torque, dtype=float))
         self.reset()
 
-    def reset(self) -> None:
-        """Start the filter at the reference's first state (the inner one's reset too)."""
-        self.inner.reset()
-        x0 = np.zeros(self.filter_model.n_x)
+    def initial_state(self) -> np.ndarray:
+        """The filter's first estimate: the reference's first state in deviation from the steady
+        spin, on the filter model's states (the previous command and the disturbance start at 0).
+
+        Returns
+        -------
+        ndarray (nz,)
+            The length of the estimator's state [rad, m, rad/s, m/s, N m].
+        """
+        x0 = np.zeros(len(self.estimator._b))
         x_ref, _ = self.inner._reference_at(0)
         n_in = len(x_ref) // 2
         k = min(n_in, self._n_f)
         x0[:k], x0[self._n_f:self._n_f + k] = x_ref[:k], x_ref[n_in:n_in + k]
         x0[self._n_f] -= self.design.spin
-        self.estimator.reset(x0)
+        return x0
+
+    def reset(self) -> None:
+        """Start the filter at the reference's first state (the inner one's reset too)."""
+        self.inner.reset()
+        self.estimator.reset(self.initial_state())
         self._tau = None
 
     def applied(self, tau: float) -> None:

@@ -5,10 +5,14 @@ the drive's static inverse, controllers.drive.VoltageCommand); on a torque sourc
 the hub torque in N m within +-tau_max. The header says which.
 """
 
+import dataclasses
 import re
+
+import pytest
 
 from controllers import LQG, DesignModel, LQGSettings, slew_reference
 from controllers.drive import VoltageCommand
+from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.deploy import to_c
 from hubbeam_ctrl.plant.rig import load_rig
 from hubbeam_ctrl.sim.hardware import Hardware
@@ -49,3 +53,12 @@ def test_paper_beam_header_says_newton_metres_within_tau_max():
     assert line == "the hub torque [N m] to hold until the next sample, within +-200 N m.", line
     assert "V_MAX" not in code.header and "[V]" not in code.header
     assert re.search(r"^#define PAPER_LQG_TAU_MAX 200  /\* \[N m\] \*/$", code.header, re.M)
+
+
+def test_volts_through_a_slew_limited_amplifier_are_refused_naming_the_rig_key():
+    """The C filter would need the torque a slew-limited voltage gives: refused in one line."""
+    rig = load_rig("servo_link")
+    rig = dataclasses.replace(rig, drive=dataclasses.replace(rig.drive, slew_rate=100.0))
+    with pytest.raises(ParameterError, match=r"^controller: .*\(motor\.slew_rate\) cannot be generated as C") as err:
+        to_c(VoltageCommand(_lqg(rig, 1e-3, 1.0), Hardware.from_rig(rig)), name="servo_lqg")
+    assert "\n" not in str(err.value)

@@ -240,15 +240,21 @@ def test_cli_codegen_writes_compiles_and_refuses_bad_input(tmp_path, capsys):
     assert (out / "pd.c").is_file() and (out / "pd.h").is_file()
     rig = tmp_path / "rig.toml"
     rig.write_text("[sensors]\nstrain_gauges = [0.5]\n")        # no gauge at the root
+    # issue 36 item 1: the C reads the rig's own sensors (this rig was refused before)
+    assert main(["codegen", "--controller", "lqg", "--rig", str(rig), "--tf", "4", "--design-modes", "1",
+                 "--out", str(tmp_path / "r"), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert [m["name"] for m in summary["measurements"]] == ["theta", "theta_dot", "moment_1"]
+    assert "2: moment_1 [N m] (strain gauge at 0.5 m from the root)" in (tmp_path / "r" / "lqg.h").read_text()
     for bad, message in [(args, "--out: folder .* exists and is not empty"),
                          (["codegen", "--controller", "pid", "--out", str(tmp_path / "m")],
                           "--controller must be one of pd, lqr, lqg"),
-                         (["codegen", "--controller", "lqg", "--rig", str(rig), "--out", str(tmp_path / "r")],
-                          "--rig: lqg reads the root bending moment, .* no gauge at the root")]:
+                         (["codegen", "--controller", "mpc", "--rig", "servo_link", "--out", str(tmp_path / "s")],
+                          "--controller mpc does not apply with --rig servo_link .*DC motor")]:
         assert main(bad) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and re.search(message, err), err
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["pd_c", "rig.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pd_c", "r", "rig.toml"]
     assert main([*args, "--force"]) == 0
 
 

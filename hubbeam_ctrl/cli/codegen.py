@@ -34,8 +34,9 @@ def add_parser(subparsers, common) -> None:
         "codegen", parents=[common], help="write a controller as portable C99 (header + source)",
         description=("Design a controller for a slew or spin-up on the sampled SFOAM model and write it "
                      "as C99: an instance struct, <kind>_init, <kind>_reset and <kind>_step(inst, "
-                     "measurements, reference, command); no dynamic memory, no I/O, only math.h. The LQR "
-                     "is written with its Kalman observer (it reads only the hub sensors)."))
+                     "measurements, reference, command); no dynamic memory, no I/O, only math.h. LQR and MPC "
+                     "are written with their Kalman observer; with --rig every observer reads the rig's own "
+                     "sensors (its header names them in order, with units)."))
     p.add_argument("--controller", required=True, metavar="KIND",
                    help="controller kind: pd, lqr, lqg, zv, zvd, ei")
     p.add_argument("--rig", metavar="RIG.toml", type=nonempty("rig"),
@@ -98,12 +99,9 @@ def run(args) -> int:
     if rig is not None:
         params = rig.plant_params
         if args.controller not in ("pd", "lqr", "lqg") and not rig.drive.is_ideal:
-            raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor "
-                                 "takes a voltage command, generated as C for pd, lqr and lqg only)")
-        if args.controller in ("lqr", "lqg") and 0.0 not in rig.sensors.strain_gauges:
-            raise ParameterError(f"rig: {args.controller} reads the root bending moment, but the rig's "
-                                 f"sensors.strain_gauges {list(rig.sensors.strain_gauges)} has no gauge at the "
-                                 "root (0 m)")
+            raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor, "
+                                 "motor.kind = 'dc_motor', takes a voltage command, generated as C for pd, lqr "
+                                 "and lqg only)")
     else:
         params = params_from_args(args)
     sc, design = design_task(args, rig, params)
@@ -112,12 +110,9 @@ def run(args) -> int:
     if rig is None:
         ctrl = make_controller(args.controller, design, settings, sc.reference)
     else:      # the controller that runs on the rig: integral action, observer, volts (as compare --rig)
-        from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_settings, task_noise
-        if args.controller in ("lqr", "lqg") and not rig.sensors.rate:
-            raise ParameterError(f"rig: the generated {args.controller} reads the hub rate, but the rig has no "
-                                 "sensors.rate (an observer on another sensor set runs in Python, not yet in C)")
-        # the rig's delay in the design, as compare --rig has it; the C reads the beam alone's three sensors
-        design = design.on_rig(None, rig.timing.delay)
+        from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
+        # the rig's sensors and delay in the design, as compare --rig has them: the C reads what the rig gives
+        design = rig_design(design, rig)
         ctrl = make_controller(args.controller, design, rig_settings(args.controller, settings, rig), sc.reference)
         ctrl = on_rig(ctrl, rig, task_noise(sc, rig), rig_closed_loop(rig, sc.closed_loop_settings())[1])
     cc = compiler()
@@ -133,10 +128,10 @@ def run(args) -> int:
     if args.json:
         print(json.dumps({**meta, "out": str(code.folder), "compiled": cc is not None}), file=sink)
     else:
-        sensors = ", ".join(f"{m['name']} [{m['unit']}]" for m in meta["measurements"]) or "none"
+        sensors = ", ".join(code.law.sensor_text()) or "none"
         print(f"{args.controller.upper()} for {sc.description}: wrote {code.header_path} and {code.source_path} "
               f"({args.precision}, {meta['data_bytes']} bytes of data); reads {sensors}; "
-              f"commands tau [N m] every {sc.dt:g} s", file=sink)
+              f"commands {meta['command']['name']} [{meta['command']['unit']}] every {sc.dt:g} s", file=sink)
     if cc is None:
         print(NO_COMPILER, file=sys.stderr)
     elif not args.json:

@@ -124,11 +124,14 @@ class CController:
         self._init = getattr(self._lib, f"{prefix}_init")
         self._reset = getattr(self._lib, f"{prefix}_reset")
         self._step = getattr(self._lib, f"{prefix}_step")
+        self._applied = getattr(self._lib, f"{prefix}_applied")
+        self._applied.argtypes = [ctypes.c_void_p, ctypes.c_double]
+        self._applied.restype = None
         dbl_p = ctypes.POINTER(ctypes.c_double)
         self._step.argtypes = [ctypes.c_void_p, dbl_p, dbl_p, dbl_p]
         self._step.restype = None
         n_meas = max(len(code.law.sensors), 1)
-        self._y = (ctypes.c_double * 3)()
+        self._y = (ctypes.c_double * max(n_meas, 3))()
         self._n_meas = n_meas
         self._tau = ctypes.c_double(0.0)
         self._tau_p = ctypes.pointer(self._tau)
@@ -137,6 +140,11 @@ class CController:
         self.name = f"{prefix}_c"
         self.dt = code.law.dt
         self.measurement = "sensors" if code.law.sensors else "state"
+        #: the rig signals the step reads (None: the closed loop's default three), as the Python law's
+        self.signals = None if (code.law.kind == "pd" or tuple(code.law.sensors) == (
+            "theta", "theta_dot", "root_moment")) else tuple(code.law.sensors)
+        if python_controller is not None and getattr(python_controller, "signals", None) is not None:
+            self.signals = tuple(python_controller.signals)
         self._k = 0
         if python_controller is not None:
             for attr in ("design", "n_modes", "state_modes"):
@@ -168,6 +176,16 @@ class CController:
         self._step(self._inst, self._y_p, self._null, self._tau_p)
         self._k += 1
         return self._tau.value
+
+    def applied(self, command: float) -> None:
+        """``<name>_applied``: the drive gave ``command``, not what the step returned (a slew-rate limit).
+
+        Parameters
+        ----------
+        command : float
+            The command applied [N m].
+        """
+        self._applied(self._inst, float(command))
 
     def step(self, y, reference=None) -> float:
         """One raw ``<name>_step`` call, without the time check (for benchmarks and tests).

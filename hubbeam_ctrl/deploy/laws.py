@@ -1,0 +1,384 @@
+"""What a controller does at a sample, as plain arrays: :class:`ControlLaw` and its builders.
+
+:func:`control_law` turns a designed controller into the data of a C template
+(:mod:`hubbeam_ctrl.deploy.render`): gains, the steady-state Kalman filter (on whatever sensors
+the design reads: :meth:`controllers.DesignModel.on_rig`), reference tables, the MPC's condensed
+QP, the scheduled LQG's grids. Every observer-based feedback is
+:class:`controllers.integral.ObservedFeedback` (a bare LQR or MPC is wrapped in it,
+:mod:`hubbeam_ctrl.deploy.observed`), so the C follows the Python class sample by sample.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controllers import LQG, LQR, MPC, PD, Controller, KalmanNoise, OpenLoop, ScheduledLQG, ShapedOpenLoop
+from controllers.drive import VoltageCommand
+from controllers.integral import ObservedFeedback
+from hubbeam_ctrl.core.errors import ParameterError
+
+from .observed import ObservedLQR, ObservedMPC
+
+__all__ = ["CODEGEN_KINDS", "SENSOR_UNITS", "ControlLaw", "control_law", "sensor_unit"]
+
+#: Controller kinds that can be generated, and what each exports.
+CODEGEN_KINDS = {
+    "pd": "PD on the hub angle and rate, reference table, feedforward, saturation",
+    "lqr": "LQR gain on a steady-state Kalman filter of its model (the LQR with its observer)",
+    "lqg": "LQG: Kalman filter (with residual modes) and gain, reference table, saturation; the "
+           "gain-scheduled LQG with every gain and model interpolated on the spin rate",
+    "mpc": "MPC on a Kalman filter of its model: the condensed box-constrained QP solved by a generated "
+           "primal active-set method (no tip bound)",
+    "zv": "ZV input-shaped open-loop torque table",
+    "zvd": "ZVD input-shaped open-loop torque table",
+    "ei": "EI input-shaped open-loop torque table",
+    "openloop": "feedforward open-loop torque table (profile='feedforward')",
+}
+
+#: Units of the sensors a generated controller can read (the closed-loop simulator's order); a
+#: rig's strain gauges ``moment_<i>`` read N m (:func:`sensor_unit`).
+SENSOR_UNITS = {"theta": "rad", "theta_dot": "rad/s", "root_moment": "N m", "accel_tangential": "m/s^2"}
+_SENSORS = ("theta", "theta_dot", "root_moment")
+
+
+def sensor_unit(name: str) -> str:
+    """Unit of a measurement a generated step reads (``moment_<i>``: a strain gauge, N m).
+
+    Parameters
+    ----------
+    name : str
+        A signal name (:data:`SENSOR_UNITS` or ``moment_<i>``).
+
+    Returns
+    -------
+    str
+    """
+    return "N m" if name.startswith("moment_") else SENSOR_UNITS[name]
+
+
+
+@dataclass(frozen=True, eq=False)
+class ControlLaw:
+    """What a controller does at a sample, as plain arrays (the input of :func:`render_c`).
+
+    Attributes
+    ----------
+    kind : {"pd", "observer", "scheduled_lqg", "mpc", "table"}
+        Template: PD on the hub sensors, gain on a Kalman filter, the gain-scheduled LQG,
+        MPC on a Kalman filter, held torque table.
+    controller : str
+        The controller's kind (``"lqg"``...).
+    dt : float
+        Sample time [s].
+    tau_max : float
+        Torque limit [N m] of the saturation.
+    feedforward : float
+        1.0 when the reference's feedforward torque is added, else 0.0.
+    arrays : dict of str -> ndarray
+        The template's data (see :func:`render_c`).
+    scalars : dict of str -> float
+        The template's scalars (``spin`` [rad/s], ``kp``, ``kd``...).
+    sensors : tuple of str
+        Measurements the step reads, in order (names of :data:`SENSOR_UNITS`).
+    n_reference : int
+        Length of the optional external reference vector of the step.
+    reference_layout : str
+        What that vector holds.
+    gauges : tuple of float
+        Positions of the strain gauges ``moment_<i>`` reads, from the root [m] (a rig's
+        ``sensors.strain_gauges``; empty for the beam alone's root moment).
+    """
+
+    kind: str
+    controller: str
+    dt: float
+    tau_max: float
+    feedforward: float
+    arrays: dict
+    scalars: dict = field(default_factory=dict)
+    sensors: tuple = ()
+    n_reference: int = 0
+    reference_layout: str = ""
+    gauges: tuple = ()
+
+    def sensor_text(self) -> list:
+        """Each measurement as the header names it: ``name [unit]`` (with a gauge's position)."""
+        out = []
+        for s in self.sensors:
+            text = f"{s} [{sensor_unit(s)}]"
+            if s.startswith("moment_") and int(s[7:]) <= len(self.gauges):
+                text += f" (strain gauge at {self.gauges[int(s[7:]) - 1]:.6g} m from the root)"
+            elif s == "accel_tangential":
+                text += " (tip accelerometer, tangential)"
+            out.append(text)
+        return out
+
+    def check_finite(self) -> None:
+        """Refuse a non-finite gain, table entry or scalar (one line naming it).
+
+        Raises
+        ------
+        ParameterError
+        """
+        for name, value in {**self.arrays, **self.scalars, "dt": self.dt, "tau_max": self.tau_max}.items():
+            a = np.asarray(value, dtype=float)
+            if not np.all(np.isfinite(a)):
+                raise ParameterError(f"controller: {name} has a non-finite entry; C code needs finite gains "
+                                     "and tables")
+
+
+def _reference_table(ctrl: Controller, table=None, embed=None) -> tuple:
+    """``(X, tff)`` rows ``k = 0..K-1`` of the controller's reference table as its step reads them."""
+    K = len(ctrl._tff)
+    rows = []
+    for k in range(K):
+        xr, _ = ctrl._reference_at(k)
+        if table is not None and k < len(table):
+            rows.append(np.asarray(table[k], dtype=float))
+        else:
+            rows.append(np.asarray(xr if embed is None else embed @ xr, dtype=float))
+    return np.array(rows), np.asarray(ctrl._tff, dtype=float)
+
+
+def _filter_arrays(estimator) -> dict:
+    """The steady-state filter's data: ``A``, ``B`` (prediction), ``IMLC = I - L C``, ``L``."""
+    return {"A": np.asarray(estimator._A, dtype=float), "B": np.asarray(estimator._b, dtype=float),
+            "IMLC": np.asarray(estimator._IminusLC, dtype=float), "L": np.asarray(estimator.L, dtype=float)}
+
+
+def _offset_rows(offset, nz: int) -> np.ndarray:
+    """The plan's prediction offsets on the filter's ``nz`` states (none on ``u_prev`` or ``d``)."""
+    D = np.zeros((len(offset), nz))
+    D[:, :np.shape(offset)[1]] = offset
+    return D
+
+
+def _model_sensors(model) -> tuple:
+    """``(sensors, gauges)`` a filter on ``model`` reads (the beam alone's three without a rig layout)."""
+    if model is None or model.sensors is None:
+        return _SENSORS, ()
+    return tuple(model.sensor_labels), tuple(model.sensors.gauges)
+
+
+def _observer_law(ctrl, controller: str, K, estimator, X, tff, spin: float, ff: float, x0,
+                  offset=None, model=None) -> ControlLaw:
+    nx = len(estimator._b)
+    arrays = {**_filter_arrays(estimator), "K": np.asarray(K, dtype=float),
+              "X0": np.asarray(x0, dtype=float), "XREF": X, "TFF": tff}
+    if offset is not None and len(offset):   # the filter predicts along the plan (plan_prediction)
+        arrays["OFFSET"] = _offset_rows(offset, nx)
+    sensors, gauges = _model_sensors(model)
+    return ControlLaw(
+        kind="observer", controller=controller, dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=ff,
+        arrays=arrays,
+        scalars={"spin": float(spin)}, sensors=sensors, n_reference=nx + 1,
+        reference_layout=f"x_ref[0..{nx - 1}] (the filter model's states, absolute hub angle and rate), "
+                         f"then tau_ff [N m]", gauges=gauges)
+
+
+def _acting(ctrl, fm, K, X, x0, reference_at) -> tuple:
+    """Gain, reference table and initial state on the filter state ``[x, u_prev]`` of a model that
+    carries the previous command (:attr:`controllers.DesignModel.carries_loop`): the law acts on
+    the state where the command starts to act (:meth:`controllers.DesignModel.acting_state`),
+    ``K (Phi_d x + Gamma_d u_prev - x_ref(k + d))``, written as the template's ``K_z (z - z_ref)``
+    with ``z_ref = [Phi_d^-1 (x_ref(k + d) - s(t_k + d dt)) + s(t_k), 0]`` (``s`` the steady
+    rotation), so the C template is unchanged. The feedforward is the one where the command acts."""
+    if not fm.carries_loop:
+        return K, X, x0, None
+    d, n, spin, dt = fm.delay, fm.n_x // 2, fm.spin, fm.dt
+    Phi, G = fm.action_map()
+    K = np.asarray(K, dtype=float)
+    Kz = np.append(K @ Phi, K @ G)
+    Phi_inv = np.linalg.inv(Phi)
+    rows, tff = [], []
+    for k in range(len(X)):
+        x_act = (1.0 - d) * reference_at(k) + d * reference_at(k + 1)
+        steady = lambda t: np.r_[spin * t, np.zeros(n - 1), spin, np.zeros(n - 1)]   # noqa: E731
+        z = Phi_inv @ (x_act - steady((k + d) * dt)) + steady(k * dt)
+        rows.append(np.append(z, 0.0))
+        tff.append(ctrl._reference_acting(k)[1])
+    return Kz, np.array(rows), np.append(x0, 0.0), np.array(tff)
+
+
+def _with_disturbance(K, X, x0) -> tuple:
+    """Gain, reference table and initial state on the filter's state with the disturbance ``d``
+    (:class:`controllers.integral.OffsetFreeEstimator`): ``u = K (x - x_ref) + d``, ``d_ref = 0``."""
+    return (np.append(K, 1.0), np.hstack([X, np.zeros((len(X), 1))]), np.append(x0, 0.0))
+
+
+def control_law(controller: Controller, noise: KalmanNoise | None = None) -> ControlLaw:
+    """The per-sample law of ``controller`` as arrays.
+
+    Parameters
+    ----------
+    controller : controllers.Controller
+        A PD, LQR, MPC, LQG, scheduled LQG, input-shaped open loop or feedforward open loop;
+        an LQR or MPC closed through :class:`controllers.integral.ObservedFeedback` (the rig
+        path: any sensor set, delay, integral action); any of these behind a DC drive's
+        :class:`controllers.drive.VoltageCommand`.
+    noise : controllers.KalmanNoise, optional
+        The observer's noise model for a bare LQR or MPC (default: the simulator's sensors).
+
+    Returns
+    -------
+    ControlLaw
+
+    Raises
+    ------
+    ParameterError
+        For a controller kind that cannot be generated (the message lists those that can)
+        or a non-finite gain.
+    """
+    if isinstance(controller, VoltageCommand):      # the torque law, then the drive's static inverse
+        if controller.hardware.drive.slew_rate is not None:
+            raise ParameterError("controller: a voltage command through an amplifier with a slew-rate limit "
+                                 "(motor.slew_rate) cannot be generated as C yet (the filter would need the torque "
+                                 "the limited voltage gives)")
+        law = control_law(controller.inner, noise)
+        if law.kind not in ("pd", "observer", "mpc"):
+            raise ParameterError(f"controller: a voltage command of {law.controller!r} cannot be generated as C")
+        d, f = controller.hardware.drive, controller.hardware.friction
+        drive = {"R": d.R, "N": d.N, "k_t": d.k_torque, "k_e": d.k_e, "eta_forward": d.eta_forward,
+                 "eta_backward": d.eta_backward, "v_eps": f.v_eps, "V_max": d.V_max}
+        arrays = dict(law.arrays)
+        if controller._rate_index is None:      # no rate sensor: the estimator's rate where the command acts
+            est, fm = controller.inner.estimator, controller.inner.filter_model
+            r = fm.action_gain(np.eye(fm.n_x)[fm.n_x // 2][None, :])[0]
+            arrays["RATE"] = np.r_[r, np.zeros(est.A.shape[0] - len(r))]
+        scalars = {**law.scalars, **{k: float(v) for k, v in drive.items()}}
+        law = dataclasses.replace(law, arrays=arrays, scalars=scalars)
+        law.check_finite()
+        return law
+    ctrl = controller
+    if type(ctrl) is LQR:                 # not the scheduled subclasses: they interpolate in the spin
+        ctrl = ObservedLQR(ctrl, noise)
+    elif type(ctrl) is MPC:
+        ctrl = ObservedMPC(ctrl, noise)
+    if isinstance(ctrl, ObservedFeedback) and type(ctrl.inner) is MPC:
+        law = _mpc_law(ctrl)
+        law.check_finite()
+        return law
+    if isinstance(ctrl, ObservedFeedback):
+        if type(ctrl.inner) is not LQR:
+            raise ParameterError(f"controller: an observer-fed {type(ctrl.inner).__name__} cannot be generated as "
+                                 "C (an LQR or an MPC can)")
+        inner = ctrl.inner
+        X, tff = _reference_table(inner)
+        K, x0 = np.asarray(inner.K, float), ctrl.initial_state()[:ctrl.filter_model.n_x]
+        K, X, x0, tff_act = _acting(inner, ctrl.filter_model, K, X, x0, lambda k: inner._reference_at(k)[0])
+        tff = tff if tff_act is None else tff_act
+        if ctrl.integral:
+            K, X, x0 = _with_disturbance(K, X, x0)
+        law = _observer_law(ctrl, "lqr", K, ctrl.estimator, X, tff, ctrl.design.spin, float(inner._ff), x0,
+                            ctrl._defect, ctrl.filter_model)
+        law.check_finite()
+        return law
+    if type(ctrl) is PD:
+        if ctrl.settings.roll_off_hz is not None:
+            raise ParameterError("controller: a PD with a roll_off_hz cannot be generated as C yet (the template is "
+                                 "the static PD); use roll_off_hz=None")
+        ref = ctrl.reference
+        law = ControlLaw(
+            kind="pd", controller="pd", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=float(ctrl._ff),
+            arrays={"THETA": np.asarray(ref.theta, float), "THETA_DOT": np.asarray(ref.theta_dot, float),
+                    "TFF": np.asarray(ref.torque, float)},
+            scalars={"kp": float(ctrl.kp), "kd": float(ctrl.kd)}, sensors=_SENSORS[:2], n_reference=3,
+            reference_layout="theta_ref [rad], theta_dot_ref [rad/s], tau_ff [N m]")
+    elif type(ctrl) is ScheduledLQG:
+        law = _scheduled_lqg_law(ctrl)
+    elif type(ctrl) is LQG:
+        X, tff = _reference_table(ctrl, ctrl._xref_filter, ctrl._E)
+        x0 = ctrl._E @ ctrl._reference_at(0)[0]        # LQG.reset
+        x0[ctrl._n] -= ctrl.design.spin
+        K = ctrl._Ke
+        K, X, x0, tff_act = _acting(ctrl, ctrl.filter_model, K, X, x0, ctrl._filter_reference)
+        tff = tff if tff_act is None else tff_act
+        if ctrl.settings.integral:                      # the estimated disturbance is cancelled
+            K, X, x0 = _with_disturbance(K, X, x0)
+        law = _observer_law(ctrl, "lqg", K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0,
+                            ctrl._defect, ctrl.filter_model)
+    elif isinstance(ctrl, ShapedOpenLoop):
+        law = ControlLaw(kind="table", controller=ctrl.kind, dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
+                         feedforward=1.0, arrays={"TORQUE": np.asarray(ctrl.torques, float)},
+                         scalars={"tail": float(ctrl._tail)}, n_reference=1,
+                         reference_layout="tau [N m] (replaces the table)")
+    elif type(ctrl) is OpenLoop and ctrl.settings.profile == "feedforward":
+        ref = ctrl.reference
+        law = ControlLaw(kind="table", controller="openloop", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
+                         feedforward=1.0, arrays={"TORQUE": np.array([min(max(float(v), -ctrl.tau_max), ctrl.tau_max)
+                                                                      for v in ref.torque])},
+                         scalars={"tail": min(max(float(ref.torque[-1]), -ctrl.tau_max), ctrl.tau_max)},
+                         n_reference=1, reference_layout="tau [N m] (replaces the table)")
+    else:
+        kinds = ", ".join(CODEGEN_KINDS)
+        raise ParameterError(f"controller: {getattr(controller, 'name', type(controller).__name__)!r} "
+                             f"({type(controller).__name__}) cannot be generated as C; kinds: {kinds}")
+    law.check_finite()
+    return law
+
+
+def _mpc_law(ctrl: ObservedFeedback) -> ControlLaw:
+    """An MPC closed through its observer (:class:`controllers.integral.ObservedFeedback`) as
+    arrays: the filter (any sensor set, the previous command and the disturbance as states), the
+    map ``P`` from the filter's state to the MPC's state where the command acts, the condensed QP
+    and its reference terms."""
+    mpc, fm, est = ctrl.inner, ctrl.filter_model, ctrl.estimator
+    s = mpc.settings
+    if s.tip_bound is not None:
+        raise ParameterError("controller: an MPC with a tip_bound cannot be generated as C yet (the generated "
+                             "QP solver handles the torque bounds only); use tip_bound=None")
+    if s.emf_torque_limit is not None:
+        raise ParameterError("controller: an MPC with an emf_torque_limit (a DC motor's voltage limit) cannot be "
+                             "generated as C yet; use emf_torque_limit=None")
+    N = s.horizon
+    nz = est.A.shape[0]
+    Phi, G = fm.action_map()
+    act = np.zeros((fm.n_x, nz))                   # the acting state (controllers.DesignModel.acting_state)
+    act[:, :fm.n_x] = Phi
+    if fm.delay > 0.0:
+        act[:, fm.n_x] = G
+    H = np.asarray(mpc._H.full(), dtype=float)
+    table = np.asarray(mpc._ref_term, dtype=float)
+    kt = len(table)
+    r0 = np.asarray(mpc._reference_term(kt), dtype=float)
+    r1 = np.asarray(mpc._reference_term(kt + 1), dtype=float) - r0
+    arrays = {**_filter_arrays(est), "X0": ctrl.initial_state(), "P": act[ctrl._pick],
+              "GX": np.asarray(mpc._Gx, float), "H": H, "HL": np.linalg.cholesky(H), "REFT": table, "R0": r0, "R1": r1}
+    if ctrl._defect is not None and len(ctrl._defect):
+        arrays["OFFSET"] = _offset_rows(ctrl._defect, nz)
+    sensors, gauges = _model_sensors(fm)
+    return ControlLaw(
+        kind="mpc", controller="mpc", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=1.0,
+        arrays=arrays,
+        scalars={"spin": float(ctrl.design.spin), "horizon": float(N), "delay": float(fm.delay),
+                 "plan_shift": float(np.floor(fm.delay + 0.5)), "integral": 1.0 if ctrl.integral else 0.0},
+        sensors=sensors, n_reference=N, gauges=gauges,
+        reference_layout=f"r[0..{N - 1}]: the QP gradient's reference term (g = Gx x - r)")
+
+
+def _scheduled_lqg_law(ctrl) -> ControlLaw:
+    """A :class:`controllers.ScheduledLQG` as arrays: gains, filter gains and models per spin."""
+    est = ctrl.estimator
+    if np.shape(est._C)[0] != 3 or ctrl.filter_model.sensors is not None:
+        raise ParameterError("controller: a scheduled LQG on a rig's own sensors cannot be generated as C yet "
+                             "(the template reads the beam alone's theta, theta_dot, root_moment)")
+    E = ctrl._E
+    K = len(ctrl._tff)
+    X = np.array([E @ ctrl._reference_at(k)[0] for k in range(K)])
+    models = np.asarray(est.models, dtype=float)
+    S, nx = models.shape[0], models.shape[1]
+    return ControlLaw(
+        kind="scheduled_lqg", controller="lqg", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
+        feedforward=float(ctrl._ff),
+        arrays={"SPINS": np.asarray(est.schedule._grid, dtype=float),
+                "AD": models[:, :, :nx].reshape(S * nx, nx), "BD": models[:, :, nx],
+                "LK": np.asarray(est.L, dtype=float).reshape(S * nx, 3), "C": np.asarray(est._C, dtype=float),
+                "GAINS": np.asarray(ctrl.gains, dtype=float), "X0": X[0].copy(), "XREF": X,
+                "TFF": np.asarray(ctrl._tff, dtype=float)},
+        scalars={"measured": 1.0 if ctrl.variable == "measured" else 0.0}, sensors=_SENSORS,
+        n_reference=nx + 1,
+        reference_layout=f"x_ref[0..{nx - 1}] (the filter model's states, absolute hub angle and rate), "
+                         f"then tau_ff [N m]")
