@@ -67,3 +67,16 @@ def test_nmpc_to_c_writes_a_self_contained_step(tmp_path):
     assert saved["inputs"]["X"] == [len(ctrl.prediction_states), 7] and saved["outputs"]["U_next"] == [1, 6]
     with pytest.raises(ParameterError, match="name must be a C identifier"):
         nmpc_to_c(ctrl, tmp_path, name="1bad")
+
+
+def test_cli_codegen_writes_the_nmpc_step(tmp_path, capsys):
+    from hubbeam_ctrl.cli.main import main
+    out = tmp_path / "nmpc"
+    assert main(["codegen", "--controller", "nmpc", "--slew-angle", "1", "--tf", "4", "--n-modes", "3",
+                 "--out", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert sorted(p.name for p in out.iterdir()) == ["nmpc_rti.c", "nmpc_rti.h", "nmpc_rti.json"]
+    assert info["horizon"] == 20 and info["dt_s"] == pytest.approx(0.01)
+    assert main(["codegen", "--controller", "nmpc", "--precision", "single", "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--precision single" in err and "--controller nmpc" in err

@@ -38,7 +38,8 @@ def add_parser(subparsers, common) -> None:
                      "are written with their Kalman observer; with --rig every observer reads the rig's own "
                      "sensors (its header names them in order, with units)."))
     p.add_argument("--controller", required=True, metavar="KIND",
-                   help="controller kind: pd, lqr, lqg, zv, zvd, ei")
+                   help="controller kind: pd, lqr, lqg, zv, zvd, ei, mpc, nmpc (nmpc: its real-time iteration "
+                        "step, hubbeam_ctrl.deploy.nmpc_c)")
     p.add_argument("--rig", metavar="RIG.toml", type=nonempty("rig"),
                    help="rig file: the beam (with the reflected rotor), its sensors and its sample time")
     p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
@@ -90,7 +91,7 @@ def run(args) -> int:
 
     sink = stdout(args)
     check_output_dir("--out", args.out)
-    kinds = [k for k in CODEGEN_KINDS if k != "openloop"]
+    kinds = [k for k in CODEGEN_KINDS if k != "openloop"] + ["nmpc"]
     if args.controller not in kinds:
         raise ParameterError(f"controller must be one of {', '.join(kinds)} (the kinds that can be generated "
                              f"as C), got {args.controller!r}")
@@ -105,6 +106,8 @@ def run(args) -> int:
     else:
         params = params_from_args(args)
     sc, design = design_task(args, rig, params)
+    if args.controller == "nmpc":
+        return _nmpc(args, sc, design, rig, sink)
     settings = task_shaped_settings(args.controller, CONTROLLERS[args.controller].settings.for_scenario(sc),
                                     design, sc)[0]
     if rig is None:
@@ -136,4 +139,25 @@ def run(args) -> int:
         print(NO_COMPILER, file=sys.stderr)
     elif not args.json:
         print("  compiled warning-free with -std=c99 -Wall -Wextra -pedantic -Werror -O2", file=sink)
+    return 0
+
+
+def _nmpc(args, sc, design, rig, sink) -> int:
+    """``hubbeam codegen --controller nmpc``: the NMPC's step as C (:func:`hubbeam_ctrl.deploy.nmpc_c.nmpc_to_c`)."""
+    from controllers import CONTROLLERS, make_controller
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.deploy.nmpc_c import nmpc_to_c
+    if rig is not None:
+        raise ParameterError("--controller nmpc does not apply with --rig yet (the NMPC's C is its step on the "
+                             "state; the rig's filter and drive stage around it are not generated)")
+    if args.precision != "double":
+        raise ParameterError("--precision single does not apply with --controller nmpc (CasADi generates double)")
+    ctrl = make_controller("nmpc", design, CONTROLLERS["nmpc"].settings.for_scenario(sc), sc.reference)
+    info = nmpc_to_c(ctrl, args.out, force=args.force)
+    if args.json:
+        print(json.dumps({**info, "out": str(args.out)}), file=sink)
+    else:
+        print(f"NMPC for {sc.description}: wrote {args.out}/{info['function']}.c, .h and .json (horizon "
+              f"{info['horizon']} samples, every {sc.dt:g} s; the step with its QP solver, no CasADi at run time)",
+              file=sink)
     return 0

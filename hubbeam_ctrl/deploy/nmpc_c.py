@@ -12,7 +12,6 @@ does; ``<name>.json`` gives the sizes, weights and limits it needs.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -23,7 +22,7 @@ from hubbeam_ctrl.core.fileio import atomic_write_text
 __all__ = ["nmpc_to_c"]
 
 
-def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti") -> dict:
+def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti", *, force: bool = False) -> dict:
     """Write the NMPC's step as C: ``<name>.c``, ``<name>.h`` and ``<name>.json``.
 
     Parameters
@@ -31,9 +30,11 @@ def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti") -> dict:
     controller : controllers.NMPC
         A built NMPC (any backend: the C is generated from the step's CasADi expression).
     out_dir : str or Path
-        An existing folder.
+        The folder (created if missing; its parent must exist).
     name : str
         The C function's name (a C identifier).
+    force : bool
+        Write into a folder that is not empty.
 
     Returns
     -------
@@ -46,9 +47,9 @@ def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti") -> dict:
         raise ParameterError(f"controller must be an NMPC, got {type(controller).__name__}")
     if not (isinstance(name, str) and name.isidentifier() and len(name) <= 31):
         raise ParameterError(f"name must be a C identifier of at most 31 characters, got {name!r}")
-    out = Path(out_dir)
-    if not out.is_dir():
-        raise ParameterError(f"out_dir: {out} is not a folder")
+    from .codegen import _check_out
+    out = _check_out(out_dir, force)
+    out.mkdir(exist_ok=True)
     step = controller.symbolic_step
     args = step.mx_in()
     fn = ca.Function(name, args, step.call(args), step.name_in(), step.name_out())
