@@ -127,7 +127,7 @@ def table_lines(doc: dict) -> list:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--beams", default="table1,lab")
+    ap.add_argument("--beams", default="table1,lab,servo_link")
     ap.add_argument("--factors", default="1.1,1.2,1.3")
     ap.add_argument("--horizon", type=int, default=None, help="the NMPC's horizon [samples] (default its own)")
     ap.add_argument("--backend", default="vm", choices=("vm", "compiled"),
