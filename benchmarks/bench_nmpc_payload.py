@@ -2,7 +2,9 @@
 
 Prints one JSON object (``--out FILE`` also writes it). Run:
 ``.venv/bin/python benchmarks/bench_nmpc_payload.py --out benchmarks/results/bench_nmpc_payload.json``
-(about 2 minutes; run it on a quiet machine: the step times are the real-time measurement).
+(about 2 minutes; run it on a quiet machine: the step times are the real-time measurement), and with
+``--backend compiled --out benchmarks/results/bench_nmpc_payload_compiled.json`` the step as its
+generated C.
 
 Cases (as ``bench_limit_targets.py --cases payload_learning, payload_learning_lab``, the payload
 learning of the linear designs by mid-slew re-plans): Table 1's beam designed for 0.1 kg, 1 rad in
@@ -44,13 +46,14 @@ CASES = {"table1": (Params(), 1.0, (0.0, 0.5), (0.0, 0.1, 0.3, 0.5)),
          "lab_damped": (LAB.replace(m_t=0.1, damping_ratio=5e-4), math.pi / 2, (0.0, 0.2), (0.0, 0.05, 0.1, 0.2))}
 
 
-def run(beam: str, learn: bool) -> dict:
-    """Every payload of ``beam`` with the NMPC that learns (``learn``) or the nominal one."""
+def run(beam: str, learn: bool, backend: str = "vm") -> dict:
+    """Every payload of ``beam`` with the NMPC that learns (``learn``) or the nominal one, its step on
+    ``backend``."""
     params, angle, (lo, hi), masses = CASES[beam]
     t_f = 1.5 * time_optimal_slew(params.replace(m_t=hi), angle).duration_s
     task = Slew(angle, t_f)
     settings = NMPCSettings.for_scenario(make_scenario(task, params=params, t_end=None)).replace(
-        learn_payload=learn, payload_min_kg=lo, payload_max_kg=hi)
+        learn_payload=learn, payload_min_kg=lo, payload_max_kg=hi, backend=backend)
     runs = {}
     for m in masses:
         t0 = time.perf_counter()
@@ -108,11 +111,13 @@ def table_lines(doc: dict) -> list:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--beams", default="table1,lab,lab_damped")
+    ap.add_argument("--backend", default="vm", choices=("vm", "compiled"),
+                    help="the NMPC's step on CasADi's virtual machine or as its generated C")
     ap.add_argument("--out", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
-    doc = {"beams": {}}
+    doc = {"backend": args.backend, "beams": {}}
     for beam in args.beams.split(","):
-        doc["beams"][beam] = {"learning": run(beam, True), "nominal": run(beam, False)}
+        doc["beams"][beam] = {"learning": run(beam, True, args.backend), "nominal": run(beam, False, args.backend)}
     emit(doc, args.out)
 
 
