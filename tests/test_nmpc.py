@@ -76,15 +76,20 @@ def test_nmpc_linear_form_is_certified_like_the_lqr(lab_slew):
     assert not c.grows and c.worst.spectral_radius < 1.0
 
 
-def test_docs_quote_the_nmpc_benchmark():
-    """docs/limit.md's NMPC table is benchmarks/results/bench_nmpc.json's, and in that run the NMPC settles
-    every slew it ran within the drive's limits; on the beams alone (10 ms samples) with at most 0.1 % of L
-    of residual vibration and its step's 99th percentile within the sample."""
+@pytest.mark.parametrize("name", ["bench_nmpc.json", "bench_nmpc_compiled.json"])
+def test_docs_quote_the_nmpc_benchmark(name):
+    """docs/limit.md's NMPC tables are the benchmark's JSON (the step on CasADi's virtual machine and as
+    its generated C), and in those runs the NMPC settles every slew it ran within the drive's limits; on
+    the beams alone (10 ms samples) with at most 0.1 % of L of residual vibration and its step's 99th
+    percentile within the sample; as C, its median within a quarter of the 10 ms samples and its 99th
+    percentile within servo_link's 1 ms."""
     import json
 
     from conftest import bench_module
     bench, root = bench_module("bench_nmpc")
-    doc = json.loads((root / "benchmarks" / "results" / "bench_nmpc.json").read_text())
+    doc = json.loads((root / "benchmarks" / "results" / name).read_text())
+    assert f"<!-- bench_nmpc table: generated from benchmarks/results/{name} -->" in (
+        root / "docs" / "limit.md").read_text()
     text = (root / "docs" / "limit.md").read_text()
     for line in bench.table_lines(doc):
         assert line in text, line
@@ -97,3 +102,7 @@ def test_docs_quote_the_nmpc_benchmark():
             if beam != "servo_link":     # a rig at 1 ms: not within 0.1 % of L at 1.1 T*, nor in real time in Python
                 assert r["residual_pct_of_L"] <= 0.1, (beam, f)
                 assert r["step_p99_s"] <= r["dt_s"], (beam, f)          # every step within its sample (99 %)
+                if doc.get("backend") == "compiled":
+                    assert r["step_median_s"] <= 0.25 * r["dt_s"], (beam, f)
+            elif doc.get("backend") == "compiled":
+                assert r["step_p99_s"] <= r["dt_s"], (beam, f)
