@@ -157,6 +157,7 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     y = simulate_sensors(rig, t, 0.02 * amplitude * shape, ("theta", "v_tip"), settings)
     ratio = max(float(np.max(np.abs(y["v_tip"]))) / tip, float(np.max(np.abs(y["theta"]))) / travel)
     a = amplitude if ratio <= 0 else min(amplitude, 0.02 * amplitude / ratio)
+    binding = "hub"
     for _ in range(12):
         try:
             y = simulate_sensors(rig, t, a * shape, ("theta", "v_tip"), settings)
@@ -167,6 +168,7 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
         ratio = max(peak_tip / tip, peak_hub / travel)
         if ratio <= 1.0:
             break
+        binding = "hub" if peak_hub / travel >= peak_tip / tip else "tip"
         a = a * 0.95 / ratio
     else:
         raise ParameterError(f"no amplitude keeps the tip within {tip:g} m and the hub within {travel:g} rad")
@@ -175,6 +177,13 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     if peak_hub <= resolution:
         seen = (f"2 counts of the encoder ({resolution:.3g} rad)" if rig.sensors.encoder_step >= rig.sensors.angle_noise
                 else f"2 standard deviations of the angle sensor's noise ({resolution:.3g} rad)")
+        if a < amplitude:            # the limits on the motion brought the amplitude down
+            first = (f"max_hub_travel = {travel:g} rad" if binding == "hub"
+                     else f"max_tip_deflection = {tip:g} m")
+            raise ParameterError(f"{first} brings the amplitude down to {a:.3g} {unit} (from {amplitude:g} "
+                                 f"{unit}, --amplitude), which moves the hub at most {peak_hub:.3g} rad (friction may "
+                                 f"hold it), not more than {seen}: the record would show nothing to fit; allow "
+                                 f"more motion (--max-hub, --max-tip) or excite another kind")
         raise ParameterError(f"amplitude = {amplitude:.3g} {unit} moves the hub at most {peak_hub:.3g} rad, not more "
                              f"than {seen}: the record would show nothing to fit; give a larger amplitude "
                              f"(at most {limit:g} {unit})")

@@ -94,7 +94,7 @@ def main(argv=None) -> int:
         run_compare = None
     if run_compare is not None:
         print("\nClosed loop on FOAM (10 modes), slew (Eq. 44 budget), all controllers:")
-        metrics = run_compare(plant="foam", scenario="slew", out_dir=Path(args.out) / "compare")
+        metrics = run_compare(None, "slew", out_dir=Path(args.out) / "compare")
         print_table(metrics)
     print(f"demo finished in {time.perf_counter() - t0:.1f} s")
     return 0
