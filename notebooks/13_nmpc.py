@@ -42,7 +42,7 @@ from hubbeam_ctrl import Params
 from hubbeam_ctrl.deploy.nmpc_c import nmpc_to_c
 from hubbeam_ctrl.limit import time_optimal_slew
 from hubbeam_ctrl.study import Slew, compare
-from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, PlantChoice
+from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, PlantChoice, RunChoice
 from hubbeam_ctrl.study.scenarios import make_scenario
 
 # %% [markdown]
@@ -56,7 +56,7 @@ paper = Params()
 limit = time_optimal_slew(paper, 1.0)
 print(f"T* = {limit.duration_s:.3f} s for 1 rad within {paper.tau_max:g} N m")
 task = Slew(1.0, 1.1 * limit.duration_s)
-fast = compare(paper, task, ["nmpc"])
+fast = compare(paper, task, ["nmpc"], CompareSettings(run=RunChoice(t_end=12.0)))   # 12 s: the slew and 3 periods
 period = 2 * math.pi / first_mode(fast.controllers["nmpc"].design)
 for name in ("nmpc",):
     m = fast.metrics[name]
