@@ -106,6 +106,7 @@ def fits(fast_backend_module):
     return tv, out
 
 
+@pytest.mark.slow
 def test_intervals_cover_the_truth_with_stick_slip_friction(fits):
     tv, results = fits
     err = np.abs(np.array([r.estimate for r in results]) - tv)

@@ -58,6 +58,7 @@ def test_header_names_the_rigs_inputs_in_order_with_units():
     ("servo_link_norate", math.pi / 2, 0.6, 1.0),     # DC motor, no tachometer: back-EMF on the filter's rate
     ("servo_link_delay1", math.pi / 2, 0.6, 1.0),     # one full sample of computation delay
     ("space_boom", math.pi / 6, 65.0, 100.0)])         # star tracker + gyro, no gauge, 10 Hz, one sample of delay
+@pytest.mark.slow
 def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, angle, t_f, t_end, tmp_path):
     from hubbeam_ctrl.study import Slew, compare
     from hubbeam_ctrl.study.judge import judge
@@ -101,6 +102,7 @@ def test_cli_codegen_on_a_rig_without_gauge_or_rate(kind, tmp_path, capsys):
     assert (out / f"{kind}.c").is_file()
 
 
+@pytest.mark.slow
 @needs_cc
 @pytest.mark.parametrize("integral", [True, False])
 def test_mpc_with_integral_action_and_plan_prediction_in_c_equals_python(integral, tmp_path):
@@ -142,6 +144,7 @@ def test_mpc_with_integral_action_and_plan_prediction_in_c_equals_python(integra
     assert (abs(py_ctrl.disturbance) > 0) == integral             # the disturbance state moved
 
 
+@pytest.mark.slow
 @needs_cc
 def test_the_c_filter_predicts_with_the_command_the_amplifier_gave(tmp_path):
     """accel_link with a slew-rate limit (motor.slew_rate 20 N m/s): the closed loop tells the

@@ -34,6 +34,7 @@ def test_the_step_function_is_the_python_step():
     assert abs(u) <= LAB.tau_max and u != 0.0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not find_compiler(), reason="no C compiler: the generated step cannot be built here")
 def test_a_slew_with_the_generated_c_step_is_the_python_steps():
     """Software in the loop: the lab arm's slew with the step's generated C (backend "compiled")

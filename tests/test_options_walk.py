@@ -130,6 +130,7 @@ def _payload_rows(out, extra, capsys):
     return {(r["payload_kg"], r["controller"]): r for r in doc["rows"]}, (out / "payload_report.md").read_text()
 
 
+@pytest.mark.slow
 def test_payload_range_runs_on_the_damped_plant(tmp_path, files, capsys, fast_backend):
     """Issue 41's target: ``--payload-range 0,0.5 --plant-params`` with 0.05 % damping runs on the
     damped plant (the report says so) and the certificate's radius differs from the undamped run's:
@@ -226,6 +227,7 @@ def _walk_runs(command, base, out_name, tmp_path, files, capsys, skip=("--contro
         assert (printed, saved) != reference[1:3], f"{command} {' '.join(base + words)} accepted and ignored"
 
 
+@pytest.mark.slow
 def test_every_design_option_acts_or_is_refused(tmp_path, files, capsys):
     """``hubbeam design --controller lqr`` (the slew): each option changes what is saved or printed,
     or is refused; --payload-range (the one slow option, 8 s) designs LQR for the range, and with PD
