@@ -63,21 +63,3 @@ def bench_module(name: str):
     spec.loader.exec_module(module)
     return module, root
 
-
-def pytest_collection_modifyitems(session, config, items):
-    """Modules with slow tests first, each module's tests together and in order.
-
-    Under ``--dist worksteal`` a worker that runs out of tests takes them from the end of the
-    other's queue; a long test at the end cannot be shared and keeps one core idle (measured:
-    the 2-process suite took 666 s on a fresh clone for about 1200 s of test time). With the
-    long ones first, the tail is made of short tests that both workers share.
-    """
-    order, groups = [], {}
-    for item in items:
-        key = item.nodeid.split("::")[0]
-        if key not in groups:
-            groups[key] = []
-            order.append(key)
-        groups[key].append(item)
-    slow = {key for key, its in groups.items() if any(it.get_closest_marker("slow") for it in its)}
-    items[:] = [it for key in sorted(order, key=lambda k: k not in slow) for it in groups[key]]
