@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -149,6 +150,19 @@ def _model_modes(design: DesignModel, modes: int | None) -> tuple:
         modes = min(NMPC_MODES, max(1, int(np.sum(w < math.pi / design.dt))))
     modes = min(int(modes), design.n_modes)
     return modes, w[:modes]
+
+
+class _PayloadGrid(NamedTuple):
+    """What a learning NMPC interpolates at its estimate, on payloads over the range: stage and
+    terminal weights and residual-mode gain of each payload's LQR, the task planned for each
+    (design states and feedforward torques; None when the reference is not a plan)."""
+
+    masses: np.ndarray
+    stage: np.ndarray
+    terminal: np.ndarray
+    residual_gain: np.ndarray
+    states: np.ndarray | None
+    torques: np.ndarray | None
 
 
 def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, tau_max: float,
@@ -375,13 +389,13 @@ class NMPC(Controller):
             k_res = lqr.K.copy()
             k_res[self._pick] = 0.0
             residual.append(k_res)
-        self._grid = (masses, np.array(terminal), np.array(residual),
-                      (np.array([X for X, _ in refs]), np.array([t for _, t in refs])) if refs else None,
-                      np.array(stage))
+        self._grid = _PayloadGrid(masses, np.array(stage), np.array(terminal), np.array(residual),
+                                  np.array([X for X, _ in refs]) if refs else None,
+                                  np.array([t for _, t in refs]) if refs else None)
 
     def _grid_at(self, mass: float) -> tuple:
         """``(a, w)``: ``mass`` [kg] lies at ``(1 - w)`` of grid point ``a`` and ``w`` of ``a + 1``."""
-        masses = self._grid[0]
+        masses = self._grid.masses
         m = float(np.clip(mass, masses[0], masses[-1]))
         a = int(np.clip(np.searchsorted(masses, m, side="right") - 1, 0, len(masses) - 2))
         return a, (m - masses[a]) / (masses[a + 1] - masses[a])
@@ -391,9 +405,9 @@ class NMPC(Controller):
         a learnt payload moved by what the estimate changes in the reference's quasi-static motion."""
         xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
         ur = np.array([self._reference_at(k + j)[1] * self._ff for j in range(N)])
-        if self.payload is not None and self._grid[3] is not None:
+        if self.payload is not None and self._grid.states is not None:
             a, w = self._grid_at(self.payload.mass)
-            X, T = self._grid[3]
+            X, T = self._grid.states, self._grid.torques
             idx = np.minimum(np.arange(k, k + N + 1), X.shape[1] - 1)
             xr = ((1.0 - w) * X[a, idx] + w * X[a + 1, idx])[:, self._pick]
             ur = self._ff * ((1.0 - w) * T[a, idx[:N]] + w * T[a + 1, idx[:N]])
@@ -451,19 +465,20 @@ class NMPC(Controller):
             self.payload.update(y, self._u_last if consecutive else None)
             extra = (self._table.at(self.payload.mass)[0],)
             a, w = self._grid_at(self.payload.mass)
-            Q = (1.0 - w) * self._grid[4][a] + w * self._grid[4][a + 1]
+            g = self._grid
+            Q = (1.0 - w) * g.stage[a] + w * g.stage[a + 1]
             self._W[:-1] = [Q] * N
-            self._W[-1] = (1.0 - w) * self._grid[1][a] + w * self._grid[1][a + 1]
-            self._K_res = (1.0 - w) * self._grid[2][a] + w * self._grid[2][a + 1]
+            self._W[-1] = (1.0 - w) * g.terminal[a] + w * g.terminal[a + 1]
+            self._K_res = (1.0 - w) * g.residual_gain[a] + w * g.residual_gain[a + 1]
         xr, ur = self._reference_window(k, N)
         X, U = (np.asarray(a) for a in self.step_function(x_meas, self._X, self._U[None, :], xr.T, ur[None, :],
                                                             self._W[0], self._W[-1], *extra))
         self.qp_status = int(np.all(np.isfinite(U)) and np.all(np.isfinite(X)))
         if self.qp_status:                             # else keep the shifted plan
             self._X, self._U = X, U.ravel()
-        if self.payload is not None and self._grid[3] is not None:     # the estimate's own plan
+        if self.payload is not None and self._grid.states is not None:     # the estimate's own plan
             a, w = self._grid_at(self.payload.mass)
-            X = self._grid[3][0]
+            X = self._grid.states
             j = min(k, X.shape[1] - 1)
             e = np.asarray(y, dtype=float) - ((1.0 - w) * X[a, j] + w * X[a + 1, j])
         else:
