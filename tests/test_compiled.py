@@ -326,3 +326,20 @@ def test_new_tip_mass_loads_the_same_libraries(fresh):
         np.testing.assert_allclose(s, r, rtol=1e-9, atol=1e-12)
         runs[m_t] = s
     assert abs(runs[0.1][0] - runs[0.4][0]) > 1e-4 * abs(runs[0.1][0])  # the mass does change the run
+
+
+@needs_cc
+def test_the_hot_flag_can_be_set_for_the_run(fresh, monkeypatch):
+    """``$HUBBEAM_CC_OPT`` sets the flag of the functions called every step (a large step builds
+    several times faster at -O0); the cache keeps the two builds apart, and both give the same numbers."""
+    f = _function()
+    fast = compile_function(f, "compiled")
+    monkeypatch.setenv("HUBBEAM_CC_OPT", "-O0")
+    quick = compile_function(_function("twice_sin_o0"), "compiled")
+    flags = sorted(json.loads(p.read_text())["flags"][0] for p in fresh.glob("*.json"))
+    assert flags == ["-O0", compiled.OPT_HOT]
+    x = [0.3, -0.2, 0.7]
+    np.testing.assert_allclose(np.asarray(quick(x)), np.asarray(fast(x)), rtol=1e-15)
+    monkeypatch.setenv("HUBBEAM_CC_OPT", "-O9")
+    with pytest.raises(ParameterError, match=r"HUBBEAM_CC_OPT must be one of -O0, -O1, -O2, -O3, -Os, got '-O9'"):
+        compile_function(_function("other"), "compiled")
