@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.core.fileio import json_ready
+from hubbeam_ctrl.core.jsonio import json_ready
 from hubbeam_ctrl.linear.export import FORMATS, _real_matrix, load_system, save_system
 from hubbeam_ctrl.linear.statespace import OUTPUTS, _state_unit
 from hubbeam_ctrl.plant.params import Params

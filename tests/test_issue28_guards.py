@@ -130,7 +130,7 @@ def saved(tmp_path_factory):
 def test_zip_bomb_is_refused_on_its_unpacked_size(saved, tmp_path, monkeypatch):
     import numpy as np
 
-    from hubbeam_ctrl.core import fileio
+    from hubbeam_ctrl.core import npz
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.sim.results import load_result
     bomb = tmp_path / "bomb.npz"
@@ -139,7 +139,7 @@ def test_zip_bomb_is_refused_on_its_unpacked_size(saved, tmp_path, monkeypatch):
     content["extra"] = np.zeros(4_000_000)                       # 32 MB unpacked, ~30 kB on disk
     np.savez_compressed(bomb, **content)
     assert bomb.stat().st_size < 200_000
-    monkeypatch.setattr(fileio, "MAX_NPZ_BYTES", 16_000_000)
+    monkeypatch.setattr(npz, "MAX_NPZ_BYTES", 16_000_000)
     import tracemalloc
     tracemalloc.start()
     with pytest.raises(ParameterError, match="unpack to .* bytes, more than the 16000000 read"):

@@ -34,7 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write, check_regular_file, read_npz, write_npz
+from hubbeam_ctrl.core.fileio import atomic_write
+from hubbeam_ctrl.core.npz import read_npz, write_npz
+from hubbeam_ctrl.core.reading import check_regular_file
 from hubbeam_ctrl.sim.results import CSV_COLUMNS
 
 __all__ = ["Record", "load_record", "save_record", "INPUT_COLUMNS", "SENSOR_COLUMNS", "RECORD_COLUMNS",

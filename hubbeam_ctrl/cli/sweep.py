@@ -133,7 +133,7 @@ def run(args) -> int:
     """
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
-    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.core.jsonio import strict_json
     from hubbeam_ctrl.study.spec import load_settings
     from hubbeam_ctrl.study.sweep import sweep
     from hubbeam_ctrl.study.sweep_report import write_sweep_outputs

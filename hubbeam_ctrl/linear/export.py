@@ -37,7 +37,9 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write, check_regular_file, read_npz, write_npz
+from hubbeam_ctrl.core.fileio import atomic_write
+from hubbeam_ctrl.core.npz import read_npz, write_npz
+from hubbeam_ctrl.core.reading import check_regular_file
 from hubbeam_ctrl.linear.statespace import DT_RANGE, LinearModel, _make_ss
 from hubbeam_ctrl.plant.models import MODEL_NAMES
 from hubbeam_ctrl.plant.params import Params, check_spin

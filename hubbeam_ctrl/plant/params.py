@@ -309,11 +309,11 @@ MAX_PARAMS_FILE_BYTES = 1_000_000
 
 
 def _read_toml(path) -> dict:
-    """The TOML document at ``path`` (:func:`hubbeam_ctrl.core.fileio.read_toml`: a missing
+    """The TOML document at ``path`` (:func:`hubbeam_ctrl.core.reading.read_toml`: a missing
     path, a folder, a FIFO or device, an unreadable file, a file over
     :data:`MAX_PARAMS_FILE_BYTES`, bytes that are not UTF-8, invalid or too deeply nested TOML
     are one-line errors)."""
-    from hubbeam_ctrl.core.fileio import read_toml
+    from hubbeam_ctrl.core.reading import read_toml
     if path is None or str(path).strip() == "":
         raise ParameterError(f"params file must be named, got {str(path)!r}")
     return read_toml(path, "params file", MAX_PARAMS_FILE_BYTES)

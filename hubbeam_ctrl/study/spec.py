@@ -69,7 +69,7 @@ from controllers.scaling import Tolerances, default_tolerances
 from controllers.schedule import MAX_SCHEDULE_POINTS
 from hubbeam_ctrl.core.compiled import check_backend
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import path_exists, read_toml
+from hubbeam_ctrl.core.reading import path_exists, read_toml
 from hubbeam_ctrl.exact import require_exudyn
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.study.bands import with_task_bands

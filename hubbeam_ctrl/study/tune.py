@@ -393,7 +393,7 @@ def _check_tune_budget(spec, options: TuneOptions) -> None:
 
 
 def _tune_table(path):
-    from hubbeam_ctrl.core.fileio import read_toml
+    from hubbeam_ctrl.core.reading import read_toml
     from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES
     try:
         return read_toml(path, "spec: file", MAX_SPEC_BYTES).get("tune")
