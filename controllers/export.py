@@ -38,7 +38,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.jsonio import json_ready
 from hubbeam_ctrl.linear.export import FORMATS, _real_matrix, load_system, save_system
-from hubbeam_ctrl.linear.statespace import OUTPUTS, _state_unit
+from hubbeam_ctrl.linear.statespace import OUTPUTS, state_unit
 from hubbeam_ctrl.plant.params import Params
 
 from .base import Controller
@@ -56,7 +56,7 @@ def _unit(name: str) -> str:
         return OUTPUTS[name][0]
     if name == "tau":
         return "N m"
-    return _state_unit(name[:-4] if name.endswith("_est") else name)
+    return state_unit(name[:-4] if name.endswith("_est") else name)
 
 
 @dataclass(frozen=True, eq=False)

@@ -432,7 +432,8 @@ def _api_cases():
 
     from controllers.mpc import MPCSettings
     from controllers.reference import slew_reference
-    from hubbeam_ctrl.linear.statespace import linearize, reduce
+    from hubbeam_ctrl.linear.statespace import linearize
+    from hubbeam_ctrl.linear.transforms import reduce
     from hubbeam_ctrl.plant.modal import campbell
     from hubbeam_ctrl.plant.params import Params, load_params, save_params
     lm = linearize("sfoam", spin=0.0, params=Params(n_axial=1, n_transverse=2))

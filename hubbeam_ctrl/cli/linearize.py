@@ -78,7 +78,8 @@ def run(args) -> int:
     from hubbeam_ctrl.core.jsonio import strict_json
     from hubbeam_ctrl.core.validation import check_in_range
     from hubbeam_ctrl.linear.export import FORMATS, save_model
-    from hubbeam_ctrl.linear.statespace import DT_RANGE, discretize, linearize
+    from hubbeam_ctrl.linear.statespace import DT_RANGE, linearize
+    from hubbeam_ctrl.linear.transforms import discretize
 
     sink = stdout(args)
     out = check_output("--out", args.out, FORMATS)

@@ -40,7 +40,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write
 from hubbeam_ctrl.core.npz import read_npz, write_npz
 from hubbeam_ctrl.core.reading import check_regular_file
-from hubbeam_ctrl.linear.statespace import DT_RANGE, LinearModel, _make_ss
+from hubbeam_ctrl.linear.statespace import DT_RANGE, LinearModel, named_ss
 from hubbeam_ctrl.plant.models import MODEL_NAMES
 from hubbeam_ctrl.plant.params import Params, check_spin
 
@@ -184,7 +184,7 @@ def _from_parts(mats: dict, meta: dict, path: Path) -> LinearModel:
         if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (dt == 0 or lo <= dt <= hi):
             raise ValueError(f"dt {str(dt)[:40]} is not 0 or in [{DT_RANGE[0]:g}, {DT_RANGE[1]:g}] s")
         spin = check_spin("spin_rad_s", meta["spin_rad_s"], params)
-        sys = _make_ss(A, B, C, D, dt, states, outputs, name)
+        sys = named_ss(A, B, C, D, dt, states, outputs, name)
         return LinearModel(sys=sys, model=model, spin=spin, params=params, reduction=reduction)
     except KeyError as exc:
         raise bad(f"no {exc}") from None
