@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hubbeam_ctrl.cli.main import main
-from hubbeam_ctrl.study.spec import load_spec
+from hubbeam_ctrl.study.spec_files import load_spec
 from hubbeam_ctrl.study.sweep import TIMING_COLUMNS, read_results, sweep
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -17,7 +17,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.compare import compare
 from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, PlantChoice, RunChoice, ScenarioChoice
-from hubbeam_ctrl.study.spec import load_spec
+from hubbeam_ctrl.study.spec_files import load_spec
 from hubbeam_ctrl.study.sweep import TIMING_COLUMNS, CaseCache, plan_batches, read_results, run_case, sweep
 
 ROOT = Path(__file__).resolve().parents[1]
