@@ -84,8 +84,8 @@ def save_model(model: LinearModel, path) -> Path:
     """
     if not isinstance(model, LinearModel):
         raise ParameterError(f"model must be a LinearModel, got {type(model).__name__}")
-    mats = {k: np.array(getattr(model, k), dtype=float) for k in _MATRICES}
-    return save_system(path, mats, model.metadata(), _FORMAT_TAG, _VERSION, model.params)
+    return save_system(path, {k: getattr(model, k) for k in _MATRICES}, model.metadata(), _FORMAT_TAG,
+                       _VERSION, model.params)
 
 
 def save_system(path, matrices: dict, metadata: dict, tag: str, version: int,
@@ -104,7 +104,7 @@ def save_system(path, matrices: dict, metadata: dict, tag: str, version: int,
     path : str or Path
         Output file; the format follows the extension (:data:`FORMATS`).
     matrices : dict
-        Name -> 2-D float array (e.g. ``A, B, C, D``); stored bit for bit.
+        Name -> 2-D array (e.g. ``A, B, C, D``), stored as float bit for bit.
     metadata : dict
         JSON-ready metadata; must hold ``state_names``, ``input_names`` and
         ``output_names`` (they give the matrices' shapes when read back).
@@ -121,6 +121,7 @@ def save_system(path, matrices: dict, metadata: dict, tag: str, version: int,
     """
     path = Path(path)
     suffix = _suffix(path, "out")
+    matrices = {k: np.array(v, dtype=float) for k, v in matrices.items()}
     metadata = {"format": tag, "version": version, **metadata}     # what the file is, in every format
     if suffix == ".npz":
         return write_npz(path, matrices, metadata)

@@ -88,8 +88,37 @@ def state_unit(name: str) -> str:
     return "-"
 
 
+class SystemViews:
+    """Read-only views of a named python-control system held as ``sys``: its matrices, sample
+    time and signal names (shared by :class:`LinearModel` and
+    :class:`~controllers.export.ControllerModel`)."""
+
+    sys: control.StateSpace
+
+    A = property(lambda self: np.asarray(self.sys.A, dtype=float), doc="State matrix (n, n).")
+    B = property(lambda self: np.asarray(self.sys.B, dtype=float), doc="Input matrix (n, inputs).")
+    C = property(lambda self: np.asarray(self.sys.C, dtype=float), doc="Output matrix (outputs, n).")
+    D = property(lambda self: np.asarray(self.sys.D, dtype=float),
+                 doc="Feedthrough (outputs, inputs); zero for the plant models built here.")
+    name = property(lambda self: self.sys.name, doc="python-control system name.")
+    state_names = property(lambda self: list(self.sys.state_labels), doc="Names of the states.")
+    input_names = property(lambda self: list(self.sys.input_labels), doc="Names of the inputs.")
+    output_names = property(lambda self: list(self.sys.output_labels), doc="Names of the outputs.")
+    n_states = property(lambda self: int(self.sys.nstates), doc="Number of states.")
+
+    @property
+    def dt(self) -> float:
+        """Sample time [s]; 0 for a continuous-time system."""
+        return 0.0 if not self.sys.dt else float(self.sys.dt)
+
+    @property
+    def is_discrete(self) -> bool:
+        """True for a sampled system."""
+        return self.dt > 0
+
+
 @dataclass(frozen=True, eq=False)
-class LinearModel:
+class LinearModel(SystemViews):
     """A named python-control state-space model plus what it was made from.
 
     Attributes
@@ -122,58 +151,6 @@ class LinearModel:
     spin: float
     params: Params
     reduction: str = "none"
-
-    # -- views --------------------------------------------------------------
-    @property
-    def A(self) -> np.ndarray:
-        """State matrix (n, n)."""
-        return np.asarray(self.sys.A)
-
-    @property
-    def B(self) -> np.ndarray:
-        """Input matrix (n, 1) [per N m]."""
-        return np.asarray(self.sys.B)
-
-    @property
-    def C(self) -> np.ndarray:
-        """Output matrix (p, n)."""
-        return np.asarray(self.sys.C)
-
-    @property
-    def D(self) -> np.ndarray:
-        """Feedthrough (p, 1), zero for the models built here."""
-        return np.asarray(self.sys.D)
-
-    @property
-    def dt(self) -> float:
-        """Sample time [s]; 0 for a continuous-time model."""
-        return 0.0 if not self.sys.dt else float(self.sys.dt)
-
-    @property
-    def is_discrete(self) -> bool:
-        """True for a sampled model."""
-        return self.dt > 0
-
-    @property
-    def name(self) -> str:
-        """python-control system name."""
-        return self.sys.name
-
-    @property
-    def state_names(self) -> list:
-        return list(self.sys.state_labels)
-
-    @property
-    def input_names(self) -> list:
-        return list(self.sys.input_labels)
-
-    @property
-    def output_names(self) -> list:
-        return list(self.sys.output_labels)
-
-    @property
-    def n_states(self) -> int:
-        return int(self.sys.nstates)
 
     @property
     def state_units(self) -> list:
