@@ -46,7 +46,15 @@ def continuous_poles(lm) -> np.ndarray:
 
 
 def split_rigid(lam: np.ndarray, n_rigid: int):
-    """Indices of the ``n_rigid`` poles nearest zero, and of the rest."""
+    """Indices of the ``n_rigid`` poles nearest zero, and of the rest.
+
+    Parameters
+    ----------
+    lam : ndarray
+        Poles [rad/s].
+    n_rigid : int
+        Number of rigid-body poles.
+    """
     order = np.argsort(np.abs(lam), kind="stable")
     return order[:n_rigid], order[n_rigid:]
 

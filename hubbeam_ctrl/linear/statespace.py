@@ -211,8 +211,19 @@ class LinearModel(SystemViews):
 
 
 def named_ss(A, B, C, D, dt, states, outputs, name) -> control.StateSpace:
-    """A python-control system with input ``tau`` and the given state and output names
-    (``dt`` [s], 0 for continuous time)."""
+    """A python-control system with the input ``tau`` [N m] and named states and outputs.
+
+    Parameters
+    ----------
+    A, B, C, D : array_like
+        State-space matrices.
+    dt : float
+        Sample time [s], 0 for continuous time.
+    states, outputs : list of str
+        Names of the states and outputs.
+    name : str
+        System name.
+    """
     import control
     return control.ss(A, B, C, D, dt, states=list(states), inputs=["tau"],
                       outputs=list(outputs), name=name)
