@@ -46,7 +46,7 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, emit  # noqa: E402
 
 from controllers import DesignModel  # noqa: E402
 from controllers.scaling import first_mode  # noqa: E402
@@ -252,7 +252,7 @@ def _factors(text: str) -> list:
 def main(argv=None) -> int:
     """Entry point; prints the JSON and writes it to ``--out`` when given."""
     global NAMES, REFERENCES
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--cases", default="lab,servo,servo_beam,paper,payload")
     ap.add_argument("--controllers", default=NAMES, help="controllers to run (default %(default)s)")
     ap.add_argument("--references", default=",".join(REFERENCES),
@@ -262,7 +262,6 @@ def main(argv=None) -> int:
     ap.add_argument("--factors", type=_factors, default=str(FACTOR),
                     help="comma-separated task durations in units of T_opt (default %(default)s: the issue's); "
                          "several give a scan over fast and slow tasks, keyed by factor in the JSON")
-    ap.add_argument("--out", help="also write the JSON here")
     args = ap.parse_args(argv)
     NAMES, REFERENCES = args.controllers, tuple(args.references.split(","))
     cases = set(args.cases.split(","))

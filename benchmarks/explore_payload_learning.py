@@ -49,7 +49,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, emit  # noqa: E402
 
 import controllers.planning as planning  # noqa: E402
 import hubbeam_ctrl.study.compare as compare_module  # noqa: E402
@@ -280,7 +280,7 @@ def _bounded(lo: float, hi: float, lo_open: bool = False):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--switch-at", type=_fractions, default="0.25,0.5",
                     help="fractions of t_f (default %(default)s)")
     ap.add_argument("--stiffened-weight", type=_bounded(0.0, 1e12), default=100.0)
@@ -301,7 +301,6 @@ def main(argv=None) -> int:
     ap.add_argument("--latency", type=_bounded(0.0, 60.0), default=0.0,
                     help="seconds the nonlinear re-plan takes: the old controller runs on meanwhile, the plan "
                          "holds its feedforward over those intervals and starts after them")
-    ap.add_argument("--out")
     o = ap.parse_args(argv)
     tf = 1.5 * T_OPT_HEAVIEST
     scenario = make_scenario(Slew(1.0, tf), params=NOMINAL)
