@@ -179,6 +179,7 @@ def first_mode(design: DesignModel) -> float:
     Parameters
     ----------
     design : DesignModel
+        Its sampled ``A``: the flexible modes are its oscillatory eigenvalues.
 
     Returns
     -------

@@ -45,10 +45,12 @@ def rig_key(signal: str) -> str:
     Parameters
     ----------
     signal : str
+        A measured signal: ``theta``, ``theta_dot``, ``moment_K``, ``accel_tangential``...
 
     Returns
     -------
     str
+        The rig key and what it sets; an unknown name is returned as it is.
     """
     return RIG_KEYS.get(signal, RIG_KEYS["moment"] if signal.startswith("moment_") else signal)
 

@@ -24,6 +24,7 @@ class PoleComparison:
     Attributes
     ----------
     model_a, model_b : str
+        Names of the two models.
     spin : float
         [rad/s]
     bending_a_hz, bending_b_hz : ndarray
