@@ -177,6 +177,8 @@ def load_controller(path) -> ControllerModel:
     Parameters
     ----------
     path : str or Path
+        A ``.mat``, ``.npz`` or ``.json`` file; anything else, or a damaged file, is one line of
+        :class:`ParameterError` naming it.
 
     Returns
     -------

@@ -248,6 +248,8 @@ def load_record(path) -> Record:
     Parameters
     ----------
     path : str or Path
+        The record file; a missing, unreadable or invalid one is one line of
+        :class:`ParameterError` naming it.
 
     Returns
     -------
@@ -317,7 +319,9 @@ def save_record(record: Record, path) -> Path:
     Parameters
     ----------
     record : Record
+        The record (validated when it was made).
     path : str or Path
+        A ``.csv`` or ``.npz`` file name; the extension picks the format.
 
     Returns
     -------

@@ -29,10 +29,7 @@ def json_text(value) -> str:
     Parameters
     ----------
     value : object
-
-    Returns
-    -------
-    str
+        Nested dicts, lists, numbers and strings; anything else becomes its ``str``.
     """
     return json.dumps(value, default=_json_default)
 

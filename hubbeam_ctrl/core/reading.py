@@ -23,6 +23,14 @@ def _short_path(path) -> str:
     return text if len(text) <= 120 else f"{text[:60]}...{text[-40:]}"
 
 
+def _require_regular(path: Path, missing: str, other: str) -> None:
+    """Raise ``"<missing> does not exist"`` or ``"<other> is not a regular file"`` (OSError passes)."""
+    if not path.exists():
+        raise ParameterError(f"{missing} does not exist")
+    if not path.is_file():
+        raise ParameterError(f"{other} is not a regular file")
+
+
 def path_exists(path) -> bool:
     """``Path(path).exists()``, False for a name the system refuses (past NAME_MAX or PATH_MAX):
     the reader that follows names the reason.
@@ -65,10 +73,7 @@ def read_toml(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> dict
     path = Path(path)
     name = _short_path(path)
     try:
-        if not path.exists():
-            raise ParameterError(f"{what} {name} does not exist")
-        if not path.is_file():
-            raise ParameterError(f"{what} {name} is not a regular file")
+        _require_regular(path, f"{what} {name}", f"{what} {name}")
         if path.stat().st_size > max_bytes:
             raise ParameterError(f"{what} {name} is larger than {max_bytes} bytes")
         with open(path, "rb") as fh:
@@ -105,10 +110,7 @@ def check_regular_file(path, option: str = "path") -> Path:
     """
     path = Path(path)
     try:
-        if not path.exists():
-            raise ParameterError(f"{option}: file {_short_path(path)} does not exist")
-        if not path.is_file():
-            raise ParameterError(f"{option}: {_short_path(path)} is not a regular file")
+        _require_regular(path, f"{option}: file {_short_path(path)}", f"{option}: {_short_path(path)}")
     except OSError as exc:             # a name past NAME_MAX or PATH_MAX
         raise ParameterError(f"{option}: {_short_path(path)} cannot be read ({exc.strerror or exc})") from None
     return path

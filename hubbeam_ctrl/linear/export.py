@@ -70,7 +70,9 @@ def save_model(model: LinearModel, path) -> Path:
     Parameters
     ----------
     model : LinearModel
+        From :func:`~hubbeam_ctrl.linear.statespace.linearize` (sampled, reduced or not).
     path : str or Path
+        A ``.mat``, ``.npz`` or ``.json`` file name (:data:`FORMATS`).
 
     Returns
     -------

@@ -325,7 +325,9 @@ def save_params(params: Params, path) -> None:
     Parameters
     ----------
     params : Params
+        The parameters (every field, SI units).
     path : str or Path
+        The TOML file; :func:`load_params` reads it back equal.
     """
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params (Params.from_dict(d) makes one from a dict), "

@@ -348,7 +348,9 @@ def save_rig(rig: Rig, path) -> None:
     Parameters
     ----------
     rig : Rig
+        The rig: its beam and every hardware table.
     path : str or Path
+        The TOML file (units as comments, as :func:`rig_to_toml` writes it).
     """
     if not isinstance(rig, Rig):
         raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
