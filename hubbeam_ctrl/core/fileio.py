@@ -166,12 +166,14 @@ def check_writable(path, option: str = "out") -> Path:
     Parameters
     ----------
     path : str or Path
+        The file to be written (it may exist: it is replaced).
     option : str
         The argument's name as the caller spelled it (starts the message).
 
     Returns
     -------
     Path
+        ``Path(path)``, checked.
 
     Raises
     ------
@@ -368,6 +370,7 @@ def read_manifest(folder, option: str = "path") -> dict:
     Parameters
     ----------
     folder : str or Path
+        An output folder of a command (``hubbeam compare --out``, ``identify``, ``codegen``...).
     option : str
         The argument's name as the caller spelled it (starts error messages).
 
@@ -437,6 +440,7 @@ def output_folder(out_dir, option: str = "out", create: bool = True) -> Path:
     Returns
     -------
     Path
+        The folder, which exists unless ``create`` is false.
 
     Raises
     ------

@@ -102,10 +102,8 @@ def rigid_bound(params: Params, slew_angle: float, drive=None) -> float:
 
     Parameters
     ----------
-    params : Params
-        Beam and hub (``total_inertia``, ``tau_max``).
-    slew_angle : float
-        Theta [rad].
+    params, slew_angle
+        As :func:`rigid_bang_bang_time`.
     drive : tuple or Rig, optional
         The drive's torque bounds at the hub.
     """

@@ -195,12 +195,8 @@ def min_vibration_slew(params: Params, slew_angle: float, duration: float, *, to
 
     Parameters
     ----------
-    params : Params or Rig
-        Beam, hub and drive (``tau_max``); or a rig: its plant parameters, and with a DC motor
-        the voltage limit through back-EMF, the current limit and the friction the drive must
-        overcome (:func:`~hubbeam_ctrl.limit.bound._drive_terms`).
-    slew_angle : float
-        Theta [rad], finite, not 0.
+    params, slew_angle
+        As :func:`time_optimal_slew`.
     duration : float
         Slew time T [s], at least the time-optimal one.
     tolerance : float, optional
