@@ -409,8 +409,9 @@ def write_tune_outputs(result: TuneResult, out_dir) -> dict:
     Parameters
     ----------
     result : TuneResult
+        What :func:`tune` found.
     out_dir : str or Path
-        Created if missing (its parent must exist).
+        Created if missing (its parent must exist); the figure needs Matplotlib.
 
     Returns
     -------
