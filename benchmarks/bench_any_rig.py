@@ -99,6 +99,7 @@ def table_lines(doc: dict) -> list:
 
 
 def main(argv=None) -> None:
+    """Run the rigs of ``--rigs`` and print (and keep) the JSON."""
     ap = bench_parser(__doc__)
     ap.add_argument("--rigs", default="servo_link,servo_link_delay1,accel_link,servo_payload,space_boom")
     args = ap.parse_args(argv)

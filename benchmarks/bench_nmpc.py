@@ -125,6 +125,7 @@ def table_lines(doc: dict) -> list:
 
 
 def main(argv=None) -> None:
+    """Slew each of ``--beams`` with the NMPC and the linear controllers; print the JSON."""
     ap = bench_parser(__doc__)
     ap.add_argument("--beams", default="table1,lab,servo_link")
     ap.add_argument("--factors", default="1.1,1.2,1.3")

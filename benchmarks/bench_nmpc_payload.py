@@ -108,6 +108,8 @@ def table_lines(doc: dict) -> list:
 
 
 def main(argv=None) -> None:
+    """Run the NMPC on the payloads of each of ``--beams`` (its step on ``--backend``), then print
+    the JSON."""
     ap = bench_parser(__doc__)
     ap.add_argument("--beams", default="table1,lab,lab_damped")
     ap.add_argument("--backend", default="vm", choices=("vm", "compiled"),

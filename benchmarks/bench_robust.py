@@ -199,6 +199,7 @@ def table_lines(doc: dict) -> list:
 
 
 def main(argv=None) -> None:
+    """Certify the ``--cases`` (added to a previous JSON with ``--merge``); print the JSON."""
     ap = bench_parser(__doc__)
     ap.add_argument("--cases", default="table1,lab,servo_link,servo_identified")
     ap.add_argument("--merge", default=None, help="a previous JSON whose cases this run adds to (or replaces)")

@@ -41,3 +41,24 @@ def bench_parser(doc: str) -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--out", default=None, help="also write the JSON here")
     return ap
+
+
+def comma_floats(text: str, ok, expected: str) -> list:
+    """An option's comma-separated numbers, for ``argparse``'s ``type=``.
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+    ok : callable
+        ``ok(values)``: whether the list of numbers is allowed.
+    expected : str
+        What the option takes, for the one-line refusal (``"must be ..."``).
+    """
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not ok(values):
+        raise argparse.ArgumentTypeError(f"must be {expected}, got {text!r}")
+    return values
