@@ -90,7 +90,9 @@ def check_in_range(name: str, value, unit: str, lo: float, hi: float, why: str =
     name : str
         The argument's name as the caller spelled it (starts the message).
     value : object
+        Anything: NaN, infinities, booleans and text are refused.
     unit : str
+        Its unit (for the message).
     lo, hi : float
         Inclusive bounds.
     why : str, optional
@@ -151,10 +153,10 @@ def check_array(name: str, values, unit: str, nonempty: bool = True) -> np.ndarr
 
     Parameters
     ----------
-    name : str
-        The argument's name as the caller spelled it (starts the message).
+    name, unit : str
+        As :func:`check_finite`.
     values : array_like
-    unit : str
+        A sequence of numbers (a scalar is one).
     nonempty : bool
         Refuse an empty sequence.
 

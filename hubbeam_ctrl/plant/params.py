@@ -253,6 +253,7 @@ def check_spin(name: str, spin, params: Params) -> float:
     spin : float
         Spin rate [rad/s].
     params : Params
+        The beam: its ``max_spin``.
 
     Returns
     -------
