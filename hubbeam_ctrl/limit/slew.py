@@ -72,6 +72,8 @@ class OptimalSlew:
     Attributes
     ----------
     kind : {"time-optimal", "min-vibration"}
+        Which problem was solved (:func:`~hubbeam_ctrl.limit.optimal.time_optimal_slew` or
+        :func:`~hubbeam_ctrl.limit.optimal.min_vibration_slew`).
     slew_angle : float
         Theta [rad].
     duration_s : float

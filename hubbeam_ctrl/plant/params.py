@@ -194,6 +194,9 @@ MAX_ROOT_STRAIN = 0.01
 class Relation:
     """A bound of one :class:`Params` field that depends on other fields.
 
+    :data:`RELATIONS` lists them; a :class:`Params` that breaks one is refused with its ``text``
+    and ``why``.
+
     Attributes
     ----------
     name : str

@@ -101,6 +101,9 @@ def _controller_list(value) -> tuple:
 class StudySpec:
     """A robustness study: task, controllers and the plant spread (see the module docstring).
 
+    Built from TOML tables by :meth:`from_dict` (or :func:`~hubbeam_ctrl.study.spec_files.load_spec`)
+    and checked by :meth:`validate`; the constructor itself checks nothing.
+
     Attributes
     ----------
     scenario : {"slew", "spinup"}
