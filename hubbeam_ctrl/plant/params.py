@@ -108,30 +108,12 @@ class Params(Settings):
         return np.array([z[min(i, len(z) - 1)] for i in range(n)])
 
     # -- derived quantities -------------------------------------------------
-    @property
-    def tip_position(self) -> float:
-        """Position of the tip mass along the beam [m] (``l``, or ``L`` if unset)."""
-        return self.L if self.l is None else self.l
-
-    @property
-    def EI(self) -> float:
-        """Bending stiffness E I [N m^2]."""
-        return self.E * self.I
-
-    @property
-    def EA(self) -> float:
-        """Axial stiffness E A [N]."""
-        return self.E * self.A
-
-    @property
-    def rhoA(self) -> float:
-        """Mass per unit length rho A [kg/m]."""
-        return self.rho * self.A
-
-    @property
-    def beam_mass(self) -> float:
-        """Mass of the beam rho A L [kg]."""
-        return self.rhoA * self.L
+    tip_position = property(lambda self: self.L if self.l is None else self.l,
+                            doc="Position of the tip mass along the beam [m] (``l``, or ``L`` if unset).")
+    EI = property(lambda self: self.E * self.I, doc="Bending stiffness E I [N m^2].")
+    EA = property(lambda self: self.E * self.A, doc="Axial stiffness E A [N].")
+    rhoA = property(lambda self: self.rho * self.A, doc="Mass per unit length rho A [kg/m].")
+    beam_mass = property(lambda self: self.rhoA * self.L, doc="Mass of the beam rho A L [kg].")
 
     @property
     def total_inertia(self) -> float:
