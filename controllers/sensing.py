@@ -185,10 +185,8 @@ def observability_defect(Ad: np.ndarray, C: np.ndarray, names, tol: float = 1e-9
 
     Parameters
     ----------
-    Ad : ndarray (n, n)
-        Sampled state matrix.
-    C : ndarray (ny, n)
-        Output rows.
+    Ad, C : ndarray
+        The sampled model's state matrix (n, n) and the sensors' rows (ny, n).
     names : sequence of str
         State names (for the message).
     tol : float
