@@ -152,14 +152,10 @@ class LinearModel(SystemViews):
     params: Params
     reduction: str = "none"
 
-    @property
-    def state_units(self) -> list:
-        """Unit of each state (``-`` for the balanced coordinates)."""
-        return [state_unit(s) for s in self.state_names]
-
-    @property
-    def output_units(self) -> list:
-        return [OUTPUTS[o][0] if o in OUTPUTS else "-" for o in self.output_names]
+    state_units = property(lambda self: [state_unit(s) for s in self.state_names],
+                           doc="Unit of each state (``-`` for the balanced coordinates).")
+    output_units = property(lambda self: [OUTPUTS[o][0] if o in OUTPUTS else "-" for o in self.output_names],
+                            doc="Unit of each output (:data:`OUTPUTS`).")
 
     # -- analysis ----------------------------------------------------------
     def poles(self) -> np.ndarray:
