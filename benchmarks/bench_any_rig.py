@@ -14,7 +14,6 @@ loop's disk and delay margins. ``docs/rig.md`` quotes this JSON (``benchmarks/re
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import os
@@ -23,7 +22,7 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, emit  # noqa: E402
 
 from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
 from hubbeam_ctrl.plant.rig import load_rig  # noqa: E402
@@ -100,9 +99,9 @@ def table_lines(doc: dict) -> list:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    """Run the rigs of ``--rigs`` and print (and keep) the JSON."""
+    ap = bench_parser(__doc__)
     ap.add_argument("--rigs", default="servo_link,servo_link_delay1,accel_link,servo_payload,space_boom")
-    ap.add_argument("--out", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
     out = {"factor": FACTOR, "rigs": {}}
     for name in args.rigs.split(","):

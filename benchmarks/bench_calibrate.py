@@ -24,14 +24,13 @@ The records are made by a 2-mode plant, and the fit simulates 2 modes (``plant_m
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import sys
 import time
 
 import numpy as np
-from benchjson import emit
+from benchjson import bench_parser, emit
 
 from hubbeam_ctrl.calibrate import FitSettings, ModelSettings, excitation, fit_rig, synthetic_record, validate_record
 from hubbeam_ctrl.plant.rig import load_rig
@@ -50,13 +49,12 @@ def rigs():
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--backend", default="auto")
     ap.add_argument("--skip-alternative", action="store_true")
     ap.add_argument("--skip-servo", action="store_true", help="leave out the servo link's five-field case")
     ap.add_argument("--skip-link", action="store_true", help="leave out issue 38's steel link")
-    ap.add_argument("--out")
     args = ap.parse_args(argv)
     os.environ["HUBBEAM_BACKEND"] = args.backend
     out = {"benchmark": "bench_calibrate", "date": time.strftime("%Y-%m-%d"), "python": sys.version.split()[0],

@@ -12,13 +12,12 @@ this JSON (``benchmarks/results/bench_command.json``; ``tests/test_any_rig.py`` 
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, emit  # noqa: E402
 
 from hubbeam_ctrl.study import compare  # noqa: E402
 from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
@@ -48,8 +47,7 @@ def readme_sentence(doc: dict) -> str:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=None, help="also write the JSON here")
+    ap = bench_parser(__doc__)
     args = ap.parse_args(argv)
     emit({"task": run("task"), "rigid": run("rigid")}, args.out)
 

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import platform
 import statistics
@@ -34,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from benchjson import emit
 
 from hubbeam_ctrl.fmu import build_fmu
 from hubbeam_ctrl.plant.maneuvers import TorquePulse
@@ -149,10 +149,7 @@ def main(argv=None) -> int:
         "max_rel_tip_difference": diff, "peak_tip_m": peak,
         "fmu_build_s": build_s, "fmu_bytes": size,
     }
-    text = json.dumps(out, indent=1)
-    print(text)
-    if a.out:
-        Path(a.out).write_text(text + "\n", encoding="utf-8")
+    emit(out, a.out)
     return 0
 
 

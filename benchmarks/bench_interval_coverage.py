@@ -25,14 +25,13 @@ half-width, and the statuses and wall times.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import sys
 import time
 
 import numpy as np
-from benchjson import emit
+from benchjson import bench_parser, emit
 
 from hubbeam_ctrl.calibrate import FitSettings, fit_rig, resolve_fields, set_fields, synthetic_record
 
@@ -109,13 +108,12 @@ def run_case(case: str, names: str, n_records: int, duration: float) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--records", type=int, default=40)
     ap.add_argument("--duration", type=float, default=2.0)
     ap.add_argument("--fields", default="E,J_h,m_t")
     ap.add_argument("--cases", default="stick_slip,smooth")
     ap.add_argument("--backend", default="auto")
-    ap.add_argument("--out")
     args = ap.parse_args(argv)
     os.environ["HUBBEAM_BACKEND"] = args.backend
     out = {"benchmark": "bench_interval_coverage", "date": time.strftime("%Y-%m-%d"), "python": sys.version.split()[0],

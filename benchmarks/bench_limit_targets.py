@@ -36,7 +36,6 @@ torque), ``paper`` (Table 1's beam, 1 rad, 200 N m) and ``payload`` (Table 1's b
 
 from __future__ import annotations
 
-import argparse
 import functools
 import math
 import os
@@ -46,7 +45,7 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, comma_floats, emit  # noqa: E402
 
 from controllers import DesignModel  # noqa: E402
 from controllers.scaling import first_mode  # noqa: E402
@@ -240,19 +239,14 @@ def run_cases(cases, factor: float = FACTOR) -> dict:
 
 def _factors(text: str) -> list:
     """``--factors``: comma-separated positive numbers."""
-    try:
-        values = [float(f) for f in text.split(",")]
-    except ValueError:
-        values = []
-    if not values or not all(math.isfinite(v) and v > 0 for v in values):
-        raise argparse.ArgumentTypeError(f"must be comma-separated numbers > 0 (units of T_opt), got {text!r}")
-    return values
+    return comma_floats(text, lambda vs: all(math.isfinite(v) and v > 0 for v in vs),
+                        "comma-separated numbers > 0 (units of T_opt)")
 
 
 def main(argv=None) -> int:
     """Entry point; prints the JSON and writes it to ``--out`` when given."""
     global NAMES, REFERENCES
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--cases", default="lab,servo,servo_beam,paper,payload")
     ap.add_argument("--controllers", default=NAMES, help="controllers to run (default %(default)s)")
     ap.add_argument("--references", default=",".join(REFERENCES),
@@ -262,7 +256,6 @@ def main(argv=None) -> int:
     ap.add_argument("--factors", type=_factors, default=str(FACTOR),
                     help="comma-separated task durations in units of T_opt (default %(default)s: the issue's); "
                          "several give a scan over fast and slow tasks, keyed by factor in the JSON")
-    ap.add_argument("--out", help="also write the JSON here")
     args = ap.parse_args(argv)
     NAMES, REFERENCES = args.controllers, tuple(args.references.split(","))
     cases = set(args.cases.split(","))

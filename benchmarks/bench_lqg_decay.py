@@ -10,7 +10,6 @@ settling time and loop margins at every decay against its LQR's (``compare(...).
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import os
@@ -18,7 +17,7 @@ import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, emit  # noqa: E402
 
 from controllers import LQG, DesignModel, LQGSettings  # noqa: E402
 from controllers.lqg import DECAY_LADDER, noise_tip_std  # noqa: E402
@@ -79,8 +78,7 @@ def margins() -> dict:
 
 def main(argv=None) -> int:
     """Entry point; prints the JSON and writes it to ``--out`` when given."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", help="also write the JSON here")
+    ap = bench_parser(__doc__)
     args = ap.parse_args(argv)
     emit({"benchmark": "bench_lqg_decay", "issue": 22, "ladder": ladder(), "margins": margins()}, args.out)
     return 0

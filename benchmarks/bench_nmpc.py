@@ -14,7 +14,6 @@ the NMPC the median and 99th percentile of its step's wall time against the samp
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -23,7 +22,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, emit  # noqa: E402
 
 from controllers.scaling import first_mode  # noqa: E402
 from hubbeam_ctrl import Params  # noqa: E402
@@ -126,13 +125,13 @@ def table_lines(doc: dict) -> list:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    """Slew each of ``--beams`` with the NMPC and the linear controllers; print the JSON."""
+    ap = bench_parser(__doc__)
     ap.add_argument("--beams", default="table1,lab,servo_link")
     ap.add_argument("--factors", default="1.1,1.2,1.3")
     ap.add_argument("--horizon", type=int, default=None, help="the NMPC's horizon [samples] (default its own)")
     ap.add_argument("--backend", default="vm", choices=("vm", "compiled"),
                     help="the NMPC's step on CasADi's virtual machine or as its generated C")
-    ap.add_argument("--out", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
     doc = {"horizon": args.horizon, "backend": args.backend, "beams": {}}
     for beam in args.beams.split(","):

@@ -19,7 +19,6 @@ sample time (the NMPC computes in the loop; none is skipped, so a late step woul
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -29,7 +28,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
 from bench_limit_targets import LAB, _judge  # noqa: E402
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, emit  # noqa: E402
 
 from controllers import NMPCSettings  # noqa: E402
 from hubbeam_ctrl import Params  # noqa: E402
@@ -109,11 +108,12 @@ def table_lines(doc: dict) -> list:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    """Run the NMPC on the payloads of each of ``--beams`` (its step on ``--backend``), then print
+    the JSON."""
+    ap = bench_parser(__doc__)
     ap.add_argument("--beams", default="table1,lab,lab_damped")
     ap.add_argument("--backend", default="vm", choices=("vm", "compiled"),
                     help="the NMPC's step on CasADi's virtual machine or as its generated C")
-    ap.add_argument("--out", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
     doc = {"backend": args.backend, "beams": {}}
     for beam in args.beams.split(","):

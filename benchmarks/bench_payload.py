@@ -10,7 +10,6 @@ at the four payloads and checks the same conditions, printing each row.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
 import sys
@@ -18,7 +17,7 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, emit  # noqa: E402
 
 from hubbeam_ctrl.study import CompareSettings, PayloadChoice, payload_comparison, payload_table  # noqa: E402
 
@@ -49,8 +48,7 @@ def run() -> dict:
 
 def main(argv=None) -> int:
     """Entry point; prints the JSON and writes it to ``--out`` when given."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", help="also write the JSON here")
+    ap = bench_parser(__doc__)
     args = ap.parse_args(argv)
     doc = {"benchmark": "payload_range", "machine": {"python": platform.python_version(), "cpus": os.cpu_count()},
            **run()}

@@ -94,6 +94,13 @@ def table(out: dict) -> str:
     return "\n".join(lines)
 
 
+def _add(out: dict, row: dict) -> None:
+    """Keep a case's row and print its line."""
+    out["cases"].append(row)
+    print(f"{row['case']}: {row['ancf']['peak_over_L']:.3f} L, FOAM {_pct(row['foam']['peak_rel_err'])}, "
+          f"CFOAM {_pct(row['cfoam']['peak_rel_err'])}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--modes", type=int, default=5, help="transverse modes of every model (default 5)")
@@ -108,16 +115,12 @@ def main() -> None:
     for tau in torques:
         row = _case(TorquePulse(tau_m=tau, t_f=10.0), t_torque, 10.0, base, 0.01)
         row.update(case=f"Eq. 44, {tau:g} N m", axis="deflection", tau_m=tau)
-        out["cases"].append(row)
-        print(f"{row['case']}: {row['ancf']['peak_over_L']:.3f} L, FOAM {_pct(row['foam']['peak_rel_err'])}, "
-              f"CFOAM {_pct(row['cfoam']['peak_rel_err'])}", flush=True)
+        _add(out, row)
     spin_p = base.replace(m_t=0.0)
     for w in spins:
         row = _case(SpinUp(w_f=w, t_f=30.0), t_spin, 30.0, spin_p, 0.05)
         row.update(case=f"spin-up to {w:g} rad/s", axis="spin", w_f=w)
-        out["cases"].append(row)
-        print(f"{row['case']}: {row['ancf']['peak_over_L']:.3f} L, FOAM {_pct(row['foam']['peak_rel_err'])}, "
-              f"CFOAM {_pct(row['cfoam']['peak_rel_err'])}", flush=True)
+        _add(out, row)
     out["wall_s"] = time.perf_counter() - start
     out["table_markdown"] = table(out)
     text = json.dumps(out, indent=2, default=float)

@@ -30,7 +30,6 @@ of each (the least disturbed by other processes), the ``_median`` ones beside th
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
@@ -38,6 +37,7 @@ import sys
 import time
 
 import numpy as np
+from benchjson import emit
 
 from controllers import LQR, DesignModel
 from hubbeam_ctrl import build_model
@@ -157,11 +157,7 @@ def main(argv=None) -> int:
         "runs": info,
         "targets": {"closed_loop_ratio_max": 1.3, "met": all(r <= 1.3 for r in ratio.values())},
     }
-    text = json.dumps(out, indent=1)
-    print(text)
-    if a.out:
-        with open(a.out, "w", encoding="utf-8") as fh:
-            fh.write(text + "\n")
+    emit(out, a.out)
     return 0
 
 

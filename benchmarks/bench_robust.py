@@ -28,14 +28,13 @@ alternative, a 6-point grid alone (1296 loops), in the same run.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
 import time
 
 sys.path.insert(0, os.path.dirname(__file__))
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, emit  # noqa: E402
 
 from hubbeam_ctrl import Params  # noqa: E402
 from hubbeam_ctrl.limit import time_optimal_slew  # noqa: E402
@@ -200,10 +199,10 @@ def table_lines(doc: dict) -> list:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    """Certify the ``--cases`` (added to a previous JSON with ``--merge``); print the JSON."""
+    ap = bench_parser(__doc__)
     ap.add_argument("--cases", default="table1,lab,servo_link,servo_identified")
     ap.add_argument("--merge", default=None, help="a previous JSON whose cases this run adds to (or replaces)")
-    ap.add_argument("--out", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
     doc = {"floor": FLOOR, "factor": FACTOR, "cases": {}}
     if args.merge:

@@ -28,6 +28,8 @@ import platform
 import sys
 import time
 
+from benchjson import emit
+
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.study.compare import compare
@@ -84,11 +86,7 @@ def main(argv=None) -> int:
     out = {"benchmark": "substeps", "beam": a.beam, "damping_ratio": a.damping_ratio,
            "rule": {"frequency_tolerance": FREQUENCY_TOLERANCE}, "machine": platform.machine(),
            "python": platform.python_version(), "runs": runs}
-    text = json.dumps(out, indent=1)
-    print(text)
-    if a.out:
-        with open(a.out, "w") as fh:
-            fh.write(text + "\n")
+    emit(out, a.out)
     return 0
 
 

@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from hubbeam_ctrl.study.spec import load_spec
+from hubbeam_ctrl.study.spec_files import load_spec
 from hubbeam_ctrl.study.sweep import CaseCache, run_case, sweep
 
 

@@ -49,7 +49,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchjson import emit  # noqa: E402
+from benchjson import bench_parser, comma_floats, emit  # noqa: E402
 
 import controllers.planning as planning  # noqa: E402
 import hubbeam_ctrl.study.compare as compare_module  # noqa: E402
@@ -244,25 +244,14 @@ class PayloadLearning:
 
 def _fractions(text: str) -> list:
     """``--switch-at``: increasing fractions of the slew in [0, 1)."""
-    try:
-        values = [float(f) for f in text.split(",")]
-    except ValueError:
-        values = []
-    increasing = all(b > a for a, b in zip(values, values[1:]))
-    if not values or not all(0.0 <= v < 1.0 for v in values) or not increasing:
-        raise argparse.ArgumentTypeError(f"must be increasing fractions of t_f in [0, 1), got {text!r}")
-    return values
+    return comma_floats(text, lambda vs: all(0.0 <= v < 1.0 for v in vs) and all(b > a for a, b in zip(vs, vs[1:])),
+                        "increasing fractions of t_f in [0, 1)")
 
 
 def _masses(text: str) -> str:
-    """``--masses``: comma-separated payloads [kg] in the range."""
-    try:
-        values = [float(m) for m in text.split(",")]
-    except ValueError:
-        values = []
-    if not values or not all(RANGE[0] <= v <= RANGE[1] for v in values):
-        raise argparse.ArgumentTypeError(f"must be comma-separated payloads in [{RANGE[0]:g}, {RANGE[1]:g}] kg, "
-                                         f"got {text!r}")
+    """``--masses``: comma-separated payloads [kg] in the range (the text, checked)."""
+    comma_floats(text, lambda vs: all(RANGE[0] <= v <= RANGE[1] for v in vs),
+                 f"comma-separated payloads in [{RANGE[0]:g}, {RANGE[1]:g}] kg")
     return text
 
 
@@ -280,7 +269,7 @@ def _bounded(lo: float, hi: float, lo_open: bool = False):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = bench_parser(__doc__)
     ap.add_argument("--switch-at", type=_fractions, default="0.25,0.5",
                     help="fractions of t_f (default %(default)s)")
     ap.add_argument("--stiffened-weight", type=_bounded(0.0, 1e12), default=100.0)
@@ -301,7 +290,6 @@ def main(argv=None) -> int:
     ap.add_argument("--latency", type=_bounded(0.0, 60.0), default=0.0,
                     help="seconds the nonlinear re-plan takes: the old controller runs on meanwhile, the plan "
                          "holds its feedforward over those intervals and starts after them")
-    ap.add_argument("--out")
     o = ap.parse_args(argv)
     tf = 1.5 * T_OPT_HEAVIEST
     scenario = make_scenario(Slew(1.0, tf), params=NOMINAL)

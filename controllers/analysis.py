@@ -411,6 +411,7 @@ class LoopMargins:
     Attributes
     ----------
     controller : str
+        Name of the controller whose loop this is.
     stable : bool
         The closed loop on the design model is stable (every pole inside the unit circle).
     spectral_radius : float

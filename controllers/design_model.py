@@ -151,7 +151,8 @@ class DesignModel:
         """The sampled model as a :class:`~hubbeam_ctrl.linear.statespace.LinearModel` (a named
         python-control system, ``.sys``), built on first use: the same matrices as ``Ad``, ``Bd``."""
         if self._linear_model is None:
-            from hubbeam_ctrl.linear.statespace import discretize, linearize
+            from hubbeam_ctrl.linear.statespace import linearize
+            from hubbeam_ctrl.linear.transforms import discretize
             lm = linearize("sfoam", self.spin, self.params, _DESIGN_OUTPUTS)
             object.__setattr__(self, "_linear_model", discretize(lm, self.dt))
         return self._linear_model

@@ -529,3 +529,21 @@ class KalmanEstimator:
                 self.x_pred[:len(offset)] += offset
         self.x_hat = self._IminusLC @ self.x_pred + self.L @ y
         return self.x_hat
+
+
+class AppliedTorque:
+    """Mixin of a controller with a filter: the torque it predicts with is the one applied
+    (``_tau``), which a wrapper may set (:meth:`applied`) after overriding the controller's output."""
+
+    _tau: float | None = None
+
+    def applied(self, tau: float) -> None:
+        """The filter's next prediction uses ``tau`` as this sample's torque
+        (:meth:`controllers.base.Controller.applied`).
+
+        Parameters
+        ----------
+        tau : float
+            The torque applied [N m].
+        """
+        self._tau = float(tau)

@@ -33,12 +33,10 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.core.fileio import json_ready
+from hubbeam_ctrl.core.jsonio import json_ready
 from hubbeam_ctrl.linear.export import FORMATS, _real_matrix, load_system, save_system
-from hubbeam_ctrl.linear.statespace import OUTPUTS, _state_unit
+from hubbeam_ctrl.linear.statespace import OUTPUTS, SystemViews, state_unit
 from hubbeam_ctrl.plant.params import Params
 
 from .base import Controller
@@ -56,11 +54,11 @@ def _unit(name: str) -> str:
         return OUTPUTS[name][0]
     if name == "tau":
         return "N m"
-    return _state_unit(name[:-4] if name.endswith("_est") else name)
+    return state_unit(name[:-4] if name.endswith("_est") else name)
 
 
 @dataclass(frozen=True, eq=False)
-class ControllerModel:
+class ControllerModel(SystemViews):
     """A linear controller as plain data: its python-control system and what made it.
 
     Attributes
@@ -80,46 +78,10 @@ class ControllerModel:
     sys: object
     metadata: dict
 
-    @property
-    def Ac(self) -> np.ndarray:
-        """State matrix (n, n)."""
-        return np.asarray(self.sys.A, dtype=float)
-
-    @property
-    def Bc(self) -> np.ndarray:
-        """Input matrix (n, inputs)."""
-        return np.asarray(self.sys.B, dtype=float)
-
-    @property
-    def Cc(self) -> np.ndarray:
-        """Output matrix (1, n)."""
-        return np.asarray(self.sys.C, dtype=float)
-
-    @property
-    def Dc(self) -> np.ndarray:
-        """Feedthrough (1, inputs)."""
-        return np.asarray(self.sys.D, dtype=float)
-
-    @property
-    def dt(self) -> float:
-        """Sample time [s]."""
-        return float(self.sys.dt)
-
-    @property
-    def n_states(self) -> int:
-        return int(self.sys.nstates)
-
-    @property
-    def state_names(self) -> list:
-        return list(self.sys.state_labels)
-
-    @property
-    def input_names(self) -> list:
-        return list(self.sys.input_labels)
-
-    @property
-    def output_names(self) -> list:
-        return list(self.sys.output_labels)
+    Ac = property(lambda self: self.A, doc="State matrix (n, n).")
+    Bc = property(lambda self: self.B, doc="Input matrix (n, inputs).")
+    Cc = property(lambda self: self.C, doc="Output matrix (1, n).")
+    Dc = property(lambda self: self.D, doc="Feedthrough (1, inputs).")
 
     @property
     def params(self) -> Params:
@@ -192,29 +154,21 @@ def controller_model(ctrl: Controller) -> ControllerModel:
 
 
 def save_controller(ctrl, path) -> Path:
-    """Write a linear controller to ``.mat``, ``.npz`` or ``.json`` (by extension), atomically.
+    """Write a linear controller to ``.mat``, ``.npz`` or ``.json`` (by extension), atomically;
+    returns the path written.
 
     Parameters
     ----------
     ctrl : Controller or ControllerModel
         PD, LQR or LQG, or a model from :func:`controller_model` / :func:`load_controller`.
     path : str or Path
-
-    Returns
-    -------
-    Path
-        The file written.
-
-    Raises
-    ------
-    ParameterError
-        Unknown extension, missing or unwritable folder (no file is left behind).
-    HubbeamError
-        For a controller that is not linear (open loop, MPC).
+        Refused (:class:`ParameterError`, no file left behind): an unknown extension, a missing
+        or unwritable folder. A controller that is not linear (open loop, MPC) raises
+        :class:`HubbeamError`.
     """
     model = ctrl if isinstance(ctrl, ControllerModel) else controller_model(ctrl)
-    mats = {k: np.array(getattr(model, k), dtype=float) for k in _MATRICES}
-    return save_system(path, mats, model.metadata, _TAG, _VERSION, model.params)
+    return save_system(path, {k: getattr(model, k) for k in _MATRICES}, model.metadata, _TAG, _VERSION,
+                       model.params)
 
 
 def load_controller(path) -> ControllerModel:
@@ -223,6 +177,8 @@ def load_controller(path) -> ControllerModel:
     Parameters
     ----------
     path : str or Path
+        A ``.mat``, ``.npz`` or ``.json`` file; anything else, or a damaged file, is one line of
+        :class:`ParameterError` naming it.
 
     Returns
     -------

@@ -29,6 +29,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, DesignModel, saturate
 from .estimator import (
+    AppliedTorque,
     KalmanNoise,
     decay_model,
     error_decay_rate,
@@ -187,7 +188,7 @@ def observer_feedback_matrices(A, B, C, L, K) -> tuple:
     return F @ M, F @ L, -K @ M, -K @ L
 
 
-class ObservedFeedback(Controller):
+class ObservedFeedback(AppliedTorque, Controller):
     """A state-feedback controller (LQR, MPC) closed through a Kalman filter on the rig's sensors.
 
     In the simulator LQR and MPC read the plant's modal state, which no sensor measures. This
@@ -276,16 +277,6 @@ class ObservedFeedback(Controller):
         self.inner.reset()
         self.estimator.reset(self.initial_state())
         self._tau = None
-
-    def applied(self, tau: float) -> None:
-        """The filter's next prediction uses ``tau`` as this sample's torque (:meth:`Controller.applied`).
-
-        Parameters
-        ----------
-        tau : float
-            The torque applied [N m].
-        """
-        self._tau = float(tau)
 
     @property
     def disturbance(self) -> float:

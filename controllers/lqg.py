@@ -16,7 +16,7 @@ import numpy as np
 from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
-from .estimator import KalmanEstimator, KalmanNoise, plan_offsets, plan_worth_predicting
+from .estimator import AppliedTorque, KalmanEstimator, KalmanNoise, plan_offsets, plan_worth_predicting
 from .integral import OffsetFreeEstimator, observer_feedback_matrices
 from .lqr import dlqr_gain
 from .residual import embedding, estimator_model, residual_design
@@ -215,7 +215,7 @@ def noise_limited_decay(design: DesignModel, settings: "LQGSettings", budget_m: 
     return best
 
 
-class LQG(Controller):
+class LQG(AppliedTorque, Controller):
     """Output feedback: a :class:`KalmanEstimator` on ``[theta, theta_dot, M_root]`` and the LQR gain.
 
     The filter works in deviations from the steady rotation at the design spin ``Omega``:
@@ -325,16 +325,6 @@ class LQG(Controller):
         x[self._n] -= self.design.spin
         self.estimator.reset(x)
         self._tau = None
-
-    def applied(self, tau: float) -> None:
-        """The filter's next prediction uses ``tau`` as this sample's torque (:meth:`Controller.applied`).
-
-        Parameters
-        ----------
-        tau : float
-            The torque applied [N m].
-        """
-        self._tau = float(tau)
 
     def start_estimate(self, x_hat, tau: float) -> None:
         """Start the filter from an estimate at this sample and the torque applied at it.

@@ -117,9 +117,11 @@ class MPC(Controller):
     Parameters
     ----------
     design : DesignModel
-        Sampled SFOAM at the design spin rate.
+        Sampled SFOAM at the design spin rate; its ``Ad``, ``Bd`` predict the horizon.
     settings : MPCSettings, optional
+        Horizon, QP solver and the soft tip bound, with the LQR's weights and torque limit.
     reference : Reference, optional
+        Hub trajectory and feedforward torque over the horizon (default: rest at theta = 0).
 
     Attributes
     ----------

@@ -215,7 +215,7 @@ def optimal_reference(opt, dt: float, t_end: float) -> Reference:
     """
     from scipy.interpolate import CubicHermiteSpline
 
-    from hubbeam_ctrl.limit.optimal import OptimalSlew  # the limit layer loads SciPy and IPOPT: on use
+    from hubbeam_ctrl.limit.slew import OptimalSlew  # the limit layer loads SciPy and IPOPT: on use
 
     if not isinstance(opt, OptimalSlew):
         raise ParameterError(f"opt must be an OptimalSlew, got {type(opt).__name__}")

@@ -179,6 +179,7 @@ def first_mode(design: DesignModel) -> float:
     Parameters
     ----------
     design : DesignModel
+        Its sampled ``A``: the flexible modes are its oscillatory eigenvalues.
 
     Returns
     -------
@@ -266,7 +267,9 @@ def bryson_weights(scales: TaskScales, tol: Tolerances | None = None) -> Weights
     Parameters
     ----------
     scales : TaskScales
+        The task's angle, duration, length, first mode and torque budget.
     tol : Tolerances, optional
+        The allowed errors relative to them (default :class:`Tolerances`).
 
     Returns
     -------
@@ -287,8 +290,8 @@ def sensor_noise(scales: TaskScales, tol: Tolerances | None = None) -> dict:
 
     Parameters
     ----------
-    scales : TaskScales
-    tol : Tolerances, optional
+    scales, tol
+        As :func:`bryson_weights` (the angle, the peak rate and moment; the noise ratios).
 
     Returns
     -------
@@ -307,8 +310,8 @@ def kalman_noise(scales: TaskScales, tol: Tolerances | None = None) -> dict:
 
     Parameters
     ----------
-    scales : TaskScales
-    tol : Tolerances, optional
+    scales, tol
+        As :func:`sensor_noise`, plus the torque budget, the length and the first mode.
 
     Returns
     -------
@@ -332,7 +335,9 @@ def settling_bands(scales: TaskScales, tol: Tolerances | None = None) -> dict:
     Parameters
     ----------
     scales : TaskScales
+        Its angle, length and duration.
     tol : Tolerances, optional
+        Its settling bands and residual delay (default :class:`Tolerances`).
 
     Returns
     -------
@@ -386,8 +391,8 @@ def scaled_defaults(scales: TaskScales, tol: Tolerances | None = None) -> dict:
 
     Parameters
     ----------
-    scales : TaskScales
-    tol : Tolerances, optional
+    scales, tol
+        Passed to :func:`bryson_weights` and :func:`kalman_noise`.
 
     Returns
     -------

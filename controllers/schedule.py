@@ -175,12 +175,12 @@ class ScheduledKalmanEstimator:
         self.reset()
 
     def reset(self, x0=None) -> None:
-        """Start again from a state guess (default zero), with no measurement yet.
+        """Start again from a state guess, with no measurement yet (the scheduling spin back to 0).
 
         Parameters
         ----------
         x0 : array_like (nx,), optional
-            Initial guess of the (deviation) state; default zero.
+            As :meth:`KalmanEstimator.reset <controllers.estimator.KalmanEstimator.reset>`.
         """
         x0 = np.zeros(self.schedule.n_x) if x0 is None else np.array(x0, dtype=float)
         self.x_pred = x0
@@ -188,16 +188,13 @@ class ScheduledKalmanEstimator:
         self._spin = 0.0
 
     def predict(self, u: float) -> np.ndarray:
-        """Prediction of the next sample's state with the model at the last update's spin.
+        """Prediction ``Ad(mu) x_hat + Bd(mu) u`` of the next sample's state (ndarray (nx,)) with the
+        model at the last update's spin ``mu`` (the estimator is unchanged).
 
         Parameters
         ----------
         u : float
             Torque held over the coming sample [N m].
-
-        Returns
-        -------
-        ndarray (nx,)
         """
         ab = self.schedule.interpolate(self.models, self._spin)
         return ab[:, :-1] @ self.x_hat + ab[:, -1] * u
@@ -348,6 +345,13 @@ def _labels(design: DesignModel):
     return xd, ["ud[tau]"], list(design.state_names)
 
 
+def _first_design(schedule: DesignSchedule) -> tuple:
+    """The checked schedule's first design and its signal labels ``(xd, ud, x)``."""
+    _check_schedule(schedule, "measured")
+    d = schedule.designs[0]
+    return d, _labels(d)
+
+
 def _gainsched_indices(indices, inputs, default):
     if indices is None:
         return [default]
@@ -386,15 +390,14 @@ def scheduled_lqr_iosystem(schedule: DesignSchedule, weights: Weights = Weights(
         The input that schedules the gain (default ``"xd[theta_dot]"``; ``"theta_dot"``: the
         measured rate).
     name : str
+        Name of the system.
 
     Returns
     -------
     control.NonlinearIOSystem
     """
     import control as ct  # lazily: keeps the CLI's start-up light
-    _check_schedule(schedule, "measured")
-    d = schedule.designs[0]
-    xd, ud, x = _labels(d)
+    d, (xd, ud, x) = _first_design(schedule)
     inputs = xd + ud + x
     (mu_index,) = _gainsched_indices(gainsched_indices, inputs, inputs.index("xd[theta_dot]"))
     gains = schedule.stack(lambda dm: dlqr_gain(dm, weights)[0])
@@ -427,15 +430,14 @@ def scheduled_lqg_iosystem(schedule: DesignSchedule, settings: LQGSettings = LQG
     gainsched_indices : int or str, optional
         Default ``"xd[theta_dot]"``; ``"y[theta_dot]"``: the measured rate.
     name : str
+        Name of the discrete-time system (sampled at ``schedule.dt``).
 
     Returns
     -------
     control.NonlinearIOSystem
     """
     import control as ct  # lazily: keeps the CLI's start-up light
-    _check_schedule(schedule, "measured")
-    d = schedule.designs[0]
-    xd, ud, _ = _labels(d)
+    d, (xd, ud, _) = _first_design(schedule)
     inputs = xd + ud + ["y[theta]", "y[theta_dot]", "y[root_moment]"]
     (mu_index,) = _gainsched_indices(gainsched_indices, inputs, inputs.index("xd[theta_dot]"))
     models, E = filter_schedule(schedule, settings)

@@ -45,10 +45,12 @@ def rig_key(signal: str) -> str:
     Parameters
     ----------
     signal : str
+        A measured signal: ``theta``, ``theta_dot``, ``moment_K``, ``accel_tangential``...
 
     Returns
     -------
     str
+        The rig key and what it sets; an unknown name is returned as it is.
     """
     return RIG_KEYS.get(signal, RIG_KEYS["moment"] if signal.startswith("moment_") else signal)
 
@@ -183,10 +185,8 @@ def observability_defect(Ad: np.ndarray, C: np.ndarray, names, tol: float = 1e-9
 
     Parameters
     ----------
-    Ad : ndarray (n, n)
-        Sampled state matrix.
-    C : ndarray (ny, n)
-        Output rows.
+    Ad, C : ndarray
+        The sampled model's state matrix (n, n) and the sensors' rows (ny, n).
     names : sequence of str
         State names (for the message).
     tol : float

@@ -243,18 +243,13 @@ def zv_shaper(frequency: float, damping: float = 0.0) -> Shaper:
 
 
 def zvd_shaper(frequency: float, damping: float = 0.0) -> Shaper:
-    """Zero-vibration-and-derivative shaper: ``[1, 2K, K^2]/(1 + K)^2`` at ``[0, T_d/2, T_d]``.
+    """Zero-vibration-and-derivative shaper: ``[1, 2K, K^2]/(1 + K)^2`` at ``[0, T_d/2, T_d]``
+    (robust to a frequency error, twice as long as :func:`zv_shaper`).
 
     Parameters
     ----------
-    frequency : float
-        Natural frequency of the mode [rad/s], > 0.
-    damping : float
-        Damping ratio [-], 0 <= zeta < 1.
-
-    Returns
-    -------
-    Shaper
+    frequency, damping : float
+        As :func:`zv_shaper`.
     """
     Td, K = _damped(frequency, damping)
     return Shaper(np.array([0.0, 0.5 * Td, Td]), np.array([1.0, 2 * K, K * K]) / (1.0 + K) ** 2, "zvd")

@@ -22,7 +22,9 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "hubbeam_ctrl.core.errors": ("HubbeamError", "ParameterError"),
     "hubbeam_ctrl.linear.export": ("load_model", "save_model"),
-    "hubbeam_ctrl.linear.statespace": ("LinearModel", "compare_poles", "discretize", "linearize", "reduce"),
+    "hubbeam_ctrl.linear.pole_comparison": ("compare_poles",),
+    "hubbeam_ctrl.linear.statespace": ("LinearModel", "linearize"),
+    "hubbeam_ctrl.linear.transforms": ("discretize", "reduce"),
     "hubbeam_ctrl.plant.basis": ("ModalBasis", "modal_basis"),
     "hubbeam_ctrl.plant.linearization": ("first_order_matrices", "second_order_linearization"),
     "hubbeam_ctrl.plant.maneuvers": ("ConstantSpin", "SpinUp", "TorquePulse", "UserManeuver"),

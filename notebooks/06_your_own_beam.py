@@ -27,7 +27,7 @@ from controllers.analysis import closed_loop_poles, loop_margins
 from controllers.export import load_controller, save_controller
 from hubbeam_ctrl import linearize, load_params
 from hubbeam_ctrl.linear.export import load_model, save_model
-from hubbeam_ctrl.linear.statespace import discretize
+from hubbeam_ctrl.linear.transforms import discretize
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.study import Slew, compare, format_table, make_scenario, payload_comparison, payload_table
 from hubbeam_ctrl.study.compare_values import CompareSettings, PayloadChoice, RunChoice

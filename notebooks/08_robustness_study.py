@@ -28,7 +28,7 @@ import matplotlib.pyplot as plt
 
 from controllers import controller_styles
 from hubbeam_ctrl.plots.study import plot_heatmap, plot_robustness_curves, plot_stable_region
-from hubbeam_ctrl.study.spec import load_spec
+from hubbeam_ctrl.study.spec_files import load_spec
 from hubbeam_ctrl.study.sweep import sweep
 from hubbeam_ctrl.study.sweep_report import summarize
 

@@ -10,9 +10,23 @@ os.environ.setdefault("HUBBEAM_BACKEND", "vm")
 os.environ.setdefault("HUBBEAM_CACHE_DIR", os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(
     __file__))), "build", "hubbeam-cache"))
 
+from pathlib import Path  # noqa: E402
+
 import pytest  # noqa: E402
 
 from hubbeam_ctrl import Params  # noqa: E402
+
+#: The project root (this checkout).
+ROOT = Path(__file__).resolve().parents[1]
+#: Environment of a ``python -m hubbeam_ctrl`` subprocess: this checkout first, no display.
+ENV = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), "MPLBACKEND": "Agg"}
+
+
+def sweep_spec(controllers, t_end: float, masses) -> str:
+    """The TOML text of a small sweep: 2+2 modes evaluated on 2, a 1 s slew of ``t_end`` [s],
+    a grid of tip masses ``masses`` [kg]."""
+    return (f"[study]\ncontrollers = {list(controllers)!r}\nt_f = 1.0\nt_end = {t_end!r}\nplant_modes = 2\n"
+            f"[params]\nn_axial = 2\nn_transverse = 2\n[grid]\nm_t = {list(masses)!r}\n").replace("'", '"')
 
 
 @pytest.fixture(scope="session")

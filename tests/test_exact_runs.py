@@ -15,7 +15,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.exact import EXUDYN_INSTALL, exudyn_available
 from hubbeam_ctrl.study.compare import compare
 from hubbeam_ctrl.study.compare_values import CompareSettings, PlantChoice, RunChoice, ScenarioChoice
-from hubbeam_ctrl.study.spec import load_spec
+from hubbeam_ctrl.study.spec_files import load_spec
 from hubbeam_ctrl.study.sweep import sweep
 
 needs_exudyn = pytest.mark.skipif(not exudyn_available(), reason=EXUDYN_INSTALL)

@@ -12,7 +12,8 @@ import scipy.io
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.linear.export import FORMATS, load_model, save_model
-from hubbeam_ctrl.linear.statespace import discretize, linearize, reduce
+from hubbeam_ctrl.linear.statespace import linearize
+from hubbeam_ctrl.linear.transforms import discretize, reduce
 
 FMT = [f.lstrip(".") for f in FORMATS]
 

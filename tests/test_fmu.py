@@ -108,44 +108,12 @@ def test_pulse_in_fmpy_equals_fixed_step_run(plant_fmu):
 def test_pd_loop_through_fmu2slave_equals_simulate_closed_loop(plant_fmu, tmp_path):
     """A PD controller (Python) reading the FMU's sensors through FMPy's FMU2Slave, one doStep
     per sample, against simulate_closed_loop on the same plant with noise-free sensors."""
-    from fmpy.fmi2 import FMU2Slave
     dt = plant_fmu.dt
     design = DesignModel.build(SMALL, 0.0, dt, n_modes=3)
     ref_traj = eq44_reference(200.0, 10.0, SMALL.total_inertia, dt, T_END)
     ctrl = PD(design, PDSettings(bandwidth=2.0), reference=ref_traj)
-    quiet = SensorSettings(angle_noise_rad=0.0, rate_noise_rad_s=0.0, moment_noise_nm=0.0)
-    ref = simulate_closed_loop("foam", ctrl, T_END, params=SMALL,
-                               settings=ClosedLoopSettings(dt=dt, substeps=plant_fmu.substeps, sensors=quiet))
-    md = fmpy.read_model_description(str(plant_fmu.path))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    folder = fmpy.extract(str(plant_fmu.path), unzipdir=str(tmp_path / "unzipped"))
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=folder, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="pd_loop")
-    fmu.instantiate()
-    fmu.setupExperiment(startTime=0.0)
-    fmu.enterInitializationMode()
-    fmu.exitInitializationMode()
-    ctrl.reset()
-    sensors = [vr["theta"], vr["theta_dot"], vr["root_moment"]]
-    v_tip, taus = [], []
-    try:
-        for k in range(len(ref.t)):
-            y = np.array(fmu.getReal(sensors + [vr["v_tip"]]))
-            v_tip.append(y[3])
-            tau = float(ctrl(ref.t[k], y[:3]))
-            taus.append(tau)
-            if k == len(ref.t) - 1:
-                break
-            fmu.setReal([vr["u"]], [tau])
-            fmu.doStep(currentCommunicationPoint=ref.t[k], communicationStepSize=dt)
-    finally:
-        fmu.terminate()
-        fmu.freeInstance()
-    peak = np.max(np.abs(ref.v_tip))
-    err = np.max(np.abs(np.array(v_tip) - ref.v_tip)) / peak
-    err_tau = np.max(np.abs(np.array(taus) - ref.tau)) / np.max(np.abs(ref.tau))
-    print(f"FMU PD loop: max tip difference {err:.2e} of the peak {peak:.4f} m, torque {err_tau:.2e} of its peak")
-    assert peak > 1e-3
+    ref = _quiet_closed_loop(plant_fmu, ctrl)
+    err, err_tau = _fmu_loop_errors(plant_fmu, tmp_path / "unzipped", "pd_loop", ctrl, ref, "FMU PD loop")
     assert err < 1e-6
     assert err_tau < 1e-6
 
@@ -246,7 +214,6 @@ def test_generated_c_controller_and_fmu_in_fmpy_equal_the_toolbox_loop(plant_fmu
     """Issue 26 item 4: the generated C LQG (hubbeam_ctrl.deploy) reading the FMU's sensors through
     FMPy's FMU2Slave, one doStep per sample, against simulate_closed_loop of the Python LQG on the
     same plant with noise-free sensors: the tip within 1e-6 of its peak, the torque likewise."""
-    from fmpy.fmi2 import FMU2Slave
 
     from controllers import LQG, LQGSettings, slew_reference
     from hubbeam_ctrl.deploy import CController, compile_c, compiler, to_c
@@ -256,35 +223,49 @@ def test_generated_c_controller_and_fmu_in_fmpy_equal_the_toolbox_loop(plant_fmu
     design = DesignModel.build(SMALL, 0.0, dt, n_modes=2)
     ref_traj = slew_reference(0.3, 2.0, SMALL.total_inertia, 200.0, dt, T_END)
     lqg = LQG(design, LQGSettings(residual_control=True, residual_modes=3), reference=ref_traj)
-    quiet = SensorSettings(angle_noise_rad=0.0, rate_noise_rad_s=0.0, moment_noise_nm=0.0)
-    ref = simulate_closed_loop("foam", lqg, T_END, params=SMALL,
-                               settings=ClosedLoopSettings(dt=dt, substeps=plant_fmu.substeps, sensors=quiet))
+    ref = _quiet_closed_loop(plant_fmu, lqg)
     code = to_c(lqg, tmp_path / "lqg")
     cctrl = CController(compile_c(code, "-O2", tmp_path), code, lqg)
+    err, err_tau = _fmu_loop_errors(plant_fmu, tmp_path / "u", "c_loop", cctrl, ref, "C LQG + FMU in FMPy")
+    assert err < 1e-6 and err_tau < 1e-6
+
+
+def _quiet_closed_loop(plant_fmu, ctrl):
+    """simulate_closed_loop of ``ctrl`` on the FMU's plant (FOAM, its substeps) with noise-free sensors."""
+    quiet = SensorSettings(angle_noise_rad=0.0, rate_noise_rad_s=0.0, moment_noise_nm=0.0)
+    return simulate_closed_loop("foam", ctrl, T_END, params=SMALL, settings=ClosedLoopSettings(
+        dt=plant_fmu.dt, substeps=plant_fmu.substeps, sensors=quiet))
+
+
+def _fmu_loop_errors(plant_fmu, unzip, instance: str, ctrl, ref, label: str) -> tuple:
+    """``ctrl`` reading the FMU's sensors through FMPy's FMU2Slave, one doStep per sample: the largest
+    tip and torque differences from ``ref``, relative to their peaks (the tip's peak must be > 1 mm)."""
+    from fmpy.fmi2 import FMU2Slave
     md = fmpy.read_model_description(str(plant_fmu.path))
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(plant_fmu.path), unzipdir=str(tmp_path / "u")),
-                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="c_loop")
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(plant_fmu.path), unzipdir=str(unzip)),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName=instance)
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
     fmu.exitInitializationMode()
-    cctrl.reset()
+    ctrl.reset()
+    outputs = [vr["theta"], vr["theta_dot"], vr["root_moment"], vr["v_tip"]]
     v_tip, taus = [], []
     try:
         for k in range(len(ref.t)):
-            y = np.array(fmu.getReal([vr["theta"], vr["theta_dot"], vr["root_moment"], vr["v_tip"]]))
+            y = np.array(fmu.getReal(outputs))
             v_tip.append(y[3])
-            taus.append(cctrl(ref.t[k], y[:3]))
+            taus.append(float(ctrl(ref.t[k], y[:3])))
             if k < len(ref.t) - 1:
                 fmu.setReal([vr["u"]], [taus[-1]])
-                fmu.doStep(currentCommunicationPoint=ref.t[k], communicationStepSize=dt)
+                fmu.doStep(currentCommunicationPoint=ref.t[k], communicationStepSize=plant_fmu.dt)
     finally:
         fmu.terminate()
         fmu.freeInstance()
     peak = np.max(np.abs(ref.v_tip))
     err = np.max(np.abs(np.array(v_tip) - ref.v_tip)) / peak
     err_tau = np.max(np.abs(np.array(taus) - ref.tau)) / np.max(np.abs(ref.tau))
-    print(f"C LQG + FMU in FMPy: tip {err:.2e} of the peak {peak:.4f} m, torque {err_tau:.2e} of its peak")
+    print(f"{label}: max tip difference {err:.2e} of the peak {peak:.4f} m, torque {err_tau:.2e} of its peak")
     assert peak > 1e-3
-    assert err < 1e-6 and err_tau < 1e-6
+    return err, err_tau

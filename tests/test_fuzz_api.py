@@ -40,7 +40,8 @@ from hubbeam_ctrl import (
 from hubbeam_ctrl.cli.args import OPTION_NAMES, rename_options
 from hubbeam_ctrl.core.budget import check_budget
 from hubbeam_ctrl.core.errors import HubbeamError, UserFunctionError
-from hubbeam_ctrl.core.fileio import check_writable, strict_json
+from hubbeam_ctrl.core.fileio import check_writable
+from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.core.settings import _in_range
 from hubbeam_ctrl.plant.params import RELATIONS
 from hubbeam_ctrl.plant.sensors import SensorSettings

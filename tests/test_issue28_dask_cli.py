@@ -10,25 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ENV, sweep_spec
 
 from hubbeam_ctrl.cli.main import main
-from hubbeam_ctrl.study.spec import load_spec
+from hubbeam_ctrl.study.spec_files import load_spec
 from hubbeam_ctrl.study.sweep import TIMING_COLUMNS, read_results, sweep
 
-ROOT = Path(__file__).resolve().parents[1]
-ENV = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
-       "MPLBACKEND": "Agg"}
-SPEC = """[study]
-controllers = ["openloop", "lqr"]
-t_f = 1.0
-t_end = 6.5
-plant_modes = 2
-[params]
-n_axial = 2
-n_transverse = 2
-[grid]
-m_t = [0.0, 0.2, 0.4]
-"""
+SPEC = sweep_spec(["openloop", "lqr"], 6.5, [0.0, 0.2, 0.4])
 
 
 def _free_port() -> int:

@@ -130,7 +130,7 @@ def saved(tmp_path_factory):
 def test_zip_bomb_is_refused_on_its_unpacked_size(saved, tmp_path, monkeypatch):
     import numpy as np
 
-    from hubbeam_ctrl.core import fileio
+    from hubbeam_ctrl.core import npz
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.sim.results import load_result
     bomb = tmp_path / "bomb.npz"
@@ -139,7 +139,7 @@ def test_zip_bomb_is_refused_on_its_unpacked_size(saved, tmp_path, monkeypatch):
     content["extra"] = np.zeros(4_000_000)                       # 32 MB unpacked, ~30 kB on disk
     np.savez_compressed(bomb, **content)
     assert bomb.stat().st_size < 200_000
-    monkeypatch.setattr(fileio, "MAX_NPZ_BYTES", 16_000_000)
+    monkeypatch.setattr(npz, "MAX_NPZ_BYTES", 16_000_000)
     import tracemalloc
     tracemalloc.start()
     with pytest.raises(ParameterError, match="unpack to .* bytes, more than the 16000000 read"):
@@ -215,7 +215,7 @@ def test_mat_controller_with_a_foreign_version_is_refused(saved, tmp_path):
 
 # -- sweep folders: resume repairs or refuses, one sweep at a time, nothing half-made ---------------
 def _study(tmp_path, name="study"):
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.spec_files import load_spec
     from hubbeam_ctrl.study.sweep import sweep
     spec = load_spec({"study": {"controllers": ["openloop"], "t_f": 1.0, "t_end": 6.5, "plant_modes": 2},
                       "params": {"n_axial": 2, "n_transverse": 2}, "grid": {"m_t": [0.0, 0.1, 0.2]}})
@@ -360,7 +360,7 @@ def test_sweep_specs_are_budgeted_up_front(tables, needle):
     import time
 
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.spec_files import load_spec
     t0 = time.perf_counter()
     with pytest.raises(ParameterError, match=needle) as err:
         load_spec(_spec_with(**tables))
@@ -369,7 +369,7 @@ def test_sweep_specs_are_budgeted_up_front(tables, needle):
 
 
 def test_a_truncated_distribution_inside_the_range_is_accepted():
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.spec_files import load_spec
     spec = load_spec(_spec_with(random={"n": 50, "m_t": {"dist": "normal", "mean": 0.05, "std": 0.1,
                                                          "low": 0.0, "high": 0.3}}))
     assert all(0.0 <= c["m_t"] <= 0.3 for c in spec.cases())
@@ -432,7 +432,8 @@ def _api_cases():
 
     from controllers.mpc import MPCSettings
     from controllers.reference import slew_reference
-    from hubbeam_ctrl.linear.statespace import linearize, reduce
+    from hubbeam_ctrl.linear.statespace import linearize
+    from hubbeam_ctrl.linear.transforms import reduce
     from hubbeam_ctrl.plant.modal import campbell
     from hubbeam_ctrl.plant.params import Params, load_params, save_params
     lm = linearize("sfoam", spin=0.0, params=Params(n_axial=1, n_transverse=2))
@@ -477,7 +478,7 @@ def test_ranges_doc_states_the_scaled_t_end_rule():
 
 def test_spec_parameter_errors_name_the_spec_key():
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.spec_files import load_spec
     with pytest.raises(ParameterError, match=r"^params\.m_t must be in \[0, 1e\+06\] \[kg\], got -1"):
         load_spec({"params": {"m_t": -1.0}})
     with pytest.raises(ParameterError, match=r"^params: unknown parameter\(s\) foo"):
@@ -489,7 +490,7 @@ def test_a_refused_second_sweep_leaves_the_first_ones_new_folder_alone(tmp_path)
     import fcntl
 
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.spec_files import load_spec
     from hubbeam_ctrl.study.sweep import _StudyFolder
     spec = load_spec({"study": {"controllers": ["openloop"], "t_f": 1.0, "t_end": 6.5},
                       "params": {"n_axial": 2, "n_transverse": 2}})

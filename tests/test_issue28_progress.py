@@ -2,13 +2,10 @@
 output and library diagnostics go to the --verbose log, never the terminal."""
 
 import io
-import os
 import subprocess
 import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-ENV = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), "MPLBACKEND": "Agg"}
+from conftest import ENV
 
 NOISY = r"""
 import argparse, logging, os, sys

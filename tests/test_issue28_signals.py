@@ -14,21 +14,9 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import ENV, sweep_spec
 
-ROOT = Path(__file__).resolve().parents[1]
-ENV = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
-       "MPLBACKEND": "Agg"}
-SPEC = """[study]
-controllers = ["lqr", "lqg"]
-t_f = 1.0
-t_end = 60.0
-plant_modes = 2
-[params]
-n_axial = 2
-n_transverse = 2
-[grid]
-m_t = [0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35]
-"""
+SPEC = sweep_spec(["lqr", "lqg"], 60.0, [0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35])
 
 
 def _session(sid: int) -> list:

@@ -3,7 +3,7 @@
 import pytest
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.study.spec import load_spec
+from hubbeam_ctrl.study.spec_files import load_spec
 
 SMALL_BEAM = {"study": {"controllers": ["openloop", "lqr"], "t_f": 1.0, "t_end": 6.5},
               "params": {"n_axial": 2, "n_transverse": 2, "tau_max": 1.5}}

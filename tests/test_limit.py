@@ -227,7 +227,7 @@ def test_published_rig_limit_keeps_the_tip_in_range_and_the_drive_in_its_limits(
     and its torques stay inside the drive's envelope."""
     import math
 
-    from hubbeam_ctrl.limit.optimal import _drive_terms
+    from hubbeam_ctrl.limit.bound import _drive_terms
     from hubbeam_ctrl.plant.rig import load_rig
     rig = load_rig("servo_link")
     # 3 design modes on 24 intervals keep the test at ~5 s (the defaults, 5 modes on 40: 0.3022 s, 37 s)

@@ -16,7 +16,7 @@ from hubbeam_ctrl.limit import (
     rigid_bound,
     time_optimal_slew,
 )
-from hubbeam_ctrl.limit.optimal import _drive_terms
+from hubbeam_ctrl.limit.bound import _drive_terms
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.plant.rig import load_rig
 

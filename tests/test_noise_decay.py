@@ -19,7 +19,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import load_rig
 from hubbeam_ctrl.study.rig_loop import rig_noise
 from hubbeam_ctrl.study.scenarios import make_scenario
-from hubbeam_ctrl.study.spec import controller_settings
+from hubbeam_ctrl.study.settings_table import controller_settings
 from hubbeam_ctrl.study.tasks import Slew
 
 LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)

@@ -10,7 +10,7 @@ import casadi as ca
 from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.limit import time_optimal_slew
 from hubbeam_ctrl.limit.ipopt_progress import iteration_callback
-from hubbeam_ctrl.limit.optimal import OptimalSettings
+from hubbeam_ctrl.limit.slew import OptimalSettings
 from hubbeam_ctrl.plant.params import Params
 
 

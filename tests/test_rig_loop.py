@@ -186,7 +186,7 @@ def test_sweep_on_a_rig_gives_the_rows_of_compare(tmp_path):
     """[study] rig = "servo_link": the sweep's case at the base beam equals compare(rig=...) bit for bit
     (the rig's dt, its hardware and the controllers on the rig, the same code path), and a spec whose
     rig file sits beside it is read relative to it."""
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.spec_files import load_spec
     from hubbeam_ctrl.study.sweep import sweep
     study = {"controllers": ["lqg"], "rig": "servo_link", "t_f": 0.6, "slew_angle": 1.5708, "t_end": 1.0}
     spec = load_spec({"study": study, "grid": {"m_t": [0.0, 0.005]}})
@@ -210,7 +210,7 @@ def test_sweep_rig_option_replaces_the_specs_rig(tmp_path, capsys):
     """hubbeam sweep SPEC --rig RIG: the rig replaces [study] rig; a bad one is one line naming --rig,
     exit 2, nothing written."""
     from hubbeam_ctrl.cli.main import main
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.spec_files import load_spec
     spec = tmp_path / "spec.toml"
     spec.write_text('[study]\ncontrollers = ["lqg"]\nt_f = 4.0\nslew_angle = 0.3\n')
     assert load_spec(spec).rig is None

@@ -8,7 +8,9 @@ from scipy.stats import norm
 from controllers import LQRSettings
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec, settings_to_toml
+from hubbeam_ctrl.study.settings_table import controller_settings, settings_to_toml
+from hubbeam_ctrl.study.spec import StudySpec
+from hubbeam_ctrl.study.spec_files import load_spec
 
 SMALL = {"study": {"controllers": ["openloop", "lqr"], "t_f": 1.0, "t_end": 6.5},
          "params": {"n_axial": 2, "n_transverse": 2}}

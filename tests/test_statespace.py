@@ -23,16 +23,10 @@ import scipy.linalg as sla
 
 from hubbeam_ctrl import Params, critical_speed, natural_frequencies
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.linear.statespace import (
-    OUTPUTS,
-    LinearModel,
-    compare_poles,
-    continuous_poles,
-    discretize,
-    linearize,
-    poles_hz,
-    reduce,
-)
+from hubbeam_ctrl.linear.pole_comparison import compare_poles
+from hubbeam_ctrl.linear.poles import continuous_poles, poles_hz
+from hubbeam_ctrl.linear.statespace import OUTPUTS, LinearModel, linearize
+from hubbeam_ctrl.linear.transforms import discretize, reduce
 
 P = Params()
 TABLE2 = {0.0: [0.4635, 2.9047, 8.1332, 15.9377, 26.3462],

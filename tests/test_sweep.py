@@ -1,29 +1,23 @@
 """Sweeps: numbers equal to single runs, the same on every engine, no lost work."""
 
 import json
-import os
 import signal
 import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ENV
 
 from hubbeam_ctrl.cli.main import main
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.compare import compare
 from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice, PlantChoice, RunChoice, ScenarioChoice
-from hubbeam_ctrl.study.spec import load_spec
+from hubbeam_ctrl.study.spec_files import load_spec
 from hubbeam_ctrl.study.sweep import TIMING_COLUMNS, CaseCache, plan_batches, read_results, run_case, sweep
-
-ROOT = Path(__file__).resolve().parents[1]
-ENV = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""),
-       "MPLBACKEND": "Agg"}
-
 
 #: Plant modes of the engine tests: the design's 2, so that the tests of the engine (pool, cluster, resume,
 #: cache) stay fast; the sweep on the default evaluation plant (10 modes here) is checked against compare()

@@ -12,7 +12,7 @@ from hubbeam_ctrl.cli.main import main
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.scenarios import make_scenario
-from hubbeam_ctrl.study.spec import load_settings, load_spec
+from hubbeam_ctrl.study.spec_files import load_settings, load_spec
 from hubbeam_ctrl.study.sweep import sweep
 from hubbeam_ctrl.study.tune import (
     TuneOptions,

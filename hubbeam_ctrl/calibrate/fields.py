@@ -23,7 +23,9 @@ _NAME = re.compile(r"^(?:(beam|motor|friction|damping)\.)?([A-Za-z_][A-Za-z0-9_]
 
 @dataclass(frozen=True)
 class FitField:
-    """One fitted rig field.
+    """One fitted rig field: where it is in the rig, its scale and its bounds.
+
+    Built by :func:`resolve_fields` from the names the caller gives (``--fit`` on the command line).
 
     Attributes
     ----------

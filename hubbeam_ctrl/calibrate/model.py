@@ -86,11 +86,14 @@ def clamped_modes(rig: Rig, n: int = 2) -> tuple:
     Parameters
     ----------
     rig : Rig
+        Its beam (``plant_params``).
     n : int
+        Bending modes wanted, >= 1.
 
     Returns
     -------
     (ndarray, ndarray)
+        Frequencies [Hz] and damping ratios [-], ascending in frequency.
     """
     p = rig.plant_params.replace(n_transverse=min(n + 2, 20), n_axial=2)
     r = modal_analysis("foam", 0.0, "prescribed", p)
@@ -122,12 +125,8 @@ def sliding_hub_modes(rig: Rig, n: int = 2) -> tuple:
 
     Parameters
     ----------
-    rig : Rig
-    n : int
-
-    Returns
-    -------
-    (ndarray, ndarray)
+    rig, n
+        As :func:`clamped_modes` (the rig's drive and friction damp the hub here).
     """
     from hubbeam_ctrl.plant.linearization import first_order_matrices, second_order_linearization
     p = rig.plant_params.replace(n_transverse=min(n + 2, 20), n_axial=2)

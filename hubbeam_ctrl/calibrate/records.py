@@ -34,7 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write, check_regular_file, read_npz, write_npz
+from hubbeam_ctrl.core.fileio import atomic_write
+from hubbeam_ctrl.core.npz import read_npz, write_npz
+from hubbeam_ctrl.core.reading import check_regular_file
 from hubbeam_ctrl.sim.results import CSV_COLUMNS
 
 __all__ = ["Record", "load_record", "save_record", "INPUT_COLUMNS", "SENSOR_COLUMNS", "RECORD_COLUMNS",
@@ -246,6 +248,8 @@ def load_record(path) -> Record:
     Parameters
     ----------
     path : str or Path
+        The record file; a missing, unreadable or invalid one is one line of
+        :class:`ParameterError` naming it.
 
     Returns
     -------
@@ -315,7 +319,9 @@ def save_record(record: Record, path) -> Path:
     Parameters
     ----------
     record : Record
+        The record (validated when it was made).
     path : str or Path
+        A ``.csv`` or ``.npz`` file name; the extension picks the format.
 
     Returns
     -------

@@ -80,7 +80,7 @@ def load_modal_table(path) -> ModalTable:
     -------
     ModalTable
     """
-    from hubbeam_ctrl.core.fileio import check_regular_file
+    from hubbeam_ctrl.core.reading import check_regular_file
     path = check_regular_file(path, "modal table")
     with open(path, encoding="utf-8") as fh:
         header = fh.readline()

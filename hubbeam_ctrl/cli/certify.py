@@ -14,7 +14,8 @@ import sys
 from hubbeam_ctrl.cli.args import check_output_dir, stdout
 from hubbeam_ctrl.cli.compare import add_compare_options, compare_plan
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json
+from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.core.jsonio import strict_json
 
 __all__ = ["add_parser", "run", "parse_uncertainty", "CHECKS", "DESIGNS"]
 

@@ -27,7 +27,7 @@ from hubbeam_ctrl.cli.args import (
 )
 from hubbeam_ctrl.cli.main import RegistryChoices, add_backend_option, positive_int
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import strict_json
+from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
 
 __all__ = ["add_parser", "add_compare_options", "run", "compare_plan", "ComparePlan", "stdout_to_stderr"]

@@ -76,7 +76,7 @@ def run(args) -> int:
     from hubbeam_ctrl.calibrate.excitation import excitation
     from hubbeam_ctrl.calibrate.records import save_record
     from hubbeam_ctrl.cli.args import check_output, refuse_inapplicable, stdout
-    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.core.jsonio import strict_json
     from hubbeam_ctrl.plant.rig import load_rig
 
     sink = stdout(args)

@@ -57,7 +57,7 @@ def run(args) -> int:
 
     from hubbeam_ctrl.cli.args import params_from_args, rig_from_args, stdout
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.core.jsonio import strict_json
     from hubbeam_ctrl.fmu import build_fmu
 
     source = rig_from_args(args)

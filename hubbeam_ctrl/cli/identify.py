@@ -110,7 +110,8 @@ def run(args) -> int:
     from hubbeam_ctrl.calibrate.records import load_record
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.core.fileio import strict_json, write_folder
+    from hubbeam_ctrl.core.fileio import write_folder
+    from hubbeam_ctrl.core.jsonio import strict_json
     from hubbeam_ctrl.plant.rig import load_rig
     from hubbeam_ctrl.plots.calibration import plot_record_fit
     from hubbeam_ctrl.plots.plant import save_figure
@@ -238,7 +239,8 @@ def _run_modal_table(args, rig, fit_fields, bounds, out, sink) -> int:
 
     from hubbeam_ctrl.calibrate.fit import FitSettings
     from hubbeam_ctrl.calibrate.table import fit_modal_table, load_modal_table
-    from hubbeam_ctrl.core.fileio import strict_json, write_folder
+    from hubbeam_ctrl.core.fileio import write_folder
+    from hubbeam_ctrl.core.jsonio import strict_json
 
     table = load_modal_table(args.modal_table)
     result = fit_modal_table(rig, table, [f.name for f in fit_fields], bounds=bounds,

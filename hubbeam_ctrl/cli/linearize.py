@@ -75,10 +75,11 @@ def run(args) -> int:
         The parsed command line.
     """
     from hubbeam_ctrl.cli.args import check_output, params_from_args, stdout
-    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.core.jsonio import strict_json
     from hubbeam_ctrl.core.validation import check_in_range
     from hubbeam_ctrl.linear.export import FORMATS, save_model
-    from hubbeam_ctrl.linear.statespace import DT_RANGE, discretize, linearize
+    from hubbeam_ctrl.linear.statespace import DT_RANGE, linearize
+    from hubbeam_ctrl.linear.transforms import discretize
 
     sink = stdout(args)
     out = check_output("--out", args.out, FORMATS)

@@ -29,7 +29,7 @@ from hubbeam_ctrl.cli.args import (
     stdout,
 )
 from hubbeam_ctrl.core.errors import RESOURCE_ERRNOS, HubbeamError, ParameterError, ResourceError
-from hubbeam_ctrl.core.fileio import strict_json
+from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.core.native import capture_native_output
 from hubbeam_ctrl.plant.convergence import CLI_ASSUMED_MODES
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, MODEL_SPECS

@@ -59,7 +59,7 @@ def run(args) -> int:
         The parsed command line.
     """
     from hubbeam_ctrl.cli.args import stdout
-    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.core.jsonio import strict_json
     from hubbeam_ctrl.limit import min_vibration_slew, time_optimal_slew
 
     sink = stdout(args)

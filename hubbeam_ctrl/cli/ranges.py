@@ -21,7 +21,7 @@ from hubbeam_ctrl.cli.args import OPTION_NAMES
 from hubbeam_ctrl.core.budget import T_END_MAX
 from hubbeam_ctrl.core.settings import Settings, range_text
 from hubbeam_ctrl.exact import MIN_ELEMENTS, MIN_STEPS_PER_PERIOD
-from hubbeam_ctrl.limit.optimal import MAX_DURATION, MIN_SLEW_ANGLE, MIN_TOLERANCE
+from hubbeam_ctrl.limit.slew import MAX_DURATION, MIN_SLEW_ANGLE, MIN_TOLERANCE
 from hubbeam_ctrl.linear.statespace import DT_RANGE
 from hubbeam_ctrl.plant.maneuvers import ConstantSpin, SpinUp, TorquePulse
 from hubbeam_ctrl.plant.params import MAX_MODES, MAX_ROOT_STRAIN, RELATIONS, Params

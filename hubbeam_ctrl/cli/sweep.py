@@ -110,7 +110,7 @@ def spec_from_args(args):
     hubbeam_ctrl.study.spec.StudySpec
     """
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.study.spec import load_spec
+    from hubbeam_ctrl.study.spec_files import load_spec
 
     try:
         return load_spec(args.spec, rig=args.rig, plant=getattr(args, "plant", None))
@@ -133,8 +133,8 @@ def run(args) -> int:
     """
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
-    from hubbeam_ctrl.core.fileio import strict_json
-    from hubbeam_ctrl.study.spec import load_settings
+    from hubbeam_ctrl.core.jsonio import strict_json
+    from hubbeam_ctrl.study.spec_files import load_settings
     from hubbeam_ctrl.study.sweep import sweep
     from hubbeam_ctrl.study.sweep_report import write_sweep_outputs
 

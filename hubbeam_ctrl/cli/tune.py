@@ -73,8 +73,9 @@ def run(args) -> int:
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     from hubbeam_ctrl.cli.compare import stdout_to_stderr
     from hubbeam_ctrl.cli.sweep import engine_from_args, spec_from_args
-    from hubbeam_ctrl.core.fileio import read_toml, strict_json
-    from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES
+    from hubbeam_ctrl.core.jsonio import strict_json
+    from hubbeam_ctrl.core.reading import read_toml
+    from hubbeam_ctrl.study.spec_files import MAX_SPEC_BYTES
     from hubbeam_ctrl.study.tune import TuneOptions, tune, write_tune_outputs
 
     sink = stdout(args)

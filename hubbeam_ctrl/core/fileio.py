@@ -1,4 +1,4 @@
-"""File helpers: atomic writes, output folders, and NPZ files of arrays plus JSON metadata.
+"""Atomic writes: temporary files renamed into place, output folders, manifests.
 
 Every file the toolbox writes goes through :func:`atomic_write` (a temporary file
 ``.hubbeam-tmp-<pid>-<random>-<name>`` in the target folder, then a rename), so an
@@ -7,15 +7,13 @@ SIGTERM/SIGINT and at exit, and those of killed processes by the next writer in 
 Final files get the permissions the umask allows. :func:`check_writable` tests an output
 path before any work. Multi-file outputs go through :func:`write_folder`, which marks a
 finished folder with a manifest written last (:func:`read_manifest` checks it).
-:func:`write_npz` and :func:`read_npz` are the one NPZ layout of the toolbox: named arrays
-plus a ``metadata`` entry holding a JSON document; :func:`read_npz` turns every way a file
-can be unreadable into a one-line :class:`~hubbeam_ctrl.core.errors.ParameterError`.
+Reading inputs is :mod:`hubbeam_ctrl.core.reading`, JSON text :mod:`hubbeam_ctrl.core.jsonio`,
+the NPZ layout :mod:`hubbeam_ctrl.core.npz`.
 """
 
 from __future__ import annotations
 
 import atexit
-import dataclasses
 import hashlib
 import json
 import os
@@ -26,14 +24,10 @@ import threading
 import time
 from pathlib import Path
 
-import numpy as np
-
 from hubbeam_ctrl.core.errors import ParameterError, write_error
 
-__all__ = ["read_toml", "path_exists", "MAX_TOML_BYTES", "MAX_NPZ_BYTES",
-           "atomic_write", "atomic_write_text", "json_ready", "strict_json", "write_npz", "read_npz",
-           "check_regular_file", "check_writable", "output_folder", "write_folder", "read_manifest",
-           "remove_stale_temporaries", "remove_temporaries", "TEMP_PREFIX", "MANIFEST"]
+__all__ = ["atomic_write", "atomic_write_text", "check_writable", "output_folder", "write_folder",
+           "read_manifest", "remove_stale_temporaries", "remove_temporaries", "TEMP_PREFIX", "MANIFEST"]
 
 
 #: Prefix of every temporary file or folder the toolbox writes (next to the final one).
@@ -172,12 +166,14 @@ def check_writable(path, option: str = "out") -> Path:
     Parameters
     ----------
     path : str or Path
+        The file to be written (it may exist: it is replaced).
     option : str
         The argument's name as the caller spelled it (starts the message).
 
     Returns
     -------
     Path
+        ``Path(path)``, checked.
 
     Raises
     ------
@@ -374,6 +370,7 @@ def read_manifest(folder, option: str = "path") -> dict:
     Parameters
     ----------
     folder : str or Path
+        An output folder of a command (``hubbeam compare --out``, ``identify``, ``codegen``...).
     option : str
         The argument's name as the caller spelled it (starts error messages).
 
@@ -428,113 +425,6 @@ def atomic_write_text(path, text: str) -> Path:
     return atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
-def _json_default(obj):
-    """``json.dumps`` fallback: NumPy scalars and arrays, dataclasses, paths, else ``str``."""
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return dataclasses.asdict(obj)
-    return str(obj)
-
-
-def _dumps(value) -> str:
-    return json.dumps(value, default=_json_default)
-
-
-def json_ready(value):
-    """``value`` as it reads back from JSON: tuples become lists, NumPy scalars plain numbers.
-
-    Storing metadata in this form makes a save/load round trip return equal values.
-
-    Parameters
-    ----------
-    value : object
-        Nested dicts, lists, numbers, strings; NumPy values, dataclasses and paths are
-        converted, anything else becomes its ``str``.
-
-    Returns
-    -------
-    object
-    """
-    return json.loads(_dumps(value))
-
-
-def _finite_only(value, flag: str):
-    """``value`` with non-finite floats as ``None``; each dict that had some lists their keys
-    under ``flag``."""
-    if isinstance(value, (float, np.floating)):
-        return float(value) if np.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.ndarray):
-        return _finite_only(value.tolist(), flag)
-    if isinstance(value, (list, tuple)):
-        return [_finite_only(v, flag) for v in value]
-    if isinstance(value, dict):
-        out, bad = {}, []
-        for k, v in value.items():
-            out[k] = _finite_only(v, flag)
-            if out[k] is None and isinstance(v, (float, np.floating)):
-                bad.append(k)
-        if bad:
-            out[flag] = bad
-        return out
-    return value
-
-
-def strict_json(value, flag: str = "non_finite", **kwargs) -> str:
-    """Strict JSON text (``allow_nan=False``): NaN and infinities become ``null``.
-
-    Every object that had such values gets ``flag`` listing their keys, so ``null`` is
-    never mistaken for a missing value.
-
-    Parameters
-    ----------
-    value : object
-        Nested dicts, lists, numbers, strings (NumPy values accepted).
-    flag : str
-        Key of the list of replaced entries.
-    **kwargs
-        Passed to :func:`json.dumps` (``indent``...).
-
-    Returns
-    -------
-    str
-
-    Examples
-    --------
-    >>> strict_json({"peak": float("nan"), "n": 3})
-    '{"peak": null, "n": 3, "non_finite": ["peak"]}'
-    """
-    return json.dumps(_finite_only(value, flag), allow_nan=False, default=_json_default, **kwargs)
-
-
-def write_npz(path, arrays: dict, metadata: dict) -> Path:
-    """Write named arrays and a JSON ``metadata`` entry to an ``.npz`` file, atomically.
-
-    Parameters
-    ----------
-    path : str or Path
-        File name (``.npz``).
-    arrays : dict
-        Name -> ndarray (not ``metadata``); stored bit for bit.
-    metadata : dict
-        JSON-serialisable document (see :func:`json_ready`).
-
-    Returns
-    -------
-    Path
-    """
-    text = _dumps(metadata)
-
-    def write(tmp):
-        with open(tmp, "wb") as fh:
-            np.savez(fh, metadata=np.array(text), **arrays)
-    return atomic_write(path, write)
-
-
 def output_folder(out_dir, option: str = "out", create: bool = True) -> Path:
     """An output folder: its parent must exist and it must not be a file; created if missing.
 
@@ -550,6 +440,7 @@ def output_folder(out_dir, option: str = "out", create: bool = True) -> Path:
     Returns
     -------
     Path
+        The folder, which exists unless ``create`` is false.
 
     Raises
     ------
@@ -567,195 +458,3 @@ def output_folder(out_dir, option: str = "out", create: bool = True) -> Path:
 
 
 #: Largest TOML input read (parameters, study specs, settings) [bytes].
-MAX_TOML_BYTES = 1_000_000
-
-
-def _short_path(path) -> str:
-    """``path`` as shown in a one-line message: at most 120 characters (a name past PATH_MAX is cut
-    in the middle, so the message still ends with its reason)."""
-    text = str(path)
-    return text if len(text) <= 120 else f"{text[:60]}...{text[-40:]}"
-
-
-def path_exists(path) -> bool:
-    """``Path(path).exists()``, False for a name the system refuses (past NAME_MAX or PATH_MAX):
-    the reader that follows names the reason.
-
-    Parameters
-    ----------
-    path : str or Path
-    """
-    try:
-        return Path(path).exists()
-    except (OSError, ValueError):
-        return False
-
-
-def read_toml(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> dict:
-    """The TOML document at ``path``, or a one-line :class:`ParameterError` naming the file.
-
-    The one reader of every TOML input (``--params``, study specs, ``--settings``). Refused
-    without blocking or a traceback: a missing path, a folder, a FIFO or device (never
-    opened), an unreadable file, a file over ``max_bytes``, bytes that are not UTF-8,
-    invalid or too deeply nested TOML.
-
-    Parameters
-    ----------
-    path : str or Path
-        The file.
-    what : str
-        What the file is, as the message starts (``"params file"``, ``"spec: file"``).
-    max_bytes : int
-        Largest size read [bytes].
-
-    Returns
-    -------
-    dict
-    """
-    import tomllib
-    if path is None or not isinstance(path, (str, os.PathLike)) or str(path).strip() == "" \
-            or "\x00" in str(path):
-        raise ParameterError(f"{what} must be named by a path, got {path!r}")
-    path = Path(path)
-    name = _short_path(path)
-    try:
-        if not path.exists():
-            raise ParameterError(f"{what} {name} does not exist")
-        if not path.is_file():
-            raise ParameterError(f"{what} {name} is not a regular file")
-        if path.stat().st_size > max_bytes:
-            raise ParameterError(f"{what} {name} is larger than {max_bytes} bytes")
-        with open(path, "rb") as fh:
-            data = fh.read(max_bytes + 1)
-        if len(data) > max_bytes:
-            raise ParameterError(f"{what} {name} is larger than {max_bytes} bytes")
-        text = data.decode("utf-8")
-    except OSError as exc:
-        raise ParameterError(f"{what} {name} cannot be read ({exc.strerror or exc})") from None
-    except UnicodeDecodeError as exc:
-        raise ParameterError(f"{what} {name} is not UTF-8 text (byte {exc.start})") from None
-    if "\x00" in text:
-        raise ParameterError(f"{what} {name} is not a text file (NUL byte)")
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"{what} {name} is not valid TOML: {' '.join(str(exc).split())[:200]}") from None
-    except RecursionError:
-        raise ParameterError(f"{what} {name} is nested too deeply") from None
-
-
-def check_regular_file(path, option: str = "path") -> Path:
-    """Return ``Path(path)``; raise unless it names an existing regular file.
-
-    Parameters
-    ----------
-    path : str or Path
-    option : str
-        The argument's name as the caller spelled it (starts the error message).
-
-    Returns
-    -------
-    Path
-    """
-    path = Path(path)
-    try:
-        if not path.exists():
-            raise ParameterError(f"{option}: file {_short_path(path)} does not exist")
-        if not path.is_file():
-            raise ParameterError(f"{option}: {_short_path(path)} is not a regular file")
-    except OSError as exc:             # a name past NAME_MAX or PATH_MAX
-        raise ParameterError(f"{option}: {_short_path(path)} cannot be read ({exc.strerror or exc})") from None
-    return path
-
-
-#: Largest total uncompressed size of the arrays of an ``.npz`` file read [bytes] (the limit
-#: is on what is unpacked, not on the compressed file: a small zip bomb is refused).
-MAX_NPZ_BYTES = 2 * 1024 ** 3
-#: Most entries of an ``.npz`` file read.
-MAX_NPZ_MEMBERS = 1000
-
-
-def _check_npz_members(path: Path, bad, max_bytes: int) -> None:
-    """Refuse an archive whose entries would unpack to more than ``max_bytes``, or whose
-    ``.npy`` headers announce more data than the entry holds (numpy allocates the announced
-    size before reading), before anything is unpacked."""
-    import zipfile
-    with zipfile.ZipFile(path) as zf:
-        infos = zf.infolist()
-        if len(infos) > MAX_NPZ_MEMBERS:
-            raise bad(f"{len(infos)} entries, more than {MAX_NPZ_MEMBERS}")
-        total = sum(i.file_size for i in infos)
-        if total > max_bytes:
-            raise bad(f"its arrays unpack to {total} bytes, more than the {max_bytes} read")
-        if "metadata.npy" not in {i.filename for i in infos}:
-            raise bad("no metadata entry")
-        for info in infos:
-            with zf.open(info) as fh:
-                fmt = np.lib.format
-                version = fmt.read_magic(fh)
-                header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
-                shape, _, dtype = header(fh)
-                if dtype.hasobject:
-                    raise bad(f"entry {info.filename} holds Python objects")
-                size = int(np.prod(shape, dtype=object)) * dtype.itemsize
-                if size > info.file_size:
-                    raise bad(f"entry {info.filename} announces {size} bytes but holds {info.file_size}")
-
-
-def read_npz(path, option: str = "path", what: str = "hubbeam file", max_bytes: int | None = None) -> tuple:
-    """Read a file written by :func:`write_npz`.
-
-    Parameters
-    ----------
-    path : str or Path
-    option : str
-        The argument's name as the caller spelled it (starts the error message).
-    what : str
-        What the file should be, for the error message (e.g. ``"hubbeam result file"``).
-    max_bytes : int, optional
-        Largest total uncompressed size of its entries [bytes] (default
-        :data:`MAX_NPZ_BYTES`; checked on the archive's directory and the arrays' headers
-        before anything is unpacked).
-
-    Returns
-    -------
-    arrays : dict
-        Name -> ndarray, every entry except ``metadata``.
-    metadata : dict
-
-    Raises
-    ------
-    ParameterError
-        One line naming the file: missing or not a regular file, not an NPZ archive,
-        object arrays, no ``metadata`` entry or metadata that is not a JSON object.
-    """
-    path = check_regular_file(path, option)
-
-    def bad(reason):
-        return ParameterError(f"{option}: {path} is not a {what} ({reason})")
-
-    try:
-        with open(path, "rb") as fh:
-            magic = fh.read(4)
-        if magic[:2] != b"PK":
-            raise bad("not an NPZ archive")
-        _check_npz_members(path, bad, MAX_NPZ_BYTES if max_bytes is None else max_bytes)
-        with np.load(path, allow_pickle=False) as data:
-            if "metadata" not in data.files:
-                raise bad("no metadata entry")
-            text = data["metadata"]
-            arrays = {k: data[k] for k in data.files if k != "metadata"}
-    except ParameterError:
-        raise
-    except Exception as exc:        # BadZipFile, OSError, EOFError, ValueError (pickles), ...
-        detail = str(exc).splitlines()[0] if str(exc) else ""
-        raise bad(f"{type(exc).__name__}: {detail}") from None
-    if text.dtype.kind != "U" or text.ndim != 0:
-        raise bad("metadata is not a string")
-    try:
-        metadata = json.loads(str(text))
-    except ValueError as exc:
-        raise bad(f"metadata is not JSON: {exc}") from None
-    if not isinstance(metadata, dict):
-        raise bad("metadata is not a JSON object")
-    return arrays, metadata

@@ -32,37 +32,14 @@ def _is_number(value) -> bool:
         return False
 
 
-def check_positive(name: str, value, unit: str) -> float:
-    """Return ``float(value)``; raise unless it is a finite number > 0 [``unit``].
-
-    Parameters
-    ----------
-    name : str
-        The argument's name as the caller spelled it (starts the message).
-    value : float
-        The value.
-    unit : str
-        Its unit (for the message).
-    """
-    if not (_is_number(value) and value > 0):
-        raise ParameterError(f"{name} must be a finite number > 0 [{unit}], got {_shown(value)}")
-    return float(value)
+#: The bounds of :func:`check_positive` and :func:`check_nonnegative`, as their messages say them.
+_BOUNDS = {"": lambda v: True, "> 0": lambda v: v > 0, ">= 0": lambda v: v >= 0}
 
 
-def check_nonnegative(name: str, value, unit: str) -> float:
-    """Return ``float(value)``; raise unless it is a finite number >= 0 [``unit``].
-
-    Parameters
-    ----------
-    name : str
-        The argument's name as the caller spelled it (starts the message).
-    value : float
-        The value.
-    unit : str
-        Its unit (for the message).
-    """
-    if not (_is_number(value) and value >= 0):
-        raise ParameterError(f"{name} must be a finite number >= 0 [{unit}], got {_shown(value)}")
+def _check_number(name: str, value, unit: str, bound: str = "") -> float:
+    if not (_is_number(value) and _BOUNDS[bound](value)):
+        raise ParameterError(f"{name} must be a finite number{' ' + bound if bound else ''} [{unit}], "
+                             f"got {_shown(value)}")
     return float(value)
 
 
@@ -78,9 +55,31 @@ def check_finite(name: str, value, unit: str) -> float:
     unit : str
         Its unit (for the message).
     """
-    if not _is_number(value):
-        raise ParameterError(f"{name} must be a finite number [{unit}], got {_shown(value)}")
-    return float(value)
+    return _check_number(name, value, unit)
+
+
+def check_positive(name: str, value, unit: str) -> float:
+    """Return ``float(value)``; raise unless it is a finite number > 0 [``unit``].
+
+    Parameters
+    ----------
+    name : str
+    value : float
+    unit : str
+        As :func:`check_finite`.
+    """
+    return _check_number(name, value, unit, "> 0")
+
+
+def check_nonnegative(name: str, value, unit: str) -> float:
+    """Return ``float(value)``; raise unless it is a finite number >= 0 [``unit``].
+
+    Parameters
+    ----------
+    name, value, unit
+        As :func:`check_finite`.
+    """
+    return _check_number(name, value, unit, ">= 0")
 
 
 def check_in_range(name: str, value, unit: str, lo: float, hi: float, why: str = "") -> float:
@@ -91,7 +90,9 @@ def check_in_range(name: str, value, unit: str, lo: float, hi: float, why: str =
     name : str
         The argument's name as the caller spelled it (starts the message).
     value : object
+        Anything: NaN, infinities, booleans and text are refused.
     unit : str
+        Its unit (for the message).
     lo, hi : float
         Inclusive bounds.
     why : str, optional
@@ -152,10 +153,10 @@ def check_array(name: str, values, unit: str, nonempty: bool = True) -> np.ndarr
 
     Parameters
     ----------
-    name : str
-        The argument's name as the caller spelled it (starts the message).
+    name, unit : str
+        As :func:`check_finite`.
     values : array_like
-    unit : str
+        A sequence of numbers (a scalar is one).
     nonempty : bool
         Refuse an empty sequence.
 

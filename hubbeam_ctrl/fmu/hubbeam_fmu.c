@@ -536,12 +536,20 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     return fmi2OK;
 }
 
+/* The FMU has only Real variables: a get or set of nvr > 0 Boolean or String variables is an error. */
+static fmi2Status no_variables(fmi2Component c, size_t nvr, const char *type)
+{
+    char text[64];
+    if (nvr == 0) return fmi2OK;
+    snprintf(text, sizeof text, "this FMU has no %s variables", type);
+    logmsg((Inst *)c, fmi2Error, "error", text);
+    return fmi2Error;
+}
+
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
 {
     (void)vr; (void)value;
-    if (nvr == 0) return fmi2OK;
-    logmsg((Inst *)c, fmi2Error, "error", "this FMU has no Boolean variables");
-    return fmi2Error;
+    return no_variables(c, nvr, "Boolean");
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[])
@@ -552,9 +560,7 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
 {
     (void)vr; (void)value;
-    if (nvr == 0) return fmi2OK;
-    logmsg((Inst *)c, fmi2Error, "error", "this FMU has no String variables");
-    return fmi2Error;
+    return no_variables(c, nvr, "String");
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[])

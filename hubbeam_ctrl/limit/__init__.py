@@ -4,7 +4,10 @@ model, checked on the evaluation plant. Imports the sim, plant and core layers.
 
 import sys as _sys  # noqa: E402
 
+from hubbeam_ctrl.limit.bound import *  # noqa: F401,F403
 from hubbeam_ctrl.limit.optimal import *  # noqa: F401,F403
 from hubbeam_ctrl.limit.replan import *  # noqa: F401,F403
+from hubbeam_ctrl.limit.slew import *  # noqa: F401,F403
 
-__all__ = [*_sys.modules["hubbeam_ctrl.limit.optimal"].__all__, *_sys.modules["hubbeam_ctrl.limit.replan"].__all__]
+__all__ = [name for _m in ('slew', 'bound', 'optimal', 'replan')
+           for name in _sys.modules[f"hubbeam_ctrl.limit.{_m}"].__all__]

@@ -5,7 +5,7 @@ With a constant torque limit ``tau_max`` it is the bang-bang ``2 sqrt(|Theta| J 
 (the voltage limit through back-EMF) and friction takes its share, so the rigid body accelerates
 with ``a(w) = min(tau_stall - k_emf w, tau_current) - c w - tau_c`` and brakes with
 ``b(w) = min(tau_stall + k_emf w, tau_current) + c w + tau_c`` (the drive's bounds of
-:func:`hubbeam_ctrl.limit.optimal._drive_terms`); the shortest slew still accelerates fully
+:func:`_drive_terms`); the shortest slew still accelerates fully
 up to one switching speed ``W`` and brakes fully from it (:func:`drive_bang_bang_time`):
 
 ``J int_0^W w (1/a(w) + 1/b(w)) dw = |Theta|``,  ``T = J int_0^W (1/a(w) + 1/b(w)) dw``.
@@ -102,10 +102,8 @@ def rigid_bound(params: Params, slew_angle: float, drive=None) -> float:
 
     Parameters
     ----------
-    params : Params
-        Beam and hub (``total_inertia``, ``tau_max``).
-    slew_angle : float
-        Theta [rad].
+    params, slew_angle
+        As :func:`rigid_bang_bang_time`.
     drive : tuple or Rig, optional
         The drive's torque bounds at the hub.
     """

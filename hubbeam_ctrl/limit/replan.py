@@ -28,19 +28,10 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.native import capture_native_output
 from hubbeam_ctrl.core.validation import check_positive
+from hubbeam_ctrl.limit.collocation import _nlp, _optimise_problem, _parameter_values, _problem, _rigid_guess
 from hubbeam_ctrl.limit.ipopt_progress import _IterationCallback
-from hubbeam_ctrl.limit.optimal import (
-    OptimalSettings,
-    OptimalSlew,
-    _check_inputs,
-    _nlp,
-    _optimise_problem,
-    _parameter_values,
-    _problem,
-    _result,
-    _rigid_guess,
-    _source,
-)
+from hubbeam_ctrl.limit.optimal import _check_inputs, _result, _source
+from hubbeam_ctrl.limit.slew import OptimalSettings, OptimalSlew
 from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["min_vibration_replan", "replan_coordinates", "ReplanSolver"]
@@ -152,7 +143,7 @@ class ReplanSolver:
     """:func:`min_vibration_replan` for any payload of one beam, its NLP built once.
 
     The payload enters the model's equations and the end conditions' modes only, so the NLP
-    takes them as parameters (:func:`~hubbeam_ctrl.limit.optimal._parameter_values`); the start
+    takes them as parameters (:func:`~hubbeam_ctrl.limit.collocation._parameter_values`); the start
     state, the held torques and the duration are bounds. Building is the slow part (0.1-0.3 s
     on 2-5 bending modes, seconds with ``expand``); a controller builds before the slew and each
     :meth:`solve` is IPOPT's iterations only, stopped at a deadline if asked.

@@ -89,14 +89,8 @@ def delay_augmented(A, B, dt: float, delay: float) -> tuple:
 
     Parameters
     ----------
-    A : array_like (n, n)
-        Continuous state matrix [1/s].
-    B : array_like (n, m)
-        Continuous input matrix.
-    dt : float
-        Sample time [s], > 0.
-    delay : float
-        Computation delay as a fraction of the sample [-], in [0, 1].
+    A, B, dt, delay
+        As :func:`delay_inputs`.
 
     Returns
     -------

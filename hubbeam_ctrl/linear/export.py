@@ -37,8 +37,10 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write, check_regular_file, read_npz, write_npz
-from hubbeam_ctrl.linear.statespace import DT_RANGE, LinearModel, _make_ss
+from hubbeam_ctrl.core.fileio import atomic_write
+from hubbeam_ctrl.core.npz import read_npz, write_npz
+from hubbeam_ctrl.core.reading import check_regular_file
+from hubbeam_ctrl.linear.statespace import DT_RANGE, LinearModel, named_ss
 from hubbeam_ctrl.plant.models import MODEL_NAMES
 from hubbeam_ctrl.plant.params import Params, check_spin
 
@@ -68,7 +70,9 @@ def save_model(model: LinearModel, path) -> Path:
     Parameters
     ----------
     model : LinearModel
+        From :func:`~hubbeam_ctrl.linear.statespace.linearize` (sampled, reduced or not).
     path : str or Path
+        A ``.mat``, ``.npz`` or ``.json`` file name (:data:`FORMATS`).
 
     Returns
     -------
@@ -82,8 +86,8 @@ def save_model(model: LinearModel, path) -> Path:
     """
     if not isinstance(model, LinearModel):
         raise ParameterError(f"model must be a LinearModel, got {type(model).__name__}")
-    mats = {k: np.array(getattr(model, k), dtype=float) for k in _MATRICES}
-    return save_system(path, mats, model.metadata(), _FORMAT_TAG, _VERSION, model.params)
+    return save_system(path, {k: getattr(model, k) for k in _MATRICES}, model.metadata(), _FORMAT_TAG,
+                       _VERSION, model.params)
 
 
 def save_system(path, matrices: dict, metadata: dict, tag: str, version: int,
@@ -102,7 +106,7 @@ def save_system(path, matrices: dict, metadata: dict, tag: str, version: int,
     path : str or Path
         Output file; the format follows the extension (:data:`FORMATS`).
     matrices : dict
-        Name -> 2-D float array (e.g. ``A, B, C, D``); stored bit for bit.
+        Name -> 2-D array (e.g. ``A, B, C, D``), stored as float bit for bit.
     metadata : dict
         JSON-ready metadata; must hold ``state_names``, ``input_names`` and
         ``output_names`` (they give the matrices' shapes when read back).
@@ -119,6 +123,7 @@ def save_system(path, matrices: dict, metadata: dict, tag: str, version: int,
     """
     path = Path(path)
     suffix = _suffix(path, "out")
+    matrices = {k: np.array(v, dtype=float) for k, v in matrices.items()}
     metadata = {"format": tag, "version": version, **metadata}     # what the file is, in every format
     if suffix == ".npz":
         return write_npz(path, matrices, metadata)
@@ -182,7 +187,7 @@ def _from_parts(mats: dict, meta: dict, path: Path) -> LinearModel:
         if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (dt == 0 or lo <= dt <= hi):
             raise ValueError(f"dt {str(dt)[:40]} is not 0 or in [{DT_RANGE[0]:g}, {DT_RANGE[1]:g}] s")
         spin = check_spin("spin_rad_s", meta["spin_rad_s"], params)
-        sys = _make_ss(A, B, C, D, dt, states, outputs, name)
+        sys = named_ss(A, B, C, D, dt, states, outputs, name)
         return LinearModel(sys=sys, model=model, spin=spin, params=params, reduction=reduction)
     except KeyError as exc:
         raise bad(f"no {exc}") from None

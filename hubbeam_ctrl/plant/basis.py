@@ -266,6 +266,7 @@ class ModalBasis:
     Attributes
     ----------
     params : Params
+        The beam the integrals are of.
     beam : MassMoments
         Moments of the beam alone (``J.J`` is the paper's ``J_b``).
     tip : MassMoments

@@ -48,6 +48,7 @@ class ConvergedModes:
     Attributes
     ----------
     model, hub : str
+        Model name and hub condition (``free`` or ``prescribed``).
     spin : float
         [rad/s]
     assumed_modes : int

@@ -76,6 +76,7 @@ def modal_analysis(model="foam", spin: float = 0.0, hub: str = "prescribed",
     Returns
     -------
     ModalResult
+        Bending and axial frequencies [Hz], the bending modes' damping ratios, stability.
 
     Examples
     --------

@@ -89,6 +89,26 @@ def jacobian_columns(function: ca.Function, args: list, wrt: int, out: int = 0):
     return ca.horzcat(*columns)
 
 
+def _bound_function(name: str, doc: str) -> property:
+    """A property: the parametric function ``name`` with the model's parameters bound in (cached)."""
+    return property(lambda self: self._bound(name), doc=doc)
+
+
+def _state_scalar(name: str, index: int | None, doc: str):
+    """A method ``(q, v) -> float``: output ``name`` (its element ``index``) of the parametric model."""
+    def method(self, q, v) -> float:
+        out = getattr(self.parametric, name)(q, v, self.p)
+        return float(out if index is None else out[index])
+    method.__doc__ = doc + """
+
+        Parameters
+        ----------
+        q, v : array_like (n_q,)
+            Coordinates and velocities, as :meth:`bias` takes them.
+        """
+    return method
+
+
 class HubBeamModel:
     """A hub-beam model with its equations of motion, built by automatic differentiation.
 
@@ -213,48 +233,24 @@ class HubBeamModel:
         outs = function.call(args + [sym(ca.DM(self.p))])
         return ca.Function(function.name(), args, outs, names, function.name_out(), {"cse": True})
 
-    @property
-    def mass_matrix_function(self) -> ca.Function:
-        """``M(q)``: the mass matrix (quasi-static axial: ``M(q, v)``; built on first use)."""
-        return self._bound("mass_matrix")
-
-    @property
-    def bias_function(self) -> ca.Function:
-        """``c(q, v)``: velocity, stiffness and damping terms (built on first use)."""
-        return self._bound("bias")
-
-    @property
-    def inverse_dynamics_function(self) -> ca.Function:
-        """``f(q, v, a) = M(q) a + c(q, v)`` (built on first use)."""
-        return self._bound("inverse_dynamics")
-
-    @property
-    def energy_function(self) -> ca.Function:
-        """``(q, v) -> (T, U, E)`` [J] (built on first use)."""
-        return self._bound("energy")
-
-    @property
-    def momentum_function(self) -> ca.Function:
-        """``(q, v) -> H``, the angular momentum [kg m^2/s] (built on first use)."""
-        return self._bound("momentum")
-
-    @property
-    def q_theta_function(self) -> ca.Function:
-        """``(q, v) -> Q_theta`` [N m] (built on first use)."""
-        return self._bound("q_theta")
-
-    @property
-    def tip_function(self) -> ca.Function:
-        """``q -> (v_tip, u_tip)`` [m] (quasi-static axial: ``(q, v) -> ...``; built on first use)."""
-        return self._bound("tip")
+    mass_matrix_function = _bound_function("mass_matrix", "``M(q)``: the mass matrix (quasi-static axial: "
+                                                          "``M(q, v)``; built on first use).")
+    bias_function = _bound_function("bias", "``c(q, v)``: velocity, stiffness and damping terms (built on "
+                                            "first use).")
+    inverse_dynamics_function = _bound_function("inverse_dynamics", "``f(q, v, a) = M(q) a + c(q, v)`` (built on "
+                                                                    "first use).")
+    energy_function = _bound_function("energy", "``(q, v) -> (T, U, E)`` [J] (built on first use).")
+    momentum_function = _bound_function("momentum", "``(q, v) -> H``, the angular momentum [kg m^2/s] (built on "
+                                                    "first use).")
+    q_theta_function = _bound_function("q_theta", "``(q, v) -> Q_theta`` [N m] (built on first use).")
+    tip_function = _bound_function("tip", "``q -> (v_tip, u_tip)`` [m] (quasi-static axial: ``(q, v) -> ...``; "
+                                          "built on first use).")
 
     def _bound(self, name: str) -> ca.Function:
         cache = self.__dict__.setdefault("_bound_functions", {})
         if name not in cache:
             cache[name] = self.bind(getattr(self.parametric, name))
         return cache[name]
-
-    # -- symbolic access for integrators / linearisation ------------------------
 
     # -- numeric conveniences -----------------------------------------------------
     def mass_matrix(self, q, v=None) -> np.ndarray:
@@ -287,10 +283,8 @@ class HubBeamModel:
 
         Parameters
         ----------
-        q : array_like (n_q,)
-            Coordinates ``[theta, q1, q2]`` [rad, m].
-        v : array_like (n_q,)
-            Velocities [rad/s, m/s].
+        q, v : array_like (n_q,)
+            The state, as :meth:`bias` takes it.
         tau : float
             Hub torque [N m].
         """
@@ -317,57 +311,22 @@ class HubBeamModel:
         return np.concatenate([v, self.accelerations(q, v, tau)])
 
     def hub_torque(self, q, v, a) -> float:
-        """Hub torque that produces accelerations ``a`` in state ``(q, v)`` [N m].
+        """Hub torque that produces accelerations ``a`` [rad/s^2, m/s^2] in state ``(q, v)`` [N m]
+        (as :meth:`bias` takes it).
 
         With the hub prescribed this is the torque the motion takes (the first row of the
         inverse dynamics ``M(q) a + c(q, v)``).
 
         Parameters
         ----------
-        q : array_like (n_q,)
-            Coordinates ``[theta, q1, q2]`` [rad, m].
-        v : array_like (n_q,)
-            Velocities [rad/s, m/s].
-        a : array_like (n_q,)
-            Accelerations [rad/s^2, m/s^2].
+        q, v, a : array_like (n_q,)
         """
         return float(self.parametric.inverse_dynamics(q, v, a, self.p)[0])
 
-    def energy(self, q, v) -> float:
-        """Total energy ``T + U`` [J].
-
-        Parameters
-        ----------
-        q : array_like (n_q,)
-            Coordinates ``[theta, q1, q2]`` [rad, m].
-        v : array_like (n_q,)
-            Velocities [rad/s, m/s].
-        """
-        return float(self.parametric.energy(q, v, self.p)[2])
-
-    def angular_momentum(self, q, v) -> float:
-        """Angular momentum about the hub axis ``dT/d thd`` [kg m^2/s].
-
-        Parameters
-        ----------
-        q : array_like (n_q,)
-            Coordinates ``[theta, q1, q2]`` [rad, m].
-        v : array_like (n_q,)
-            Velocities [rad/s, m/s].
-        """
-        return float(self.parametric.momentum(q, v, self.p))
-
-    def q_theta(self, q, v) -> float:
-        """The paper's inertia force on the hub ``Q_theta`` [N m].
-
-        Parameters
-        ----------
-        q : array_like (n_q,)
-            Coordinates ``[theta, q1, q2]`` [rad, m].
-        v : array_like (n_q,)
-            Velocities [rad/s, m/s].
-        """
-        return float(self.parametric.q_theta(q, v, self.p))
+    energy = _state_scalar("energy", 2, "Total energy ``T + U`` [J].")
+    angular_momentum = _state_scalar("momentum", None, "Angular momentum about the hub axis ``dT/d thd`` "
+                                                       "[kg m^2/s].")
+    q_theta = _state_scalar("q_theta", None, "The paper's inertia force on the hub ``Q_theta`` [N m].")
 
     def tip(self, q, v=None) -> tuple:
         """Tip displacements ``(v_tip, u_tip)`` in the hub frame [m].
@@ -375,10 +334,10 @@ class HubBeamModel:
         Parameters
         ----------
         q : array_like (n_q,)
-            Coordinates ``[theta, q1, q2]`` [rad, m].
+            Coordinates [rad, m].
         v : array_like (n_q,), optional
-            Velocities [rad/s, m/s]; needed with quasi-static axial coordinates, whose
-            stretch depends on the spin and the bending rates.
+            Velocities; needed with quasi-static axial coordinates, whose stretch depends on
+            the spin and the bending rates (see :meth:`mass_matrix`).
         """
         v_tip, u_tip = self.parametric.tip(*self._state(q, v), self.p)
         return float(v_tip), float(u_tip)

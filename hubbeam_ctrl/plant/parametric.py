@@ -42,6 +42,7 @@ class ModelSpec:
     Attributes
     ----------
     name : str
+        Model name (``sfoam``, ``foam``, ``cfoam``, ``tlam``).
     axial : bool
         Whether the axial coordinates ``q1`` exist.
     foreshortening : {"none", "first", "complete"}

@@ -108,30 +108,12 @@ class Params(Settings):
         return np.array([z[min(i, len(z) - 1)] for i in range(n)])
 
     # -- derived quantities -------------------------------------------------
-    @property
-    def tip_position(self) -> float:
-        """Position of the tip mass along the beam [m] (``l``, or ``L`` if unset)."""
-        return self.L if self.l is None else self.l
-
-    @property
-    def EI(self) -> float:
-        """Bending stiffness E I [N m^2]."""
-        return self.E * self.I
-
-    @property
-    def EA(self) -> float:
-        """Axial stiffness E A [N]."""
-        return self.E * self.A
-
-    @property
-    def rhoA(self) -> float:
-        """Mass per unit length rho A [kg/m]."""
-        return self.rho * self.A
-
-    @property
-    def beam_mass(self) -> float:
-        """Mass of the beam rho A L [kg]."""
-        return self.rhoA * self.L
+    tip_position = property(lambda self: self.L if self.l is None else self.l,
+                            doc="Position of the tip mass along the beam [m] (``l``, or ``L`` if unset).")
+    EI = property(lambda self: self.E * self.I, doc="Bending stiffness E I [N m^2].")
+    EA = property(lambda self: self.E * self.A, doc="Axial stiffness E A [N].")
+    rhoA = property(lambda self: self.rho * self.A, doc="Mass per unit length rho A [kg/m].")
+    beam_mass = property(lambda self: self.rhoA * self.L, doc="Mass of the beam rho A L [kg].")
 
     @property
     def total_inertia(self) -> float:
@@ -194,6 +176,9 @@ MAX_ROOT_STRAIN = 0.01
 class Relation:
     """A bound of one :class:`Params` field that depends on other fields.
 
+    :data:`RELATIONS` lists them; a :class:`Params` that breaks one is refused with its ``text``
+    and ``why``.
+
     Attributes
     ----------
     name : str
@@ -253,6 +238,7 @@ def check_spin(name: str, spin, params: Params) -> float:
     spin : float
         Spin rate [rad/s].
     params : Params
+        The beam: its ``max_spin``.
 
     Returns
     -------
@@ -309,11 +295,11 @@ MAX_PARAMS_FILE_BYTES = 1_000_000
 
 
 def _read_toml(path) -> dict:
-    """The TOML document at ``path`` (:func:`hubbeam_ctrl.core.fileio.read_toml`: a missing
+    """The TOML document at ``path`` (:func:`hubbeam_ctrl.core.reading.read_toml`: a missing
     path, a folder, a FIFO or device, an unreadable file, a file over
     :data:`MAX_PARAMS_FILE_BYTES`, bytes that are not UTF-8, invalid or too deeply nested TOML
     are one-line errors)."""
-    from hubbeam_ctrl.core.fileio import read_toml
+    from hubbeam_ctrl.core.reading import read_toml
     if path is None or str(path).strip() == "":
         raise ParameterError(f"params file must be named, got {str(path)!r}")
     return read_toml(path, "params file", MAX_PARAMS_FILE_BYTES)
@@ -325,7 +311,9 @@ def save_params(params: Params, path) -> None:
     Parameters
     ----------
     params : Params
+        The parameters (every field, SI units).
     path : str or Path
+        The TOML file; :func:`load_params` reads it back equal.
     """
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params (Params.from_dict(d) makes one from a dict), "

@@ -44,7 +44,8 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write_text, path_exists, read_toml
+from hubbeam_ctrl.core.fileio import atomic_write_text
+from hubbeam_ctrl.core.reading import path_exists, read_toml
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.plant.params import MAX_MODES, MAX_PARAMS_FILE_BYTES, Params, _read_toml
 from hubbeam_ctrl.plant.rig_parts import Damping, Drive, Friction, Sensors, Timing
@@ -347,7 +348,9 @@ def save_rig(rig: Rig, path) -> None:
     Parameters
     ----------
     rig : Rig
+        The rig: its beam and every hardware table.
     path : str or Path
+        The TOML file (units as comments, as :func:`rig_to_toml` writes it).
     """
     if not isinstance(rig, Rig):
         raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")

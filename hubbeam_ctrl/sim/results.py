@@ -29,7 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import atomic_write, json_ready, read_npz, write_npz
+from hubbeam_ctrl.core.fileio import atomic_write
+from hubbeam_ctrl.core.jsonio import json_ready
+from hubbeam_ctrl.core.npz import read_npz, write_npz
 from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.plant.params import Params
 

@@ -22,16 +22,20 @@ from hubbeam_ctrl.study.payload import *  # noqa: F401,F403
 from hubbeam_ctrl.study.report import *  # noqa: F401,F403
 from hubbeam_ctrl.study.rig_loop import *  # noqa: F401,F403
 from hubbeam_ctrl.study.scenarios import *  # noqa: F401,F403
+from hubbeam_ctrl.study.settings_table import *  # noqa: F401,F403
 from hubbeam_ctrl.study.shaping import *  # noqa: F401,F403
 from hubbeam_ctrl.study.spec import *  # noqa: F401,F403
+from hubbeam_ctrl.study.spec_files import *  # noqa: F401,F403
 from hubbeam_ctrl.study.spillover import *  # noqa: F401,F403
+from hubbeam_ctrl.study.spread import *  # noqa: F401,F403
 from hubbeam_ctrl.study.sweep import *  # noqa: F401,F403
 from hubbeam_ctrl.study.sweep_report import *  # noqa: F401,F403
 from hubbeam_ctrl.study.tasks import *  # noqa: F401,F403
 from hubbeam_ctrl.study.tune import *  # noqa: F401,F403
 
 __all__ = [name for _m in ('metrics', 'tasks', 'scenarios', 'certificate', 'judge', 'compare', 'report', 'shaping',
-                           'compare_values', 'payload', 'spec', 'spillover', 'sweep', 'sweep_report', 'tune',
+                           'compare_values', 'payload', 'spec', 'spec_files', 'spread', 'settings_table', 'spillover',
+                           'sweep', 'sweep_report', 'tune',
                            'loops', 'rig_loop', 'ladder')
            for name in _sys.modules[f"hubbeam_ctrl.study.{_m}"].__all__]
 

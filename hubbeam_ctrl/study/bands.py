@@ -68,6 +68,9 @@ _TEXT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z]
 class Band:
     """A settling band as the user gave it.
 
+    :func:`parse_band` makes it; the number in SI units follows once the beam (``L``) and the
+    rig's sensors (``counts``) are known.
+
     Attributes
     ----------
     value : float

@@ -436,6 +436,7 @@ def certify(controller: Controller, plant_params: Params, *, spins=(), name: str
     Returns
     -------
     Certificate
+        One loop certificate per linearisation (the design spins and ``spins``).
 
     Examples
     --------

@@ -59,6 +59,7 @@ def friction_of(result) -> Friction:
     Parameters
     ----------
     result : Result
+        A closed-loop run (its ``settings["hardware"]["friction"]``).
 
     Returns
     -------

@@ -233,6 +233,7 @@ def write_payload_outputs(pc: PayloadComparison, out_dir) -> dict:
     Parameters
     ----------
     pc : PayloadComparison
+        The comparison over the payload range (:func:`payload_comparison`).
     out_dir : str or Path
         Created if missing (its parent must exist).
 

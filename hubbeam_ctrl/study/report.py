@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json, write_folder
+from hubbeam_ctrl.core.fileio import atomic_write_text, write_folder
+from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
 from hubbeam_ctrl.plots.plant import save_figure
 from hubbeam_ctrl.study.drive_figures import drive_of

@@ -9,10 +9,7 @@ profile, then hold); their builders' docstrings say more.
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
-
-import numpy as np
 
 from controllers import DesignModel, planned_slew_reference, slew_reference, spinup_reference
 from controllers.scaling import (
@@ -81,14 +78,6 @@ def register_scenario(name: str):
 #: ``abs(wf) <= params.max_spin`` and, for the slew, ``tau_max tf / (pi J_total) <= params.max_spin``.
 RANGES = {"tau_max": (1e-6, 1e9, "N m"), "tf": (1e-3, 1e6, "s"), "t_end": (1e-3, T_END_MAX, "s"),
           "dt": (1e-6, 10.0, "s")}
-
-
-def _number(name, value, unit, positive=True):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-            or not math.isfinite(value) or (positive and not value > 0):
-        raise ParameterError(f"{name} must be a finite number{' > 0' if positive else ''} "
-                             f"[{unit}], got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True, eq=False)

@@ -58,43 +58,23 @@ import dataclasses
 import hashlib
 import itertools
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from controllers import CONTROLLERS, SHAPERS
-from controllers.scaling import Tolerances, default_tolerances
-from controllers.schedule import MAX_SCHEDULE_POINTS
-from hubbeam_ctrl.core.compiled import check_backend
+from controllers import CONTROLLERS
+from controllers.scaling import default_tolerances
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.fileio import path_exists, read_toml
-from hubbeam_ctrl.exact import require_exudyn
-from hubbeam_ctrl.plant.params import MAX_MODES, Params
+from hubbeam_ctrl.core.reading import path_exists
+from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.bands import with_task_bands
-from hubbeam_ctrl.study.scenarios import PLANTS, SCENARIOS, make_scenario
+from hubbeam_ctrl.study.scenarios import make_scenario
+from hubbeam_ctrl.study.spec_checks import check_spec
+from hubbeam_ctrl.study.spread import FACTORS_EXTRA, _grid, _random, _unit_samples
 
-# controller settings as plain data; their names stay importable from here
-from hubbeam_ctrl.study.settings_table import controller_settings, settings_to_toml
+__all__ = ["StudySpec"]
 
-# the plant spread (factors, [grid], [random]); its names stay importable from here
-from hubbeam_ctrl.study.spread import (  # noqa: F401
-    DISTRIBUTIONS,
-    FACTORS_EXTRA,
-    MAX_CASES,
-    SAMPLERS,
-    Distribution,
-    _grid,
-    _random,
-    _unit_samples,
-)
-
-__all__ = ["StudySpec", "load_spec", "load_settings", "controller_settings", "FACTORS_EXTRA", "DISTRIBUTIONS",
-           "SAMPLERS", "settings_to_toml"]
-
-#: Largest spec or settings file read [bytes].
-MAX_SPEC_BYTES = 4_000_000
 _STUDY_KEYS = {"scenario": "slew", "plant": "foam", "controllers": ("openloop", "lqr"), "design": "base",
                "tau_max": None, "t_f": 10.0, "t_end": 30.0, "dt": 0.01, "w_f": 3.0, "horizon": 50,
                "solver": "daqp", "design_modes": None, "plant_modes": None, "slew_angle": None,
@@ -117,23 +97,12 @@ def _controller_list(value) -> tuple:
     return names
 
 
-#: The names make_scenario's messages start with -> the spec key that sets them.
-_SCENARIO_KEYS = {"tau_max": "study.tau_max", "tf": "study.t_f", "t_f": "study.t_f", "t_end": "study.t_end",
-                  "dt": "study.dt", "wf": "study.w_f", "w_f": "study.w_f", "slew_angle": "study.slew_angle"}
-
-
-def _as_study_key(message: str) -> str:
-    """A scenario's one-line error with the spec key in front (``tau_max must`` -> ``study.tau_max must``)."""
-    if message.startswith("study."):
-        return message
-    head, _, rest = message.partition(" ")
-    key = _SCENARIO_KEYS.get(head.rstrip(":"))
-    return f"{key}{head[len(head.rstrip(':')):]} {rest}" if key else f"study: {message}"
-
-
 @dataclass(frozen=True)
 class StudySpec:
     """A robustness study: task, controllers and the plant spread (see the module docstring).
+
+    Built from TOML tables by :meth:`from_dict` (or :func:`~hubbeam_ctrl.study.spec_files.load_spec`)
+    and checked by :meth:`validate`; the constructor itself checks nothing.
 
     Attributes
     ----------
@@ -298,116 +267,14 @@ class StudySpec:
         return spec
 
     def validate(self) -> None:
-        """Raise :class:`ParameterError` on any bad field (the constructor does not check)."""
-        if self.scenario not in SCENARIOS:
-            raise ParameterError(f"study.scenario must be one of {', '.join(SCENARIOS)}, got {self.scenario!r}")
-        if self.plant not in PLANTS:
-            raise ParameterError(f"study.plant must be one of {', '.join(PLANTS)}, got {self.plant!r}")
-        if self.plant == "ancf":
-            require_exudyn("study.plant 'ancf'")
-        if self.design not in ("base", "matched"):
-            raise ParameterError(f"study.design must be 'base' or 'matched', got {self.design!r}")
-        if not isinstance(self.settings, dict):
-            raise ParameterError("settings must be a table of controller tables")
-        if self.shaping is not None and self.shaping not in SHAPERS:
-            raise ParameterError(f"study.shaping must be one of {', '.join(SHAPERS)}, got {self.shaping!r}")
-        if isinstance(self.schedule, bool) or not isinstance(self.schedule, int) \
-                or not 1 <= self.schedule <= MAX_SCHEDULE_POINTS:
-            raise ParameterError(f"study.schedule must be an integer >= 1 and <= {MAX_SCHEDULE_POINTS} (spin rates "
-                                 f"of the design schedule; 1 = a single design), got {self.schedule!r}"[:300])
-        if self.backend is not None:
-            check_backend(self.backend, "study.backend")
-        if self.tolerances is not None:
-            allowed = [f.name for f in dataclasses.fields(Tolerances)]
-            if not isinstance(self.tolerances, dict):
-                raise ParameterError(f"study.tolerances must be a table of Tolerances fields, got {self.tolerances!r}")
-            unknown = sorted(set(self.tolerances) - set(allowed))
-            if unknown:
-                raise ParameterError(f"study.tolerances: unknown field(s) {', '.join(unknown)}; allowed: "
-                                     f"{', '.join(allowed)}")
-        for key in ("design_modes", "plant_modes"):
-            v = getattr(self, key)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_MODES):
-                raise ParameterError(f"study.{key} must be an integer in 1..{MAX_MODES}, got {v!r}")
-        self._check_run_budget()                    # before the scenario: its reference spans t_end
-        try:
-            sc = self.scenario_for(self.params)
-        except ParameterError as exc:
-            raise ParameterError(_as_study_key(str(exc))) from None
-        for name, table in self.settings.items():
-            if name not in self.controllers:
-                raise ParameterError(f"settings.{name}: not among study.controllers ({', '.join(self.controllers)})")
-            controller_settings(name, table, sc, self.horizon, self.solver)
-        for name, values in self.grid.items():     # each grid value on the base parameters
-            for v in values if name not in FACTORS_EXTRA else ():
-                try:
-                    self.params.replace(**{name: v})
-                except ParameterError as exc:
-                    raise ParameterError(f"grid.{name} = {v!r}: {exc}") from None
-        self._check_size()
-        self._check_samples()
-
-    def _check_size(self) -> None:
-        """Refuse a plant spread of more than :data:`MAX_CASES` cases, naming the keys."""
-        sizes = [(f"grid.{k}", len(v)) for k, v in self.grid.items()]
-        if self.random:
-            sizes.append(("random.n", self.random["n"]))
-        total = math.prod(n for _, n in sizes)
-        if total > MAX_CASES:
-            parts = " x ".join(f"{k} ({n})" for k, n in sizes)
-            raise ParameterError(f"{parts} give {total:.6g} cases, more than the {MAX_CASES} one sweep runs; "
-                                 "split the study or sample it ([random])")
-
-    def _check_run_budget(self) -> None:
-        """Refuse a task whose single run exceeds the closed-loop runs' default memory or
-        wall-time limits (what :func:`~hubbeam_ctrl.study.compare.compare` refuses up front)."""
-        from hubbeam_ctrl.core.budget import CLOSED_LOOP_SECONDS_PER_SAMPLE, check_budget, mpc_bytes, mpc_seconds
-        from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
-        numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
-                      for v in (self.t_end, self.dt))
-        if not numbers:
-            return                                  # the scenario names the bad value
-        limits = ClosedLoopSettings()
-        p = self.params
-        modes = self.plant_modes if isinstance(self.plant_modes, int) else p.n_transverse
-        n_q = 1 + p.n_axial + modes
-        steps = int(round(min(self.t_end / self.dt, 1e15)))      # t_end / dt may overflow to inf
-        memory = 16.0 * (steps + 1) * (2 * n_q + 9)
-        seconds = steps * CLOSED_LOOP_SECONDS_PER_SAMPLE * (n_q / 11.0) ** 2
-        what = f"study.t_end = {self.t_end:g} s at study.dt = {self.dt:g} s ({steps + 1:.6g} samples per run)"
-        if self._uses("horizon") and isinstance(self.horizon, int) and not isinstance(self.horizon, bool) \
-                and 1 <= self.horizon <= 10**6:
-            n_x = 2 * (1 + (self.design_modes or p.n_transverse))
-            memory += mpc_bytes(self.horizon, n_x)
-            seconds += mpc_seconds(self.horizon, n_x, steps)
-            what += f" with study.horizon = {self.horizon}"
-        try:
-            check_budget(what, memory_bytes=memory, seconds=seconds, max_memory_mb=limits.max_memory_mb,
-                         max_wall_s=limits.max_wall_s)
-        except ParameterError as exc:           # a spec cannot lift the limits of one run: say what to lower
-            head = str(exc).split(" (raise ")[0]
-            lower = "study.horizon or study.t_end" if "horizon" in what else "study.t_end or raise study.dt"
-            raise ParameterError(f"{head} (the limit of one closed-loop run of a sweep; lower {lower})") from None
+        """Raise :class:`ParameterError` on any bad field (the constructor does not check;
+        :func:`~hubbeam_ctrl.study.spec_checks.check_spec`)."""
+        check_spec(self)
 
     def _uses(self, setting: str) -> bool:
         """Whether a controller of the study has the setting (``horizon``, ``solver``)."""
         return any(setting in {f.name for f in dataclasses.fields(CONTROLLERS[n].settings)}
                    for n in self.controllers if dataclasses.is_dataclass(CONTROLLERS[n].settings))
-
-    def _check_samples(self) -> None:
-        """Every sampled value must be a valid parameter (a distribution whose samples leave
-        the range of its factor is refused, naming it, before any case runs)."""
-        if not self.random:
-            return
-        for case in self.cases():
-            for name in self.random["factors"]:
-                if name in FACTORS_EXTRA:
-                    continue
-                try:
-                    self.params.replace(**{name: case[name]})
-                except ParameterError as exc:
-                    raise ParameterError(f"random.{name}: the sample {case[name]:.6g} is outside its range ({exc}); "
-                                         "truncate the distribution with low/high") from None
 
     @property
     def torque_budget(self) -> float:
@@ -509,28 +376,6 @@ class StudySpec:
         return out
 
 
-def _with_rig(data: dict, rig) -> dict:
-    """The spec's tables with ``study.rig`` replaced by ``rig`` (unchanged when None)."""
-    if rig is None:
-        return data
-    if not isinstance(data, dict):
-        return data                          # from_dict names the bad spec
-    study = data.get("study", {})
-    study = dict(study) if isinstance(study, dict) else study
-    if isinstance(study, dict):
-        study["rig"] = str(rig) if isinstance(rig, Path) else rig
-    return {**data, "study": study}
-
-
-def _with_plant(data: dict, plant) -> dict:
-    """The spec's tables with ``study.plant`` replaced by ``plant`` (unchanged when None)."""
-    if plant is None or not isinstance(data, dict):
-        return data
-    study = data.get("study", {})
-    if isinstance(study, dict):
-        study = {**study, "plant": plant}
-    return {**data, "study": study}
-
 
 def _spec_rig(value, folder=None):
     """The spec's ``study.rig``: None, a preset name or a file (relative to the spec's folder), or
@@ -563,61 +408,3 @@ def _plain(obj):
     if dataclasses.is_dataclass(obj):
         return dataclasses.asdict(obj)
     raise TypeError(f"{type(obj).__name__} is not plain data")
-
-
-def load_spec(spec, rig=None, plant=None) -> StudySpec:
-    """A :class:`StudySpec` from a TOML path, a dict of tables, or a spec passed through.
-
-    Parameters
-    ----------
-    spec : str, Path, dict or StudySpec
-    rig : str, Path or Rig, optional
-        Replaces the spec's ``study.rig`` (``hubbeam sweep --rig``); not with a StudySpec.
-    plant : str, optional
-        Replaces the spec's ``study.plant`` (``hubbeam sweep --plant``: ``foam``, ``cfoam`` or
-        ``ancf``, the exact beam); not with a StudySpec.
-
-    Returns
-    -------
-    StudySpec
-    """
-    if isinstance(spec, StudySpec):
-        for name, value in (("rig", rig), ("plant", plant)):
-            if value is not None:
-                raise ParameterError(f"{name}: give the {name} in the spec's tables, not beside a built StudySpec")
-        spec.validate()
-        return spec
-    if isinstance(spec, dict):
-        return StudySpec.from_dict(_with_plant(_with_rig(spec, rig), plant))
-    if not isinstance(spec, (str, Path)):
-        raise ParameterError(f"spec must be a TOML path, a dict of tables or a StudySpec, got {type(spec).__name__}")
-    data = _with_plant(_with_rig(read_toml(spec, "spec: file", MAX_SPEC_BYTES), rig), plant)
-    if isinstance(data.get("study"), dict) and isinstance(data["study"].get("rig"), str):
-        data["_dir"] = str(Path(spec).resolve().parent)        # a rig file's path is relative to the spec
-    return StudySpec.from_dict(data)
-
-
-def load_settings(spec: StudySpec, path) -> StudySpec:
-    """``spec`` with the controller settings of a TOML file merged in (what ``hubbeam tune``
-    writes: ``[settings.NAME]`` tables, or ``[NAME]`` tables at top level).
-
-    Parameters
-    ----------
-    spec : StudySpec
-    path : str or Path
-
-    Returns
-    -------
-    StudySpec
-        Validated; a controller of the file that the study does not run is an error.
-    """
-    data = read_toml(path, "settings: file", MAX_SPEC_BYTES)
-    data = data.get("settings", data)
-    if not isinstance(data, dict):
-        raise ParameterError(f"settings: {path} must hold [settings.NAME] tables, got settings = {data!r}"[:300])
-    merged = {name: dict(table) for name, table in spec.settings.items()}
-    for name, table in data.items():
-        if not isinstance(table, dict):
-            raise ParameterError(f"settings: {path} must hold [settings.NAME] tables, got {name} = {table!r}")
-        merged.setdefault(name, {}).update(table)
-    return spec.replace(settings=merged)

@@ -34,8 +34,10 @@ from hubbeam_ctrl.sim.evaluation import evaluation_plant
 from hubbeam_ctrl.study.compare import _design_schedule
 from hubbeam_ctrl.study.judge import judge, residual_modes_for
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
+from hubbeam_ctrl.study.settings_table import controller_settings
 from hubbeam_ctrl.study.shaping import task_shaped_settings
-from hubbeam_ctrl.study.spec import StudySpec, controller_settings, load_spec
+from hubbeam_ctrl.study.spec import StudySpec
+from hubbeam_ctrl.study.spec_files import load_spec
 
 # the study folder on disk (results.csv, study.json, the lock); its names stay importable from here
 # connecting to a Dask cluster; the name stays importable from here

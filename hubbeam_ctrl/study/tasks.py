@@ -90,20 +90,7 @@ def _check_bands(task) -> None:
             object.__setattr__(task, key, parse_band(key, getattr(task, key), kind))
 
 
-def _shortest_message(name: str, t_min: float, what: str, got: float) -> str:
-    return f"{name} must be >= {t_min:.5g} s (the shortest in which {what}), got {got:g} s"
-
-
-@dataclass(frozen=True)
-class Slew:
-    """Rest-to-rest slew of the hub by ``angle`` in ``duration``.
-
-    Parameters
-    ----------
-    angle : float
-        Rotation Theta [rad], finite and not 0 (negative: the other way).
-    duration : float
-        Maneuver time t_f [s], > 0.
+_BANDS_DOC = """
     settle_angle : float or str, optional
         The task's own settling band of the hub-angle error: a number [rad] or a text with a
         unit or counts (``"0.05deg"``, ``"2counts"``; :func:`hubbeam_ctrl.study.bands.parse_band`).
@@ -114,22 +101,65 @@ class Slew:
         ``"1e-3L"`` (a fraction of L). Default: the task's (1.25e-4 L).
     """
 
+
+class _Task:
+    """What a slew and a spin-up share: the checks of their fields, the target, whether the
+    motor can do them, their line in reports."""
+
+    #: (field, unit, what 0 would mean) of the task's target.
+    _target: ClassVar[tuple]
+
+    def __post_init__(self):
+        key, unit, zero = self._target
+        object.__setattr__(self, key, check_target(key, getattr(self, key), unit, zero))
+        object.__setattr__(self, "duration", check_positive("duration", self.duration, "s"))
+        _check_bands(self)
+
+    @property
+    def target(self) -> float:
+        """The slew angle [rad] or the spin-up's final rate [rad/s]."""
+        return getattr(self, self._target[0])
+
+    def check_feasible(self, inertia: float, tau_max: float, name: str = "duration") -> None:
+        """Raise unless the rigid-body torque of the task (:meth:`peak_torque`) stays within ``tau_max``.
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia J_total [kg m^2].
+        tau_max : float
+            Motor torque limit [N m].
+        name : str
+            The duration's name as the caller spelled it (``"tf"`` on the command line).
+
+        Raises
+        ------
+        ParameterError
+            One line naming ``name`` and the shortest feasible duration.
+        """
+        if self.peak_torque(inertia) > tau_max * (1 + 1e-12):
+            raise ParameterError(f"{name} must be >= {self.shortest_duration(inertia, tau_max):.5g} s (the "
+                                 f"shortest in which {self._how(tau_max)}), got {self.duration:g} s")
+
+
+@dataclass(frozen=True)
+class Slew(_Task):
+    __doc__ = """Rest-to-rest slew of the hub by ``angle`` in ``duration``.
+
+    Parameters
+    ----------
+    angle : float
+        Rotation Theta [rad], finite and not 0 (negative: the other way).
+    duration : float
+        Maneuver time t_f [s], > 0.""" + _BANDS_DOC
+
     angle: float
     duration: float
     settle_angle: object = None
     settle_tip: object = None
     #: Scenario name of the task.
     name: ClassVar[str] = "slew"
-
-    def __post_init__(self):
-        object.__setattr__(self, "angle", check_target("angle", self.angle, "rad", "a slew by 0 is no task"))
-        object.__setattr__(self, "duration", check_positive("duration", self.duration, "s"))
-        _check_bands(self)
-
-    @property
-    def target(self) -> float:
-        """The slew angle [rad]."""
-        return self.angle
+    _target: ClassVar[tuple] = ("angle", "rad", "a slew by 0 is no task")
 
     @classmethod
     def eq44(cls, tau_m: float, duration: float, inertia: float) -> "Slew":
@@ -170,8 +200,19 @@ class Slew:
         """
         return 2 * math.pi * inertia * self.angle / self.duration ** 2
 
+    def peak_torque(self, inertia: float) -> float:
+        """Peak of the Eq. 44 torque, ``|tau_m|`` [N m] (:meth:`baseline_torque`).
+
+        Parameters
+        ----------
+        inertia : float
+            Rigid-body inertia J_total [kg m^2].
+        """
+        return abs(self.baseline_torque(inertia))
+
     def shortest_duration(self, inertia: float, tau_max: float) -> float:
-        """Shortest t_f in which ``tau_max`` makes this slew by Eq. 44 [s].
+        """Shortest t_f in which ``tau_max`` makes this slew by Eq. 44 [s]:
+        ``sqrt(2 pi J_total |Theta| / tau_max)``.
 
         Parameters
         ----------
@@ -179,44 +220,19 @@ class Slew:
             Rigid-body inertia J_total [kg m^2].
         tau_max : float
             Motor torque limit [N m].
-
-        Returns
-        -------
-        float
-            ``sqrt(2 pi J_total |Theta| / tau_max)``.
         """
         return math.sqrt(2 * math.pi * inertia * abs(self.angle) / tau_max)
 
-    def check_feasible(self, inertia: float, tau_max: float, name: str = "duration") -> None:
-        """Raise unless the Eq. 44 baseline stays within ``tau_max``.
-
-        Parameters
-        ----------
-        inertia : float
-            Rigid-body inertia J_total [kg m^2].
-        tau_max : float
-            Motor torque limit [N m].
-        name : str
-            The duration's name as the caller spelled it (``"tf"`` on the command line).
-
-        Raises
-        ------
-        ParameterError
-            One line naming ``name`` and the shortest feasible duration.
-        """
-        if abs(self.baseline_torque(inertia)) > tau_max * (1 + 1e-12):
-            raise ParameterError(_shortest_message(
-                name, self.shortest_duration(inertia, tau_max),
-                f"tau_max = {tau_max:g} N m turns {abs(self.angle):.4g} rad by Eq. 44, "
-                f"tau_m = 2 pi J_total Theta / tf^2", self.duration))
+    def _how(self, tau_max: float) -> str:
+        return (f"tau_max = {tau_max:g} N m turns {abs(self.angle):.4g} rad by Eq. 44, "
+                f"tau_m = 2 pi J_total Theta / tf^2")
 
     def describe(self, inertia: float) -> str:
-        """One line for reports.
+        """One line for reports (the Eq. 44 baseline amplitude on the inertia ``J_total`` [kg m^2]).
 
         Parameters
         ----------
         inertia : float
-            Rigid-body inertia ``J_total`` [kg m^2].
         """
         return (f"rest-to-rest slew by Theta = {self.angle:.4f} rad in tf = {self.duration:g} s "
                 f"(J_total = {inertia:.4g} kg m^2; Eq. 44 baseline amplitude "
@@ -224,24 +240,15 @@ class Slew:
 
 
 @dataclass(frozen=True)
-class SpinUp:
-    """Spin-up of the hub from rest to ``rate`` in ``duration`` (corrected Eq. 43), then hold.
+class SpinUp(_Task):
+    __doc__ = """Spin-up of the hub from rest to ``rate`` in ``duration`` (corrected Eq. 43), then hold.
 
     Parameters
     ----------
     rate : float
         Final hub rate w_f [rad/s], finite.
     duration : float
-        Spin-up time t_f [s], > 0.
-    settle_angle : float or str, optional
-        The task's own settling band of the hub-angle error: a number [rad] or a text with a
-        unit or counts (``"0.05deg"``, ``"2counts"``; :func:`hubbeam_ctrl.study.bands.parse_band`).
-        Default: the task's (1e-3 of the angle, at least two counts of a rig's angle sensor).
-        Applied by :func:`~hubbeam_ctrl.study.compare.compare`, which knows the rig's sensors.
-    settle_tip : float or str, optional
-        The task's own settling band of the tip deflection: a number [m] or ``"0.5mm"``,
-        ``"1e-3L"`` (a fraction of L). Default: the task's (1.25e-4 L).
-    """
+        Spin-up time t_f [s], > 0.""" + _BANDS_DOC
 
     rate: float
     duration: float
@@ -249,16 +256,7 @@ class SpinUp:
     settle_tip: object = None
     #: Scenario name of the task.
     name: ClassVar[str] = "spinup"
-
-    def __post_init__(self):
-        object.__setattr__(self, "rate", check_target("rate", self.rate, "rad/s", "a spin-up to rest is no task"))
-        object.__setattr__(self, "duration", check_positive("duration", self.duration, "s"))
-        _check_bands(self)
-
-    @property
-    def target(self) -> float:
-        """The final rate [rad/s]."""
-        return self.rate
+    _target: ClassVar[tuple] = ("rate", "rad/s", "a spin-up to rest is no task")
 
     def peak_torque(self, inertia: float) -> float:
         """Peak rigid-body torque of the profile, ``2 J_total |w_f| / t_f`` [N m].
@@ -271,7 +269,7 @@ class SpinUp:
         return 2 * inertia * abs(self.rate) / self.duration
 
     def shortest_duration(self, inertia: float, tau_max: float) -> float:
-        """Shortest t_f whose rigid-body torque stays within ``tau_max`` [s].
+        """Shortest t_f whose rigid-body torque stays within ``tau_max`` [s]: ``2 J_total |w_f| / tau_max``.
 
         Parameters
         ----------
@@ -282,35 +280,15 @@ class SpinUp:
         """
         return 2 * inertia * abs(self.rate) / tau_max
 
-    def check_feasible(self, inertia: float, tau_max: float, name: str = "duration") -> None:
-        """Raise unless the rigid-body torque of the profile stays within ``tau_max``.
-
-        Parameters
-        ----------
-        inertia : float
-            Rigid-body inertia J_total [kg m^2].
-        tau_max : float
-            Motor torque limit [N m].
-        name : str
-            The duration's name as the caller spelled it.
-
-        Raises
-        ------
-        ParameterError
-            One line naming ``name`` and the shortest feasible duration.
-        """
-        if self.peak_torque(inertia) > tau_max * (1 + 1e-12):
-            raise ParameterError(_shortest_message(
-                name, self.shortest_duration(inertia, tau_max),
-                f"tau_max = {tau_max:g} N m spins the hub up to {self.rate:g} rad/s", self.duration))
+    def _how(self, tau_max: float) -> str:
+        return f"tau_max = {tau_max:g} N m spins the hub up to {self.rate:g} rad/s"
 
     def describe(self, inertia: float) -> str:
-        """One line for reports.
+        """One line for reports (``inertia`` [kg m^2] is not needed: the same signature as :meth:`Slew.describe`).
 
         Parameters
         ----------
         inertia : float
-            Rigid-body inertia ``J_total`` [kg m^2].
         """
         return f"spin-up to {self.rate:g} rad/s in tf = {self.duration:g} s (Eq. 43), then hold"
 

@@ -34,7 +34,9 @@ from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.study.scenarios import make_scenario
-from hubbeam_ctrl.study.spec import StudySpec, load_spec, settings_to_toml
+from hubbeam_ctrl.study.settings_table import settings_to_toml
+from hubbeam_ctrl.study.spec import StudySpec
+from hubbeam_ctrl.study.spec_files import load_spec
 from hubbeam_ctrl.study.sweep import Engine, plan_batches
 
 __all__ = ["TUNABLE", "TUNED_WEIGHTS", "TuneOptions", "TuneResult", "tune", "weight_scales",
@@ -393,8 +395,8 @@ def _check_tune_budget(spec, options: TuneOptions) -> None:
 
 
 def _tune_table(path):
-    from hubbeam_ctrl.core.fileio import read_toml
-    from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES
+    from hubbeam_ctrl.core.reading import read_toml
+    from hubbeam_ctrl.study.spec_files import MAX_SPEC_BYTES
     try:
         return read_toml(path, "spec: file", MAX_SPEC_BYTES).get("tune")
     except ParameterError:
@@ -407,8 +409,9 @@ def write_tune_outputs(result: TuneResult, out_dir) -> dict:
     Parameters
     ----------
     result : TuneResult
+        What :func:`tune` found.
     out_dir : str or Path
-        Created if missing (its parent must exist).
+        Created if missing (its parent must exist); the figure needs Matplotlib.
 
     Returns
     -------

@@ -62,6 +62,9 @@ MARGIN_POINTS = 800
 class SetPoint:
     """One plant of the set as the certificate evaluated it.
 
+    A :class:`WorstCase` holds two: the nominal plant (:attr:`WorstCase.nominal`) and the worst one
+    found (:attr:`WorstCase.worst`).
+
     Attributes
     ----------
     values : dict
