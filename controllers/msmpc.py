@@ -73,6 +73,21 @@ class MultiStageMPCSettings(MPCSettings):
                                              doc="Weight of each scenario's cost, one positive number per "
                                                  "payload (normalised to sum 1); None: equal weights.")
 
+    @classmethod
+    def for_scenario(cls, scenario, **options) -> "MultiStageMPCSettings":
+        """MPC's defaults for a scenario (:meth:`MPCSettings.for_scenario`); the study-wide
+        ``solver`` option (the plain MPC's) is not taken: the tree's QP is DAQP's.
+
+        Parameters
+        ----------
+        scenario : object
+            A :class:`hubbeam_ctrl.study.scenarios.Scenario`.
+        **options
+            Study-wide controller options (``horizon``...).
+        """
+        options.pop("solver", None)
+        return super().for_scenario(scenario, **options)
+
 
 def _check_scenarios(settings: MultiStageMPCSettings, nominal: float) -> tuple:
     """``(payloads, weights)`` validated: payloads sorted and unique [kg], weights summing to 1."""
