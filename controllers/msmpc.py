@@ -205,6 +205,10 @@ class MultiStageMPC(Controller):
         super().__init__(self.stages[nominal].design, settings, reference)
         self.n_modes = design.n_modes
         self._nominal = nominal
+        # the nominal scenario's reference tables and feedforward switch: what a wrapper reads
+        # (the rig's observer starts its filter at the reference, controllers.integral)
+        own = self.stages[nominal]
+        self._xref, self._tff, self._ff = own._xref, own._tff, own._ff
         if any(st.design.n_x != self.design.n_x for st in self.stages):
             raise ParameterError("payloads: the scenarios' models have different state sizes")
         self._build_tree()

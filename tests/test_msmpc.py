@@ -188,3 +188,20 @@ def test_table1_payload_range_settles_and_is_certified():
         wc = certify_set(ctrl, Rig(beam=comp.scenario.params), u, plant_modes=comp.plant.modes, margins=False)
         assert wc.worst.radius <= worst, (z, wc.worst.radius)
         assert wc.worst.radius > 0.99                       # lightly damped: close to, not far from, 1
+
+
+def test_on_a_rig_one_scenario_runs_as_the_mpc():
+    """On ``servo_link`` (encoder, DC drive in volts with its back-EMF limit in the plan, the rig's
+    observer with integral action, half a sample of delay) the single-scenario tree is the MPC: the
+    same commands in the nonlinear run to 1e-9 V."""
+    import math
+
+    from hubbeam_ctrl.plant.rig import load_rig
+    from hubbeam_ctrl.study import Slew, compare
+    rig = load_rig("servo_link")
+    cmp = compare(rig, Slew(math.pi / 4, 0.8), ("mpc", "msmpc"))
+    a, b = cmp.results["mpc"], cmp.results["msmpc"]
+    assert cmp.controllers["msmpc"].inner.settings.emf_torque_limit is not None
+    assert len(a.tau) == len(b.tau) > 1000
+    assert np.max(np.abs(np.asarray(a.tau) - np.asarray(b.tau))) <= 1e-9
+    assert cmp.metrics["msmpc"]["verdict"] == cmp.metrics["mpc"]["verdict"]
