@@ -35,6 +35,7 @@ from .estimator import KalmanEstimator, KalmanNoise, kalman_gain
 from .lqg import LQG, LQGSettings
 from .lqr import LQR, LQRSettings, dlqr_gain
 from .mpc import MPC, QP_SOLVERS, MPCSettings, condensed_matrices
+from .msmpc import MultiStageMPC, MultiStageMPCSettings
 from .nmpc import NMPC, NMPCSettings
 from .openloop import OpenLoop, OpenLoopSettings
 from .pd import PD, PDSettings, pd_gains
@@ -67,7 +68,8 @@ __all__ = [
     "OpenLoop", "OpenLoopSettings", "PD", "PDSettings", "pd_gains",
     "LQR", "LQRSettings", "dlqr_gain", "LQG", "LQGSettings",
     "KalmanEstimator", "KalmanNoise", "kalman_gain",
-    "MPC", "MPCSettings", "QP_SOLVERS", "condensed_matrices", "NMPC", "NMPCSettings",
+    "MPC", "MPCSettings", "QP_SOLVERS", "condensed_matrices", "MultiStageMPC", "MultiStageMPCSettings",
+    "NMPC", "NMPCSettings",
     "slew_reference", "spinup_reference", "eq44_reference", "optimal_reference", "planned_slew_reference",
     "CONTROLLERS", "ControllerSpec", "register_controller", "unregister_controller",
     "make_controller", "controller_names", "controller_styles",

@@ -322,6 +322,22 @@ class MPC(Controller):
         """
         s = self.settings
         N = s.horizon
+        H, g, lba, uba = self._qp_at(t, y)
+        if isinstance(self.solver, DirectDAQP):
+            if H is not self._H:          # a scheduled design: the Hessian moves with the spin
+                self.solver.update_hessian(H)
+            z = self.solver.solve(g, lba, uba, warm_start=s.warm_start)
+            self.last_status = self.solver.status
+            self._z = z
+            return z[:N]
+        return self._plan_conic(H, g, lba, uba)
+
+    def _qp_at(self, t: float, y: np.ndarray) -> tuple:
+        """``(H, g, lba, uba)`` of the QP at time ``t`` [s] for state ``y``: Hessian, linear
+        term (with the slack's), and the bounds of the constraint rows (None: no rows to
+        bound). A multi-stage MPC (:mod:`controllers.msmpc`) stacks those of its scenarios."""
+        s = self.settings
+        N = s.horizon
         k = int(round(t / self.dt))
         H, g = self._qp_data(k, y)
         lba = uba = None
@@ -339,14 +355,7 @@ class MPC(Controller):
             lo, hi = -limit - off, limit - off
             lba = lo if lba is None else np.concatenate([lba, lo])
             uba = hi if uba is None else np.concatenate([uba, hi])
-        if isinstance(self.solver, DirectDAQP):
-            if H is not self._H:          # a scheduled design: the Hessian moves with the spin
-                self.solver.update_hessian(H)
-            z = self.solver.solve(g, lba, uba, warm_start=s.warm_start)
-            self.last_status = self.solver.status
-            self._z = z
-            return z[:N]
-        return self._plan_conic(H, g, lba, uba)
+        return H, g, lba, uba
 
     def _plan_conic(self, H, g, lba, uba) -> np.ndarray:
         """One solve through CasADi's ``conic``, warm-started with the shifted plan."""

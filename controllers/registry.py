@@ -35,6 +35,7 @@ from .base import Controller, ControllerSettings, DesignModel, Reference, Tracki
 from .lqg import LQG, LQGSettings
 from .lqr import LQR, LQRSettings
 from .mpc import MPC, MPCSettings
+from .msmpc import MultiStageMPC, MultiStageMPCSettings
 from .nmpc import NMPC, NMPCSettings
 from .openloop import OpenLoop, OpenLoopSettings
 from .pd import PD, PDSettings
@@ -275,6 +276,9 @@ register_controller("lqg", LQGSettings, controller=LQG, color="tab:green", label
                     scheduled=ScheduledLQG)
 register_controller("mpc", MPCSettings, controller=MPC, color="tab:red", label="MPC", target=True,
                     scheduled=ScheduledMPC)
+# multi-stage MPC over payload scenarios (controllers.msmpc), run when asked for
+register_controller("msmpc", MultiStageMPCSettings, controller=MultiStageMPC, color="tab:pink",
+                    label="MSMPC", default=False)
 # nonlinear MPC on the beam's own model by real-time iteration (controllers.nmpc), run when asked for
 register_controller("nmpc", NMPCSettings, controller=NMPC, color="tab:brown", label="NMPC", default=False)
 # open-loop input-shaped slews (controllers.shaped), run only when asked for

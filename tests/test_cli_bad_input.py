@@ -114,7 +114,7 @@ SPECIFIC = [
      "--tau-max does not apply to --maneuver spinup (only to torque)"),
     ("c8", "compare", ["--wf", "2"], "--wf does not apply to --scenario slew (only to spinup)"),
     ("c8", "compare", ["--controllers", "lqr,pd", "--horizon", "20"],
-     "--horizon does not apply to --controllers lqr,pd (only to mpc)"),
+     "--horizon does not apply to --controllers lqr,pd (only to mpc, msmpc)"),
     ("c8", "compare", ["--controllers", "lqr", "--solver", "qpoases"], "--solver does not apply"),
     ("c8", "compare", ["--out", ""], "--out must name a folder"),
     ("c8", "compare", ["--out", " "], "--out must name a folder"),

@@ -145,7 +145,7 @@ def add_compare_options(p, controllers: bool = True) -> None:
                         "closed form) or the time-optimal slew of the nonlinear beam within the drive's limits "
                         "(hubbeam optimal; seconds to a minute)")
     p.add_argument("--horizon", metavar="N", type=integer(),
-                   help="MPC horizon [samples] (default 50; only with mpc among --controllers)")
+                   help="MPC horizon [samples] (default 50; only with mpc or msmpc among --controllers)")
     p.add_argument("--solver", choices=list(QP_SOLVERS),
                    help="MPC QP solver: %(choices)s (default daqp; only with mpc among --controllers)")
     p.add_argument("--schedule", metavar="N", type=positive_int("schedule"), default=1,
@@ -157,8 +157,9 @@ def add_compare_options(p, controllers: bool = True) -> None:
                    help="output folder (created if missing; MANIFEST.json, written last, marks it complete)")
     p.add_argument("--payload-range", metavar="MIN,MAX",
                    help="tip payloads [kg] that LQR, LQG and MPC are designed for (must hold the tip mass "
-                        "of the parameters); runs the plant at MIN, the nominal tip mass and MAX and "
-                        "writes payload.json and payload_report.md")
+                        "of the parameters; msmpc: one scenario each at MIN, the nominal tip mass and MAX); "
+                        "runs the plant at MIN, the nominal tip mass and MAX and writes payload.json and "
+                        "payload_report.md")
     p.add_argument("--learn-payload", action="store_true",
                    help="with --payload-range and --scenario slew: LQR, LQG and MPC keep the nominal design and "
                         "learn the payload during the slew (identified at 25 %% and 50 %% of it, the rest "
@@ -257,8 +258,8 @@ def compare_plan(args) -> ComparePlan:
     out = check_output_dir("--out", args.out)
     names = _parse_controllers(args.controllers)
     refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",)})
-    if "mpc" not in names:
-        refuse_inapplicable(args, "--controllers " + ",".join(names), {"--horizon": ("mpc",),
+    if "mpc" not in names and "msmpc" not in names:
+        refuse_inapplicable(args, "--controllers " + ",".join(names), {"--horizon": ("mpc", "msmpc"),
                                                                        "--solver": ("mpc",)})
     if args.learn_payload and (args.payload_range is None or args.scenario != "slew"):
         raise ParameterError("--learn-payload needs --payload-range MIN,MAX and --scenario slew")

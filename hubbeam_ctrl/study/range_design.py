@@ -14,12 +14,16 @@ import math
 import numpy as np
 
 from controllers import CONTROLLERS, make_controller
+from controllers.msmpc import scenario_range_design
 from controllers.robust import check_payload_range, design_for_range
 
-__all__ = ["ROBUST_CONTROLLERS", "range_designs"]
+__all__ = ["ROBUST_CONTROLLERS", "SCENARIO_CONTROLLERS", "range_designs"]
 
 #: Controllers designed for a payload range (the others run their nominal design).
 ROBUST_CONTROLLERS = ("lqr", "lqg", "mpc")
+#: Controllers whose design for a payload range is a scenario per payload of the grid
+#: (:func:`controllers.msmpc.scenario_range_design`), not a search.
+SCENARIO_CONTROLLERS = ("msmpc",)
 
 
 #: The range designs' gain and filter: the gain on the design modes, the LQG's filter on
@@ -111,9 +115,16 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
     score = _nonlinear_score(sc, sim, design.n_modes, plant_modes)
     out = {}
     for name in names:
-        if name not in ROBUST_CONTROLLERS:
+        if name not in ROBUST_CONTROLLERS + SCENARIO_CONTROLLERS:
             continue
         st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon, solver=solver)
+        if name in SCENARIO_CONTROLLERS:     # the scenario tree over the range is the design
+            if plant_modes is not None and st.residual_modes is None:
+                st = st.replace(residual_modes=plant_modes)
+            out[name] = scenario_range_design(design, st, sc.reference, payload_range, t_f=sc.t_f,
+                                              t_end=sc.t_end, delay=sc.bands["residual_delay"], baseline=baseline,
+                                              score=score)
+            continue
         # a gain on the residual modes is model-based: a tip mass moves those modes and the
         # gain then pumps them (LQR designed at 0 kg: 12.9 % of the open loop at 0.5 kg), so a
         # design for a payload range keeps its gain on the design modes (issue 27 note)
