@@ -73,7 +73,15 @@ def params_from_args(args, base=None):
         changes["l"] = args.tip_position
     if getattr(args, "n_modes", None) is not None:
         changes["n_axial"] = changes["n_transverse"] = args.n_modes
-    return base.replace(**changes) if changes else base
+    params = base.replace(**changes) if changes else base
+    if "l" in changes and params.m_t == 0 and all(getattr(args, k, None) is None for k in MASS_OPTIONS):
+        raise ParameterError("--tip-position does not apply with a zero --tip-mass (m_t = 0 kg: there is no "
+                             "tip mass to place)")
+    return params
+
+
+#: Options that put a mass at ``--tip-position`` besides ``--tip-mass`` (as argparse names).
+MASS_OPTIONS = ("plant_tip_mass", "payload_range")
 
 
 def rig_from_args(args):

@@ -18,7 +18,7 @@ records' excited band unless ``--plant-modes`` is given.
 
 from __future__ import annotations
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "identify_plan"]
 
 
 def add_parser(subparsers, common) -> None:
@@ -88,6 +88,59 @@ def _parse_bounds(items) -> dict:
     return out
 
 
+#: The options of a fit to records (not of ``--modal-table``'s fit by modal analysis).
+RECORD_OPTIONS = ("--validate", "--sensors", "--plant-modes", "--max-wall")
+
+
+def identify_plan(args) -> dict:
+    """``hubbeam identify``'s command line as the values of the fit, each option checked (the records
+    are read by the run).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    dict
+        ``rig`` (Rig, from ``--rig`` or ``--params``), ``fields`` (the resolved ``--fit``), ``bounds``,
+        ``out`` (Path), ``force``, ``json``, ``settings`` (FitSettings) and either ``table`` (the
+        ``--modal-table`` path) or ``records``, ``validate`` (paths) and ``sensors`` (tuple or None).
+    """
+    from hubbeam_ctrl.calibrate.fit import FitSettings, check_bounds, resolve_fields
+    from hubbeam_ctrl.calibrate.model import ModelSettings
+    from hubbeam_ctrl.cli.args import check_output_dir
+    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.plant.rig import load_rig
+
+    if args.records and args.modal_table:
+        raise ParameterError("--modal-table does not apply with RECORD files (identify fits records or a modal "
+                             "table, not both)")
+    if not args.records and not args.modal_table:
+        raise ParameterError("identify needs records or --modal-table TABLE.csv (one of the two)")
+    if args.plant_modes is not None and not 1 <= args.plant_modes <= 20:
+        raise ParameterError(f"--plant-modes (n_transverse) must be an integer in 1..20, got {args.plant_modes}")
+    if args.max_wall is not None and not args.max_wall > 0:
+        raise ParameterError(f"--max-wall must be > 0 [s], got {args.max_wall:g}")
+    if args.modal_table:         # options of a fit to records
+        for option in RECORD_OPTIONS:
+            if getattr(args, option[2:].replace("-", "_")) not in (None, []):
+                raise ParameterError(f"{option} does not apply with --modal-table (it fits records)")
+    out = check_output_dir("--out", args.out)
+    rig = load_rig(args.rig) if args.rig is not None else load_rig(args.params, "params")
+    fields = resolve_fields(args.fit, rig)
+    bounds = _parse_bounds(args.bounds)
+    check_bounds(fields, bounds)                 # before the records are read and simulated
+    plan = {"rig": rig, "fields": tuple(fields), "bounds": bounds, "out": out, "force": args.force, "json": args.json}
+    if args.modal_table:
+        return {**plan, "table": args.modal_table, "settings": FitSettings(max_evaluations=args.max_evaluations)}
+    return {**plan, "records": tuple(args.records), "validate": tuple(args.validate),
+            "sensors": None if args.sensors is None else tuple(s.strip() for s in args.sensors.split(",")),
+            "settings": FitSettings(model=ModelSettings(), plant_modes=args.plant_modes,
+                                    max_evaluations=args.max_evaluations, max_wall=args.max_wall)}
+
+
 def run(args) -> int:
     """Run ``hubbeam identify``.
 
@@ -97,52 +150,25 @@ def run(args) -> int:
     """
     import numpy as np
 
-    from hubbeam_ctrl.calibrate.fit import (
-        FitSettings,
-        check_bounds,
-        check_record_for_rig,
-        fit_rig,
-        predict,
-        resolve_fields,
-        validate_record,
-    )
-    from hubbeam_ctrl.calibrate.model import ModelSettings
+    from hubbeam_ctrl.calibrate.fit import check_record_for_rig, fit_rig, predict, validate_record
     from hubbeam_ctrl.calibrate.records import load_record
-    from hubbeam_ctrl.cli.args import check_output_dir, stdout
-    from hubbeam_ctrl.core.errors import ParameterError
+    from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.core.fileio import strict_json, write_folder
-    from hubbeam_ctrl.plant.rig import load_rig
     from hubbeam_ctrl.plots.calibration import plot_record_fit
     from hubbeam_ctrl.plots.plant import save_figure
 
     sink = stdout(args)
-    if bool(args.records) == bool(args.modal_table):
-        raise ParameterError("identify needs records or --modal-table TABLE.csv (one of the two)")
-    if args.plant_modes is not None and not 1 <= args.plant_modes <= 20:
-        raise ParameterError(f"--plant-modes (n_transverse) must be an integer in 1..20, got {args.plant_modes}")
-    if args.max_wall is not None and not args.max_wall > 0:
-        raise ParameterError(f"--max-wall must be > 0 [s], got {args.max_wall:g}")
-    if args.modal_table:         # options of a fit to records
-        for option, value in (("--validate", args.validate or None), ("--sensors", args.sensors),
-                              ("--plant-modes", args.plant_modes)):
-            if value is not None:
-                raise ParameterError(f"{option} does not apply with --modal-table (it fits records)")
-    out = check_output_dir("--out", args.out)
-    rig = load_rig(args.rig) if args.rig is not None else load_rig(args.params, "params")
-    fit_fields = resolve_fields(args.fit, rig)
-    bounds = _parse_bounds(args.bounds)
-    check_bounds(fit_fields, bounds)                 # before the records are read and simulated
+    plan = identify_plan(args)
+    rig, fit_fields, bounds, out, settings = (plan[k] for k in ("rig", "fields", "bounds", "out", "settings"))
     if args.modal_table:
-        return _run_modal_table(args, rig, fit_fields, bounds, out, sink)
-    sensors = None if args.sensors is None else tuple(s.strip() for s in args.sensors.split(","))
-    records = [load_record(r).resampled() for r in args.records]
-    validation = [load_record(r).resampled() for r in args.validate]
+        return _run_modal_table(args, plan, sink)
+    sensors = plan["sensors"]
+    records = [load_record(r).resampled() for r in plan["records"]]
+    validation = [load_record(r).resampled() for r in plan["validate"]]
     for rec in records:
         check_record_for_rig(rec, rig, sensors)
     for rec in validation:
         check_record_for_rig(rec, rig, sensors, "--validate")
-    settings = FitSettings(model=ModelSettings(), plant_modes=args.plant_modes, max_evaluations=args.max_evaluations,
-                           max_wall=args.max_wall)
     result = fit_rig(rig, records, [f.name for f in fit_fields], bounds=bounds, sensors=sensors, settings=settings,
                      progress=not args.json)
     valid = {}
@@ -155,7 +181,7 @@ def run(args) -> int:
         fits, y = validate_record(result.rig, rec, sensors, result.model)
         valid[rec.source] = fits
         series.append((f"validate_{k + 1}.png", rec, y, fits))
-    rig_text = _checked_rig_text(result, args.force)
+    rig_text = _checked_rig_text(result, plan["force"])
     summary = result.to_dict()
     summary["validation_fit_percent"] = valid
     summary["rig_written"] = rig_text is not None
@@ -231,19 +257,18 @@ def _with_intervals(result):
     return result.rig.replace(uncertainty=Uncertainty.from_table(kept)) if kept else result.rig
 
 
-def _run_modal_table(args, rig, fit_fields, bounds, out, sink) -> int:
+def _run_modal_table(args, plan, sink) -> int:
     """``identify --modal-table``: fit to measured frequencies by modal analysis."""
 
     import numpy as np
 
-    from hubbeam_ctrl.calibrate.fit import FitSettings
     from hubbeam_ctrl.calibrate.table import fit_modal_table, load_modal_table
     from hubbeam_ctrl.core.fileio import strict_json, write_folder
 
-    table = load_modal_table(args.modal_table)
-    result = fit_modal_table(rig, table, [f.name for f in fit_fields], bounds=bounds,
-                             settings=FitSettings(max_evaluations=args.max_evaluations), progress=not args.json)
-    rig_text = _checked_rig_text(result, args.force)
+    out = plan["out"]
+    result = fit_modal_table(plan["rig"], load_modal_table(plan["table"]), [f.name for f in plan["fields"]],
+                             bounds=plan["bounds"], settings=plan["settings"], progress=not args.json)
+    rig_text = _checked_rig_text(result, plan["force"])
     summary = result.to_dict()
     summary["rig_written"] = rig_text is not None
 

@@ -14,7 +14,7 @@ import time
 from hubbeam_ctrl.cli.args import add_verbose, nonempty, terminate_as_interrupt
 from hubbeam_ctrl.cli.main import positive_float, positive_int
 
-__all__ = ["add_parser", "run", "add_engine_options", "engine_from_args"]
+__all__ = ["add_parser", "run", "add_engine_options", "study_plan", "sweep_plan", "study_engine"]
 
 
 def add_engine_options(p) -> None:
@@ -36,8 +36,9 @@ def add_engine_options(p) -> None:
     add_verbose(p)
 
 
-def engine_from_args(args):
-    """The Dask client of ``--scheduler`` (None without it); raises ParameterError if it does not answer.
+def scheduler_plan(args):
+    """``(address, timeout [s])`` of ``--scheduler`` and ``--scheduler-timeout``, or None without a
+    scheduler; the options that do not apply are refused.
 
     Parameters
     ----------
@@ -45,14 +46,67 @@ def engine_from_args(args):
         The parsed command line.
     """
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.study.sweep import connect
     if not args.scheduler:
         if args.scheduler_timeout is not None:
             raise ParameterError("--scheduler-timeout applies with --scheduler only")
         return None
     if args.workers is not None:      # the cluster's workers run the cases
         raise ParameterError("--workers does not apply with --scheduler (the cluster's workers run the cases)")
-    return connect(args.scheduler, 10.0 if args.scheduler_timeout is None else args.scheduler_timeout)
+    return args.scheduler, 10.0 if args.scheduler_timeout is None else args.scheduler_timeout
+
+
+def study_plan(args) -> dict:
+    """What ``sweep`` and ``tune`` share, as the values of the run, each option checked.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    dict
+        ``out`` (Path), ``spec`` (StudySpec with ``--rig``, ``--plant`` and ``--settings``),
+        ``workers`` (int or None), ``scheduler`` (``(address, timeout)`` or None), ``json``.
+    """
+    from hubbeam_ctrl.cli.args import check_output_dir
+    from hubbeam_ctrl.study.spec import load_settings
+    out = check_output_dir("--out", args.out)
+    spec = spec_from_args(args)
+    if getattr(args, "settings", None):
+        spec = load_settings(spec, args.settings)
+    return {"out": out, "spec": spec, "workers": args.workers, "scheduler": scheduler_plan(args), "json": args.json}
+
+
+class study_engine:
+    """The Dask client of a plan's ``scheduler`` (None without one), closed on leaving; within the
+    block the native output goes to stderr and SIGTERM acts as Ctrl-C.
+
+    Parameters
+    ----------
+    plan : dict
+        :func:`study_plan`'s values.
+    """
+
+    def __init__(self, plan):
+        self.plan = plan
+
+    def __enter__(self):
+        from hubbeam_ctrl.cli.compare import stdout_to_stderr
+        from hubbeam_ctrl.study.sweep import connect
+        scheduler = self.plan["scheduler"]
+        self.client = None if scheduler is None else connect(*scheduler)
+        self._blocks = [stdout_to_stderr(), terminate_as_interrupt()]
+        for block in self._blocks:
+            block.__enter__()
+        return self.client
+
+    def __exit__(self, *exc):
+        for block in reversed(self._blocks):
+            block.__exit__(*exc)
+        if self.client is not None:
+            self.client.close()
+        return False
 
 
 def add_parser(subparsers, common) -> None:
@@ -123,6 +177,17 @@ def spec_from_args(args):
         raise
 
 
+def sweep_plan(args) -> dict:
+    """``hubbeam sweep``'s command line as the values of the run: :func:`study_plan`'s and ``resume``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    return {**study_plan(args), "resume": args.resume}
+
+
 def run(args) -> int:
     """Run ``hubbeam sweep``; bad input raises ParameterError (exit 2).
 
@@ -131,33 +196,24 @@ def run(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from hubbeam_ctrl.cli.args import check_output_dir, stdout
-    from hubbeam_ctrl.cli.compare import stdout_to_stderr
+    from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.core.fileio import strict_json
-    from hubbeam_ctrl.study.spec import load_settings
     from hubbeam_ctrl.study.sweep import sweep
     from hubbeam_ctrl.study.sweep_report import write_sweep_outputs
 
     sink = stdout(args)
-    check_output_dir("--out", args.out)
-    spec = spec_from_args(args)
-    if args.settings:
-        spec = load_settings(spec, args.settings)
-    client = engine_from_args(args)
+    plan = sweep_plan(args)
+    spec, out = plan["spec"], plan["out"]
     t0 = time.perf_counter()
-    try:
-        with stdout_to_stderr(), terminate_as_interrupt():
-            df = sweep(spec, workers=args.workers, client=client, progress=not args.json,
-                       out_dir=args.out, resume=args.resume)
-            wall = time.perf_counter() - t0
-            paths = write_sweep_outputs(df, spec, args.out, wall)
-    finally:
-        if client is not None:
-            client.close()
+    with study_engine(plan) as client:
+        df = sweep(spec, workers=plan["workers"], client=client, progress=not plan["json"], out_dir=out,
+                   resume=plan["resume"])
+        wall = time.perf_counter() - t0
+        paths = write_sweep_outputs(df, spec, out, wall)
     summary = _summary_records(df)
     n_cases = int(df["case"].nunique()) if len(df) else 0
     failed = int(df.loc[df["error"].astype(str) != "", "case"].nunique())
-    if args.json:
+    if plan["json"]:
         print(strict_json({"out": str(args.out), "n_cases": n_cases, "n_failed": failed, "wall_s": wall,
                           "files": sorted(p.name for p in paths.values()), "summary": summary}), file=sink)
     else:

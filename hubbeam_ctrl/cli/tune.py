@@ -9,10 +9,9 @@ Example::
 
 from __future__ import annotations
 
-from hubbeam_ctrl.cli.args import terminate_as_interrupt
 from hubbeam_ctrl.cli.main import finite_float, positive_int
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "tune_plan"]
 
 
 def _objective(text):
@@ -62,6 +61,30 @@ def add_parser(subparsers, common) -> None:
     p.set_defaults(func=run)
 
 
+def tune_plan(args) -> dict:
+    """``hubbeam tune``'s command line as the values of the run: :func:`~hubbeam_ctrl.cli.sweep.study_plan`'s,
+    ``controller`` and ``options`` (TuneOptions: the spec's ``[tune]`` table, the flags over it).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    from hubbeam_ctrl.cli.sweep import study_plan
+    from hubbeam_ctrl.core.fileio import read_toml
+    from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES
+    from hubbeam_ctrl.study.tune import TuneOptions
+
+    plan = study_plan(args)
+    table = dict(read_toml(args.spec, "spec: file", MAX_SPEC_BYTES).get("tune", {}))
+    table.update({key: getattr(args, key) for key in TUNE_OPTIONS if getattr(args, key) is not None})
+    return {**plan, "controller": args.controller, "options": TuneOptions.from_dict(table)}
+
+
+#: The flags that override the spec's ``[tune]`` table (TuneOptions fields).
+TUNE_OPTIONS = ("objective", "maxiter", "popsize", "decades", "seed")
+
+
 def run(args) -> int:
     """Run ``hubbeam tune``; bad input raises ParameterError (exit 2).
 
@@ -70,43 +93,28 @@ def run(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from hubbeam_ctrl.cli.args import check_output_dir, stdout
-    from hubbeam_ctrl.cli.compare import stdout_to_stderr
-    from hubbeam_ctrl.cli.sweep import engine_from_args, spec_from_args
-    from hubbeam_ctrl.core.fileio import read_toml, strict_json
-    from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES
-    from hubbeam_ctrl.study.tune import TuneOptions, tune, write_tune_outputs
+    from hubbeam_ctrl.cli.args import stdout
+    from hubbeam_ctrl.cli.sweep import study_engine
+    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.study.tune import tune, write_tune_outputs
 
     sink = stdout(args)
-    check_output_dir("--out", args.out)
-    spec = spec_from_args(args)
-    table = dict(read_toml(args.spec, "spec: file", MAX_SPEC_BYTES).get("tune", {}))
-    for key in ("objective", "maxiter", "popsize", "decades", "seed"):
-        if getattr(args, key) is not None:
-            table[key] = getattr(args, key)
-    options = TuneOptions.from_dict(table)
-    client = engine_from_args(args)
-    try:
-        with stdout_to_stderr(), terminate_as_interrupt():
-            result = tune(spec, args.controller, options=options, workers=args.workers, client=client,
-                          progress=not args.json)
-            paths = write_tune_outputs(result, args.out)
-    finally:
-        if client is not None:
-            client.close()
-    out = {"controller": result.controller, "objective": result.objective,
-           "default_objective": result.default_objective, "worst_residual_m": result.worst_residual_m,
-           "default_worst_residual_m": result.default_worst_residual_m, "x": result.x,
-           "weights": result.settings_table()[result.controller]["weights"], "n_runs": result.n_runs,
-           "wall_s": result.wall_s, "files": sorted(p.name for p in paths.values())}
-    if args.json:
+    plan = tune_plan(args)
+    with study_engine(plan) as client:
+        result = tune(plan["spec"], plan["controller"], options=plan["options"], workers=plan["workers"],
+                      client=client, progress=not plan["json"])
+        paths = write_tune_outputs(result, plan["out"])
+    r = result
+    out = {"controller": r.controller, "objective": r.objective, "default_objective": r.default_objective,
+           "worst_residual_m": r.worst_residual_m, "default_worst_residual_m": r.default_worst_residual_m,
+           "x": r.x, "weights": r.settings_table()[r.controller]["weights"], "n_runs": r.n_runs,
+           "wall_s": r.wall_s, "files": sorted(p.name for p in paths.values())}
+    if plan["json"]:
         print(strict_json(out), file=sink)
-    else:
-        r = result
-        print(f"{r.controller}: objective {r.objective:.4f} (scaled defaults {r.default_objective:.4f}); "
-              f"worst residual {r.worst_residual_m:.3e} m (scaled defaults {r.default_worst_residual_m:.3e} m)",
-              file=sink)
-        print("weights: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["weights"].items()), file=sink)
-        print(f"{result.n_runs} closed-loop runs in {result.wall_s:.1f} s; wrote {args.out}/tuned_settings.toml, "
-              "tune.json, convergence.png", file=sink)
+        return 0
+    print(f"{r.controller}: objective {r.objective:.4f} (scaled defaults {r.default_objective:.4f}); "
+          f"worst residual {r.worst_residual_m:.3e} m (scaled defaults {r.default_worst_residual_m:.3e} m)", file=sink)
+    print("weights: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["weights"].items()), file=sink)
+    print(f"{r.n_runs} closed-loop runs in {r.wall_s:.1f} s; wrote {args.out}/tuned_settings.toml, "
+          "tune.json, convergence.png", file=sink)
     return 0
