@@ -14,11 +14,14 @@ import argparse
 import math
 import re
 import sys
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["params_from_args", "UNSTABLE_NOTE",
+__all__ = ["params_from_args", "rig_from_args", "beam_from_args", "source_from_args", "Command", "add_rig_option",
+           "add_task_options", "positive", "UNSTABLE_NOTE",
            "stdout", "check_rig_dt", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
            "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits",
            "terminate_as_interrupt"]
@@ -198,6 +201,23 @@ def real(unit: str = "-"):
     return parse
 
 
+def positive(unit: str = "-"):
+    """argparse type: a finite number > 0 (its upper range is checked by the library).
+
+    Parameters
+    ----------
+    unit : str
+        Unit, for the help text only.
+    """
+    def parse(text):
+        value = _number_text(text)
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text[:40]}")
+        return value
+    parse.unit = unit
+    return parse
+
+
 def integer():
     """argparse type: an integer (``5`` or ``5.0``; its range is checked by the library)."""
     def parse(text):
@@ -372,6 +392,127 @@ class terminate_as_interrupt:
             import signal
             signal.signal(signal.SIGTERM, self._previous)
         return False
+
+
+@dataclass(frozen=True)
+class Command:
+    """A ``hubbeam`` subcommand: its texts, its options and what runs it (each command module holds
+    one, ``COMMAND``, and :func:`hubbeam_ctrl.cli.main.build_parser` adds them all).
+
+    Attributes
+    ----------
+    name : str
+        The subcommand (``hubbeam NAME``).
+    options : callable
+        ``options(parser)``: adds the command's own options.
+    func : callable
+        ``func(args) -> int``: runs the command and returns the exit status; bad input raises
+        ParameterError (exit 2).
+    help : str
+        Its line in ``hubbeam --help``.
+    description : str
+        Its ``hubbeam NAME --help`` text.
+    beam : bool
+        Whether it takes the beam options ``--params``, ``--tip-mass``, ``--tip-position``, ``--n-modes``.
+    formatter_class : type or None
+        argparse help formatter (None: argparse's).
+    """
+
+    name: str
+    options: Callable
+    func: Callable
+    help: str
+    description: str
+    beam: bool = True
+    formatter_class: type | None = None
+
+    def add_to(self, subparsers, common) -> argparse.ArgumentParser:
+        """Add the subcommand to ``hubbeam``'s.
+
+        Parameters
+        ----------
+        subparsers : argparse._SubParsersAction
+            The ``hubbeam`` subcommands.
+        common : argparse.ArgumentParser
+            The parent parser with the beam options.
+
+        Returns
+        -------
+        argparse.ArgumentParser
+        """
+        extra = {} if self.formatter_class is None else {"formatter_class": self.formatter_class}
+        p = subparsers.add_parser(self.name, parents=[common] if self.beam else [], help=self.help,
+                                  description=self.description, **extra)
+        self.options(p)
+        p.set_defaults(func=self.func)
+        return p
+
+
+def add_rig_option(p, help: str = "a rig file or preset (servo_link, paper): its beam, drive, sensors and sample "
+                                  "time; not with --params", *, required: bool = False) -> None:
+    """Add ``--rig RIG.toml|PRESET`` to a subcommand (or a group of its options).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser or argument group
+        Where to add it.
+    help : str
+        What the rig is for, on this command.
+    required : bool
+        Whether the command needs one.
+    """
+    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"), required=required, help=help)
+
+
+def add_task_options(p, dt_help: str) -> None:
+    """Add the task of a design, as :func:`design_task` reads it: ``--scenario``, ``--slew-angle``,
+    ``--tf``, ``--wf``, ``--dt``, ``--design-modes`` and ``--tau-max``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The subcommand's parser.
+    dt_help : str
+        What ``--dt`` defaults to on this command.
+    """
+    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
+                   help="the task: slew (default, design at rest) or spinup (design at --wf)")
+    p.add_argument("--slew-angle", metavar="RAD", type=real("rad"),
+                   help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
+    p.add_argument("--tf", metavar="S", type=positive("s"), default=10.0, help="maneuver time [s] (default 10)")
+    p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
+                   help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
+    p.add_argument("--dt", metavar="S", type=positive("s"), help=f"sample time [s] (default: {dt_help})")
+    p.add_argument("--design-modes", metavar="N", type=int,
+                   help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
+    p.add_argument("--tau-max", metavar="NM", type=positive("N m"),
+                   help="torque budget [N m], at most the motor's tau_max (default: that)")
+
+
+def beam_from_args(args):
+    """``(rig, params)``: the rig of ``--rig`` (None without it) and the beam the command works on,
+    the rig's plant beam (its rotor reflected) or the beam of the beam options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    rig = rig_from_args(args)
+    return rig, rig.plant_params if rig is not None else params_from_args(args)
+
+
+def source_from_args(args):
+    """The rig of ``--rig``, else the beam of the beam options (what :func:`~hubbeam_ctrl.fmu.build_fmu`
+    and the limit take as ``rig_or_params``).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    rig = rig_from_args(args)
+    return rig if rig is not None else params_from_args(args)
 
 
 def design_task(args, rig, params):

@@ -18,33 +18,22 @@ records' excited band unless ``--plant-modes`` is given.
 
 from __future__ import annotations
 
-__all__ = ["add_parser", "run", "identify_plan"]
+from hubbeam_ctrl.cli.args import Command
+
+__all__ = ["COMMAND", "identify_plan", "RECORD_OPTIONS"]
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``identify`` subcommand.
+def _options(p) -> None:
+    """``hubbeam identify``'s options on its parser ``p``."""
+    from hubbeam_ctrl.cli.args import add_rig_option, add_verbose, integer, nonempty, real
 
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-    common : argparse.ArgumentParser
-        Not used (the rig or parameter file holds the beam).
-    """
-    from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty, real
-
-    p = subparsers.add_parser(
-        "identify", help="calibrate rig fields from measured records (least squares on FOAM with the hardware)",
-        description=("Fits the --fit fields of the rig to the records by least squares of the simulated "
-                     "sensors (nonlinear FOAM with the rig's drive and friction) against the measured ones; "
-                     "writes the calibrated rig (only if the fit converged and was checked), report.md with "
-                     "measured-vs-model plots, and result.json."))
     p.add_argument("records", metavar="RECORD", nargs="*", type=nonempty("record file"),
                    help="records (.csv with a 'name [unit]' header, or .npz), each starting at rest")
     p.add_argument("--modal-table", metavar="TABLE.csv", type=nonempty("file"),
                    help="fit to measured frequencies (and damping ratios) against spin rate and tip mass instead "
                         "of records: header spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--rig", metavar="RIG", type=nonempty("rig file or preset"), help="rig TOML file or preset")
+    add_rig_option(src, "rig TOML file or preset")
     src.add_argument("--params", metavar="P.toml", type=nonempty("file"),
                      help="parameter file (the beam alone, ideal hardware)")
     p.add_argument("--fit", metavar="E,J_h,...", required=True,
@@ -67,7 +56,6 @@ def add_parser(subparsers, common) -> None:
                    help="write the calibrated rig even when the fit did not converge to the records' noise floor")
     p.add_argument("--json", action="store_true", help="print each fitted field's estimate and interval as JSON")
     add_verbose(p)
-    p.set_defaults(func=run)
 
 
 def _parse_bounds(items) -> dict:
@@ -141,13 +129,8 @@ def identify_plan(args) -> dict:
                                     max_evaluations=args.max_evaluations, max_wall=args.max_wall)}
 
 
-def run(args) -> int:
-    """Run ``hubbeam identify``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-    """
+def _run(args) -> int:
+    """Fit, write the report (and the calibrated rig) and print the estimates."""
     import numpy as np
 
     from hubbeam_ctrl.calibrate.fit import check_record_for_rig, fit_rig, predict, validate_record
@@ -337,3 +320,12 @@ def _report(result, valid, series, written, np) -> str:
     if series:
         lines += ["", "## Measured against model", ""] + [f"![{rec.source}]({name})" for name, rec, _, _ in series]
     return "\n".join(lines) + "\n"
+
+
+COMMAND = Command(
+    "identify", _options, _run, beam=False,
+    help="calibrate rig fields from measured records (least squares on FOAM with the hardware)",
+    description=("Fits the --fit fields of the rig to the records by least squares of the simulated sensors "
+                 "(nonlinear FOAM with the rig's drive and friction) against the measured ones; writes the "
+                 "calibrated rig (only if the fit converged and was checked), report.md with measured-vs-model "
+                 "plots, and result.json."))

@@ -11,7 +11,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hubbeam_ctrl.cli.args import UNSTABLE_NOTE  # noqa: F401 (re-exported: its old home)
+from hubbeam_ctrl.cli.args import UNSTABLE_NOTE, Command
+
+__all__ = ["COMMAND", "UNSTABLE_NOTE"]      # UNSTABLE_NOTE: re-exported (its old home)
 
 
 class _OutputsHelpFormatter(argparse.HelpFormatter):
@@ -26,28 +28,11 @@ class _OutputsHelpFormatter(argparse.HelpFormatter):
         return text
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``linearize`` subcommand (``common`` holds the system-parameter options).
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
+def _options(p) -> None:
+    """``hubbeam linearize``'s options on its parser ``p``."""
     from hubbeam_ctrl.cli.args import add_verbose, real
     from hubbeam_ctrl.plant.models import MODEL_SPECS
 
-    p = subparsers.add_parser(
-        "linearize", parents=[common], formatter_class=_OutputsHelpFormatter,
-        help="linear state-space model about steady spin (.mat/.npz/.json)",
-        description=("Linearise a model about steady rotation at --spin with the hub free "
-                     "(input: hub torque tau [N m]) and save A, B, C, D with the state, input "
-                     "and output names, the sample time and every parameter. States: theta "
-                     "[rad], q1_i, q2_i [m] (modal coordinates; q2 is half the mode's tip "
-                     "deflection), and their rates. --n-modes sets the axial and the "
-                     "transverse mode count."))
     p.add_argument("--model", choices=list(MODEL_SPECS), default="sfoam",
                    help="source model (default sfoam, the design model)")
     p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"), default=0.0,
@@ -63,17 +48,10 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--json", action="store_true",
                    help='print {"model", "spin_rad_s", "n_states", "poles_hz", "unstable", "out"} as JSON')
     add_verbose(p)
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    """Run ``hubbeam linearize``; bad input raises :class:`ParameterError`.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Linearise the model, save it and print its poles."""
     from hubbeam_ctrl.cli.args import check_output, params_from_args, stdout
     from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.core.validation import check_in_range
@@ -106,3 +84,12 @@ def run(args) -> int:
     if note:
         print(f"warning: {lm.model.upper()} at {lm.spin:g} rad/s{note}", file=sys.stderr)
     return 0
+
+
+COMMAND = Command(
+    "linearize", _options, _run, formatter_class=_OutputsHelpFormatter,
+    help="linear state-space model about steady spin (.mat/.npz/.json)",
+    description=("Linearise a model about steady rotation at --spin with the hub free (input: hub torque tau [N m]) "
+                 "and save A, B, C, D with the state, input and output names, the sample time and every parameter. "
+                 "States: theta [rad], q1_i, q2_i [m] (modal coordinates; q2 is half the mode's tip deflection), and "
+                 "their rates. --n-modes sets the axial and the transverse mode count."))

@@ -22,6 +22,7 @@ from hubbeam_ctrl.cli.args import (
     integer,
     nonempty,
     params_from_args,
+    positive,
     real,
     refuse_inapplicable,
     rename_options,
@@ -42,7 +43,7 @@ __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positi
 #: complete foreshortening is not).
 CRITICAL_SPEED_MODELS = tuple(n for n, spec in MODEL_SPECS.items() if spec.foreshortening != "complete")
 
-#: Subcommands contributed by other modules: module name -> provides add_parser/run.
+#: Subcommands contributed by other modules, each holding its ``COMMAND`` (:class:`~hubbeam_ctrl.cli.args.Command`).
 EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.design",
                   "hubbeam_ctrl.cli.sweep", "hubbeam_ctrl.cli.tune", "hubbeam_ctrl.cli.cache",
                   "hubbeam_ctrl.cli.optimal", "hubbeam_ctrl.cli.fmu", "hubbeam_ctrl.cli.demo",
@@ -116,12 +117,7 @@ def positive_float(name):
     name : str
         The option's name (for the message).
     """
-    def parse(text):
-        value = real()(text)
-        if not value > 0:
-            raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text[:40]}")
-        return value
-    return parse
+    return positive()
 
 
 def positive_int(name):
@@ -408,7 +404,7 @@ def build_parser() -> argparse.ArgumentParser:
             if exc.name != name:
                 raise
             continue
-        module.add_parser(sub, common)
+        module.COMMAND.add_to(sub, common)
     return parser
 
 
@@ -434,11 +430,7 @@ def main(argv=None) -> int:
             print(parser.format_usage().strip() + "  (hubbeam --help lists the commands)", file=sys.stderr)
             return 2
         options = _options_of(parser, args.command)
-        func = getattr(args, "func", None)
-        if func is None:
-            module = importlib.import_module(f"hubbeam_ctrl.cli.{args.command}")
-            func = module.run
-        return _run(func, args)
+        return _run(args.func, args)
     except ResourceError as exc:       # disk full, quota, I/O: not bad input
         return _fail(1, rename_options(_one_line(exc), options))
     except (ParameterError, HubbeamError) as exc:

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import time
 
-from hubbeam_ctrl.cli.args import add_verbose, nonempty, terminate_as_interrupt
+from hubbeam_ctrl.cli.args import Command, add_rig_option, add_verbose, nonempty, terminate_as_interrupt
 from hubbeam_ctrl.cli.main import positive_float, positive_int
 
-__all__ = ["add_parser", "run", "add_engine_options", "study_plan", "sweep_plan", "study_engine"]
+__all__ = ["COMMAND", "add_engine_options", "study_plan", "sweep_plan", "study_engine", "STUDY_RIG"]
 
 
 def add_engine_options(p) -> None:
@@ -109,22 +109,13 @@ class study_engine:
         return False
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``sweep`` subcommand (``common`` is not used: the spec holds the parameters).
+#: ``--rig`` on a study command.
+STUDY_RIG = ("run every case on this rig (a rig file or a preset), replacing the spec's [study] rig (docs/studies.md, "
+             "'Sweeps on a rig'); its drive gives the torque limit")
 
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
-    p = subparsers.add_parser(
-        "sweep", help="robustness study: controllers over a plant spread (grid / Monte Carlo)",
-        description=("Run every controller of a study spec (TOML: [study], [params], [settings.NAME], "
-                     "[grid], [random]) on every case of its plant spread, on local worker processes "
-                     "or a Dask cluster. Writes results.csv (appended as cases finish), summary.csv, "
-                     "robustness_<factor>.png, heatmap.png, stable_region.png and report.md to --out."))
+
+def _options(p) -> None:
+    """``hubbeam sweep``'s options on its parser ``p``."""
     p.add_argument("spec", metavar="SPEC.toml", help="study spec")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
     p.add_argument("--resume", action="store_true", help="finish an interrupted study in --out")
@@ -133,22 +124,8 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--plant", metavar="PLANT", type=nonempty("plant"),
                    help="run every case on this plant (foam, cfoam, or ancf: the geometrically exact beam of "
                         "Exudyn, extra 'exact'), replacing the spec's [study] plant")
-    add_rig_option(p)
+    add_rig_option(p, STUDY_RIG)
     add_engine_options(p)
-    p.set_defaults(func=run)
-
-
-def add_rig_option(p) -> None:
-    """Add ``--rig`` (every case of the spec on this rig) to a study subcommand.
-
-    Parameters
-    ----------
-    p : argparse.ArgumentParser
-        The subcommand's parser.
-    """
-    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
-                   help="run every case on this rig (a rig file or a preset), replacing the spec's [study] rig "
-                        "(docs/studies.md, 'Sweeps on a rig'); its drive gives the torque limit")
 
 
 def spec_from_args(args):
@@ -188,14 +165,8 @@ def sweep_plan(args) -> dict:
     return {**study_plan(args), "resume": args.resume}
 
 
-def run(args) -> int:
-    """Run ``hubbeam sweep``; bad input raises ParameterError (exit 2).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Run the study and write its outputs."""
     from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.study.sweep import sweep
@@ -232,3 +203,12 @@ def _summary_records(df) -> list:
     clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v
     return [{k: clean(v.item() if hasattr(v, "item") else v) for k, v in r.items()}
             for r in summarize(df).to_dict("records")]
+
+
+COMMAND = Command(
+    "sweep", _options, _run, beam=False,
+    help="robustness study: controllers over a plant spread (grid / Monte Carlo)",
+    description=("Run every controller of a study spec (TOML: [study], [params], [settings.NAME], [grid], [random]) "
+                 "on every case of its plant spread, on local worker processes or a Dask cluster. Writes "
+                 "results.csv (appended as cases finish), summary.csv, robustness_<factor>.png, heatmap.png, "
+                 "stable_region.png and report.md to --out."))

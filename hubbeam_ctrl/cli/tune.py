@@ -9,9 +9,10 @@ Example::
 
 from __future__ import annotations
 
+from hubbeam_ctrl.cli.args import Command, add_rig_option
 from hubbeam_ctrl.cli.main import finite_float, positive_int
 
-__all__ = ["add_parser", "run", "tune_plan"]
+__all__ = ["COMMAND", "tune_plan"]
 
 
 def _objective(text):
@@ -27,25 +28,9 @@ def _objective(text):
     return q
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``tune`` subcommand (``common`` is not used: the spec holds the parameters).
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
-    from hubbeam_ctrl.cli.sweep import add_engine_options, add_rig_option
-    p = subparsers.add_parser(
-        "tune", help="robust LQR/LQG/MPC weights over a study's plant spread",
-        description=("Search the controller's weights (scaled, dimensionless; differential evolution "
-                     "started from the scaled defaults) for the best worst case (or a quantile) over the "
-                     "cases of a study spec: residual vibration in decades of L plus effort, settling and "
-                     "final-angle penalties. Writes tuned_settings.toml (for hubbeam sweep --settings), "
-                     "tune.json and convergence.png to --out. The spec's [tune] table sets the options; "
-                     "the flags below override it."))
+def _options(p) -> None:
+    """``hubbeam tune``'s options on its parser ``p``."""
+    from hubbeam_ctrl.cli.sweep import STUDY_RIG, add_engine_options
     p.add_argument("spec", metavar="SPEC.toml", help="study spec (its cases are the plant spread)")
     p.add_argument("--controller", choices=["lqr", "lqg", "mpc"], required=True)
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
@@ -56,9 +41,8 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--decades", metavar="D", type=finite_float("decades"),
                    help="search within D decades of the scaled defaults (default 2)")
     p.add_argument("--seed", metavar="N", type=int, help="optimiser seed (default 0)")
-    add_rig_option(p)
+    add_rig_option(p, STUDY_RIG)
     add_engine_options(p)
-    p.set_defaults(func=run)
 
 
 def tune_plan(args) -> dict:
@@ -85,14 +69,8 @@ def tune_plan(args) -> dict:
 TUNE_OPTIONS = ("objective", "maxiter", "popsize", "decades", "seed")
 
 
-def run(args) -> int:
-    """Run ``hubbeam tune``; bad input raises ParameterError (exit 2).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Tune the weights and write them."""
     from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.cli.sweep import study_engine
     from hubbeam_ctrl.core.fileio import strict_json
@@ -118,3 +96,12 @@ def run(args) -> int:
     print(f"{r.n_runs} closed-loop runs in {r.wall_s:.1f} s; wrote {args.out}/tuned_settings.toml, "
           "tune.json, convergence.png", file=sink)
     return 0
+
+
+COMMAND = Command(
+    "tune", _options, _run, beam=False, help="robust LQR/LQG/MPC weights over a study's plant spread",
+    description=("Search the controller's weights (scaled, dimensionless; differential evolution started from the "
+                 "scaled defaults) for the best worst case (or a quantile) over the cases of a study spec: residual "
+                 "vibration in decades of L plus effort, settling and final-angle penalties. Writes "
+                 "tuned_settings.toml (for hubbeam sweep --settings), tune.json and convergence.png to --out. The "
+                 "spec's [tune] table sets the options; the flags below override it."))
