@@ -21,7 +21,7 @@ from pathlib import Path
 from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["params_from_args", "rig_from_args", "beam_from_args", "source_from_args", "Command", "add_rig_option",
-           "add_task_options", "positive", "UNSTABLE_NOTE",
+           "add_task_options", "positive", "print_result", "UNSTABLE_NOTE",
            "stdout", "check_rig_dt", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
            "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits",
            "terminate_as_interrupt"]
@@ -134,6 +134,23 @@ def stdout(args):
         The parsed command line.
     """
     return getattr(args, "stdout", None) or sys.stdout
+
+
+def print_result(args, summary: dict, text) -> None:
+    """Print a command's result on its result stream (:func:`stdout`): ``summary`` as strict JSON with
+    ``--json``, else ``text``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (reads ``json``).
+    summary : dict
+        The result, JSON-ready (non-finite numbers become null, flagged).
+    text : str or callable
+        The result as text, or a function returning it (called only without ``--json``).
+    """
+    from hubbeam_ctrl.core.fileio import strict_json
+    print(strict_json(summary) if args.json else text() if callable(text) else text, file=stdout(args))
 
 
 _LEADING_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_-]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?)(?=[ :=])")

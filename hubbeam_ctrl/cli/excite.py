@@ -57,11 +57,9 @@ def _run(args) -> int:
     """Write the record and print its summary."""
     from hubbeam_ctrl.calibrate.excitation import excitation
     from hubbeam_ctrl.calibrate.records import save_record
-    from hubbeam_ctrl.cli.args import check_output, refuse_inapplicable, stdout
-    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.cli.args import check_output, print_result, refuse_inapplicable
     from hubbeam_ctrl.plant.rig import load_rig
 
-    sink = stdout(args)
     refuse_inapplicable(args, f"--kind {args.kind}", {"--band": ("chirp", "prbs", "multisine"),
                                                         "--modes": ("chirp", "prbs", "multisine"), "--seed": ("prbs",)})
     check_output("--out", args.out, (".csv", ".npz"))
@@ -77,12 +75,9 @@ def _run(args) -> int:
                "duration_s": rec.duration, "peak_input": float(np.max(np.abs(rec.input))),
                "predicted_peak_tip_m": float(np.max(np.abs(rec.columns["v_tip"]))),
                "predicted_peak_hub_rad": float(np.max(np.abs(rec.columns["theta"])))}
-    if args.json:
-        print(strict_json(summary), file=sink)
-    else:
-        print(f"wrote {args.out}: {args.kind}, {len(rec.t)} samples, peak {rec.input_name} "
-              f"{summary['peak_input']:.4g}; predicted peak tip {summary['predicted_peak_tip_m']:.4g} m, "
-              f"hub {summary['predicted_peak_hub_rad']:.4g} rad", file=sink)
+    tip, hub = summary["predicted_peak_tip_m"], summary["predicted_peak_hub_rad"]
+    print_result(args, summary, f"wrote {args.out}: {args.kind}, {len(rec.t)} samples, peak {rec.input_name} "
+                                f"{summary['peak_input']:.4g}; predicted peak tip {tip:.4g} m, hub {hub:.4g} rad")
     return 0
 
 

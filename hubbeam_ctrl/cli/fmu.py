@@ -58,23 +58,18 @@ def _run(args) -> int:
     """Build the FMU and print its summary."""
     import sys
 
-    from hubbeam_ctrl.cli.args import stdout
-    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.cli.args import print_result
     from hubbeam_ctrl.fmu import build_fmu
 
     info = build_fmu(**fmu_plan(args))
     summary = {"out": str(info.path), "fmi_version": info.fmi_version, "model": info.model, "n_q": info.n_q,
                "dt_s": info.dt, "substeps": info.substeps, "command": info.command, "outputs": list(info.outputs),
                "parameters": len(info.parameters), "binary": info.binary, "build_s": round(info.build_s, 3)}
-    sink = stdout(args)
-    if args.json:
-        print(strict_json(summary), file=sink)
-    else:
-        print(f"wrote {info.path}: FMI {info.fmi_version} co-simulation, {info.model.upper()} with {info.n_q} "
-              f"coordinates, input {info.command}, dt = {info.dt:g} s x {info.substeps} steps, "
-              f"{len(info.parameters)} parameters", file=sink)
-        if info.binary is None:
-            print("note: no binary in the FMU (no C compiler); it holds the sources", file=sys.stderr)
+    print_result(args, summary, f"wrote {info.path}: FMI {info.fmi_version} co-simulation, {info.model.upper()} "
+                                f"with {info.n_q} coordinates, input {info.command}, dt = {info.dt:g} s x "
+                                f"{info.substeps} steps, {len(info.parameters)} parameters")
+    if info.binary is None and not args.json:
+        print("note: no binary in the FMU (no C compiler); it holds the sources", file=sys.stderr)
     return 0
 
 

@@ -131,29 +131,22 @@ def identify_plan(args) -> dict:
 
 def _run(args) -> int:
     """Fit, write the report (and the calibrated rig) and print the estimates."""
-    import numpy as np
-
     from hubbeam_ctrl.calibrate.fit import check_record_for_rig, fit_rig, predict, validate_record
     from hubbeam_ctrl.calibrate.records import load_record
-    from hubbeam_ctrl.cli.args import stdout
-    from hubbeam_ctrl.core.fileio import strict_json, write_folder
-    from hubbeam_ctrl.plots.calibration import plot_record_fit
-    from hubbeam_ctrl.plots.plant import save_figure
+    from hubbeam_ctrl.cli.args import print_result
 
-    sink = stdout(args)
     plan = identify_plan(args)
-    rig, fit_fields, bounds, out, settings = (plan[k] for k in ("rig", "fields", "bounds", "out", "settings"))
     if args.modal_table:
-        return _run_modal_table(args, plan, sink)
-    sensors = plan["sensors"]
+        return _run_modal_table(args, plan)
+    rig, sensors, out = plan["rig"], plan["sensors"], plan["out"]
     records = [load_record(r).resampled() for r in plan["records"]]
     validation = [load_record(r).resampled() for r in plan["validate"]]
     for rec in records:
         check_record_for_rig(rec, rig, sensors)
     for rec in validation:
         check_record_for_rig(rec, rig, sensors, "--validate")
-    result = fit_rig(rig, records, [f.name for f in fit_fields], bounds=bounds, sensors=sensors, settings=settings,
-                     progress=not args.json)
+    result = fit_rig(rig, records, [f.name for f in plan["fields"]], bounds=plan["bounds"], sensors=sensors,
+                     settings=plan["settings"], progress=not args.json)
     valid = {}
     series = []
     for k, rec in enumerate(records):
@@ -164,12 +157,30 @@ def _run(args) -> int:
         fits, y = validate_record(result.rig, rec, sensors, result.model)
         valid[rec.source] = fits
         series.append((f"validate_{k + 1}.png", rec, y, fits))
+    summary, rig_text = _write_outputs(result, plan, valid, series)
+    text = [result.summary()] + [f"  validation {src}: " + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items())
+                                 for src, fits in valid.items()]
+    text.append(f"wrote {out}/report.md" + (f", {out}/rig.toml" if rig_text else " (no calibrated rig)"))
+    print_result(args, summary, "\n".join(text))
+    return _refusal(result, out, rig_text is not None)
+
+
+def _write_outputs(result, plan, valid, series) -> tuple:
+    """Write into ``--out`` the plots of ``series`` (measured against model), result.json, report.md and the
+    calibrated rig (when checked, :func:`_checked_rig_text`); returns ``(summary, rig text or None)``."""
+    import numpy as np
+
+    from hubbeam_ctrl.core.fileio import strict_json, write_folder
     rig_text = _checked_rig_text(result, plan["force"])
     summary = result.to_dict()
-    summary["validation_fit_percent"] = valid
+    if result.kind != "modal_table":
+        summary["validation_fit_percent"] = valid
     summary["rig_written"] = rig_text is not None
 
     def write(folder):
+        if series:
+            from hubbeam_ctrl.plots.calibration import plot_record_fit
+            from hubbeam_ctrl.plots.plant import save_figure
         for name, rec, y, fits in series:
             fig = plot_record_fit(rec.t, {s: rec.columns[s] for s in y}, y, fits, title=rec.source)
             save_figure(fig, folder / name)
@@ -177,15 +188,8 @@ def _run(args) -> int:
         (folder / "report.md").write_text(_report(result, valid, series, rig_text is not None, np), encoding="utf-8")
         if rig_text is not None:
             (folder / "rig.toml").write_text(rig_text, encoding="utf-8")
-    write_folder(out, write, "--out")
-    if args.json:
-        print(strict_json(summary), file=sink)
-    else:
-        print(result.summary(), file=sink)
-        for src, fits in valid.items():
-            print(f"  validation {src}: " + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items()), file=sink)
-        print(f"wrote {out}/report.md" + (f", {out}/rig.toml" if rig_text else " (no calibrated rig)"), file=sink)
-    return _refusal(result, out, rig_text is not None)
+    write_folder(plan["out"], write, "--out")
+    return summary, rig_text
 
 
 def _refusal(result, out, written) -> int:
@@ -240,29 +244,16 @@ def _with_intervals(result):
     return result.rig.replace(uncertainty=Uncertainty.from_table(kept)) if kept else result.rig
 
 
-def _run_modal_table(args, plan, sink) -> int:
+def _run_modal_table(args, plan) -> int:
     """``identify --modal-table``: fit to measured frequencies by modal analysis."""
-
-    import numpy as np
-
     from hubbeam_ctrl.calibrate.table import fit_modal_table, load_modal_table
-    from hubbeam_ctrl.core.fileio import strict_json, write_folder
+    from hubbeam_ctrl.cli.args import print_result
 
-    out = plan["out"]
     result = fit_modal_table(plan["rig"], load_modal_table(plan["table"]), [f.name for f in plan["fields"]],
                              bounds=plan["bounds"], settings=plan["settings"], progress=not args.json)
-    rig_text = _checked_rig_text(result, plan["force"])
-    summary = result.to_dict()
-    summary["rig_written"] = rig_text is not None
-
-    def write(folder):
-        (folder / "result.json").write_text(strict_json(summary) + "\n", encoding="utf-8")
-        (folder / "report.md").write_text(_report(result, {}, [], rig_text is not None, np), encoding="utf-8")
-        if rig_text is not None:
-            (folder / "rig.toml").write_text(rig_text, encoding="utf-8")
-    write_folder(out, write, "--out")
-    print(strict_json(summary) if args.json else result.summary(), file=sink)
-    return _refusal(result, out, rig_text is not None)
+    summary, rig_text = _write_outputs(result, plan, {}, [])
+    print_result(args, summary, result.summary)
+    return _refusal(result, plan["out"], rig_text is not None)
 
 
 def _report(result, valid, series, written, np) -> str:

@@ -52,13 +52,11 @@ def _options(p) -> None:
 
 def _run(args) -> int:
     """Linearise the model, save it and print its poles."""
-    from hubbeam_ctrl.cli.args import check_output, params_from_args, stdout
-    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.cli.args import check_output, params_from_args, print_result
     from hubbeam_ctrl.core.validation import check_in_range
     from hubbeam_ctrl.linear.export import FORMATS, save_model
     from hubbeam_ctrl.linear.statespace import DT_RANGE, discretize, linearize
 
-    sink = stdout(args)
     out = check_output("--out", args.out, FORMATS)
     if args.dt is not None:
         check_in_range("dt", args.dt, "s", *DT_RANGE)
@@ -72,15 +70,13 @@ def _run(args) -> int:
     save_model(lm, out)
     poles = [float(f) for f in lm.poles_hz()]
     note = UNSTABLE_NOTE if lm.unstable else ""
-    if args.json:
-        print(strict_json({"model": lm.model, "spin_rad_s": lm.spin, "n_states": lm.n_states,
-                           "poles_hz": poles, "unstable": lm.unstable, "out": str(out)}), file=sink)
-    else:
-        kind = f"sampled at dt = {lm.dt:g} s (zero-order hold)" if lm.is_discrete else "continuous"
-        print(f"{lm.model.upper()} linearised at spin {lm.spin:g} rad/s: {lm.n_states} states, "
-              f"input tau, outputs {', '.join(lm.output_names)}; {kind}{note}", file=sink)
-        print("  oscillatory poles [Hz]: " + ", ".join(f"{f:.4f}" for f in poles), file=sink)
-        print(f"  saved to {out}" + (" (marked unstable)" if note else ""), file=sink)
+    kind = f"sampled at dt = {lm.dt:g} s (zero-order hold)" if lm.is_discrete else "continuous"
+    text = [f"{lm.model.upper()} linearised at spin {lm.spin:g} rad/s: {lm.n_states} states, input tau, outputs "
+            f"{', '.join(lm.output_names)}; {kind}{note}",
+            "  oscillatory poles [Hz]: " + ", ".join(f"{f:.4f}" for f in poles),
+            f"  saved to {out}" + (" (marked unstable)" if note else "")]
+    print_result(args, {"model": lm.model, "spin_rad_s": lm.spin, "n_states": lm.n_states, "poles_hz": poles,
+                        "unstable": lm.unstable, "out": str(out)}, "\n".join(text))
     if note:
         print(f"warning: {lm.model.upper()} at {lm.spin:g} rad/s{note}", file=sys.stderr)
     return 0

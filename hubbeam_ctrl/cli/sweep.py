@@ -167,12 +167,10 @@ def sweep_plan(args) -> dict:
 
 def _run(args) -> int:
     """Run the study and write its outputs."""
-    from hubbeam_ctrl.cli.args import stdout
-    from hubbeam_ctrl.core.fileio import strict_json
+    from hubbeam_ctrl.cli.args import print_result
     from hubbeam_ctrl.study.sweep import sweep
     from hubbeam_ctrl.study.sweep_report import write_sweep_outputs
 
-    sink = stdout(args)
     plan = sweep_plan(args)
     spec, out = plan["spec"], plan["out"]
     t0 = time.perf_counter()
@@ -181,18 +179,20 @@ def _run(args) -> int:
                    resume=plan["resume"])
         wall = time.perf_counter() - t0
         paths = write_sweep_outputs(df, spec, out, wall)
-    summary = _summary_records(df)
     n_cases = int(df["case"].nunique()) if len(df) else 0
     failed = int(df.loc[df["error"].astype(str) != "", "case"].nunique())
-    if plan["json"]:
-        print(strict_json({"out": str(args.out), "n_cases": n_cases, "n_failed": failed, "wall_s": wall,
-                          "files": sorted(p.name for p in paths.values()), "summary": summary}), file=sink)
-    else:
-        from hubbeam_ctrl.study.sweep_report import summarize
-        print(summarize(df).to_string(index=False, float_format=lambda v: f"{v:.3g}"), file=sink)
-        print(f"{n_cases} cases ({failed} with errors) in {wall:.1f} s; wrote {args.out}/results.csv, "
-              f"summary.csv, report.md and {sum(str(p).endswith('.png') for p in paths.values())} plots", file=sink)
+    summary = {"out": str(args.out), "n_cases": n_cases, "n_failed": failed, "wall_s": wall,
+               "files": sorted(p.name for p in paths.values()), "summary": _summary_records(df)}
+    print_result(args, summary, lambda: _text(df, n_cases, failed, wall, args.out, paths))
     return 0
+
+
+def _text(df, n_cases, failed, wall, out, paths) -> str:
+    """The text result of ``hubbeam sweep``: summary.csv's table and what was written."""
+    from hubbeam_ctrl.study.sweep_report import summarize
+    return (summarize(df).to_string(index=False, float_format=lambda v: f"{v:.3g}")
+            + f"\n{n_cases} cases ({failed} with errors) in {wall:.1f} s; wrote {out}/results.csv, summary.csv, "
+              f"report.md and {sum(str(p).endswith('.png') for p in paths.values())} plots")
 
 
 def _summary_records(df) -> list:

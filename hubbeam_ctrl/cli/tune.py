@@ -71,12 +71,10 @@ TUNE_OPTIONS = ("objective", "maxiter", "popsize", "decades", "seed")
 
 def _run(args) -> int:
     """Tune the weights and write them."""
-    from hubbeam_ctrl.cli.args import stdout
+    from hubbeam_ctrl.cli.args import print_result
     from hubbeam_ctrl.cli.sweep import study_engine
-    from hubbeam_ctrl.core.fileio import strict_json
     from hubbeam_ctrl.study.tune import tune, write_tune_outputs
 
-    sink = stdout(args)
     plan = tune_plan(args)
     with study_engine(plan) as client:
         result = tune(plan["spec"], plan["controller"], options=plan["options"], workers=plan["workers"],
@@ -87,14 +85,12 @@ def _run(args) -> int:
            "worst_residual_m": r.worst_residual_m, "default_worst_residual_m": r.default_worst_residual_m,
            "x": r.x, "weights": r.settings_table()[r.controller]["weights"], "n_runs": r.n_runs,
            "wall_s": r.wall_s, "files": sorted(p.name for p in paths.values())}
-    if plan["json"]:
-        print(strict_json(out), file=sink)
-        return 0
-    print(f"{r.controller}: objective {r.objective:.4f} (scaled defaults {r.default_objective:.4f}); "
-          f"worst residual {r.worst_residual_m:.3e} m (scaled defaults {r.default_worst_residual_m:.3e} m)", file=sink)
-    print("weights: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["weights"].items()), file=sink)
-    print(f"{r.n_runs} closed-loop runs in {r.wall_s:.1f} s; wrote {args.out}/tuned_settings.toml, "
-          "tune.json, convergence.png", file=sink)
+    text = [f"{r.controller}: objective {r.objective:.4f} (scaled defaults {r.default_objective:.4f}); worst residual "
+            f"{r.worst_residual_m:.3e} m (scaled defaults {r.default_worst_residual_m:.3e} m)",
+            "weights: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["weights"].items()),
+            f"{r.n_runs} closed-loop runs in {r.wall_s:.1f} s; wrote {args.out}/tuned_settings.toml, tune.json, "
+            "convergence.png"]
+    print_result(args, out, "\n".join(text))
     return 0
 
 
