@@ -3,7 +3,7 @@
 The mode x option table is read from the argparse parser itself: an option added to
 ``compare`` without a sample value here fails :func:`test_every_option_acts_or_is_refused`,
 so none can be accepted and silently dropped. The walk runs at the level where options become
-values (:func:`hubbeam_ctrl.cli.compare.compare_plan`: the keyword arguments that both
+values (``hubbeam_ctrl.cli.compare.COMMAND.plan``: the keyword arguments that both
 :func:`~hubbeam_ctrl.study.compare.compare` and, with ``--payload-range``,
 :func:`~hubbeam_ctrl.study.payload.payload_comparison` take); a few real runs check that the
 payload path acts on what it is given.
@@ -13,7 +13,7 @@ import json
 
 import pytest
 
-from hubbeam_ctrl.cli.compare import compare_plan
+from hubbeam_ctrl.cli.compare import COMMAND as COMPARE
 from hubbeam_ctrl.cli.main import build_parser, main
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study.compare_values import CompareSettings, ScenarioChoice
@@ -60,7 +60,7 @@ def _option_args(action, mode, files, base):
 
 
 def _plan(parser, words):
-    return compare_plan(parser.parse_args(["compare", *words]))
+    return COMPARE.plan(parser.parse_args(["compare", *words]))
 
 
 @pytest.fixture
@@ -272,12 +272,14 @@ OPTIMAL_SAMPLES = {"--params": "DAMPED", "--tip-mass": "0.2", "--tip-position": 
                    "--intervals": "24"}
 
 
-def _walk_plans(command, plan_of, base, samples, files, mode=None):
-    """Walk ``command``'s options at the level where they become the run's values: ``plan_of`` (its
-    ``*_plan`` function) of ``base`` and of ``base`` with each option added (``samples``: option ->
+def _walk_plans(command, base, samples, files, mode=None):
+    """Walk ``command``'s options at the level where they become the run's values: its ``COMMAND.plan``
+    (:class:`~hubbeam_ctrl.cli.args.Command`) of ``base`` and of ``base`` with each option added (``samples``: option ->
     value, or ``{mode: value, None: value}``) must differ, or the option is refused in one line naming
     it and what it conflicts with. The options in ``base`` select the mode and are not walked.
     Returns how many options were walked."""
+    import importlib
+    plan_of = importlib.import_module(f"hubbeam_ctrl.cli.{command}").COMMAND.plan
     parser = build_parser()
     sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
     words_of = lambda w: [files.get(x, x) for x in w]        # noqa: E731
@@ -309,10 +311,8 @@ def _walk_plans(command, plan_of, base, samples, files, mode=None):
 @pytest.mark.parametrize("mode", list(OPTIMAL_MODES))
 def test_every_optimal_option_acts_or_is_refused(mode, files):
     """``hubbeam optimal``'s options, walked at the level where they become the run's values
-    (:func:`hubbeam_ctrl.cli.optimal.optimal_plan`), in each of its modes."""
-    from hubbeam_ctrl.cli.optimal import optimal_plan
-    walked = _walk_plans("optimal", optimal_plan, ["--slew-angle", "1", *OPTIMAL_MODES[mode]], OPTIMAL_SAMPLES,
-                         files, mode)
+    (its ``COMMAND.plan``), in each of its modes."""
+    walked = _walk_plans("optimal", ["--slew-angle", "1", *OPTIMAL_MODES[mode]], OPTIMAL_SAMPLES, files, mode)
     assert walked == 10 - len(OPTIMAL_MODES[mode]) // 2, walked
 
 
@@ -400,17 +400,13 @@ def study(tmp_path, files):
 @pytest.mark.parametrize("mode", list(STUDY_MODES))
 def test_every_study_option_acts_or_is_refused(command, mode, study):
     """``hubbeam sweep`` and ``tune`` on a grid and a Monte Carlo spec: each option changes the run's
-    values (:func:`~hubbeam_ctrl.cli.sweep.sweep_plan`, :func:`~hubbeam_ctrl.cli.tune.tune_plan`: the
-    study, the engine, the tuner's options) or is refused; the engine options are run for real in
-    :func:`test_engine_options_that_do_not_apply_are_refused` and tests/test_sweep.py."""
+    values (their ``COMMAND.plan``: the study, the engine, the tuner's options) or is refused; the engine
+    options are run for real in :func:`test_engine_options_that_do_not_apply_are_refused` and
+    tests/test_sweep.py."""
     from pathlib import Path
-
-    from hubbeam_ctrl.cli.sweep import sweep_plan
-    from hubbeam_ctrl.cli.tune import tune_plan
     Path(study["SPEC"]).write_text(STUDY_MODES[mode])
     base = ["SPEC", "--out", "OUT"] + (["--controller", "lqr"] if command == "tune" else [])
-    plan_of = sweep_plan if command == "sweep" else tune_plan
-    walked = _walk_plans(command, plan_of, base, STUDY_SAMPLES, study, mode)
+    walked = _walk_plans(command, base, STUDY_SAMPLES, study, mode)
     assert walked == {"sweep": 8, "tune": 10}[command], walked
 
 
@@ -426,12 +422,11 @@ IDENTIFY_SAMPLES = {"--modal-table": "TABLE", "--rig": "servo_link", "--params":
 @pytest.mark.parametrize("mode", list(IDENTIFY_MODES))
 def test_every_identify_option_acts_or_is_refused(mode, files, tmp_path):
     """``hubbeam identify``'s options, at the level where they become the fit's values
-    (:func:`~hubbeam_ctrl.cli.identify.identify_plan`), in each of its modes: ``--max-wall`` with
-    ``--modal-table`` was accepted and ignored (the modal fit has no wall limit): refused."""
-    from hubbeam_ctrl.cli.identify import identify_plan
+    (its ``COMMAND.plan``), in each of its modes: ``--max-wall`` with ``--modal-table`` was accepted
+    and ignored (the modal fit has no wall limit): refused."""
     (tmp_path / "t.csv").write_text("spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]\n0,0,1,20,0.01\n")
     (tmp_path / "r.csv").write_text("t [s],V [V],theta [rad]\n0,0,0\n0.001,1,0\n")
     paths = {**files, "TABLE": str(tmp_path / "t.csv"), "REC": str(tmp_path / "r.csv")}
     base = IDENTIFY_MODES[mode] + ["--out", "OUT"]
-    walked = _walk_plans("identify", identify_plan, base, IDENTIFY_SAMPLES, paths, mode)
+    walked = _walk_plans("identify", base, IDENTIFY_SAMPLES, paths, mode)
     assert walked == 13 - len(base) // 2, walked

@@ -433,6 +433,10 @@ class Command:
         Whether it takes the beam options ``--params``, ``--tip-mass``, ``--tip-position``, ``--n-modes``.
     formatter_class : type or None
         argparse help formatter (None: argparse's).
+    plan : callable or None
+        ``plan(args)``: the command line as the run's values (the keywords of the library call it makes),
+        each option checked before any work: every option sets a value or is refused in one line naming it
+        and what it conflicts with (what tests/test_options_walk.py compares). None: the command has none.
     """
 
     name: str
@@ -442,6 +446,7 @@ class Command:
     description: str
     beam: bool = True
     formatter_class: type | None = None
+    plan: Callable | None = None
 
     def add_to(self, subparsers, common) -> argparse.ArgumentParser:
         """Add the subcommand to ``hubbeam``'s.

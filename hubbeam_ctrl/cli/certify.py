@@ -12,7 +12,8 @@ import math
 import sys
 
 from hubbeam_ctrl.cli.args import Command, check_output_dir, stdout
-from hubbeam_ctrl.cli.compare import add_compare_options, compare_plan
+from hubbeam_ctrl.cli.compare import COMMAND as COMPARE
+from hubbeam_ctrl.cli.compare import add_compare_options
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, strict_json
 
@@ -102,7 +103,7 @@ def _plan(args):
     if not 2 <= args.grid <= 9:
         raise ParameterError(f"--grid must be an integer in [2, 9], got {args.grid}")
     args.controllers = args.controller
-    plan = compare_plan(args)
+    plan = COMPARE.plan(args)
     opts = dict(plan.options)
     rig = opts.get("rig")
     if rig is None:

@@ -31,7 +31,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import strict_json
 from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
 
-__all__ = ["COMMAND", "add_compare_options", "compare_plan", "ComparePlan", "stdout_to_stderr"]
+__all__ = ["COMMAND", "add_compare_options", "ComparePlan", "stdout_to_stderr"]
 
 
 def add_compare_options(p, controllers: bool = True) -> None:
@@ -169,7 +169,7 @@ def parse_payload_range(text: str, nominal: float) -> tuple:
 @dataclass
 class ComparePlan:
     """What ``hubbeam compare`` runs: every option of its command line turned into a value
-    (:func:`compare_plan`), before any work.
+    (``COMMAND.plan``), before any work.
 
     Attributes
     ----------
@@ -212,21 +212,8 @@ def _refuse_with(args, mode: str, refused: dict) -> None:
             raise ParameterError(f"{option} does not apply with {mode} ({why})")
 
 
-def compare_plan(args) -> ComparePlan:
-    """Turn ``hubbeam compare``'s command line into the run's values, checking each option.
-
-    Every option either sets a value of the plan or is refused in one line naming it and the
-    option it conflicts with; the plain comparison and the payload path take the same values.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-
-    Returns
-    -------
-    ComparePlan
-    """
+def _plan(args) -> ComparePlan:
+    """The :class:`ComparePlan`: the plain comparison and the payload path take the same values."""
     from hubbeam_ctrl.plant.params import MAX_MODES
     from hubbeam_ctrl.study.compare import _parse_controllers
     out = check_output_dir("--out", args.out)
@@ -314,7 +301,7 @@ def _run(args) -> int:
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.compare_values import compare_arguments
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
-    plan = compare_plan(args)
+    plan = _plan(args)
     if plan.payload:
         return _run_payload(plan, sink)
     t0 = time.perf_counter()
@@ -423,5 +410,5 @@ def _description() -> str:
             "metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, torque.png and report.md to --out.")
 
 
-COMMAND = Command("compare", _compare_options, _run, help="compare controllers in closed loop",
+COMMAND = Command("compare", _compare_options, _run, plan=_plan, help="compare controllers in closed loop",
                   description=_description())

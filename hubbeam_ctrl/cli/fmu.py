@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from hubbeam_ctrl.cli.args import Command
 
-__all__ = ["COMMAND", "fmu_plan"]
+__all__ = ["COMMAND"]
 
 
 def _options(p) -> None:
@@ -32,15 +32,8 @@ def _options(p) -> None:
     add_verbose(p)
 
 
-def fmu_plan(args) -> dict:
-    """``hubbeam fmu``'s command line as the keywords of :func:`~hubbeam_ctrl.fmu.build_fmu`, each option
-    checked.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _plan(args) -> dict:
+    """The keywords of :func:`~hubbeam_ctrl.fmu.build_fmu`."""
     from hubbeam_ctrl.cli.args import source_from_args
     from hubbeam_ctrl.core.errors import ParameterError
 
@@ -61,7 +54,7 @@ def _run(args) -> int:
     from hubbeam_ctrl.cli.args import print_result
     from hubbeam_ctrl.fmu import build_fmu
 
-    info = build_fmu(**fmu_plan(args))
+    info = build_fmu(**_plan(args))
     summary = {"out": str(info.path), "fmi_version": info.fmi_version, "model": info.model, "n_q": info.n_q,
                "dt_s": info.dt, "substeps": info.substeps, "command": info.command, "outputs": list(info.outputs),
                "parameters": len(info.parameters), "binary": info.binary, "build_s": round(info.build_s, 3)}
@@ -74,7 +67,7 @@ def _run(args) -> int:
 
 
 COMMAND = Command(
-    "fmu", _options, _run, help="the nonlinear plant as an FMI 2.0 co-simulation FMU",
+    "fmu", _options, _run, plan=_plan, help="the nonlinear plant as an FMI 2.0 co-simulation FMU",
     description=("Write the FOAM or CFOAM plant with the rig's drive, friction and sensors as an FMI 2.0 "
                  "co-simulation FMU (generated C, the closed loop's fixed-step integrator; no Python at run time). "
                  "Input: torque [N m] or, with a DC motor, voltage [V]; outputs: the sensors and the tip "

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from hubbeam_ctrl.cli.args import Command
 
-__all__ = ["COMMAND", "identify_plan", "RECORD_OPTIONS"]
+__all__ = ["COMMAND", "RECORD_OPTIONS"]
 
 
 def _options(p) -> None:
@@ -80,22 +80,10 @@ def _parse_bounds(items) -> dict:
 RECORD_OPTIONS = ("--validate", "--sensors", "--plant-modes", "--max-wall")
 
 
-def identify_plan(args) -> dict:
-    """``hubbeam identify``'s command line as the values of the fit, each option checked (the records
-    are read by the run).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-
-    Returns
-    -------
-    dict
-        ``rig`` (Rig, from ``--rig`` or ``--params``), ``fields`` (the resolved ``--fit``), ``bounds``,
-        ``out`` (Path), ``force``, ``json``, ``settings`` (FitSettings) and either ``table`` (the
-        ``--modal-table`` path) or ``records``, ``validate`` (paths) and ``sensors`` (tuple or None).
-    """
+def _plan(args) -> dict:
+    """``rig`` (Rig, from ``--rig`` or ``--params``), ``fields`` (the resolved ``--fit``), ``bounds``, ``out``
+    (Path), ``force``, ``json``, ``settings`` (FitSettings) and either ``table`` (the ``--modal-table`` path)
+    or ``records``, ``validate`` (paths: the run reads them) and ``sensors`` (tuple or None)."""
     from hubbeam_ctrl.calibrate.fit import FitSettings, check_bounds, resolve_fields
     from hubbeam_ctrl.calibrate.model import ModelSettings
     from hubbeam_ctrl.cli.args import check_output_dir
@@ -135,7 +123,7 @@ def _run(args) -> int:
     from hubbeam_ctrl.calibrate.records import load_record
     from hubbeam_ctrl.cli.args import print_result
 
-    plan = identify_plan(args)
+    plan = _plan(args)
     if args.modal_table:
         return _run_modal_table(args, plan)
     rig, sensors, out = plan["rig"], plan["sensors"], plan["out"]
@@ -314,7 +302,7 @@ def _report(result, valid, series, written, np) -> str:
 
 
 COMMAND = Command(
-    "identify", _options, _run, beam=False,
+    "identify", _options, _run, beam=False, plan=_plan,
     help="calibrate rig fields from measured records (least squares on FOAM with the hardware)",
     description=("Fits the --fit fields of the rig to the records by least squares of the simulated sensors "
                  "(nonlinear FOAM with the rig's drive and friction) against the measured ones; writes the "

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from hubbeam_ctrl.cli.args import Command
 
-__all__ = ["COMMAND", "optimal_plan"]
+__all__ = ["COMMAND"]
 
 
 def _options(p) -> None:
@@ -39,7 +39,7 @@ def _run(args) -> int:
     from hubbeam_ctrl.limit import min_vibration_slew, time_optimal_slew
 
     sink = stdout(args)
-    plan = optimal_plan(args)
+    plan = _plan(args)
     source, angle, tolerance, settings = (plan[k] for k in ("source", "slew_angle", "tolerance", "settings"))
     rig = source if plan["rig"] else None
     params = source.plant_params if rig is not None else source
@@ -64,20 +64,9 @@ def _run(args) -> int:
     return _not_converged(r)
 
 
-def optimal_plan(args) -> dict:
-    """``hubbeam optimal``'s command line as the values of the run, each option checked.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-
-    Returns
-    -------
-    dict
-        ``source`` (Params or Rig), ``rig`` (bool), ``slew_angle`` [rad], ``tolerance`` [m] (None:
-        the default), ``duration`` [s] (None: time-optimal), ``settings`` (OptimalSettings), ``json``.
-    """
+def _plan(args) -> dict:
+    """``source`` (Params or Rig), ``rig`` (bool), ``slew_angle`` [rad], ``tolerance`` [m] (None: the default),
+    ``duration`` [s] (None: time-optimal), ``settings`` (OptimalSettings), ``json``."""
     from hubbeam_ctrl.cli.args import source_from_args
     from hubbeam_ctrl.core.validation import check_finite, check_positive
     from hubbeam_ctrl.limit import OptimalSettings
@@ -108,7 +97,7 @@ def _not_converged(r) -> int:
 
 
 COMMAND = Command(
-    "optimal", _options, _run, help="time-optimal rest-to-rest slew: the limit of the beam and drive",
+    "optimal", _options, _run, plan=_plan, help="time-optimal rest-to-rest slew: the limit of the beam and drive",
     description=("The minimum-time rest-to-rest slew by --slew-angle within |tau| <= tau_max that ends with "
                  "residual tip vibration <= --tolerance, computed on FOAM (axial coordinates condensed) by Radau "
                  "collocation with IPOPT and checked on an evaluation plant with 3 more bending modes. With "

@@ -14,7 +14,7 @@ import time
 from hubbeam_ctrl.cli.args import Command, add_rig_option, add_verbose, nonempty, terminate_as_interrupt
 from hubbeam_ctrl.cli.main import positive_float, positive_int
 
-__all__ = ["COMMAND", "add_engine_options", "study_plan", "sweep_plan", "study_engine", "STUDY_RIG"]
+__all__ = ["COMMAND", "add_engine_options", "study_plan", "study_engine", "STUDY_RIG"]
 
 
 def add_engine_options(p) -> None:
@@ -154,14 +154,8 @@ def spec_from_args(args):
         raise
 
 
-def sweep_plan(args) -> dict:
-    """``hubbeam sweep``'s command line as the values of the run: :func:`study_plan`'s and ``resume``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _plan(args) -> dict:
+    """:func:`study_plan`'s values and ``resume``."""
     return {**study_plan(args), "resume": args.resume}
 
 
@@ -171,7 +165,7 @@ def _run(args) -> int:
     from hubbeam_ctrl.study.sweep import sweep
     from hubbeam_ctrl.study.sweep_report import write_sweep_outputs
 
-    plan = sweep_plan(args)
+    plan = _plan(args)
     spec, out = plan["spec"], plan["out"]
     t0 = time.perf_counter()
     with study_engine(plan) as client:
@@ -206,7 +200,7 @@ def _summary_records(df) -> list:
 
 
 COMMAND = Command(
-    "sweep", _options, _run, beam=False,
+    "sweep", _options, _run, beam=False, plan=_plan,
     help="robustness study: controllers over a plant spread (grid / Monte Carlo)",
     description=("Run every controller of a study spec (TOML: [study], [params], [settings.NAME], [grid], [random]) "
                  "on every case of its plant spread, on local worker processes or a Dask cluster. Writes "

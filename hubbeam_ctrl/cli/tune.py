@@ -12,7 +12,7 @@ from __future__ import annotations
 from hubbeam_ctrl.cli.args import Command, add_rig_option
 from hubbeam_ctrl.cli.main import finite_float, positive_int
 
-__all__ = ["COMMAND", "tune_plan"]
+__all__ = ["COMMAND"]
 
 
 def _objective(text):
@@ -45,15 +45,9 @@ def _options(p) -> None:
     add_engine_options(p)
 
 
-def tune_plan(args) -> dict:
-    """``hubbeam tune``'s command line as the values of the run: :func:`~hubbeam_ctrl.cli.sweep.study_plan`'s,
-    ``controller`` and ``options`` (TuneOptions: the spec's ``[tune]`` table, the flags over it).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _plan(args) -> dict:
+    """:func:`~hubbeam_ctrl.cli.sweep.study_plan`'s values, ``controller`` and ``options`` (TuneOptions: the
+    spec's ``[tune]`` table, the flags over it)."""
     from hubbeam_ctrl.cli.sweep import study_plan
     from hubbeam_ctrl.core.fileio import read_toml
     from hubbeam_ctrl.study.spec import MAX_SPEC_BYTES
@@ -75,7 +69,7 @@ def _run(args) -> int:
     from hubbeam_ctrl.cli.sweep import study_engine
     from hubbeam_ctrl.study.tune import tune, write_tune_outputs
 
-    plan = tune_plan(args)
+    plan = _plan(args)
     with study_engine(plan) as client:
         result = tune(plan["spec"], plan["controller"], options=plan["options"], workers=plan["workers"],
                       client=client, progress=not plan["json"])
@@ -95,7 +89,7 @@ def _run(args) -> int:
 
 
 COMMAND = Command(
-    "tune", _options, _run, beam=False, help="robust LQR/LQG/MPC weights over a study's plant spread",
+    "tune", _options, _run, beam=False, plan=_plan, help="robust LQR/LQG/MPC weights over a study's plant spread",
     description=("Search the controller's weights (scaled, dimensionless; differential evolution started from the "
                  "scaled defaults) for the best worst case (or a quantile) over the cases of a study spec: residual "
                  "vibration in decades of L plus effort, settling and final-angle penalties. Writes "
