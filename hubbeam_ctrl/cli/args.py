@@ -21,7 +21,7 @@ from pathlib import Path
 from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["params_from_args", "rig_from_args", "beam_from_args", "source_from_args", "Command", "add_rig_option",
-           "add_task_options", "positive", "print_result", "UNSTABLE_NOTE",
+           "add_task_options", "print_result", "UNSTABLE_NOTE",
            "stdout", "check_rig_dt", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
            "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits",
            "terminate_as_interrupt"]
@@ -204,31 +204,19 @@ def _number_text(text: str):
     return value
 
 
-def real(unit: str = "-"):
+def real(unit: str = "-", *, positive: bool = False):
     """argparse type: a finite number (its range is checked by the library, before any work).
 
     Parameters
     ----------
     unit : str
         Unit, for the help text only.
-    """
-    def parse(text):
-        return _number_text(text)
-    parse.unit = unit
-    return parse
-
-
-def positive(unit: str = "-"):
-    """argparse type: a finite number > 0 (its upper range is checked by the library).
-
-    Parameters
-    ----------
-    unit : str
-        Unit, for the help text only.
+    positive : bool
+        Refuse a number <= 0 here (for the options whose only lower bound is 0).
     """
     def parse(text):
         value = _number_text(text)
-        if not value > 0:
+        if positive and not value > 0:
             raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text[:40]}")
         return value
     parse.unit = unit
@@ -501,13 +489,14 @@ def add_task_options(p, dt_help: str) -> None:
                    help="the task: slew (default, design at rest) or spinup (design at --wf)")
     p.add_argument("--slew-angle", metavar="RAD", type=real("rad"),
                    help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
-    p.add_argument("--tf", metavar="S", type=positive("s"), default=10.0, help="maneuver time [s] (default 10)")
+    p.add_argument("--tf", metavar="S", type=real("s", positive=True), default=10.0,
+                   help="maneuver time [s] (default 10)")
     p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
                    help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
-    p.add_argument("--dt", metavar="S", type=positive("s"), help=f"sample time [s] (default: {dt_help})")
+    p.add_argument("--dt", metavar="S", type=real("s", positive=True), help=f"sample time [s] (default: {dt_help})")
     p.add_argument("--design-modes", metavar="N", type=int,
                    help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
-    p.add_argument("--tau-max", metavar="NM", type=positive("N m"),
+    p.add_argument("--tau-max", metavar="NM", type=real("N m", positive=True),
                    help="torque budget [N m], at most the motor's tau_max (default: that)")
 
 

@@ -22,7 +22,6 @@ from hubbeam_ctrl.cli.args import (
     integer,
     nonempty,
     params_from_args,
-    positive,
     real,
     refuse_inapplicable,
     rename_options,
@@ -117,7 +116,7 @@ def positive_float(name):
     name : str
         The option's name (for the message).
     """
-    return positive()
+    return real(positive=True)
 
 
 def positive_int(name):
