@@ -349,10 +349,12 @@ def test_engine_options_that_do_not_apply_are_refused(command, words, message, t
     assert err.count("\n") == 1 and message in err
 
 
-@pytest.mark.parametrize("words", [["--validate", "v.csv"], ["--sensors", "theta"], ["--plant-modes", "3"]])
+@pytest.mark.parametrize("words", [["--validate", "v.csv"], ["--sensors", "theta"], ["--plant-modes", "3"],
+                                   ["--max-wall", "5"]])
 def test_identify_modal_table_refuses_record_options(words, tmp_path, capsys):
     """``identify --modal-table`` fits frequencies by modal analysis: the options of a fit to
-    records (validation records, sensors, the simulated plant's modes) were accepted and ignored."""
+    records (validation records, sensors, the simulated plant's modes, the fit's wall limit) were
+    accepted and ignored."""
     table = tmp_path / "t.csv"
     table.write_text("spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]\n0,0,1,20,0.01\n")
     assert main(["identify", "--modal-table", str(table), "--rig", "servo_link", "--fit", "E",
