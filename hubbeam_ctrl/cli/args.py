@@ -527,11 +527,9 @@ def source_from_args(args):
 
 
 def design_task(args, rig, params):
-    """The task and the design model of ``hubbeam design`` and ``hubbeam codegen``.
-
-    Reads ``--tau-max`` (at most the drive's), ``--dt`` (default: the rig's sample time, else
-    :func:`~hubbeam_ctrl.study.yardstick.task_dt`), ``--design-modes``, ``--slew-angle``,
-    ``--scenario``, ``--tf`` and ``--wf``; the simulated time is ``3 tf``.
+    """The task and the design model of ``hubbeam design`` and ``hubbeam codegen``
+    (:func:`~hubbeam_ctrl.study.design_task.task_and_design` of the options :func:`add_task_options` adds;
+    a ``--dt`` other than the rig's is refused).
 
     Parameters
     ----------
@@ -546,23 +544,8 @@ def design_task(args, rig, params):
     -------
     scenario : hubbeam_ctrl.study.scenarios.Scenario
     design : controllers.DesignModel
-        Sampled at the task's ``dt`` [s], with ``--design-modes`` transverse modes.
     """
-    from controllers import DesignModel
-    from hubbeam_ctrl.study.scenarios import make_scenario
-    from hubbeam_ctrl.study.yardstick import task_dt
-
-    if args.tau_max is not None and args.tau_max > params.tau_max:
-        whose = "the rig's drive" if rig is not None else "the motor's tau_max of the parameters"
-        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m ({whose}), got {args.tau_max:g}")
+    from hubbeam_ctrl.study.design_task import task_and_design
     check_rig_dt(args, rig)
-    dt = args.dt if args.dt is not None else (rig.timing.dt if rig is not None and rig.timing.dt else task_dt(params))
-    modes = args.design_modes if args.design_modes is not None else params.n_transverse
-    if not 1 <= modes <= 20:
-        raise ParameterError(f"design-modes must be an integer in 1..20, got {modes}")
-    if args.slew_angle is not None and args.slew_angle == 0:
-        raise ParameterError("slew-angle must be a finite number != 0 [rad]")
-    sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
-                       t_end=3 * args.tf, dt=dt, w_f=3.0 if args.wf is None else args.wf,
-                       slew_angle=args.slew_angle)
-    return sc, DesignModel.build(params, sc.design_spin, dt, modes)
+    return task_and_design(params, args.scenario, rig=rig, tau_max=args.tau_max, dt=args.dt,
+                           design_modes=args.design_modes, slew_angle=args.slew_angle, t_f=args.tf, w_f=args.wf)
