@@ -182,7 +182,7 @@ def test_cli_json_and_file(tmp_path, capsys):
     args = _parse(["linearize", "--model", "foam", "--spin", "1", "--n-modes", "3",
                    "--outputs", "theta,root_moment", "--damping", "0.01", "--dt", "0.001",
                    "--out", str(out), "--json"])
-    assert cli_linearize.run(args) == 0
+    assert cli_linearize.COMMAND.func(args) == 0
     doc = json.loads(capsys.readouterr().out)
     assert set(doc) == {"model", "spin_rad_s", "n_states", "poles_hz", "unstable", "out"} and doc["unstable"] is False
     assert doc["model"] == "foam" and doc["spin_rad_s"] == 1.0 and doc["n_states"] == 14

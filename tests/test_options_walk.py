@@ -3,7 +3,7 @@
 The mode x option table is read from the argparse parser itself: an option added to
 ``compare`` without a sample value here fails :func:`test_every_option_acts_or_is_refused`,
 so none can be accepted and silently dropped. The walk runs at the level where options become
-values (:func:`hubbeam_ctrl.cli.compare.compare_plan`: the keyword arguments that both
+values (``hubbeam_ctrl.cli.compare.COMMAND.plan``: the keyword arguments that both
 :func:`~hubbeam_ctrl.study.compare.compare` and, with ``--payload-range``,
 :func:`~hubbeam_ctrl.study.payload.payload_comparison` take); a few real runs check that the
 payload path acts on what it is given.
@@ -13,7 +13,7 @@ import json
 
 import pytest
 
-from hubbeam_ctrl.cli.compare import compare_plan
+from hubbeam_ctrl.cli.compare import COMMAND as COMPARE
 from hubbeam_ctrl.cli.main import build_parser, main
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study.compare_values import CompareSettings, ScenarioChoice
@@ -60,7 +60,7 @@ def _option_args(action, mode, files, base):
 
 
 def _plan(parser, words):
-    return compare_plan(parser.parse_args(["compare", *words]))
+    return COMPARE.plan(parser.parse_args(["compare", *words]))
 
 
 @pytest.fixture
@@ -185,14 +185,27 @@ def _run(command, words, capsys, out):
     printed = capsys.readouterr()
     out = Path(out)
     files = sorted(out.iterdir()) if out.is_dir() else [out] if out.exists() else []
-    saved = {f.name if out.is_dir() else "out": f.read_bytes().replace(str(out).encode(), b"OUT")
+    saved = {f.name if out.is_dir() else "out": _content(f).replace(str(out).encode(), b"OUT")
              for f in files if f.name != "MANIFEST.json"}
     return status, printed.out.replace(str(out), "OUT"), saved, printed.err
 
 
-def _walk_runs(command, base, out_name, tmp_path, files, capsys, skip=("--controller",)):
+def _content(path) -> bytes:
+    """A file's bytes; an FMU's (a zip) as its members' bytes without the zip's dates and the
+    model description's ``generationDateAndTime``."""
+    import re
+    import zipfile
+    if path.suffix != ".fmu":
+        return path.read_bytes()
+    with zipfile.ZipFile(path) as z:
+        text = b"".join(n.encode() + b"\0" + z.read(n) for n in sorted(z.namelist()))
+    return re.sub(rb'generationDateAndTime="[^"]*"', b"", text)
+
+
+def _walk_runs(command, base, out_name, tmp_path, files, capsys, skip=("--controller",), samples=None):
     """Run ``command`` with ``base`` and with each of its parser's options added: each must change what
-    is printed or saved, or exit 2 in one line naming it and what it conflicts with."""
+    is printed or saved, or exit 2 in one line naming it and what it conflicts with. ``samples``: values
+    of this walk's own (over :data:`RUN_SAMPLES`). Returns how many options were walked."""
     parser = build_parser()
     sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
     runs = iter(range(10 ** 6))
@@ -200,6 +213,7 @@ def _walk_runs(command, base, out_name, tmp_path, files, capsys, skip=("--contro
     first = out()
     reference = _run(command, base + ["--out", str(first)], capsys, first)
     assert reference[0] == 0, reference[3]
+    walked = 0
     for action in sub.choices[command]._actions:
         option = max(action.option_strings, key=len, default="")
         if not option or option in ENTRY_POINT or option in skip:
@@ -207,24 +221,30 @@ def _walk_runs(command, base, out_name, tmp_path, files, capsys, skip=("--contro
         target = out()
         if option == "--out":                 # acts by writing there
             assert _run(command, base + ["--out", str(target)], capsys, target)[2] == reference[2]
+            walked += 1
             continue
-        if option == "--force":               # acts by writing into a non-empty folder
+        if option == "--force":               # acts by writing into a non-empty folder (over a file)
             assert _run(command, base + ["--out", str(first)], capsys, first)[0] == 2
             assert _run(command, base + ["--out", str(first), "--force"], capsys, first)[0] == 0
+            walked += 1
             continue
         if action.nargs == 0:
             words = [option]
         elif action.choices is not None:
-            words = [option, next(c for c in action.choices if c != action.default)]
+            taken = {action.default, base[base.index(option) + 1] if option in base else None}
+            words = [option, next(c for c in action.choices if c not in taken)]
         else:
-            assert option in RUN_SAMPLES, f"{command} {option} has no sample value: add one to RUN_SAMPLES"
-            words = [option, files.get(RUN_SAMPLES[option], RUN_SAMPLES[option])]
+            sample = {**RUN_SAMPLES, **(samples or {})}.get(option)
+            assert sample is not None, f"{command} {option} has no sample value: add one to RUN_SAMPLES"
+            words = [option, files.get(sample, sample)]
+        walked += 1
         status, printed, saved, err = _run(command, base + words + ["--out", str(target)], capsys, target)
         if status != 0:
             assert status == 2 and err.count("\n") == 1 and option in err, (command, option, err)
             assert {w for w in err.replace("(", " ").split() if w.startswith("--")} - {option}, err
             continue
         assert (printed, saved) != reference[1:3], f"{command} {' '.join(base + words)} accepted and ignored"
+    return walked
 
 
 @pytest.mark.slow
@@ -252,29 +272,48 @@ OPTIMAL_SAMPLES = {"--params": "DAMPED", "--tip-mass": "0.2", "--tip-position": 
                    "--intervals": "24"}
 
 
-@pytest.mark.parametrize("mode", list(OPTIMAL_MODES))
-def test_every_optimal_option_acts_or_is_refused(mode, files):
-    """``hubbeam optimal``'s options, walked at the level where they become the run's values
-    (:func:`hubbeam_ctrl.cli.optimal.optimal_plan`), in each of its modes."""
-    from hubbeam_ctrl.cli.optimal import optimal_plan
+def _walk_plans(command, base, samples, files, mode=None):
+    """Walk ``command``'s options at the level where they become the run's values: its ``COMMAND.plan``
+    (:class:`~hubbeam_ctrl.cli.args.Command`) of ``base`` and of ``base`` with each option added (``samples``: option ->
+    value, or ``{mode: value, None: value}``) must differ, or the option is refused in one line naming
+    it and what it conflicts with. The options in ``base`` select the mode and are not walked.
+    Returns how many options were walked."""
+    import importlib
+    plan_of = importlib.import_module(f"hubbeam_ctrl.cli.{command}").COMMAND.plan
     parser = build_parser()
     sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
-    base = ["optimal", "--slew-angle", "1", *OPTIMAL_MODES[mode]]
-    reference = optimal_plan(parser.parse_args(base))
-    for action in sub.choices["optimal"]._actions:
+    words_of = lambda w: [files.get(x, x) for x in w]        # noqa: E731
+    reference = plan_of(parser.parse_args([command, *words_of(base)]))
+    walked = 0
+    for action in sub.choices[command]._actions:
         option = max(action.option_strings, key=len, default="")
         if not option or option in ENTRY_POINT or option in base:
             continue
-        sample = OPTIMAL_SAMPLES.get(option)
+        sample = samples.get(option)
         sample = sample.get(mode, sample[None]) if isinstance(sample, dict) else sample
-        assert action.nargs == 0 or sample is not None, f"optimal {option} has no sample value"
-        words = [option] if action.nargs == 0 else [option, files.get(sample, sample)]
+        if sample is None and action.choices is not None:
+            sample = next(c for c in action.choices if c != action.default)
+        assert action.nargs == 0 or sample is not None, f"{command} {option} has no sample value"
+        words = [option] if action.nargs == 0 else [option, sample]
+        walked += 1
         try:
-            plan = optimal_plan(parser.parse_args(base + words))
+            plan = plan_of(parser.parse_args([command, *words_of(base + words)]))
         except ParameterError as exc:
-            assert option in str(exc) and str(exc).count("--") >= 2, (mode, option, str(exc))
+            text = str(exc)
+            assert "\n" not in text and option in text, (mode, option, text)
+            named = {w for w in text.replace("(", " ").split() if w.startswith("--") or w.isupper()}
+            assert named - {option}, text          # the option or the argument (RECORD) it conflicts with
             continue
-        assert plan != reference, f"optimal {mode}: {' '.join(words)} accepted and ignored"
+        assert plan != reference, f"{command} {mode}: {' '.join(words)} accepted and ignored"
+    return walked
+
+
+@pytest.mark.parametrize("mode", list(OPTIMAL_MODES))
+def test_every_optimal_option_acts_or_is_refused(mode, files):
+    """``hubbeam optimal``'s options, walked at the level where they become the run's values
+    (its ``COMMAND.plan``), in each of its modes."""
+    walked = _walk_plans("optimal", ["--slew-angle", "1", *OPTIMAL_MODES[mode]], OPTIMAL_SAMPLES, files, mode)
+    assert walked == 10 - len(OPTIMAL_MODES[mode]) // 2, walked
 
 
 @pytest.mark.parametrize("kind", ["chirp", "prbs", "multisine", "step"])
@@ -310,10 +349,12 @@ def test_engine_options_that_do_not_apply_are_refused(command, words, message, t
     assert err.count("\n") == 1 and message in err
 
 
-@pytest.mark.parametrize("words", [["--validate", "v.csv"], ["--sensors", "theta"], ["--plant-modes", "3"]])
+@pytest.mark.parametrize("words", [["--validate", "v.csv"], ["--sensors", "theta"], ["--plant-modes", "3"],
+                                   ["--max-wall", "5"]])
 def test_identify_modal_table_refuses_record_options(words, tmp_path, capsys):
     """``identify --modal-table`` fits frequencies by modal analysis: the options of a fit to
-    records (validation records, sensors, the simulated plant's modes) were accepted and ignored."""
+    records (validation records, sensors, the simulated plant's modes, the fit's wall limit) were
+    accepted and ignored."""
     table = tmp_path / "t.csv"
     table.write_text("spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]\n0,0,1,20,0.01\n")
     assert main(["identify", "--modal-table", str(table), "--rig", "servo_link", "--fit", "E",
@@ -321,3 +362,77 @@ def test_identify_modal_table_refuses_record_options(words, tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"{words[0]} does not apply with --modal-table (it fits records)" in err
 
+
+
+#: ``hubbeam fmu``: its modes (the options that select each) and the values of its own.
+FMU_MODES = {"model": ["--n-modes", "2"], "substeps": ["--n-modes", "2", "--substeps", "3"],
+             "rig": ["--n-modes", "2", "--rig", "servo_link"]}
+FMU_SAMPLES = {"model": {"--dt": "0.005", "--substeps": "4", "--spin": "20"},
+               "substeps": {"--dt": "0.005", "--substeps": "4", "--spin": "20"},
+               "rig": {"--dt": "0.002", "--substeps": "4", "--spin": "20", "--tip-position": "0.3"}}
+
+
+@pytest.mark.parametrize("mode", list(FMU_MODES))
+def test_every_fmu_option_acts_or_is_refused(mode, tmp_path, files, capsys, monkeypatch):
+    """``hubbeam fmu`` in each of its modes: each option changes the FMU (its members, the build date
+    left out) or what is printed, or is refused. Without a C compiler (``CC`` names none) the FMU holds
+    its generated sources alone, which the binary is compiled from: 0.2 s a build instead of 2 s
+    (tests/test_fmu.py builds and runs the binary)."""
+    monkeypatch.setenv("CC", str(tmp_path / "no-compiler"))
+    base = FMU_MODES[mode]
+    walked = _walk_runs("fmu", base, ".fmu", tmp_path, files, capsys, skip=base[2::2], samples=FMU_SAMPLES[mode])
+    assert walked == 12 - len(base[2::2]), walked
+
+
+#: A small study spec: a grid over the tip mass, and the same spread as a Monte Carlo sample (a spin-up:
+#: checking a slew spec plans its reference, 0.7 s a plan on a loaded machine).
+SPEC = ('[study]\nscenario = "spinup"\ncontrollers = ["openloop", "lqr"]\nt_f = 2.0\nw_f = 0.5\nt_end = 6.5\n'
+        '[params]\nn_axial = 2\nn_transverse = 2\n')
+STUDY_MODES = {"grid": SPEC + "[grid]\nm_t = [0.0, 0.2]\n",
+               "monte carlo": SPEC + '[random]\nn = 2\nseed = 1\nm_t = {dist = "uniform", low = 0.0, high = 0.2}\n'}
+STUDY_SAMPLES = {"--out": "OTHER", "--settings": "SETTINGS", "--plant": "cfoam", "--rig": "servo_link",
+                 "--workers": "2", "--scheduler": "tcp://127.0.0.1:9", "--scheduler-timeout": "1",
+                 "--objective": "0.9", "--maxiter": "3", "--popsize": "2", "--decades": "1", "--seed": "4"}
+
+
+@pytest.fixture
+def study(tmp_path, files):
+    """``files`` with ``SPEC`` (written per mode by the test) and a settings file ``SETTINGS``."""
+    (tmp_path / "settings.toml").write_text("[settings.lqr.weights]\nangle = 2.0\n")
+    return {**files, "SPEC": str(tmp_path / "spec.toml"), "SETTINGS": str(tmp_path / "settings.toml")}
+
+
+@pytest.mark.parametrize("command", ["sweep", "tune"])
+@pytest.mark.parametrize("mode", list(STUDY_MODES))
+def test_every_study_option_acts_or_is_refused(command, mode, study):
+    """``hubbeam sweep`` and ``tune`` on a grid and a Monte Carlo spec: each option changes the run's
+    values (their ``COMMAND.plan``: the study, the engine, the tuner's options) or is refused; the engine
+    options are run for real in :func:`test_engine_options_that_do_not_apply_are_refused` and
+    tests/test_sweep.py."""
+    from pathlib import Path
+    Path(study["SPEC"]).write_text(STUDY_MODES[mode])
+    base = ["SPEC", "--out", "OUT"] + (["--controller", "lqr"] if command == "tune" else [])
+    walked = _walk_plans(command, base, STUDY_SAMPLES, study, mode)
+    assert walked == {"sweep": 8, "tune": 10}[command], walked
+
+
+#: ``hubbeam identify``'s modes: a fit to a record on a rig or a parameter file, a modal table.
+IDENTIFY_MODES = {"record, rig": ["REC", "--rig", "servo_link", "--fit", "E"],
+                  "record, params": ["REC", "--params", "DAMPED", "--fit", "E"],
+                  "modal table": ["--modal-table", "TABLE", "--rig", "servo_link", "--fit", "E"]}
+IDENTIFY_SAMPLES = {"--modal-table": "TABLE", "--rig": "servo_link", "--params": "DAMPED", "--fit": "E,J_h",
+                    "--out": "OTHER", "--validate": "REC", "--bounds": "E=1e10:1e12", "--sensors": "theta",
+                    "--max-evaluations": "5", "--plant-modes": "3", "--max-wall": "100"}
+
+
+@pytest.mark.parametrize("mode", list(IDENTIFY_MODES))
+def test_every_identify_option_acts_or_is_refused(mode, files, tmp_path):
+    """``hubbeam identify``'s options, at the level where they become the fit's values
+    (its ``COMMAND.plan``), in each of its modes: ``--max-wall`` with ``--modal-table`` was accepted
+    and ignored (the modal fit has no wall limit): refused."""
+    (tmp_path / "t.csv").write_text("spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]\n0,0,1,20,0.01\n")
+    (tmp_path / "r.csv").write_text("t [s],V [V],theta [rad]\n0,0,0\n0.001,1,0\n")
+    paths = {**files, "TABLE": str(tmp_path / "t.csv"), "REC": str(tmp_path / "r.csv")}
+    base = IDENTIFY_MODES[mode] + ["--out", "OUT"]
+    walked = _walk_plans("identify", base, IDENTIFY_SAMPLES, paths, mode)
+    assert walked == 13 - len(base) // 2, walked

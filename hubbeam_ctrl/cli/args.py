@@ -14,11 +14,14 @@ import argparse
 import math
 import re
 import sys
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["params_from_args", "UNSTABLE_NOTE",
+__all__ = ["params_from_args", "rig_from_args", "beam_from_args", "source_from_args", "Command", "add_rig_option",
+           "add_task_options", "print_result", "UNSTABLE_NOTE",
            "stdout", "check_rig_dt", "OPTION_NAMES", "rename_options", "real", "integer", "nonempty", "check_output",
            "check_output_dir", "refuse_inapplicable", "add_run_options", "run_limits",
            "terminate_as_interrupt"]
@@ -73,7 +76,15 @@ def params_from_args(args, base=None):
         changes["l"] = args.tip_position
     if getattr(args, "n_modes", None) is not None:
         changes["n_axial"] = changes["n_transverse"] = args.n_modes
-    return base.replace(**changes) if changes else base
+    params = base.replace(**changes) if changes else base
+    if "l" in changes and params.m_t == 0 and all(getattr(args, k, None) is None for k in MASS_OPTIONS):
+        raise ParameterError("--tip-position does not apply with a zero --tip-mass (m_t = 0 kg: there is no "
+                             "tip mass to place)")
+    return params
+
+
+#: Options that put a mass at ``--tip-position`` besides ``--tip-mass`` (as argparse names).
+MASS_OPTIONS = ("plant_tip_mass", "payload_range")
 
 
 def rig_from_args(args):
@@ -123,6 +134,23 @@ def stdout(args):
         The parsed command line.
     """
     return getattr(args, "stdout", None) or sys.stdout
+
+
+def print_result(args, summary: dict, text) -> None:
+    """Print a command's result on its result stream (:func:`stdout`): ``summary`` as strict JSON with
+    ``--json``, else ``text``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (reads ``json``).
+    summary : dict
+        The result, JSON-ready (non-finite numbers become null, flagged).
+    text : str or callable
+        The result as text, or a function returning it (called only without ``--json``).
+    """
+    from hubbeam_ctrl.core.jsonio import strict_json
+    print(strict_json(summary) if args.json else text() if callable(text) else text, file=stdout(args))
 
 
 _LEADING_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_-]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?)(?=[ :=])")
@@ -176,16 +204,21 @@ def _number_text(text: str):
     return value
 
 
-def real(unit: str = "-"):
+def real(unit: str = "-", *, positive: bool = False):
     """argparse type: a finite number (its range is checked by the library, before any work).
 
     Parameters
     ----------
     unit : str
         Unit, for the help text only.
+    positive : bool
+        Refuse a number <= 0 here (for the options whose only lower bound is 0).
     """
     def parse(text):
-        return _number_text(text)
+        value = _number_text(text)
+        if positive and not value > 0:
+            raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text[:40]}")
+        return value
     parse.unit = unit
     return parse
 
@@ -366,12 +399,137 @@ class terminate_as_interrupt:
         return False
 
 
-def design_task(args, rig, params):
-    """The task and the design model of ``hubbeam design`` and ``hubbeam codegen``.
+@dataclass(frozen=True)
+class Command:
+    """A ``hubbeam`` subcommand: its texts, its options and what runs it (each command module holds
+    one, ``COMMAND``, and :func:`hubbeam_ctrl.cli.main.build_parser` adds them all).
 
-    Reads ``--tau-max`` (at most the drive's), ``--dt`` (default: the rig's sample time, else
-    :func:`~hubbeam_ctrl.study.yardstick.task_dt`), ``--design-modes``, ``--slew-angle``,
-    ``--scenario``, ``--tf`` and ``--wf``; the simulated time is ``3 tf``.
+    Attributes
+    ----------
+    name : str
+        The subcommand (``hubbeam NAME``).
+    options : callable
+        ``options(parser)``: adds the command's own options.
+    func : callable
+        ``func(args) -> int``: runs the command and returns the exit status; bad input raises
+        ParameterError (exit 2).
+    help : str
+        Its line in ``hubbeam --help``.
+    description : str
+        Its ``hubbeam NAME --help`` text.
+    beam : bool
+        Whether it takes the beam options ``--params``, ``--tip-mass``, ``--tip-position``, ``--n-modes``.
+    formatter_class : type or None
+        argparse help formatter (None: argparse's).
+    plan : callable or None
+        ``plan(args)``: the command line as the run's values (the keywords of the library call it makes),
+        each option checked before any work: every option sets a value or is refused in one line naming it
+        and what it conflicts with (what tests/test_options_walk.py compares). None: the command has none.
+    """
+
+    name: str
+    options: Callable
+    func: Callable
+    help: str
+    description: str
+    beam: bool = True
+    formatter_class: type | None = None
+    plan: Callable | None = None
+
+    def add_to(self, subparsers, common) -> argparse.ArgumentParser:
+        """Add the subcommand to ``hubbeam``'s.
+
+        Parameters
+        ----------
+        subparsers : argparse._SubParsersAction
+            The ``hubbeam`` subcommands.
+        common : argparse.ArgumentParser
+            The parent parser with the beam options.
+
+        Returns
+        -------
+        argparse.ArgumentParser
+        """
+        extra = {} if self.formatter_class is None else {"formatter_class": self.formatter_class}
+        p = subparsers.add_parser(self.name, parents=[common] if self.beam else [], help=self.help,
+                                  description=self.description, **extra)
+        self.options(p)
+        p.set_defaults(func=self.func)
+        return p
+
+
+def add_rig_option(p, help: str = "a rig file or preset (servo_link, paper): its beam, drive, sensors and sample "
+                                  "time; not with --params", *, required: bool = False) -> None:
+    """Add ``--rig RIG.toml|PRESET`` to a subcommand (or a group of its options).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser or argument group
+        Where to add it.
+    help : str
+        What the rig is for, on this command.
+    required : bool
+        Whether the command needs one.
+    """
+    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"), required=required, help=help)
+
+
+def add_task_options(p, dt_help: str) -> None:
+    """Add the task of a design, as :func:`design_task` reads it: ``--scenario``, ``--slew-angle``,
+    ``--tf``, ``--wf``, ``--dt``, ``--design-modes`` and ``--tau-max``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The subcommand's parser.
+    dt_help : str
+        What ``--dt`` defaults to on this command.
+    """
+    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
+                   help="the task: slew (default, design at rest) or spinup (design at --wf)")
+    p.add_argument("--slew-angle", metavar="RAD", type=real("rad"),
+                   help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
+    p.add_argument("--tf", metavar="S", type=real("s", positive=True), default=10.0,
+                   help="maneuver time [s] (default 10)")
+    p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
+                   help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
+    p.add_argument("--dt", metavar="S", type=real("s", positive=True), help=f"sample time [s] (default: {dt_help})")
+    p.add_argument("--design-modes", metavar="N", type=int,
+                   help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
+    p.add_argument("--tau-max", metavar="NM", type=real("N m", positive=True),
+                   help="torque budget [N m], at most the motor's tau_max (default: that)")
+
+
+def beam_from_args(args):
+    """``(rig, params)``: the rig of ``--rig`` (None without it) and the beam the command works on,
+    the rig's plant beam (its rotor reflected) or the beam of the beam options.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    rig = rig_from_args(args)
+    return rig, rig.plant_params if rig is not None else params_from_args(args)
+
+
+def source_from_args(args):
+    """The rig of ``--rig``, else the beam of the beam options (what :func:`~hubbeam_ctrl.fmu.build_fmu`
+    and the limit take as ``rig_or_params``).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    rig = rig_from_args(args)
+    return rig if rig is not None else params_from_args(args)
+
+
+def design_task(args, rig, params):
+    """The task and the design model of ``hubbeam design`` and ``hubbeam codegen``
+    (:func:`~hubbeam_ctrl.study.design_task.task_and_design` of the options :func:`add_task_options` adds;
+    a ``--dt`` other than the rig's is refused).
 
     Parameters
     ----------
@@ -386,23 +544,8 @@ def design_task(args, rig, params):
     -------
     scenario : hubbeam_ctrl.study.scenarios.Scenario
     design : controllers.DesignModel
-        Sampled at the task's ``dt`` [s], with ``--design-modes`` transverse modes.
     """
-    from controllers import DesignModel
-    from hubbeam_ctrl.study.scenarios import make_scenario
-    from hubbeam_ctrl.study.yardstick import task_dt
-
-    if args.tau_max is not None and args.tau_max > params.tau_max:
-        whose = "the rig's drive" if rig is not None else "the motor's tau_max of the parameters"
-        raise ParameterError(f"tau-max must be in (0, {params.tau_max:g}] N m ({whose}), got {args.tau_max:g}")
+    from hubbeam_ctrl.study.design_task import task_and_design
     check_rig_dt(args, rig)
-    dt = args.dt if args.dt is not None else (rig.timing.dt if rig is not None and rig.timing.dt else task_dt(params))
-    modes = args.design_modes if args.design_modes is not None else params.n_transverse
-    if not 1 <= modes <= 20:
-        raise ParameterError(f"design-modes must be an integer in 1..20, got {modes}")
-    if args.slew_angle is not None and args.slew_angle == 0:
-        raise ParameterError("slew-angle must be a finite number != 0 [rad]")
-    sc = make_scenario(args.scenario, plant="foam", params=params, tau_max=args.tau_max, t_f=args.tf,
-                       t_end=3 * args.tf, dt=dt, w_f=3.0 if args.wf is None else args.wf,
-                       slew_angle=args.slew_angle)
-    return sc, DesignModel.build(params, sc.design_spin, dt, modes)
+    return task_and_design(params, args.scenario, rig=rig, tau_max=args.tau_max, dt=args.dt,
+                           design_modes=args.design_modes, slew_angle=args.slew_angle, t_f=args.tf, w_f=args.wf)

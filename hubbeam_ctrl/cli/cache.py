@@ -10,38 +10,19 @@ from __future__ import annotations
 
 import json
 
-__all__ = ["add_parser", "run"]
+from hubbeam_ctrl.cli.args import Command
+
+__all__ = ["COMMAND"]
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``cache`` subcommand (``common`` is not used: the cache has no parameters).
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
-    p = subparsers.add_parser(
-        "cache", help="show or clear the build cache of the compiled backend",
-        description=("The compiled backend keeps the shared libraries it builds in a cache "
-                     "folder ($HUBBEAM_CACHE_DIR, else the platform's cache folder). "
-                     "info: the folder, the libraries and their size; clear: delete them "
-                     "(they are rebuilt when next needed)."))
+def _options(p) -> None:
+    """``hubbeam cache``'s options on its parser ``p``."""
     p.add_argument("action", choices=["info", "clear"], help="info or clear")
     p.add_argument("--json", action="store_true", help="print JSON")
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    """Run ``hubbeam cache``; returns the exit status (0).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Show or clear the cache (status 0)."""
     from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.core.compiled import cache_info, clear_cache, find_compiler
     from hubbeam_ctrl.core.errors import HubbeamError
@@ -72,3 +53,10 @@ def run(args) -> int:
         funcs = ", ".join(f"{f} ({o})" for f, o in zip(e["functions"], e["flags"])) or "?"
         print(f"  {e['file']}: {e['bytes'] / 1e3:.0f} kB, {funcs}", file=sink)
     return 0
+
+
+COMMAND = Command(
+    "cache", _options, _run, beam=False, help="show or clear the build cache of the compiled backend",
+    description=("The compiled backend keeps the shared libraries it builds in a cache folder ($HUBBEAM_CACHE_DIR, "
+                 "else the platform's cache folder). info: the folder, the libraries and their size; clear: delete "
+                 "them (they are rebuilt when next needed)."))

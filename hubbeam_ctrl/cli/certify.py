@@ -11,13 +11,14 @@ import io
 import math
 import sys
 
-from hubbeam_ctrl.cli.args import check_output_dir, stdout
-from hubbeam_ctrl.cli.compare import add_compare_options, compare_plan
+from hubbeam_ctrl.cli.args import Command, check_output_dir, stdout
+from hubbeam_ctrl.cli.compare import COMMAND as COMPARE
+from hubbeam_ctrl.cli.compare import add_compare_options
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text
 from hubbeam_ctrl.core.jsonio import strict_json
 
-__all__ = ["add_parser", "run", "parse_uncertainty", "CHECKS", "DESIGNS"]
+__all__ = ["COMMAND", "parse_uncertainty", "CHECKS", "DESIGNS"]
 
 #: Where the nonlinear check runs: the worst plant found, also the set's corners, or nowhere.
 CHECKS = ("worst", "corners", "none")
@@ -33,22 +34,8 @@ ROBUST_REFUSES = {"--shaping": "the robust design's candidates follow the task's
                   "--schedule": "the robust design's candidates are single design points"}
 
 
-def add_parser(subparsers, common):
-    """Add the ``certify`` subcommand.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-    common : argparse.ArgumentParser
-        Parent parser with ``--tip-mass``, ``--tip-position``, ``--n-modes``, ``--params``.
-    """
-    p = subparsers.add_parser(
-        "certify", parents=[common], help="robust certificate of controllers over an uncertainty set",
-        description=("Design CONTROLLER as compare does (same options), then search the uncertainty set (the "
-                     "rig's [uncertainty] table, or --uncertainty) for the plant where the sampled loop as it runs "
-                     "(drive, sensors, delay, estimator) decays slowest, and run the controller and the open loop "
-                     "on the nonlinear plant there. Certified: worst spectral radius found <= 1 - 1e-6. Writes "
-                     "certificate.json and certificate.md to --out. Exit 1 when a controller is not certified."))
+def _options(p) -> None:
+    """``hubbeam certify``'s options on its parser ``p``: its own, then compare's."""
     p.add_argument("controller", metavar="CONTROLLER",
                    help="registered controller(s) with a linear feedback law, comma-separated (lqr, lqg, mpc, pd...)")
     p.add_argument("--uncertainty", metavar="NAME=LO:HI,...",
@@ -68,8 +55,6 @@ def add_parser(subparsers, common):
                         "the certificate in the header's first comment and NAME.json); controllers the code "
                         "generator cannot export are named on stderr")
     add_compare_options(p, controllers=False)
-    p.set_defaults(func=run)
-    return p
 
 
 def parse_uncertainty(text: str):
@@ -119,7 +104,7 @@ def _plan(args):
     if not 2 <= args.grid <= 9:
         raise ParameterError(f"--grid must be an integer in [2, 9], got {args.grid}")
     args.controllers = args.controller
-    plan = compare_plan(args)
+    plan = COMPARE.plan(args)
     opts = dict(plan.options)
     rig = opts.get("rig")
     if rig is None:
@@ -139,13 +124,8 @@ def _plan(args):
     return plan, opts
 
 
-def run(args) -> int:
-    """Run ``hubbeam certify``; returns the exit status (0 certified, 1 not).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-    """
+def _run(args) -> int:
+    """Certify the controllers and write the certificate; the status is 0 when every one is certified, else 1."""
     real_sink = stdout(args)
     sink = io.StringIO() if args.json else real_sink      # --json: the JSON alone on stdout
     from hubbeam_ctrl.study.compare import compare
@@ -234,3 +214,12 @@ def _write_c(ctrl, folder, wc) -> dict:
         print(f"hubbeam: {ctrl.name} not written as C: {exc}", file=sys.stderr)
         return {"written": False, "reason": str(exc)}
     return {"written": True, "header": str(code.header_path), "source": str(code.source_path)}
+
+
+COMMAND = Command(
+    "certify", _options, _run, help="robust certificate of controllers over an uncertainty set",
+    description=("Design CONTROLLER as compare does (same options), then search the uncertainty set (the rig's "
+                 "[uncertainty] table, or --uncertainty) for the plant where the sampled loop as it runs (drive, "
+                 "sensors, delay, estimator) decays slowest, and run the controller and the open loop on the "
+                 "nonlinear plant there. Certified: worst spectral radius found <= 1 - 1e-6. Writes certificate.json "
+                 "and certificate.md to --out. Exit 1 when a controller is not certified."))

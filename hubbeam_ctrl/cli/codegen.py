@@ -16,75 +16,34 @@ from __future__ import annotations
 
 import json
 
+from hubbeam_ctrl.cli.args import Command
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``codegen`` subcommand (``common`` holds the system-parameter options).
+__all__ = ["COMMAND"]
 
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
-    from hubbeam_ctrl.cli.args import add_verbose, nonempty
-    from hubbeam_ctrl.cli.main import finite_float, positive_float
 
-    p = subparsers.add_parser(
-        "codegen", parents=[common], help="write a controller as portable C99 (header + source)",
-        description=("Design a controller for a slew or spin-up on the sampled SFOAM model and write it "
-                     "as C99: an instance struct, <kind>_init, <kind>_reset and <kind>_step(inst, "
-                     "measurements, reference, command); no dynamic memory, no I/O, only math.h. LQR and MPC "
-                     "are written with their Kalman observer; with --rig every observer reads the rig's own "
-                     "sensors (its header names them in order, with units)."))
+def _options(p) -> None:
+    """``hubbeam codegen``'s options on its parser ``p``."""
+    from hubbeam_ctrl.cli.args import add_rig_option, add_task_options, add_verbose
+
     p.add_argument("--controller", required=True, metavar="KIND",
                    help="controller kind: pd, lqr, lqg, zv, zvd, ei, mpc, nmpc (nmpc: its real-time iteration "
                         "step, hubbeam_ctrl.deploy.nmpc_c)")
-    p.add_argument("--rig", metavar="RIG.toml", type=nonempty("rig"),
-                   help="rig file: the beam (with the reflected rotor), its sensors and its sample time")
-    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
-                   help="the task: slew (default) or spinup (design at --wf)")
-    p.add_argument("--slew-angle", metavar="RAD", type=finite_float("slew-angle"),
-                   help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
-    p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
-                   help="maneuver time [s] (default 10)")
-    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"),
-                   help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
-    p.add_argument("--dt", metavar="S", type=positive_float("dt"),
-                   help="sample time [s] (default: the rig's timing.dt, else 20 samples per period of the "
-                        "first flexible mode, at most 0.01)")
-    p.add_argument("--design-modes", metavar="N", type=int,
-                   help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
-    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
-                   help="torque budget [N m], at most the motor's tau_max (default: that)")
+    add_rig_option(p, "rig file or preset: the beam (with the reflected rotor), its sensors and its sample time")
+    add_task_options(p, "the rig's timing.dt, else 20 samples per period of the first flexible mode, at most 0.01")
     p.add_argument("--precision", choices=["double", "single"], default="double",
                    help="type of the data and the arithmetic (default double)")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created; must be empty)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     add_verbose(p)
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    """Run ``hubbeam codegen``; bad input raises :class:`ParameterError`.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Design the controller for the task and write it as C."""
     import sys
 
     from controllers import CONTROLLERS, make_controller
-    from hubbeam_ctrl.cli.args import (
-        check_output_dir,
-        design_task,
-        params_from_args,
-        refuse_inapplicable,
-        rig_from_args,
-        stdout,
-    )
+    from hubbeam_ctrl.cli.args import beam_from_args, check_output_dir, design_task, refuse_inapplicable, stdout
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.deploy import CODEGEN_KINDS, NO_COMPILER, compile_c, compiler, to_c
     from hubbeam_ctrl.study.shaping import task_shaped_settings
@@ -96,15 +55,11 @@ def run(args) -> int:
         raise ParameterError(f"controller must be one of {', '.join(kinds)} (the kinds that can be generated "
                              f"as C), got {args.controller!r}")
     refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
-    rig = rig_from_args(args)
-    if rig is not None:
-        params = rig.plant_params
-        if args.controller not in ("pd", "lqr", "lqg") and not rig.drive.is_ideal:
-            raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor, "
-                                 "motor.kind = 'dc_motor', takes a voltage command, generated as C for pd, lqr "
-                                 "and lqg only)")
-    else:
-        params = params_from_args(args)
+    rig, params = beam_from_args(args)
+    if rig is not None and args.controller not in ("pd", "lqr", "lqg") and not rig.drive.is_ideal:
+        raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor, "
+                             "motor.kind = 'dc_motor', takes a voltage command, generated as C for pd, lqr "
+                             "and lqg only)")
     sc, design = design_task(args, rig, params)
     if args.controller == "nmpc":
         return _nmpc(args, sc, design, rig, sink)
@@ -161,3 +116,12 @@ def _nmpc(args, sc, design, rig, sink) -> int:
               f"{info['horizon']} samples, every {sc.dt:g} s; the step with its QP solver, no CasADi at run time)",
               file=sink)
     return 0
+
+
+COMMAND = Command(
+    "codegen", _options, _run, help="write a controller as portable C99 (header + source)",
+    description=("Design a controller for a slew or spin-up on the sampled SFOAM model and write it as C99: an "
+                 "instance struct, <kind>_init, <kind>_reset and <kind>_step(inst, measurements, reference, "
+                 "command); no dynamic memory, no I/O, only math.h. LQR and MPC are written with their Kalman "
+                 "observer; with --rig every observer reads the rig's own sensors (its header names them in "
+                 "order, with units)."))

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -13,6 +12,8 @@ from pathlib import Path
 
 from controllers import CONTROLLERS, QP_SOLVERS, SHAPERS, controller_names
 from hubbeam_ctrl.cli.args import (
+    Command,
+    add_rig_option,
     add_run_options,
     check_output_dir,
     check_rig_dt,
@@ -30,31 +31,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
 
-__all__ = ["add_parser", "add_compare_options", "run", "compare_plan", "ComparePlan", "stdout_to_stderr"]
-
-
-def add_parser(subparsers, common) -> argparse.ArgumentParser:
-    """Add the ``compare`` subcommand.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-    common : argparse.ArgumentParser
-        Parent parser with ``--tip-mass``, ``--tip-position``, ``--n-modes``, ``--params``.
-    """
-    labels = ", ".join(spec.label for spec in CONTROLLERS.values())
-    p = subparsers.add_parser(
-        "compare", parents=[common], help="compare controllers in closed loop",
-        description=(f"Design the registered controllers ({labels}) on SFOAM and compare them in "
-                     "closed loop (zero-order hold at --dt) on the nonlinear FOAM or CFOAM evaluation "
-                     "plant, which has every bending mode below the sampling frequency and at least "
-                     "three more than the design model. --params and the common options set both the "
-                     "design and the plant; --plant-params and --plant-tip-mass make the plant differ. "
-                     "Writes metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, "
-                     "torque.png and report.md to --out."))
-    add_compare_options(p)
-    p.set_defaults(func=run)
-    return p
+__all__ = ["COMMAND", "add_compare_options", "ComparePlan", "stdout_to_stderr"]
 
 
 def add_compare_options(p, controllers: bool = True) -> None:
@@ -118,11 +95,9 @@ def add_compare_options(p, controllers: bool = True) -> None:
                         "--scenario spinup only)")
     p.add_argument("--dt", metavar="S", type=real("s"),
                    help="controller sample time [s] (default: the rig's, else 0.01)")
-    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
-                   help="the physical rig: a rig TOML file or a preset (servo_link, paper); its beam replaces "
-                        "--params, and the plant carries its drive, friction, damping and sensors (docs/rig.md); "
-                        "the report gets the rig ladder (the comparison with one part of the hardware added "
-                        "at a time)")
+    add_rig_option(p, "the physical rig: a rig TOML file or a preset (servo_link, paper); its beam replaces --params, "
+                      "and the plant carries its drive, friction, damping and sensors (docs/rig.md); the report gets "
+                      "the rig ladder (the comparison with one part of the hardware added at a time)")
     p.add_argument("--integral", choices=("auto", "on", "off"), default="auto",
                    help="integral action of LQR, LQG and MPC on the rig (disturbance estimation; default auto: "
                         "on for rigs with friction or a DC motor); --rig only")
@@ -195,7 +170,7 @@ def parse_payload_range(text: str, nominal: float) -> tuple:
 @dataclass
 class ComparePlan:
     """What ``hubbeam compare`` runs: every option of its command line turned into a value
-    (:func:`compare_plan`), before any work.
+    (``COMMAND.plan``), before any work.
 
     Attributes
     ----------
@@ -238,21 +213,8 @@ def _refuse_with(args, mode: str, refused: dict) -> None:
             raise ParameterError(f"{option} does not apply with {mode} ({why})")
 
 
-def compare_plan(args) -> ComparePlan:
-    """Turn ``hubbeam compare``'s command line into the run's values, checking each option.
-
-    Every option either sets a value of the plan or is refused in one line naming it and the
-    option it conflicts with; the plain comparison and the payload path take the same values.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-
-    Returns
-    -------
-    ComparePlan
-    """
+def _plan(args) -> ComparePlan:
+    """The :class:`ComparePlan`: the plain comparison and the payload path take the same values."""
     from hubbeam_ctrl.plant.params import MAX_MODES
     from hubbeam_ctrl.study.compare import _parse_controllers
     out = check_output_dir("--out", args.out)
@@ -334,19 +296,13 @@ def _run_payload(plan: ComparePlan, sink) -> int:
     return 0
 
 
-def run(args) -> int:
-    """Run ``hubbeam compare``; returns the exit status (0).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Run the comparison (or the payload range), write its outputs, print its table (status 0)."""
     sink = stdout(args)
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.compare_values import compare_arguments
     from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
-    plan = compare_plan(args)
+    plan = _plan(args)
     if plan.payload:
         return _run_payload(plan, sink)
     t0 = time.perf_counter()
@@ -439,3 +395,21 @@ def _plant_params(args, params):
         return (plant_params or params).replace(m_t=args.plant_tip_mass)
     except ParameterError as exc:
         raise ParameterError(f"--plant-tip-mass: {exc}") from None
+
+
+def _compare_options(p) -> None:
+    """``hubbeam compare``'s options on its parser ``p``."""
+    add_compare_options(p)
+
+
+def _description() -> str:
+    labels = ", ".join(spec.label for spec in CONTROLLERS.values())
+    return (f"Design the registered controllers ({labels}) on SFOAM and compare them in closed loop (zero-order hold "
+            "at --dt) on the nonlinear FOAM or CFOAM evaluation plant, which has every bending mode below the "
+            "sampling frequency and at least three more than the design model. --params and the common options set "
+            "both the design and the plant; --plant-params and --plant-tip-mass make the plant differ. Writes "
+            "metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, torque.png and report.md to --out.")
+
+
+COMMAND = Command("compare", _compare_options, _run, plan=_plan, help="compare controllers in closed loop",
+                  description=_description())

@@ -15,10 +15,11 @@ import sys
 import time
 from pathlib import Path
 
+from hubbeam_ctrl.cli.args import Command
 from hubbeam_ctrl.core.fileio import atomic_write_text
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["spinup_comparison", "main", "add_parser", "run"]
+__all__ = ["spinup_comparison", "main", "COMMAND"]
 
 #: The paper's quoted values at w_f = 2.8 rad/s (Section 4.2).
 PAPER_PEAKS_M = {"foam": 0.22, "tlam": 0.49}
@@ -100,38 +101,26 @@ def main(argv=None) -> int:
     return 0
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``demo`` subcommand (the job behind ``make demo``; ``common`` is not used).
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
-    p = subparsers.add_parser(
-        "demo", help="the paper's spin-up comparison and the closed-loop comparison (make demo)",
-        description=("TLAM, FOAM and CFOAM spun up to 2.8 rad/s (the paper's Fig. 5), then the five "
-                     "controllers on the default slew on FOAM; plots, metrics and reports in --out."))
+def _options(p) -> None:
+    """``hubbeam demo``'s options on its parser ``p``."""
     p.add_argument("--out", metavar="DIR", default="demo_out", help="output folder (default demo_out)")
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    """Run ``hubbeam demo``; returns the exit status (0).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Run the demo into ``--out`` (status 0)."""
     import contextlib
 
     from hubbeam_ctrl.cli.args import check_output_dir, stdout
     check_output_dir("--out", args.out)
     with contextlib.redirect_stdout(stdout(args)):
         return main(["--out", str(args.out)])
+
+
+COMMAND = Command(
+    "demo", _options, _run, beam=False,
+    help="the paper's spin-up comparison and the closed-loop comparison (make demo)",
+    description=("TLAM, FOAM and CFOAM spun up to 2.8 rad/s (the paper's Fig. 5), then the five controllers on the "
+                 "default slew on FOAM; plots, metrics and reports in --out."))
 
 
 if __name__ == "__main__":

@@ -17,60 +17,30 @@ from __future__ import annotations
 import json
 import math
 
+from hubbeam_ctrl.cli.args import Command
+
+__all__ = ["COMMAND", "LINEAR_CONTROLLERS"]
+
 #: The controllers that are linear systems (MPC and the open loop are not).
 LINEAR_CONTROLLERS = ("pd", "lqr", "lqg")
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``design`` subcommand (``common`` holds the system-parameter options).
+def _options(p) -> None:
+    """``hubbeam design``'s options on its parser ``p``."""
+    from hubbeam_ctrl.cli.args import add_rig_option, add_task_options, add_verbose
 
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
-    from hubbeam_ctrl.cli.args import add_verbose, nonempty
-    from hubbeam_ctrl.cli.main import finite_float, positive_float
-
-    p = subparsers.add_parser(
-        "design", parents=[common], help="design a linear controller and save it (.mat/.npz/.json)",
-        description=("Design PD, LQR or LQG on the sampled SFOAM model linearised at --spin and "
-                     "save it as a discrete state-space system (Ac, Bc, Cc, Dc, dt, signal names "
-                     "and units): input the measured deviation from the reference, output the "
-                     "torque beyond the feedforward [N m]. Prints the closed-loop spectral radius "
-                     "and the disk, gain, phase and delay margins at the plant input on the "
-                     "design model."))
     p.add_argument("--controller", choices=LINEAR_CONTROLLERS, required=True,
                    help="linear controller to design")
-    p.add_argument("--scenario", choices=["slew", "spinup"], default="slew",
-                   help="the task: slew (default, design at rest) or spinup (design at --wf)")
-    p.add_argument("--slew-angle", metavar="RAD", type=finite_float("slew-angle"),
-                   help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
-    p.add_argument("--tf", metavar="S", type=positive_float("tf"), default=10.0,
-                   help="maneuver time [s] (default 10)")
-    p.add_argument("--wf", metavar="RAD_S", type=finite_float("wf"),
-                   help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
+    add_task_options(p, "the rig's; else 20 samples per period of the first flexible mode, at most 0.01")
     p.add_argument("--payload-range", metavar="MIN,MAX",
                    help="tip payloads [kg] to design LQR or LQG for (must hold the parameters' tip mass)")
-    p.add_argument("--dt", metavar="S", type=positive_float("dt"),
-                   help="sample time [s] (default: the rig's; else 20 samples per period of the first "
-                        "flexible mode, at most 0.01)")
-    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
-                   help="design for this rig (a rig file or a preset): its beam with the rotor's reflected "
-                        "inertia and its damping, its drive's torque limit and its sample time; the "
-                        "saved controller is in torque (hubbeam codegen --rig adds the voltage stage and "
-                        "integral action)")
-    p.add_argument("--design-modes", metavar="N", type=int,
-                   help="transverse modes of the design model, 1..20 (default: --n-modes or 5)")
-    p.add_argument("--tau-max", metavar="NM", type=positive_float("tau-max"),
-                   help="torque budget [N m], at most the motor's tau_max (default: that)")
+    add_rig_option(p, "design for this rig (a rig file or a preset): its beam with the rotor's reflected inertia and "
+                      "its damping, its drive's torque limit and its sample time; the saved controller is in torque "
+                      "(hubbeam codegen --rig adds the voltage stage and integral action)")
     p.add_argument("--out", metavar="FILE.mat|FILE.npz|FILE.json", required=True,
                    help="output file; the format follows the extension")
     p.add_argument("--json", action="store_true", help="print a JSON summary with the margins")
     add_verbose(p)
-    p.set_defaults(func=run)
 
 
 def _finite(value):
@@ -82,22 +52,16 @@ def _finite(value):
     return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
-def run(args) -> int:
-    """Run ``hubbeam design``; bad input raises :class:`ParameterError`.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Design the controller, save it and print its margins."""
     from pathlib import Path
 
     from controllers import CONTROLLERS, make_controller
     from controllers.analysis import loop_margins
     from controllers.export import FORMATS, save_controller
-    from hubbeam_ctrl.cli.args import design_task, refuse_inapplicable, rig_from_args, stdout
+    from hubbeam_ctrl.cli.args import beam_from_args, design_task, refuse_inapplicable, stdout
     from hubbeam_ctrl.cli.compare import parse_payload_range
-    from hubbeam_ctrl.cli.main import check_output_folder, params_from_args
+    from hubbeam_ctrl.cli.main import check_output_folder
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.study.payload import range_designs
 
@@ -108,8 +72,7 @@ def run(args) -> int:
     if out.suffix.lower() not in FORMATS:
         raise ParameterError(f"out must end in {', '.join(FORMATS)}, got {args.out!r}")
     check_output_folder("out", out)
-    rig = rig_from_args(args)
-    params = rig.plant_params if rig is not None else params_from_args(args)
+    rig, params = beam_from_args(args)
     sc, design = design_task(args, rig, params)
     modes = design.n_modes
     settings = CONTROLLERS[args.controller].settings.for_scenario(sc)
@@ -139,3 +102,12 @@ def run(args) -> int:
           f"{m.crossover_rad_s:.4g} rad/s; delay margin {m.delay_margin_s * 1e3:.3g} ms", file=sink)
     print(f"  saved to {out}", file=sink)
     return 0
+
+
+COMMAND = Command(
+    "design", _options, _run, help="design a linear controller and save it (.mat/.npz/.json)",
+    description=("Design PD, LQR or LQG on the sampled SFOAM model linearised at --spin and save it as a discrete "
+                 "state-space system (Ac, Bc, Cc, Dc, dt, signal names and units): input the measured deviation "
+                 "from the reference, output the torque beyond the feedforward [N m]. Prints the closed-loop "
+                 "spectral radius and the disk, gain, phase and delay margins at the plant input on the design "
+                 "model."))

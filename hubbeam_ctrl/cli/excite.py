@@ -7,32 +7,20 @@ Example::
 
 from __future__ import annotations
 
-__all__ = ["add_parser", "run"]
+from hubbeam_ctrl.cli.args import Command
+
+__all__ = ["COMMAND", "KINDS"]
 
 #: The signal kinds, as ``hubbeam_ctrl.calibrate.excitation.EXCITATION_KINDS`` (not imported here:
 #: building the parser stays cheap).
 KINDS = ("chirp", "prbs", "multisine", "step")
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``excite`` subcommand.
+def _options(p) -> None:
+    """``hubbeam excite``'s options on its parser ``p``."""
+    from hubbeam_ctrl.cli.args import add_rig_option, add_verbose, integer, nonempty, real
 
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-    common : argparse.ArgumentParser
-        Not used (the rig file holds the beam).
-    """
-    from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty, real
-
-    p = subparsers.add_parser(
-        "excite", help="an input record for identification (chirp, PRBS, multisine, step)",
-        description=("Writes an input record (t [s] and V [V] for a DC-motor rig, tau [N m] for a torque "
-                     "drive) whose band runs from 0.2 x the first to 1.5 x the highest mode to identify, "
-                     "whose amplitude is within the drive's limit and whose predicted tip deflection and "
-                     "hub travel (simulated on the rig's model) stay within --max-tip and --max-hub."))
-    p.add_argument("--rig", metavar="RIG", type=nonempty("rig file or preset"), required=True,
-                   help="rig TOML file or preset (servo_link, paper)")
+    add_rig_option(p, "rig TOML file or preset (servo_link, paper)", required=True)
     p.add_argument("--kind", choices=KINDS, required=True)
     p.add_argument("--out", metavar="SIGNAL.csv|SIGNAL.npz", type=nonempty("file"), required=True)
     p.add_argument("--duration", metavar="S", type=real("s"), default=10.0, help="record length [s] (default 10)")
@@ -49,7 +37,6 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--seed", metavar="N", type=integer(), help="PRBS seed (default 0; --kind prbs only)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     add_verbose(p)
-    p.set_defaults(func=run)
 
 
 def _parse_band(text, option="--band"):
@@ -66,20 +53,13 @@ def _parse_band(text, option="--band"):
     return lo, hi
 
 
-def run(args) -> int:
-    """Run ``hubbeam excite``.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-    """
+def _run(args) -> int:
+    """Write the record and print its summary."""
     from hubbeam_ctrl.calibrate.excitation import excitation
     from hubbeam_ctrl.calibrate.records import save_record
-    from hubbeam_ctrl.cli.args import check_output, refuse_inapplicable, stdout
-    from hubbeam_ctrl.core.jsonio import strict_json
+    from hubbeam_ctrl.cli.args import check_output, print_result, refuse_inapplicable
     from hubbeam_ctrl.plant.rig import load_rig
 
-    sink = stdout(args)
     refuse_inapplicable(args, f"--kind {args.kind}", {"--band": ("chirp", "prbs", "multisine"),
                                                         "--modes": ("chirp", "prbs", "multisine"), "--seed": ("prbs",)})
     check_output("--out", args.out, (".csv", ".npz"))
@@ -95,10 +75,15 @@ def run(args) -> int:
                "duration_s": rec.duration, "peak_input": float(np.max(np.abs(rec.input))),
                "predicted_peak_tip_m": float(np.max(np.abs(rec.columns["v_tip"]))),
                "predicted_peak_hub_rad": float(np.max(np.abs(rec.columns["theta"])))}
-    if args.json:
-        print(strict_json(summary), file=sink)
-    else:
-        print(f"wrote {args.out}: {args.kind}, {len(rec.t)} samples, peak {rec.input_name} "
-              f"{summary['peak_input']:.4g}; predicted peak tip {summary['predicted_peak_tip_m']:.4g} m, "
-              f"hub {summary['predicted_peak_hub_rad']:.4g} rad", file=sink)
+    tip, hub = summary["predicted_peak_tip_m"], summary["predicted_peak_hub_rad"]
+    print_result(args, summary, f"wrote {args.out}: {args.kind}, {len(rec.t)} samples, peak {rec.input_name} "
+                                f"{summary['peak_input']:.4g}; predicted peak tip {tip:.4g} m, hub {hub:.4g} rad")
     return 0
+
+
+COMMAND = Command(
+    "excite", _options, _run, beam=False, help="an input record for identification (chirp, PRBS, multisine, step)",
+    description=("Writes an input record (t [s] and V [V] for a DC-motor rig, tau [N m] for a torque drive) whose "
+                 "band runs from 0.2 x the first to 1.5 x the highest mode to identify, whose amplitude is within "
+                 "the drive's limit and whose predicted tip deflection and hub travel (simulated on the rig's model) "
+                 "stay within --max-tip and --max-hub."))

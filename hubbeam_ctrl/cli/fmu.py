@@ -7,28 +7,16 @@ Example::
 
 from __future__ import annotations
 
+from hubbeam_ctrl.cli.args import Command
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``fmu`` subcommand (``common`` holds the system-parameter options).
+__all__ = ["COMMAND"]
 
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
-    from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty, real
 
-    p = subparsers.add_parser(
-        "fmu", parents=[common], help="the nonlinear plant as an FMI 2.0 co-simulation FMU",
-        description=("Write the FOAM or CFOAM plant with the rig's drive, friction and sensors as an "
-                     "FMI 2.0 co-simulation FMU (generated C, the closed loop's fixed-step integrator; "
-                     "no Python at run time). Input: torque [N m] or, with a DC motor, voltage [V]; "
-                     "outputs: the sensors and the tip deflection. Needs FMPy (the FMI headers) and a "
-                     "C compiler for the binary (without one: the sources only). See docs/fmu.md."))
-    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
-                   help="rig file or preset (servo_link, paper); not with --params")
+def _options(p) -> None:
+    """``hubbeam fmu``'s options on its parser ``p``."""
+    from hubbeam_ctrl.cli.args import add_rig_option, add_verbose, integer, real
+
+    add_rig_option(p, "rig file or preset (servo_link, paper); not with --params")
     p.add_argument("--model", choices=["foam", "cfoam"], default="foam", help="plant model (default foam)")
     p.add_argument("--dt", metavar="S", type=real("s"),
                    help="sample time [s]: each communication step is a whole number of samples "
@@ -42,44 +30,46 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--force", action="store_true", help="replace an existing FILE.fmu")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     add_verbose(p)
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    """Run ``hubbeam fmu``; bad input raises :class:`ParameterError`.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
-    import sys
-
-    from hubbeam_ctrl.cli.args import params_from_args, rig_from_args, stdout
+def _plan(args) -> dict:
+    """The keywords of :func:`~hubbeam_ctrl.fmu.build_fmu`."""
+    from hubbeam_ctrl.cli.args import source_from_args
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.core.jsonio import strict_json
-    from hubbeam_ctrl.fmu import build_fmu
 
-    source = rig_from_args(args)
-    if source is None:
-        source = params_from_args(args)
+    source = source_from_args(args)
     if not str(args.out).endswith(".fmu"):
         raise ParameterError(f"--out must name a .fmu file, got {str(args.out)[:80]!r}")
     if args.spin is not None and args.substeps is not None:
         raise ParameterError("--spin does not apply with --substeps (the spin sets the substep rule's modal "
                              "analysis only)")
-    info = build_fmu(source, args.model, args.out, dt=args.dt, substeps=args.substeps,
-                     spin=0.0 if args.spin is None else args.spin, force=args.force)
+    return {"rig_or_params": source, "model": args.model, "out": args.out, "dt": args.dt, "substeps": args.substeps,
+            "spin": 0.0 if args.spin is None else args.spin, "force": args.force}
+
+
+def _run(args) -> int:
+    """Build the FMU and print its summary."""
+    import sys
+
+    from hubbeam_ctrl.cli.args import print_result
+    from hubbeam_ctrl.fmu import build_fmu
+
+    info = build_fmu(**_plan(args))
     summary = {"out": str(info.path), "fmi_version": info.fmi_version, "model": info.model, "n_q": info.n_q,
                "dt_s": info.dt, "substeps": info.substeps, "command": info.command, "outputs": list(info.outputs),
                "parameters": len(info.parameters), "binary": info.binary, "build_s": round(info.build_s, 3)}
-    sink = stdout(args)
-    if args.json:
-        print(strict_json(summary), file=sink)
-    else:
-        print(f"wrote {info.path}: FMI {info.fmi_version} co-simulation, {info.model.upper()} with {info.n_q} "
-              f"coordinates, input {info.command}, dt = {info.dt:g} s x {info.substeps} steps, "
-              f"{len(info.parameters)} parameters", file=sink)
-        if info.binary is None:
-            print("note: no binary in the FMU (no C compiler); it holds the sources", file=sys.stderr)
+    print_result(args, summary, f"wrote {info.path}: FMI {info.fmi_version} co-simulation, {info.model.upper()} "
+                                f"with {info.n_q} coordinates, input {info.command}, dt = {info.dt:g} s x "
+                                f"{info.substeps} steps, {len(info.parameters)} parameters")
+    if info.binary is None and not args.json:
+        print("note: no binary in the FMU (no C compiler); it holds the sources", file=sys.stderr)
     return 0
+
+
+COMMAND = Command(
+    "fmu", _options, _run, plan=_plan, help="the nonlinear plant as an FMI 2.0 co-simulation FMU",
+    description=("Write the FOAM or CFOAM plant with the rig's drive, friction and sensors as an FMI 2.0 "
+                 "co-simulation FMU (generated C, the closed loop's fixed-step integrator; no Python at run time). "
+                 "Input: torque [N m] or, with a DC motor, voltage [V]; outputs: the sensors and the tip "
+                 "deflection. Needs FMPy (the FMI headers) and a C compiler for the binary (without one: the "
+                 "sources only). See docs/fmu.md."))

@@ -18,33 +18,22 @@ records' excited band unless ``--plant-modes`` is given.
 
 from __future__ import annotations
 
-__all__ = ["add_parser", "run"]
+from hubbeam_ctrl.cli.args import Command
+
+__all__ = ["COMMAND", "RECORD_OPTIONS"]
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``identify`` subcommand.
+def _options(p) -> None:
+    """``hubbeam identify``'s options on its parser ``p``."""
+    from hubbeam_ctrl.cli.args import add_rig_option, add_verbose, integer, nonempty, real
 
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-    common : argparse.ArgumentParser
-        Not used (the rig or parameter file holds the beam).
-    """
-    from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty, real
-
-    p = subparsers.add_parser(
-        "identify", help="calibrate rig fields from measured records (least squares on FOAM with the hardware)",
-        description=("Fits the --fit fields of the rig to the records by least squares of the simulated "
-                     "sensors (nonlinear FOAM with the rig's drive and friction) against the measured ones; "
-                     "writes the calibrated rig (only if the fit converged and was checked), report.md with "
-                     "measured-vs-model plots, and result.json."))
     p.add_argument("records", metavar="RECORD", nargs="*", type=nonempty("record file"),
                    help="records (.csv with a 'name [unit]' header, or .npz), each starting at rest")
     p.add_argument("--modal-table", metavar="TABLE.csv", type=nonempty("file"),
                    help="fit to measured frequencies (and damping ratios) against spin rate and tip mass instead "
                         "of records: header spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--rig", metavar="RIG", type=nonempty("rig file or preset"), help="rig TOML file or preset")
+    add_rig_option(src, "rig TOML file or preset")
     src.add_argument("--params", metavar="P.toml", type=nonempty("file"),
                      help="parameter file (the beam alone, ideal hardware)")
     p.add_argument("--fit", metavar="E,J_h,...", required=True,
@@ -67,7 +56,6 @@ def add_parser(subparsers, common) -> None:
                    help="write the calibrated rig even when the fit did not converge to the records' noise floor")
     p.add_argument("--json", action="store_true", help="print each fitted field's estimate and interval as JSON")
     add_verbose(p)
-    p.set_defaults(func=run)
 
 
 def _parse_bounds(items) -> dict:
@@ -88,64 +76,65 @@ def _parse_bounds(items) -> dict:
     return out
 
 
-def run(args) -> int:
-    """Run ``hubbeam identify``.
+#: The options of a fit to records (not of ``--modal-table``'s fit by modal analysis).
+RECORD_OPTIONS = ("--validate", "--sensors", "--plant-modes", "--max-wall")
 
-    Parameters
-    ----------
-    args : argparse.Namespace
-    """
-    import numpy as np
 
-    from hubbeam_ctrl.calibrate.fit import (
-        FitSettings,
-        check_bounds,
-        check_record_for_rig,
-        fit_rig,
-        predict,
-        resolve_fields,
-        validate_record,
-    )
+def _plan(args) -> dict:
+    """``rig`` (Rig, from ``--rig`` or ``--params``), ``fields`` (the resolved ``--fit``), ``bounds``, ``out``
+    (Path), ``force``, ``json``, ``settings`` (FitSettings) and either ``table`` (the ``--modal-table`` path)
+    or ``records``, ``validate`` (paths: the run reads them) and ``sensors`` (tuple or None)."""
+    from hubbeam_ctrl.calibrate.fit import FitSettings, check_bounds, resolve_fields
     from hubbeam_ctrl.calibrate.model import ModelSettings
-    from hubbeam_ctrl.calibrate.records import load_record
-    from hubbeam_ctrl.cli.args import check_output_dir, stdout
+    from hubbeam_ctrl.cli.args import check_output_dir
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.core.fileio import write_folder
-    from hubbeam_ctrl.core.jsonio import strict_json
     from hubbeam_ctrl.plant.rig import load_rig
-    from hubbeam_ctrl.plots.calibration import plot_record_fit
-    from hubbeam_ctrl.plots.plant import save_figure
 
-    sink = stdout(args)
-    if bool(args.records) == bool(args.modal_table):
+    if args.records and args.modal_table:
+        raise ParameterError("--modal-table does not apply with RECORD files (identify fits records or a modal "
+                             "table, not both)")
+    if not args.records and not args.modal_table:
         raise ParameterError("identify needs records or --modal-table TABLE.csv (one of the two)")
     if args.plant_modes is not None and not 1 <= args.plant_modes <= 20:
         raise ParameterError(f"--plant-modes (n_transverse) must be an integer in 1..20, got {args.plant_modes}")
     if args.max_wall is not None and not args.max_wall > 0:
         raise ParameterError(f"--max-wall must be > 0 [s], got {args.max_wall:g}")
     if args.modal_table:         # options of a fit to records
-        for option, value in (("--validate", args.validate or None), ("--sensors", args.sensors),
-                              ("--plant-modes", args.plant_modes)):
-            if value is not None:
+        for option in RECORD_OPTIONS:
+            if getattr(args, option[2:].replace("-", "_")) not in (None, []):
                 raise ParameterError(f"{option} does not apply with --modal-table (it fits records)")
     out = check_output_dir("--out", args.out)
     rig = load_rig(args.rig) if args.rig is not None else load_rig(args.params, "params")
-    fit_fields = resolve_fields(args.fit, rig)
+    fields = resolve_fields(args.fit, rig)
     bounds = _parse_bounds(args.bounds)
-    check_bounds(fit_fields, bounds)                 # before the records are read and simulated
+    check_bounds(fields, bounds)                 # before the records are read and simulated
+    plan = {"rig": rig, "fields": tuple(fields), "bounds": bounds, "out": out, "force": args.force, "json": args.json}
     if args.modal_table:
-        return _run_modal_table(args, rig, fit_fields, bounds, out, sink)
-    sensors = None if args.sensors is None else tuple(s.strip() for s in args.sensors.split(","))
-    records = [load_record(r).resampled() for r in args.records]
-    validation = [load_record(r).resampled() for r in args.validate]
+        return {**plan, "table": args.modal_table, "settings": FitSettings(max_evaluations=args.max_evaluations)}
+    return {**plan, "records": tuple(args.records), "validate": tuple(args.validate),
+            "sensors": None if args.sensors is None else tuple(s.strip() for s in args.sensors.split(",")),
+            "settings": FitSettings(model=ModelSettings(), plant_modes=args.plant_modes,
+                                    max_evaluations=args.max_evaluations, max_wall=args.max_wall)}
+
+
+def _run(args) -> int:
+    """Fit, write the report (and the calibrated rig) and print the estimates."""
+    from hubbeam_ctrl.calibrate.fit import check_record_for_rig, fit_rig, predict, validate_record
+    from hubbeam_ctrl.calibrate.records import load_record
+    from hubbeam_ctrl.cli.args import print_result
+
+    plan = _plan(args)
+    if args.modal_table:
+        return _run_modal_table(args, plan)
+    rig, sensors, out = plan["rig"], plan["sensors"], plan["out"]
+    records = [load_record(r).resampled() for r in plan["records"]]
+    validation = [load_record(r).resampled() for r in plan["validate"]]
     for rec in records:
         check_record_for_rig(rec, rig, sensors)
     for rec in validation:
         check_record_for_rig(rec, rig, sensors, "--validate")
-    settings = FitSettings(model=ModelSettings(), plant_modes=args.plant_modes, max_evaluations=args.max_evaluations,
-                           max_wall=args.max_wall)
-    result = fit_rig(rig, records, [f.name for f in fit_fields], bounds=bounds, sensors=sensors, settings=settings,
-                     progress=not args.json)
+    result = fit_rig(rig, records, [f.name for f in plan["fields"]], bounds=plan["bounds"], sensors=sensors,
+                     settings=plan["settings"], progress=not args.json)
     valid = {}
     series = []
     for k, rec in enumerate(records):
@@ -156,12 +145,31 @@ def run(args) -> int:
         fits, y = validate_record(result.rig, rec, sensors, result.model)
         valid[rec.source] = fits
         series.append((f"validate_{k + 1}.png", rec, y, fits))
-    rig_text = _checked_rig_text(result, args.force)
+    summary, rig_text = _write_outputs(result, plan, valid, series)
+    text = [result.summary()] + [f"  validation {src}: " + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items())
+                                 for src, fits in valid.items()]
+    text.append(f"wrote {out}/report.md" + (f", {out}/rig.toml" if rig_text else " (no calibrated rig)"))
+    print_result(args, summary, "\n".join(text))
+    return _refusal(result, out, rig_text is not None)
+
+
+def _write_outputs(result, plan, valid, series) -> tuple:
+    """Write into ``--out`` the plots of ``series`` (measured against model), result.json, report.md and the
+    calibrated rig (when checked, :func:`_checked_rig_text`); returns ``(summary, rig text or None)``."""
+    import numpy as np
+
+    from hubbeam_ctrl.core.fileio import write_folder
+    from hubbeam_ctrl.core.jsonio import strict_json
+    rig_text = _checked_rig_text(result, plan["force"])
     summary = result.to_dict()
-    summary["validation_fit_percent"] = valid
+    if result.kind != "modal_table":
+        summary["validation_fit_percent"] = valid
     summary["rig_written"] = rig_text is not None
 
     def write(folder):
+        if series:
+            from hubbeam_ctrl.plots.calibration import plot_record_fit
+            from hubbeam_ctrl.plots.plant import save_figure
         for name, rec, y, fits in series:
             fig = plot_record_fit(rec.t, {s: rec.columns[s] for s in y}, y, fits, title=rec.source)
             save_figure(fig, folder / name)
@@ -169,15 +177,8 @@ def run(args) -> int:
         (folder / "report.md").write_text(_report(result, valid, series, rig_text is not None, np), encoding="utf-8")
         if rig_text is not None:
             (folder / "rig.toml").write_text(rig_text, encoding="utf-8")
-    write_folder(out, write, "--out")
-    if args.json:
-        print(strict_json(summary), file=sink)
-    else:
-        print(result.summary(), file=sink)
-        for src, fits in valid.items():
-            print(f"  validation {src}: " + ", ".join(f"{k} {v:.2f} %" for k, v in fits.items()), file=sink)
-        print(f"wrote {out}/report.md" + (f", {out}/rig.toml" if rig_text else " (no calibrated rig)"), file=sink)
-    return _refusal(result, out, rig_text is not None)
+    write_folder(plan["out"], write, "--out")
+    return summary, rig_text
 
 
 def _refusal(result, out, written) -> int:
@@ -232,31 +233,16 @@ def _with_intervals(result):
     return result.rig.replace(uncertainty=Uncertainty.from_table(kept)) if kept else result.rig
 
 
-def _run_modal_table(args, rig, fit_fields, bounds, out, sink) -> int:
+def _run_modal_table(args, plan) -> int:
     """``identify --modal-table``: fit to measured frequencies by modal analysis."""
-
-    import numpy as np
-
-    from hubbeam_ctrl.calibrate.fit import FitSettings
     from hubbeam_ctrl.calibrate.table import fit_modal_table, load_modal_table
-    from hubbeam_ctrl.core.fileio import write_folder
-    from hubbeam_ctrl.core.jsonio import strict_json
+    from hubbeam_ctrl.cli.args import print_result
 
-    table = load_modal_table(args.modal_table)
-    result = fit_modal_table(rig, table, [f.name for f in fit_fields], bounds=bounds,
-                             settings=FitSettings(max_evaluations=args.max_evaluations), progress=not args.json)
-    rig_text = _checked_rig_text(result, args.force)
-    summary = result.to_dict()
-    summary["rig_written"] = rig_text is not None
-
-    def write(folder):
-        (folder / "result.json").write_text(strict_json(summary) + "\n", encoding="utf-8")
-        (folder / "report.md").write_text(_report(result, {}, [], rig_text is not None, np), encoding="utf-8")
-        if rig_text is not None:
-            (folder / "rig.toml").write_text(rig_text, encoding="utf-8")
-    write_folder(out, write, "--out")
-    print(strict_json(summary) if args.json else result.summary(), file=sink)
-    return _refusal(result, out, rig_text is not None)
+    result = fit_modal_table(plan["rig"], load_modal_table(plan["table"]), [f.name for f in plan["fields"]],
+                             bounds=plan["bounds"], settings=plan["settings"], progress=not args.json)
+    summary, rig_text = _write_outputs(result, plan, {}, [])
+    print_result(args, summary, result.summary)
+    return _refusal(result, plan["out"], rig_text is not None)
 
 
 def _report(result, valid, series, written, np) -> str:
@@ -314,3 +300,12 @@ def _report(result, valid, series, written, np) -> str:
     if series:
         lines += ["", "## Measured against model", ""] + [f"![{rec.source}]({name})" for name, rec, _, _ in series]
     return "\n".join(lines) + "\n"
+
+
+COMMAND = Command(
+    "identify", _options, _run, beam=False, plan=_plan,
+    help="calibrate rig fields from measured records (least squares on FOAM with the hardware)",
+    description=("Fits the --fit fields of the rig to the records by least squares of the simulated sensors "
+                 "(nonlinear FOAM with the rig's drive and friction) against the measured ones; writes the "
+                 "calibrated rig (only if the fit converged and was checked), report.md with measured-vs-model "
+                 "plots, and result.json."))

@@ -11,7 +11,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hubbeam_ctrl.cli.args import UNSTABLE_NOTE  # noqa: F401 (re-exported: its old home)
+from hubbeam_ctrl.cli.args import UNSTABLE_NOTE, Command
+
+__all__ = ["COMMAND", "UNSTABLE_NOTE"]      # UNSTABLE_NOTE: re-exported (its old home)
 
 
 class _OutputsHelpFormatter(argparse.HelpFormatter):
@@ -26,28 +28,11 @@ class _OutputsHelpFormatter(argparse.HelpFormatter):
         return text
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``linearize`` subcommand (``common`` holds the system-parameter options).
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
+def _options(p) -> None:
+    """``hubbeam linearize``'s options on its parser ``p``."""
     from hubbeam_ctrl.cli.args import add_verbose, real
     from hubbeam_ctrl.plant.models import MODEL_SPECS
 
-    p = subparsers.add_parser(
-        "linearize", parents=[common], formatter_class=_OutputsHelpFormatter,
-        help="linear state-space model about steady spin (.mat/.npz/.json)",
-        description=("Linearise a model about steady rotation at --spin with the hub free "
-                     "(input: hub torque tau [N m]) and save A, B, C, D with the state, input "
-                     "and output names, the sample time and every parameter. States: theta "
-                     "[rad], q1_i, q2_i [m] (modal coordinates; q2 is half the mode's tip "
-                     "deflection), and their rates. --n-modes sets the axial and the "
-                     "transverse mode count."))
     p.add_argument("--model", choices=list(MODEL_SPECS), default="sfoam",
                    help="source model (default sfoam, the design model)")
     p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"), default=0.0,
@@ -63,25 +48,16 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--json", action="store_true",
                    help='print {"model", "spin_rad_s", "n_states", "poles_hz", "unstable", "out"} as JSON')
     add_verbose(p)
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    """Run ``hubbeam linearize``; bad input raises :class:`ParameterError`.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
-    from hubbeam_ctrl.cli.args import check_output, params_from_args, stdout
-    from hubbeam_ctrl.core.jsonio import strict_json
+def _run(args) -> int:
+    """Linearise the model, save it and print its poles."""
+    from hubbeam_ctrl.cli.args import check_output, params_from_args, print_result
     from hubbeam_ctrl.core.validation import check_in_range
     from hubbeam_ctrl.linear.export import FORMATS, save_model
     from hubbeam_ctrl.linear.statespace import DT_RANGE, linearize
     from hubbeam_ctrl.linear.transforms import discretize
 
-    sink = stdout(args)
     out = check_output("--out", args.out, FORMATS)
     if args.dt is not None:
         check_in_range("dt", args.dt, "s", *DT_RANGE)
@@ -95,15 +71,22 @@ def run(args) -> int:
     save_model(lm, out)
     poles = [float(f) for f in lm.poles_hz()]
     note = UNSTABLE_NOTE if lm.unstable else ""
-    if args.json:
-        print(strict_json({"model": lm.model, "spin_rad_s": lm.spin, "n_states": lm.n_states,
-                           "poles_hz": poles, "unstable": lm.unstable, "out": str(out)}), file=sink)
-    else:
-        kind = f"sampled at dt = {lm.dt:g} s (zero-order hold)" if lm.is_discrete else "continuous"
-        print(f"{lm.model.upper()} linearised at spin {lm.spin:g} rad/s: {lm.n_states} states, "
-              f"input tau, outputs {', '.join(lm.output_names)}; {kind}{note}", file=sink)
-        print("  oscillatory poles [Hz]: " + ", ".join(f"{f:.4f}" for f in poles), file=sink)
-        print(f"  saved to {out}" + (" (marked unstable)" if note else ""), file=sink)
+    kind = f"sampled at dt = {lm.dt:g} s (zero-order hold)" if lm.is_discrete else "continuous"
+    text = [f"{lm.model.upper()} linearised at spin {lm.spin:g} rad/s: {lm.n_states} states, input tau, outputs "
+            f"{', '.join(lm.output_names)}; {kind}{note}",
+            "  oscillatory poles [Hz]: " + ", ".join(f"{f:.4f}" for f in poles),
+            f"  saved to {out}" + (" (marked unstable)" if note else "")]
+    print_result(args, {"model": lm.model, "spin_rad_s": lm.spin, "n_states": lm.n_states, "poles_hz": poles,
+                        "unstable": lm.unstable, "out": str(out)}, "\n".join(text))
     if note:
         print(f"warning: {lm.model.upper()} at {lm.spin:g} rad/s{note}", file=sys.stderr)
     return 0
+
+
+COMMAND = Command(
+    "linearize", _options, _run, formatter_class=_OutputsHelpFormatter,
+    help="linear state-space model about steady spin (.mat/.npz/.json)",
+    description=("Linearise a model about steady rotation at --spin with the hub free (input: hub torque tau [N m]) "
+                 "and save A, B, C, D with the state, input and output names, the sample time and every parameter. "
+                 "States: theta [rad], q1_i, q2_i [m] (modal coordinates; q2 is half the mode's tip deflection), and "
+                 "their rates. --n-modes sets the axial and the transverse mode count."))

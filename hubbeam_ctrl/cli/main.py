@@ -1,6 +1,7 @@
-"""Command-line interface: ``hubbeam modes | critical-speed | simulate | linearize | compare | design | codegen``.
+"""Command-line interface: ``hubbeam COMMAND``, each command's ``COMMAND`` in its module
+(:data:`EXTRA_COMMANDS`, :class:`hubbeam_ctrl.cli.args.Command`).
 
-Every subcommand accepts the common options ``--tip-mass KG``, ``--tip-position M``,
+The commands of a beam accept the common options ``--tip-mass KG``, ``--tip-position M``,
 ``--n-modes N`` (both families) and ``--params FILE.toml``. Bad input prints one line on
 stderr naming the parameter and exits with status 2, without a traceback.
 """
@@ -15,35 +16,22 @@ import warnings
 from collections.abc import Sequence
 
 from hubbeam_ctrl.cli.args import (
-    UNSTABLE_NOTE,
-    add_run_options,
-    add_verbose,
     check_output,
     integer,
     nonempty,
     params_from_args,
     real,
-    refuse_inapplicable,
     rename_options,
-    run_limits,
-    stdout,
 )
 from hubbeam_ctrl.core.errors import RESOURCE_ERRNOS, HubbeamError, ParameterError, ResourceError
-from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.core.native import capture_native_output
-from hubbeam_ctrl.plant.convergence import CLI_ASSUMED_MODES
-from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, MODEL_SPECS
-from hubbeam_ctrl.plant.params import MAX_MODES
 
 __all__ = ["main", "params_from_args", "build_parser", "positive_float", "positive_int", "finite_float",
            "RegistryChoices", "add_backend_option"]
 
-#: Models whose bending stiffness is quadratic in the spin (``critical-speed`` needs it; CFOAM's
-#: complete foreshortening is not).
-CRITICAL_SPEED_MODELS = tuple(n for n, spec in MODEL_SPECS.items() if spec.foreshortening != "complete")
-
-#: Subcommands contributed by other modules: module name -> provides add_parser/run.
-EXTRA_COMMANDS = ("hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.design",
+#: Subcommands contributed by other modules, each holding its ``COMMAND`` (:class:`~hubbeam_ctrl.cli.args.Command`).
+EXTRA_COMMANDS = ("hubbeam_ctrl.cli.modes", "hubbeam_ctrl.cli.critical_speed", "hubbeam_ctrl.cli.simulate",
+                  "hubbeam_ctrl.cli.linearize", "hubbeam_ctrl.cli.compare", "hubbeam_ctrl.cli.design",
                   "hubbeam_ctrl.cli.sweep", "hubbeam_ctrl.cli.tune", "hubbeam_ctrl.cli.cache",
                   "hubbeam_ctrl.cli.optimal", "hubbeam_ctrl.cli.fmu", "hubbeam_ctrl.cli.demo",
                   "hubbeam_ctrl.cli.codegen", "hubbeam_ctrl.cli.excite", "hubbeam_ctrl.cli.identify",
@@ -116,12 +104,7 @@ def positive_float(name):
     name : str
         The option's name (for the message).
     """
-    def parse(text):
-        value = real()(text)
-        if not value > 0:
-            raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text[:40]}")
-        return value
-    return parse
+    return real(positive=True)
 
 
 def positive_int(name):
@@ -180,150 +163,6 @@ def check_output_folder(option: str, path) -> None:
     check_output(option, path)
 
 
-# -- modes ----------------------------------------------------------------------
-def _cmd_modes(args) -> int:
-    sink = stdout(args)
-    from hubbeam_ctrl.plant.convergence import CONVERGENCE_TARGET, converged_modes
-    params = params_from_args(args)
-    shown = max(params.n_transverse, params.n_axial)
-    assumed = args.assumed_modes if args.assumed_modes is not None else max(CLI_ASSUMED_MODES, shown)
-    if not 4 <= assumed <= MAX_MODES:
-        raise ParameterError(f"--assumed-modes must be an integer in 4..{MAX_MODES}, got {assumed}")
-    if max(params.n_transverse, params.n_axial) > assumed:
-        raise ParameterError(f"--n-modes (the frequencies shown) must be at most --assumed-modes ({assumed}), "
-                             f"got {max(params.n_transverse, params.n_axial)}")
-    res = converged_modes(args.model, args.spin, args.hub, params, assumed_modes=assumed)
-    ok_bending, ok_axial = res.converged()
-    out = {"model": args.model, "spin_rad_s": args.spin, "hub": args.hub,
-           "frequencies_hz": [float(f) for f in res.bending_hz],
-           "axial_frequencies_hz": [float(f) for f in res.axial_hz],
-           "assumed_modes": res.assumed_modes,
-           "frequency_errors": [float(e) for e in res.bending_error],
-           "axial_frequency_errors": [float(e) for e in res.axial_error],
-           "convergence_target": CONVERGENCE_TARGET,
-           "unstable": res.unstable}
-    if args.json:
-        print(strict_json(out), file=sink)
-    else:
-        counts = ", ".join(str(n) for n in (res.assumed_modes // 2 + res.assumed_modes % 2,
-                                             (3 * res.assumed_modes + 3) // 4, res.assumed_modes))
-        print(f"{args.model.upper()} at {args.spin:g} rad/s, hub {args.hub}, {res.assumed_modes} assumed modes"
-              + (UNSTABLE_NOTE if res.unstable else ""), file=sink)
-        print(f"  (last column: estimated error from {counts} modes; "
-              f"* = not converged to {100 * CONVERGENCE_TARGET:g} %)", file=sink)
-        def error(e, ok):
-            return (f"{100 * e:+7.3f} %" if e == e else "    n/a  ") + ("" if ok else " *")
-        for i, (f, e, ok) in enumerate(zip(res.bending_hz, res.bending_error, ok_bending), 1):
-            print(f"  bending mode {i}: {f:10.4f} Hz  {error(e, ok)}", file=sink)
-        for i, (f, e, ok) in enumerate(zip(res.axial_hz, res.axial_error, ok_axial), 1):
-            print(f"  axial mode {i}:   {f:10.2f} Hz  {error(e, ok)}", file=sink)
-        if not (ok_bending.all() and ok_axial.all()):
-            print(f"  * not shown converged to {100 * CONVERGENCE_TARGET:g} % by {res.assumed_modes} assumed "
-                  "modes (n/a: the coarser models lack the mode)", file=sink)
-    return 0
-
-
-# -- critical speed ---------------------------------------------------------------
-def _cmd_critical(args) -> int:
-    sink = stdout(args)
-    from hubbeam_ctrl.plant.modal import critical_speed
-    params = params_from_args(args)
-    w = critical_speed(args.model, params)
-    if args.json:
-        print(strict_json({"model": args.model, "critical_speed_rad_s": w}), file=sink)
-    if w is None:
-        print(f"{args.model.upper()} keeps positive bending stiffness at every spin rate up to "
-              "1000 rad/s: no critical speed", file=sys.stderr if args.json else sink)
-    elif not args.json:
-        print(f"{args.model.upper()} critical speed: {w:.4f} rad/s "
-              f"(m_t = {params.m_t:g} kg at l = {params.tip_position:g} m)", file=sink)
-    return 0
-
-
-#: Output sample period of the fixed-step torque runs [s] (IDAS's default dt).
-FIXED_STEP_DT = 0.01
-
-
-# -- simulate -----------------------------------------------------------------------
-def _cmd_simulate(args) -> int:
-    sink = stdout(args)
-    from hubbeam_ctrl.plant.maneuvers import SpinUp, TorquePulse
-    from hubbeam_ctrl.sim.simulate import simulate
-    check_output("--out", args.out, (".csv", ".npz"))
-    check_output("--plot", args.plot, (".png",))
-    refuse_inapplicable(args, f"--maneuver {args.maneuver}", {"--wf": ("spinup",), "--tau-max": ("torque",)})
-    params = params_from_args(args)
-    if args.maneuver == "spinup":
-        maneuver = SpinUp(args.wf if args.wf is not None else 3.0, args.tf if args.tf is not None else 30.0)
-    else:
-        maneuver = TorquePulse(args.tau_max if args.tau_max is not None else 200.0,
-                               args.tf if args.tf is not None else 10.0)
-    if args.plant == "ancf":
-        return _simulate_exact(args, maneuver, params, sink)
-    refuse_inapplicable(args, "an assumed-mode model", {"--substeps": ("--plant ancf",),
-                                                        "--elements": ("--plant ancf",)})
-    if args.model is None:
-        raise ParameterError("--model is required (cfoam, foam, tlam, sfoam), or --plant ancf for the exact beam")
-    integrator = args.integrator
-    if integrator == "auto":
-        integrator = "fixed-step" if args.maneuver == "torque" and args.t_end >= 2 * FIXED_STEP_DT else "idas"
-    if integrator == "fixed-step":
-        if args.maneuver != "torque":
-            raise ParameterError("--integrator fixed-step needs --maneuver torque (a spin-up prescribes the "
-                                 "hub: use --integrator idas)")
-        from hubbeam_ctrl.sim.estimated import simulate_estimated
-        res = simulate_estimated(args.model, maneuver, args.t_end, params=params, dt=FIXED_STEP_DT,
-                                 range_limit=args.range_limit, backend=args.backend, axial=args.axial,
-                                 outputs=bool(args.out), **run_limits(args))
-    else:
-        res = simulate(args.model, maneuver, args.t_end, params=params, progress=not args.json,
-                       range_limit=args.range_limit, **run_limits(args), backend=args.backend, axial=args.axial)
-    _print_simulation(args, res, integrator, sink)
-    return 0
-
-
-def _simulate_exact(args, maneuver, params, sink) -> int:
-    """``hubbeam simulate --plant ancf``: the maneuver on the exact beam (Exudyn ANCF)."""
-    for option, value, default in (("--model", args.model, None), ("--axial", args.axial, "dynamic"),
-                                   ("--integrator", args.integrator, "auto"), ("--backend", args.backend, None)):
-        if value != default:
-            raise ParameterError(f"{option} does not apply to --plant ancf (the exact beam: Exudyn's ANCF "
-                                 "elements and generalized-alpha; FOAM's modes for the projected state)")
-    from hubbeam_ctrl.sim.exactbeam import simulate_exact
-    res = simulate_exact(maneuver, args.t_end, params=params, dt=FIXED_STEP_DT, substeps=args.substeps,
-                         n_elements=args.elements, range_limit=args.range_limit, progress=not args.json,
-                         option_names={"substeps": "--substeps", "dt": "dt", "plant": "--plant ancf",
-                                       "n_elements": "--elements"},
-                         **run_limits(args))
-    _print_simulation(args, res, "exudyn-ancf", sink)
-    return 0
-
-
-def _print_simulation(args, res, integrator: str, sink) -> None:
-    """Save, plot and print the summary of a ``hubbeam simulate`` run."""
-    if args.out:
-        res.save(args.out)
-    if args.plot:
-        from hubbeam_ctrl.plots.plant import plot_result, save_figure
-        save_figure(plot_result(res), args.plot, option="plot")
-    s = res.summary()
-    out = {k: s[k] for k in ("peak_tip_m", "residual_tip_m", "peak_axial_m", "final_theta_rad",
-                             "final_theta_dot_rad_s", "diverged", "wall_s")}
-    out["integrator"] = integrator
-    out["peak_error_estimate"] = res.stats.get("peak_error_estimate")     # None: IDAS's error control
-    if res.model == "ancf":
-        out.update(plant="ancf", plant_elements=res.settings["plant_elements"], substeps=res.settings["substeps"],
-                   past_assumed_mode_range_time_s=res.stats.get("past_assumed_mode_range_time_s"))
-    if args.json:
-        print(strict_json(out), file=sink)
-    else:
-        for k, v in out.items():
-            print(f"{k:>22}: {v}", file=sink)
-        print(f"{'message':>22}: {res.message}", file=sink)
-    if res.diverged or res.outside_validated_range or res.stats.get("past_assumed_mode_range_time_s") is not None:
-        print(f"warning: {res.message}", file=sys.stderr)
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``hubbeam`` argument parser (with the subcommands of other modules)."""
     common = _common_parser()
@@ -333,74 +172,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {sys.modules['hubbeam_ctrl'].__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
 
-    p = sub.add_parser("modes", parents=[common], help="natural frequencies at a spin rate",
-                       description="Bending (and axial) natural frequencies of a model linearised "
-                                   "about steady rotation: the first --n-modes (default 5) of each "
-                                   "family, from a model with --assumed-modes modes (default 16), "
-                                   "each with its estimated error.")
-    p.add_argument("--model", choices=list(MODEL_SPECS), default="foam")
-    p.add_argument("--spin", metavar="RAD_S", type=real("rad/s"), default=0.0,
-                   help="spin rate [rad/s], at most the 1 %% root-strain spin Params.max_spin (default 0)")
-    p.add_argument("--hub", choices=["prescribed", "free"], default="prescribed",
-                   help="prescribed: clamped root turning at --spin (Table 2); free: hub free")
-    p.add_argument("--assumed-modes", metavar="N", type=integer(), default=None,
-                   help=f"axial and transverse modes of the model the frequencies come from, 4..{MAX_MODES} "
-                        f"(default {CLI_ASSUMED_MODES}, or --n-modes if more: the bending frequencies "
-                        "converged to 0.05 %%; --n-modes is how many are shown); each frequency "
-                        "carries its error estimated from models with N/2 and 3N/4 modes")
-    p.add_argument("--json", action="store_true", help="print JSON")
-    add_verbose(p)
-    p.set_defaults(func=_cmd_modes)
-
-    p = sub.add_parser("critical-speed", parents=[common],
-                       help="spin rate at which the bending stiffness is lost",
-                       description="Critical speed of TLAM (or FOAM, which has none).")
-    p.add_argument("--model", choices=CRITICAL_SPEED_MODELS, default="tlam")
-    p.add_argument("--json", action="store_true", help="print JSON")
-    add_verbose(p)
-    p.set_defaults(func=_cmd_critical)
-
-    p = sub.add_parser("simulate", parents=[common], help="simulate a maneuver",
-                       description="Simulate the Eq. 43 spin-up (prescribed hub) or the Eq. 44 "
-                                   "torque pulse (free hub).")
-    p.add_argument("--model", choices=list(MODEL_SPECS), default=None,
-                   help="the assumed-mode model (required unless --plant ancf)")
-    p.add_argument("--plant", choices=["ancf"], default=None,
-                   help="ancf: the geometrically exact beam of Exudyn (ANCF cable elements, optional extra: "
-                        "pip install 'hubbeam-ctrl[exact]') instead of --model; the torque is applied at every "
-                        "integration step, the step is FOAM's rule and the elements 3 per mode")
-    p.add_argument("--substeps", metavar="K", type=integer(), default=None,
-                   help="--plant ancf: integration steps per 10 ms sample (default: FOAM's rule, 0.5 %% on the "
-                        "highest mode; at least 12 steps per period of the highest mode)")
-    p.add_argument("--elements", metavar="N", type=integer(), default=None,
-                   help="--plant ancf: ANCF elements (default: 3 per bending mode, a multiple of 8, at least 16)")
-    p.add_argument("--maneuver", choices=["spinup", "torque"], required=True)
-    p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
-                   help="spin-up final rate [rad/s] (default 3; --maneuver spinup only)")
-    p.add_argument("--tf", metavar="S", type=real("s"),
-                   help="maneuver time [s] (default 30 for spinup, 10 for torque)")
-    p.add_argument("--tau-max", metavar="NM", type=real("N m"),
-                   help="torque amplitude [N m], > 0 (default 200; --maneuver torque only)")
-    p.add_argument("--t-end", metavar="S", type=real("s"), required=True,
-                   help="final time [s], at least one sample (0.01 s)")
-    p.add_argument("--out", metavar="FILE.csv|FILE.npz", help="save the time series")
-    p.add_argument("--plot", metavar="FILE.png", help="save a plot")
-    p.add_argument("--range-limit", metavar="FRACTION", type=real("-"), default=0.3,
-                   help="flag the run when |v_tip| passes FRACTION * L (the models' validated range; "
-                        "default 0.3); only L stops it")
-    p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.add_argument("--axial", choices=AXIAL_TREATMENTS, default="dynamic",
-                   help="dynamic: integrate the axial modes (default); quasi-static: solve them from "
-                        "their static balance at every instant (cfoam, foam, tlam; no stiff modes)")
-    p.add_argument("--integrator", choices=["auto", "fixed-step", "idas"], default="auto",
-                   help="fixed-step: the compiled generalized-alpha path run at 10 ms and 20 ms steps, the "
-                        "step halved until the estimated error of the peak tip deflection is below 1e-4 "
-                        "(torque only; about 10 times faster); idas: SUNDIALS IDAS with error control; "
-                        "auto (default): fixed-step for --maneuver torque, idas for spinup")
-    add_run_options(p)
-    add_backend_option(p)
-    p.set_defaults(func=_cmd_simulate)
-
     for name in EXTRA_COMMANDS:
         try:
             module = importlib.import_module(name)
@@ -408,7 +179,7 @@ def build_parser() -> argparse.ArgumentParser:
             if exc.name != name:
                 raise
             continue
-        module.add_parser(sub, common)
+        module.COMMAND.add_to(sub, common)
     return parser
 
 
@@ -434,11 +205,7 @@ def main(argv=None) -> int:
             print(parser.format_usage().strip() + "  (hubbeam --help lists the commands)", file=sys.stderr)
             return 2
         options = _options_of(parser, args.command)
-        func = getattr(args, "func", None)
-        if func is None:
-            module = importlib.import_module(f"hubbeam_ctrl.cli.{args.command}")
-            func = module.run
-        return _run(func, args)
+        return _run(args.func, args)
     except ResourceError as exc:       # disk full, quota, I/O: not bad input
         return _fail(1, rename_options(_one_line(exc), options))
     except (ParameterError, HubbeamError) as exc:

@@ -8,36 +8,19 @@ Example::
 
 from __future__ import annotations
 
-__all__ = ["add_parser", "run", "optimal_plan"]
+from hubbeam_ctrl.cli.args import Command
+
+__all__ = ["COMMAND"]
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``optimal`` subcommand (``common`` holds the system-parameter options).
+def _options(p) -> None:
+    """``hubbeam optimal``'s options on its parser ``p``."""
+    from hubbeam_ctrl.cli.args import add_rig_option, add_verbose, integer, real
 
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
-    from hubbeam_ctrl.cli.args import add_verbose, integer, nonempty, real
-
-    p = subparsers.add_parser(
-        "optimal", parents=[common], help="time-optimal rest-to-rest slew: the limit of the beam and drive",
-        description=("The minimum-time rest-to-rest slew by --slew-angle within |tau| <= tau_max that ends "
-                     "with residual tip vibration <= --tolerance, computed on FOAM (axial coordinates "
-                     "condensed) by Radau collocation with IPOPT and checked on an evaluation plant with "
-                     "3 more bending modes. With --duration: the slew in that time with the smallest "
-                     "residual vibration. Prints the duration, the rigid bang-bang bound "
-                     "2 sqrt(Theta J / tau_max) (on a rig's DC drive: the bang-bang within its voltage limit "
-                     "through back-EMF, current limit and friction) and the residuals. Exits 1 with one line "
-                     "if IPOPT does not converge."))
     p.add_argument("--slew-angle", metavar="RAD", type=real("rad"), required=True, help="slew angle [rad], not 0")
-    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
-                   help="a rig file or preset (servo_link, paper): its beam, and with a DC motor the voltage "
-                        "limit through back-EMF, the current limit and the friction the drive must overcome; "
-                        "not with --params")
+    add_rig_option(p, "a rig file or preset (servo_link, paper): its beam, and with a DC motor the voltage limit "
+                      "through back-EMF, the current limit and the friction the drive must overcome; not with "
+                      "--params")
     p.add_argument("--tolerance", metavar="M", type=real("m"),
                    help="allowed residual tip vibration [m], > 0 (default 1e-3 L)")
     p.add_argument("--duration", metavar="S", type=real("s"),
@@ -47,23 +30,16 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--json", action="store_true",
                    help="print the summary as JSON (duration_s, rigid_bound_s, residuals, converged, ...)")
     add_verbose(p)
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    """Run ``hubbeam optimal``; bad input raises :class:`ParameterError`.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
+def _run(args) -> int:
+    """Solve the slew and print its summary; 1 when IPOPT did not converge."""
     from hubbeam_ctrl.cli.args import stdout
     from hubbeam_ctrl.core.jsonio import strict_json
     from hubbeam_ctrl.limit import min_vibration_slew, time_optimal_slew
 
     sink = stdout(args)
-    plan = optimal_plan(args)
+    plan = _plan(args)
     source, angle, tolerance, settings = (plan[k] for k in ("source", "slew_angle", "tolerance", "settings"))
     rig = source if plan["rig"] else None
     params = source.plant_params if rig is not None else source
@@ -88,21 +64,10 @@ def run(args) -> int:
     return _not_converged(r)
 
 
-def optimal_plan(args) -> dict:
-    """``hubbeam optimal``'s command line as the values of the run, each option checked.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-
-    Returns
-    -------
-    dict
-        ``source`` (Params or Rig), ``rig`` (bool), ``slew_angle`` [rad], ``tolerance`` [m] (None:
-        the default), ``duration`` [s] (None: time-optimal), ``settings`` (OptimalSettings), ``json``.
-    """
-    from hubbeam_ctrl.cli.args import params_from_args, rig_from_args
+def _plan(args) -> dict:
+    """``source`` (Params or Rig), ``rig`` (bool), ``slew_angle`` [rad], ``tolerance`` [m] (None: the default),
+    ``duration`` [s] (None: time-optimal), ``settings`` (OptimalSettings), ``json``."""
+    from hubbeam_ctrl.cli.args import source_from_args
     from hubbeam_ctrl.core.validation import check_finite, check_positive
     from hubbeam_ctrl.limit import OptimalSettings
 
@@ -110,11 +75,11 @@ def optimal_plan(args) -> dict:
     tolerance = None if args.tolerance is None else check_positive("--tolerance", args.tolerance, "m")
     if args.duration is not None:
         check_positive("--duration", args.duration, "s")
-    rig = rig_from_args(args)
+    source = source_from_args(args)
     changes = {"check": not args.no_check}
     if args.intervals is not None:
         changes["intervals"] = args.intervals
-    return {"source": rig if rig is not None else params_from_args(args), "rig": rig is not None,
+    return {"source": source, "rig": args.rig is not None,
             "slew_angle": angle, "tolerance": tolerance, "duration": args.duration,
             "settings": OptimalSettings(**changes), "json": args.json}
 
@@ -129,3 +94,14 @@ def _not_converged(r) -> int:
     print(f"hubbeam: error: optimal: IPOPT did not converge ({status} after {r.iterations} iterations): "
           f"{r.duration_s:.4g} s is its last iterate, not the {r.kind} slew's duration", file=sys.stderr)
     return 1
+
+
+COMMAND = Command(
+    "optimal", _options, _run, plan=_plan, help="time-optimal rest-to-rest slew: the limit of the beam and drive",
+    description=("The minimum-time rest-to-rest slew by --slew-angle within |tau| <= tau_max that ends with "
+                 "residual tip vibration <= --tolerance, computed on FOAM (axial coordinates condensed) by Radau "
+                 "collocation with IPOPT and checked on an evaluation plant with 3 more bending modes. With "
+                 "--duration: the slew in that time with the smallest residual vibration. Prints the duration, "
+                 "the rigid bang-bang bound 2 sqrt(Theta J / tau_max) (on a rig's DC drive: the bang-bang within "
+                 "its voltage limit through back-EMF, current limit and friction) and the residuals. Exits 1 with "
+                 "one line if IPOPT does not converge."))

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import time
 
-from hubbeam_ctrl.cli.args import add_verbose, nonempty, terminate_as_interrupt
+from hubbeam_ctrl.cli.args import Command, add_rig_option, add_verbose, nonempty, terminate_as_interrupt
 from hubbeam_ctrl.cli.main import positive_float, positive_int
 
-__all__ = ["add_parser", "run", "add_engine_options", "engine_from_args"]
+__all__ = ["COMMAND", "add_engine_options", "study_plan", "study_engine", "STUDY_RIG"]
 
 
 def add_engine_options(p) -> None:
@@ -36,8 +36,9 @@ def add_engine_options(p) -> None:
     add_verbose(p)
 
 
-def engine_from_args(args):
-    """The Dask client of ``--scheduler`` (None without it); raises ParameterError if it does not answer.
+def scheduler_plan(args):
+    """``(address, timeout [s])`` of ``--scheduler`` and ``--scheduler-timeout``, or None without a
+    scheduler; the options that do not apply are refused.
 
     Parameters
     ----------
@@ -45,32 +46,76 @@ def engine_from_args(args):
         The parsed command line.
     """
     from hubbeam_ctrl.core.errors import ParameterError
-    from hubbeam_ctrl.study.sweep import connect
     if not args.scheduler:
         if args.scheduler_timeout is not None:
             raise ParameterError("--scheduler-timeout applies with --scheduler only")
         return None
     if args.workers is not None:      # the cluster's workers run the cases
         raise ParameterError("--workers does not apply with --scheduler (the cluster's workers run the cases)")
-    return connect(args.scheduler, 10.0 if args.scheduler_timeout is None else args.scheduler_timeout)
+    return args.scheduler, 10.0 if args.scheduler_timeout is None else args.scheduler_timeout
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``sweep`` subcommand (``common`` is not used: the spec holds the parameters).
+def study_plan(args) -> dict:
+    """What ``sweep`` and ``tune`` share, as the values of the run, each option checked.
 
     Parameters
     ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    dict
+        ``out`` (Path), ``spec`` (StudySpec with ``--rig``, ``--plant`` and ``--settings``),
+        ``workers`` (int or None), ``scheduler`` (``(address, timeout)`` or None), ``json``.
     """
-    p = subparsers.add_parser(
-        "sweep", help="robustness study: controllers over a plant spread (grid / Monte Carlo)",
-        description=("Run every controller of a study spec (TOML: [study], [params], [settings.NAME], "
-                     "[grid], [random]) on every case of its plant spread, on local worker processes "
-                     "or a Dask cluster. Writes results.csv (appended as cases finish), summary.csv, "
-                     "robustness_<factor>.png, heatmap.png, stable_region.png and report.md to --out."))
+    from hubbeam_ctrl.cli.args import check_output_dir
+    from hubbeam_ctrl.study.spec_files import load_settings
+    out = check_output_dir("--out", args.out)
+    spec = spec_from_args(args)
+    if getattr(args, "settings", None):
+        spec = load_settings(spec, args.settings)
+    return {"out": out, "spec": spec, "workers": args.workers, "scheduler": scheduler_plan(args), "json": args.json}
+
+
+class study_engine:
+    """The Dask client of a plan's ``scheduler`` (None without one), closed on leaving; within the
+    block the native output goes to stderr and SIGTERM acts as Ctrl-C.
+
+    Parameters
+    ----------
+    plan : dict
+        :func:`study_plan`'s values.
+    """
+
+    def __init__(self, plan):
+        self.plan = plan
+
+    def __enter__(self):
+        from hubbeam_ctrl.cli.compare import stdout_to_stderr
+        from hubbeam_ctrl.study.sweep import connect
+        scheduler = self.plan["scheduler"]
+        self.client = None if scheduler is None else connect(*scheduler)
+        self._blocks = [stdout_to_stderr(), terminate_as_interrupt()]
+        for block in self._blocks:
+            block.__enter__()
+        return self.client
+
+    def __exit__(self, *exc):
+        for block in reversed(self._blocks):
+            block.__exit__(*exc)
+        if self.client is not None:
+            self.client.close()
+        return False
+
+
+#: ``--rig`` on a study command.
+STUDY_RIG = ("run every case on this rig (a rig file or a preset), replacing the spec's [study] rig (docs/studies.md, "
+             "'Sweeps on a rig'); its drive gives the torque limit")
+
+
+def _options(p) -> None:
+    """``hubbeam sweep``'s options on its parser ``p``."""
     p.add_argument("spec", metavar="SPEC.toml", help="study spec")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
     p.add_argument("--resume", action="store_true", help="finish an interrupted study in --out")
@@ -79,22 +124,8 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--plant", metavar="PLANT", type=nonempty("plant"),
                    help="run every case on this plant (foam, cfoam, or ancf: the geometrically exact beam of "
                         "Exudyn, extra 'exact'), replacing the spec's [study] plant")
-    add_rig_option(p)
+    add_rig_option(p, STUDY_RIG)
     add_engine_options(p)
-    p.set_defaults(func=run)
-
-
-def add_rig_option(p) -> None:
-    """Add ``--rig`` (every case of the spec on this rig) to a study subcommand.
-
-    Parameters
-    ----------
-    p : argparse.ArgumentParser
-        The subcommand's parser.
-    """
-    p.add_argument("--rig", metavar="RIG.toml|PRESET", type=nonempty("rig"),
-                   help="run every case on this rig (a rig file or a preset), replacing the spec's [study] rig "
-                        "(docs/studies.md, 'Sweeps on a rig'); its drive gives the torque limit")
 
 
 def spec_from_args(args):
@@ -123,49 +154,39 @@ def spec_from_args(args):
         raise
 
 
-def run(args) -> int:
-    """Run ``hubbeam sweep``; bad input raises ParameterError (exit 2).
+def _plan(args) -> dict:
+    """:func:`study_plan`'s values and ``resume``."""
+    return {**study_plan(args), "resume": args.resume}
 
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
-    from hubbeam_ctrl.cli.args import check_output_dir, stdout
-    from hubbeam_ctrl.cli.compare import stdout_to_stderr
-    from hubbeam_ctrl.core.jsonio import strict_json
-    from hubbeam_ctrl.study.spec_files import load_settings
+
+def _run(args) -> int:
+    """Run the study and write its outputs."""
+    from hubbeam_ctrl.cli.args import print_result
     from hubbeam_ctrl.study.sweep import sweep
     from hubbeam_ctrl.study.sweep_report import write_sweep_outputs
 
-    sink = stdout(args)
-    check_output_dir("--out", args.out)
-    spec = spec_from_args(args)
-    if args.settings:
-        spec = load_settings(spec, args.settings)
-    client = engine_from_args(args)
+    plan = _plan(args)
+    spec, out = plan["spec"], plan["out"]
     t0 = time.perf_counter()
-    try:
-        with stdout_to_stderr(), terminate_as_interrupt():
-            df = sweep(spec, workers=args.workers, client=client, progress=not args.json,
-                       out_dir=args.out, resume=args.resume)
-            wall = time.perf_counter() - t0
-            paths = write_sweep_outputs(df, spec, args.out, wall)
-    finally:
-        if client is not None:
-            client.close()
-    summary = _summary_records(df)
+    with study_engine(plan) as client:
+        df = sweep(spec, workers=plan["workers"], client=client, progress=not plan["json"], out_dir=out,
+                   resume=plan["resume"])
+        wall = time.perf_counter() - t0
+        paths = write_sweep_outputs(df, spec, out, wall)
     n_cases = int(df["case"].nunique()) if len(df) else 0
     failed = int(df.loc[df["error"].astype(str) != "", "case"].nunique())
-    if args.json:
-        print(strict_json({"out": str(args.out), "n_cases": n_cases, "n_failed": failed, "wall_s": wall,
-                          "files": sorted(p.name for p in paths.values()), "summary": summary}), file=sink)
-    else:
-        from hubbeam_ctrl.study.sweep_report import summarize
-        print(summarize(df).to_string(index=False, float_format=lambda v: f"{v:.3g}"), file=sink)
-        print(f"{n_cases} cases ({failed} with errors) in {wall:.1f} s; wrote {args.out}/results.csv, "
-              f"summary.csv, report.md and {sum(str(p).endswith('.png') for p in paths.values())} plots", file=sink)
+    summary = {"out": str(args.out), "n_cases": n_cases, "n_failed": failed, "wall_s": wall,
+               "files": sorted(p.name for p in paths.values()), "summary": _summary_records(df)}
+    print_result(args, summary, lambda: _text(df, n_cases, failed, wall, args.out, paths))
     return 0
+
+
+def _text(df, n_cases, failed, wall, out, paths) -> str:
+    """The text result of ``hubbeam sweep``: summary.csv's table and what was written."""
+    from hubbeam_ctrl.study.sweep_report import summarize
+    return (summarize(df).to_string(index=False, float_format=lambda v: f"{v:.3g}")
+            + f"\n{n_cases} cases ({failed} with errors) in {wall:.1f} s; wrote {out}/results.csv, summary.csv, "
+              f"report.md and {sum(str(p).endswith('.png') for p in paths.values())} plots")
 
 
 def _summary_records(df) -> list:
@@ -176,3 +197,12 @@ def _summary_records(df) -> list:
     clean = lambda v: None if isinstance(v, float) and not math.isfinite(v) else v
     return [{k: clean(v.item() if hasattr(v, "item") else v) for k, v in r.items()}
             for r in summarize(df).to_dict("records")]
+
+
+COMMAND = Command(
+    "sweep", _options, _run, beam=False, plan=_plan,
+    help="robustness study: controllers over a plant spread (grid / Monte Carlo)",
+    description=("Run every controller of a study spec (TOML: [study], [params], [settings.NAME], [grid], [random]) "
+                 "on every case of its plant spread, on local worker processes or a Dask cluster. Writes "
+                 "results.csv (appended as cases finish), summary.csv, robustness_<factor>.png, heatmap.png, "
+                 "stable_region.png and report.md to --out."))

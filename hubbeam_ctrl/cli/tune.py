@@ -9,10 +9,10 @@ Example::
 
 from __future__ import annotations
 
-from hubbeam_ctrl.cli.args import terminate_as_interrupt
+from hubbeam_ctrl.cli.args import Command, add_rig_option
 from hubbeam_ctrl.cli.main import finite_float, positive_int
 
-__all__ = ["add_parser", "run"]
+__all__ = ["COMMAND"]
 
 
 def _objective(text):
@@ -28,25 +28,9 @@ def _objective(text):
     return q
 
 
-def add_parser(subparsers, common) -> None:
-    """Add the ``tune`` subcommand (``common`` is not used: the spec holds the parameters).
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``hubbeam`` subcommands to add to.
-    common : argparse.ArgumentParser
-        Parent parser with the common plant options.
-    """
-    from hubbeam_ctrl.cli.sweep import add_engine_options, add_rig_option
-    p = subparsers.add_parser(
-        "tune", help="robust LQR/LQG/MPC weights over a study's plant spread",
-        description=("Search the controller's weights (scaled, dimensionless; differential evolution "
-                     "started from the scaled defaults) for the best worst case (or a quantile) over the "
-                     "cases of a study spec: residual vibration in decades of L plus effort, settling and "
-                     "final-angle penalties. Writes tuned_settings.toml (for hubbeam sweep --settings), "
-                     "tune.json and convergence.png to --out. The spec's [tune] table sets the options; "
-                     "the flags below override it."))
+def _options(p) -> None:
+    """``hubbeam tune``'s options on its parser ``p``."""
+    from hubbeam_ctrl.cli.sweep import STUDY_RIG, add_engine_options
     p.add_argument("spec", metavar="SPEC.toml", help="study spec (its cases are the plant spread)")
     p.add_argument("--controller", choices=["lqr", "lqg", "mpc"], required=True)
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
@@ -57,57 +41,57 @@ def add_parser(subparsers, common) -> None:
     p.add_argument("--decades", metavar="D", type=finite_float("decades"),
                    help="search within D decades of the scaled defaults (default 2)")
     p.add_argument("--seed", metavar="N", type=int, help="optimiser seed (default 0)")
-    add_rig_option(p)
+    add_rig_option(p, STUDY_RIG)
     add_engine_options(p)
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    """Run ``hubbeam tune``; bad input raises ParameterError (exit 2).
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        The parsed command line.
-    """
-    from hubbeam_ctrl.cli.args import check_output_dir, stdout
-    from hubbeam_ctrl.cli.compare import stdout_to_stderr
-    from hubbeam_ctrl.cli.sweep import engine_from_args, spec_from_args
-    from hubbeam_ctrl.core.jsonio import strict_json
+def _plan(args) -> dict:
+    """:func:`~hubbeam_ctrl.cli.sweep.study_plan`'s values, ``controller`` and ``options`` (TuneOptions: the
+    spec's ``[tune]`` table, the flags over it)."""
+    from hubbeam_ctrl.cli.sweep import study_plan
     from hubbeam_ctrl.core.reading import read_toml
     from hubbeam_ctrl.study.spec_files import MAX_SPEC_BYTES
-    from hubbeam_ctrl.study.tune import TuneOptions, tune, write_tune_outputs
+    from hubbeam_ctrl.study.tune import TuneOptions
 
-    sink = stdout(args)
-    check_output_dir("--out", args.out)
-    spec = spec_from_args(args)
+    plan = study_plan(args)
     table = dict(read_toml(args.spec, "spec: file", MAX_SPEC_BYTES).get("tune", {}))
-    for key in ("objective", "maxiter", "popsize", "decades", "seed"):
-        if getattr(args, key) is not None:
-            table[key] = getattr(args, key)
-    options = TuneOptions.from_dict(table)
-    client = engine_from_args(args)
-    try:
-        with stdout_to_stderr(), terminate_as_interrupt():
-            result = tune(spec, args.controller, options=options, workers=args.workers, client=client,
-                          progress=not args.json)
-            paths = write_tune_outputs(result, args.out)
-    finally:
-        if client is not None:
-            client.close()
-    out = {"controller": result.controller, "objective": result.objective,
-           "default_objective": result.default_objective, "worst_residual_m": result.worst_residual_m,
-           "default_worst_residual_m": result.default_worst_residual_m, "x": result.x,
-           "weights": result.settings_table()[result.controller]["weights"], "n_runs": result.n_runs,
-           "wall_s": result.wall_s, "files": sorted(p.name for p in paths.values())}
-    if args.json:
-        print(strict_json(out), file=sink)
-    else:
-        r = result
-        print(f"{r.controller}: objective {r.objective:.4f} (scaled defaults {r.default_objective:.4f}); "
-              f"worst residual {r.worst_residual_m:.3e} m (scaled defaults {r.default_worst_residual_m:.3e} m)",
-              file=sink)
-        print("weights: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["weights"].items()), file=sink)
-        print(f"{result.n_runs} closed-loop runs in {result.wall_s:.1f} s; wrote {args.out}/tuned_settings.toml, "
-              "tune.json, convergence.png", file=sink)
+    table.update({key: getattr(args, key) for key in TUNE_OPTIONS if getattr(args, key) is not None})
+    return {**plan, "controller": args.controller, "options": TuneOptions.from_dict(table)}
+
+
+#: The flags that override the spec's ``[tune]`` table (TuneOptions fields).
+TUNE_OPTIONS = ("objective", "maxiter", "popsize", "decades", "seed")
+
+
+def _run(args) -> int:
+    """Tune the weights and write them."""
+    from hubbeam_ctrl.cli.args import print_result
+    from hubbeam_ctrl.cli.sweep import study_engine
+    from hubbeam_ctrl.study.tune import tune, write_tune_outputs
+
+    plan = _plan(args)
+    with study_engine(plan) as client:
+        result = tune(plan["spec"], plan["controller"], options=plan["options"], workers=plan["workers"],
+                      client=client, progress=not plan["json"])
+        paths = write_tune_outputs(result, plan["out"])
+    r = result
+    out = {"controller": r.controller, "objective": r.objective, "default_objective": r.default_objective,
+           "worst_residual_m": r.worst_residual_m, "default_worst_residual_m": r.default_worst_residual_m,
+           "x": r.x, "weights": r.settings_table()[r.controller]["weights"], "n_runs": r.n_runs,
+           "wall_s": r.wall_s, "files": sorted(p.name for p in paths.values())}
+    text = [f"{r.controller}: objective {r.objective:.4f} (scaled defaults {r.default_objective:.4f}); worst residual "
+            f"{r.worst_residual_m:.3e} m (scaled defaults {r.default_worst_residual_m:.3e} m)",
+            "weights: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["weights"].items()),
+            f"{r.n_runs} closed-loop runs in {r.wall_s:.1f} s; wrote {args.out}/tuned_settings.toml, tune.json, "
+            "convergence.png"]
+    print_result(args, out, "\n".join(text))
     return 0
+
+
+COMMAND = Command(
+    "tune", _options, _run, beam=False, plan=_plan, help="robust LQR/LQG/MPC weights over a study's plant spread",
+    description=("Search the controller's weights (scaled, dimensionless; differential evolution started from the "
+                 "scaled defaults) for the best worst case (or a quantile) over the cases of a study spec: residual "
+                 "vibration in decades of L plus effort, settling and final-angle penalties. Writes "
+                 "tuned_settings.toml (for hubbeam sweep --settings), tune.json and convergence.png to --out. The "
+                 "spec's [tune] table sets the options; the flags below override it."))
