@@ -84,9 +84,10 @@ def add_compare_options(p, controllers: bool = True) -> None:
                    help="slew angle [rad], not 0 (default: the rigid angle of the Eq. 44 torque with "
                         "amplitude --tau-max in --tf); the open-loop baseline is Eq. 44 scaled to this "
                         "angle and --tf")
-    p.add_argument("--tf", metavar="S", type=real("s"), default=10.0,
-                   help="maneuver time [s] (default 10); refused, naming the shortest feasible one, "
-                        "if the task needs more torque than --tau-max")
+    p.add_argument("--tf", metavar="S", type=real("s"), default=None,
+                   help="maneuver time [s] (default 10; with --rig and the slew, the rig's default slew: a quarter "
+                        "turn, or --slew-angle, in 1.5 x an upper bound of its time-optimal slew); refused, naming "
+                        "the shortest feasible one, if the task needs more torque than --tau-max")
     p.add_argument("--t-end", metavar="S", type=real("s"),
                    help="simulated time [s], > tf + 5 (default: the task's, the residual window lasts six "
                         "first-mode periods, at least 3 tf: 30 s for the paper's slew)")

@@ -17,7 +17,9 @@ correction is not small enough is recomputed with CasADi's ``rootfinder('newton'
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import io
 import math
 import time
 
@@ -368,7 +370,9 @@ class PlantStepper:
         self.fallbacks += 1
         extra = () if self.hardware is None else (self._hw,)
         try:
-            out = np.asarray(self._robust(state, u, self._p, *extra)).ravel()
+            # a failed rootfinder prints its inputs (through sys.stderr): kept off the terminal
+            with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+                out = np.asarray(self._robust(state, u, self._p, *extra)).ravel()
         except RuntimeError as exc:
             raise HubbeamError(f"{self.model.name.upper()}: the implicit step did not converge "
                                f"({str(exc).splitlines()[0][:80]})") from None

@@ -48,7 +48,7 @@ from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.bands import with_task_bands
-from hubbeam_ctrl.study.compare_values import CompareSettings, as_rig, check_schedule
+from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
@@ -287,8 +287,14 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     if dt is None:
         dt = task_dt(design_params if design_params is not None else base)
     design_p = design_params if design_params is not None else base
-    options = dict(plant=plant, params=design_p, tau_max=scn.tau_max, t_f=scn.t_f, dt=dt, w_f=scn.w_f,
-                   slew_angle=scn.slew_angle, tolerances=dc.tolerances,
+    slew_angle, task_notes = scn.slew_angle, []
+    if rig is not None and task == "slew" and scn.t_f is None:
+        from hubbeam_ctrl.study.yardstick import rig_default_slew
+        task, note = rig_default_slew(rig, slew_angle)
+        slew_angle, task_notes = None, [note]
+    t_f = DEFAULT_T_F if scn.t_f is None else scn.t_f
+    options = dict(plant=plant, params=design_p, tau_max=scn.tau_max, t_f=t_f, dt=dt, w_f=scn.w_f,
+                   slew_angle=slew_angle, tolerances=dc.tolerances,
                    reference="rigid" if reference == "optimal" else reference)
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
     sc = make_scenario(task, t_end=t_end, **options)    # None: the task's own
@@ -391,7 +397,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         for mm in metrics.values():
             mm["residual_pct_of_openloop"] = (100.0 * mm["residual_tip_max_m"] / base_res
                                               if base_res and math.isfinite(base_res) else float("nan"))
-    notes = rate_notes + notes + same_laws(linear, metrics)
+    notes = task_notes + rate_notes + notes + same_laws(linear, metrics)
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
                       targets=tuple(n for n in names if CONTROLLERS[n].target), plant=ev,

@@ -39,8 +39,8 @@ from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.study.scenarios import PLANTS, REFERENCES
 from hubbeam_ctrl.study.yardstick import LIMIT_KINDS
 
-__all__ = ["REFERENCE_KINDS", "PlantChoice", "DesignChoice", "RunChoice", "ScenarioChoice", "PayloadChoice",
-           "CompareSettings", "compare_arguments", "check_schedule"]
+__all__ = ["REFERENCE_KINDS", "DEFAULT_T_F", "PlantChoice", "DesignChoice", "RunChoice", "ScenarioChoice",
+           "PayloadChoice", "CompareSettings", "compare_arguments", "check_schedule"]
 
 #: The references :func:`~hubbeam_ctrl.study.compare.compare` accepts: the scenario's
 #: (:data:`~hubbeam_ctrl.study.scenarios.REFERENCES`) and the nonlinear minimum-vibration slew.
@@ -204,14 +204,20 @@ class RunChoice:
             raise ParameterError(f"sim_settings must be a ClosedLoopSettings or a dict, got {type(s).__name__}")
 
 
+#: A registered scenario's maneuver time when none is given [s].
+DEFAULT_T_F = 10.0
+
+
 @dataclass(frozen=True)
 class ScenarioChoice:
     """The shape of a registered scenario, the torque budget and the settling bands.
 
     Attributes
     ----------
-    t_f : float
+    t_f : float, optional
         Maneuver time of a registered scenario [s] (a Slew/SpinUp task gives its own ``duration``).
+        None: :data:`DEFAULT_T_F`; on a rig, a ``slew`` is the rig's default slew
+        (:func:`hubbeam_ctrl.study.yardstick.rig_default_slew`, by ``slew_angle`` if given).
     w_f : float
         Spin-up final rate [rad/s] (registered ``spinup`` only).
     slew_angle : float, optional
@@ -223,7 +229,7 @@ class ScenarioChoice:
         ``"0.5mm"``, ``"1e-3L"``; :func:`hubbeam_ctrl.study.bands.parse_band`).
     """
 
-    t_f: float = 10.0
+    t_f: float | None = None
     w_f: float = 3.0
     slew_angle: float | None = None
     tau_max: float | None = None

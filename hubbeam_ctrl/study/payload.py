@@ -27,7 +27,7 @@ from controllers.robust import check_payload_range
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text, output_folder
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.study.compare_values import CompareSettings, PayloadChoice, as_rig
+from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, PayloadChoice, as_rig
 from hubbeam_ctrl.study.range_design import ROBUST_CONTROLLERS, range_designs  # noqa: F401 (re-exported)
 from hubbeam_ctrl.study.yardstick import task_dt
 
@@ -160,8 +160,8 @@ def payload_comparison(rig=None, task="slew", controllers=None, settings: Compar
     dt = rc.dt if rc.dt is not None else task_dt(params)
     sc = make_scenario(task, plant=pc.plant, params=params,          # the range designs see the task's reference
                        reference="rigid" if dc.reference == "optimal" else dc.reference, tau_max=scn.tau_max,
-                       t_f=scn.t_f, t_end=rc.t_end, dt=dt, w_f=scn.w_f, slew_angle=scn.slew_angle,
-                       tolerances=dc.tolerances)                     # t_end None: the task's own
+                       t_f=DEFAULT_T_F if scn.t_f is None else scn.t_f, t_end=rc.t_end, dt=dt, w_f=scn.w_f,
+                       slew_angle=scn.slew_angle, tolerances=dc.tolerances)   # t_end None: the task's own
     learning = pay.payload_learning
     if learning is not None:                         # the nominal design learns the payload instead
         learning = learning.replace(payload_min_kg=lo, payload_max_kg=hi)

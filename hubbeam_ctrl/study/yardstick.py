@@ -23,7 +23,12 @@ import math
 from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["LIMIT_KINDS", "RESIDUAL_PERIODS", "rigid_limit", "task_limit", "yardstick_metrics", "task_t_end",
-           "task_dt", "SAMPLES_PER_PERIOD"]
+           "task_dt", "SAMPLES_PER_PERIOD", "DEFAULT_RIG_SLEW_RAD", "DEFAULT_RIG_PACE", "rig_default_slew"]
+
+#: The angle of a rig's default slew [rad]: a quarter turn.
+DEFAULT_RIG_SLEW_RAD = math.pi / 2
+#: A rig's default slew takes this many times an upper bound of its time-optimal slew.
+DEFAULT_RIG_PACE = 1.5
 
 #: The yardsticks a comparison can use.
 LIMIT_KINDS = ("rigid", "optimal")
@@ -174,3 +179,44 @@ def task_dt(params, spin: float = 0.0) -> float:
         return DT_MAX
     decade = 10.0 ** math.floor(math.log10(dt))
     return max(m * decade for m in (1.0, 2.0, 5.0) if m * decade <= dt * (1 + 1e-12))
+
+
+def rig_default_slew(rig, slew_angle: float | None = None):
+    """The slew a rig is asked for when the caller names no duration: ``(Slew, note)``.
+
+    The duration is :data:`DEFAULT_RIG_PACE` times an upper bound of the time-optimal slew
+    that costs no optimisation: the rigid body's shortest slew on the rig's drive
+    (:func:`hubbeam_ctrl.limit.bound.rigid_bound`, back-EMF, current limit and friction
+    included) plus one period of the first flexible mode (free hub). That is how long the rigid
+    bang-bang takes through a ZVD shaper on the first mode, which leaves that mode at rest and
+    keeps the torque within its limit. On the presets the bound is 1.00-1.23 x the time-optimal
+    slew ``hubbeam optimal --rig`` computes (``tests/test_rig_default_task.py``).
+
+    Parameters
+    ----------
+    rig : Rig
+    slew_angle : float, optional
+        The slew's angle [rad]; default :data:`DEFAULT_RIG_SLEW_RAD`.
+
+    Returns
+    -------
+    task : Slew
+    note : str
+        One line for the report: where the task came from.
+    """
+    from controllers import DesignModel
+    from controllers.scaling import first_mode
+    from hubbeam_ctrl.limit.bound import rigid_bound
+    from hubbeam_ctrl.study.tasks import Slew
+
+    angle = DEFAULT_RIG_SLEW_RAD if slew_angle is None else float(slew_angle)
+    params = rig.plant_params
+    bound = rigid_bound(params, abs(angle), rig)
+    design = DesignModel.build(params.replace(n_transverse=min(params.n_transverse, 3)), 0.0, rig.timing.dt,
+                               min(params.n_transverse, 3))
+    period = 2.0 * math.pi / first_mode(design)
+    duration = DEFAULT_RIG_PACE * (bound + period)
+    note = (f"task: the rig's default slew, {angle:.4g} rad in {duration:.4g} s = {DEFAULT_RIG_PACE:g} x (rigid "
+            f"bound {bound:.4g} s + first-mode period {period:.4g} s, an upper bound of the time-optimal slew); "
+            "give --tf (or a Slew) for another, `hubbeam optimal --rig` for the time-optimal one")
+    return Slew(angle, duration), note

@@ -1,0 +1,63 @@
+"""A rig's default task (``hubbeam compare --rig R`` with no duration): a quarter turn in 1.5 x an
+upper bound of the rig's time-optimal slew, from the drive's rigid bound and the first mode, instead
+of the paper beam's Eq. 44 slew of 10 s (a 5658 rad slew on ``servo_link`` that failed every design);
+and a failed integration says so in one line, with CasADi's dump of the rootfinder kept off the
+terminal."""
+
+import json
+import math
+
+import pytest
+
+from hubbeam_ctrl.cli.main import main
+from hubbeam_ctrl.plant.rig import load_rig
+from hubbeam_ctrl.study.yardstick import DEFAULT_RIG_PACE, rig_default_slew
+from tests.conftest import ROOT
+
+#: ``hubbeam optimal --rig R --slew-angle A`` of each preset (``benchmarks/bench_any_rig.py``).
+OPTIMAL = json.loads((ROOT / "benchmarks" / "results" / "bench_any_rig.json").read_text())["rigs"]
+
+
+@pytest.mark.parametrize("name", sorted(OPTIMAL))
+def test_the_default_duration_bounds_the_time_optimal_slew(name):
+    """The rigid drive bound plus one first-mode period is an upper bound of the time-optimal slew
+    (the rigid bang-bang through a ZVD shaper on the first mode): at most 25 % above it."""
+    rig = load_rig(name if name != "servo_link_delay1" else "servo_link")
+    t_opt, angle = OPTIMAL[name]["t_opt_s"], OPTIMAL[name]["angle_rad"]
+    task, note = rig_default_slew(rig, angle)
+    bound = task.duration / DEFAULT_RIG_PACE
+    assert task.angle == angle
+    assert t_opt * (1 - 1e-3) <= bound <= 1.25 * t_opt, (name, bound, t_opt)
+    assert f"{task.duration:.4g} s" in note and "\n" not in note
+
+
+def test_compare_on_a_rig_with_its_defaults_settles(tmp_path, capsys, fast_backend):
+    out = tmp_path / "sl"
+    assert main(["compare", "--rig", "servo_link", "--controllers", "openloop,lqr", "--out", str(out),
+                 "--json"]) == 0
+    cap = capsys.readouterr()
+    rows = {r["controller"]: r for r in json.loads(cap.out)}
+    task, _ = rig_default_slew(load_rig("servo_link"))
+    assert task.angle == pytest.approx(math.pi / 2)
+    assert rows["lqr"]["verdict"] == "settled", rows["lqr"]["verdict_reason"]
+    assert abs(rows["lqr"]["final_angle_error_rad"]) <= 2 * 2 * math.pi / 4096    # within 2 counts
+    assert rows["lqr"]["within_drive_limits"]
+    assert "the rig's default slew, 1.571 rad in" in (out / "report.md").read_text()
+
+
+def test_a_failed_rootfinder_step_is_one_error_without_casadis_dump(capsys):
+    """The exact step's rootfinder on a state far outside the model's range fails: one HubbeamError,
+    and CasADi's printout of the rootfinder's inputs (through sys.stderr) stays off the terminal.
+    (``compare --rig servo_link --tf 10`` ran into it at 9.66 s and printed 250 lines.)"""
+    import numpy as np
+
+    from hubbeam_ctrl.core.errors import HubbeamError
+    from hubbeam_ctrl.plant.models import build_model
+    from hubbeam_ctrl.sim.stepper import PlantStepper
+    stepper = PlantStepper(build_model("foam", load_rig("servo_link").plant_params.replace(n_transverse=2)),
+                           backend="vm")
+    state = np.full(len(stepper._s_in), 1e12)
+    with pytest.raises(HubbeamError, match="the implicit step did not converge"):
+        stepper._robust_step(state, np.zeros((1, stepper.settings.substeps)))
+    err = capsys.readouterr().err
+    assert "Function rf" not in err and "Input 0" not in err
