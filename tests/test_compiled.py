@@ -326,3 +326,49 @@ def test_new_tip_mass_loads_the_same_libraries(fresh):
         np.testing.assert_allclose(s, r, rtol=1e-9, atol=1e-12)
         runs[m_t] = s
     assert abs(runs[0.1][0] - runs[0.4][0]) > 1e-4 * abs(runs[0.1][0])  # the mass does change the run
+
+
+@needs_cc
+def test_recipe_loads_the_library_without_building(fresh):
+    """compile_recipe builds and compiles once; a later process (here: nothing loaded) finds the
+    library by its recipe without calling build, and it gives the same numbers; another recipe
+    or another opt level builds again."""
+    built = []
+
+    def build(name="twice_sin"):
+        built.append(name)
+        return _function(name)
+
+    g = compiled.compile_recipe(("twice", 3), build, "compiled")
+    assert built == ["twice_sin"] and g.is_a("External")
+    x = np.array([0.3, -1.2, 2.5])
+    expected = np.array(_function()(x)).ravel()
+    assert np.array_equal(np.array(g(x)).ravel(), expected)
+    compiled._LOADED.clear()                              # as in a new process
+    again = compiled.compile_recipe(("twice", 3), build, "compiled")
+    assert built == ["twice_sin"]                         # not built again
+    assert np.array_equal(np.array(again(x)).ravel(), expected)
+    compiled.compile_recipe(("twice", 4), lambda: build("twice_sin"), "compiled")
+    compiled.compile_recipe(("twice", 3), build, "compiled", opt=compiled.OPT_COLD)
+    assert len(built) == 3
+    assert compiled.compile_recipe(("twice", 3), build, "vm").is_a("SXFunction") and len(built) == 4
+
+
+@needs_cc
+def test_recipe_with_a_damaged_library_builds_again(fresh):
+    """A library that no longer matches its side file is not loaded by its recipe: built and compiled again."""
+    built = []
+
+    def build():
+        built.append(1)
+        return _function("twice_sin_damaged")
+
+    compiled.compile_recipe(("damaged",), build, "compiled")
+    for lib in fresh.glob("twice_sin_damaged-*.so"):
+        lib.unlink()                                      # a new file: the loaded one stays mapped
+        lib.write_bytes(b"not a library")
+    compiled._LOADED.clear()
+    g = compiled.compile_recipe(("damaged",), build, "compiled")
+    assert len(built) == 2 and g.is_a("External")
+    x = np.array([0.1, 0.2, 0.3])
+    assert np.array_equal(np.array(g(x)).ravel(), np.array(_function()(x)).ravel())
