@@ -342,12 +342,22 @@ def run(args) -> int:
         The parsed command line.
     """
     sink = stdout(args)
-    from hubbeam_ctrl.study.compare import compare
-    from hubbeam_ctrl.study.compare_values import compare_arguments
-    from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     plan = compare_plan(args)
     if plan.payload:
         return _run_payload(plan, sink)
+    from hubbeam_ctrl.plots import worker
+    worker.start()                  # imports Matplotlib while the controllers run; draws the report's PNGs
+    try:
+        return _run(args, plan, sink)
+    finally:
+        worker.stop()
+
+
+def _run(args, plan, sink) -> int:
+    """The plain comparison of :func:`run` (the figure worker started)."""
+    from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.compare_values import compare_arguments
+    from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     t0 = time.perf_counter()
     opts = plan.options
     names, rig, out = opts["controllers"], opts.get("rig"), plan.out
