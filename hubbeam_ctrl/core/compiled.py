@@ -684,5 +684,9 @@ def clear_cache() -> int:
             removed += 1
         elif p.is_dir() and p.name.startswith(".build-"):
             shutil.rmtree(p, ignore_errors=True)
+        elif p.is_dir() and p.name == "results":          # arrays of hubbeam_ctrl.core.stored
+            for f in p.glob("*.npy"):
+                f.unlink()
+                removed += 1
     _LOADED.clear()
     return removed
