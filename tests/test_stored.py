@@ -28,12 +28,12 @@ def test_computed_once_then_read_bit_for_bit(cache):
     stored_array(("thirds", 4, Params()), compute)                     # another key: computed
     stored_array(("thirds", 3, Params(m_t=1.0)), compute)
     assert len(calls) == 3
-    assert compiled.clear_cache() == 3 and not list((cache / "results").glob("*.npy"))
+    assert compiled.clear_cache() == 3 and not list((cache / "results").glob("*.npz"))
 
 
 def test_a_damaged_file_is_computed_again(cache):
     stored_array(("damaged",), lambda: np.arange(3.0))
-    for f in (cache / "results").glob("damaged-*.npy"):
+    for f in (cache / "results").glob("damaged-*.npz"):
         f.write_bytes(b"not an array")
     out = stored_array(("damaged",), lambda: np.arange(4.0))
     assert np.array_equal(out, np.arange(4.0))
@@ -48,4 +48,20 @@ def test_converged_frequencies_are_the_modal_analysis(cache):
     read = _converged_bending_hz(p, 0.5)                               # from the file
     direct = modal_analysis("sfoam", 0.5, "free", p.replace(n_transverse=MAX_MODES, n_axial=1)).bending_hz
     assert read.tobytes() == first.tobytes() == direct.tobytes()
-    assert len(list((cache / "results").glob("converged_bending_hz-*.npy"))) == 1
+    assert len(list((cache / "results").glob("converged_bending_hz-*.npz"))) == 1
+
+
+def test_planned_slew_is_read_bit_for_bit(cache):
+    """The comparison's planned slew (study.scenarios._planned) read from the cache: the planner's
+    reference, every array, the description and the plan equal."""
+    from controllers import planned_slew_reference
+    from hubbeam_ctrl.study.scenarios import _planned
+    p = Params(n_axial=2, n_transverse=3)
+    direct = planned_slew_reference(p, 1.5, 4.0, 120.0, 0.02, 6.0)
+    for _ in range(2):                                               # computed, then read
+        r = _planned(p, 1.5, 4.0, 120.0, 0.02, 6.0)
+        for k in ("theta", "theta_dot", "theta_ddot", "torque", "elastic"):
+            assert getattr(r, k).tobytes() == getattr(direct, k).tobytes() and getattr(r, k).flags.writeable
+        assert (r.dt, r.description, r.plan, r.planned_on_design) == (direct.dt, direct.description, direct.plan,
+                                                                       True)
+    assert len(list((cache / "results").glob("planned_slew-*.npz"))) == 1

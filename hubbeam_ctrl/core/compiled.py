@@ -521,17 +521,18 @@ def compile_function(f: ca.Function, backend=None, *, opt: str = OPT_HOT,
 
 
 # -- recipes: a library found without building its function -----------------------------------
-#: Package folders whose sources build the functions of :func:`compile_recipe` (their digest is
-#: part of every recipe's key: any change there makes the recipes build and compile again).
-RECIPE_SOURCES = ("core", "plant", "sim")
+#: Folders (from the folder holding the ``hubbeam_ctrl`` package) whose sources build the
+#: functions of :func:`compile_recipe`: their digest is part of every recipe's key, so any
+#: change there makes the recipes build and compile again.
+RECIPE_SOURCES = ("hubbeam_ctrl/core", "hubbeam_ctrl/plant", "hubbeam_ctrl/sim")
 
 
-@lru_cache(maxsize=1)
-def _sources_digest() -> str:
-    """SHA-256 of the package's ``.py`` files in :data:`RECIPE_SOURCES` (names and contents)."""
-    root = Path(__file__).resolve().parents[1]
+@lru_cache(maxsize=8)
+def _sources_digest(folders: tuple = RECIPE_SOURCES) -> str:
+    """SHA-256 of the ``.py`` files (names and contents) in ``folders`` (see :data:`RECIPE_SOURCES`)."""
+    root = Path(__file__).resolve().parents[2]
     h = hashlib.sha256()
-    for folder in RECIPE_SOURCES:
+    for folder in folders:
         for path in sorted((root / folder).glob("*.py")):
             h.update(f"{folder}/{path.name}\0".encode() + path.read_bytes() + b"\0")
     return h.hexdigest()
@@ -685,7 +686,7 @@ def clear_cache() -> int:
         elif p.is_dir() and p.name.startswith(".build-"):
             shutil.rmtree(p, ignore_errors=True)
         elif p.is_dir() and p.name == "results":          # arrays of hubbeam_ctrl.core.stored
-            for f in p.glob("*.npy"):
+            for f in p.glob("*.np[yz]"):
                 f.unlink()
                 removed += 1
     _LOADED.clear()
