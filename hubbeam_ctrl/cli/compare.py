@@ -367,7 +367,8 @@ def _run(args, plan, sink) -> int:
         t_ladder = time.perf_counter()
         comparison.ladder = rig_ladder(rig, opts["scenario"], names, _ladder_settings(opts, comparison.scenario),
                                        progress=None if args.json else (lambda step: print(f"ladder: {step}",
-                                                                                           file=sys.stderr)))
+                                                                                           file=sys.stderr)),
+                                       done=comparison)          # its last step: the comparison's own runs
         # the report's wall time covers the ladder too (said apart in the report)
         comparison.ladder_wall_s = time.perf_counter() - t_ladder
         comparison.wall_s = time.perf_counter() - t0

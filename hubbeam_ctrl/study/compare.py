@@ -144,6 +144,9 @@ class Comparison:
     robust : dict
         Controller name -> :class:`~hubbeam_ctrl.study.worst_case.WorstCase` over the rig's
         ``[uncertainty]`` (empty when the rig has none).
+    settings : CompareSettings or None
+        The settings the comparison ran with (the rig ladder takes this comparison as its last
+        step when that step's rig and settings are these).
     """
 
     scenario: Scenario
@@ -164,6 +167,7 @@ class Comparison:
     check_results: dict = field(default_factory=dict)
     check_metrics: dict = field(default_factory=dict)
     robust: dict = field(default_factory=dict)
+    settings: CompareSettings | None = None
 
 
 def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
@@ -264,6 +268,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     if not isinstance(settings, CompareSettings):
         raise ParameterError(f"settings must be a CompareSettings (hubbeam_ctrl.study.compare_values), "
                              f"got {type(settings).__name__}")
+    given = settings
     rig, params = as_rig(rig)
     pc, dc, rc, scn, pay = settings.plant, settings.design, settings.run, settings.scenario, settings.payload
     plant, plant_params, plant_modes, check_plant = pc.plant, pc.plant_params, pc.plant_modes, pc.check_plant
@@ -399,7 +404,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
                       certificates=certificates,
                       controllers={n: c for n, c in linear.items() if margins[n] is not None}, rig=rig,
                       notes=notes, check_plant=ev_check, check_results=check_results, check_metrics=check_metrics,
-                      robust=robust)
+                      robust=robust, settings=None if designs else given)
 
 
 def _check_plant(check_plant, sc: Scenario, ev: EvaluationPlant, design_modes: int):

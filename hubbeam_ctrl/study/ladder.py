@@ -14,7 +14,7 @@ import math
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Damping, Drive, Friction, Rig, Sensors, Timing
-from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.compare import _design_modes, _sim_settings, compare
 from hubbeam_ctrl.study.compare_values import CompareSettings
 
 __all__ = ["LADDER_STEPS", "ladder_rigs", "rig_ladder"]
@@ -55,7 +55,7 @@ def ladder_rigs(rig: Rig) -> list:
 
 
 def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSettings | None = None, *,
-               progress=None) -> list:
+               progress=None, done=None) -> list:
     """Run :func:`~hubbeam_ctrl.study.compare.compare` on each rig of :func:`ladder_rigs`.
 
     Parameters
@@ -72,6 +72,11 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
         judge every step by them rather than by its own sensors' defaults.
     progress : callable, optional
         Called with each step's label before it runs.
+    done : Comparison, optional
+        The comparison of ``rig`` already run (``hubbeam compare --rig`` runs it first): the
+        last step, the rig itself, takes its runs instead of running them again when it ran
+        on that rig, task and controllers with the step's settings (its own ``t_end`` and bands
+        resolved as the step's are); otherwise the step runs.
 
     Returns
     -------
@@ -82,11 +87,13 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
     """
     settings = CompareSettings() if settings is None else settings
     rows, t_end = [], settings.run.t_end
-    for label, step_rig in ladder_rigs(rig):
+    steps = ladder_rigs(rig)
+    for k, (label, step_rig) in enumerate(steps):
         if progress is not None:
             progress(label)
-        c = compare(step_rig, task, controllers,
-                    dataclasses.replace(settings, run=dataclasses.replace(settings.run, t_end=t_end)))
+        step = dataclasses.replace(settings, run=dataclasses.replace(settings.run, t_end=t_end))
+        reuse = k == len(steps) - 1 and _same_run(done, step_rig, task, controllers, step)
+        c = done if reuse else compare(step_rig, task, controllers, step)
         t_end = c.scenario.t_end if t_end is None else t_end
         for name, m in c.metrics.items():
             res = c.results[name]
@@ -99,3 +106,29 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
                          if len(res.tau) else float("nan"),
                          "command": hw.get("command", "torque")})
     return rows
+
+
+def _resolved(settings: CompareSettings, sc) -> CompareSettings:
+    """``settings`` with what ``compare`` resolves on the scenario ``sc`` resolved: the simulated time,
+    the settling bands, the closed loop's settings and the design model's modes."""
+    run, design = settings.run, settings.design
+    return dataclasses.replace(
+        settings, run=dataclasses.replace(run, t_end=sc.t_end, sim_settings=_sim_settings(run.sim_settings, sc)),
+        design=dataclasses.replace(design, design_modes=_design_modes(design.design_modes, sc.params)),
+        scenario=dataclasses.replace(settings.scenario, settle_angle=sc.bands["settle_angle"],
+                                     settle_tip=sc.bands["settle_tip"]))
+
+
+def _same_run(done, rig: Rig, task, controllers, settings: CompareSettings) -> bool:
+    """Whether the comparison ``done`` is what ``compare(rig, task, controllers, settings)`` would run."""
+    if done is None or done.settings is None or done.rig != rig or not isinstance(task, str) \
+            or done.scenario.name != task:
+        return False
+    names = tuple(done.metrics)
+    if controllers is not None and tuple(c.strip().lower() for c in (controllers.split(",") if isinstance(
+            controllers, str) else controllers)) != names:
+        return False
+    try:
+        return _resolved(done.settings, done.scenario) == _resolved(settings, done.scenario)
+    except (ParameterError, KeyError, TypeError):
+        return False
