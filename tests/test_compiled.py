@@ -372,3 +372,17 @@ def test_recipe_with_a_damaged_library_builds_again(fresh):
     assert len(built) == 2 and g.is_a("External")
     x = np.array([0.1, 0.2, 0.3])
     assert np.array_equal(np.array(g(x)).ravel(), np.array(_function()(x)).ravel())
+
+
+@needs_cc
+@pytest.mark.parametrize("name", ["foam", "cfoam"])
+def test_stepper_initial_accelerations_are_the_models_bit_for_bit(name):
+    """The stepper's initial accelerations (M and c compiled by their recipes) equal
+    HubBeamModel.accelerations (CasADi's VM) bit for bit, at rest and in motion."""
+    model = build_model(name, SMALL)
+    st = PlantStepper(model, backend="compiled")
+    rng = np.random.default_rng(3)
+    for k in range(5):
+        q = np.zeros(model.n_q) if k == 0 else 1e-2 * rng.standard_normal(model.n_q)
+        v = np.zeros(model.n_q) if k == 0 else rng.standard_normal(model.n_q)
+        assert st._accelerations(q, v, 7.5).tobytes() == model.accelerations(q, v, 7.5).tobytes()
