@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import io
 import multiprocessing
+import signal
 import threading
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -36,7 +37,13 @@ _LOCK = threading.Lock()
 
 
 def _warm() -> None:
-    """In the worker: import Matplotlib's Agg canvas and Pillow, and draw text once (fonts)."""
+    """In the worker: import Matplotlib's Agg canvas and Pillow, and draw text once (fonts).
+
+    Ctrl-C is the caller's to handle (it stops the worker); SIGTERM ends the worker plainly
+    (the caller's clean-up handlers, copied by the fork, are not the worker's to run).
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     from hubbeam_ctrl.plots.figure import new_figure
     fig = new_figure(figsize=(1, 1))
     fig.subplots().set_title("warm")
