@@ -5,7 +5,7 @@ inputs and on the package's sources: the converged bending frequencies of a beam
 SFOAM linearised, 0.2 s of ``hubbeam compare``'s start), a slew planned on the design model
 (two large KKT solves, 0.2-1 s). :func:`stored_arrays` keeps such arrays in ``results/`` of
 the build cache (:func:`hubbeam_ctrl.core.compiled.cache_dir`), named by a SHA-256 of their
-key, NumPy's version and the digest of the sources that compute them, so a later process
+key, NumPy's, SciPy's and CasADi's versions and the digest of the sources that compute them, so a later process
 reads the same numbers bit for bit instead of computing them. A file that cannot be read or
 written is ignored: the arrays are computed.
 """
@@ -15,8 +15,10 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import sys
 import zipfile
 
+import casadi as ca
 import numpy as np
 
 from hubbeam_ctrl.core.compiled import RECIPE_SOURCES, _sources_digest, cache_dir
@@ -24,9 +26,20 @@ from hubbeam_ctrl.core.compiled import RECIPE_SOURCES, _sources_digest, cache_di
 __all__ = ["stored_arrays", "stored_array"]
 
 
+def _versions() -> tuple:
+    """NumPy's, SciPy's and CasADi's versions (their routines compute the stored arrays)."""
+    scipy = sys.modules.get("scipy")
+    scipy_version = getattr(scipy, "__version__", None)
+    if scipy_version is None:
+        with contextlib.suppress(Exception):
+            from importlib.metadata import version
+            scipy_version = version("scipy")
+    return np.__version__, scipy_version, ca.__version__
+
+
 def _path(key: tuple, sources: tuple):
     h = hashlib.sha256()
-    for part in (np.__version__, _sources_digest(tuple(sources)), repr(key)):
+    for part in (*_versions(), _sources_digest(tuple(sources)), repr(key)):
         h.update(str(part).encode() + b"\0")
     return cache_dir() / "results" / f"{key[0]}-{h.hexdigest()[:32]}.npz"
 
