@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import multiprocessing
-import os
 import signal
 from concurrent.futures import ProcessPoolExecutor
 
@@ -59,7 +58,7 @@ def ladder_rigs(rig: Rig) -> list:
 
 
 def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSettings | None = None, *,
-               progress=None, done=None, workers: int | None = None) -> list:
+               progress=None, done=None, workers: int = 1) -> list:
     """Run :func:`~hubbeam_ctrl.study.compare.compare` on each rig of :func:`ladder_rigs`.
 
     Parameters
@@ -81,11 +80,13 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
         last step, the rig itself, takes its runs instead of running them again when it ran
         on that rig, task and controllers with the step's settings (its own ``t_end`` and bands
         resolved as the step's are); otherwise the step runs.
-    workers : int, optional
+    workers : int
         Processes that run the steps side by side (forked: each starts with this process's
-        compiled functions and caches; the rows are the same as run here). Default: the
-        machine's processors, at most 2 and at most the steps to run; 1 runs them here, one
-        after the other (also where ``fork`` is not available).
+        compiled functions and caches; the rows are the same as run here). Default 1: here,
+        one after the other (each step's comparison already runs its closed loops side by
+        side, :data:`hubbeam_ctrl.study.compare.SIDE_BY_SIDE`; on the shared 2-core machine two
+        ladder workers on top of that took 88 s against 68 s, ``benchmarks/results/
+        bench_compare_2026-11-28_ladder*.json``); more where processors are free.
 
     Returns
     -------
@@ -95,7 +96,7 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
         (N m or V), ``command`` (``"torque"`` or ``"voltage"``).
     """
     settings = CompareSettings() if settings is None else settings
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
     steps = ladder_rigs(rig)
     rows, t_end = {}, settings.run.t_end
@@ -110,7 +111,7 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
         rows[last] = _rows(steps[last][0], done)
         todo.remove(last)
     jobs = [(steps[k][0], steps[k][1], task, controllers, step) for k in todo]
-    n = min(2, os.cpu_count() or 1, len(jobs)) if workers is None else min(workers, len(jobs))
+    n = min(workers, len(jobs))
     if n > 1 and "fork" in multiprocessing.get_all_start_methods():
         with ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context("fork"),
                                  initializer=_quiet) as pool:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -18,6 +17,7 @@ from hubbeam_ctrl.plots.plant import save_png
 from hubbeam_ctrl.plots.worker import render
 from hubbeam_ctrl.study.drive_figures import drive_of
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
+from hubbeam_ctrl.study.report_tables import _clean, format_table, markdown_table, print_table  # noqa: F401
 from hubbeam_ctrl.study.yardstick import DRIVE_BOUND
 
 __all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
@@ -38,14 +38,6 @@ PLANT_NOTE = ("FOAM is the default plant: against a geometrically exact beam (pl
               "Exudyn) the default slew's open-loop residual is 0.2747 m; FOAM gives 0.2824 m "
               "(+2.8 %), CFOAM 0.3515 m (+28 %), so CFOAM's \"% of open loop\" figures look "
               "better than they are at large deflection.")
-
-
-def _clean(value):
-    if isinstance(value, (np.floating, np.integer)):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def _json_metrics(metrics: dict) -> list:
@@ -558,106 +550,6 @@ def _robust_lines(comparison) -> list:
         lines.append(f"| {name} | {wc.verdict()} | {wc.worst.radius:.8f} | {where} | {wc.nominal.radius:.8f} | "
                      f"{wc.bound:.3g} | {dm} |")
     return lines + [""]
-
-
-#: Format of a quantity in the command's unit: the number and its unit (``command_unit``).
-_COMMAND = "command"
-#: Columns shown only when some run has them (a DC motor's voltage and current).
-_OPTIONAL = ("peak_voltage_v", "peak_current_a")
-
-_TABLE = [
-    ("verdict", "verdict", "{}"),
-    ("controller", "controller", "{}"),
-    ("peak_tip_m", "peak v_tip m", "{:.4f}"),
-    ("residual_tip_max_m", "resid max m", "{:.2e}"),
-    ("residual_tip_rms_m", "resid rms m", "{:.2e}"),
-    ("residual_pct_of_L", "resid %L", "{:.3g}"),
-    ("residual_pct_of_openloop", "% of OL", "{:.3g}"),
-    ("angle_error_tf_rad", "err(tf) rad", "{:.2e}"),
-    ("final_angle_error_rad", "err(end) rad", "{:.2e}"),
-    ("settling_time_s", "settle s", "{:.2f}"),
-    ("settling_over_limit", "settle/limit", "{:.2f}"),
-    ("peak_command", "peak u", _COMMAND),
-    ("peak_command_step", "max du/sample", _COMMAND),
-    ("time_at_limit_s", "u at limit s", "{:.3g}"),
-    ("peak_hub_torque_nm", "peak tau_hub Nm", "{:.4g}"),
-    ("peak_voltage_v", "peak V", "{:.3g}"),
-    ("peak_current_a", "peak A", "{:.3g}"),
-    ("loop_spectral_radius", "loop |z|", "{:.7f}"),
-    ("torque_squared_integral_n2m2s", "int tau_hub^2", "{:.3g}"),
-    ("step_time_median_ms", "step med ms", "{:.3f}"),
-    ("step_time_p99_ms", "step p99 ms", "{:.3f}"),
-]
-
-
-def _columns(metrics: dict) -> list:
-    """The table's columns for these runs (a DC motor's voltage and current only when present)."""
-    return [c for c in _TABLE if c[0] not in _OPTIONAL
-            or any(_clean(m.get(c[0])) is not None for m in metrics.values())]
-
-
-def _cells(m: dict, columns=None) -> list:
-    cells = []
-    for key, _, fmt in (columns or _TABLE):
-        v = _clean(m.get(key))
-        if v is not None and fmt == _COMMAND:
-            cells.append(f"{v:.3g} {m.get('command_unit', 'N m')}")
-            continue
-        cells.append("-" if v is None else (fmt.format(v) if not isinstance(v, str) else v))
-    if not m.get("completed", True):
-        cells[1] += " (stopped)"
-    if m.get("outside_validated_range"):
-        cells[1] += " (>range)"
-    if m.get("qp_fallbacks"):
-        cells[1] += f" [{m['qp_fallbacks']} fb]"
-    return cells
-
-
-def format_table(metrics: dict) -> str:
-    """The metrics as an aligned plain-text table.
-
-    Parameters
-    ----------
-    metrics : dict
-        Controller name -> metrics.
-    """
-    columns = _columns(metrics)
-    rows = [[h for _, h, _ in columns]] + [_cells(m, columns) for m in metrics.values()]
-    widths = [max(len(r[i]) for r in rows) for i in range(len(columns))]
-    return "\n".join("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths)))
-                     for r in rows)
-
-
-def markdown_table(metrics: dict) -> str:
-    """The metrics as a Markdown table.
-
-    Parameters
-    ----------
-    metrics : dict
-        Controller name -> metrics.
-    """
-    columns = _columns(metrics)
-    head = [h for _, h, _ in columns]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(_cells(m, columns)) + " |" for m in metrics.values()]
-    return "\n".join(lines)
-
-
-def print_table(metrics, file=None) -> None:
-    """Print the metrics of :func:`run_compare` (or a :class:`Comparison`) as a table.
-
-    Parameters
-    ----------
-    metrics : dict or Comparison
-        Controller name -> metrics, or a comparison.
-    file : file-like, optional
-        Where to print (default ``sys.stdout``).
-    """
-    if hasattr(metrics, "metrics"):
-        metrics = metrics.metrics
-    print(format_table(metrics), file=file or sys.stdout)
-
-
 
 
 def _write_report(comparison, out: Path, names: dict, loops=None) -> None:
