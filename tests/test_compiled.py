@@ -18,7 +18,7 @@ import pytest
 
 from hubbeam_ctrl import Params, TorquePulse, build_model, simulate
 from hubbeam_ctrl.cli import main
-from hubbeam_ctrl.core import compiled
+from hubbeam_ctrl.core import compiled, recipes
 from hubbeam_ctrl.core.compiled import (
     cache_info,
     check_backend,
@@ -186,7 +186,7 @@ def test_compiled_function_is_cached_and_reloaded(fresh, capsys):
     # another process loads the library instead of compiling it
     code = textwrap.dedent("""
         import casadi as ca
-        from hubbeam_ctrl.core import compiled
+        from hubbeam_ctrl.core import compiled, recipes
         x = ca.SX.sym("x", 3)
         f = ca.Function("twice_sin", [x], [2 * ca.sin(x) * x[0]])
         compiled._build = None                 # any build would fail
@@ -226,7 +226,7 @@ def test_corrupt_or_foreign_library_is_rebuilt(fresh, damage):
 def test_two_processes_building_the_same_entry(fresh):
     code = textwrap.dedent("""
         import casadi as ca
-        from hubbeam_ctrl.core import compiled
+        from hubbeam_ctrl.core import compiled, recipes
         builds = []
         real = compiled._build
         compiled._build = lambda *a: (builds.append(1), real(*a))
@@ -339,19 +339,19 @@ def test_recipe_loads_the_library_without_building(fresh):
         built.append(name)
         return _function(name)
 
-    g = compiled.compile_recipe(("twice", 3), build, "compiled")
+    g = recipes.compile_recipe(("twice", 3), build, "compiled")
     assert built == ["twice_sin"] and g.is_a("External")
     x = np.array([0.3, -1.2, 2.5])
     expected = np.array(_function()(x)).ravel()
     assert np.array_equal(np.array(g(x)).ravel(), expected)
     compiled._LOADED.clear()                              # as in a new process
-    again = compiled.compile_recipe(("twice", 3), build, "compiled")
+    again = recipes.compile_recipe(("twice", 3), build, "compiled")
     assert built == ["twice_sin"]                         # not built again
     assert np.array_equal(np.array(again(x)).ravel(), expected)
-    compiled.compile_recipe(("twice", 4), lambda: build("twice_sin"), "compiled")
-    compiled.compile_recipe(("twice", 3), build, "compiled", opt=compiled.OPT_COLD)
+    recipes.compile_recipe(("twice", 4), lambda: build("twice_sin"), "compiled")
+    recipes.compile_recipe(("twice", 3), build, "compiled", opt=compiled.OPT_COLD)
     assert len(built) == 3
-    assert compiled.compile_recipe(("twice", 3), build, "vm").is_a("SXFunction") and len(built) == 4
+    assert recipes.compile_recipe(("twice", 3), build, "vm").is_a("SXFunction") and len(built) == 4
 
 
 @needs_cc
@@ -363,12 +363,12 @@ def test_recipe_with_a_damaged_library_builds_again(fresh):
         built.append(1)
         return _function("twice_sin_damaged")
 
-    compiled.compile_recipe(("damaged",), build, "compiled")
+    recipes.compile_recipe(("damaged",), build, "compiled")
     for lib in fresh.glob("twice_sin_damaged-*.so"):
         lib.unlink()                                      # a new file: the loaded one stays mapped
         lib.write_bytes(b"not a library")
     compiled._LOADED.clear()
-    g = compiled.compile_recipe(("damaged",), build, "compiled")
+    g = recipes.compile_recipe(("damaged",), build, "compiled")
     assert len(built) == 2 and g.is_a("External")
     x = np.array([0.1, 0.2, 0.3])
     assert np.array_equal(np.array(g(x)).ravel(), np.array(_function()(x)).ravel())

@@ -21,7 +21,8 @@ import zipfile
 import casadi as ca
 import numpy as np
 
-from hubbeam_ctrl.core.compiled import RECIPE_SOURCES, _sources_digest, cache_dir
+from hubbeam_ctrl.core.compiled import cache_dir
+from hubbeam_ctrl.core.recipes import RECIPE_SOURCES, _sources_digest
 
 __all__ = ["stored_arrays", "stored_array"]
 

@@ -15,7 +15,8 @@ from functools import lru_cache
 
 import casadi as ca
 
-from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_recipe
+from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT
+from hubbeam_ctrl.core.recipes import compile_recipe
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, jacobian_columns
 from hubbeam_ctrl.sim.hardware import (
@@ -152,7 +153,7 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None,
 
 
 def model_recipe(model: ParametricModel, kind: str, *more) -> tuple:
-    """What a function of a model family is built from, for :func:`~hubbeam_ctrl.core.compiled.compile_recipe`.
+    """What a function of a model family is built from, for :func:`~hubbeam_ctrl.core.recipes.compile_recipe`.
 
     Parameters
     ----------

@@ -24,8 +24,9 @@ import time
 import numpy as np
 
 from hubbeam_ctrl.core.budget import T_END_MAX, check_budget
-from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function, compile_recipe
+from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.recipes import compile_recipe
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
