@@ -54,7 +54,8 @@ def test_design_model_is_linearize_and_discretize_bit_for_bit(design):
 
 def test_compare_path_imports_neither_python_control_nor_scipy_signal():
     """The comparison's designs, loop margins, certificate and loop data, as ``hubbeam compare``
-    runs them, without python-control, SciPy's signal package or pyplot (about 1.5 s of import)."""
+    runs them, without python-control, SciPy's signal package or pyplot (about 1.5 s of import);
+    nor Matplotlib at all (issue 37: the figure worker imports it while the controllers run)."""
     code = ("import sys\n"
             "import hubbeam_ctrl.cli.compare, hubbeam_ctrl.study.compare, hubbeam_ctrl.study.report\n"
             "from controllers import DesignModel, LQG, LQGSettings, LQR, LQRSettings\n"
@@ -65,7 +66,7 @@ def test_compare_path_imports_neither_python_control_nor_scipy_signal():
             "d = DesignModel.build(Params(), 0.0, 0.01, 2)\n"
             "for ctrl in (LQR(d, LQRSettings()), LQG(d, LQGSettings())):\n"
             "    loop_margins(ctrl); loop_response(ctrl); certify(ctrl, Params(n_transverse=4))\n"
-            "print(sorted(m for m in ('control', 'scipy.signal', 'scipy.stats', 'matplotlib.pyplot')"
+            "print(sorted(m for m in ('control', 'scipy.signal', 'scipy.stats', 'matplotlib')"
             " if m in sys.modules))\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
@@ -111,3 +112,29 @@ def test_split_frequency_response_keeps_the_margins_bit_for_bit(design, monkeypa
             solves = loop_margins(ctrl).to_dict()
         with_split.pop("disk_margin_grid"), solves.pop("disk_margin_grid")    # the grid's own maximum
         assert with_split == solves
+
+
+def test_figure_worker_draws_the_bytes_of_a_figure_saved_here(tmp_path, monkeypatch):
+    """A figure drawn by the forked worker, drawn here without one, and saved to a file by
+    save_figure: the same PNG bytes (the report's files do not depend on where they were drawn)."""
+    from types import SimpleNamespace
+
+    from hubbeam_ctrl.plots import worker
+    from hubbeam_ctrl.plots.closedloop import plot_torque
+    from hubbeam_ctrl.plots.plant import save_figure
+    t = np.linspace(0.0, 2.0, 201)
+    runs = {"a": SimpleNamespace(t=t, tau=np.sin(3 * t), stopped=False),
+            "b": SimpleNamespace(t=t, tau=np.cos(2 * t), stopped=True)}
+    here = worker.render(plot_torque, runs, 1.0, "torque").result()
+    assert not worker.running()
+    try:
+        assert worker.start() and worker.running()
+        job = worker.render(plot_torque, runs, 1.0, "torque")
+        assert job._future is not None                     # sent to the worker
+        drawn = job.result()
+    finally:
+        worker.stop()
+    assert not worker.running()
+    save_figure(plot_torque(runs, 1.0, "torque"), tmp_path / "torque.png")
+    assert drawn == here == (tmp_path / "torque.png").read_bytes()
+    assert here[:8] == b"\x89PNG\r\n\x1a\n"

@@ -18,7 +18,7 @@ import pytest
 
 from hubbeam_ctrl import Params, TorquePulse, build_model, simulate
 from hubbeam_ctrl.cli import main
-from hubbeam_ctrl.core import compiled
+from hubbeam_ctrl.core import compiled, recipes
 from hubbeam_ctrl.core.compiled import (
     cache_info,
     check_backend,
@@ -186,7 +186,7 @@ def test_compiled_function_is_cached_and_reloaded(fresh, capsys):
     # another process loads the library instead of compiling it
     code = textwrap.dedent("""
         import casadi as ca
-        from hubbeam_ctrl.core import compiled
+        from hubbeam_ctrl.core import compiled, recipes
         x = ca.SX.sym("x", 3)
         f = ca.Function("twice_sin", [x], [2 * ca.sin(x) * x[0]])
         compiled._build = None                 # any build would fail
@@ -226,7 +226,7 @@ def test_corrupt_or_foreign_library_is_rebuilt(fresh, damage):
 def test_two_processes_building_the_same_entry(fresh):
     code = textwrap.dedent("""
         import casadi as ca
-        from hubbeam_ctrl.core import compiled
+        from hubbeam_ctrl.core import compiled, recipes
         builds = []
         real = compiled._build
         compiled._build = lambda *a: (builds.append(1), real(*a))
@@ -343,3 +343,63 @@ def test_the_hot_flag_can_be_set_for_the_run(fresh, monkeypatch):
     monkeypatch.setenv("HUBBEAM_CC_OPT", "-O9")
     with pytest.raises(ParameterError, match=r"HUBBEAM_CC_OPT must be one of -O0, -O1, -O2, -O3, -Os, got '-O9'"):
         compile_function(_function("other"), "compiled")
+
+
+@needs_cc
+def test_recipe_loads_the_library_without_building(fresh):
+    """compile_recipe builds and compiles once; a later process (here: nothing loaded) finds the
+    library by its recipe without calling build, and it gives the same numbers; another recipe
+    or another opt level builds again."""
+    built = []
+
+    def build(name="twice_sin"):
+        built.append(name)
+        return _function(name)
+
+    g = recipes.compile_recipe(("twice", 3), build, "compiled")
+    assert built == ["twice_sin"] and g.is_a("External")
+    x = np.array([0.3, -1.2, 2.5])
+    expected = np.array(_function()(x)).ravel()
+    assert np.array_equal(np.array(g(x)).ravel(), expected)
+    compiled._LOADED.clear()                              # as in a new process
+    again = recipes.compile_recipe(("twice", 3), build, "compiled")
+    assert built == ["twice_sin"]                         # not built again
+    assert np.array_equal(np.array(again(x)).ravel(), expected)
+    recipes.compile_recipe(("twice", 4), lambda: build("twice_sin"), "compiled")
+    recipes.compile_recipe(("twice", 3), build, "compiled", opt=compiled.OPT_COLD)
+    assert len(built) == 3
+    assert recipes.compile_recipe(("twice", 3), build, "vm").is_a("SXFunction") and len(built) == 4
+
+
+@needs_cc
+def test_recipe_with_a_damaged_library_builds_again(fresh):
+    """A library that no longer matches its side file is not loaded by its recipe: built and compiled again."""
+    built = []
+
+    def build():
+        built.append(1)
+        return _function("twice_sin_damaged")
+
+    recipes.compile_recipe(("damaged",), build, "compiled")
+    for lib in fresh.glob("twice_sin_damaged-*.so"):
+        lib.unlink()                                      # a new file: the loaded one stays mapped
+        lib.write_bytes(b"not a library")
+    compiled._LOADED.clear()
+    g = recipes.compile_recipe(("damaged",), build, "compiled")
+    assert len(built) == 2 and g.is_a("External")
+    x = np.array([0.1, 0.2, 0.3])
+    assert np.array_equal(np.array(g(x)).ravel(), np.array(_function()(x)).ravel())
+
+
+@needs_cc
+@pytest.mark.parametrize("name", ["foam", "cfoam"])
+def test_stepper_initial_accelerations_are_the_models_bit_for_bit(name):
+    """The stepper's initial accelerations (M and c compiled by their recipes) equal
+    HubBeamModel.accelerations (CasADi's VM) bit for bit, at rest and in motion."""
+    model = build_model(name, SMALL)
+    st = PlantStepper(model, backend="compiled")
+    rng = np.random.default_rng(3)
+    for k in range(5):
+        q = np.zeros(model.n_q) if k == 0 else 1e-2 * rng.standard_normal(model.n_q)
+        v = np.zeros(model.n_q) if k == 0 else rng.standard_normal(model.n_q)
+        assert st._accelerations(q, v, 7.5).tobytes() == model.accelerations(q, v, 7.5).tobytes()

@@ -15,6 +15,7 @@ from hubbeam_ctrl.plots.plant import (
     plot_result,
     plot_tip_comparison,
     save_figure,
+    save_png,
 )
 from hubbeam_ctrl.plots.shaping import plot_shaper_sensitivity
 from hubbeam_ctrl.sim import simulate_closed_loop
@@ -87,6 +88,8 @@ def test_closed_loop_figures_carry_the_data(closed_loop_runs, tmp_path):
     assert sorted(line.get_ydata()[0] for line in ax.lines[2:]) == [-25.0, 25.0]
     path = save_figure(fig, tmp_path / "torque.png")
     assert path.stat().st_size > 5000
+    png = path.read_bytes()                       # the bytes of a figure drawn elsewhere, written as they are
+    assert save_png(png, tmp_path / "copy.png").read_bytes() == png
 
 
 def test_shaper_sensitivity_figure_carries_the_data(tmp_path):

@@ -300,12 +300,22 @@ def _run_payload(plan: ComparePlan, sink) -> int:
 def _run(args) -> int:
     """Run the comparison (or the payload range), write its outputs, print its table (status 0)."""
     sink = stdout(args)
-    from hubbeam_ctrl.study.compare import compare
-    from hubbeam_ctrl.study.compare_values import compare_arguments
-    from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     plan = _plan(args)
     if plan.payload:
         return _run_payload(plan, sink)
+    from hubbeam_ctrl.plots import worker
+    worker.start()                  # imports Matplotlib while the controllers run; draws the report's PNGs
+    try:
+        return _run_plain(args, plan, sink)
+    finally:
+        worker.stop()
+
+
+def _run_plain(args, plan, sink) -> int:
+    """The plain comparison of :func:`_run` (the figure worker started)."""
+    from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.compare_values import compare_arguments
+    from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
     t0 = time.perf_counter()
     opts = plan.options
     names, rig, out = opts["controllers"], opts.get("rig"), plan.out
@@ -315,7 +325,8 @@ def _run(args) -> int:
         t_ladder = time.perf_counter()
         comparison.ladder = rig_ladder(rig, opts["scenario"], names, _ladder_settings(opts, comparison.scenario),
                                        progress=None if args.json else (lambda step: print(f"ladder: {step}",
-                                                                                           file=sys.stderr)))
+                                                                                           file=sys.stderr)),
+                                       done=comparison)          # its last step: the comparison's own runs
         # the report's wall time covers the ladder too (said apart in the report)
         comparison.ladder_wall_s = time.perf_counter() - t_ladder
         comparison.wall_s = time.perf_counter() - t0

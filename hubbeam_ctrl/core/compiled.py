@@ -26,6 +26,11 @@ Shared libraries are kept in :func:`cache_dir` (``$HUBBEAM_CACHE_DIR``, else the
 platform's cache folder, e.g. ``~/.cache/hubbeam-ctrl``), named by a SHA-256 of the
 generated C, the compiler flags, the compiler's version and CasADi's version, so a second
 process, a notebook restart or a sweep worker loads the library instead of compiling it.
+:func:`hubbeam_ctrl.core.recipes.compile_recipe` goes one step further for functions built the same way every time
+(the plant step of a model family, size and settings): a side file names the library by the
+recipe and a digest of the package sources that build the function, so a later process loads
+the library without building the CasADi graph or generating its C (a tenth of a second to
+half a second per plant; see ``benchmarks/bench_simulate.py``).
 Each library has a JSON side file with the SHA-256 of its bytes: a corrupt or foreign
 file is detected and rebuilt. Builds run in a private temporary folder and are moved into
 place with an atomic rename, under a per-entry file lock, so two processes building the
@@ -217,7 +222,33 @@ def find_compiler() -> list:
 
 @lru_cache(maxsize=8)
 def _compiler_identity(cmd: tuple) -> str:
-    """First line of ``cc --version`` (or the file's size and time), part of the cache key."""
+    """First line of ``cc --version`` (or the file's size and time), part of the cache key.
+
+    Kept in the cache folder by the compiler's resolved path, size and time, so that a process
+    does not run the compiler (10-20 ms) only to name it.
+    """
+    try:
+        exe = os.path.realpath(cmd[0])
+        st = os.stat(exe)
+    except OSError:
+        return _ask_compiler(cmd)
+    stamp = f"{exe} {st.st_size} {st.st_mtime_ns} {' '.join(cmd[1:])}"
+    memo = cache_dir() / f"compiler-{hashlib.sha256(stamp.encode()).hexdigest()[:24]}.txt"
+    with contextlib.suppress(OSError, UnicodeError):
+        text = memo.read_text(encoding="utf-8").splitlines()
+        if len(text) == 2 and text[0] == stamp and text[1]:
+            return text[1]
+    identity = _ask_compiler(cmd)
+    with contextlib.suppress(OSError):
+        memo.parent.mkdir(parents=True, exist_ok=True)
+        tmp = memo.with_name(f".{memo.name}.{os.getpid()}")
+        tmp.write_text(f"{stamp}\n{identity}\n", encoding="utf-8")
+        os.replace(tmp, memo)
+    return identity
+
+
+def _ask_compiler(cmd: tuple) -> str:
+    """First line of ``cc --version``, or the file's size and time when it says nothing."""
     try:
         out = subprocess.run(list(cmd) + ["--version"], capture_output=True, text=True, timeout=30)
         line = (out.stdout or out.stderr).strip().splitlines()
@@ -552,5 +583,9 @@ def clear_cache() -> int:
             removed += 1
         elif p.is_dir() and p.name.startswith(".build-"):
             shutil.rmtree(p, ignore_errors=True)
+        elif p.is_dir() and p.name == "results":          # arrays of hubbeam_ctrl.core.stored
+            for f in p.glob("*.np[yz]"):
+                f.unlink()
+                removed += 1
     _LOADED.clear()
     return removed

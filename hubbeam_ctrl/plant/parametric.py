@@ -358,7 +358,8 @@ class ParametricModel:
         self.sym = ca.MX if symbols == "MX" else ca.SX
         self.layout = parameter_layout(name, n_axial, n_transverse, self.axial)
         self.n_p = sum(r * c for _, (r, c) in self.layout)
-        self._build()
+        # the expressions are built on the first function asked for (__getattr__): a process whose
+        # compiled functions come from the build cache by their recipes never needs them
 
     def values(self, fields: dict) -> np.ndarray:
         """The parameter vector from numbers named as in :attr:`layout`.
@@ -466,7 +467,11 @@ class ParametricModel:
 
     def __getattr__(self, name: str):
         """Build one of the functions (:attr:`FUNCTIONS`) on first use and keep it."""
-        definitions = self.__dict__.get("_definitions", {})
+        if name not in self.FUNCTIONS:
+            raise AttributeError(f"{type(self).__name__!s} has no attribute {name!r}")
+        if "_definitions" not in self.__dict__:
+            self._build()
+        definitions = self.__dict__["_definitions"]
         if name not in definitions:
             raise AttributeError(f"{type(self).__name__!s} has no attribute {name!r}")
         f = ca.Function(*definitions[name], {"cse": True})

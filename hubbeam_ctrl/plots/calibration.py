@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib.figure import Figure
+
+from hubbeam_ctrl.plots.figure import new_figure
+
+if TYPE_CHECKING:                  # Matplotlib is imported when a figure is made, not on import
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_record_fit"]
 
@@ -28,7 +34,7 @@ def plot_record_fit(t, measured: dict, model: dict, fit_percent: dict | None = N
     matplotlib.figure.Figure
     """
     names = [k for k in measured if k in model]
-    fig = Figure(figsize=(8, 2.2 * 2 * max(len(names), 1)))
+    fig = new_figure(figsize=(8, 2.2 * 2 * max(len(names), 1)))
     axes = fig.subplots(2 * max(len(names), 1), 1, sharex=True, squeeze=False)[:, 0]
     t = np.asarray(t)
     for k, name in enumerate(names):

@@ -9,10 +9,15 @@ and the names are used.
 
 from __future__ import annotations
 
-import numpy as np
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from hubbeam_ctrl.plots.figure import new_figure
 from hubbeam_ctrl.plots.loops import plain_log_ticks
+
+if TYPE_CHECKING:                  # Matplotlib is imported when a figure is made, not on import
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_tip_deflection", "plot_hub_angle", "plot_torque"]
 
@@ -53,7 +58,7 @@ def plot_tip_deflection(results: dict, t_f: float | None = None, residual_start:
     -------
     Figure
     """
-    fig = Figure(figsize=(9, 6.5))
+    fig = new_figure(figsize=(9, 6.5))
     ax1, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw=_TWO_PANELS)
     color = _colors(results, styles)
     for name, res in results.items():
@@ -94,7 +99,7 @@ def plot_hub_angle(results: dict, t_f: float | None = None, title: str = "",
     -------
     Figure
     """
-    fig = Figure(figsize=(9, 6.5))
+    fig = new_figure(figsize=(9, 6.5))
     ax1, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw=_TWO_PANELS)
     ref_drawn = False
     color = _colors(results, styles)
@@ -143,7 +148,7 @@ def plot_torque(results: dict, tau_max: float | None = None, title: str = "",
     -------
     Figure
     """
-    fig = Figure(figsize=(9, 4.5))
+    fig = new_figure(figsize=(9, 4.5))
     ax = fig.subplots(gridspec_kw=_ONE_PANEL)
     color = _colors(results, styles)
     for name, res in results.items():

@@ -24,12 +24,15 @@ open-loop poles outside the unit circle) and ``S = 1/(1+L)``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter, NullLocator
 
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plots.figure import new_figure
+
+if TYPE_CHECKING:                  # Matplotlib is imported when a figure is made, not on import
+    from matplotlib.figure import Figure
 
 __all__ = ["LoopResponse", "disk_margin_disk", "plot_loop", "plot_loop_comparison", "sensitivity_peaks",
            "plain_log_ticks"]
@@ -318,7 +321,7 @@ def plot_loop(loops, title: str = "", fig: Figure | None = None) -> Figure:
     loops = _loop_list(loops)
     ax = getattr(fig, "_loop_axes", None) if fig is not None else None
     if ax is None:
-        fig = Figure(figsize=(12, 19))             # fixed margins: constrained layout costs seconds here
+        fig = new_figure(figsize=(12, 19))             # fixed margins: constrained layout costs seconds here
         ax = fig.subplots(5, 2, gridspec_kw=dict(left=0.07, right=0.98, bottom=0.03, top=0.94, hspace=0.32,
                                                  wspace=0.2))
         ax[1, 0].sharex(ax[0, 0])
@@ -357,6 +360,7 @@ def plain_log_ticks(axis) -> None:
     axis : matplotlib.axis.Axis
         A log-scaled axis (``ax.xaxis`` or ``ax.yaxis``).
     """
+    from matplotlib.ticker import FuncFormatter, NullLocator
     axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}" if 1e-3 <= abs(v) < 1e5 else f"{v:.0e}"))
     axis.set_minor_locator(NullLocator())
 
@@ -398,7 +402,7 @@ def plot_loop_comparison(loops, title: str = "", colors=None) -> Figure:
     colors = list(colors) if colors is not None else [f"C{i}" for i in range(len(loops))]
     if len(colors) != len(loops):
         raise ParameterError(f"colors must have one entry per loop ({len(loops)}), got {len(colors)}")
-    fig = Figure(figsize=(12, 12))                 # fixed margins: constrained layout costs seconds here
+    fig = new_figure(figsize=(12, 12))                 # fixed margins: constrained layout costs seconds here
     ax = fig.subplots(3, 2, gridspec_kw=dict(left=0.07, right=0.98, bottom=0.05, top=0.93, hspace=0.3,
                                              wspace=0.2))
     ax_l, ax_nyq, ax_s, ax_z, ax_step, ax_dist = ax.flat

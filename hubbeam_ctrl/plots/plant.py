@@ -6,13 +6,18 @@ Plotting is kept apart from computing: every function takes results and returns 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib.figure import Figure
 
 from hubbeam_ctrl.core.fileio import atomic_write
+from hubbeam_ctrl.plots.figure import new_figure
+
+if TYPE_CHECKING:                  # Matplotlib is imported when a figure is made, not on import
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_result", "plot_tip_comparison", "plot_campbell", "plot_critical_speed_map",
-           "save_figure"]
+           "save_figure", "save_png"]
 
 
 def plot_result(result, title: str | None = None) -> Figure:
@@ -29,7 +34,7 @@ def plot_result(result, title: str | None = None) -> Figure:
     -------
     Figure
     """
-    fig = Figure(figsize=(8, 7), constrained_layout=True)
+    fig = new_figure(figsize=(8, 7), constrained_layout=True)
     axes = fig.subplots(4, 1, sharex=True)
     axes[0].plot(result.t, result.v_tip)
     axes[0].set_ylabel("v_tip [m]")
@@ -64,7 +69,7 @@ def plot_tip_comparison(results: dict, title: str = "") -> Figure:
     -------
     Figure
     """
-    fig = Figure(figsize=(8, 6.5), constrained_layout=True)
+    fig = new_figure(figsize=(8, 6.5), constrained_layout=True)
     ax, ax_log = fig.subplots(2, 1, sharex=True)
     styles = ["-", "--", ":", "-."]
     for k, (label, res) in enumerate(results.items()):
@@ -107,6 +112,24 @@ def save_figure(fig: Figure, path, dpi: int = 120, option: str = "out"):
     return atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, **extra), option=option)
 
 
+def save_png(png: bytes, path, option: str = "out"):
+    """Write a PNG's bytes atomically (e.g. from :func:`hubbeam_ctrl.plots.worker.render`).
+
+    Parameters
+    ----------
+    png : bytes
+        The image file's contents.
+    path : str or Path
+        Output file.
+    option : str
+        The path's name as the caller spelled it, starting the one-line errors.
+    """
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            fh.write(png)
+    return atomic_write(path, write, option=option)
+
+
 def plot_campbell(spins, frequencies_hz, title: str = "Campbell diagram") -> Figure:
     """Bending frequencies against spin rate (output of :func:`hubbeam_ctrl.campbell`).
 
@@ -122,7 +145,7 @@ def plot_campbell(spins, frequencies_hz, title: str = "Campbell diagram") -> Fig
     -------
     Figure
     """
-    fig = Figure(figsize=(7, 4.5), constrained_layout=True)
+    fig = new_figure(figsize=(7, 4.5), constrained_layout=True)
     ax = fig.subplots()
     f = np.asarray(frequencies_hz)
     for k in range(f.shape[1]):
@@ -154,7 +177,7 @@ def plot_critical_speed_map(tip_masses, tip_positions, speeds, title: str = "") 
     -------
     Figure
     """
-    fig = Figure(figsize=(7, 4.5), constrained_layout=True)
+    fig = new_figure(figsize=(7, 4.5), constrained_layout=True)
     ax = fig.subplots()
     for mt, row in zip(tip_masses, speeds):
         ax.plot(tip_positions, row, label=f"m_t = {mt:g} kg")

@@ -7,8 +7,14 @@ colour cycle and the names are used.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib.figure import Figure
+
+from hubbeam_ctrl.plots.figure import new_figure
+
+if TYPE_CHECKING:                  # Matplotlib is imported when a figure is made, not on import
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_shaper_sensitivity"]
 
@@ -41,7 +47,7 @@ def plot_shaper_sensitivity(errors, curves: dict, measured_errors=None, measured
     -------
     Figure
     """
-    fig = Figure(figsize=(7, 4.5), constrained_layout=True)
+    fig = new_figure(figsize=(7, 4.5), constrained_layout=True)
     ax = fig.subplots()
     e = 100 * np.asarray(errors, dtype=float)
     for i, (name, v) in enumerate(curves.items()):

@@ -8,9 +8,14 @@ grouping. A row counts as *unstable* when its ``verdict`` says ``unstable`` or
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib.colors import ListedColormap
-from matplotlib.figure import Figure
+
+from hubbeam_ctrl.plots.figure import new_figure
+
+if TYPE_CHECKING:                  # Matplotlib is imported when a figure is made, not on import
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_robustness_curves", "plot_heatmap", "plot_stable_region", "plot_convergence", "unstable_mask",
            "ROBUSTNESS_METRICS"]
@@ -76,7 +81,7 @@ def plot_robustness_curves(df, factor: str, metrics=None, controllers=None, titl
     style = {n: (styles or {}).get(n, {}) for n in names}
     color = {n: style[n].get("color") or f"C{i}" for i, n in enumerate(names)}
     metrics = [m for m in (metrics or ROBUSTNESS_METRICS) if m in df]
-    fig = Figure(figsize=(5.0 * min(len(metrics), 2), 3.4 * _ceil_div(len(metrics), 2)), constrained_layout=True)
+    fig = new_figure(figsize=(5.0 * min(len(metrics), 2), 3.4 * _ceil_div(len(metrics), 2)), constrained_layout=True)
     axes = np.atleast_1d(fig.subplots(_ceil_div(len(metrics), 2), min(len(metrics), 2), squeeze=False)).ravel()
     for ax, metric in zip(axes, metrics):
         label, log = ROBUSTNESS_METRICS.get(metric, (metric, False))
@@ -123,7 +128,7 @@ def plot_heatmap(df, x: str, y: str, metric: str = "residual_tip_max_m", control
     """
     from matplotlib.colors import LogNorm
     names = _controllers(df, controllers)
-    fig = Figure(figsize=(4.2 * len(names), 3.6), constrained_layout=True)
+    fig = new_figure(figsize=(4.2 * len(names), 3.6), constrained_layout=True)
     axes = np.atleast_1d(fig.subplots(1, len(names), squeeze=False)).ravel()
     xs, ys = np.unique(df[x].to_numpy(dtype=float)), np.unique(df[y].to_numpy(dtype=float))
     grids = [_worst_grid(df[df["controller"] == n], x, y, metric, xs, ys) for n in names]
@@ -177,8 +182,9 @@ def plot_stable_region(df, x: str, y: str | None = None, controllers=None, title
     """
     names = _controllers(df, controllers)
     bad = unstable_mask(df)
+    from matplotlib.colors import ListedColormap
     cmap = ListedColormap(["tab:green", "tab:red"])
-    fig = Figure(figsize=(4.2 * len(names) if y else 7, 3.6 if y else 1 + 0.5 * len(names)),
+    fig = new_figure(figsize=(4.2 * len(names) if y else 7, 3.6 if y else 1 + 0.5 * len(names)),
                  constrained_layout=True)
     axes = np.atleast_1d(fig.subplots(1, len(names) if y else 1, squeeze=False)).ravel()
     for k, name in enumerate(names):
@@ -213,7 +219,7 @@ def plot_convergence(history, reference: float | None = None, title: str = "") -
     -------
     Figure
     """
-    fig = Figure(figsize=(6, 3.6), constrained_layout=True)
+    fig = new_figure(figsize=(6, 3.6), constrained_layout=True)
     ax = fig.subplots()
     gen = np.arange(1, len(history) + 1)
     ax.plot(gen, history, "o-", label="best candidate")

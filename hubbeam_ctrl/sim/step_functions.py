@@ -15,7 +15,8 @@ from functools import lru_cache
 
 import casadi as ca
 
-from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function
+from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT
+from hubbeam_ctrl.core.recipes import compile_recipe
 from hubbeam_ctrl.core.settings import Settings, setting
 from hubbeam_ctrl.plant.models import HubBeamModel, ParametricModel, jacobian_columns
 from hubbeam_ctrl.sim.hardware import (
@@ -28,7 +29,7 @@ from hubbeam_ctrl.sim.hardware import (
 )
 from hubbeam_ctrl.sim.step_rule import MAX_SUBSTEPS, generalized_alpha_coefficients
 
-__all__ = ["StepperSettings", "step_functions"]
+__all__ = ["StepperSettings", "step_functions", "model_recipe"]
 
 @dataclass(frozen=True)
 class StepperSettings(Settings):
@@ -141,12 +142,32 @@ def step_functions(model: HubBeamModel, settings: StepperSettings, backend=None,
         ``"compiled"`` or ``"vm"``: the backend the step runs on.
     """
     extra = (hardware,) if hardware else ()    # the ideal functions exactly as before (same cache keys)
-    vm_step = _fast_step_function(model.parametric, settings, *extra)
-    step = compile_function(vm_step, backend, opt=OPT_HOT)
+    pm = model.parametric
+    step = compile_recipe(model_recipe(pm, "plant_step", settings, hardware),
+                          lambda: _fast_step_function(pm, settings, *extra), backend, opt=OPT_HOT)
     # SX: a large scalar graph, rarely called (-O0); MX: compact code whose products are worth -O3
-    jac_opt = OPT_HOT if model.parametric.sym is ca.MX else OPT_COLD
-    jac = compile_function(_iteration_matrix_function(model.parametric, settings, *extra), backend, opt=jac_opt)
-    return step, jac, "vm" if step is vm_step else "compiled"
+    jac_opt = OPT_HOT if pm.sym is ca.MX else OPT_COLD
+    jac = compile_recipe(model_recipe(pm, "iteration_matrix", settings, hardware),
+                         lambda: _iteration_matrix_function(pm, settings, *extra), backend, opt=jac_opt)
+    return step, jac, "compiled" if step.is_a("External") else "vm"
+
+
+def model_recipe(model: ParametricModel, kind: str, *more) -> tuple:
+    """What a function of a model family is built from, for :func:`~hubbeam_ctrl.core.recipes.compile_recipe`.
+
+    Parameters
+    ----------
+    model : ParametricModel
+    kind : str
+        Which function (e.g. ``"plant_step"``).
+    *more
+        Its other arguments (settings, hardware variant), values with a stable ``repr``.
+
+    Returns
+    -------
+    tuple
+    """
+    return (kind, model.name, model.n_axial_modes, model.n_transverse, model.axial, model.sym.__name__, *more)
 
 
 @lru_cache(maxsize=16)

@@ -26,8 +26,9 @@ import time
 import numpy as np
 
 from hubbeam_ctrl.core.budget import T_END_MAX, check_budget
-from hubbeam_ctrl.core.compiled import OPT_HOT, compile_function
+from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.recipes import compile_recipe
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.models import HubBeamModel, resolve_model
 from hubbeam_ctrl.plant.params import Params
@@ -43,6 +44,7 @@ from hubbeam_ctrl.sim.step_functions import (  # noqa: F401
     _iteration_matrix_function,
     _robust_step_function,
     _substep_expressions,
+    model_recipe,
     step_functions,
 )
 from hubbeam_ctrl.sim.step_rule import (  # noqa: F401
@@ -163,7 +165,7 @@ class PlantStepper:
             i0 = min(max((min(max(float(tau), -d.V_max), d.V_max) - d.k_e * d.N * thd) / d.R, -d.I_max), d.I_max)
             return np.concatenate([self._hardware_initial_state(x0, float(tau)), [i0]])
         if self.hardware is None:
-            a0 = self.model.accelerations(x0[:n], x0[n:], float(tau))
+            a0 = self._accelerations(x0[:n], x0[n:], float(tau))
             return np.concatenate([x0, a0, a0])
         return self._hardware_initial_state(x0, float(tau))
 
@@ -174,7 +176,7 @@ class PlantStepper:
         f = hw.friction
         self.stuck = False
         if f.static > 0 and abs(v[0]) <= f.stick_velocity:
-            M, c = self.model.mass_matrix(q, v), self.model.bias(q, v)
+            M, c = self._mass_bias(q, v)
             a = np.zeros(n)
             a[1:] = np.linalg.solve(M[1:, 1:], -c[1:])          # the hub clamped
             hold = float(drive_torque(u, 0.0, hw.values())) - (M[0] @ a + c[0])
@@ -183,8 +185,25 @@ class PlantStepper:
                 x = x0.copy()
                 x[n] = 0.0
                 return np.concatenate([x, a, a])
-        a0 = self.model.accelerations(q, v, float(hw.hub_torque(u, v[0])))
+        a0 = self._accelerations(q, v, float(hw.hub_torque(u, v[0])))
         return np.concatenate([x0, a0, a0])
+
+    def _mass_bias(self, q, v) -> tuple:
+        """``(M(q), c(q, v))`` as the model gives them, evaluated by the compiled functions of their
+        recipes (the same numbers bit for bit; a process then builds no VM function for them)."""
+        pm = self.model.parametric
+        if self.backend == "vm" or pm.axial != "dynamic":
+            return self.model.mass_matrix(q, v), self.model.bias(q, v)
+        M = compile_recipe(model_recipe(pm, "mass_matrix"), lambda: pm.mass_matrix, self.backend, opt=OPT_COLD)
+        c = compile_recipe(model_recipe(pm, "bias"), lambda: pm.bias, self.backend, opt=OPT_COLD)
+        return np.array(M(q, self._p)), np.array(c(q, v, self._p)).ravel()
+
+    def _accelerations(self, q, v, tau: float) -> np.ndarray:
+        """Free-hub accelerations ``M^-1 (B tau - c)``, as :meth:`HubBeamModel.accelerations`."""
+        M, c = self._mass_bias(q, v)
+        rhs = -c
+        rhs[0] += tau
+        return np.linalg.solve(M, rhs)
 
     def step(self, state, tau) -> np.ndarray:
         """Advance the plant by one sample period.
@@ -338,8 +357,9 @@ class PlantStepper:
             self._hw = self.hardware.values()
             self._s_hold, self._hold = np.zeros(self.n_s), np.zeros(1)
             extra = (self._hw,)
-            hold = compile_function(_hold_function(self.model.parametric, *((True,) if self.inductive else ())),
-                                    self.backend, opt=OPT_HOT)
+            pm, inductive = self.model.parametric, (True,) if self.inductive else ()
+            hold = compile_recipe(model_recipe(pm, "hub_hold", *inductive), lambda: _hold_function(pm, *inductive),
+                                  self.backend, opt=OPT_HOT)
             self._eval_hold = self._bind(hold, (self._s_hold, self._u[-1:], self._p, self._hw), (self._hold,))
         self._eval_step = self._bind_step(self._function)
         self._eval_patient = None

@@ -54,11 +54,17 @@ from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
+from hubbeam_ctrl.study.side_by_side import can_fork, side_by_side
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
+
+#: Run a comparison's closed loops side by side (:mod:`hubbeam_ctrl.study.side_by_side`: a forked
+#: child runs part of them) when nothing ties them together (no check plant, no uncertainty set, no
+#: payload learning); False runs them here one after the other. The numbers are the same.
+SIDE_BY_SIDE = True
 
 #: The controllers a comparison runs by default (the built-ins; see :func:`controllers.controller_names`).
 DEFAULT_CONTROLLERS = controller_names(default=True)
@@ -144,6 +150,9 @@ class Comparison:
     robust : dict
         Controller name -> :class:`~hubbeam_ctrl.study.worst_case.WorstCase` over the rig's
         ``[uncertainty]`` (empty when the rig has none).
+    settings : CompareSettings or None
+        The settings the comparison ran with (the rig ladder takes this comparison as its last
+        step when that step's rig and settings are these).
     """
 
     scenario: Scenario
@@ -164,6 +173,7 @@ class Comparison:
     check_results: dict = field(default_factory=dict)
     check_metrics: dict = field(default_factory=dict)
     robust: dict = field(default_factory=dict)
+    settings: CompareSettings | None = None
 
 
 def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
@@ -264,6 +274,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     if not isinstance(settings, CompareSettings):
         raise ParameterError(f"settings must be a CompareSettings (hubbeam_ctrl.study.compare_values), "
                              f"got {type(settings).__name__}")
+    given = settings
     rig, params = as_rig(rig)
     pc, dc, rc, scn, pay = settings.plant, settings.design, settings.run, settings.scenario, settings.payload
     plant, plant_params, plant_modes, check_plant = pc.plant, pc.plant_params, pc.plant_modes, pc.check_plant
@@ -341,9 +352,10 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     check_results, check_metrics, robust = {}, {}, {}
     yardstick = task_limit(sc, limit, rig)
     clock = WallClock(sim.max_wall_s)        # the whole comparison's wall-time limit
-    for name in names:
-        if clock.expired():
-            break
+    budget = {}                              # each run's settings with the wall time left at its start
+
+    def build(name):
+        """The controller ``name`` as it runs (design, payload learning, the rig's hardware) and its margins."""
         spec = CONTROLLERS[name]
         d = designs[name].design if name in designs else design
         st = designs[name].settings if name in designs else chosen[name]
@@ -358,21 +370,43 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
             ctrl = _learning(ctrl, payload_learning, sc, rig)
         if rig is not None:
             ctrl = on_rig(ctrl, rig, noise, hardware, integral)
-        margins[name] = _margins(ctrl)
-        linear[name] = ctrl
-        run_sim = dataclasses.replace(sim, max_wall_s=max(1e-3, sim.max_wall_s - clock.elapsed()))
-        res = simulate_closed_loop(ev, ctrl, sc.t_end, settings=run_sim,
-                                   reference=(ref.theta_at, ref.theta_dot_at), backend=backend,
-                                   hardware=hardware)
+        linear[name], margins[name] = ctrl, _margins(ctrl)
+
+    def run(name):
+        """``(result, metrics, certificate)`` of controller ``name`` in closed loop (None: out of time)."""
+        if clock.expired():
+            return None
+        run_sim = budget[name] = dataclasses.replace(sim, max_wall_s=max(1e-3, sim.max_wall_s - clock.elapsed()))
+        res = simulate_closed_loop(ev, linear[name], sc.t_end, settings=run_sim,
+                                   reference=(ref.theta_at, ref.theta_dot_at), backend=backend, hardware=hardware)
+        mm, cert = judge(res, linear[name], sc, ev.params, name, limit=yardstick)
+        mm["scenario"] = sc.name
+        return res, mm, cert
+
+    # the runs side by side (a forked child runs part of them) when nothing ties them together
+    together = (SIDE_BY_SIDE and can_fork() and len(names) > 1 and ev_check is None and payload_learning is None
+                and not (rig is not None and rig.uncertainty.is_set))
+    if together:
+        for name in names:
+            build(name)
+        runs = side_by_side(names, run)
+    for name in names:
+        if not together:
+            if clock.expired():
+                break
+            build(name)
+            runs = {name: run(name)}
+        if runs[name] is None:
+            break
+        res, metrics[name], certificates[name] = runs[name]
         results[name] = res
-        metrics[name], certificates[name] = judge(res, ctrl, sc, ev.params, name, limit=yardstick)
-        metrics[name]["scenario"] = sc.name
+        ctrl = linear[name]
         if rig is not None and rig.uncertainty.is_set and margins[name] is not None:
             robust[name] = certify_set(ctrl, rig, plant_modes=ev.modes, name=name,
                                        spins=(float(ref.theta_dot[0]), float(ref.theta_dot[-1])))
             metrics[name].update(robust[name].metrics())
         if ev_check is not None:
-            res_c = simulate_closed_loop(ev_check, ctrl, sc.t_end, settings=run_sim,
+            res_c = simulate_closed_loop(ev_check, ctrl, sc.t_end, settings=budget[name],   # as the plant's run
                                          reference=(ref.theta_at, ref.theta_dot_at), backend=backend,
                                          hardware=hardware)
             check_results[name] = res_c
@@ -405,7 +439,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
                       certificates=certificates,
                       controllers={n: c for n, c in linear.items() if margins[n] is not None}, rig=rig,
                       notes=notes, check_plant=ev_check, check_results=check_results, check_metrics=check_metrics,
-                      robust=robust)
+                      robust=robust, settings=None if designs else given)
 
 
 def _check_plant(check_plant, sc: Scenario, ev: EvaluationPlant, design_modes: int):

@@ -22,8 +22,9 @@ Examples
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib.figure import Figure
 
 from controllers import DesignModel
 from controllers.analysis import FrequencyResponse, frequency_grid, loop_matrices
@@ -31,8 +32,12 @@ from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plots.loops import LoopResponse, plot_loop, plot_loop_comparison
 
+if TYPE_CHECKING:                  # Matplotlib is imported when a figure is made, not on import
+    from matplotlib.figure import Figure
+
 __all__ = ["loop_response", "evaluation_model", "controller_loops", "loop_figure", "comparison_loop_figures",
-           "save_comparison_loop_figures", "comparison_loop_figure", "is_linear"]
+           "save_comparison_loop_figures", "comparison_loop_figure", "comparison_loop_data",
+           "is_linear"]
 
 
 def is_linear(ctrl) -> bool:
@@ -289,6 +294,26 @@ def comparison_loop_figure(comparison, t_end: float = 15.0) -> Figure | None:
         :func:`hubbeam_ctrl.plots.loops.plot_loop_comparison`; None when the comparison has no
         linear controller.
     """
+    data = comparison_loop_data(comparison, t_end)
+    return None if data is None else plot_loop_comparison(data[0], data[1], colors=data[2])
+
+
+def comparison_loop_data(comparison, t_end: float = 15.0):
+    """The data of :func:`comparison_loop_figure`: each linear controller's loop, the title, the colours.
+
+    Parameters
+    ----------
+    comparison : Comparison
+    t_end : float
+        Length of the time responses [s].
+
+    Returns
+    -------
+    tuple or None
+        ``(loops, title, colors)``: :class:`~hubbeam_ctrl.plots.loops.LoopResponse` list, str and
+        colour list, the arguments of :func:`~hubbeam_ctrl.plots.loops.plot_loop_comparison`; None
+        when the comparison has no linear controller.
+    """
     styles = getattr(comparison, "styles", None) or {}
     loops, colors, on = [], [], set()
     for i, (name, ctrl, evaluation, _) in enumerate(_comparison_loops(comparison)):
@@ -302,7 +327,7 @@ def comparison_loop_figure(comparison, t_end: float = 15.0) -> Figure | None:
     sc, d = comparison.scenario, loops[0]
     title = (f"Loops at the plant input, {sc.name}: each controller on the " + " / ".join(sorted(on))
              + f" (dt = {1e3 * d.dt:g} ms)")
-    return plot_loop_comparison(loops, title, colors=colors)
+    return loops, title, colors
 
 
 def _comparison_loops(comparison):

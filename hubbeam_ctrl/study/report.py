@@ -5,17 +5,20 @@ from __future__ import annotations
 import csv
 import io
 import math
-import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
 from hubbeam_ctrl.core.fileio import atomic_write_text, write_folder
 from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.plots.closedloop import plot_hub_angle, plot_tip_deflection, plot_torque
-from hubbeam_ctrl.plots.plant import save_figure
+from hubbeam_ctrl.plots.loops import plot_loop_comparison
+from hubbeam_ctrl.plots.plant import save_png
+from hubbeam_ctrl.plots.worker import render
 from hubbeam_ctrl.study.drive_figures import drive_of
 from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
+from hubbeam_ctrl.study.report_tables import _clean, format_table, markdown_table, print_table  # noqa: F401
 from hubbeam_ctrl.study.yardstick import DRIVE_BOUND
 
 __all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
@@ -36,14 +39,6 @@ PLANT_NOTE = ("FOAM is the default plant: against a geometrically exact beam (pl
               "Exudyn) the default slew's open-loop residual is 0.2747 m; FOAM gives 0.2824 m "
               "(+2.8 %), CFOAM 0.3515 m (+28 %), so CFOAM's \"% of open loop\" figures look "
               "better than they are at large deflection.")
-
-
-def _clean(value):
-    if isinstance(value, (np.floating, np.integer)):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def _json_metrics(metrics: dict) -> list:
@@ -179,8 +174,23 @@ def write_outputs(comparison, out_dir) -> dict:
 
 
 def _write_files(comparison, out: Path, names: dict) -> None:
-    """The files of :func:`write_outputs`, written into ``out``."""
+    """The files of :func:`write_outputs`, written into ``out``.
+
+    The figures are handed to :func:`hubbeam_ctrl.plots.worker.render` as soon as their data
+    are known (drawn by the figure worker while the tables and the loop data are computed
+    here, when ``hubbeam compare`` started one; else here) and written once drawn.
+    """
     sc, metrics, results = comparison.scenario, comparison.metrics, comparison.results
+    modes = f" ({comparison.plant.modes} modes)" if comparison.plant is not None else ""
+    title = f"{sc.plant.upper()}{modes}, {sc.name}: "
+    styles, runs, command = comparison.styles, _plot_runs(results), _command_args(comparison, title)
+    pngs = {
+        "tip_deflection.png": render(plot_tip_deflection, runs, sc.t_f, sc.t_f + 5.0,
+                                     title + "tip deflection (shaded: residual window)", styles=styles),
+        "hub_angle.png": render(plot_hub_angle, runs, sc.t_f, title + "hub angle and error vs reference",
+                                styles=styles),
+        "torque.png": render(plot_torque, runs, *command[0], styles=styles, **command[1]),
+    }
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=CSV_FIELDS, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
@@ -188,31 +198,44 @@ def _write_files(comparison, out: Path, names: dict) -> None:
         writer.writerow({k: ("" if _clean(m.get(k)) is None else _clean(m.get(k))) for k in CSV_FIELDS})
     atomic_write_text(out / names["csv"], buf.getvalue())
     atomic_write_text(out / names["json"], strict_json(_json_metrics(metrics), indent=2) + "\n")
-    modes = f" ({comparison.plant.modes} modes)" if comparison.plant is not None else ""
-    title = f"{sc.plant.upper()}{modes}, {sc.name}: "
-    styles = comparison.styles
-    figs = {
-        "tip_deflection.png": plot_tip_deflection(results, sc.t_f, sc.t_f + 5.0,
-                                                  title + "tip deflection (shaded: residual window)",
-                                                  styles=styles),
-        "hub_angle.png": plot_hub_angle(results, sc.t_f, title + "hub angle and error vs reference",
-                                        styles=styles),
-        "torque.png": _command_figure(comparison, title, styles),
-    }
-    for fname, fig in figs.items():
-        save_figure(fig, out / names[fname])
-    _write_report(comparison, out, names)      # report.md, the loop figures and report.html
+    loops = _loop_png(comparison)
+    for fname, png in pngs.items():
+        save_png(png.result(), out / names[fname])
+    _write_report(comparison, out, names, loops)      # report.md, the loop figure and report.html
 
 
-def _command_figure(comparison, title: str, styles):
-    """The commands over time in their unit, with their limit (torque.png)."""
+def _plot_runs(results: dict) -> dict:
+    """What the closed-loop figures read of each run (``t``, ``v_tip``, ``theta``, ``theta_ref``,
+    ``tau``, ``stopped``): a light copy to send to the figure worker."""
+    return {name: SimpleNamespace(t=r.t, v_tip=r.v_tip, theta=r.theta, theta_ref=r.theta_ref, tau=r.tau,
+                                  stopped=r.stopped) for name, r in results.items()}
+
+
+def _loop_png(comparison):
+    """loops.png of the report, as :func:`~hubbeam_ctrl.plots.worker.render` draws it (None without
+    a linear controller): the loop data computed here, the figure drawn by the worker."""
+    from hubbeam_ctrl.study.loops import comparison_loop_data
+    data = comparison_loop_data(comparison)
+    if data is None:
+        return None
+    loops, title, colors = data
+    return render(plot_loop_comparison, loops, title, colors=colors, dpi=100)
+
+
+def _command_args(comparison, title: str) -> tuple:
+    """:func:`~hubbeam_ctrl.plots.closedloop.plot_torque`'s limit and title, and its keywords, for the
+    commands over time in their unit (torque.png)."""
     first = next(iter(comparison.results.values()), None)
     drive = drive_of(first) if first is not None else None
     if drive is not None and not drive.is_ideal:
-        return plot_torque(comparison.results, drive.V_max, title + "command voltage (dotted: +-V_max)",
-                           styles=styles, ylabel="command voltage [V]")
-    return plot_torque(comparison.results, comparison.scenario.tau_max, title + "hub torque (dotted: +-tau_max)",
-                       styles=styles)
+        return (drive.V_max, title + "command voltage (dotted: +-V_max)"), {"ylabel": "command voltage [V]"}
+    return (comparison.scenario.tau_max, title + "hub torque (dotted: +-tau_max)"), {}
+
+
+def _command_figure(comparison, title: str, styles):
+    """The commands over time in their unit, with their limit (torque.png's figure)."""
+    args, kwargs = _command_args(comparison, title)
+    return plot_torque(comparison.results, *args, styles=styles, **kwargs)
 
 
 def _report(comparison) -> str:
@@ -530,116 +553,15 @@ def _robust_lines(comparison) -> list:
     return lines + [""]
 
 
-#: Format of a quantity in the command's unit: the number and its unit (``command_unit``).
-_COMMAND = "command"
-#: Columns shown only when some run has them (a DC motor's voltage and current).
-_OPTIONAL = ("peak_voltage_v", "peak_current_a")
-
-_TABLE = [
-    ("verdict", "verdict", "{}"),
-    ("controller", "controller", "{}"),
-    ("peak_tip_m", "peak v_tip m", "{:.4f}"),
-    ("residual_tip_max_m", "resid max m", "{:.2e}"),
-    ("residual_tip_rms_m", "resid rms m", "{:.2e}"),
-    ("residual_pct_of_L", "resid %L", "{:.3g}"),
-    ("residual_pct_of_openloop", "% of OL", "{:.3g}"),
-    ("angle_error_tf_rad", "err(tf) rad", "{:.2e}"),
-    ("final_angle_error_rad", "err(end) rad", "{:.2e}"),
-    ("settling_time_s", "settle s", "{:.2f}"),
-    ("settling_over_limit", "settle/limit", "{:.2f}"),
-    ("peak_command", "peak u", _COMMAND),
-    ("peak_command_step", "max du/sample", _COMMAND),
-    ("time_at_limit_s", "u at limit s", "{:.3g}"),
-    ("peak_hub_torque_nm", "peak tau_hub Nm", "{:.4g}"),
-    ("peak_voltage_v", "peak V", "{:.3g}"),
-    ("peak_current_a", "peak A", "{:.3g}"),
-    ("loop_spectral_radius", "loop |z|", "{:.7f}"),
-    ("torque_squared_integral_n2m2s", "int tau_hub^2", "{:.3g}"),
-    ("step_time_median_ms", "step med ms", "{:.3f}"),
-    ("step_time_p99_ms", "step p99 ms", "{:.3f}"),
-]
-
-
-def _columns(metrics: dict) -> list:
-    """The table's columns for these runs (a DC motor's voltage and current only when present)."""
-    return [c for c in _TABLE if c[0] not in _OPTIONAL
-            or any(_clean(m.get(c[0])) is not None for m in metrics.values())]
-
-
-def _cells(m: dict, columns=None) -> list:
-    cells = []
-    for key, _, fmt in (columns or _TABLE):
-        v = _clean(m.get(key))
-        if v is not None and fmt == _COMMAND:
-            cells.append(f"{v:.3g} {m.get('command_unit', 'N m')}")
-            continue
-        cells.append("-" if v is None else (fmt.format(v) if not isinstance(v, str) else v))
-    if not m.get("completed", True):
-        cells[1] += " (stopped)"
-    if m.get("outside_validated_range"):
-        cells[1] += " (>range)"
-    if m.get("qp_fallbacks"):
-        cells[1] += f" [{m['qp_fallbacks']} fb]"
-    return cells
-
-
-def format_table(metrics: dict) -> str:
-    """The metrics as an aligned plain-text table.
-
-    Parameters
-    ----------
-    metrics : dict
-        Controller name -> metrics.
-    """
-    columns = _columns(metrics)
-    rows = [[h for _, h, _ in columns]] + [_cells(m, columns) for m in metrics.values()]
-    widths = [max(len(r[i]) for r in rows) for i in range(len(columns))]
-    return "\n".join("  ".join(c.rjust(w) if i else c.ljust(w) for i, (c, w) in enumerate(zip(r, widths)))
-                     for r in rows)
-
-
-def markdown_table(metrics: dict) -> str:
-    """The metrics as a Markdown table.
-
-    Parameters
-    ----------
-    metrics : dict
-        Controller name -> metrics.
-    """
-    columns = _columns(metrics)
-    head = [h for _, h, _ in columns]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(_cells(m, columns)) + " |" for m in metrics.values()]
-    return "\n".join(lines)
-
-
-def print_table(metrics, file=None) -> None:
-    """Print the metrics of :func:`run_compare` (or a :class:`Comparison`) as a table.
-
-    Parameters
-    ----------
-    metrics : dict or Comparison
-        Controller name -> metrics, or a comparison.
-    file : file-like, optional
-        Where to print (default ``sys.stdout``).
-    """
-    if hasattr(metrics, "metrics"):
-        metrics = metrics.metrics
-    print(format_table(metrics), file=file or sys.stdout)
-
-
-
-
-def _write_report(comparison, out: Path, names: dict) -> None:
+def _write_report(comparison, out: Path, names: dict, loops=None) -> None:
     """report.md (with loops.png, the loops of every linear controller overlaid, linked from it)
-    and report.html, the same report as one page with the figures embedded."""
+    and report.html, the same report as one page with the figures embedded. ``loops``: the loop
+    figure's render job (:func:`_loop_png`), None without a linear controller."""
     from hubbeam_ctrl.core.htmlpage import markdown_to_html
-    from hubbeam_ctrl.study.loops import comparison_loop_figure
     text = _report(comparison)
-    fig = comparison_loop_figure(comparison)
-    if fig is not None:
+    if loops is not None:
         names["loops.png"] = "loops.png"
-        save_figure(fig, out / names["loops.png"], dpi=100)
+        save_png(loops.result(), out / names["loops.png"])
         text += ("\n## Loop plots (linear controllers)\n\nEvery linear controller's loop at the plant input, "
                  "overlaid, closed on the linear SFOAM with the evaluation plant's modes: the loop gain |L|, its "
                  "Nyquist curve with the disk-margin disk, the sensitivity |S| with its peak, the sampled "

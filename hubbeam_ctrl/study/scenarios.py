@@ -11,7 +11,9 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 
-from controllers import DesignModel, planned_slew_reference, slew_reference, spinup_reference
+import numpy as np
+
+from controllers import DesignModel, Reference, planned_slew_reference, slew_reference, spinup_reference
 from controllers.scaling import (
     Tolerances,
     default_tolerances,
@@ -24,6 +26,7 @@ from controllers.scaling import (
 )
 from hubbeam_ctrl.core.budget import T_END_MAX
 from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.core.stored import stored_arrays
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.plant.params import Params, check_spin
 from hubbeam_ctrl.plant.sensors import SensorSettings
@@ -388,7 +391,7 @@ def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None,
     parts = dict(design_spin=0.0, target=theta, target_key="slew_angle_rad", baseline="eq44", reference=ref,
                  baseline_tau_m=tau_max if eq44 else task.baseline_torque(J), description=text)
     if reference == "planned" or (reference == "task" and not eq44):
-        planned = planned_slew_reference(params, theta, t_f, tau_max, dt, t_ref_end)
+        planned = _planned(params, theta, t_f, tau_max, dt, t_ref_end)
         parts.update(reference=planned, scale_reference=ref, description=f"{text}; {planned.description}")
     elif reference == "task":
         # the paper's Eq. 44 slew uses the whole torque limit at its peaks: the feedback designs
@@ -396,13 +399,33 @@ def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None,
         # without banging between the limits (issue 36)
         share = (tolerances or Tolerances()).feedforward_share
         try:
-            planned = planned_slew_reference(params, theta, t_f, share * tau_max, dt, t_ref_end)
+            planned = _planned(params, theta, t_f, share * tau_max, dt, t_ref_end)
         except ParameterError:          # the share cannot turn the hub in t_f: the rigid reference
             planned = None
         if planned is not None:
             parts.update(reference=planned, scale_reference=ref,
                          description=f"{text}; {planned.description} within {share:g} x tau_max")
     return parts
+
+
+#: The sources of a planned slew (:func:`_planned`): the planner, the design model and the beam.
+PLAN_SOURCES = ("controllers", "hubbeam_ctrl/core", "hubbeam_ctrl/linear", "hubbeam_ctrl/plant")
+
+
+def _planned(params: Params, theta: float, t_f: float, tau_max: float, dt: float, t_end: float) -> Reference:
+    """:func:`controllers.planning.planned_slew_reference`, kept in the build cache
+    (:func:`~hubbeam_ctrl.core.stored.stored_arrays`): its two KKT solves took 0.2-1 s of every
+    comparison's start; a later process reads the same reference bit for bit."""
+    def compute():
+        r = planned_slew_reference(params, theta, t_f, tau_max, dt, t_end)
+        return {"theta": r.theta, "theta_dot": r.theta_dot, "theta_ddot": r.theta_ddot, "torque": r.torque,
+                "elastic": r.elastic, "description": np.array(r.description),
+                "plan": np.array([r.dt, *r.plan[:3]], dtype=float)}
+    a = stored_arrays(("planned_slew", params, theta, t_f, tau_max, dt, t_end), compute, PLAN_SOURCES)
+    step, angle, duration, budget = (float(x) for x in a["plan"])
+    return Reference(step, *(np.array(a[k]) for k in ("theta", "theta_dot", "theta_ddot", "torque")),
+                     str(a["description"]), elastic=np.array(a["elastic"]), planned_on_design=True,
+                     plan=(angle, duration, budget, None))
 
 
 @register_scenario("spinup")

@@ -1,0 +1,72 @@
+"""Issue 37 (everyday speed): a comparison's closed loops run side by side (part of them in a forked
+child) give the numbers they give one after the other; the child's exceptions are raised here and
+what it cannot hand back is run here."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+
+import numpy as np
+import pytest
+
+import hubbeam_ctrl.study.compare as compare_module
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
+from hubbeam_ctrl.study.side_by_side import can_fork, side_by_side
+
+
+def _text(metrics: dict) -> str:
+    """The metrics as JSON text without timings (NaN equals NaN there)."""
+    return json.dumps({k: v for k, v in metrics.items() if "wall" not in k and not k.startswith("step_time")},
+                      sort_keys=True, default=str)
+
+
+needs_fork = pytest.mark.skipif(not can_fork(), reason="no fork or a single processor")
+
+
+@needs_fork
+def test_side_by_side_equals_one_after_the_other(monkeypatch):
+    settings = CompareSettings(run=RunChoice(t_end=16.0))
+    runs = {}
+    for flag in (True, False):
+        monkeypatch.setattr(compare_module, "SIDE_BY_SIDE", flag)
+        runs[flag] = compare_module.compare(None, "slew", "openloop,pd,lqr,lqg", settings)
+    a, b = runs[True], runs[False]
+    assert list(a.metrics) == list(b.metrics) == ["openloop", "pd", "lqr", "lqg"]
+    for name in a.metrics:
+        assert np.array_equal(a.results[name].q, b.results[name].q)
+        assert np.array_equal(a.results[name].tau, b.results[name].tau)
+        assert _text(a.metrics[name]) == _text(b.metrics[name]), name
+        assert repr(a.certificates[name]) == repr(b.certificates[name])
+    assert a.notes == b.notes
+
+
+@needs_fork
+def test_the_childs_exception_is_raised_here():
+    parent = os.getpid()
+
+    def run(name):
+        if name == "b" and os.getpid() != parent:
+            raise ParameterError("b: refused in the child")
+        return name.upper()
+
+    with pytest.raises(ParameterError, match="b: refused in the child"):
+        side_by_side(["a", "b", "c"], run)
+
+
+@needs_fork
+def test_what_the_child_cannot_hand_back_is_run_here():
+    parent = os.getpid()
+    where = {}
+
+    def run(name):
+        if os.getpid() != parent:
+            os.kill(os.getpid(), signal.SIGKILL)            # the child dies without its results
+        where[name] = "here"
+        return name * 2
+
+    assert side_by_side(["a", "b", "c"], run) == {"a": "aa", "b": "bb", "c": "cc"}
+    assert sorted(where) == ["a", "b", "c"]
+    assert side_by_side(["x"], lambda n: n + "!") == {"x": "x!"}    # one run: here
