@@ -57,7 +57,7 @@ from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.side_by_side import can_fork, side_by_side
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
-from hubbeam_ctrl.study.yardstick import task_dt, task_limit
+from hubbeam_ctrl.study.yardstick import rig_default_slew, task_dt, task_limit
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
@@ -299,8 +299,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         dt = task_dt(design_params if design_params is not None else base)
     design_p = design_params if design_params is not None else base
     slew_angle, task_notes = scn.slew_angle, []
-    if rig is not None and task == "slew" and scn.t_f is None:
-        from hubbeam_ctrl.study.yardstick import rig_default_slew
+    if rig is not None and not rig.is_ideal and task == "slew" and scn.t_f is None:   # ideal: the beam alone
         task, note = rig_default_slew(rig, slew_angle)
         slew_angle, task_notes = None, [note]
     t_f = DEFAULT_T_F if scn.t_f is None else scn.t_f

@@ -216,7 +216,7 @@ class ScenarioChoice:
     ----------
     t_f : float, optional
         Maneuver time of a registered scenario [s] (a Slew/SpinUp task gives its own ``duration``).
-        None: :data:`DEFAULT_T_F`; on a rig, a ``slew`` is the rig's default slew
+        None: :data:`DEFAULT_T_F`; on a rig with any hardware (not ideal), a ``slew`` is the rig's default slew
         (:func:`hubbeam_ctrl.study.yardstick.rig_default_slew`, by ``slew_angle`` if given).
     w_f : float
         Spin-up final rate [rad/s] (registered ``spinup`` only).

@@ -19,6 +19,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Damping, Drive, Friction, Rig, Sensors, Timing
 from hubbeam_ctrl.study.compare import _design_modes, _sim_settings, compare
 from hubbeam_ctrl.study.compare_values import CompareSettings
+from hubbeam_ctrl.study.yardstick import rig_default_slew
 
 __all__ = ["LADDER_STEPS", "ladder_rigs", "rig_ladder"]
 
@@ -99,6 +100,10 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
     steps = ladder_rigs(rig)
+    asked, asked_settings = task, settings
+    if task == "slew" and settings.scenario.t_f is None and not rig.is_ideal:   # every step: the full rig's task
+        task, _ = rig_default_slew(rig, settings.scenario.slew_angle)
+        settings = dataclasses.replace(settings, scenario=dataclasses.replace(settings.scenario, slew_angle=None))
     rows, t_end = {}, settings.run.t_end
     todo = list(range(len(steps)))
     if t_end is None:                    # the first step sets the window of the others
@@ -107,7 +112,8 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
         todo.pop(0)
     step = dataclasses.replace(settings, run=dataclasses.replace(settings.run, t_end=t_end))
     last = len(steps) - 1
-    if last in todo and _same_run(done, steps[last][1], task, controllers, step):
+    if last in todo and _same_run(done, steps[last][1], asked, controllers, dataclasses.replace(
+            asked_settings, run=dataclasses.replace(asked_settings.run, t_end=t_end))):
         rows[last] = _rows(steps[last][0], done)
         todo.remove(last)
     jobs = [(steps[k][0], steps[k][1], task, controllers, step) for k in todo]

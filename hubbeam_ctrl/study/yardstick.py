@@ -212,8 +212,8 @@ def rig_default_slew(rig, slew_angle: float | None = None):
     angle = DEFAULT_RIG_SLEW_RAD if slew_angle is None else float(slew_angle)
     params = rig.plant_params
     bound = rigid_bound(params, abs(angle), rig)
-    design = DesignModel.build(params.replace(n_transverse=min(params.n_transverse, 3)), 0.0, rig.timing.dt,
-                               min(params.n_transverse, 3))
+    modes = min(params.n_transverse, 3)
+    design = DesignModel.build(params.replace(n_transverse=modes), 0.0, rig.timing.dt or task_dt(params), modes)
     period = 2.0 * math.pi / first_mode(design)
     duration = DEFAULT_RIG_PACE * (bound + period)
     note = (f"task: the rig's default slew, {angle:.4g} rad in {duration:.4g} s = {DEFAULT_RIG_PACE:g} x (rigid "
