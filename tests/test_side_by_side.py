@@ -14,7 +14,7 @@ import pytest
 import hubbeam_ctrl.study.compare as compare_module
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
-from hubbeam_ctrl.study.side_by_side import can_fork, side_by_side
+from hubbeam_ctrl.study.forked_runs import can_fork, side_by_side
 
 
 def _text(metrics: dict) -> str:

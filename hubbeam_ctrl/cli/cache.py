@@ -12,7 +12,7 @@ import json
 
 from hubbeam_ctrl.cli.args import Command
 
-__all__ = ["COMMAND"]
+__all__ = []
 
 
 def _options(p) -> None:

@@ -18,7 +18,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write_text
 from hubbeam_ctrl.core.jsonio import strict_json
 
-__all__ = ["COMMAND", "parse_uncertainty", "CHECKS", "DESIGNS"]
+__all__ = ["parse_uncertainty", "CHECKS", "DESIGNS"]
 
 #: Where the nonlinear check runs: the worst plant found, also the set's corners, or nowhere.
 CHECKS = ("worst", "corners", "none")

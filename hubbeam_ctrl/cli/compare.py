@@ -31,7 +31,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.core.native import stdout_to_stderr  # noqa: F401  (kept importable from here)
 
-__all__ = ["COMMAND", "add_compare_options", "ComparePlan", "stdout_to_stderr"]
+__all__ = ["add_compare_options", "ComparePlan", "stdout_to_stderr"]
 
 
 def add_compare_options(p, controllers: bool = True) -> None:

@@ -9,7 +9,7 @@ from hubbeam_ctrl.cli.args import Command, add_verbose, params_from_args, stdout
 from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.plant.models import MODEL_SPECS
 
-__all__ = ["COMMAND", "CRITICAL_SPEED_MODELS"]
+__all__ = ["CRITICAL_SPEED_MODELS"]
 
 #: Models whose bending stiffness is quadratic in the spin (``critical-speed`` needs it; CFOAM's
 #: complete foreshortening is not).

@@ -19,7 +19,7 @@ from hubbeam_ctrl.cli.args import Command
 from hubbeam_ctrl.core.fileio import atomic_write_text
 from hubbeam_ctrl.plant.params import Params
 
-__all__ = ["spinup_comparison", "main", "COMMAND"]
+__all__ = ["spinup_comparison", "main"]
 
 #: The paper's quoted values at w_f = 2.8 rad/s (Section 4.2).
 PAPER_PEAKS_M = {"foam": 0.22, "tlam": 0.49}

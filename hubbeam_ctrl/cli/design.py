@@ -19,7 +19,7 @@ import math
 
 from hubbeam_ctrl.cli.args import Command
 
-__all__ = ["COMMAND", "LINEAR_CONTROLLERS"]
+__all__ = ["LINEAR_CONTROLLERS"]
 
 #: The controllers that are linear systems (MPC and the open loop are not).
 LINEAR_CONTROLLERS = ("pd", "lqr", "lqg")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from hubbeam_ctrl.cli.args import Command
 
-__all__ = ["COMMAND", "KINDS"]
+__all__ = ["KINDS"]
 
 #: The signal kinds, as ``hubbeam_ctrl.calibrate.excitation.EXCITATION_KINDS`` (not imported here:
 #: building the parser stays cheap).

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from hubbeam_ctrl.cli.args import Command
 
-__all__ = ["COMMAND", "RECORD_OPTIONS"]
+__all__ = ["RECORD_OPTIONS"]
 
 
 def _options(p) -> None:

@@ -13,7 +13,7 @@ import sys
 
 from hubbeam_ctrl.cli.args import UNSTABLE_NOTE, Command
 
-__all__ = ["COMMAND", "UNSTABLE_NOTE"]      # UNSTABLE_NOTE: re-exported (its old home)
+__all__ = ["UNSTABLE_NOTE"]      # UNSTABLE_NOTE: re-exported (its old home)
 
 
 class _OutputsHelpFormatter(argparse.HelpFormatter):

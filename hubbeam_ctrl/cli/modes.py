@@ -18,7 +18,7 @@ from hubbeam_ctrl.plant.convergence import CLI_ASSUMED_MODES
 from hubbeam_ctrl.plant.models import MODEL_SPECS
 from hubbeam_ctrl.plant.params import MAX_MODES
 
-__all__ = ["COMMAND"]
+__all__ = []
 
 
 def _options(p) -> None:

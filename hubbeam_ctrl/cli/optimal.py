@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from hubbeam_ctrl.cli.args import Command
 
-__all__ = ["COMMAND"]
+__all__ = []
 
 
 def _options(p) -> None:

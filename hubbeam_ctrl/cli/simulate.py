@@ -20,7 +20,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.jsonio import strict_json
 from hubbeam_ctrl.plant.models import AXIAL_TREATMENTS, MODEL_SPECS
 
-__all__ = ["COMMAND", "FIXED_STEP_DT"]
+__all__ = ["FIXED_STEP_DT"]
 
 
 def _options(p) -> None:

@@ -14,7 +14,7 @@ import time
 from hubbeam_ctrl.cli.args import Command, add_rig_option, add_verbose, nonempty, terminate_as_interrupt
 from hubbeam_ctrl.cli.main import positive_float, positive_int
 
-__all__ = ["COMMAND", "add_engine_options", "study_plan", "study_engine", "STUDY_RIG"]
+__all__ = ["add_engine_options", "study_plan", "study_engine", "STUDY_RIG"]
 
 
 def add_engine_options(p) -> None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from hubbeam_ctrl.cli.args import Command, add_rig_option
 from hubbeam_ctrl.cli.main import finite_float, positive_int
 
-__all__ = ["COMMAND"]
+__all__ = []
 
 
 def _objective(text):
