@@ -99,7 +99,7 @@ def test_margins_see_the_delay():
 
 
 @pytest.mark.slow
-def test_full_delay_servo_settles():
+def test_full_delay_servo_settles(fast_backend):
     """servo_link with one full sample of delay, 90 degrees in 0.45 s (1.5 x its time-optimal
     0.302 s): LQR, LQG and MPC settled (they limit-cycled before), final angle within 2 counts,
     residual tip within 1e-3 L, and the certificate of the loop with its delay and drive stable."""
@@ -181,7 +181,7 @@ def test_one_law_two_rows_is_said():
     assert any(n.startswith("lqg is the same linear law as lqr") for n in c.notes)
 
 
-def test_the_default_controllers_on_a_rig_without_a_rate_sensor_leave_pd_out(tmp_path, capsys):
+def test_the_default_controllers_on_a_rig_without_a_rate_sensor_leave_pd_out(tmp_path, capsys, fast_backend):
     """accel_link has no rate sensor: the default list runs without PD (a note says why), before any
     run; an explicit PD is refused in one line naming sensors.rate (exit 2 from the CLI)."""
     from hubbeam_ctrl.cli.main import main

@@ -186,7 +186,7 @@ def test_report_lines_say_where_each_band_came_from(quarter_turn, servo):
 
 
 # -- hubbeam compare --settle-angle ... ------------------------------------------------------------
-def test_cli_compare_with_own_bands(tmp_path, capsys):
+def test_cli_compare_with_own_bands(tmp_path, capsys, fast_backend):
     """``hubbeam compare --rig servo_link --settle-angle 2counts --settle-tip 0.5mm``: the bands in
     metrics.json and report.md, the verdict judged by them (the same run with a band of 1e-5 rad,
     finer than the loop holds the angle, does not settle)."""

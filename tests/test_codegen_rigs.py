@@ -22,6 +22,12 @@ from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
 needs_cc = pytest.mark.skipif(compiler() is None, reason=NO_COMPILER)
 
 
+@pytest.fixture(autouse=True)
+def _plant_on_the_fast_backend(fast_backend):
+    """The evaluation plant of every slew here compiled where a compiler works (the controllers'
+    C against Python is what these tests compare; the plant is the same for both)."""
+
+
 def _rig(name: str):
     """A preset; ``servo_link_delay1``: one full sample of delay; ``servo_link_norate``: no tachometer."""
     if name == "servo_link_delay1":

@@ -20,7 +20,7 @@ def _rows(rows):
     return json.dumps(rows, sort_keys=True, default=str)
 
 
-def test_ladder_takes_the_comparison_as_its_last_step(monkeypatch):
+def test_ladder_takes_the_comparison_as_its_last_step(monkeypatch, fast_backend):
     full = load_rig("servo_link")
     rig = Rig(beam=full.beam, drive=full.drive, friction=full.friction, timing=full.timing.replace(delay=0.0))
     settings = CompareSettings(run=RunChoice(t_end=1.0), scenario=ScenarioChoice(slew_angle=1.5708, t_f=0.6))

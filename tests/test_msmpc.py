@@ -159,7 +159,7 @@ def test_registered_and_made_by_name(design):
 
 
 @pytest.mark.slow
-def test_table1_payload_range_settles_and_is_certified():
+def test_table1_payload_range_settles_and_is_certified(fast_backend):
     """Table 1's beam, its default slew, payload 0-0.5 kg (compare --payload-range with msmpc): one
     scenario per payload of the grid; on FOAM at 0, 0.1 and 0.5 kg settled, residual <= 2 % of that
     plant's open loop, |tau| <= 200 N m, and the certificate of its unconstrained law over the whole

@@ -93,7 +93,7 @@ def test_learning_settings_are_checked():
 
 
 @pytest.mark.slow
-def test_the_learning_nmpc_settles_the_lab_arm_with_twice_the_design_payload():
+def test_the_learning_nmpc_settles_the_lab_arm_with_twice_the_design_payload(fast_backend):
     """The 1 m lab arm designed for 0.1 kg carries 0.2 kg: the NMPC that learns it settles within one
     first-mode period after t_f with the residual within 0.1 % of L and within the torque limit (its
     step times are benchmarks/bench_nmpc_payload.py's; the same NMPC with the design's payload does

@@ -248,7 +248,7 @@ def _walk_runs(command, base, out_name, tmp_path, files, capsys, skip=("--contro
 
 
 @pytest.mark.slow
-def test_every_design_option_acts_or_is_refused(tmp_path, files, capsys):
+def test_every_design_option_acts_or_is_refused(tmp_path, files, capsys, fast_backend):
     """``hubbeam design --controller lqr`` (the slew): each option changes what is saved or printed,
     or is refused; --payload-range (the one slow option, 8 s) designs LQR for the range, and with PD
     it is refused (it was silently ignored)."""

@@ -93,7 +93,7 @@ def test_the_re_plan_keeps_the_modes_its_torque_grid_can_shape():
     assert shapeable_modes(d, 40, 3.46) == 2 and shapeable_modes(d, 40, 2.3) == 3     # 0.37, 2.33, 6.95 Hz
 
 
-def test_the_lqg_learns_the_payload_from_its_filters_estimate():
+def test_the_lqg_learns_the_payload_from_its_filters_estimate(fast_backend):
     """The LQG re-plans from its filter's estimate and hands it to the new payload's filter, which
     does not predict along the 2-3-mode re-plan: on the 0.5 kg beam it settles within its target
     (measured 6.57 s against 7.37 s; 8.57 s predicting along the re-plan; docs/limit.md)."""
@@ -142,7 +142,7 @@ def test_bad_settings_and_controllers_are_refused_in_one_line():
 
 
 @pytest.mark.slow
-def test_payload_comparison_and_the_cli_learn_the_payload(tmp_path, capsys):
+def test_payload_comparison_and_the_cli_learn_the_payload(tmp_path, capsys, fast_backend):
     """``PayloadChoice(payload_learning=...)`` of ``payload_comparison`` and ``hubbeam compare --learn-payload``: no
     range design, the nominal LQR learns 0.5 kg and settles in time; the rows and the report say
     what it learned (the table's design column is the payload it ended with)."""

@@ -112,7 +112,7 @@ def test_ideal_rig_is_the_beam_alone_bit_for_bit():
 
 
 @pytest.mark.slow
-def test_servo_link_targets():
+def test_servo_link_targets(fast_backend):
     """Issue 21's targets on the published rig: 90 degrees in 0.6 s, all defaults, the task's whole
     2.19 s. (Cut at 1.8 s, the torque envelope's growth rate over the short window that is left was
     erratic in the integration step, MPC 'unstable' at 15 and 25 substeps and 'settled' at 14, 16,

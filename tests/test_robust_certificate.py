@@ -106,7 +106,7 @@ def test_nominal_lqr_is_certified_and_nominal_lqg_fails_at_the_heavy_end(table1)
     assert cmp.metrics["lqg"]["robust_verdict"] == "not certified"
 
 
-def test_the_worst_plant_found_agrees_with_a_nonlinear_run(table1):
+def test_the_worst_plant_found_agrees_with_a_nonlinear_run(table1, fast_backend):
     rig, cmp = table1
     bare = rig.replace(uncertainty=Uncertainty())
     bad = run_at(cmp, "lqg", bare, cmp.robust["lqg"].worst.values, PAYLOAD)

@@ -27,7 +27,7 @@ needs_fork = pytest.mark.skipif(not can_fork(), reason="no fork or a single proc
 
 
 @needs_fork
-def test_side_by_side_equals_one_after_the_other(monkeypatch):
+def test_side_by_side_equals_one_after_the_other(monkeypatch, fast_backend):
     settings = CompareSettings(run=RunChoice(t_end=16.0))
     runs = {}
     for flag in (True, False):
