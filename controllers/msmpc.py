@@ -309,10 +309,7 @@ class MultiStageMPC(Controller):
 
     def stats(self) -> dict:
         """Counters of the run: QP solves, fallbacks to the unconstrained law, the scenarios."""
-        return {"qp_solves": self.n_solves, "qp_fallbacks": self.n_fallbacks,
-                "fallback_fraction": self.n_fallbacks / self.n_solves if self.n_solves else 0.0,
-                "solver": self.settings.solver, "horizon": self.settings.horizon,
-                "scenarios_kg": list(self.payloads), "scenario_weights": list(self.weights)}
+        return {**MPC.stats(self), "scenarios_kg": list(self.payloads), "scenario_weights": list(self.weights)}
 
     def plan(self, t: float, y) -> np.ndarray:
         """Solve the tree's QP; return each scenario's planned torques [N m].
