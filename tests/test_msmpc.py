@@ -205,3 +205,28 @@ def test_on_a_rig_one_scenario_runs_as_the_mpc():
     assert len(a.tau) == len(b.tau) > 1000
     assert np.max(np.abs(np.asarray(a.tau) - np.asarray(b.tau))) <= 1e-9
     assert cmp.metrics["msmpc"]["verdict"] == cmp.metrics["mpc"]["verdict"]
+
+
+def test_the_docs_table_is_the_benchmarks_json():
+    """docs/robust.md's multi-stage MPC table quotes benchmarks/results/bench_msmpc.json: each mpc and
+    msmpc row's design, worst residual and certificate radii are the JSON's."""
+    import json
+
+    from tests.conftest import ROOT
+    data = json.loads((ROOT / "benchmarks" / "results" / "bench_msmpc.json").read_text())["cases"]
+    text = (ROOT / "docs" / "robust.md").read_text()
+    table = text.split("<!-- msmpc table: from benchmarks/results/bench_msmpc.json -->")[1].strip().split("\n\n")[0]
+    checked = 0
+    for line in table.splitlines()[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        case, name = cells[0], cells[1]
+        if name not in ("mpc", "msmpc"):
+            continue                                    # the certified MPC's row: its own set_mpc entry
+        run = data[case]["controllers"][name]
+        undamped, floor = run["certificate"]["undamped"], run["certificate"]["floor_0.05pct"]
+        assert cells[2] == data[case]["designs"][name]["choice"], line
+        assert cells[4] == f"{run['worst_residual_pct_of_openloop']:.3g}", line
+        assert cells[6] == f"{undamped['radius']:.7f} ({undamped['worst_payload_kg']:g} kg)", line
+        assert cells[7] == f"{floor['radius']:.6f}", line
+        checked += 1
+    assert checked == 4

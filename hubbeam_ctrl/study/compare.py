@@ -57,7 +57,7 @@ from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
-from hubbeam_ctrl.study.yardstick import rig_default_slew, task_dt, task_limit
+from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_on_rig
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
@@ -301,13 +301,10 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     if dt is None:
         dt = task_dt(design_params if design_params is not None else base)
     design_p = design_params if design_params is not None else base
-    slew_angle, task_notes = scn.slew_angle, []
-    if rig is not None and not rig.is_ideal and task == "slew" and scn.t_f is None:   # ideal: the beam alone
-        task, note = rig_default_slew(rig, slew_angle)
-        slew_angle, task_notes = None, [note]
+    task, scn, task_notes = task_on_rig(rig, task, scn)      # an ideal rig: the beam alone's task
     t_f = DEFAULT_T_F if scn.t_f is None else scn.t_f
     options = dict(plant=plant, params=design_p, tau_max=scn.tau_max, t_f=t_f, dt=dt, w_f=scn.w_f,
-                   slew_angle=slew_angle, tolerances=dc.tolerances,
+                   slew_angle=scn.slew_angle, tolerances=dc.tolerances,
                    reference="rigid" if reference == "optimal" else reference)
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
     sc = make_scenario(task, t_end=t_end, **options)    # None: the task's own

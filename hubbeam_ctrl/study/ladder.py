@@ -19,7 +19,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Damping, Drive, Friction, Rig, Sensors, Timing
 from hubbeam_ctrl.study.compare import _design_modes, _sim_settings, compare
 from hubbeam_ctrl.study.compare_values import CompareSettings
-from hubbeam_ctrl.study.yardstick import rig_default_slew
+from hubbeam_ctrl.study.yardstick import task_on_rig
 
 __all__ = ["LADDER_STEPS", "ladder_rigs", "rig_ladder"]
 
@@ -84,10 +84,9 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
     workers : int
         Processes that run the steps side by side (forked: each starts with this process's
         compiled functions and caches; the rows are the same as run here). Default 1: here,
-        one after the other (each step's comparison already runs its closed loops side by
-        side, :data:`hubbeam_ctrl.study.compare.SIDE_BY_SIDE`; on the shared 2-core machine two
-        ladder workers on top of that took 88 s against 68 s, ``benchmarks/results/
-        bench_compare_2026-11-28_ladder*.json``); more where processors are free.
+        one after the other (on the shared, loaded 2-core machine two ladder workers took 88 s
+        against 68 s, ``benchmarks/results/bench_compare_2026-11-28_ladder*.json``); more where
+        processors are free.
 
     Returns
     -------
@@ -101,9 +100,8 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
         raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
     steps = ladder_rigs(rig)
     asked, asked_settings = task, settings
-    if task == "slew" and settings.scenario.t_f is None and not rig.is_ideal:   # every step: the full rig's task
-        task, _ = rig_default_slew(rig, settings.scenario.slew_angle)
-        settings = dataclasses.replace(settings, scenario=dataclasses.replace(settings.scenario, slew_angle=None))
+    task, scenario, _ = task_on_rig(rig, task, settings.scenario)       # every step: the full rig's task
+    settings = dataclasses.replace(settings, scenario=scenario)
     rows, t_end = {}, settings.run.t_end
     todo = list(range(len(steps)))
     if t_end is None:                    # the first step sets the window of the others

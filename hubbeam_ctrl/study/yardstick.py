@@ -18,12 +18,14 @@ in absolute terms (issue 22):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from hubbeam_ctrl.core.errors import ParameterError
 
 __all__ = ["LIMIT_KINDS", "RESIDUAL_PERIODS", "rigid_limit", "task_limit", "yardstick_metrics", "task_t_end",
-           "task_dt", "SAMPLES_PER_PERIOD", "DEFAULT_RIG_SLEW_RAD", "DEFAULT_RIG_PACE", "rig_default_slew"]
+           "task_dt", "SAMPLES_PER_PERIOD", "DEFAULT_RIG_SLEW_RAD", "DEFAULT_RIG_PACE", "rig_default_slew",
+           "task_on_rig"]
 
 #: The angle of a rig's default slew [rad]: a quarter turn.
 DEFAULT_RIG_SLEW_RAD = math.pi / 2
@@ -220,3 +222,30 @@ def rig_default_slew(rig, slew_angle: float | None = None):
             f"bound {bound:.4g} s + first-mode period {period:.4g} s, an upper bound of the time-optimal slew); "
             "give --tf (or a Slew) for another, `hubbeam optimal --rig` for the time-optimal one")
     return Slew(angle, duration), note
+
+
+def task_on_rig(rig, task, scenario):
+    """The task a comparison runs on ``rig``: ``(task, scenario, notes)``.
+
+    A registered ``slew`` with no duration (``scenario.t_f`` None) on a rig with any hardware is
+    the rig's default slew (:func:`rig_default_slew`, by ``scenario.slew_angle`` if given); anything
+    else, and any task on an ideal rig or the beam alone, is returned as it is.
+
+    Parameters
+    ----------
+    rig : Rig or None
+    task : str or Slew or SpinUp
+    scenario : ScenarioChoice
+
+    Returns
+    -------
+    task : str or Slew or SpinUp
+    scenario : ScenarioChoice
+        Without its ``slew_angle`` when the task became the rig's slew.
+    notes : list of str
+        The report's line saying where the task came from (empty when unchanged).
+    """
+    if rig is None or rig.is_ideal or task != "slew" or scenario.t_f is not None:
+        return task, scenario, []
+    slew, note = rig_default_slew(rig, scenario.slew_angle)
+    return slew, dataclasses.replace(scenario, slew_angle=None), [note]
