@@ -39,7 +39,8 @@ from .riccati import dlqe
 from .scaling import first_mode
 
 __all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain", "solve_kalman", "filter_matrices", "error_decay_rate",
-           "decay_model", "filter_poles", "plan_offsets", "plan_worth_predicting"]
+           "decay_model", "estimates_rate_bias", "filter_state_names", "filter_gain", "filter_poles",
+           "plan_offsets", "plan_worth_predicting"]
 
 #: The sensors' own specification: the filter's assumed sensor noise defaults to it.
 _SENSORS = SensorSettings()
@@ -81,6 +82,12 @@ class KalmanNoise(Settings):
     accel_noise_m_s2: float = setting(0.05, unit="m/s^2", lo=0.0, lo_open=True,
                                       doc="Assumed tip-accelerometer noise, standard deviation (a rig's "
                                           "sensors.accel_noise replaces it).")
+    rate_bias_walk: float | None = setting(None, unit="rad/s/sqrt(s)", lo=0.0, kind=float,
+                                           doc="Random walk of the rate sensor's bias (a gyro's drift); a "
+                                               "value (0 for a constant bias) makes the filter estimate "
+                                               "the bias as a state (filter_matrices), None: the rate "
+                                               "sensor has no bias. A rig's sensors.rate_bias or "
+                                               "rate_bias_walk sets it (study.rig_loop.rig_noise).")
     model_error: np.ndarray | None = setting(None, kind=object,
                                              doc="Extra process-noise covariance for model error (n_x x n_x "
                                                  "of the filter's model, symmetric positive semidefinite), "
@@ -209,16 +216,85 @@ def _kalman_design(design: DesignModel, noise: KalmanNoise, design_modes: int | 
     return solve_kalman(decay_model(A, error_decay_rate(design, noise), design.dt), C, Qn, Rn)
 
 
+#: The bias's own process noise never falls below this fraction of the rate sensor's noise per
+#: sample (a constant bias, rate_bias_walk = 0, still has a stabilisable Riccati equation).
+RATE_BIAS_FLOOR = 1e-3
+
+
+def estimates_rate_bias(model: DesignModel, noise: KalmanNoise) -> bool:
+    """Whether the filter carries the rate sensor's bias as a state: ``noise.rate_bias_walk`` is
+    set and the model reads the hub rate (``theta_dot``).
+
+    Parameters
+    ----------
+    model : DesignModel
+    noise : KalmanNoise
+
+    Returns
+    -------
+    bool
+    """
+    return getattr(noise, "rate_bias_walk", None) is not None and "theta_dot" in model.signals
+
+
+def filter_state_names(model: DesignModel, noise: KalmanNoise, integral: bool = False) -> list:
+    """Names of the filter's states ``z = [x, u_prev, b, d]`` (:func:`filter_matrices`).
+
+    Parameters
+    ----------
+    model : DesignModel
+    noise : KalmanNoise
+    integral : bool
+        The filter carries an input disturbance (integral action).
+
+    Returns
+    -------
+    list of str
+        ``<state>_est`` for the model's states, then ``u_prev``, ``rate_bias_est`` [rad/s] and
+        ``d_est`` [N m] where the filter has them.
+    """
+    return ([f"{s}_est" for s in model.state_names] + (["u_prev"] if model.carries_loop else [])
+            + (["rate_bias_est"] if estimates_rate_bias(model, noise) else []) + (["d_est"] if integral else []))
+
+
+def filter_gain(K, model: DesignModel, noise: KalmanNoise, integral: bool = False) -> np.ndarray:
+    """A gain on the acting state as a gain on the whole filter state ``[x, u_prev, b, d]``.
+
+    The bias of the rate sensor is not fed back (0); an estimated input disturbance is
+    cancelled (1: ``u = -K x - d``).
+
+    Parameters
+    ----------
+    K : ndarray (1, n_x)
+        Gain on the model's state where the command acts (:meth:`DesignModel.acting_state`).
+    model : DesignModel
+        The filter's model.
+    noise : KalmanNoise
+    integral : bool
+        The filter carries an input disturbance.
+
+    Returns
+    -------
+    ndarray (1, nz)
+    """
+    K = model.action_gain(K)
+    extra = [0.0] * estimates_rate_bias(model, noise) + [1.0] * bool(integral)
+    return np.hstack([K, [extra]]) if extra else K
+
+
 def filter_matrices(model: DesignModel, noise: KalmanNoise, design_modes: int | None = None,
                     disturbance_noise: float | None = None) -> tuple:
     """The filter's sampled model ``z+ = A z + B u``, ``y = C z`` and its noise covariances.
 
-    The state is ``z = [x, u_prev, d]``: the model's state; the previous command when the model
+    The state is ``z = [x, u_prev, b, d]``: the model's state; the previous command when the model
     carries a computation delay or an accelerometer (:attr:`DesignModel.carries_loop`), known
     exactly (no noise), so the prediction is the fractional-delay zero-order hold
     (:func:`hubbeam_ctrl.linear.delay.delay_inputs`) and the accelerometer's feedthrough is a
-    state's row; a constant input disturbance torque with ``disturbance_noise``
-    (:mod:`controllers.integral`), acting without delay.
+    state's row; the rate sensor's bias when :attr:`KalmanNoise.rate_bias_walk` is set
+    (:func:`estimates_rate_bias`: it adds to the rate row and walks with
+    ``rate_bias_walk sqrt(dt)`` per sample; the prescribed degree of stability covers it, so a
+    constant bias is learnt at the filter's own rate); a constant input disturbance torque with
+    ``disturbance_noise`` (:mod:`controllers.integral`), acting without delay.
 
     Parameters
     ----------
@@ -250,6 +326,18 @@ def filter_matrices(model: DesignModel, noise: KalmanNoise, design_modes: int | 
         C = np.hstack([model.C_sensors, D])
         Q = np.zeros((nx + 1, nx + 1))
         Q[:nx, :nx] = Qx
+    if estimates_rate_bias(model, noise):      # y_rate = theta_dot + b, b a random walk
+        n = A.shape[0]
+        Ab = np.eye(n + 1)
+        Ab[:n, :n] = A
+        A, B = Ab, np.vstack([B, [[0.0]]])
+        C = np.hstack([C, np.zeros((C.shape[0], 1))])
+        C[model.signals.index("theta_dot"), n] = 1.0
+        Qb = np.zeros((n + 1, n + 1))
+        Qb[:n, :n] = Q
+        per_sample = noise.rate_bias_walk * math.sqrt(model.dt)
+        Qb[n, n] = max(per_sample, RATE_BIAS_FLOOR * noise.rate_noise_rad_s) ** 2
+        Q = Qb
     if disturbance_noise is not None:
         n = A.shape[0]
         Aa = np.zeros((n + 1, n + 1))

@@ -33,7 +33,9 @@ from .estimator import (
     KalmanNoise,
     decay_model,
     error_decay_rate,
+    filter_gain,
     filter_matrices,
+    filter_state_names,
     plan_offsets,
     plan_worth_predicting,
     solve_kalman,
@@ -234,6 +236,7 @@ class ObservedFeedback(AppliedTorque, Controller):
         m_f = max(inner.state_modes, inner.design.n_modes)
         model = inner.design if inner.design.n_modes >= m_f else estimator_model(inner.design, m_f)
         self.filter_model = model
+        self.noise = noise
         self.integral = disturbance_noise is not None
         if self.integral:
             self.estimator = OffsetFreeEstimator(model, noise, disturbance_noise, inner.n_modes)
@@ -295,11 +298,8 @@ class ObservedFeedback(AppliedTorque, Controller):
         fm = self.filter_model
         K = np.zeros((1, fm.n_x))
         K[0, self._pick] = -np.asarray(Dk)[0]
-        K = fm.action_gain(K)
-        states = [f"{s}_est" for s in fm.state_names] + (["u_prev"] if fm.carries_loop else [])
-        if self.integral:
-            K = np.hstack([K, [[1.0]]])
-            states.append("d_est")
+        K = filter_gain(K, fm, self.noise, self.integral)
+        states = filter_state_names(fm, self.noise, self.integral)
         est = self.estimator
         return (*observer_feedback_matrices(est.A, est.B, est.C, est.L, K), states, fm.sensor_labels)
 

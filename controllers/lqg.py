@@ -16,7 +16,15 @@ import numpy as np
 from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
-from .estimator import AppliedTorque, KalmanEstimator, KalmanNoise, plan_offsets, plan_worth_predicting
+from .estimator import (
+    AppliedTorque,
+    KalmanEstimator,
+    KalmanNoise,
+    filter_gain,
+    filter_state_names,
+    plan_offsets,
+    plan_worth_predicting,
+)
 from .integral import OffsetFreeEstimator, observer_feedback_matrices
 from .lqr import dlqr_gain
 from .residual import embedding, estimator_model, residual_design
@@ -355,12 +363,9 @@ class LQG(AppliedTorque, Controller):
         ``Dc = -K L``.
         """
         fm = self.filter_model
-        K = fm.action_gain(self._Ke[None, :])
-        states = [f"{name}_est" for name in fm.state_names] + (["u_prev"] if fm.carries_loop else [])
+        K = filter_gain(self._Ke[None, :], fm, self.settings, self.settings.integral)
+        states = filter_state_names(fm, self.settings, self.settings.integral)
         est = self.estimator
-        if self.settings.integral:
-            K = np.hstack([K, [[1.0]]])
-            states.append("d_est")
         return (*observer_feedback_matrices(est.A, est.B, est.C, self.L, K), states, self.design.sensor_labels)
 
     def __call__(self, t: float, y) -> float:

@@ -17,6 +17,7 @@ import numpy as np
 
 from controllers import LQG, LQR, MPC, PD, Controller, KalmanNoise, OpenLoop, ScheduledLQG, ShapedOpenLoop
 from controllers.drive import VoltageCommand
+from controllers.estimator import estimates_rate_bias
 from controllers.integral import ObservedFeedback
 from hubbeam_ctrl.core.errors import ParameterError
 
@@ -203,10 +204,14 @@ def _acting(ctrl, fm, K, X, x0, reference_at) -> tuple:
     return Kz, np.array(rows), np.append(x0, 0.0), np.array(tff)
 
 
-def _with_disturbance(K, X, x0) -> tuple:
-    """Gain, reference table and initial state on the filter's state with the disturbance ``d``
-    (:class:`controllers.integral.OffsetFreeEstimator`): ``u = K (x - x_ref) + d``, ``d_ref = 0``."""
-    return (np.append(K, 1.0), np.hstack([X, np.zeros((len(X), 1))]), np.append(x0, 0.0))
+def _with_filter_states(K, X, x0, fm, noise, integral: bool) -> tuple:
+    """Gain, reference table and initial state on the filter's whole state ``[x, u_prev, b, d]``
+    (:func:`controllers.estimator.filter_matrices`): the rate sensor's bias ``b`` is not fed back
+    and the disturbance ``d`` (:class:`controllers.integral.OffsetFreeEstimator`) is cancelled,
+    ``u = K (x - x_ref) + d``; both start at 0 and have reference 0."""
+    gains = [0.0] * estimates_rate_bias(fm, noise) + [1.0] * bool(integral)
+    k = len(gains)
+    return (np.append(K, gains), np.hstack([X, np.zeros((len(X), k))]), np.append(x0, np.zeros(k)))
 
 
 def control_law(controller: Controller, noise: KalmanNoise | None = None) -> ControlLaw:
@@ -270,8 +275,7 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         K, x0 = np.asarray(inner.K, float), ctrl.initial_state()[:ctrl.filter_model.n_x]
         K, X, x0, tff_act = _acting(inner, ctrl.filter_model, K, X, x0, lambda k: inner._reference_at(k)[0])
         tff = tff if tff_act is None else tff_act
-        if ctrl.integral:
-            K, X, x0 = _with_disturbance(K, X, x0)
+        K, X, x0 = _with_filter_states(K, X, x0, ctrl.filter_model, ctrl.noise, ctrl.integral)
         law = _observer_law(ctrl, "lqr", K, ctrl.estimator, X, tff, ctrl.design.spin, float(inner._ff), x0,
                             ctrl._defect, ctrl.filter_model)
         law.check_finite()
@@ -296,8 +300,7 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         K = ctrl._Ke
         K, X, x0, tff_act = _acting(ctrl, ctrl.filter_model, K, X, x0, ctrl._filter_reference)
         tff = tff if tff_act is None else tff_act
-        if ctrl.settings.integral:                      # the estimated disturbance is cancelled
-            K, X, x0 = _with_disturbance(K, X, x0)
+        K, X, x0 = _with_filter_states(K, X, x0, ctrl.filter_model, ctrl.settings, ctrl.settings.integral)
         law = _observer_law(ctrl, "lqg", K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0,
                             ctrl._defect, ctrl.filter_model)
     elif isinstance(ctrl, ShapedOpenLoop):

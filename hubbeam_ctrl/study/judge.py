@@ -97,10 +97,12 @@ def margin_cause(metrics: dict, margins, delay_s: float = 0.0) -> None:
     """Add to a verdict's reason what the loop's margins say about it (in place).
 
     The margins are of the loop as it runs (:func:`controllers.analysis.loop_margins` on the
-    design model with the rig's drive, sensors and computation delay). A loop that is stable but
-    barely (disk margin below :data:`THIN_DISK_MARGIN`, or a delay margin below the rig's own
-    delay) is named as the cause of a run that did not settle: saturation, friction and the
-    evaluation plant's differences tip a loop without margin over.
+    design model with the rig's drive, sensors and computation delay), so the delay margin is the
+    delay the loop tolerates beyond the rig's own. A loop that is stable but barely (disk margin
+    below :data:`THIN_DISK_MARGIN`, or a delay margin below the rig's own delay: the loop would not
+    survive the delay doubling, e.g. a computation that overruns its sample) is named as the cause
+    of a run that did not settle: saturation, friction and the evaluation plant's differences tip a
+    loop without margin over.
 
     Parameters
     ----------

@@ -278,7 +278,9 @@ def _report(comparison) -> str:
     lines += ladder_lines(getattr(comparison, "ladder", []))
     lines += _certificate_lines(comparison)
     lines += _robust_lines(comparison)
-    lines += _margin_lines(getattr(comparison, "margins", {}))
+    rig = getattr(comparison, "rig", None)
+    lines += _margin_lines(getattr(comparison, "margins", {}),
+                           0.0 if rig is None else rig.timing.delay * sc.dt)
     notes = [f"- {name}: {m['message']}" for name, m in comparison.metrics.items()
              if not m["completed"] or m.get("outside_validated_range")]
     notes += [f"- {name}: {m['qp_fallbacks']} of {m['qp_solves']} QPs failed and fell back to LQR"
@@ -479,7 +481,9 @@ def _sensor_lines(sn, comparison) -> list:
         if sn.rate_bias:
             parts.append(f"bias {sn.rate_bias:.3g} rad/s")
         if sn.rate_bias_walk:
-            parts.append(f"bias drifting {sn.rate_bias_walk:.3g} rad/s/sqrt(s) (simulated, not estimated)")
+            parts.append(f"bias drifting {sn.rate_bias_walk:.3g} rad/s/sqrt(s)")
+        if sn.rate_bias or sn.rate_bias_walk:
+            parts.append("the filters estimate the bias as a state")
         rate = "hub rate " + ", ".join(parts)
     gauges = ("strain gauges at " + ", ".join(f"{x:g} m" for x in sn.strain_gauges)
               + (f" (noise {sn.strain_noise:.3g} N m)" if sn.strain_noise else "")) if sn.strain_gauges \
@@ -494,8 +498,10 @@ def _sensor_lines(sn, comparison) -> list:
     return [f"- Sensors: {angle}; {rate}; {gauges}; {accel}{filt}{read}."]
 
 
-def _margin_lines(margins: dict) -> list:
-    """The report's section on the linear loops' margins at the plant input (design model)."""
+def _margin_lines(margins: dict, delay_s: float = 0.0) -> list:
+    """The report's section on the linear loops' margins at the plant input (design model); on a
+    rig with a computation delay ``delay_s`` [s] the loop carries it, and the delay margin is the
+    delay it tolerates beyond it (set beside it)."""
     if not margins:
         return []
     f = lambda v, fmt: "-" if v is None or not math.isfinite(v) else fmt.format(v)
@@ -503,16 +509,24 @@ def _margin_lines(margins: dict) -> list:
              "Disk margin (balanced; python-control's `disk_margins` on the same grid in brackets where "
              "`loop_margins(ctrl, check=True)` asked for it), "
              "the gains and phase it guarantees together, classical gain and phase margins and the delay "
-             "margin (controllers.analysis.loop_margins).", "",
-             "| controller | stable | disk margin | disk gains | disk phase deg | gain margins | "
-             "phase margin deg | delay margin ms |", "|---|---|---|---|---|---|---|---|"]
+             "margin (controllers.analysis.loop_margins).", ""]
+    if delay_s > 0:
+        lines += [f"The loops carry the rig's computation delay of {1e3 * delay_s:.3g} ms (with the drive and "
+                  "the estimator): the delay margin is the further delay each tolerates, and the last column the "
+                  "whole delay it tolerates against the rig's.", ""]
+    extra = " total delay tolerated ms (rig's) |" if delay_s > 0 else ""
+    lines += ["| controller | stable | disk margin | disk gains | disk phase deg | gain margins | "
+              "phase margin deg | delay margin ms |" + extra, "|---|---|---|---|---|---|---|---|"
+              + ("---|" if delay_s > 0 else "")]
     for name, m in margins.items():
         lo, hi = m.disk_gain_margin
+        total = (f" {f((m.delay_margin_s + delay_s) * 1e3, '{:.3g}')} ({1e3 * delay_s:.3g}) |"
+                 if delay_s > 0 else "")
         lines.append(f"| {name} | {'yes' if m.stable else '**no**'} | {m.disk_margin:.3f} "
                      f"({f(m.disk_margin_control, '{:.3f}')}) | {lo:.3f}..{f(hi, '{:.3f}')} | "
                      f"{m.disk_phase_margin_deg:.1f} | {f(m.gain_margin_lower, '{:.3g}')} / "
                      f"{f(m.gain_margin_upper, '{:.3g}')} | {f(m.phase_margin_deg, '{:.1f}')} | "
-                     f"{f(m.delay_margin_s * 1e3, '{:.3g}')} |")
+                     f"{f(m.delay_margin_s * 1e3, '{:.3g}')} |" + total)
     return lines + [""]
 
 
