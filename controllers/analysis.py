@@ -42,6 +42,7 @@ from scipy.optimize import brentq, minimize_scalar
 from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import DesignModel
+from .sensing import with_anti_alias
 
 __all__ = ["LoopMargins", "FrequencyResponse", "design_plant", "loop_transfer", "loop_matrices", "closed_loop_poles",
            "loop_margins", "margins_of_loop", "frequency_grid", "hardware_plant", "rig_plant"]
@@ -137,8 +138,9 @@ def rig_plant(d: DesignModel, inputs, hardware=None, command: str = "torque", pa
     """The sampled plant of a loop as it runs on a rig: drive, viscous friction, the sensors the
     controller reads (an accelerometer's feedthrough) and the computation delay.
 
-    The state is ``[x, u_prev]`` (:func:`hubbeam_ctrl.linear.delay.delay_augmented`; with no
-    delay ``u_prev`` only feeds the accelerometer).
+    The state is ``[x, u_prev, f]`` (:func:`hubbeam_ctrl.linear.delay.delay_augmented`; with no
+    delay ``u_prev`` only feeds the accelerometer; ``f`` the anti-alias filter's outputs of the
+    filtered signals, :func:`controllers.sensing.with_anti_alias`).
 
     Parameters
     ----------
@@ -154,7 +156,7 @@ def rig_plant(d: DesignModel, inputs, hardware=None, command: str = "torque", pa
     Returns
     -------
     tuple of ndarray
-        ``(Ad, Bd, Cm)`` with ``Cm`` the rows of the inputs on ``[x, u_prev]``.
+        ``(Ad, Bd, Cm)`` with ``Cm`` the rows of the inputs on ``[x, u_prev, f]``.
     """
     from hubbeam_ctrl.linear.delay import delay_augmented
     A, B, delay = hardware_plant(d.A, d.B, hardware, command)
@@ -167,7 +169,10 @@ def rig_plant(d: DesignModel, inputs, hardware=None, command: str = "torque", pa
         Cm = _measurement_matrix(d, [("root_moment" if n == "moment_1" else n) for n in inputs])
         Dm = np.zeros((Cm.shape[0], 1))
     Ad, Bd = delay_augmented(A, B, d.dt, delay)
-    return Ad, Bd, np.hstack([Cm, Dm])
+    Cm = np.hstack([Cm, Dm])
+    if layout is not None and list(inputs) == list(layout.signals):     # the rig's anti-alias filter
+        Ad, Bd, Cm = with_anti_alias(Ad, Bd, Cm, layout, d.dt)
+    return Ad, Bd, Cm
 
 
 def loop_matrices(ctrl, plant=None):

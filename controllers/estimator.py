@@ -37,9 +37,11 @@ from hubbeam_ctrl.plant.sensors import SensorSettings
 from .base import DesignModel, check_psd
 from .riccati import dlqe
 from .scaling import first_mode
+from .sensing import with_anti_alias
 
 __all__ = ["KalmanNoise", "KalmanEstimator", "kalman_gain", "solve_kalman", "filter_matrices", "error_decay_rate",
            "decay_model", "estimates_rate_bias", "filter_state_names", "filter_gain", "filter_poles",
+           "extra_state_gains",
            "plan_offsets", "plan_worth_predicting"]
 
 #: The sensors' own specification: the filter's assumed sensor noise defaults to it.
@@ -238,7 +240,7 @@ def estimates_rate_bias(model: DesignModel, noise: KalmanNoise) -> bool:
 
 
 def filter_state_names(model: DesignModel, noise: KalmanNoise, integral: bool = False) -> list:
-    """Names of the filter's states ``z = [x, u_prev, b, d]`` (:func:`filter_matrices`).
+    """Names of the filter's states ``z = [x, u_prev, f, b, d]`` (:func:`filter_matrices`).
 
     Parameters
     ----------
@@ -250,17 +252,20 @@ def filter_state_names(model: DesignModel, noise: KalmanNoise, integral: bool = 
     Returns
     -------
     list of str
-        ``<state>_est`` for the model's states, then ``u_prev``, ``rate_bias_est`` [rad/s] and
-        ``d_est`` [N m] where the filter has them.
+        ``<state>_est`` for the model's states, then ``u_prev``, ``<signal>_filtered`` (the
+        anti-alias filter's outputs), ``rate_bias_est`` [rad/s] and ``d_est`` [N m] where the
+        filter has them.
     """
-    return ([f"{s}_est" for s in model.state_names] + (["u_prev"] if model.carries_loop else [])
+    filtered = [] if model.sensors is None else [f"{s}_filtered" for s in model.sensors.filtered]
+    return ([f"{s}_est" for s in model.state_names] + (["u_prev"] if model.carries_loop else []) + filtered
             + (["rate_bias_est"] if estimates_rate_bias(model, noise) else []) + (["d_est"] if integral else []))
 
 
 def filter_gain(K, model: DesignModel, noise: KalmanNoise, integral: bool = False) -> np.ndarray:
-    """A gain on the acting state as a gain on the whole filter state ``[x, u_prev, b, d]``.
+    """A gain on the acting state as a gain on the whole filter state ``[x, u_prev, f, b, d]``.
 
-    The bias of the rate sensor is not fed back (0); an estimated input disturbance is
+    The anti-alias filter's states and the bias of the rate sensor are not fed back (0); an
+    estimated input disturbance is
     cancelled (1: ``u = -K x - d``).
 
     Parameters
@@ -278,20 +283,39 @@ def filter_gain(K, model: DesignModel, noise: KalmanNoise, integral: bool = Fals
     ndarray (1, nz)
     """
     K = model.action_gain(K)
-    extra = [0.0] * estimates_rate_bias(model, noise) + [1.0] * bool(integral)
+    extra = extra_state_gains(model, noise, integral)
     return np.hstack([K, [extra]]) if extra else K
+
+
+def extra_state_gains(model: DesignModel, noise: KalmanNoise, integral: bool = False) -> list:
+    """The feedback's gains on the filter's states after ``[x, u_prev]``: 0 on the anti-alias
+    filter's outputs and the rate sensor's bias, 1 on an input disturbance (cancelled).
+
+    Parameters
+    ----------
+    model : DesignModel
+    noise : KalmanNoise
+    integral : bool
+
+    Returns
+    -------
+    list of float
+    """
+    filtered = 0 if model.sensors is None else len(model.sensors.filtered)
+    return [0.0] * filtered + [0.0] * estimates_rate_bias(model, noise) + [1.0] * bool(integral)
 
 
 def filter_matrices(model: DesignModel, noise: KalmanNoise, design_modes: int | None = None,
                     disturbance_noise: float | None = None) -> tuple:
     """The filter's sampled model ``z+ = A z + B u``, ``y = C z`` and its noise covariances.
 
-    The state is ``z = [x, u_prev, b, d]``: the model's state; the previous command when the model
+    The state is ``z = [x, u_prev, f, b, d]``: the model's state; the previous command when the model
     carries a computation delay or an accelerometer (:attr:`DesignModel.carries_loop`), known
     exactly (no noise), so the prediction is the fractional-delay zero-order hold
     (:func:`hubbeam_ctrl.linear.delay.delay_inputs`) and the accelerometer's feedthrough is a
-    state's row; the rate sensor's bias when :attr:`KalmanNoise.rate_bias_walk` is set
-    (:func:`estimates_rate_bias`: it adds to the rate row and walks with
+    state's row; the rig's anti-alias filter's output for each filtered signal
+    (:func:`controllers.sensing.with_anti_alias`, deterministic); the rate sensor's bias when
+    :attr:`KalmanNoise.rate_bias_walk` is set (:func:`estimates_rate_bias`: it adds to the rate row and walks with
     ``rate_bias_walk sqrt(dt)`` per sample; the prescribed degree of stability covers it, so a
     constant bias is learnt at the filter's own rate); a constant input disturbance torque with
     ``disturbance_noise`` (:mod:`controllers.integral`), acting without delay.
@@ -347,6 +371,16 @@ def filter_matrices(model: DesignModel, noise: KalmanNoise, design_modes: int | 
         Qa = np.zeros((n + 1, n + 1))
         Qa[:n, :n], Qa[n, n] = Q, float(disturbance_noise) ** 2
         Q = Qa
+    n = A.shape[0]
+    A, B, C = with_anti_alias(A, B, C, model.sensors, model.dt)
+    nf = A.shape[0] - n
+    if nf:                                     # the filter's states after [x, u_prev]: [x, u_prev, f, b, d]
+        p = nx + int(model.carries_loop)
+        order = np.r_[0:p, n:n + nf, p:n]
+        A, B, C = A[np.ix_(order, order)], B[order], C[:, order]
+        Qf = np.zeros((n + nf, n + nf))
+        Qf[:n, :n] = Q
+        Q = Qf[np.ix_(order, order)]
     return A, B, C, Q, Rn
 
 

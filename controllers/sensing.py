@@ -29,7 +29,7 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.instruments import moment_rows
 
-__all__ = ["SensorLayout", "DEFAULT_LAYOUT", "RIG_KEYS", "rig_key", "observability_defect"]
+__all__ = ["SensorLayout", "DEFAULT_LAYOUT", "RIG_KEYS", "rig_key", "observability_defect", "with_anti_alias"]
 
 #: The rig key that gives each signal (for messages that name what the user can change).
 RIG_KEYS = {"theta": "sensors.encoder_counts / sensors.angle_noise (the hub angle)",
@@ -66,16 +66,26 @@ class SensorLayout:
         ``moment_<i>`` (1-based gauge index), ``accel_tangential``.
     gauges : tuple of float
         Gauge positions from the root [m] (``moment_i`` reads ``gauges[i-1]``).
+    anti_alias_hz : float or None
+        Cutoff of the rig's first-order anti-alias filter [Hz] (``sensors.anti_alias_hz``);
+        None: no filter.
+    filtered : tuple of str
+        The signals that pass through it (every analog one: not an encoder's count).
     """
 
     signals: tuple = ("theta", "theta_dot", "moment_1")
     gauges: tuple = (0.0,)
+    anti_alias_hz: float | None = None
+    filtered: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "signals", tuple(self.signals))
         object.__setattr__(self, "gauges", tuple(float(g) for g in self.gauges))
+        object.__setattr__(self, "filtered", tuple(self.filtered) if self.anti_alias_hz is not None else ())
         if not self.signals:
             raise ParameterError("the rig's sensors must give at least the hub angle (sensors)")
+        if not set(self.filtered) <= set(self.signals):
+            raise ParameterError(f"filtered signals {self.filtered} must be among the signals {self.signals}")
         for s in self.signals:
             if s.startswith("moment_"):
                 i = int(s[7:]) if s[7:].isdigit() else 0
@@ -104,12 +114,19 @@ class SensorLayout:
         names += [f"moment_{i + 1}" for i in range(len(sensors.strain_gauges))]
         if sensors.tip_accelerometer:
             names.append("accel_tangential")
-        return cls(tuple(names), tuple(sensors.strain_gauges))
+        hz = getattr(sensors, "anti_alias_hz", None)
+        counted = getattr(sensors, "encoder_counts", 0) > 0
+        filtered = tuple(n for n in names if not (n == "theta" and counted)) if hz is not None else ()
+        return cls(tuple(names), tuple(sensors.strain_gauges), hz, filtered)
 
     @property
     def is_default(self) -> bool:
-        """Hub angle, hub rate and a root gauge: the beam alone's three sensors."""
-        return self.signals == DEFAULT_LAYOUT.signals and self.gauges[:1] == (0.0,)
+        """Hub angle, hub rate and a root gauge: the beam alone's three sensors (unfiltered)."""
+        return self.signals == DEFAULT_LAYOUT.signals and self.gauges[:1] == (0.0,) and not self.filtered
+
+    def anti_alias_rows(self) -> list:
+        """Indices of :attr:`signals` that pass through the anti-alias filter."""
+        return [k for k, s in enumerate(self.signals) if s in self.filtered]
 
     @property
     def has_feedthrough(self) -> bool:
@@ -168,6 +185,48 @@ class SensorLayout:
                 C[k, 1:h] -= spin ** 2 * tip[1:h]
                 D[k, 0] = arm * B[h, 0] + tip[1:h] @ B[h + 1:, 0]
         return C, D
+
+
+def with_anti_alias(A, B, C, layout, dt: float) -> tuple:
+    """A sampled model ``z+ = A z + B u``, ``y = C z`` whose filtered signals are read through the
+    rig's anti-alias filter, as the simulator's measurement chain does
+    (:func:`hubbeam_ctrl.sim.measurement.anti_alias_coefficients`): one more state per filtered
+    signal, ``f+ = decay f + b0 C_r (A z + B u) + b1 C_r z``, appended after ``z``; the filtered
+    rows of the output read ``f``.
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+    B : ndarray (n, 1)
+    C : ndarray (ny, n)
+        The unfiltered signals' rows on ``z`` (any feedthrough carried as a state's row).
+    layout : SensorLayout or None
+        The signals and which are filtered (None or none filtered: the model itself).
+    dt : float
+        Sample time [s].
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(A, B, C)`` with ``n + n_f`` states.
+    """
+    rows = [] if layout is None else layout.anti_alias_rows()
+    if not rows:
+        return A, B, C
+    from hubbeam_ctrl.sim.measurement import anti_alias_coefficients
+    decay, b0, b1 = anti_alias_coefficients(layout.anti_alias_hz, dt)
+    n, nf = A.shape[0], len(rows)
+    Cr = C[rows]
+    Af = np.zeros((n + nf, n + nf))
+    Af[:n, :n] = A
+    Af[n:, :n] = b0 * Cr @ A + b1 * Cr
+    Af[n:, n:] = decay * np.eye(nf)
+    Bf = np.vstack([B, b0 * Cr @ B])
+    Cf = np.hstack([C, np.zeros((C.shape[0], nf))])
+    for j, r in enumerate(rows):
+        Cf[r] = 0.0
+        Cf[r, n + j] = 1.0
+    return Af, Bf, Cf
 
 
 def _tip_row(params, n_modes: int) -> np.ndarray:

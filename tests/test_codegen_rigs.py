@@ -29,13 +29,17 @@ def _plant_on_the_fast_backend(fast_backend):
 
 
 def _rig(name: str):
-    """A preset; ``servo_link_delay1``: one full sample of delay; ``servo_link_norate``: no tachometer."""
+    """A preset; ``servo_link_delay1``: one full sample of delay; ``servo_link_norate``: no tachometer;
+    ``servo_link_aa``: a 30 Hz anti-alias filter."""
     if name == "servo_link_delay1":
         rig = load_rig("servo_link")
         return dataclasses.replace(rig, timing=dataclasses.replace(rig.timing, delay=1.0))
     if name == "accel_link_slew":         # an amplifier that moves the torque by at most 20 N m/s
         rig = load_rig("accel_link")
         return dataclasses.replace(rig, drive=dataclasses.replace(rig.drive, slew_rate=20.0))
+    if name == "servo_link_aa":           # a 30 Hz first-order anti-alias filter on the analog signals
+        rig = load_rig("servo_link")
+        return dataclasses.replace(rig, sensors=dataclasses.replace(rig.sensors, anti_alias_hz=30.0))
     if name == "servo_link_norate":
         rig = load_rig("servo_link")
         return dataclasses.replace(rig, sensors=dataclasses.replace(rig.sensors, rate=False))
@@ -63,6 +67,7 @@ def test_header_names_the_rigs_inputs_in_order_with_units():
     ("accel_link", math.pi / 2, 1.5, 2.5),            # encoder + tip accelerometer: no gauge, no rate
     ("servo_link_norate", math.pi / 2, 0.6, 1.0),     # DC motor, no tachometer: back-EMF on the filter's rate
     ("servo_link_delay1", math.pi / 2, 0.6, 1.0),     # one full sample of computation delay
+    ("servo_link_aa", math.pi / 2, 0.6, 1.0),         # the anti-alias filter's states in the C filter
     ("space_boom", math.pi / 6, 65.0, 100.0)])         # star tracker + gyro, no gauge, 10 Hz, one sample of delay
 @pytest.mark.slow
 def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, angle, t_f, t_end, tmp_path):

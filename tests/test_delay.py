@@ -106,7 +106,7 @@ def test_delayed_loop_poles_match_the_exact_sampled_loop_and_a_pade_model():
     A, B = np.asarray(lm.sys.A), np.asarray(lm.sys.B)
     n, dt, d = A.shape[0], 0.01, 0.6
     plain = control.ss(A, B, np.eye(n), 0).sample(dt)
-    K, _, _ = control.dlqr(plain.A, plain.B, np.diag([100.0] + [1.0] * (n - 1)), 1e-6)
+    K, _, _ = control.dlqr(plain.A, plain.B, np.diag([100.0] + [1.0] * (n - 1)), 1e-6, method="scipy")
     Ad, Bd = delay_augmented(A, B, dt, d)
     lam = np.sort_complex(np.linalg.eigvals(Ad - Bd @ np.hstack([K, np.zeros((1, 1))])))
     exact = np.zeros((n + 1, n + 1))

@@ -1,7 +1,7 @@
 """The report's margins section sets the delay margin beside the rig's computation delay (issue 36
 item 2): the loop carries the delay, so the margin is the delay tolerated beyond it."""
 
-from controllers import DesignModel, LQR
+from controllers import LQR, DesignModel
 from controllers.analysis import loop_margins
 from hubbeam_ctrl.study.report import _margin_lines
 

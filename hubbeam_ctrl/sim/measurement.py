@@ -30,7 +30,36 @@ from hubbeam_ctrl.plant.instruments import _kinematics, moment_rows, signal_name
 from hubbeam_ctrl.plant.models import HubBeamModel
 from hubbeam_ctrl.plant.rig import Sensors
 
-__all__ = ["AntiAliasFilter", "MeasurementChain"]
+__all__ = ["AntiAliasFilter", "MeasurementChain", "anti_alias_coefficients"]
+
+
+def anti_alias_coefficients(cutoff_hz: float, dt: float) -> tuple:
+    """``(decay, b0, b1)`` of the first-order anti-alias filter sampled every ``dt``:
+    ``y_f[k] = decay y_f[k-1] + b0 y[k] + b1 y[k-1]`` (:class:`AntiAliasFilter`'s exact update for
+    an input that is the straight line through its samples).
+
+    Parameters
+    ----------
+    cutoff_hz : float
+        Cutoff frequency [Hz], > 0.
+    dt : float
+        Sample time [s], > 0.
+
+    Returns
+    -------
+    tuple of float
+        [-]; ``b0 + b1 = 1 - decay`` (unit gain at rest).
+
+    Examples
+    --------
+    >>> decay, b0, b1 = anti_alias_coefficients(10.0, 1e-3)
+    >>> round(decay + b0 + b1, 12)
+    1.0
+    """
+    w_c = 2.0 * math.pi * float(cutoff_hz)
+    decay = math.exp(-w_c * dt)
+    c1 = 1.0 / (w_c * dt)
+    return decay, 1.0 - c1 * (1.0 - decay), c1 * (1.0 - decay) - decay
 
 
 class AntiAliasFilter:
@@ -204,10 +233,7 @@ class MeasurementChain:
         filtered = () if s.anti_alias_hz is None else tuple(range(1 if encoder else 0, n_ch))
         coef = np.zeros(5)
         if s.anti_alias_hz is not None:
-            w_c = 2.0 * math.pi * s.anti_alias_hz
-            decay = math.exp(-w_c * dt)
-            c1 = 1.0 / (w_c * dt)
-            coef[:3] = decay, 1.0 - c1 * (1.0 - decay), c1 * (1.0 - decay) - decay
+            coef[:3] = anti_alias_coefficients(s.anti_alias_hz, dt)
         coef[3], coef[4] = self.encoder, 1.0
         pick = tuple(channels.index(self.names.index(name)) for name in self.read)
         self._function_pick = pick

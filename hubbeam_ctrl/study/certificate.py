@@ -36,6 +36,7 @@ import scipy.linalg
 
 from controllers import CONTROLLERS, Controller
 from controllers.analysis import hardware_plant
+from controllers.sensing import with_anti_alias
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.linear.delay import delay_augmented
 from hubbeam_ctrl.linear.statespace import linear_matrices
@@ -340,6 +341,8 @@ def _loop_parts(controller: Controller, params: Params, spin: float, damping_rat
             Dm = np.zeros((Cm.shape[0], 1))
         Ad, Bd = delay_augmented(A, Bu, dt, delay)
         Cm = np.hstack([Cm, Dm])
+        if layout is not None and list(inputs) == list(layout.signals):      # the rig's anti-alias filter
+            Ad, Bd, Cm = with_anti_alias(Ad, Bd, Cm, layout, dt)
     return Ad, Bd, Cm, (Ak, Bk, Ck, Dk), A
 
 
