@@ -83,20 +83,38 @@ class VoltageCommand:
             Dk = Dk.copy()
             Dk[0, list(inputs).index("theta_dot")] += emf
         else:
-            est, fm = self.inner.estimator, self.inner.filter_model
-            r = fm.action_gain(np.eye(fm.n_x)[fm.n_x // 2][None, :])
-            r = np.hstack([r, np.zeros((1, est.A.shape[0] - r.shape[1]))])
+            est = self.inner.estimator
+            r = self.rate_row()[None, :]
             M = np.eye(est.A.shape[0]) - est.L @ est.C
             Ck = Ck + emf * r @ M
             Dk = Dk + emf * r @ est.L
         return Ak, Bk, Ck, Dk, states, inputs
+
+    def rate_row(self) -> np.ndarray:
+        """The estimated hub rate where the command acts as a row on the filter's state
+        (:meth:`controllers.DesignModel.acting_state`, with the estimated disturbance of integral
+        action acting with the previous command).
+
+        Returns
+        -------
+        ndarray (nz,)
+            [rad/s per filter state unit].
+        """
+        est, fm = self.inner.estimator, self.inner.filter_model
+        r = fm.action_gain(np.eye(fm.n_x)[fm.n_x // 2][None, :])[0]
+        row = np.r_[r, np.zeros(est.A.shape[0] - len(r))]
+        if getattr(self.inner, "integral", False) and fm.delay > 0.0:
+            row[-1] += float(fm.action_map()[1][fm.n_x // 2])
+        return row
 
     def _rate(self, y) -> float:
         """The hub rate [rad/s] the back-EMF is compensated with."""
         if self._rate_index is not None:
             return float(np.asarray(y)[self._rate_index])
         fm = self.inner.filter_model
-        return float(fm.acting_state(self.inner.estimator.x_hat)[fm.n_x // 2]) + fm.spin
+        x_hat = self.inner.estimator.x_hat
+        d = float(x_hat[-1]) if getattr(self.inner, "integral", False) else 0.0
+        return float(fm.acting_state(x_hat, d)[fm.n_x // 2]) + fm.spin
 
     def __call__(self, t: float, y) -> float:
         """Voltage [V] at time ``t`` [s] from measurement ``y``."""

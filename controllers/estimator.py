@@ -282,27 +282,35 @@ def filter_gain(K, model: DesignModel, noise: KalmanNoise, integral: bool = Fals
     -------
     ndarray (1, nz)
     """
+    K = np.atleast_2d(K)
+    extra = extra_state_gains(model, noise, integral, K)
     K = model.action_gain(K)
-    extra = extra_state_gains(model, noise, integral)
     return np.hstack([K, [extra]]) if extra else K
 
 
-def extra_state_gains(model: DesignModel, noise: KalmanNoise, integral: bool = False) -> list:
+def extra_state_gains(model: DesignModel, noise: KalmanNoise, integral: bool = False, K=None) -> list:
     """The feedback's gains on the filter's states after ``[x, u_prev]``: 0 on the anti-alias
-    filter's outputs and the rate sensor's bias, 1 on an input disturbance (cancelled).
+    filter's outputs and the rate sensor's bias; on an input disturbance ``d`` 1 (cancelled) plus,
+    with a computation delay, ``K Gamma_d`` (it acts with the previous command until the new one
+    does: :meth:`DesignModel.acting_state`).
 
     Parameters
     ----------
     model : DesignModel
     noise : KalmanNoise
     integral : bool
+    K : ndarray (1, n_x), optional
+        The gain on the acting state (needed with ``integral`` on a model with a delay).
 
     Returns
     -------
     list of float
     """
     filtered = 0 if model.sensors is None else len(model.sensors.filtered)
-    return [0.0] * filtered + [0.0] * estimates_rate_bias(model, noise) + [1.0] * bool(integral)
+    d = 1.0
+    if integral and model.delay > 0.0:
+        d += float((np.atleast_2d(K) @ model.action_map()[1])[0])
+    return [0.0] * filtered + [0.0] * estimates_rate_bias(model, noise) + [d] * bool(integral)
 
 
 def filter_matrices(model: DesignModel, noise: KalmanNoise, design_modes: int | None = None,

@@ -311,11 +311,11 @@ class ObservedFeedback(AppliedTorque, Controller):
         k = int(round(t / self.dt))
         D = self._defect
         x_hat = self.estimator.update(yd, self._tau, D[k - 1] if D is not None and 0 < k <= len(D) else None)
-        x = fm.acting_state(x_hat)[self._pick]
+        d = float(x_hat[-1]) if self.integral else 0.0
+        x = fm.acting_state(x_hat, d)[self._pick]
         t_act = t + fm.delay * self.dt
         x[0] += spin * t_act
         x[1 + self.state_modes] += spin
-        d = float(x_hat[-1]) if self.integral else 0.0
         if isinstance(self.inner, LQR):        # its law with the disturbance inside one saturation
             xr, tff = self.inner._reference_acting(k)
             tau = saturate(float(self.inner._ff * tff - self.inner.K @ (x - xr) - d), self.tau_max)

@@ -377,7 +377,7 @@ class LQG(AppliedTorque, Controller):
         D = self._defect
         offset = D[k - 1] if D is not None and 0 < k <= len(D) else None
         x_hat = self.estimator.update(yd, self._tau, offset)
-        x_act = fm.acting_state(x_hat)
+        x_act = fm.acting_state(x_hat, x_hat[-1] if self.settings.integral else 0.0)
         K = self._Ke
         d = fm.delay
         xr = self._filter_reference(k) if d == 0.0 else \

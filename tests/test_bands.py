@@ -218,10 +218,11 @@ def test_cli_compare_with_own_bands(tmp_path, capsys, fast_backend):
     assert m["settle_tip_source"].startswith("task default 0.000125 L")
 
 
-def test_servo_payload_settles_in_two_counts_not_in_one():
+def test_servo_payload_settles_within_its_two_count_band_and_ends_inside_one_count():
     """servo_payload (1024 counts, 3 x Coulomb, a full sample of delay), 90 degrees at 1.5 x its T*
-    (0.417 s), all defaults: the LQG stops 1-2 counts off; the default band of two counts calls it
-    settled, one count would not (the floor's reason, bands.ANGLE_FLOOR_COUNTS)."""
+    (0.417 s), all defaults: the default band is two counts (the floor, bands.ANGLE_FLOOR_COUNTS);
+    the LQG ends inside one count. It stopped 1-2 counts off until the delayed loop's integral
+    action took the estimated disturbance into the acting state (tests/test_friction_bound.py)."""
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.metrics import settling_time
     rig = load_rig("servo_payload")
@@ -229,7 +230,6 @@ def test_servo_payload_settles_in_two_counts_not_in_one():
     m, res = c.metrics["lqg"], c.results["lqg"]
     assert m["settle_angle_rad"] == pytest.approx(2 * COARSE_COUNT, rel=1e-15)
     assert m["settle_angle_source"].startswith("raised to 2 counts of the encoder (2 pi / 1024")
-    assert m["verdict"] == "settled" and COARSE_COUNT < abs(m["final_angle_error_rad"]) < 2 * COARSE_COUNT
+    assert m["verdict"] == "settled" and abs(m["final_angle_error_rad"]) < 0.5 * COARSE_COUNT
     err = res.theta - res.theta_ref
     assert settling_time(res.t, err, res.v_tip, 2 * COARSE_COUNT, m["settle_tip_m"]) == m["settling_time_s"]
-    assert settling_time(res.t, err, res.v_tip, COARSE_COUNT, m["settle_tip_m"]) is None

@@ -204,13 +204,13 @@ def _acting(ctrl, fm, K, X, x0, reference_at) -> tuple:
     return Kz, np.array(rows), np.append(x0, 0.0), np.array(tff)
 
 
-def _with_filter_states(K, X, x0, fm, noise, integral: bool) -> tuple:
+def _with_filter_states(K, X, x0, fm, noise, integral: bool, K_act) -> tuple:
     """Gain, reference table and initial state on the filter's whole state ``[x, u_prev, f, b, d]``
     (:func:`controllers.estimator.filter_matrices`): the anti-alias filter's outputs ``f`` and the
     rate sensor's bias ``b`` are not fed back and the disturbance ``d``
     (:class:`controllers.integral.OffsetFreeEstimator`) is cancelled, ``u = K (x - x_ref) + d``;
     they start at 0 and have reference 0."""
-    gains = extra_state_gains(fm, noise, integral)
+    gains = extra_state_gains(fm, noise, integral, K_act)
     k = len(gains)
     return (np.append(K, gains), np.hstack([X, np.zeros((len(X), k))]), np.append(x0, np.zeros(k)))
 
@@ -251,9 +251,7 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
                  "eta_backward": d.eta_backward, "v_eps": f.v_eps, "V_max": d.V_max}
         arrays = dict(law.arrays)
         if controller._rate_index is None:      # no rate sensor: the estimator's rate where the command acts
-            est, fm = controller.inner.estimator, controller.inner.filter_model
-            r = fm.action_gain(np.eye(fm.n_x)[fm.n_x // 2][None, :])[0]
-            arrays["RATE"] = np.r_[r, np.zeros(est.A.shape[0] - len(r))]
+            arrays["RATE"] = controller.rate_row()
         scalars = {**law.scalars, **{k: float(v) for k, v in drive.items()}}
         law = dataclasses.replace(law, arrays=arrays, scalars=scalars)
         law.check_finite()
@@ -276,7 +274,7 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         K, x0 = np.asarray(inner.K, float), ctrl.initial_state()[:ctrl.filter_model.n_x]
         K, X, x0, tff_act = _acting(inner, ctrl.filter_model, K, X, x0, lambda k: inner._reference_at(k)[0])
         tff = tff if tff_act is None else tff_act
-        K, X, x0 = _with_filter_states(K, X, x0, ctrl.filter_model, ctrl.noise, ctrl.integral)
+        K, X, x0 = _with_filter_states(K, X, x0, ctrl.filter_model, ctrl.noise, ctrl.integral, inner.K)
         law = _observer_law(ctrl, "lqr", K, ctrl.estimator, X, tff, ctrl.design.spin, float(inner._ff), x0,
                             ctrl._defect, ctrl.filter_model)
         law.check_finite()
@@ -301,7 +299,8 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         K = ctrl._Ke
         K, X, x0, tff_act = _acting(ctrl, ctrl.filter_model, K, X, x0, ctrl._filter_reference)
         tff = tff if tff_act is None else tff_act
-        K, X, x0 = _with_filter_states(K, X, x0, ctrl.filter_model, ctrl.settings, ctrl.settings.integral)
+        K, X, x0 = _with_filter_states(K, X, x0, ctrl.filter_model, ctrl.settings, ctrl.settings.integral,
+                                       ctrl._Ke)
         law = _observer_law(ctrl, "lqg", K, ctrl.estimator, X, tff, ctrl.design.spin, float(ctrl._ff), x0,
                             ctrl._defect, ctrl.filter_model)
     elif isinstance(ctrl, ShapedOpenLoop):
@@ -344,6 +343,8 @@ def _mpc_law(ctrl: ObservedFeedback) -> ControlLaw:
     act[:, :fm.n_x] = Phi
     if fm.delay > 0.0:
         act[:, fm.n_x] = G
+        if ctrl.integral:                          # the disturbance acts with the previous command
+            act[:, nz - 1] = G
     H = np.asarray(mpc._H.full(), dtype=float)
     table = np.asarray(mpc._ref_term, dtype=float)
     kt = len(table)

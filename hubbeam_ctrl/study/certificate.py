@@ -43,7 +43,7 @@ from hubbeam_ctrl.linear.statespace import linear_matrices
 from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["RADIUS_TOLERANCE", "DAMPING_SEARCH_MAX", "LoopCertificate", "Certificate", "linear_points",
-           "certify", "loop_matrix", "broken_loop", "AS_DESIGNED"]
+           "certify", "loop_matrix", "broken_loop", "hold_gain", "AS_DESIGNED"]
 
 #: A sampled loop whose spectral radius exceeds ``1 + RADIUS_TOLERANCE`` grows [-] (a pole
 #: of an undamped mode the controller cannot reach stays within it of the unit circle).
@@ -311,6 +311,44 @@ def broken_loop(controller: Controller, params: Params, spin: float, damping_rat
     B = np.vstack([Bd, np.zeros((nk, Bd.shape[1]))])
     C = -np.hstack([Dk @ Cm, Ck]) if nk else -(Dk @ Cm)
     return A, B, C, np.zeros((1, 1))
+
+
+def hold_gain(controller: Controller, params: Params, spin: float = 0.0, hardware=AS_DESIGNED) -> float:
+    """The closed loop's steady hub-angle offset per newton-metre of constant torque at the hub.
+
+    At rest a constant torque ``w`` at the hub (Coulomb friction holding the hub, a gravity load)
+    moves the sampled loop of :func:`loop_matrix` to ``x = (I - A_loop)^-1 [B_d; 0] w / g`` (a
+    constant passes the hold and the delay unchanged; ``g`` the drive's torque per unit command:
+    1 on a torque source). Its hub-angle entry per N m is the loop's compliance: 0 with integral
+    action, ``1 / K_theta`` for a state feedback of angle stiffness ``K_theta``.
+
+    Parameters
+    ----------
+    controller : Controller
+        With a linear form whose loop is stable.
+    params : Params
+        The plant.
+    spin : float
+        Spin rate of the linearisation [rad/s].
+    hardware : Hardware or None, optional
+        As :func:`loop_matrix`.
+
+    Returns
+    -------
+    float
+        [rad / (N m)], >= 0; inf when the loop is not stable.
+    """
+    A_loop, _ = loop_matrix(controller, params, spin, 0.0, hardware)
+    if np.max(np.abs(np.linalg.eigvals(A_loop))) >= 1.0:
+        return math.inf
+    Ad, Bd, _, _, _ = _loop_parts(controller, params, spin, 0.0, hardware)
+    hw = getattr(controller, "rig_hardware", None) if hardware is AS_DESIGNED else hardware
+    voltage = hw is not None and getattr(controller, "command", "torque") == "voltage" and hw.command == "voltage"
+    g = hw.torque_per_volt() if voltage else 1.0
+    b = np.zeros(A_loop.shape[0])
+    b[:Bd.shape[0]] = Bd[:, 0] / g
+    x = np.linalg.solve(np.eye(A_loop.shape[0]) - A_loop, b)
+    return abs(float(x[0]))
 
 
 def _loop_parts(controller: Controller, params: Params, spin: float, damping_ratio: float, hardware) -> tuple:

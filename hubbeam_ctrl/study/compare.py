@@ -50,6 +50,7 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.forked_runs import can_fork, side_by_side
+from hubbeam_ctrl.study.friction_bound import friction_prediction
 from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
@@ -420,6 +421,9 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
                                  gain_margin_lower=lm.gain_margin_lower, phase_margin_deg=lm.phase_margin_deg,
                                  delay_margin_s=lm.delay_margin_s)
             margin_cause(metrics[name], lm, 0.0 if rig is None else rig.timing.delay * sc.dt)
+            if rig is not None:                  # what friction leaves at rest, predicted before the run
+                metrics[name].update(friction_prediction(ctrl, ev.params, float(ref.theta_dot[-1]), rig,
+                                                         sc.bands["settle_angle"]) or {})
         if progress:
             mm = metrics[name]
             print(f"compare {sc.plant}/{sc.name}: {name:8s} {mm['verdict']:11s} residual "

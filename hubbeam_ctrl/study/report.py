@@ -277,6 +277,7 @@ def _report(comparison) -> str:
     lines += _rig_lines(comparison)
     lines += ladder_lines(getattr(comparison, "ladder", []))
     lines += _certificate_lines(comparison)
+    lines += _friction_lines(comparison)
     lines += _robust_lines(comparison)
     rig = getattr(comparison, "rig", None)
     lines += _margin_lines(getattr(comparison, "margins", {}),
@@ -543,6 +544,17 @@ def _certificate_lines(comparison) -> list:
         cert = certs.get(name)
         text = cert.describe() if cert is not None else "-"
         lines.append(f"| {name} | {m['verdict']} | {text} | {m.get('verdict_reason', '')} |")
+    return lines + [""]
+
+
+def _friction_lines(comparison) -> list:
+    """What the rig's Coulomb friction leaves at rest, predicted from each linear loop
+    (:func:`hubbeam_ctrl.study.friction_bound.friction_prediction`)."""
+    rows = [(name, m) for name, m in comparison.metrics.items() if m.get("friction_prediction")]
+    if not rows:
+        return []
+    lines = ["## Friction at rest: predicted from the linear loop", ""]
+    lines += [f"- {name} ({m['verdict']}): {m['friction_prediction']}." for name, m in rows]
     return lines + [""]
 
 

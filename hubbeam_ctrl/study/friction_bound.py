@@ -1,0 +1,85 @@
+"""What Coulomb friction and an encoder's count do to a linear loop at rest, predicted before the run.
+
+Coulomb friction and quantisation are bounded nonlinearities: a loop whose linear certificate is
+stable stays bounded with them. What they leave at the end follows from the loop's compliance at
+rest (:func:`hubbeam_ctrl.study.certificate.hold_gain`, the steady hub-angle offset per N m of
+constant hub torque):
+
+* **without integral action** the hub stops wherever the drive's restoring torque is below the
+  breakaway torque ``F_s``: a dead band of ``F_s * hold_gain`` on each side of the target, and no
+  limit cycle (the loop settles into it);
+* **with integral action** friction holds no offset; the command builds up to the breakaway
+  torque and the hub slips. When the breakaway torque exceeds the sliding one (a Stribeck drop,
+  ``friction.breakaway > friction.coulomb``) the slip overshoots and the hub sticks again on the
+  other side: a stick-slip **hunting limit cycle** about the target is predicted (Armstrong-Helouvry,
+  Dupont and Canudas de Wit 1994, "A survey of models, analysis tools and compensation methods for
+  the control of machines with friction", Automatica 30(7), section 5); with equal breakaway and
+  sliding friction none is;
+* an encoder of step ``q`` reads the angle to ``+-q/2``: a loop with integral action hunts
+  between two counts when the friction lets it.
+
+The prediction is stated beside the run's verdict (the run judges hunting after the fact:
+:attr:`hubbeam_ctrl.study.metrics.Evidence.friction_hunting`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from .certificate import hold_gain
+
+__all__ = ["friction_prediction"]
+
+#: A compliance below this [rad per N m] is integral action (the offset-free estimator cancels a
+#: constant torque exactly at rest; rounding leaves about 1e-13).
+INTEGRAL_COMPLIANCE = 1e-9
+
+
+def friction_prediction(controller, params, spin: float, rig, angle_band: float) -> dict | None:
+    """The dead band or the hunting that the rig's friction predicts for a linear loop at rest.
+
+    Parameters
+    ----------
+    controller : Controller
+        On the rig (its ``rig_hardware``), with a linear form.
+    params : Params
+        The evaluation plant's parameters.
+    spin : float
+        Spin rate at the end of the task [rad/s].
+    rig : Rig
+        Its ``friction`` (``coulomb``, ``breakaway``) and ``sensors.encoder_step``.
+    angle_band : float
+        The task's settling band on the hub angle [rad].
+
+    Returns
+    -------
+    dict or None
+        ``friction_hold_rad`` (the largest offset friction can hold [rad]; 0 with integral
+        action), ``friction_hunting_predicted`` (bool) and ``friction_prediction`` (one sentence);
+        None without Coulomb friction or for a loop that is not stable.
+    """
+    f = rig.friction
+    breakaway = f.coulomb if f.breakaway is None else f.breakaway
+    if breakaway <= 0.0:
+        return None
+    compliance = hold_gain(controller, params, spin)
+    if not math.isfinite(compliance):
+        return None
+    q = rig.sensors.encoder_step
+    counts = (lambda x: f" ({x / q:.3g} counts)") if q > 0 else (lambda x: "")
+    if compliance > INTEGRAL_COMPLIANCE:
+        hold = breakaway * compliance
+        where = "inside" if hold <= angle_band else "outside"
+        text = (f"no integral action: the loop's compliance at rest is {compliance:.3g} rad/N m, so the breakaway "
+                f"torque {breakaway:.3g} N m can hold the hub up to {hold:.3g} rad{counts(hold)} off the target, "
+                f"{where} the angle band ({angle_band:.3g} rad); no limit cycle (the hub stops in this dead band)")
+        return {"friction_hold_rad": hold, "friction_hunting_predicted": False, "friction_prediction": text}
+    hunting = breakaway > f.coulomb
+    text = ("integral action: friction holds no offset; the command builds up to the breakaway torque "
+            f"{breakaway:.3g} N m and the hub slips")
+    text += (f"; the breakaway exceeds the sliding friction ({f.coulomb:.3g} N m), so the slip overshoots and "
+             "sticks again: a stick-slip hunting limit cycle about the target is predicted" if hunting else
+             "; breakaway and sliding friction are equal, so no hunting is predicted")
+    if q > 0:
+        text += f"; the encoder reads the angle to +-{q / 2:.3g} rad (half a count)"
+    return {"friction_hold_rad": 0.0, "friction_hunting_predicted": hunting, "friction_prediction": text}
