@@ -32,6 +32,8 @@ EXCITATION_KINDS = ("chirp", "prbs", "multisine", "step")
 #: Most samples of an excitation record (ten million: an hour at 0.36 ms; the record and its
 #: predicted response are simulated).
 MAX_SAMPLES = 10_000_000
+#: Largest ``max_hub_travel`` [rad] (a limit past it never binds).
+MAX_HUB_TRAVEL = 1e6
 
 
 def excitation_band(rig: Rig, n_modes: int = 2) -> tuple:
@@ -81,6 +83,14 @@ def _shape(kind, t, duration, band, rng):
         return bits[np.minimum((t / clock).astype(int), n - 1)]
     # step: up for a third of the record, then zero (a free decay)
     return np.where(t < duration / 3, 1.0, 0.0)
+
+
+def _check_limit(name: str, value, unit: str, hi: float, what: str) -> float:
+    """``value`` checked > 0 (:func:`check_positive`) and at most ``hi`` (``what``, for the message)."""
+    value = check_positive(name, value, unit)
+    if value > hi:
+        raise ParameterError(f"{name} must be in (0, {hi:g}] [{unit}] (at most {what}), got {value:g}")
+    return value
 
 
 def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: float | None = None,
@@ -133,9 +143,10 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     amplitude = check_in_range("amplitude", amplitude, unit, 0.0, limit, "within the drive's limit")
     if amplitude == 0:
         raise ParameterError(f"amplitude must be > 0 [{unit}], got 0")
-    tip = 0.1 * rig.beam.L if max_tip_deflection is None else check_positive("max_tip_deflection",
-                                                                             max_tip_deflection, "m")
-    travel = math.pi if max_hub_travel is None else check_positive("max_hub_travel", max_hub_travel, "rad")
+    tip = 0.1 * rig.beam.L if max_tip_deflection is None else _check_limit("max_tip_deflection", max_tip_deflection,
+                                                                           "m", rig.beam.L, "the beam length L")
+    travel = math.pi if max_hub_travel is None else _check_limit("max_hub_travel", max_hub_travel, "rad",
+                                                                 MAX_HUB_TRAVEL, "1e6 rad, far past any rig")
     band = excitation_band(rig, n_modes) if band_hz is None else tuple(float(b) for b in band_hz)
     if len(band) != 2 or not (0 < band[0] < band[1]) or not all(map(math.isfinite, band)):
         raise ParameterError(f"band_hz must be (lo, hi) with 0 < lo < hi [Hz], got {band_hz!r}")

@@ -263,6 +263,10 @@ def plan_batches(cases: list, workers: int, per_worker: int = 4, cap: int = 32) 
     return batches
 
 
+#: Most local worker processes (a pool's semaphore and file descriptors bound it; far above any core count).
+MAX_WORKERS = 1024
+
+
 def _default_workers() -> int:
     try:
         return len(os.sched_getaffinity(0))
@@ -334,8 +338,9 @@ class Engine:
     """
 
     def __init__(self, workers: int | None = None, client=None, retries: int = 2):
-        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-            raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                    or not 1 <= workers <= MAX_WORKERS):
+            raise ParameterError(f"workers must be an integer in 1..{MAX_WORKERS}, got {workers!r}")
         self.client, self.retries = client, retries
         self.workers = _dask_workers(client) if client is not None else (workers or _default_workers())
         self._pool = None

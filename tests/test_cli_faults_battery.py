@@ -1,0 +1,78 @@
+"""Issue 37, the fault battery rerun (``benchmarks/fault_battery.py``) over every command: what it found.
+
+Each bad command line exits with status 2 and one line on stderr, without a traceback, naming the
+option as typed and its range, and writes nothing. Kinds: ``sw`` a silent wrong result (status 0)
+before, ``tb`` a traceback (an exception's name, status 1) before, ``nm`` a refusal that named the
+wrong thing (``modal table`` for ``--modal-table``).
+"""
+
+import os
+
+import pytest
+
+from hubbeam_ctrl.cli.main import main
+
+COMPARE = ["compare", "--controllers", "lqr", "--n-modes", "2", "--tf", "1", "--t-end", "2", "--out", "c"]
+EXCITE = ["excite", "--rig", "servo_link", "--kind", "step", "--duration", "0.1", "--out", "x.csv"]
+SWEEP = ["sweep", "spec.toml", "--out", "s"]
+TUNE = ["tune", "spec.toml", "--controller", "lqr", "--out", "t", "--workers", "1"]
+MODAL = ["identify", "--rig", "servo_link", "--fit", "E", "--out", "idout", "--modal-table"]
+
+#: (kind, argv, words the one line must hold).
+CASES = [
+    # settling bands past one turn / the beam (any run "settled")
+    ("sw", COMPARE + ["--settle-angle=1e308"], "--settle-angle must be at most 2 pi rad (one turn), got '1e308'"),
+    ("sw", COMPARE + ["--settle-angle=400deg"], "--settle-angle must be at most 2 pi rad (one turn), got '400deg' "
+                                                "= 6.981 rad"),
+    ("sw", COMPARE + ["--settle-tip=9223372036854775808"], "--settle-tip must be at most the beam length L = 8 m"),
+    ("sw", COMPARE + ["--settle-tip=2L"], "--settle-tip must be at most the beam length L = 8 m, got '2L' = 16 m"),
+    # worker counts past any pool (OverflowError from the pool's semaphore before)
+    ("tb", TUNE[:-2] + ["--workers=1e308"], "--workers must be an integer in 1..1024, got"),
+    ("sw", SWEEP + ["--workers=9223372036854775808"], "--workers must be an integer in 1..1024, got 92233720368547"),
+    ("sw", SWEEP + ["--scheduler", ""], "--scheduler must name a scheduler address, got ''"),
+    ("sw", TUNE + ["--scheduler", " "], "--scheduler must name a scheduler address, got ' '"),
+    ("sw", TUNE + ["--seed=9223372036854775808"], "--seed (tune.seed) must be an integer in 0..9223372036854775807"),
+    # excitation limits past the beam / any rig
+    ("sw", EXCITE + ["--max-tip=1e308"], "--max-tip (max_tip_deflection) must be in (0, 0.381] [m] (at most the "
+                                         "beam length L), got 1e+308"),
+    ("sw", EXCITE + ["--max-hub=9223372036854775808"], "--max-hub (max_hub_travel) must be in (0, 1e+06] [rad]"),
+    # the modal table: named as typed, every unreadable kind one line
+    ("tb", MODAL + ["binary.csv"], "--modal-table file binary.csv is not UTF-8 text (byte 37)"),
+    ("tb", MODAL + ["latin1.csv"], "--modal-table file latin1.csv is not UTF-8 text (byte 0)"),
+    ("nm", MODAL + ["huge.csv"], "--modal-table file huge.csv is larger than 1000000 bytes"),
+    ("nm", MODAL + ["ragged.csv"], "--modal-table file ragged.csv: row 3 has 2 cells for 3 columns"),
+    ("nm", MODAL + ["negative.csv"], "--modal-table file negative.csv: frequency [Hz] must be finite and > 0"),
+    ("nm", MODAL + ["missing.csv"], "--modal-table file missing.csv does not exist"),
+    ("nm", MODAL + ["adir"], "--modal-table file adir is not a regular file"),
+    ("nm", MODAL + ["/dev/zero"], "--modal-table file /dev/zero is not a regular file"),
+    ("nm", MODAL + ["badheader.csv"], "--modal-table file badheader.csv: header item 'a' is not one of spin [rad/s]"),
+]
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    """A folder with the files the cases name."""
+    d = tmp_path_factory.mktemp("battery")
+    (d / "adir").mkdir()
+    (d / "binary.csv").write_bytes(b"spin [rad/s],mode [-],frequency [Hz]\n" + bytes(range(128, 256)))
+    (d / "latin1.csv").write_bytes(b"\xb2 = 1\n")
+    (d / "huge.csv").write_text("spin [rad/s],mode [-],frequency [Hz]\n" + "0,1,2\n" * 200_000)
+    (d / "ragged.csv").write_text("spin [rad/s],mode [-],frequency [Hz]\n0,1,2\n0,1\n")
+    (d / "negative.csv").write_text("spin [rad/s],mode [-],frequency [Hz]\n0,1,-2\n")
+    (d / "badheader.csv").write_text("a,b\n1,2\n")
+    (d / "spec.toml").write_text('[study]\ncontrollers = ["lqr"]\nt_f = 1.0\nt_end = 2.5\ndt = 0.01\nplant_modes = 1\n'
+                                 '[params]\nn_axial = 1\nn_transverse = 1\n[grid]\nm_t = [0.1]\n')
+    return d
+
+
+@pytest.mark.parametrize("kind, argv, words", [pytest.param(k, a, w, id=f"{k}-{' '.join(a[-2:])[:50]}")
+                                               for k, a, w in CASES])
+def test_refused_in_one_line_naming_the_option(inputs, monkeypatch, capsys, kind, argv, words):
+    monkeypatch.chdir(inputs)
+    before = sorted(os.listdir(inputs))
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == 2, err
+    assert err.count("\n") == 1 and "Traceback" not in err and out == "", err
+    assert words in err, err
+    assert sorted(os.listdir(inputs)) == before
