@@ -13,13 +13,16 @@ where a folder goes and the reverse, a missing folder, a full disk: a 64 kB tmpf
 mount one) or damages one key of a rig file (every field of every table: wrong type, out of range, nan,
 missing, and an unknown key per table). An interrupted sweep resumed must give the uninterrupted result.
 
-Classes: ``refused`` (status 2, one line, names the option or rig key as typed), ``wrong_name`` (status 2,
-one line, not naming it), ``traceback`` (a traceback, an exception's name with status 1, or a crash),
-``hang`` (past the timeout), ``silent_wrong`` (status 0 for a value no range allows: nan, inf, 1e308, 2^63,
-text, a list, a wrong type, an unknown key), ``accepted`` (status 0 for a value some ranges allow: 0, -1,
-1e-300, a missing rig key; listed for review), ``failed`` (status 1, one line: the run or the system
-failed, e.g. a full disk), ``lost`` (a resumed sweep that lost or changed results). Classes 3-6 of the
-issue are ``traceback``, ``hang``, ``silent_wrong`` and ``lost``; ``wrong_name`` breaks its naming rule.
+Classes: ``refused`` (status 2, one line, names the option or rig key as typed), ``refused_other`` (the
+same, naming another option typed with it, the one it conflicts with: ``--slew-angle=-1`` with ``--tf 1``
+names ``--tf``; or any refusal of a rig missing a key, which cannot name what is not there), ``wrong_name``
+(status 2, one line, naming none of the options typed), ``traceback`` (a traceback, an exception's name with
+status 1, or a crash), ``hang`` (past the timeout), ``silent_wrong`` (status 0 for a value no range allows:
+nan, inf, 1e308, 2^63, text, a list, a wrong type, an unknown key), ``accepted`` (status 0 for a value
+some ranges allow: 0, -1, 1e-300, a missing rig key; listed for review), ``failed`` (status 1, no
+exception: the run failed or judged, e.g. a full disk, certify's "not certified"), ``lost`` (a resumed
+sweep that lost or changed results). Classes 3-6 of the issue are ``traceback``, ``hang``,
+``silent_wrong`` and ``lost``; ``wrong_name`` breaks its naming rule.
 """
 
 from __future__ import annotations
@@ -352,7 +355,12 @@ def classify(case, result) -> str:
     if status == 2:
         if len(lines) != 1:
             return "traceback"
-        return "refused" if names(option, fault, lines[0]) else "wrong_name"
+        if names(option, fault, lines[0]):
+            return "refused"
+        typed = [a.split("=")[0] for a in argv if a.startswith("--") and a.split("=")[0] != option]
+        if fault == "rig:missing" or any(names(o, fault, lines[0]) for o in typed):
+            return "refused_other"        # names another option typed with it: the one it conflicts with
+        return "wrong_name"
     if status == 0:
         kind, _, tag = fault.partition(":")
         if kind == "value" and (tag in MAYBE_VALID or (tag == "text" and option in TEXT_OK)):
@@ -475,12 +483,12 @@ def main(argv=None) -> int:
             row = {"command": case[0], "option": case[1], "fault": case[2], "class": klass,
                    "status": result["status"], "argv": shown, "wall": result["wall"],
                    "err": result["err"].replace(tmp, "$T").strip()[-400:]}
-            if klass not in ("refused", "accepted"):
+            if klass not in ("refused", "accepted", "refused_other"):
                 failing.append(row)
                 if opts.list:
                     print(f"{klass:12s} {case[0]} {case[1]} {case[2]}: {row['err'][-200:]}", file=sys.stderr,
                           flush=True)
-            elif klass == "accepted":
+            elif klass in ("accepted", "refused_other"):
                 review.append(row)
             shutil.rmtree(work, ignore_errors=True)
         lost = None

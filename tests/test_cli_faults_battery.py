@@ -7,6 +7,7 @@ wrong thing (``modal table`` for ``--modal-table``).
 """
 
 import os
+from importlib import resources
 
 import pytest
 
@@ -46,6 +47,11 @@ CASES = [
     ("nm", MODAL + ["adir"], "--modal-table file adir is not a regular file"),
     ("nm", MODAL + ["/dev/zero"], "--modal-table file /dev/zero is not a regular file"),
     ("nm", MODAL + ["badheader.csv"], "--modal-table file badheader.csv: header item 'a' is not one of spin [rad/s]"),
+    # a rig missing beam.I (Table 1's, 8 m of aluminium) or beam.J_h: named --band / --amplitude, not typed
+    ("nm", EXCITE[:2] + ["no_I.toml"] + EXCITE[3:], "the default band of the rig's first 2 bending modes reaches "
+                                                    "3494.22 Hz, past the Nyquist frequency 500 Hz of dt = 0.001 s"),
+    ("nm", EXCITE[:2] + ["no_J_h.toml"] + EXCITE[3:], "the drive's full amplitude 10 V moves the hub at most 2.52e-05 "
+                                                      "rad, not more than 2 counts of the encoder (0.00307 rad)"),
 ]
 
 
@@ -62,6 +68,10 @@ def inputs(tmp_path_factory):
     (d / "badheader.csv").write_text("a,b\n1,2\n")
     (d / "spec.toml").write_text('[study]\ncontrollers = ["lqr"]\nt_f = 1.0\nt_end = 2.5\ndt = 0.01\nplant_modes = 1\n'
                                  '[params]\nn_axial = 1\nn_transverse = 1\n[grid]\nm_t = [0.1]\n')
+    rig = (resources.files("hubbeam_ctrl") / "data" / "rigs" / "servo_link.toml").read_text()
+    for key in ("I", "J_h"):
+        (d / f"no_{key}.toml").write_text("".join(line for line in rig.splitlines(keepends=True)
+                                                  if not line.startswith(f"{key} = ")))
     return d
 
 

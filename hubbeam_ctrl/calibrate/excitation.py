@@ -138,6 +138,7 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     seed = check_integer("seed", seed, 0, 2 ** 63 - 1)
     limit = rig.drive.V_max if not rig.drive.is_ideal else rig.beam.tau_max
     unit = "V" if not rig.drive.is_ideal else "N m"
+    given = amplitude is not None
     if amplitude is None:
         amplitude = limit
     amplitude = check_in_range("amplitude", amplitude, unit, 0.0, limit, "within the drive's limit")
@@ -151,6 +152,10 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     if len(band) != 2 or not (0 < band[0] < band[1]) or not all(map(math.isfinite, band)):
         raise ParameterError(f"band_hz must be (lo, hi) with 0 < lo < hi [Hz], got {band_hz!r}")
     if band[1] >= 0.5 / dt:
+        if band_hz is None:                # the default: the rig's modes, not a band the caller gave
+            raise ParameterError(f"the default band of the rig's first {n_modes} bending modes reaches {band[1]:g} "
+                                 f"Hz, past the Nyquist frequency {0.5 / dt:g} Hz of dt = {dt:g} s (check the rig's "
+                                 f"beam; or give a band, --band, or fewer modes, --modes)")
         raise ParameterError(f"band_hz upper end {band[1]:g} Hz must be below the Nyquist frequency "
                              f"{0.5 / dt:g} Hz of dt = {dt:g} s")
     if duration < 2.0 / band[0] and kind != "step":
@@ -195,6 +200,10 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
                                  f"{unit}, --amplitude), which moves the hub at most {peak_hub:.3g} rad (friction may "
                                  f"hold it), not more than {seen}: the record would show nothing to fit; allow "
                                  f"more motion (--max-hub, --max-tip) or excite another kind")
+        if not given:                      # the drive's whole range: the rig cannot move its hub
+            raise ParameterError(f"the drive's full amplitude {amplitude:.3g} {unit} moves the hub at most "
+                                 f"{peak_hub:.3g} rad, not more than {seen}: the record would show nothing to fit "
+                                 f"(check the rig's beam and drive)")
         raise ParameterError(f"amplitude = {amplitude:.3g} {unit} moves the hub at most {peak_hub:.3g} rad, not more "
                              f"than {seen}: the record would show nothing to fit; give a larger amplitude "
                              f"(at most {limit:g} {unit})")

@@ -239,7 +239,8 @@ def _run_modal_table(args, plan) -> int:
     from hubbeam_ctrl.cli.args import print_result
 
     table = load_modal_table(plan["table"], "--modal-table file")
-    result = fit_modal_table(plan["rig"], table, [f.name for f in plan["fields"]], bounds=plan["bounds"], settings=plan["settings"], progress=not args.json)
+    result = fit_modal_table(plan["rig"], table, [f.name for f in plan["fields"]], bounds=plan["bounds"],
+                             settings=plan["settings"], progress=not args.json)
     summary, rig_text = _write_outputs(result, plan, {}, [])
     print_result(args, summary, result.summary)
     return _refusal(result, plan["out"], rig_text is not None)
