@@ -86,3 +86,19 @@ def test_refused_in_one_line_naming_the_option(inputs, monkeypatch, capsys, kind
     assert err.count("\n") == 1 and "Traceback" not in err and out == "", err
     assert words in err, err
     assert sorted(os.listdir(inputs)) == before
+
+
+def test_full_disk_inside_an_output_folder_is_a_resource_error(tmp_path):
+    """A disk that fills while a results folder is written: status 1 (not bad input, not 2 after the run), one
+    line naming ``--out`` and the folder, not the temporary file inside it; nothing left behind."""
+    import errno
+
+    from hubbeam_ctrl.core.errors import ResourceError, write_error
+    from hubbeam_ctrl.core.fileio import write_folder
+
+    def write(folder):
+        raise write_error(OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)), f"out: cannot write {folder}/metrics.csv")
+    with pytest.raises(ResourceError) as info:
+        write_folder(tmp_path / "c", write, "--out")
+    assert str(info.value) == f"--out: cannot write {tmp_path / 'c'}: No space left on device"
+    assert list(tmp_path.iterdir()) == []
