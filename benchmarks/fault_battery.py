@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import json
 import os
 import re
 import shutil
@@ -45,8 +46,6 @@ sys.path.insert(0, CODE)
 os.environ.setdefault("MPLBACKEND", "Agg")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
-from benchjson import emit  # noqa: E402
 
 SPEC = ('[study]\ncontrollers = ["lqr"]\nt_f = 1.0\nt_end = 2.5\ndt = 0.01\nplant_modes = 1\n'
         '[params]\nn_axial = 1\nn_transverse = 1\n[grid]\nm_t = [0.1]\n')
@@ -391,7 +390,7 @@ def lost_case(tmp: str, timeout: float) -> dict:
     """A sweep interrupted (SIGINT once one case is on disk), resumed, against the same sweep run whole."""
     spec = os.path.join(tmp, "resume.toml")
     with open(spec, "w") as fh:
-        fh.write(SPEC.replace("m_t = [0.1]", "m_t = [0.05, 0.1, 0.15, 0.2, 0.25, 0.3]"))
+        fh.write(SPEC.replace("m_t = [0.1]", f"m_t = {[round(0.02 * k, 2) for k in range(1, 17)]}"))
     hide = "sys.modules['slycot'] = None; " if sys.modules.get("slycot", 0) is None else ""
     py = [sys.executable, "-c", f"import sys; {hide}from hubbeam_ctrl.cli.main import main; sys.exit(main())",
           "sweep", spec, "--workers", "1", "--json"]
@@ -400,23 +399,30 @@ def lost_case(tmp: str, timeout: float) -> dict:
     part = os.path.join(tmp, "part")
     proc = subprocess.Popen(py + ["--out", part], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     t0 = time.monotonic()
+    done = os.path.join(part, "results.csv")
     while time.monotonic() - t0 < timeout and proc.poll() is None:
-        if os.path.isdir(part) and any(os.scandir(part)) and time.monotonic() - t0 > 1.5:
+        if os.path.exists(done) and open(done).read().count("\n") >= 3:    # two cases on disk, 14 to go
             break
-        time.sleep(0.05)
+        time.sleep(0.01)
     proc.send_signal(signal.SIGINT)
     proc.communicate(timeout=timeout)
     interrupted = proc.returncode
+    n_part = open(done).read().count("\n") - 1 if os.path.exists(done) else 0
     resumed = subprocess.run(py + ["--out", part, "--resume"], capture_output=True, env=env, timeout=timeout)
 
     def table(folder):
+        """Each CSV's rows by their first column (the order of a resumed run differs), without timings."""
+        import csv
         import glob
-        rows = {}
+        tables = {}
         for f in sorted(glob.glob(os.path.join(folder, "*.csv"))):
-            rows[os.path.basename(f)] = open(f).read()
-        return rows
+            with open(f, newline="") as fh:
+                rows = list(csv.DictReader(fh))
+            tables[os.path.basename(f)] = sorted(
+                tuple((k, v) for k, v in row.items() if not k.endswith(("_s", "_ms"))) for row in rows)
+        return tables
     same = resumed.returncode == 0 and whole.returncode == 0 and table(os.path.join(tmp, "whole")) == table(part)
-    return {"interrupted_status": interrupted, "resumed_status": resumed.returncode,
+    return {"interrupted_status": interrupted, "cases_before_resume": n_part, "resumed_status": resumed.returncode,
             "whole_status": whole.returncode, "same_results": same,
             "files": sorted(table(part)), "err": resumed.stderr.decode()[-300:]}
 
@@ -460,7 +466,10 @@ def main(argv=None) -> int:
     import numpy  # noqa: F401
     import scipy.linalg  # noqa: F401
 
+    import hubbeam_ctrl
     from hubbeam_ctrl.cli.main import build_parser
+    if not os.path.abspath(hubbeam_ctrl.__file__).startswith(CODE + os.sep):
+        raise SystemExit(f"hubbeam_ctrl comes from {hubbeam_ctrl.__file__}, not {CODE}")
     tmp = tempfile.mkdtemp(prefix="fault_battery_")
     inputs = os.path.join(tmp, "in")
     bad = make_inputs(inputs)
@@ -489,12 +498,14 @@ def main(argv=None) -> int:
                     print(f"{klass:12s} {case[0]} {case[1]} {case[2]}: {row['err'][-200:]}", file=sys.stderr,
                           flush=True)
             elif klass in ("accepted", "refused_other"):
-                review.append(row)
+                review.append({k: row[k] for k in ("command", "option", "fault", "class", "status")}
+                              | ({"err": row["err"][-200:]} if klass == "refused_other" else {}))
             shutil.rmtree(work, ignore_errors=True)
         lost = None
         if not opts.no_resume and (not only or "sweep" in only):
             lost = lost_case(tmp, max(opts.timeout, 120))
-            counts["sweep"]["lost" if not lost["same_results"] else "resumed_ok"] += 1
+            counts["sweep"]["lost" if not lost["same_results"] else "resumed_ok" if lost["interrupted_status"]
+                            else "resume_not_interrupted"] += 1
     finally:
         unmount(tmp)
         subprocess.run(["chmod", "-R", "u+rwx", tmp], capture_output=True)
@@ -503,11 +514,17 @@ def main(argv=None) -> int:
     for c in counts.values():
         total.update(c)
     doc = {"command": "python benchmarks/fault_battery.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+           "code": CODE, "git": subprocess.run(["git", "-C", CODE, "describe", "--always", "--dirty"],
+                                               capture_output=True, text=True).stdout.strip() or None,
            "cases": len(todo), "wall_s": round(time.monotonic() - t0, 1), "timeout_s": opts.timeout,
            "mounts": sorted(k for k in places if k in ("readonly", "full")),
            "total": dict(total), "per_command": {k: dict(v) for k, v in counts.items()},
            "failing": failing, "accepted_for_review": review, "resume": lost}
-    emit(doc, opts.out)
+    text = json.dumps(doc, indent=1)
+    print(text)
+    if opts.out:                      # not benchjson.emit: it imports this checkout's hubbeam_ctrl, not --code's
+        with open(opts.out, "w") as fh:
+            fh.write(text + "\n")
     return 0
 
 
