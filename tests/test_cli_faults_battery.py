@@ -3,7 +3,7 @@
 Each bad command line exits with status 2 and one line on stderr, without a traceback, naming the
 option as typed and its range, and writes nothing. Kinds: ``sw`` a silent wrong result (status 0)
 before, ``tb`` a traceback (an exception's name, status 1) before, ``nm`` a refusal that named the
-wrong thing (``modal table`` for ``--modal-table``).
+wrong thing (``modal table`` for ``--modal-table``), ``late`` refused only after the run.
 """
 
 import os
@@ -17,6 +17,8 @@ COMPARE = ["compare", "--controllers", "lqr", "--n-modes", "2", "--tf", "1", "--
 EXCITE = ["excite", "--rig", "servo_link", "--kind", "step", "--duration", "0.1", "--out", "x.csv"]
 SWEEP = ["sweep", "spec.toml", "--out", "s"]
 TUNE = ["tune", "spec.toml", "--controller", "lqr", "--out", "t", "--workers", "1"]
+CERTIFY = ["certify", "lqr", "--n-modes", "2", "--tf", "1", "--t-end", "2", "--dt", "0.01", "--uncertainty",
+           "m_t=0:0.1", "--grid", "2", "--check", "none", "--out", "ce"]
 MODAL = ["identify", "--rig", "servo_link", "--fit", "E", "--out", "idout", "--modal-table"]
 
 #: (kind, argv, words the one line must hold).
@@ -47,6 +49,9 @@ CASES = [
     ("nm", MODAL + ["adir"], "--modal-table file adir is not a regular file"),
     ("nm", MODAL + ["/dev/zero"], "--modal-table file /dev/zero is not a regular file"),
     ("nm", MODAL + ["badheader.csv"], "--modal-table file badheader.csv: header item 'a' is not one of spin [rad/s]"),
+    # --c-out checked before the comparison, not after it (a refusal after the work, progress lines above it)
+    ("late", CERTIFY + ["--c-out", "afile"], "--c-out: afile exists and is not a folder"),
+    ("late", CERTIFY + ["--c-out", "no/such"], "--c-out: folder no does not exist"),
     # a rig missing beam.I (Table 1's, 8 m of aluminium) or beam.J_h: named --band / --amplitude, not typed
     ("nm", EXCITE[:2] + ["no_I.toml"] + EXCITE[3:], "the default band of the rig's first 2 bending modes reaches "
                                                     "3494.22 Hz, past the Nyquist frequency 500 Hz of dt = 0.001 s"),
@@ -60,6 +65,7 @@ def inputs(tmp_path_factory):
     """A folder with the files the cases name."""
     d = tmp_path_factory.mktemp("battery")
     (d / "adir").mkdir()
+    (d / "afile").write_text("x")
     (d / "binary.csv").write_bytes(b"spin [rad/s],mode [-],frequency [Hz]\n" + bytes(range(128, 256)))
     (d / "latin1.csv").write_bytes(b"\xb2 = 1\n")
     (d / "huge.csv").write_text("spin [rad/s],mode [-],frequency [Hz]\n" + "0,1,2\n" * 200_000)
