@@ -399,7 +399,9 @@ def lost_case(tmp: str, timeout: float) -> dict:
     whole = subprocess.run(py + ["--out", os.path.join(tmp, "whole")], capture_output=True, env=env, timeout=timeout)
     wall = time.monotonic() - t0
     part = os.path.join(tmp, "part")
-    proc = subprocess.Popen(py + ["--out", part], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    # SIGINT as at a terminal: a battery started in the background (nohup, &) inherits it ignored
+    proc = subprocess.Popen(py + ["--out", part], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     t0 = time.monotonic()
     done = os.path.join(part, "results.csv")
     while time.monotonic() - t0 < timeout and proc.poll() is None:
