@@ -108,3 +108,36 @@ def test_full_disk_inside_an_output_folder_is_a_resource_error(tmp_path):
         write_folder(tmp_path / "c", write, "--out")
     assert str(info.value) == f"--out: cannot write {tmp_path / 'c'}: No space left on device"
     assert list(tmp_path.iterdir()) == []
+
+
+def _battery():
+    import importlib.util
+    path = os.path.join(os.path.dirname(__file__), "..", "benchmarks", "fault_battery.py")
+    spec = importlib.util.spec_from_file_location("fault_battery", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_battery_covers_every_command_and_classes_by_the_issue(tmp_path):
+    """benchmarks/fault_battery.py reads the commands from the parser (a command added later is battered
+    too) and classes a run as the issue does."""
+    from hubbeam_ctrl.cli.main import build_parser
+    fb = _battery()
+    parser = build_parser()
+    commands = {a for a in parser._actions if a.dest == "command"}.pop().choices
+    assert set(fb.BASES) == set(commands)
+    cases = fb.cases(parser, set(), str(tmp_path), {"missing": str(tmp_path / "missing.toml")},
+                     {"file": str(tmp_path / "afile")})
+    assert {c[0] for c in cases} == set(commands) | set(fb.VARIANTS)
+    tune_workers = [c for c in cases if c[:3] == ("tune", "--workers", "value:1e308")]
+    argv = tune_workers[0][3]
+    assert argv[-1] == "--workers=1e308" and "--workers" not in argv[:-1]      # the base's --workers 1 replaced
+    case = ("tune", "--workers", "value:1e308", [])
+    run = {"status": 2, "err": "hubbeam: error: --workers must be an integer in 1..1024, got 1e308\n"}
+    assert fb.classify(case, run) == "refused"
+    assert fb.classify(case, dict(run, err="hubbeam: error: workers must be ...\n")) == "wrong_name"
+    assert fb.classify(case, {"status": 1, "err": "hubbeam: error: OverflowError: too large\n"}) == "traceback"
+    assert fb.classify(case, {"status": 0, "err": ""}) == "silent_wrong"
+    assert fb.classify(case, {"status": None, "err": ""}) == "hang"
+    assert fb.classify(("tune", "--seed", "value:0", []), {"status": 0, "err": ""}) == "accepted"
