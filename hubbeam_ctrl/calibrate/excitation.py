@@ -32,6 +32,8 @@ EXCITATION_KINDS = ("chirp", "prbs", "multisine", "step")
 #: Most samples of an excitation record (ten million: an hour at 0.36 ms; the record and its
 #: predicted response are simulated).
 MAX_SAMPLES = 10_000_000
+#: Largest ``max_hub_travel`` [rad] (a limit past it never binds).
+MAX_HUB_TRAVEL = 1e6
 
 
 def excitation_band(rig: Rig, n_modes: int = 2) -> tuple:
@@ -83,6 +85,14 @@ def _shape(kind, t, duration, band, rng):
     return np.where(t < duration / 3, 1.0, 0.0)
 
 
+def _check_limit(name: str, value, unit: str, hi: float, what: str) -> float:
+    """``value`` checked > 0 (:func:`check_positive`) and at most ``hi`` (``what``, for the message)."""
+    value = check_positive(name, value, unit)
+    if value > hi:
+        raise ParameterError(f"{name} must be in (0, {hi:g}] [{unit}] (at most {what}), got {value:g}")
+    return value
+
+
 def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: float | None = None,
                amplitude: float | None = None, band_hz=None, n_modes: int = 2,
                max_tip_deflection: float | None = None, max_hub_travel: float | None = None,
@@ -128,18 +138,24 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     seed = check_integer("seed", seed, 0, 2 ** 63 - 1)
     limit = rig.drive.V_max if not rig.drive.is_ideal else rig.beam.tau_max
     unit = "V" if not rig.drive.is_ideal else "N m"
+    given = amplitude is not None
     if amplitude is None:
         amplitude = limit
     amplitude = check_in_range("amplitude", amplitude, unit, 0.0, limit, "within the drive's limit")
     if amplitude == 0:
         raise ParameterError(f"amplitude must be > 0 [{unit}], got 0")
-    tip = 0.1 * rig.beam.L if max_tip_deflection is None else check_positive("max_tip_deflection",
-                                                                             max_tip_deflection, "m")
-    travel = math.pi if max_hub_travel is None else check_positive("max_hub_travel", max_hub_travel, "rad")
+    tip = 0.1 * rig.beam.L if max_tip_deflection is None else _check_limit("max_tip_deflection", max_tip_deflection,
+                                                                           "m", rig.beam.L, "the beam length L")
+    travel = math.pi if max_hub_travel is None else _check_limit("max_hub_travel", max_hub_travel, "rad",
+                                                                 MAX_HUB_TRAVEL, "1e6 rad, far past any rig")
     band = excitation_band(rig, n_modes) if band_hz is None else tuple(float(b) for b in band_hz)
     if len(band) != 2 or not (0 < band[0] < band[1]) or not all(map(math.isfinite, band)):
         raise ParameterError(f"band_hz must be (lo, hi) with 0 < lo < hi [Hz], got {band_hz!r}")
     if band[1] >= 0.5 / dt:
+        if band_hz is None:                # the default: the rig's modes, not a band the caller gave
+            raise ParameterError(f"the default band of the rig's first {n_modes} bending modes reaches {band[1]:g} "
+                                 f"Hz, past the Nyquist frequency {0.5 / dt:g} Hz of dt = {dt:g} s (check the rig's "
+                                 f"beam; or give a band, --band, or fewer modes, --modes)")
         raise ParameterError(f"band_hz upper end {band[1]:g} Hz must be below the Nyquist frequency "
                              f"{0.5 / dt:g} Hz of dt = {dt:g} s")
     if duration < 2.0 / band[0] and kind != "step":
@@ -184,6 +200,10 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
                                  f"{unit}, --amplitude), which moves the hub at most {peak_hub:.3g} rad (friction may "
                                  f"hold it), not more than {seen}: the record would show nothing to fit; allow "
                                  f"more motion (--max-hub, --max-tip) or excite another kind")
+        if not given:                      # the drive's whole range: the rig cannot move its hub
+            raise ParameterError(f"the drive's full amplitude {amplitude:.3g} {unit} moves the hub at most "
+                                 f"{peak_hub:.3g} rad, not more than {seen}: the record would show nothing to fit "
+                                 f"(check the rig's beam and drive)")
         raise ParameterError(f"amplitude = {amplitude:.3g} {unit} moves the hub at most {peak_hub:.3g} rad, not more "
                              f"than {seen}: the record would show nothing to fit; give a larger amplitude "
                              f"(at most {limit:g} {unit})")

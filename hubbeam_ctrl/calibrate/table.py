@@ -22,6 +22,9 @@ from hubbeam_ctrl.plant.rig import Rig
 __all__ = ["ModalTable", "load_modal_table", "fit_modal_table", "MODAL_TABLE_COLUMNS"]
 
 
+#: Largest modal table read [bytes].
+MAX_TABLE_BYTES = 1_000_000
+
 #: Columns of a modal table: name -> unit.
 MODAL_TABLE_COLUMNS = {"spin": "rad/s", "m_t": "kg", "mode": "-", "frequency": "Hz", "damping": "-"}
 
@@ -68,42 +71,48 @@ class ModalTable:
         object.__setattr__(self, "mode", self.mode.astype(int))
 
 
-def load_modal_table(path) -> ModalTable:
+def load_modal_table(path, what: str = "modal table") -> ModalTable:
     """Read a modal table CSV (header ``spin [rad/s],m_t [kg],mode [-],frequency [Hz],damping [-]``;
-    ``m_t`` and ``damping`` optional).
+    ``m_t`` and ``damping`` optional; at most :data:`MAX_TABLE_BYTES`).
 
     Parameters
     ----------
     path : str or Path
+    what : str
+        The table as the caller names it (``"--modal-table file"``), starting every refusal.
 
     Returns
     -------
     ModalTable
     """
-    from hubbeam_ctrl.core.reading import check_regular_file
-    path = check_regular_file(path, "modal table")
-    with open(path, encoding="utf-8") as fh:
-        header = fh.readline()
-        body = fh.read()
+    from hubbeam_ctrl.core.reading import read_text
+    header, _, body = read_text(path, what, MAX_TABLE_BYTES).partition("\n")
+    where = f"{what} {path}"
     names = []
     for item in header.strip().split(","):
         m = re.match(r"^\s*(\w+)\s*\[([^\]]*)\]\s*$", item)
         if not m or m.group(1) not in MODAL_TABLE_COLUMNS or m.group(2).strip() != MODAL_TABLE_COLUMNS[m.group(1)]:
-            raise ParameterError(f"modal table {path}: header item {item.strip()[:40]!r} is not one of "
+            raise ParameterError(f"{where}: header item {item.strip()[:40]!r} is not one of "
                                  + ", ".join(f"{k} [{u}]" for k, u in MODAL_TABLE_COLUMNS.items()))
         names.append(m.group(1))
     for need in ("spin", "mode", "frequency"):
         if need not in names:
-            raise ParameterError(f"modal table {path}: needs a column {need} [{MODAL_TABLE_COLUMNS[need]}]")
+            raise ParameterError(f"{where}: needs a column {need} [{MODAL_TABLE_COLUMNS[need]}]")
+    rows = [line.split(",") for line in body.splitlines() if line.strip()]
+    for i, row in enumerate(rows):
+        if len(row) != len(names):
+            raise ParameterError(f"{where}: row {i + 2} has {len(row)} cells for {len(names)} columns")
     try:
-        data = np.array([[float(c) for c in line.split(",")] for line in body.splitlines() if line.strip()])
+        data = np.array([[float(c) for c in row] for row in rows], dtype=float).reshape(-1, len(names))
     except ValueError:
-        raise ParameterError(f"modal table {path}: a cell is not a number") from None
-    data = data.reshape(-1, len(names))
+        raise ParameterError(f"{where}: a cell is not a number") from None
     cols = {n: data[:, j] for j, n in enumerate(names)}
     k = len(data)
-    return ModalTable(spin=cols["spin"], m_t=cols.get("m_t", np.full(k, np.nan)), mode=cols["mode"],
-                      frequency=cols["frequency"], damping=cols.get("damping", np.full(k, np.nan)))
+    try:
+        return ModalTable(spin=cols["spin"], m_t=cols.get("m_t", np.full(k, np.nan)), mode=cols["mode"],
+                          frequency=cols["frequency"], damping=cols.get("damping", np.full(k, np.nan)))
+    except ParameterError as exc:                  # "modal table: ..." -> the table as the caller named it
+        raise ParameterError(f"{where}{str(exc).removeprefix('modal table')}") from None
 
 
 def _modal_predict(rig, table, n_modes, hub):

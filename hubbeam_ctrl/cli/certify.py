@@ -133,6 +133,7 @@ def _run(args) -> int:
     from hubbeam_ctrl.study.robust_check import check_points, run_at
     plan, opts = _plan(args)
     rig = opts["rig"]
+    c_root = None if args.c_out is None else check_output_dir("--c-out", args.c_out)     # before any work
     comparison = compare(**compare_arguments(**opts))
     names = [n for n in opts["controllers"] if n != "openloop"]
     missing = [n for n in names if n not in comparison.robust]
@@ -142,7 +143,6 @@ def _run(args) -> int:
     bare = rig.replace(uncertainty=type(u)())
     doc = {"set": u.to_table(), "controllers": {}}
     verdicts = {}
-    c_root = None if args.c_out is None else check_output_dir("--c-out", args.c_out)
     lines = [f"# Robust certificate: {comparison.scenario.description}", "", f"Set: {u.describe()}.", ""]
     for name in names:
         ctrl, wc, design_doc = comparison.controllers[name], comparison.robust[name], {"kind": "nominal"}

@@ -238,8 +238,9 @@ def _run_modal_table(args, plan) -> int:
     from hubbeam_ctrl.calibrate.table import fit_modal_table, load_modal_table
     from hubbeam_ctrl.cli.args import print_result
 
-    result = fit_modal_table(plan["rig"], load_modal_table(plan["table"]), [f.name for f in plan["fields"]],
-                             bounds=plan["bounds"], settings=plan["settings"], progress=not args.json)
+    table = load_modal_table(plan["table"], "--modal-table file")
+    result = fit_modal_table(plan["rig"], table, [f.name for f in plan["fields"]], bounds=plan["bounds"],
+                             settings=plan["settings"], progress=not args.json)
     summary, rig_text = _write_outputs(result, plan, {}, [])
     print_result(args, summary, result.summary)
     return _refusal(result, plan["out"], rig_text is not None)

@@ -11,11 +11,13 @@ file and the code disagree; regenerate with::
 
 from __future__ import annotations
 
+import math
 import sys
 from dataclasses import fields
 from pathlib import Path
 
 from controllers import CONTROLLERS
+from hubbeam_ctrl.calibrate.excitation import MAX_HUB_TRAVEL
 from hubbeam_ctrl.calibrate.excitation import MAX_SAMPLES as EXCITATION_SAMPLES
 from hubbeam_ctrl.cli.args import OPTION_NAMES
 from hubbeam_ctrl.core.budget import T_END_MAX
@@ -29,9 +31,11 @@ from hubbeam_ctrl.plant.rig import RIG_RELATIONS, Rig
 from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.simulate import SimulationSettings
+from hubbeam_ctrl.study.bands import MAX_ANGLE_BAND
 from hubbeam_ctrl.study.scenarios import RANGES as SCENARIO_RANGES
+from hubbeam_ctrl.study.sweep import MAX_WORKERS
 from hubbeam_ctrl.study.tasks import MIN_TARGET
-from hubbeam_ctrl.study.tune import MAX_DECADES
+from hubbeam_ctrl.study.tune import MAX_DECADES, MAX_SEED
 
 __all__ = ["ranges_markdown", "settings_classes", "main"]
 
@@ -159,7 +163,14 @@ def _function_rows() -> list:
          f"duration / dt <= {EXCITATION_SAMPLES:.0e} samples", "`--dt`, `--duration` (excite)"),
         ("`excitation`", "`n_modes`, `seed`", "-", f"integer in 1..{MAX_MODES}; integer >= 0",
          "`--modes`, `--seed` (excite)"),
+        ("`excitation`", "`max_tip_deflection`, `max_hub_travel`", "m, rad",
+         f"(0, L] (the beam length); (0, {MAX_HUB_TRAVEL:g}]", "`--max-tip`, `--max-hub` (excite)"),
         ("`TuneOptions`", "`decades`", "-", f"(0, {MAX_DECADES:g}]", "`--decades` (tune)"),
+        ("`TuneOptions`", "`seed`", "-", f"integer in 0..{MAX_SEED}", "`--seed` (tune)"),
+        ("`Engine`, `sweep`, `tune`", "`workers`", "-", f"integer in 1..{MAX_WORKERS}", "`--workers` (sweep, tune)"),
+        ("`compare`, `Slew`, `SpinUp`", "`settle_angle`, `settle_tip`", "rad, m",
+         f"> 0; an angle band at most {MAX_ANGLE_BAND / math.pi:g} pi (one turn), a tip band at most L",
+         "`--settle-angle`, `--settle-tip` (compare, certify)"),
     ]
     return [f"| {f} | {a} | {u} | {_cell(r)} | {o} |" for f, a, u, r, o in rows]
 

@@ -28,7 +28,7 @@ def add_engine_options(p) -> None:
     """
     p.add_argument("--workers", metavar="N", type=positive_int("workers"),
                    help="local worker processes (default: one per core; 1 runs in this process)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
+    p.add_argument("--scheduler", metavar="ADDRESS", type=nonempty("scheduler address"),
                    help="run on the Dask cluster of this scheduler (e.g. tcp://host:8786) instead")
     p.add_argument("--scheduler-timeout", metavar="S", type=positive_float("scheduler-timeout"),
                    help="seconds to wait for the scheduler (default 10; with --scheduler only)")

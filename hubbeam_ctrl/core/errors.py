@@ -57,5 +57,8 @@ def write_error(exc: OSError, what: str) -> HubbeamError:
     what : str
         The start of the message (``"out: cannot write results.csv"``).
     """
-    text = f"{what}: {exc.strerror or exc}"
-    return ResourceError(text) if exc.errno in RESOURCE_ERRNOS else ParameterError(text)
+    reason = exc.strerror or getattr(exc, "reason", None) or exc      # a nested write_error: its reason alone
+    resource = exc.errno in RESOURCE_ERRNOS or isinstance(exc, ResourceError)
+    err = (ResourceError if resource else ParameterError)(f"{what}: {reason}")
+    err.reason = str(reason)
+    return err

@@ -332,7 +332,7 @@ def write_folder(path, write, option: str = "out") -> Path:
         _move_into_place(tmp, path, names)
     except OSError as exc:
         _remove_entry(tmp)
-        raise ParameterError(f"{option}: cannot write {path}: {exc.strerror or exc}") from None
+        raise write_error(exc, f"{option}: cannot write {path}") from None
     except BaseException:
         _remove_entry(tmp)
         raise

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["read_toml", "path_exists", "check_regular_file", "MAX_TOML_BYTES"]
+__all__ = ["read_toml", "read_text", "path_exists", "check_regular_file", "MAX_TOML_BYTES"]
 
 
 #: Largest TOML input read (parameters, study specs, settings) [bytes].
@@ -67,6 +67,34 @@ def read_toml(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> dict
     dict
     """
     import tomllib
+    text = read_text(path, what, max_bytes)
+    name = _short_path(path)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{what} {name} is not valid TOML: {' '.join(str(exc).split())[:200]}") from None
+    except RecursionError:
+        raise ParameterError(f"{what} {name} is nested too deeply") from None
+
+
+def read_text(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> str:
+    """The UTF-8 text of the regular file at ``path``, or a one-line :class:`ParameterError` naming
+    the file: a missing path, a folder, a FIFO or device (never opened), an unreadable file, a file
+    over ``max_bytes``, bytes that are not UTF-8 or hold a NUL.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, as the message starts (``"params file"``, ``"--modal-table file"``).
+    max_bytes : int
+        Largest size read [bytes].
+
+    Returns
+    -------
+    str
+    """
     if path is None or not isinstance(path, (str, os.PathLike)) or str(path).strip() == "" \
             or "\x00" in str(path):
         raise ParameterError(f"{what} must be named by a path, got {path!r}")
@@ -87,12 +115,7 @@ def read_toml(path, what: str = "file", max_bytes: int = MAX_TOML_BYTES) -> dict
         raise ParameterError(f"{what} {name} is not UTF-8 text (byte {exc.start})") from None
     if "\x00" in text:
         raise ParameterError(f"{what} {name} is not a text file (NUL byte)")
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"{what} {name} is not valid TOML: {' '.join(str(exc).split())[:200]}") from None
-    except RecursionError:
-        raise ParameterError(f"{what} {name} is nested too deeply") from None
+    return text
 
 
 def check_regular_file(path, option: str = "path") -> Path:

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["Band", "ANGLE_FLOOR_COUNTS", "ANGLE_FORMS", "TIP_FORMS", "parse_band", "angle_count",
+__all__ = ["Band", "ANGLE_FLOOR_COUNTS", "MAX_ANGLE_BAND", "ANGLE_FORMS", "TIP_FORMS", "parse_band", "angle_count",
            "default_band_sources", "task_bands", "with_task_bands"]
 
 #: Counts of the rig's angle sensor below which a default angle band is raised (see the module).
@@ -50,6 +50,9 @@ __all__ = ["Band", "ANGLE_FLOOR_COUNTS", "ANGLE_FORMS", "TIP_FORMS", "parse_band
 #: is four: below a slew of 0.1 rad the task's own band (1e-3 of the angle) is finer than that on
 #: ``space_boom`` (2.4e-5 rad), and ``--settle-angle`` sets a tighter one.
 ANGLE_FLOOR_COUNTS = 2
+
+#: Largest angle band [rad]: one turn (a wider band calls any run settled).
+MAX_ANGLE_BAND = 2.0 * math.pi
 
 #: The accepted forms of an angle band, for messages and help.
 ANGLE_FORMS = "a number [rad] or with a unit: 1e-3rad, 1.5mrad, 0.05deg, 2counts (of the rig's angle sensor)"
@@ -103,6 +106,12 @@ class Band:
         Returns
         -------
         float
+
+        Raises
+        ------
+        ParameterError
+            Counts without a sensor; an angle band over :data:`MAX_ANGLE_BAND` (one turn) or a tip
+            band over the beam's length.
         """
         if self.unit == "counts":
             if count is None:
@@ -110,8 +119,16 @@ class Band:
                 raise ParameterError(f"{self.origin} {self.text}: counts need a rig with an angle sensor ({rig} "
                                      f"with sensors.encoder_counts or sensors.angle_noise); without one give the "
                                      f"band in rad or deg")
-            return self.value * count
-        return self.value * length if self.unit == "L" else self.value
+            value = self.value * count
+        else:
+            value = self.value * length if self.unit == "L" else self.value
+        if self.unit in ("rad", "counts") and value > MAX_ANGLE_BAND:
+            raise ParameterError(f"{self.origin} must be at most 2 pi rad (one turn), got {self.text!r} "
+                                 f"= {value:.4g} rad")
+        if self.unit in ("m", "L") and value > length:
+            raise ParameterError(f"{self.origin} must be at most the beam length L = {length:g} m, got "
+                                 f"{self.text!r} = {value:.4g} m")
+        return value
 
 
 def parse_band(name: str, value, kind: str) -> Band:

@@ -19,6 +19,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import Damping, Drive, Friction, Rig, Sensors, Timing
 from hubbeam_ctrl.study.compare import _design_modes, _sim_settings, compare
 from hubbeam_ctrl.study.compare_values import CompareSettings
+from hubbeam_ctrl.study.sweep import check_workers
 from hubbeam_ctrl.study.yardstick import task_on_rig
 
 __all__ = ["LADDER_STEPS", "ladder_rigs", "rig_ladder"]
@@ -96,8 +97,7 @@ def rig_ladder(rig: Rig, task="slew", controllers=None, settings: CompareSetting
         (N m or V), ``command`` (``"torque"`` or ``"voltage"``).
     """
     settings = CompareSettings() if settings is None else settings
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
+    check_workers(workers)
     steps = ladder_rigs(rig)
     asked, asked_settings = task, settings
     task, scenario, _ = task_on_rig(rig, task, settings.scenario)       # every step: the full rig's task

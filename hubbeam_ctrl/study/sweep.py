@@ -44,8 +44,8 @@ from hubbeam_ctrl.study.spec_files import load_spec
 from hubbeam_ctrl.study.sweep_cluster import _one_line, connect
 from hubbeam_ctrl.study.sweep_store import _RESULTS, _frame, _StudyFolder, read_results, result_columns
 
-__all__ = ["sweep", "run_case", "run_batch", "CaseCache", "result_columns", "read_results",
-           "connect", "plan_batches", "Engine", "TIMING_COLUMNS"]
+__all__ = ["sweep", "check_workers", "MAX_WORKERS", "run_case", "run_batch", "CaseCache", "result_columns",
+           "read_results", "connect", "plan_batches", "Engine", "TIMING_COLUMNS"]
 
 #: Columns that hold wall times (they differ from run to run; everything else is deterministic).
 TIMING_COLUMNS = ("setup_s", "wall_s", "sim_wall_s", "step_time_median_ms", "step_time_p99_ms")
@@ -263,6 +263,23 @@ def plan_batches(cases: list, workers: int, per_worker: int = 4, cap: int = 32) 
     return batches
 
 
+#: Most local worker processes (a pool's semaphore and file descriptors bound it; far above any core count).
+MAX_WORKERS = 1024
+
+
+def check_workers(workers) -> int:
+    """Return ``workers``; raise unless it is an integer in 1..:data:`MAX_WORKERS`.
+
+    Parameters
+    ----------
+    workers : int
+        Local worker processes.
+    """
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= MAX_WORKERS:
+        raise ParameterError(f"workers must be an integer in 1..{MAX_WORKERS}, got {workers!r}")
+    return workers
+
+
 def _default_workers() -> int:
     try:
         return len(os.sched_getaffinity(0))
@@ -334,8 +351,8 @@ class Engine:
     """
 
     def __init__(self, workers: int | None = None, client=None, retries: int = 2):
-        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-            raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
+        if workers is not None:
+            check_workers(workers)
         self.client, self.retries = client, retries
         self.workers = _dask_workers(client) if client is not None else (workers or _default_workers())
         self._pool = None

@@ -57,6 +57,8 @@ MAX_MAXITER, MAX_POPSIZE, MAX_TUNE_RUNS = 10_000, 1_000, 1_000_000
 #: Largest ``tune.decades``: the weights ``10^x`` searched stay within 1e-10..1e10 of the scaled
 #: defaults (far past any useful design; beyond it the optimiser's bounds overflow).
 MAX_DECADES = 10.0
+#: Largest ``tune.seed`` (a 64-bit signed integer, as the other seeds: ``SensorSettings.seed``, ``excitation``).
+MAX_SEED = 2 ** 63 - 1
 
 
 @dataclass(frozen=True)
@@ -115,8 +117,8 @@ class TuneOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= hi:
                 raise ParameterError(f"tune.{name} must be an integer in 1..{hi}, got {v!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ParameterError(f"tune.seed must be an integer >= 0, got {self.seed!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed <= MAX_SEED:
+            raise ParameterError(f"tune.seed must be an integer in 0..{MAX_SEED}, got {self.seed!r}")
 
     @classmethod
     def from_dict(cls, table: dict | None) -> "TuneOptions":
