@@ -6,14 +6,17 @@ The drive's hub torque (:func:`~hubbeam_ctrl.sim.hardware.drive_torque`) is
 ``I_max`` and the armature's time constant ``L / R`` is far below a sample, the torque is
 ``e (N k_t / R) (V - k_e N thd)``: the torque constant and the resistance enter only as their
 ratio ``k_t / R``, whatever the records. A fit of both is then singular (its Jacobian has a
-null direction ``d log k_t = d log R``: measured singular value 2e-8 against 2e5 for the
-servo link's ``hubbeam excite`` chirp and PRBS, in units of the sensors' noise), so
+null direction ``d log k_t = d log R``: singular value 1.8e-7 against 1.1e5 for the servo
+link's ``hubbeam excite`` chirp and PRBS, in units of the sensors' noise,
+``benchmarks/bench_calibrate.py --fisher``), so
 :func:`drive_plan` fixes ``motor.R`` at the given rig's value (its data sheet), fits
 ``motor.k_t`` in its place and reports what the records did determine: ``motor.k_t /
 motor.R``. The back-EMF constant ``k_e`` and the viscous friction ``c_v`` stay fitted: with a
 gear whose efficiency differs between driving and back-driven (``eta_forward !=
 1 / eta_backward``) the back-EMF damping ``e N^2 k_t k_e / R`` switches with the power's sign
-and ``c_v`` does not, which separates them; with an ideal gear they enter only as the hub's
+and ``c_v`` does not, which separates them, weakly (the servo link's 0.9 / 0.69 gear: singular
+value 65, a 95 % Cramer-Rao half-width of 3 % on ``c_v``, and the estimate rests on the data
+sheet's efficiencies); with an ideal gear they enter only as the hub's
 linear damping ``N^2 k_t k_e / R + c_v`` and ``friction.viscous`` is fixed at its given value
 the same way.
 """
