@@ -101,3 +101,30 @@ def test_fit_returns_kt_over_r_and_says_r_is_fixed(chirp):
     out = res.to_dict()
     assert out["drive"]["fixed"]["motor.R"]["value"] == rig.drive.R
     assert "determined motor.k_t / motor.R" in res.summary()
+
+
+def test_the_benchmarked_drive_identifiability():
+    """``benchmarks/bench_calibrate.py --seeds 2 --fisher``: the null directions its Fisher information
+    finds, and item 5's fits from ``hubbeam excite``'s default records against the issue's targets
+    for the fields they reach (viscous friction and J_h are reported, not met: docs/calibration.md)."""
+    import json
+
+    from tests.conftest import ROOT
+    latest = sorted((ROOT / "benchmarks" / "results").glob("bench_calibrate_*.json"))[-1]
+    run = json.loads(latest.read_text())
+    servo, ideal = run["drive_fisher"]["servo_gear"], run["drive_fisher"]["ideal_gear"]
+    for fisher in (servo, ideal):          # k_t and R only as k_t / R: one null direction d log k_t = d log R
+        sv = fisher["singular_values"]
+        assert sv[-1] < 1e-10 * sv[0]
+        d = fisher["weakest_directions"][0]["direction"]
+        assert abs(d["motor.k_t"]) == 1.0 and abs(d["motor.R"] - d["motor.k_t"]) < 1e-2
+    # the servo's gear separates k_e from viscous (weakly), an ideal one does not
+    assert servo["singular_values"][-2] > 1e-4 * servo["singular_values"][0]
+    assert ideal["singular_values"][-2] < 1e-9 * ideal["singular_values"][0]
+    rows = run["servo_from_records"]["replicates"]
+    assert rows and all(r["fixed"] == {"motor.R": 2.6} for r in rows)
+    for r in rows:
+        err = r["error_percent"]
+        assert r["status"] == "converged"
+        assert abs(err["E"]) < 1.0 and abs(err["coulomb"]) < 10.0 and abs(err["damping"]) < 15.0
+        assert abs(err["motor.k_t / motor.R"]) < 2.0 and abs(err["motor.k_e"]) < 2.0
