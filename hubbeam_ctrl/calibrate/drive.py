@@ -63,7 +63,7 @@ class DrivePlan:
     def to_dict(self) -> dict:
         """JSON-ready."""
         return {"fixed": self.fixed, "combinations": self.values or self.combinations,
-                "peak_current_A": self.peak_current}
+                "peak_current_A": self.peak_current if np.isfinite(self.peak_current) else None}
 
     def lines(self) -> list:
         """Report lines: each fixed field and why, each determined combination."""
