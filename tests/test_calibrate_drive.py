@@ -128,3 +128,28 @@ def test_the_benchmarked_drive_identifiability():
         assert r["status"] == "converged"
         assert abs(err["E"]) < 1.0 and abs(err["coulomb"]) < 10.0 and abs(err["damping"]) < 15.0
         assert abs(err["motor.k_t / motor.R"]) < 2.0 and abs(err["motor.k_e"]) < 2.0
+
+
+def test_identify_reports_the_fixed_resistance(tmp_path, chirp, capsys):
+    """``hubbeam identify --fit motor.k_t,motor.R``: R fixed and said so, k_t / R in result.json and report.md."""
+    import json
+
+    from hubbeam_ctrl.calibrate import save_record
+    from hubbeam_ctrl.cli.main import main
+    from hubbeam_ctrl.plant.rig import save_rig
+    rig = _rig()
+    truth = rig.replace(drive=_truth(rig).drive.replace(k_e=rig.drive.k_e))      # k_t +5 %, R +8 %
+    save_record(synthetic_record(truth, chirp.t, chirp.input, seed=1), tmp_path / "rec.csv")
+    save_rig(rig, tmp_path / "rig.toml")
+    out = tmp_path / "out"
+    assert main(["identify", str(tmp_path / "rec.csv"), "--rig", str(tmp_path / "rig.toml"), "--fit",
+                 "motor.k_t,motor.R", "--plant-modes", "2", "--out", str(out), "--json"]) == 0
+    result = json.loads((out / "result.json").read_text())
+    assert list(result["estimates"]) == ["motor.k_t"]
+    assert result["drive"]["fixed"]["motor.R"]["value"] == rig.drive.R
+    ratio = result["drive"]["combinations"]["motor.k_t / motor.R"]["value"]
+    assert abs(ratio / (truth.drive.k_t / truth.drive.R) - 1) < 1e-3
+    report = (out / "report.md").read_text()
+    assert "## Drive constants" in report and "- fixed motor.R = 2.6 ohm" in report
+    assert "determined motor.k_t / motor.R" in report
+    capsys.readouterr()
