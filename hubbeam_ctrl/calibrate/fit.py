@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hubbeam_ctrl.calibrate.drive import drive_plan
 from hubbeam_ctrl.calibrate.fields import FIT_ALIASES, FitField, resolve_fields  # noqa: F401 (re-exported)
 from hubbeam_ctrl.calibrate.intervals import rough_intervals
 from hubbeam_ctrl.calibrate.model import ModelSettings, _check_sensors, rig_sensors, set_fields, simulate_sensors
@@ -213,6 +214,9 @@ class FitResult:
         ``"rough"``, the cost's ``roughness`` and ``noise_cost``, the ``evaluations`` spent, the
         noise's part of each 95 % half-width ``noise_half_width`` and the smoothed minimum's
         offset from the estimate ``shift`` [each field's unit].
+    drive : DrivePlan or None
+        The drive fields fixed because the records cannot separate them (and why), and the
+        combinations they determine (:func:`~hubbeam_ctrl.calibrate.drive.drive_plan`).
     """
 
     fields: list
@@ -235,6 +239,7 @@ class FitResult:
     status: str = ""
     std_jacobian: np.ndarray | None = None
     intervals: dict = field(default_factory=dict)
+    drive: object = None
 
     def __post_init__(self):
         if not self.status:
@@ -262,6 +267,7 @@ class FitResult:
                 "fit_percent": self.fit, "fit_ceiling_percent": self.ceiling, "status": self.status,
                 "starts": self.starts, "plant_modes": None if self.model is None else self.model.n_transverse,
                 "design": None if self.design is None else self.design.to_dict(), "warnings": list(self.warnings),
+                "drive": None if self.drive is None else self.drive.to_dict(),
                 "intervals": {**self.intervals, **({} if self.std_jacobian is None else {
                     "std_jacobian": dict(zip(self.names, np.asarray(self.std_jacobian, dtype=float).tolist()))})}}
 
@@ -282,6 +288,7 @@ class FitResult:
         for f, s, e, (lo, hi) in zip(self.fields, self.start, self.estimate, self.interval):
             unit = "" if f.unit in ("", "-") else f" {f.unit}"
             lines.append(f"  {f.name:<12} {e:.6g}{unit}  95 % [{lo:.6g}, {hi:.6g}]  (start {s:.6g})")
+        lines += [f"  {line}" for line in ([] if self.drive is None else self.drive.lines())]
         for src, per in self.fit.items():
             cap = self.ceiling.get(src, {})
             lines.append(f"  fit {src}: " + ", ".join(f"{k} {v:.2f} %" + (f" (noise ceiling {cap[k]:.2f} %)"
@@ -420,9 +427,12 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
     records = [records] if isinstance(records, Record) else list(records)
     if not records or not all(isinstance(r, Record) for r in records):
         raise ParameterError("records must be one or more Record (calibrate.records.load_record)")
-    fit_fields = resolve_fields(fit, rig)
+    asked = resolve_fields(fit, rig)
     records = [r.resampled() for r in records]
     used = [check_record_for_rig(r, rig, sensors) for r in records]
+    fit_fields, drive = drive_plan(rig, records, asked)      # k_t and R: only k_t / R (calibrate.drive)
+    gone = {n for f in asked if f.path in drive.fixed for n in (f.name, f.path)}
+    bounds = {k: v for k, v in (bounds or {}).items() if k not in gone}
     start = np.array([f.get(rig) for f in fit_fields])
     lo, hi = _bounds(fit_fields, bounds, start)
     scale = _scales(fit_fields, start, rig)
@@ -574,6 +584,9 @@ def fit_rig(rig: Rig, records, fit, *, bounds=None, sensors=None, settings: FitS
                 warnings.append(f"the fit of {sensor} on {src} is only {value:.1f} % (below "
                                 f"{settings.warn_fit_percent:g} %): a local minimum, a model that lacks something "
                                 "or a noisy sensor; check the plots before trusting the estimate")
+    drive.evaluate(calibrated, {f.path: e for f, e in zip(fit_fields, estimate)},
+                   {f.path: s for f, s in zip(fit_fields, std)})
+    warnings += [f"{k} is not identifiable from these records: {v['reason']}" for k, v in drive.fixed.items()]
     return FitResult(fit_fields, start, estimate, std, corr, converged, message, evaluations, fits, warnings,
                      calibrated, time.perf_counter() - t0, design=design, ceiling=design.ceiling, starts=starts,
-                     model=model, status=status, std_jacobian=std_jacobian, intervals=intervals)
+                     model=model, status=status, std_jacobian=std_jacobian, intervals=intervals, drive=drive)

@@ -277,7 +277,11 @@ def _report(result, valid, series, written, np) -> str:
             "The intervals hold the noise (a sandwich covariance, per record and sensor) and the cost's roughness at "
             f"the estimate ({result.intervals['roughness'] / result.intervals['noise_cost']:.3g} times the noise's "
             "95 % level; stick-slip sticking makes it jump); they assume the model's structure is right.")
-    lines += ["", note, "",
+    lines += ["", note]
+    drive = [] if getattr(result, "drive", None) is None else result.drive.lines()
+    if drive:                  # drive fields the records cannot separate, and what they determine (calibrate.drive)
+        lines += ["", "## Drive constants", ""] + [f"- {line}" for line in drive]
+    lines += ["",
               "## Correlations", "", "| | " + " | ".join(result.names) + " |",
               "|---" * (len(result.names) + 1) + "|"]
     for name, row in zip(result.names, result.correlation):

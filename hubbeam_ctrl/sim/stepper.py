@@ -24,6 +24,7 @@ import math
 import time
 
 import numpy as np
+from numpy.linalg import _umath_linalg
 
 from hubbeam_ctrl.core.budget import T_END_MAX, check_budget
 from hubbeam_ctrl.core.compiled import OPT_COLD, OPT_HOT, compile_function
@@ -348,6 +349,7 @@ class PlantStepper:
         n, k = self.n_q, self.settings.substeps
         self._s_in, self._u, self._Jbuf = np.zeros(self.n_s), np.zeros(k), np.zeros(n * n)
         self._Jinv = np.zeros((n, n), order="F")
+        self._Jmat = self._Jbuf.reshape(n, n, order="F")      # a view of the iteration matrix's buffer
         self._s_out, self._err, self._tau0 = np.zeros(self.n_s), np.zeros(1), np.zeros(1)
         self._p = np.array(self.model.p, dtype=float)
         self._J_valid = False
@@ -375,12 +377,17 @@ class PlantStepper:
         return evaluate
 
     def _refresh(self):
+        """The iteration matrix at the input state and its inverse, into ``_Jinv``.
+
+        The inverse is ``numpy.linalg.inv``'s own LAPACK routine (``gesv`` on the identity) called
+        without its Python checks and copies, into the bound buffer: the same numbers bit for bit
+        at half the cost (issue 38: 4.6 -> 2.6 us for 5 coordinates). A singular matrix gives NaN
+        (no warning): the fast step fails and the rootfinder takes over.
+        """
         self._tau0[0] = self._u[0]
         self._eval_jacobian()
-        try:
-            self._Jinv[:] = np.linalg.inv(self._Jbuf.reshape(self.n_q, self.n_q, order="F"))
-        except np.linalg.LinAlgError:          # singular: the fast step fails, the rootfinder takes over
-            self._Jinv[:] = np.nan
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            _umath_linalg.inv(self._Jmat, signature="d->d", out=self._Jinv)
         self._J_valid = True
         self.jacobian_updates += 1
 
