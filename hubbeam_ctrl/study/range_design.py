@@ -17,7 +17,7 @@ from controllers import CONTROLLERS, make_controller
 from controllers.msmpc import scenario_range_design
 from controllers.robust import check_payload_range, design_for_range
 
-__all__ = ["ROBUST_CONTROLLERS", "SCENARIO_CONTROLLERS", "range_designs"]
+__all__ = ["ROBUST_CONTROLLERS", "SCENARIO_CONTROLLERS", "range_designs", "set_scenario_designs"]
 
 #: Controllers designed for a payload range (the others run their nominal design).
 ROBUST_CONTROLLERS = ("lqr", "lqg", "mpc")
@@ -134,3 +134,53 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
                                      t_f=sc.t_f, t_end=sc.t_end, delay=sc.bands["residual_delay"],
                                      baseline=baseline, score=score, progress=progress)
     return out
+
+
+def set_scenario_designs(names, scenario, design, uncertainty, settings: dict, *, sim=None,
+                         plant_modes: int | None = None) -> dict:
+    """The scenario-tree designs (:data:`SCENARIO_CONTROLLERS`) over an uncertainty set's payload range.
+
+    A multi-stage MPC on a rig whose ``[uncertainty]`` table holds ``m_t`` is the tree over that
+    range (its ends and the nominal payload), designed as ``compare --payload-range LO,HI``
+    designs it (:func:`range_designs`): the certificate over the set then judges the tree, not
+    the plain MPC that a tree of the nominal payload alone is. Controllers whose settings give
+    their own ``payloads`` keep them.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Controllers of the comparison.
+    scenario : Scenario
+        The task on the nominal beam.
+    design : DesignModel
+        The nominal design model (on the rig).
+    uncertainty : Uncertainty
+        The set; without ``m_t`` (or a zero-width one) nothing is designed.
+    settings : dict
+        Controller name -> its settings as the comparison chose them (on the rig).
+    sim, plant_modes
+        As :func:`range_designs`.
+
+    Returns
+    -------
+    dict
+        Controller name -> :class:`controllers.robust.RangeDesign` (empty when nothing applies).
+
+    Raises
+    ------
+    ParameterError
+        One line naming ``uncertainty.m_t`` when the range does not hold the nominal payload.
+    """
+    from hubbeam_ctrl.core.errors import ParameterError
+    if "m_t" not in uncertainty.names:
+        return {}
+    r = uncertainty["m_t"]
+    tree = [n for n in names if n in SCENARIO_CONTROLLERS and getattr(settings[n], "payloads", None) is None]
+    if not tree or r.hi <= r.lo:
+        return {}
+    nominal = scenario.params.m_t
+    if not r.lo <= nominal <= r.hi:
+        raise ParameterError(f"uncertainty.m_t = [{r.lo:g}, {r.hi:g}] kg must hold the nominal tip mass "
+                             f"m_t = {nominal:g} kg for the scenario tree of {tree[0]}")
+    return range_designs(tree, scenario, design, (r.lo, r.hi), {n: settings[n] for n in tree}, sim=sim,
+                         plant_modes=plant_modes)
