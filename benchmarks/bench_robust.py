@@ -198,20 +198,52 @@ def table_lines(doc: dict) -> list:
     return lines
 
 
+def hinf_comparison() -> dict:
+    """The H-infinity design (:mod:`controllers.hinf`, its robustness weight from the range's plants)
+    against the multi-model Riccati (the LQR of ``compare --payload-range``,
+    :func:`controllers.robust.design_for_range`) on Table 1 over 0-0.5 kg: both designed in one
+    payload comparison, run on FOAM at 0 / 0.25 / 0.5 kg, certified over the range undamped and
+    with the 0.05 % floor (``bench_msmpc.case`` with these two controllers)."""
+    from bench_msmpc import case as range_case
+    return range_case("table1", names=("lqr", "hinf"), masses=(0.0, 0.25, 0.5))
+
+
+def hinf_lines(doc: dict) -> list:
+    """docs/robust.md's H-infinity table from the JSON's ``hinf`` entry."""
+    h = doc["hinf"]
+    lines = ["| controller | design | radius undamped (worst payload) | radius 0.05 % | "
+             + " | ".join(f"{m:g} kg: verdict, % of OL, peak N m" for m in h["masses_kg"]) + " |",
+             "|---|---|---|---|" + "---|" * len(h["masses_kg"])]
+    for n, r in h["controllers"].items():
+        u, f = r["certificate"]["undamped"], r["certificate"]["floor_0.05pct"]
+        cells = [f"{row['verdict']}, {row['residual_pct_of_openloop']:.3g}, {row['peak_torque_nm']:.4g}"
+                 for m, row in r["runs"].items() if "worst" not in m]
+        lines.append(f"| {n} | {h['designs'][n]['choice']} | {u['radius']:.7f} ({u['worst_payload_kg']:g} kg) | "
+                     f"{f['radius']:.7f} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def main(argv=None) -> None:
     """Certify the ``--cases`` (added to a previous JSON with ``--merge``); print the JSON."""
     ap = bench_parser(__doc__)
     ap.add_argument("--cases", default="table1,lab,servo_link,servo_identified")
     ap.add_argument("--merge", default=None, help="a previous JSON whose cases this run adds to (or replaces)")
+    ap.add_argument("--hinf-only", action="store_true",
+                    help="run only the H-infinity comparison (hinf_comparison) into the --merge JSON")
     args = ap.parse_args(argv)
     doc = {"floor": FLOOR, "factor": FACTOR, "cases": {}}
     if args.merge:
         import json
         with open(args.merge) as fh:
-            doc["cases"].update(json.load(fh)["cases"])
-    for name in args.cases.split(","):
-        doc["cases"][name] = case(name)
-    doc["timing"] = timing()
+            previous = json.load(fh)
+        doc["cases"].update(previous["cases"])
+        if args.hinf_only:
+            doc = previous
+    if not args.hinf_only:
+        for name in args.cases.split(","):
+            doc["cases"][name] = case(name)
+        doc["timing"] = timing()
+    doc["hinf"] = hinf_comparison()
     emit(doc, args.out)
 
 

@@ -32,6 +32,7 @@ from .base import (
     saturate,
 )
 from .estimator import KalmanEstimator, KalmanNoise, kalman_gain
+from .hinf import HInf, HInfSettings
 from .lqg import LQG, LQGSettings
 from .lqr import LQR, LQRSettings, dlqr_gain
 from .mpc import MPC, QP_SOLVERS, MPCSettings, condensed_matrices
@@ -69,7 +70,7 @@ __all__ = [
     "LQR", "LQRSettings", "dlqr_gain", "LQG", "LQGSettings",
     "KalmanEstimator", "KalmanNoise", "kalman_gain",
     "MPC", "MPCSettings", "QP_SOLVERS", "condensed_matrices", "MultiStageMPC", "MultiStageMPCSettings",
-    "NMPC", "NMPCSettings",
+    "NMPC", "NMPCSettings", "HInf", "HInfSettings",
     "slew_reference", "spinup_reference", "eq44_reference", "optimal_reference", "planned_slew_reference",
     "CONTROLLERS", "ControllerSpec", "register_controller", "unregister_controller",
     "make_controller", "controller_names", "controller_styles",

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import Controller, ControllerSettings, DesignModel, Reference, TrackingSettings
+from .hinf import HInf, HInfSettings
 from .lqg import LQG, LQGSettings
 from .lqr import LQR, LQRSettings
 from .mpc import MPC, MPCSettings
@@ -279,6 +280,8 @@ register_controller("mpc", MPCSettings, controller=MPC, color="tab:red", label="
 # multi-stage MPC over payload scenarios (controllers.msmpc), run when asked for
 register_controller("msmpc", MultiStageMPCSettings, controller=MultiStageMPC, color="tab:pink",
                     label="MSMPC", default=False)
+# mixed-sensitivity H-infinity on the hub angle (controllers.hinf, needs slycot), run when asked for
+register_controller("hinf", HInfSettings, controller=HInf, color="tab:gray", label="H-infinity", default=False)
 # nonlinear MPC on the beam's own model by real-time iteration (controllers.nmpc), run when asked for
 register_controller("nmpc", NMPCSettings, controller=NMPC, color="tab:brown", label="NMPC", default=False)
 # open-loop input-shaped slews (controllers.shaped), run only when asked for

@@ -2,15 +2,16 @@
 python-control.
 
 :func:`dlqr` and :func:`dlqe` return exactly what :func:`control.dlqr` and :func:`control.dlqe`
-return with ``method="scipy"`` (python-control 0.10): its SciPy path step for step
+return on python-control 0.10's SciPy path (``method="scipy"``), also when Slycot is installed
+(the ``robust`` extra, for :mod:`controllers.hinf`): Slycot's ``sg02ad``, python-control's
+default when Slycot is there, fails on the lightly damped, widely scaled designs of this
+toolbox (Table 1's range LQR: "roundoff changed values of some complex eigenvalues"), and the
+numbers every benchmark was measured with are SciPy's. They do that path step for step
 (:func:`scipy.linalg.solve_discrete_are`, then the gain by :func:`scipy.linalg.solve` and the
 closed-loop eigenvalues by :func:`scipy.linalg.eigvals`), bit for bit, but without importing
 python-control, whose import loads SciPy's signal and statistics packages and Matplotlib's
 pyplot (``-X importtime`` of a ``hubbeam compare`` on the 2-core machine: 2.6 s of imports with
-python-control, 1.5 s without; more than the designs). The SciPy path is taken whether or not
-Slycot is installed (python-control would switch to Slycot's SB02OD, which raised a
-``SlycotArithmeticError`` on the encoder-and-accelerometer rig's filter where SciPy solves it):
-the designs do not depend on what else is installed.
+python-control, 1.5 s without; more than the designs).
 
 Examples
 --------

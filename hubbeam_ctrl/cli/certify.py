@@ -145,7 +145,7 @@ def _run(args) -> int:
     verdicts = {}
     lines = [f"# Robust certificate: {comparison.scenario.description}", "", f"Set: {u.describe()}.", ""]
     for name in names:
-        ctrl, wc, design_doc = comparison.controllers[name], comparison.robust[name], {"kind": "nominal"}
+        ctrl, wc, design_doc = comparison.controllers[name], comparison.robust[name], _design_doc(comparison, name)
         if args.design == "robust":
             from hubbeam_ctrl.study.robust_check import residual_score
             from hubbeam_ctrl.study.robust_design import design_for_set
@@ -196,6 +196,17 @@ def _run(args) -> int:
         print(f"hubbeam: not certified: {', '.join(failed)}", file=sys.stderr)
         return 1
     return 0
+
+
+def _design_doc(comparison, name: str) -> dict:
+    """What was certified: the nominal design, or (multi-stage MPC) the tree over the set's payloads."""
+    from hubbeam_ctrl.study.robust_design import innermost
+    payloads = getattr(innermost(comparison.controllers[name]), "payloads", None)
+    if payloads is None or len(payloads) < 2:
+        return {"kind": "nominal"}
+    prefix = f"{name}: the scenario tree over the set's payload range ("
+    choice = next((n[len(prefix):-1] for n in comparison.notes if n.startswith(prefix)), None)
+    return {"kind": "scenario tree", "choice": choice, "scenarios_kg": list(payloads)}
 
 
 def _write_c(ctrl, folder, wc) -> dict:

@@ -348,6 +348,12 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         from hubbeam_ctrl.study.range_design import range_designs
         designs = {**range_designs(names, sc, design, payload_range, settings, horizon=horizon,
                                    solver=solver, sim=sim, plant_modes=plant_modes), **designs}
+    elif rig is not None and rig.uncertainty.is_set:     # a scenario tree over the set's payloads
+        from hubbeam_ctrl.study.range_design import set_scenario_designs
+        trees = set_scenario_designs([n for n in names if n not in designs], sc, design, rig.uncertainty, chosen,
+                                     sim=sim, plant_modes=plant_modes)
+        notes = notes + [f"{n}: the scenario tree over the set's payload range ({d.choice})" for n, d in trees.items()]
+        designs = {**trees, **designs}
     results, metrics, margins, certificates, linear = {}, {}, {}, {}, {}
     check_results, check_metrics, robust = {}, {}, {}
     yardstick = task_limit(sc, limit, rig)

@@ -17,13 +17,17 @@ from controllers import CONTROLLERS, make_controller
 from controllers.msmpc import scenario_range_design
 from controllers.robust import check_payload_range, design_for_range
 
-__all__ = ["ROBUST_CONTROLLERS", "SCENARIO_CONTROLLERS", "range_designs"]
+__all__ = ["ROBUST_CONTROLLERS", "SCENARIO_CONTROLLERS", "WEIGHTED_CONTROLLERS", "range_designs",
+           "set_scenario_designs"]
 
 #: Controllers designed for a payload range (the others run their nominal design).
 ROBUST_CONTROLLERS = ("lqr", "lqg", "mpc")
 #: Controllers whose design for a payload range is a scenario per payload of the grid
 #: (:func:`controllers.msmpc.scenario_range_design`), not a search.
 SCENARIO_CONTROLLERS = ("msmpc",)
+#: Controllers whose design for a payload range takes the grid's payloads into its weights
+#: (:mod:`controllers.hinf`: the robustness weight from the plants' spread), no search.
+WEIGHTED_CONTROLLERS = ("hinf",)
 
 
 #: The range designs' gain and filter: the gain on the design modes, the LQG's filter on
@@ -115,9 +119,17 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
     score = _nonlinear_score(sc, sim, design.n_modes, plant_modes)
     out = {}
     for name in names:
-        if name not in ROBUST_CONTROLLERS + SCENARIO_CONTROLLERS:
+        if name not in ROBUST_CONTROLLERS + SCENARIO_CONTROLLERS + WEIGHTED_CONTROLLERS:
             continue
         st = settings.get(name) or CONTROLLERS[name].settings.for_scenario(sc, horizon=horizon, solver=solver)
+        if name in WEIGHTED_CONTROLLERS:     # the grid's plants set the weights
+            from controllers.robust import RangeDesign, payload_grid
+            grid = payload_grid(payload_range, sc.params.m_t)
+            st = st.replace(payloads=grid)
+            out[name] = RangeDesign(design=design, settings=st, design_mass=design.params.m_t,
+                                    choice="weights from payloads " + ", ".join(f"{m:g}" for m in grid) + " kg",
+                                    score=math.nan, scores={}, grid=grid)
+            continue
         if name in SCENARIO_CONTROLLERS:     # the scenario tree over the range is the design
             if plant_modes is not None and st.residual_modes is None:
                 st = st.replace(residual_modes=plant_modes)
@@ -134,3 +146,55 @@ def range_designs(names, scenario, design, payload_range, settings: dict | None 
                                      t_f=sc.t_f, t_end=sc.t_end, delay=sc.bands["residual_delay"],
                                      baseline=baseline, score=score, progress=progress)
     return out
+
+
+def set_scenario_designs(names, scenario, design, uncertainty, settings: dict, *, sim=None,
+                         plant_modes: int | None = None) -> dict:
+    """The scenario-tree (and range-weighted) designs over an uncertainty set's payload range.
+
+    A multi-stage MPC on a rig whose ``[uncertainty]`` table holds ``m_t`` is the tree over that
+    range (its ends and the nominal payload), designed as ``compare --payload-range LO,HI``
+    designs it (:func:`range_designs`): the certificate over the set then judges the tree, not
+    the plain MPC that a tree of the nominal payload alone is; the H-infinity design
+    (:data:`WEIGHTED_CONTROLLERS`) takes the range's plants into its robustness weight. Controllers
+    whose settings give their own ``payloads`` keep them.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Controllers of the comparison.
+    scenario : Scenario
+        The task on the nominal beam.
+    design : DesignModel
+        The nominal design model (on the rig).
+    uncertainty : Uncertainty
+        The set; without ``m_t`` (or a zero-width one) nothing is designed.
+    settings : dict
+        Controller name -> its settings as the comparison chose them (on the rig).
+    sim, plant_modes
+        As :func:`range_designs`.
+
+    Returns
+    -------
+    dict
+        Controller name -> :class:`controllers.robust.RangeDesign` (empty when nothing applies).
+
+    Raises
+    ------
+    ParameterError
+        One line naming ``uncertainty.m_t`` when the range does not hold the nominal payload.
+    """
+    from hubbeam_ctrl.core.errors import ParameterError
+    if "m_t" not in uncertainty.names:
+        return {}
+    r = uncertainty["m_t"]
+    tree = [n for n in names if n in SCENARIO_CONTROLLERS + WEIGHTED_CONTROLLERS
+            and getattr(settings[n], "payloads", None) is None]
+    if not tree or r.hi <= r.lo:
+        return {}
+    nominal = scenario.params.m_t
+    if not r.lo <= nominal <= r.hi:
+        raise ParameterError(f"uncertainty.m_t = [{r.lo:g}, {r.hi:g}] kg must hold the nominal tip mass "
+                             f"m_t = {nominal:g} kg for the scenario tree of {tree[0]}")
+    return range_designs(tree, scenario, design, (r.lo, r.hi), {n: settings[n] for n in tree}, sim=sim,
+                         plant_modes=plant_modes)
