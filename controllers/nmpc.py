@@ -166,7 +166,7 @@ class _PayloadGrid(NamedTuple):
 
 
 def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, tau_max: float,
-                      parametric: bool = False) -> ca.Function:
+                      parametric: bool = False, current: tuple | None = None) -> ca.Function:
     """One real-time iteration of the NMPC as a CasADi function (its C is the generated step).
 
     ``(x, X, U, XR, UR, Q, P[, p]) -> (X+, U+)``: the shooting map linearised along the
@@ -189,6 +189,10 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
         Command limit [N m].
     parametric : bool
         The shooting map takes the model's parameter vector ``p`` (a learnt payload).
+    current : tuple, optional
+        ``(row, emf, bound)``: a DC drive's current limit ``|u_j - emf x_j[row]| <= bound`` at the
+        start of every stage (``u`` in volts, ``x[row]`` the hub rate [rad/s], ``emf = k_e N``
+        [V s/rad], ``bound = R I_max`` [V]), linear constraints of the QP.
 
     Returns
     -------
@@ -203,7 +207,12 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
     eye = ca.DM.eye(N)
     S, c = ca.MX.zeros(nx, N), x - X[:, 0]        # dX_j = S_j dU + c_j, dX_0 the measured offset
     H, g = r * ca.MX.eye(N), r * (U - UR).T
+    rows, values = [], []                       # the current limit's rows on dU and values at dU = 0
     for j in range(N + 1):
+        if current is not None and j < N:
+            row, emf, _ = current
+            rows.append(eye[j, :] - emf * S[row, :])
+            values.append(U[j] - emf * (X[row, j] + c[row]))
         if j > 0:
             WS = ca.mtimes(P if j == N else Q, S)
             H = H + ca.mtimes(S.T, WS)
@@ -212,9 +221,15 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
             A = Ax[:, nx * j:nx * (j + 1)]
             S = ca.mtimes(A, S) + ca.mtimes(Bu[:, j], eye[j, :])
             c = ca.mtimes(A, c) + Xn[:, j] - X[:, j + 1]
-    qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity(0, N)},
-                  {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False})
-    dU = qp(h=0.5 * (H + H.T), g=g, lbx=-tau_max - U.T, ubx=tau_max - U.T)["x"]
+    opts = {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False}
+    if current is None:
+        qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity(0, N)}, opts)
+        dU = qp(h=0.5 * (H + H.T), g=g, lbx=-tau_max - U.T, ubx=tau_max - U.T)["x"]
+    else:
+        Ac, val, bound = ca.vertcat(*rows), ca.vertcat(*values), current[2]
+        qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity.dense(N, N)}, opts)
+        dU = qp(h=0.5 * (H + H.T), g=g, a=Ac, lba=-bound - val, uba=bound - val,
+                lbx=-tau_max - U.T, ubx=tau_max - U.T)["x"]
     c = x - X[:, 0]
     cols = [x]
     for j in range(N):                         # the new plan, rolled out along the linearisation
@@ -234,6 +249,10 @@ class NMPC(Controller):
     settings : NMPCSettings, optional
     reference : Reference, optional
         The task's reference and feedforward (default: rest at theta = 0).
+    hardware : Hardware, optional
+        A rig with a DC drive: the command is in volts and the drive, viscous friction, current
+        limit and computation delay are in the prediction (:mod:`controllers.nmpc_drive`); None (or
+        an ideal torque drive): the beam alone's NMPC, its commands bit for bit.
 
     Attributes
     ----------
@@ -248,15 +267,29 @@ class NMPC(Controller):
         The step (:func:`rti_step_function`) as built, and as called (its generated C with
         ``backend="compiled"``).
     prediction_states : ndarray of int
-        The design state's entries the prediction model holds, in its order.
+        The design state's entries the prediction model holds, in its order (then the command in
+        flight with a drive and a delay).
+    drive : PredictionDrive or None
+        The drive stage of the prediction.
+    u_max : float
+        The command's limit [N m, or V with a drive].
+    command : str
+        ``"torque"`` or ``"voltage"``.
     """
 
     measurement = "state"
 
     def __init__(self, design: DesignModel, settings: NMPCSettings | None = None,
-                 reference: Reference | None = None):
+                 reference: Reference | None = None, hardware=None):
         from hubbeam_ctrl.plant.models import build_model
         settings = settings or NMPCSettings()
+        self.built_on = (design, reference)         # what with_hardware builds again from
+        self.drive = None
+        if hardware is not None and hardware.command == "voltage":
+            from .nmpc_drive import PredictionDrive
+            self.drive = PredictionDrive.from_hardware(hardware)
+            if settings.learn_payload:
+                raise ParameterError("learn_payload does not apply with a DC drive in the prediction yet")
         if abs(design.spin) > 0.0:
             raise ParameterError(f"design spin must be 0 for the NMPC (it predicts the whole motion from rest), "
                                  f"got {design.spin:g} rad/s")
@@ -289,9 +322,14 @@ class NMPC(Controller):
         self._Q = Q[np.ix_(pick_d, pick_d)]
         self._R = float(np.asarray(R).reshape(-1)[0])
         self._Pt = np.asarray(self.P)[np.ix_(self._pick, self._pick)]
+        self.u_max, self.command, self._lag = self.tau_max, "torque", False
+        if self.drive is not None:
+            self._drive_setup(settings, design)
         self.payload = None
         if settings.learn_payload:
             self._learning_setup(model, settings)
+        elif self.drive is not None:
+            self._F = self._drive_shooting(model)
         else:
             self._F = self._shooting(model)
         self._build_qp(settings)
@@ -300,9 +338,10 @@ class NMPC(Controller):
         self.reset()
 
     # -- construction -------------------------------------------------------------
-    def _rk4(self, model, x, u, p):
+    def _rk4(self, model, x, u, p, torque=None, span=None, steps=None):
         """The state after one sample from ``x`` under ``u``: RK4 in ``substeps`` steps, the model's
-        parameter vector ``p`` (a symbol, or its numbers)."""
+        parameter vector ``p`` (a symbol, or its numbers); with ``torque(u, thd)`` the hub torque of
+        the command (a drive), over ``span`` [s] in ``steps`` steps."""
         n = self._n
         M, c = model.parametric.mass_matrix, model.parametric.bias
         B = np.zeros(n)
@@ -310,11 +349,13 @@ class NMPC(Controller):
 
         def f(z):
             q, v = z[:n], z[n:]
-            return ca.vertcat(v, ca.solve(M(q, v, p), B * u - c(q, v, p)))
+            tau = u if torque is None else torque(u, v[0])
+            return ca.vertcat(v, ca.solve(M(q, v, p), B * tau - c(q, v, p)))
 
-        h = self.dt / self.substeps
+        steps = self.substeps if steps is None else steps
+        h = (self.dt if span is None else span) / steps
         z = x
-        for _ in range(self.substeps):
+        for _ in range(steps):
             k1 = f(z)
             k2 = f(z + h / 2 * k1)
             k3 = f(z + h / 2 * k2)
@@ -327,6 +368,69 @@ class NMPC(Controller):
         x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")      # scalar expressions: no linear-solver call inside
         z = self._rk4(model, x, u, ca.DM(model.p))
         return ca.Function("nmpc_shoot", [x, u], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
+
+    def _drive_shooting(self, model) -> ca.Function:
+        """``(z, V) -> (z+, dz+/dz, dz+/dV)`` with the drive (:mod:`controllers.nmpc_drive`): ``z = [x,
+        V_prev]`` with a delay (``V_prev`` for ``delay dt``, then ``V``), ``x`` without."""
+        d, nx = self.drive.delay, self._nx
+        z, u = ca.SX.sym("z", self._nz), ca.SX.sym("u")
+        p, tq = ca.DM(model.p), self.drive.torque
+        x = z[:nx]
+        if d > 0.0:
+            early = max(1, math.ceil(self.substeps * d))
+            late = max(1, math.ceil(self.substeps * (1.0 - d)))
+            x = self._rk4(model, x, z[nx], p, tq, d * self.dt, early)
+            x = ca.vertcat(self._rk4(model, x, u, p, tq, (1.0 - d) * self.dt, late), u)
+        else:
+            x = self._rk4(model, x, u, p, tq)
+        return ca.Function("nmpc_shoot_v", [z, u], [x, ca.jacobian(x, z), ca.jacobian(x, u)], {"cse": True})
+
+    def _volts_at(self, k: int) -> float:
+        """Feedforward voltage [V] of sample ``k``: the reference torque where the command acts (at
+        ``k + delay``) through the drive's static inverse (:meth:`PredictionDrive.volts`)."""
+        cached = self._vff.get(k)
+        if cached is None:
+            d, h = self.drive.delay, self.design.n_x // 2
+            x0, t0 = self._reference_at(k)
+            x1, t1 = self._reference_at(k + 1)
+            tau, rate = (1.0 - d) * t0 + d * t1, (1.0 - d) * x0[h] + d * x1[h]
+            cached = self._vff[k] = float(self.drive.volts(self._ff * tau, rate)) if self._ff else 0.0
+        return cached
+
+    def _drive_window(self, k: int, N: int) -> tuple:
+        """``(z_ref, V_ff)`` over samples ``k .. k + N`` with the drive: the predicted states (and the
+        previous sample's feedforward as the command in flight) and the feedforward voltages."""
+        xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
+        if self._lag:
+            xr = np.hstack([xr, np.array([[self._volts_at(k + j - 1) if k + j > 0 else 0.0] for j in range(N + 1)])])
+        return xr, np.array([self._volts_at(k + j) for j in range(N)])
+
+    def _drive_setup(self, s: NMPCSettings, design: DesignModel) -> None:
+        """Weights, terminal cost and residual gain in volts on the drive's augmented model
+        (:func:`controllers.nmpc_drive.drive_lqr`)."""
+        from .nmpc_drive import drive_lqr
+        from .residual import residual_design
+        drv = self.drive
+        self._lag = drv.delay > 0.0
+        model, weights = (residual_design(design, s.weights, s.residual_modes) if s.residual_control
+                          else (design, s.weights))
+        K, P = drive_lqr(model, weights, drv)          # model: the LQR's (self.design)
+        self.K_volts = K
+        self.u_max, self.command = drv.v_max, "voltage"
+        self._R = self._R * drv.gain ** 2
+        pick = np.r_[self._pick, [self.design.n_x] if self._lag else []].astype(int)
+        self._Pt = P[np.ix_(pick, pick)]
+        if self._lag:
+            self._Q = np.pad(self._Q, ((0, 1), (0, 1)))
+        self._K_res = K[:self.design.n_x].copy()
+        self._K_res[self._pick] = 0.0
+        self._K_res0 = self._K_res.copy()
+        self._vff = {}
+
+    @property
+    def _nz(self) -> int:
+        """States of the prediction: the model's, and the command in flight with a delay."""
+        return self._nx + (1 if self._lag else 0)
 
     def _learning_setup(self, model, s: NMPCSettings) -> None:
         """The shooting map with the parameter vector as an input, and the payload's estimator
@@ -403,6 +507,8 @@ class NMPC(Controller):
     def _reference_window(self, k: int, N: int) -> tuple:
         """``(x_ref, u_ff)`` on the predicted states over samples ``k .. k + N``: the table's, and with
         a learnt payload moved by what the estimate changes in the reference's quasi-static motion."""
+        if self.drive is not None:
+            return self._drive_window(k, N)
         xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
         ur = np.array([self._reference_at(k + j)[1] * self._ff for j in range(N)])
         if self.payload is not None and self._grid.states is not None:
@@ -417,18 +523,25 @@ class NMPC(Controller):
         """The step as one CasADi function (:attr:`step_function`, built once)."""
         self._W = [self._Q] * s.horizon + [self._Pt]          # stage weights on x_0 .. x_N
         from hubbeam_ctrl.core.compiled import compile_function
-        self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.tau_max,
-                                               parametric=self.payload is not None)
+        current = None if self.drive is None else (self._n, self.drive.emf, self.drive.current_bound)
+        self.symbolic_step = rti_step_function(self._F, s.horizon, self._nz, self._R, self.u_max,
+                                               parametric=self.payload is not None, current=current)
         self.step_function = compile_function(self.symbolic_step, s.backend)    # C when asked and a compiler is there
 
     def reset(self) -> None:
         """Start from the reference: the previous solution is the planned motion."""
         N = self.settings.horizon
-        X = np.array([self._xref[min(k, len(self._xref) - 1)][self._pick] for k in range(N + 1)])
-        self._X = X.T.copy()                                  # (nx, N + 1)
-        self._U = np.array([self._reference_at(k)[1] * self._ff for k in range(N)], dtype=float)
+        if self.drive is not None:
+            xr, ur = self._reference_window(0, N)
+            self._X, self._U = xr.T.copy(), ur.copy()
+        else:
+            X = np.array([self._xref[min(k, len(self._xref) - 1)][self._pick] for k in range(N + 1)])
+            self._X = X.T.copy()                                  # (nx, N + 1)
+            self._U = np.array([self._reference_at(k)[1] * self._ff for k in range(N)], dtype=float)
         self._k_last = None
         self._u_last = None                 # the command applied at the previous sample [N m]
+        if self.drive is not None:
+            self._u_last = 0.0              # at rest before the first sample [V]
         if self.payload is not None:            # the design's payload until the first estimate
             self.payload.reset()
             self._W = [self._Q] * self.settings.horizon + [self._Pt]
@@ -448,7 +561,8 @@ class NMPC(Controller):
 
     # -- the step ------------------------------------------------------------------
     def __call__(self, t: float, y) -> float:
-        """Hub torque [N m] at time ``t`` [s] from the design-ordered state ``y``."""
+        """Hub torque [N m] (volts [V] with a drive) at time ``t`` [s] from the design-ordered state ``y``
+        (at the sample; with a drive and a delay the NMPC adds the command in flight itself)."""
         start = time.perf_counter()
         s = self.settings
         N = s.horizon
@@ -460,6 +574,8 @@ class NMPC(Controller):
             self._U = np.r_[self._U[shift:], np.repeat(self._U[-1:], shift)]
         self._k_last = k
         x_meas = np.asarray(y, dtype=float)[self._pick]
+        if self._lag:                               # the command in flight
+            x_meas = np.r_[x_meas, self._u_last]
         extra = ()
         if self.payload is not None:                 # the payload from the momentum the last command gave
             self.payload.update(y, self._u_last if consecutive else None)
@@ -483,7 +599,10 @@ class NMPC(Controller):
             e = np.asarray(y, dtype=float) - ((1.0 - w) * X[a, j] + w * X[a + 1, j])
         else:
             e = np.asarray(y, dtype=float) - self._reference_at(k)[0]
-        u0 = saturate(float(self._U[0] - self._K_res @ e), self.tau_max)
+        if self.drive is None:
+            u0 = saturate(float(self._U[0] - self._K_res @ e), self.tau_max)
+        else:                                        # within the voltage box and the current limit
+            u0 = self.drive.clip(float(self._U[0] - self._K_res @ e), float(y[self.design.n_x // 2]))
         self._u_last = u0
         self.step_times_s.append(time.perf_counter() - start)
         return u0
@@ -492,8 +611,8 @@ class NMPC(Controller):
         """The step's unconstrained law at the end point, ``u = -K e`` on the design state: the
         condensed QP of :meth:`__call__` with the plan at rest on the target (no defects), its
         dynamics linearised there, on the predicted states; the LQR's gain on the others."""
-        N, nx = self.settings.horizon, self._nx
-        x_end = np.asarray(self._xref[-1], dtype=float)[self._pick].copy()
+        N, nx = self.settings.horizon, self._nz
+        x_end = np.r_[np.asarray(self._xref[-1], dtype=float)[self._pick], [0.0] if self._lag else []]
         x_end[self._n:] = 0.0
         estimate = (self._table.at(self.payload.mass)[0],) if self.payload is not None else ()
         _, A, B = (np.asarray(M) for M in self._F(x_end, 0.0, *estimate))
@@ -509,8 +628,8 @@ class NMPC(Controller):
                 S[:, j] += B
                 Phi = A @ Phi
         k_pick = np.linalg.solve(0.5 * (H + H.T), G)[0]
-        K = self._K_res.copy()
-        K[self._pick] = k_pick
+        K = np.r_[self._K_res, [k_pick[-1]] if self._lag else []]
+        K[self._pick] = k_pick[:self._nx]
         return K
 
     def feedback_matrices(self) -> tuple:
@@ -519,7 +638,6 @@ class NMPC(Controller):
         design model's states; the modes it does not predict get no gain (what the certificate closes).
         A learning NMPC's law is at its current estimate of the payload (after a run: the one it
         learnt), with that payload's weights and residual-mode gain."""
-        n = self.design.n_x
         K = self._end_gain() if self.payload is not None else self.K_end
-        return (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((1, 0)), -K[None, :], [],
-                list(self.design.state_names))
+        return (np.zeros((0, 0)), np.zeros((0, len(K))), np.zeros((1, 0)), -K[None, :], [],
+                list(self.design.state_names) + (["u_prev"] if self._lag else []))
