@@ -50,6 +50,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
+from .nmpc_drive import DrivePrediction
 
 __all__ = ["NMPCSettings", "NMPC", "QP_PLUGINS", "NMPC_MODES", "rk4_substeps", "rti_step_function"]
 
@@ -239,7 +240,7 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
                        ["x", "X", "U", "XR", "UR", "Q", "P", *(["p"] if parametric else [])], ["X_next", "U_next"])
 
 
-class NMPC(Controller):
+class NMPC(DrivePrediction, Controller):
     """Real-time-iteration NMPC on the reduced FOAM of the design (see the module docstring).
 
     Parameters
@@ -368,69 +369,6 @@ class NMPC(Controller):
         x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")      # scalar expressions: no linear-solver call inside
         z = self._rk4(model, x, u, ca.DM(model.p))
         return ca.Function("nmpc_shoot", [x, u], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
-
-    def _drive_shooting(self, model) -> ca.Function:
-        """``(z, V) -> (z+, dz+/dz, dz+/dV)`` with the drive (:mod:`controllers.nmpc_drive`): ``z = [x,
-        V_prev]`` with a delay (``V_prev`` for ``delay dt``, then ``V``), ``x`` without."""
-        d, nx = self.drive.delay, self._nx
-        z, u = ca.SX.sym("z", self._nz), ca.SX.sym("u")
-        p, tq = ca.DM(model.p), self.drive.torque
-        x = z[:nx]
-        if d > 0.0:
-            early = max(1, math.ceil(self.substeps * d))
-            late = max(1, math.ceil(self.substeps * (1.0 - d)))
-            x = self._rk4(model, x, z[nx], p, tq, d * self.dt, early)
-            x = ca.vertcat(self._rk4(model, x, u, p, tq, (1.0 - d) * self.dt, late), u)
-        else:
-            x = self._rk4(model, x, u, p, tq)
-        return ca.Function("nmpc_shoot_v", [z, u], [x, ca.jacobian(x, z), ca.jacobian(x, u)], {"cse": True})
-
-    def _volts_at(self, k: int) -> float:
-        """Feedforward voltage [V] of sample ``k``: the reference torque where the command acts (at
-        ``k + delay``) through the drive's static inverse (:meth:`PredictionDrive.volts`)."""
-        cached = self._vff.get(k)
-        if cached is None:
-            d, h = self.drive.delay, self.design.n_x // 2
-            x0, t0 = self._reference_at(k)
-            x1, t1 = self._reference_at(k + 1)
-            tau, rate = (1.0 - d) * t0 + d * t1, (1.0 - d) * x0[h] + d * x1[h]
-            cached = self._vff[k] = float(self.drive.volts(self._ff * tau, rate)) if self._ff else 0.0
-        return cached
-
-    def _drive_window(self, k: int, N: int) -> tuple:
-        """``(z_ref, V_ff)`` over samples ``k .. k + N`` with the drive: the predicted states (and the
-        previous sample's feedforward as the command in flight) and the feedforward voltages."""
-        xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
-        if self._lag:
-            xr = np.hstack([xr, np.array([[self._volts_at(k + j - 1) if k + j > 0 else 0.0] for j in range(N + 1)])])
-        return xr, np.array([self._volts_at(k + j) for j in range(N)])
-
-    def _drive_setup(self, s: NMPCSettings, design: DesignModel) -> None:
-        """Weights, terminal cost and residual gain in volts on the drive's augmented model
-        (:func:`controllers.nmpc_drive.drive_lqr`)."""
-        from .nmpc_drive import drive_lqr
-        from .residual import residual_design
-        drv = self.drive
-        self._lag = drv.delay > 0.0
-        model, weights = (residual_design(design, s.weights, s.residual_modes) if s.residual_control
-                          else (design, s.weights))
-        K, P = drive_lqr(model, weights, drv)          # model: the LQR's (self.design)
-        self.K_volts = K
-        self.u_max, self.command = drv.v_max, "voltage"
-        self._R = self._R * drv.gain ** 2
-        pick = np.r_[self._pick, [self.design.n_x] if self._lag else []].astype(int)
-        self._Pt = P[np.ix_(pick, pick)]
-        if self._lag:
-            self._Q = np.pad(self._Q, ((0, 1), (0, 1)))
-        self._K_res = K[:self.design.n_x].copy()
-        self._K_res[self._pick] = 0.0
-        self._K_res0 = self._K_res.copy()
-        self._vff = {}
-
-    @property
-    def _nz(self) -> int:
-        """States of the prediction: the model's, and the command in flight with a delay."""
-        return self._nx + (1 if self._lag else 0)
 
     def _learning_setup(self, model, s: NMPCSettings) -> None:
         """The shooting map with the parameter vector as an input, and the payload's estimator

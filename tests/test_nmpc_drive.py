@@ -1,0 +1,79 @@
+"""Issue 40 item 1: the rig's DC drive, viscous friction, current limit and delay in the NMPC's prediction
+(controllers.nmpc_drive)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from controllers import DesignModel
+from controllers.nmpc import NMPC, NMPCSettings
+from hubbeam_ctrl.plant.rig import Rig, load_rig
+from hubbeam_ctrl.sim.hardware import Hardware, drive_torque
+
+
+@pytest.fixture(scope="module")
+def servo():
+    """servo_link's drive and a 2-mode design model with its half sample of delay (1 ms)."""
+    rig = load_rig("servo_link")
+    p = rig.plant_params
+    return rig, Hardware.from_rig(rig), DesignModel.build(p, 0.0, 1e-3, 2).on_rig(None, rig.timing.delay)
+
+
+def test_the_drive_in_the_prediction_is_the_plants_drive_stage(servo):
+    """The prediction's hub torque (CasADi, inside the shooting map) equals the plant's drive stage
+    (sim.hardware.drive_torque) less the viscous friction at random volts and hub rates, motoring,
+    back-driven and in current limit, to 1e-12 N m; Coulomb friction is not in it."""
+    import casadi as ca
+    rig, hw, d = servo
+    ctrl = NMPC(d, NMPCSettings(tau_max=rig.plant_params.tau_max, horizon=5), hardware=hw)
+    u, w = ca.SX.sym("u"), ca.SX.sym("w")
+    f = ca.Function("tq", [u, w], [ctrl.drive.torque(u, w)])
+    rng = np.random.default_rng(7)
+    V, thd = rng.uniform(-12.0, 12.0, 200), rng.uniform(-30.0, 30.0, 200)
+    plant = drive_torque(V, thd, hw.values()) - rig.friction.viscous * thd
+    pred = np.array([float(f(a, b)) for a, b in zip(V, thd)])
+    assert np.max(np.abs(pred - plant)) <= 1e-12
+    assert np.any(np.abs((V - hw.back_emf_constant() * thd) / rig.drive.R) > rig.drive.I_max)   # current limit hit
+    assert ctrl.command == "voltage" and ctrl.u_max == rig.drive.V_max and ctrl._nz == ctrl._nx + 1
+
+
+def test_the_delay_holds_the_command_in_flight(servo):
+    """With half a sample of delay the shooting map applies the previous volts for the first half
+    of the sample: a step from rest under V_prev = 0, V = 5 moves the hub less than V_prev = V = 5,
+    and the command in flight it returns is V."""
+    rig, hw, d = servo
+    ctrl = NMPC(d, NMPCSettings(tau_max=rig.plant_params.tau_max, horizon=5), hardware=hw)
+    z0 = np.zeros(ctrl._nz)
+    late = np.asarray(ctrl._F(z0, 5.0)[0]).ravel()
+    z0[-1] = 5.0
+    full = np.asarray(ctrl._F(z0, 5.0)[0]).ravel()
+    n = ctrl._n
+    assert late[-1] == 5.0 and 0.0 < late[n] < full[n]
+    # the hub rate after one sample from rest: about g V (1 - d) dt / J against g V dt / J
+    assert late[n] / full[n] == pytest.approx(0.5, rel=0.05)
+
+
+def test_an_ideal_rig_gives_todays_nmpc_bit_for_bit():
+    """Hardware of an ideal rig (torque drive, no friction, no delay): the same commands as without it."""
+    d = DesignModel.build(load_rig("servo_link").plant_params, 0.0, 0.01, 2)
+    a = NMPC(d, NMPCSettings(tau_max=1.0, horizon=8))
+    b = NMPC(d, NMPCSettings(tau_max=1.0, horizon=8), hardware=Hardware.from_rig(Rig()))
+    assert b.drive is None
+    rng = np.random.default_rng(3)
+    for k in range(5):
+        x = rng.normal(scale=0.05, size=d.n_x)
+        assert a(k * d.dt, x) == b(k * d.dt, x)
+
+
+def test_the_command_keeps_the_current_limit(servo):
+    """Far behind its target at 15 rad/s the NMPC brakes with no more than I_max: the volts stay within
+    k_e N thd +- R I_max and the box."""
+    rig, hw, d = servo
+    ctrl = NMPC(d, NMPCSettings(tau_max=rig.plant_params.tau_max, horizon=5), hardware=hw)
+    x = np.zeros(d.n_x)
+    x[0], x[d.n_x // 2] = 0.5, 15.0
+    v = ctrl(0.0, x)
+    emf, rmax = hw.back_emf_constant() * 15.0, rig.drive.R * rig.drive.I_max
+    assert emf - rmax - 1e-9 <= v <= min(rig.drive.V_max, emf + rmax) + 1e-9
+    assert v == pytest.approx(emf - rmax, abs=1e-6)          # braking as hard as the current allows
