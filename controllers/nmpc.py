@@ -104,6 +104,11 @@ class NMPCSettings(LQSettings):
     qp_solver: str = setting("qrqp", choices=QP_PLUGINS,
                              doc="Solver of the step's condensed box QP: CasADi's active-set qrqp, part of the "
                                  "step's CasADi function, so that the generated C carries it.")
+    current_limit: str = setting("path", choices=("path", "first"),
+                                 doc="With a DC drive in the prediction (a rig): its current limit as a linear "
+                                     "constraint at every stage of the horizon (path), or on the first move only "
+                                     "(first: a bound, the QP stays a box QP; beyond it the prediction's drive "
+                                     "clips the current as the amplifier does).")
     learn_payload: bool = setting(False, doc="Estimate the payload online from the hub's momentum balance "
                                              "(controllers.payload_estimate.PayloadMomentum), predict with it and "
                                              "follow the task planned for it; payload_min_kg..payload_max_kg.")
@@ -191,9 +196,10 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
     parametric : bool
         The shooting map takes the model's parameter vector ``p`` (a learnt payload).
     current : tuple, optional
-        ``(row, emf, bound)``: a DC drive's current limit ``|u_j - emf x_j[row]| <= bound`` at the
-        start of every stage (``u`` in volts, ``x[row]`` the hub rate [rad/s], ``emf = k_e N``
-        [V s/rad], ``bound = R I_max`` [V]), linear constraints of the QP.
+        ``(row, emf, bound, stages)``: a DC drive's current limit ``|u_j - emf x_j[row]| <= bound`` at
+        the start of the first ``stages`` stages (``u`` in volts, ``x[row]`` the hub rate [rad/s],
+        ``emf = k_e N`` [V s/rad], ``bound = R I_max`` [V]): linear constraints of the QP, or with
+        ``stages == 1`` a bound on the first move (the QP stays a box QP).
 
     Returns
     -------
@@ -210,8 +216,8 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
     H, g = r * ca.MX.eye(N), r * (U - UR).T
     rows, values = [], []                       # the current limit's rows on dU and values at dU = 0
     for j in range(N + 1):
-        if current is not None and j < N:
-            row, emf, _ = current
+        if current is not None and j < current[3]:
+            row, emf = current[:2]
             rows.append(eye[j, :] - emf * S[row, :])
             values.append(U[j] - emf * (X[row, j] + c[row]))
         if j > 0:
@@ -223,14 +229,18 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
             S = ca.mtimes(A, S) + ca.mtimes(Bu[:, j], eye[j, :])
             c = ca.mtimes(A, c) + Xn[:, j] - X[:, j + 1]
     opts = {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False}
-    if current is None:
+    lbx, ubx = -tau_max - U.T, tau_max - U.T
+    if current is not None and current[3] == 1:   # the first move's current: a bound
+        bound, first = current[2], ca.DM.eye(N)[:, 0]
+        lbx = lbx + first * (ca.fmax(lbx[0], -bound - values[0]) - lbx[0])
+        ubx = ubx + first * (ca.fmin(ubx[0], bound - values[0]) - ubx[0])
+    if current is None or current[3] == 1:
         qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity(0, N)}, opts)
-        dU = qp(h=0.5 * (H + H.T), g=g, lbx=-tau_max - U.T, ubx=tau_max - U.T)["x"]
+        dU = qp(h=0.5 * (H + H.T), g=g, lbx=lbx, ubx=ubx)["x"]
     else:
         Ac, val, bound = ca.vertcat(*rows), ca.vertcat(*values), current[2]
-        qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity.dense(N, N)}, opts)
-        dU = qp(h=0.5 * (H + H.T), g=g, a=Ac, lba=-bound - val, uba=bound - val,
-                lbx=-tau_max - U.T, ubx=tau_max - U.T)["x"]
+        qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity.dense(len(rows), N)}, opts)
+        dU = qp(h=0.5 * (H + H.T), g=g, a=Ac, lba=-bound - val, uba=bound - val, lbx=lbx, ubx=ubx)["x"]
     c = x - X[:, 0]
     cols = [x]
     for j in range(N):                         # the new plan, rolled out along the linearisation
@@ -461,7 +471,8 @@ class NMPC(DrivePrediction, Controller):
         """The step as one CasADi function (:attr:`step_function`, built once)."""
         self._W = [self._Q] * s.horizon + [self._Pt]          # stage weights on x_0 .. x_N
         from hubbeam_ctrl.core.compiled import compile_function
-        current = None if self.drive is None else (self._n, self.drive.emf, self.drive.current_bound)
+        current = None if self.drive is None else (self._n, self.drive.emf, self.drive.current_bound,
+                                                    s.horizon if s.current_limit == "path" else 1)
         self.symbolic_step = rti_step_function(self._F, s.horizon, self._nz, self._R, self.u_max,
                                                parametric=self.payload is not None, current=current)
         self.step_function = compile_function(self.symbolic_step, s.backend)    # C when asked and a compiler is there

@@ -66,11 +66,12 @@ def test_an_ideal_rig_gives_todays_nmpc_bit_for_bit():
         assert a(k * d.dt, x) == b(k * d.dt, x)
 
 
-def test_the_command_keeps_the_current_limit(servo):
+@pytest.mark.parametrize("limit", ["path", "first"])
+def test_the_command_keeps_the_current_limit(servo, limit):
     """Far behind its target at 15 rad/s the NMPC brakes with no more than I_max: the volts stay within
-    k_e N thd +- R I_max and the box."""
+    k_e N thd +- R I_max and the box (the current limit at every stage, or on the first move)."""
     rig, hw, d = servo
-    ctrl = NMPC(d, NMPCSettings(tau_max=rig.plant_params.tau_max, horizon=5), hardware=hw)
+    ctrl = NMPC(d, NMPCSettings(tau_max=rig.plant_params.tau_max, horizon=5, current_limit=limit), hardware=hw)
     x = np.zeros(d.n_x)
     x[0], x[d.n_x // 2] = 0.5, 15.0
     v = ctrl(0.0, x)
