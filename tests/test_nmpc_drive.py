@@ -78,3 +78,21 @@ def test_the_command_keeps_the_current_limit(servo, limit):
     emf, rmax = hw.back_emf_constant() * 15.0, rig.drive.R * rig.drive.I_max
     assert emf - rmax - 1e-9 <= v <= min(rig.drive.V_max, emf + rmax) + 1e-9
     assert v == pytest.approx(emf - rmax, abs=1e-6)          # braking as hard as the current allows
+
+
+def test_cli_codegen_writes_the_nmpc_step_with_the_drive(tmp_path, capsys):
+    """``hubbeam codegen --controller nmpc --rig servo_link``: the step commands volts, its header says so
+    with the limits, and its state ends with the command in flight (half a sample of delay)."""
+    import json
+
+    from hubbeam_ctrl.cli.main import main
+    out = tmp_path / "nmpc"
+    assert main(["codegen", "--controller", "nmpc", "--rig", "servo_link", "--design-modes", "2",
+                 "--out", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    rig = load_rig("servo_link")
+    assert info["command"] == {"name": "voltage", "unit": "V", "limit": rig.drive.V_max}
+    assert info["states"][-1] == "u_prev" and info["drive"]["I_max_a"] == rig.drive.I_max
+    assert info["inputs"]["x"] == [len(info["states"]), 1] and info["dt_s"] == pytest.approx(1e-3)
+    header = (out / "nmpc_rti.h").read_text()
+    assert "[V], |u| <= 10 V" in header and "|i| <= 4 A" in header
