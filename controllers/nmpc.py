@@ -172,7 +172,8 @@ class _PayloadGrid(NamedTuple):
 
 
 def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, tau_max: float,
-                      parametric: bool = False, current: tuple | None = None) -> ca.Function:
+                      parametric: bool = False, current: tuple | None = None,
+                      in_flight: ca.Function | None = None) -> ca.Function:
     """One real-time iteration of the NMPC as a CasADi function (its C is the generated step).
 
     ``(x, X, U, XR, UR, Q, P[, p]) -> (X+, U+)``: the shooting map linearised along the
@@ -200,6 +201,10 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
         the start of the first ``stages`` stages (``u`` in volts, ``x[row]`` the hub rate [rad/s],
         ``emf = k_e N`` [V s/rad], ``bound = R I_max`` [V]): linear constraints of the QP, or with
         ``stages == 1`` a bound on the first move (the QP stays a box QP).
+    in_flight : casadi.Function, optional
+        ``(x, u_prev) -> x``: the state where this sample's command starts to act, from the measured
+        one under the command in flight (a computation delay); the step then takes ``u_prev`` as its
+        last input.
 
     Returns
     -------
@@ -210,6 +215,10 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
     XR, UR = ca.MX.sym("XR", nx, N + 1), ca.MX.sym("UR", 1, N)
     Q, P = ca.MX.sym("Q", nx, nx), ca.MX.sym("P", nx, nx)
     extra = [ca.MX.sym("p", shooting.size1_in(2))] if parametric else []
+    measured, late = x, []
+    if in_flight is not None:
+        late = [ca.MX.sym("u_prev")]
+        x = in_flight(measured, late[0])
     Xn, Ax, Bu = shooting.map(N)(X[:, :N], U, *extra)
     eye = ca.DM.eye(N)
     S, c = ca.MX.zeros(nx, N), x - X[:, 0]        # dX_j = S_j dU + c_j, dX_0 the measured offset
@@ -246,8 +255,9 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
     for j in range(N):                         # the new plan, rolled out along the linearisation
         c = ca.mtimes(Ax[:, nx * j:nx * (j + 1)], c) + Bu[:, j] * dU[j] + Xn[:, j] - X[:, j + 1]
         cols.append(X[:, j + 1] + c)
-    return ca.Function("nmpc_rti", [x, X, U, XR, UR, Q, P, *extra], [ca.horzcat(*cols), U + dU.T],
-                       ["x", "X", "U", "XR", "UR", "Q", "P", *(["p"] if parametric else [])], ["X_next", "U_next"])
+    return ca.Function("nmpc_rti", [measured, X, U, XR, UR, Q, P, *extra, *late], [ca.horzcat(*cols), U + dU.T],
+                       ["x", "X", "U", "XR", "UR", "Q", "P", *(["p"] if parametric else []),
+                        *(["u_prev"] if late else [])], ["X_next", "U_next"])
 
 
 class NMPC(DrivePrediction, Controller):
@@ -473,8 +483,9 @@ class NMPC(DrivePrediction, Controller):
         from hubbeam_ctrl.core.compiled import compile_function
         current = None if self.drive is None else (self._n, self.drive.emf, self.drive.current_bound,
                                                     s.horizon if s.current_limit == "path" else 1)
-        self.symbolic_step = rti_step_function(self._F, s.horizon, self._nz, self._R, self.u_max,
-                                               parametric=self.payload is not None, current=current)
+        self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.u_max,
+                                               parametric=self.payload is not None, current=current,
+                                               in_flight=getattr(self, "_G", None))
         self.step_function = compile_function(self.symbolic_step, s.backend)    # C when asked and a compiler is there
 
     def reset(self) -> None:
@@ -523,8 +534,6 @@ class NMPC(DrivePrediction, Controller):
             self._U = np.r_[self._U[shift:], np.repeat(self._U[-1:], shift)]
         self._k_last = k
         x_meas = np.asarray(y, dtype=float)[self._pick]
-        if self._lag:                               # the command in flight
-            x_meas = np.r_[x_meas, self._u_last]
         extra = ()
         if self.payload is not None:                 # the payload from the momentum the last command gave
             self.payload.update(y, self._u_last if consecutive else None)
@@ -537,7 +546,8 @@ class NMPC(DrivePrediction, Controller):
             self._K_res = (1.0 - w) * g.residual_gain[a] + w * g.residual_gain[a + 1]
         xr, ur = self._reference_window(k, N)
         X, U = (np.asarray(a) for a in self.step_function(x_meas, self._X, self._U[None, :], xr.T, ur[None, :],
-                                                            self._W[0], self._W[-1], *extra))
+                                                            self._W[0], self._W[-1], *extra,
+                                                            *((self._u_last,) if self._lag else ())))
         self.qp_status = int(np.all(np.isfinite(U)) and np.all(np.isfinite(X)))
         if self.qp_status:                             # else keep the shifted plan
             self._X, self._U = X, U.ravel()
@@ -560,8 +570,8 @@ class NMPC(DrivePrediction, Controller):
         """The step's unconstrained law at the end point, ``u = -K e`` on the design state: the
         condensed QP of :meth:`__call__` with the plan at rest on the target (no defects), its
         dynamics linearised there, on the predicted states; the LQR's gain on the others."""
-        N, nx = self.settings.horizon, self._nz
-        x_end = np.r_[np.asarray(self._xref[-1], dtype=float)[self._pick], [0.0] if self._lag else []]
+        N, nx = self.settings.horizon, self._nx
+        x_end = np.asarray(self._xref[-1], dtype=float)[self._pick].copy()
         x_end[self._n:] = 0.0
         estimate = (self._table.at(self.payload.mass)[0],) if self.payload is not None else ()
         _, A, B = (np.asarray(M) for M in self._F(x_end, 0.0, *estimate))
@@ -577,8 +587,11 @@ class NMPC(DrivePrediction, Controller):
                 S[:, j] += B
                 Phi = A @ Phi
         k_pick = np.linalg.solve(0.5 * (H + H.T), G)[0]
-        K = np.r_[self._K_res, [k_pick[-1]] if self._lag else []]
-        K[self._pick] = k_pick[:self._nx]
+        K = self._K_res.copy()
+        K[self._pick] = k_pick
+        if self._lag:                  # on the state where the command acts: on [x, u_prev] at the sample
+            Phi, G = self.in_flight_map()
+            K = np.r_[K @ Phi, K @ G]
         return K
 
     def feedback_matrices(self) -> tuple:

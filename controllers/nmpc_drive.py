@@ -14,15 +14,20 @@ voltage and the hub:
   (:class:`ObservedNMPC`, offset-free);
 * the current limit ``|V - k_e N thd| <= R I_max`` as a path constraint, affine in the command and
   the predicted hub rate (at the start of each stage), and the voltage box ``|V| <= V_max``;
-* the computation delay ``d`` (``timing.delay``, a fraction of the sample in [0, 1]): the state is
-  augmented with the command in flight, ``z = [x, V_prev]``; over each sample ``V_prev`` acts for
-  ``d dt`` and ``V`` for ``(1 - d) dt`` (the fractional-delay hold of
-  :func:`hubbeam_ctrl.linear.delay.delay_augmented`, integrated by RK4 on the nonlinear model).
+* the computation delay ``d`` (``timing.delay``, a fraction of the sample in [0, 1]): the command in
+  flight ``V_prev`` is an input of the step, which first predicts the state where this sample's
+  command starts to act, ``x(t_k + d dt)``, by RK4 on the nonlinear model under ``V_prev``
+  (:attr:`DrivePrediction._G`); on that grid, shifted by the delay, each stage is one sample under
+  one command, exactly (the fractional-delay hold of :func:`hubbeam_ctrl.linear.delay.delay_augmented`
+  and the linear designs' :meth:`~controllers.DesignModel.acting_state`, here on the nonlinear
+  model). Predicting the command in flight once a step rather than in every stage (the state
+  augmented with it) halves the shooting's work: measured on ``servo_link``, 157 000 against 66 000
+  instructions a stage, 1.84 against 0.41 ms for the 20 stages as C.
 
-The terminal cost is the Riccati solution of the LQR of the same weights on the same augmented
-model linearised (:func:`controllers.analysis.hardware_plant`: the drive's torque per volt and its
-back-EMF plus viscous damping; :func:`~hubbeam_ctrl.linear.delay.delay_augmented`), the command
-weight the torque's times the drive's torque per volt squared (the same cost for the same torque).
+The terminal cost is the Riccati solution of the LQR of the same weights on the same model
+linearised (:func:`controllers.analysis.hardware_plant`: the drive's torque per volt and its
+back-EMF plus viscous damping, sampled on the grid shifted by the delay), the command weight the
+torque's times the drive's torque per volt squared (the same cost for the same torque).
 """
 
 from __future__ import annotations
@@ -122,7 +127,7 @@ class PredictionDrive:
 
 
 def drive_lqr(design, weights, drive: PredictionDrive) -> tuple:
-    """The LQR of ``weights`` on ``design`` with the drive and the delay, linearised.
+    """The LQR of ``weights`` on ``design`` with the drive linearised, on the grid shifted by the delay.
 
     Parameters
     ----------
@@ -134,25 +139,18 @@ def drive_lqr(design, weights, drive: PredictionDrive) -> tuple:
 
     Returns
     -------
-    K : ndarray (n_x + a,)
-        Gain [V per state unit] on ``[x, V_prev]`` (``a = 1`` with a delay, else 0).
-    P : ndarray
-        The Riccati solution on the same states.
+    K : ndarray (n_x,)
+        Gain [V per state unit] on the state where the command acts.
+    P : ndarray (n_x, n_x)
+        The Riccati solution.
     """
-    from hubbeam_ctrl.linear.delay import delay_augmented
-
     from .analysis import hardware_plant
+    from .design_model import _zoh
     from .riccati import dlqr
-    A, B, delay = hardware_plant(design.A, design.B, drive.hardware, "voltage")
+    A, B, _ = hardware_plant(design.A, design.B, drive.hardware, "voltage")
     Q, R = weights.matrices(design)
-    R = np.asarray(R, dtype=float) * drive.gain ** 2
-    if delay > 0.0:
-        Ad, Bd = delay_augmented(A, B, design.dt, delay)
-        Q = np.pad(Q, ((0, 1), (0, 1)))
-    else:
-        from .design_model import _zoh
-        Ad, Bd = _zoh(A, B, design.dt)
-    K, P, _ = dlqr(Ad, Bd, Q, R)
+    Ad, Bd = _zoh(A, B, design.dt)
+    K, P, _ = dlqr(Ad, Bd, Q, np.asarray(R, dtype=float) * drive.gain ** 2)
     return np.asarray(K).ravel(), np.asarray(P)
 
 
@@ -161,20 +159,18 @@ class DrivePrediction:
     and the reference tables): its shooting map, weights and reference in volts."""
 
     def _drive_shooting(self, model) -> ca.Function:
-        """``(z, V) -> (z+, dz+/dz, dz+/dV)`` with the drive (:mod:`controllers.nmpc_drive`): ``z = [x,
-        V_prev]`` with a delay (``V_prev`` for ``delay dt``, then ``V``), ``x`` without."""
-        d, nx = self.drive.delay, self._nx
-        z, u = ca.SX.sym("z", self._nz), ca.SX.sym("u")
+        """``(x, V) -> (x+, dx+/dx, dx+/dV)``: one sample under ``V`` through the drive
+        (:mod:`controllers.nmpc_drive`); with a delay also :attr:`_G`, ``(x, V_prev) -> x(delay dt)``
+        (the state where this sample's command starts to act)."""
+        x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")
         p, tq = ca.DM(model.p), self.drive.torque
-        x = z[:nx]
-        if d > 0.0:
-            early = max(1, math.ceil(self.substeps * d))
-            late = max(1, math.ceil(self.substeps * (1.0 - d)))
-            x = self._rk4(model, x, z[nx], p, tq, d * self.dt, early)
-            x = ca.vertcat(self._rk4(model, x, u, p, tq, (1.0 - d) * self.dt, late), u)
-        else:
-            x = self._rk4(model, x, u, p, tq)
-        return ca.Function("nmpc_shoot_v", [z, u], [x, ca.jacobian(x, z), ca.jacobian(x, u)], {"cse": True})
+        self._G = None
+        if self._lag:
+            early = max(1, math.ceil(self.substeps * self.drive.delay))
+            self._G = ca.Function("nmpc_in_flight", [x, u],
+                                  [self._rk4(model, x, u, p, tq, self.drive.delay * self.dt, early)], {"cse": True})
+        z = self._rk4(model, x, u, p, tq)
+        return ca.Function("nmpc_shoot_v", [x, u], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
 
     def _volts_at(self, k: int) -> float:
         """Feedforward voltage [V] of sample ``k``: the reference torque where the command acts (at
@@ -189,15 +185,15 @@ class DrivePrediction:
         return cached
 
     def _drive_window(self, k: int, N: int) -> tuple:
-        """``(z_ref, V_ff)`` over samples ``k .. k + N`` with the drive: the predicted states (and the
-        previous sample's feedforward as the command in flight) and the feedforward voltages."""
-        xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
-        if self._lag:
-            xr = np.hstack([xr, np.array([[self._volts_at(k + j - 1) if k + j > 0 else 0.0] for j in range(N + 1)])])
+        """``(x_ref, V_ff)`` over samples ``k .. k + N`` with the drive: the predicted states where the
+        commands act (at ``k + j + delay``, interpolated) and the feedforward voltages."""
+        d = self.drive.delay
+        X = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 2)])
+        xr = X[:-1] if d == 0.0 else (1.0 - d) * X[:-1] + d * X[1:]
         return xr, np.array([self._volts_at(k + j) for j in range(N)])
 
     def _drive_setup(self, s, design) -> None:
-        """Weights, terminal cost and residual gain in volts on the drive's augmented model
+        """Weights, terminal cost and residual gain in volts on the drive's model
         (:func:`controllers.nmpc_drive.drive_lqr`)."""
         from .nmpc_drive import drive_lqr
         from .residual import residual_design
@@ -209,19 +205,20 @@ class DrivePrediction:
         self.K_volts = K
         self.u_max, self.command = drv.v_max, "voltage"
         self._R = self._R * drv.gain ** 2
-        pick = np.r_[self._pick, [self.design.n_x] if self._lag else []].astype(int)
-        self._Pt = P[np.ix_(pick, pick)]
-        if self._lag:
-            self._Q = np.pad(self._Q, ((0, 1), (0, 1)))
-        self._K_res = K[:self.design.n_x].copy()
+        self._Pt = P[np.ix_(self._pick, self._pick)]
+        self._K_res = K.copy()
         self._K_res[self._pick] = 0.0
         self._K_res0 = self._K_res.copy()
         self._vff = {}
 
-    @property
-    def _nz(self) -> int:
-        """States of the prediction: the model's, and the command in flight with a delay."""
-        return self._nx + (1 if self._lag else 0)
+    def in_flight_map(self) -> tuple:
+        """``(Phi, Gamma)``: the design state where the command acts, ``Phi x + Gamma V_prev``, from
+        the drive's model linearised (:func:`controllers.analysis.hardware_plant`) over the delay."""
+        from .analysis import hardware_plant
+        from .design_model import _zoh
+        A, B, _ = hardware_plant(self.design.A, self.design.B, self.drive.hardware, "voltage")
+        Phi, G = _zoh(A, B, self.drive.delay * self.dt)
+        return Phi, G[:, 0]
 
 
 class ObservedNMPC(ObservedFeedback):
@@ -290,8 +287,8 @@ class ObservedNMPC(ObservedFeedback):
         K_in = -np.asarray(self.inner.feedback_matrices()[3])[0]     # on [x_design, (V_prev)]
         Kz = np.zeros((1, nz))
         Kz[0, self._pick] = K_in[:len(self._pick)]
-        if fm.carries_loop and len(K_in) > len(self._pick):
-            Kz[0, fm.n_x] = K_in[-1]
+        if fm.carries_loop and len(K_in) > len(self._pick):      # the filter holds the torque in flight
+            Kz[0, fm.n_x] = K_in[-1] / self.inner.drive.gain
         if self.integral:
             Kz[0, -1] = 1.0 / self.inner.drive.gain
         g, damp = self.inner.drive.gain, self.inner.drive.hardware.hub_damping()

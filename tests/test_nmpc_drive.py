@@ -35,23 +35,23 @@ def test_the_drive_in_the_prediction_is_the_plants_drive_stage(servo):
     pred = np.array([float(f(a, b)) for a, b in zip(V, thd)])
     assert np.max(np.abs(pred - plant)) <= 1e-12
     assert np.any(np.abs((V - hw.back_emf_constant() * thd) / rig.drive.R) > rig.drive.I_max)   # current limit hit
-    assert ctrl.command == "voltage" and ctrl.u_max == rig.drive.V_max and ctrl._nz == ctrl._nx + 1
+    assert ctrl.command == "voltage" and ctrl.u_max == rig.drive.V_max and ctrl._G is not None
 
 
 def test_the_delay_holds_the_command_in_flight(servo):
-    """With half a sample of delay the shooting map applies the previous volts for the first half
-    of the sample: a step from rest under V_prev = 0, V = 5 moves the hub less than V_prev = V = 5,
-    and the command in flight it returns is V."""
+    """With half a sample of delay the step first predicts the state where its command acts under the
+    command in flight: from rest under V_prev = 5 V for half a sample the hub gains the rate one
+    sample's shooting map gives it in half the time (to RK4's accuracy), none under V_prev = 0; and the
+    step function takes the command in flight as its last input."""
     rig, hw, d = servo
     ctrl = NMPC(d, NMPCSettings(tau_max=rig.plant_params.tau_max, horizon=5), hardware=hw)
-    z0 = np.zeros(ctrl._nz)
-    late = np.asarray(ctrl._F(z0, 5.0)[0]).ravel()
-    z0[-1] = 5.0
-    full = np.asarray(ctrl._F(z0, 5.0)[0]).ravel()
     n = ctrl._n
-    assert late[-1] == 5.0 and 0.0 < late[n] < full[n]
-    # the hub rate after one sample from rest: about g V (1 - d) dt / J against g V dt / J
-    assert late[n] / full[n] == pytest.approx(0.5, rel=0.05)
+    x0 = np.zeros(ctrl._nx)
+    half = np.asarray(ctrl._G(x0, 5.0)).ravel()
+    full = np.asarray(ctrl._F(x0, 5.0)[0]).ravel()
+    assert np.all(np.asarray(ctrl._G(x0, 0.0)) == 0.0)
+    assert half[n] / full[n] == pytest.approx(0.5, rel=0.02)
+    assert ctrl.symbolic_step.name_in()[-1] == "u_prev"
 
 
 def test_an_ideal_rig_gives_todays_nmpc_bit_for_bit():
@@ -92,7 +92,7 @@ def test_cli_codegen_writes_the_nmpc_step_with_the_drive(tmp_path, capsys):
     info = json.loads(capsys.readouterr().out)
     rig = load_rig("servo_link")
     assert info["command"] == {"name": "voltage", "unit": "V", "limit": rig.drive.V_max}
-    assert info["states"][-1] == "u_prev" and info["drive"]["I_max_a"] == rig.drive.I_max
+    assert "u_prev" in info["inputs"] and info["drive"]["I_max_a"] == rig.drive.I_max
     assert info["inputs"]["x"] == [len(info["states"]), 1] and info["dt_s"] == pytest.approx(1e-3)
     header = (out / "nmpc_rti.h").read_text()
     assert "[V], |u| <= 10 V" in header and "|i| <= 4 A" in header

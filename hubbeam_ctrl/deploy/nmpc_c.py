@@ -59,8 +59,6 @@ def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti", *, force: bool = Fals
     drive = controller.drive
     unit = "N m" if drive is None else "V"
     states = [controller.design.state_names[i] for i in controller.prediction_states]
-    if controller._nz > len(states):
-        states.append("u_prev")
     info = {"function": name, "horizon": controller.settings.horizon, "dt_s": controller.dt,
             "tau_max_nm": controller.tau_max,
             "command": {"name": "tau" if drive is None else "voltage", "unit": unit, "limit": controller.u_max},
@@ -76,8 +74,8 @@ def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti", *, force: bool = Fals
         info["drive"] = {"V_max_v": d.V_max, "I_max_a": d.I_max, "R_ohm": d.R, "emf_v_s_per_rad": drive.emf,
                          "delay_samples": drive.delay, "viscous_nm_s_per_rad": drive.hardware.friction.viscous,
                          "coulomb": "not in the prediction (the rig's filter estimates it as a disturbance)"}
-        info["call"] += ("; with the delay x ends with u_prev, the volts applied at the previous sample; the "
-                         "command is also kept within k_e N theta_dot +- R I_max")
+        info["call"] += ("; with a delay the last input u_prev is the command in flight, the volts applied at "
+                         "the previous sample; the command is also kept within k_e N theta_dot +- R I_max")
     header = out / f"{name}.h"
     header.write_text(_units_comment(info) + header.read_text())
     atomic_write_text(out / f"{name}.json", json.dumps(info, indent=1) + "\n")
@@ -91,7 +89,8 @@ def _units_comment(info: dict) -> str:
              f"{info['dt_s']:g} s.",
              f"Command U_next[0]: {c['name']} [{c['unit']}], |u| <= {c['limit']:g} {c['unit']}.",
              "Prediction states x: " + ", ".join(info["states"])
-             + " (theta [rad], q2 modal [m], their rates [rad/s, m/s], u_prev [V])."]
+             + " (theta [rad], q2 modal [m], their rates [rad/s, m/s])"
+             + ("; u_prev: the command in flight [V]." if "u_prev" in info["inputs"] else ".")]
     if "drive" in info:
         d = info["drive"]
         lines.append(f"DC drive in the prediction: |i| <= {d['I_max_a']:g} A, i.e. "
