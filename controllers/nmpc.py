@@ -560,8 +560,9 @@ class NMPC(DrivePrediction, Controller):
             e = np.asarray(y, dtype=float) - self._reference_at(k)[0]
         if self.drive is None:
             u0 = saturate(float(self._U[0] - self._K_res @ e), self.tau_max)
-        else:                                        # within the voltage box and the current limit
-            u0 = self.drive.clip(float(self._U[0] - self._K_res @ e), float(y[self.design.n_x // 2]))
+        else:                  # where the command acts, within the voltage box and the current limit
+            e, rate = self._acting_error(k, y)
+            u0 = self.drive.clip(float(self._U[0] - self._K_res @ e), rate)
         self._u_last = u0
         self.step_times_s.append(time.perf_counter() - start)
         return u0

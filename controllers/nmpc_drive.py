@@ -210,6 +210,20 @@ class DrivePrediction:
         self._K_res[self._pick] = 0.0
         self._K_res0 = self._K_res.copy()
         self._vff = {}
+        self._acting = None
+
+    def _acting_error(self, k: int, y) -> tuple:
+        """``(e, thd)``: the design state's error from the reference where this sample's command acts
+        (at ``k + delay``: :meth:`in_flight_map` under the command in flight) and the hub rate there."""
+        y = np.asarray(y, dtype=float)
+        x0, d = self._reference_at(k)[0], self.drive.delay
+        if not self._lag:
+            return y - x0, float(y[self.design.n_x // 2])
+        if self._acting is None:
+            self._acting = self.in_flight_map()
+        Phi, G = self._acting
+        x = Phi @ y + G * float(self._u_last)
+        return x - ((1.0 - d) * x0 + d * self._reference_at(k + 1)[0]), float(x[self.design.n_x // 2])
 
     def in_flight_map(self) -> tuple:
         """``(Phi, Gamma)``: the design state where the command acts, ``Phi x + Gamma V_prev``, from

@@ -69,13 +69,16 @@ def test_an_ideal_rig_gives_todays_nmpc_bit_for_bit():
 @pytest.mark.parametrize("limit", ["path", "first"])
 def test_the_command_keeps_the_current_limit(servo, limit):
     """Far behind its target at 15 rad/s the NMPC brakes with no more than I_max: the volts stay within
-    k_e N thd +- R I_max and the box (the current limit at every stage, or on the first move)."""
+    k_e N thd +- R I_max and the box at the hub rate where they act (the current limit at every stage,
+    or on the first move)."""
     rig, hw, d = servo
     ctrl = NMPC(d, NMPCSettings(tau_max=rig.plant_params.tau_max, horizon=5, current_limit=limit), hardware=hw)
     x = np.zeros(d.n_x)
     x[0], x[d.n_x // 2] = 0.5, 15.0
+    rate = ctrl._acting_error(0, x)[1]          # where the command acts, after half a sample at 0 V
+    assert 14.0 < rate < 15.0
     v = ctrl(0.0, x)
-    emf, rmax = hw.back_emf_constant() * 15.0, rig.drive.R * rig.drive.I_max
+    emf, rmax = hw.back_emf_constant() * rate, rig.drive.R * rig.drive.I_max
     assert emf - rmax - 1e-9 <= v <= min(rig.drive.V_max, emf + rmax) + 1e-9
     assert v == pytest.approx(emf - rmax, abs=1e-6)          # braking as hard as the current allows
 
