@@ -113,7 +113,7 @@ def _function_times(nmpc, calls: int = 300) -> dict:
 def table_lines(doc: dict) -> list:
     """docs/limit.md's table of this benchmark (a test keeps the page equal to the JSON)."""
     lines = ["| beam | t_f / T* | controller | verdict | settled after t_f [first-mode periods] | residual [% of L] | "
-             "final angle error [rad] | peak command | step median / p99 [ms] (sample) |",
+             "final angle error [rad] (encoder counts) | peak command (current) | step median / p99 [ms] (sample) |",
              "|---|---|---|---|---|---|---|---|---|"]
     for beam, b in doc["beams"].items():
         for f, c in b["factors"].items():

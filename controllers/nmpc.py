@@ -34,6 +34,9 @@ converges in the slew's first 0.05-0.2 s (``benchmarks/bench_nmpc_payload.py``).
 
 The command is the first move. The NMPC reads the design model's state (``measurement ==
 "state"``): on a rig the comparison closes it through the same Kalman filter as LQR and MPC.
+
+With a rig's DC drive (``hardware=``) the command is in volts and the drive, viscous friction, current
+limit and delay are in the prediction (:mod:`controllers.nmpc_drive`).
 """
 
 from __future__ import annotations
@@ -105,10 +108,8 @@ class NMPCSettings(LQSettings):
                              doc="Solver of the step's condensed box QP: CasADi's active-set qrqp, part of the "
                                  "step's CasADi function, so that the generated C carries it.")
     current_limit: str = setting("path", choices=("path", "first"),
-                                 doc="With a DC drive in the prediction (a rig): its current limit as a linear "
-                                     "constraint at every stage of the horizon (path), or on the first move only "
-                                     "(first: a bound, the QP stays a box QP; beyond it the prediction's drive "
-                                     "clips the current as the amplifier does).")
+                                 doc="A DC drive's current limit: a linear constraint at every stage (path), or a "
+                                     "bound on the first move only (first: a box QP; the prediction clips it).")
     learn_payload: bool = setting(False, doc="Estimate the payload online from the hub's momentum balance "
                                              "(controllers.payload_estimate.PayloadMomentum), predict with it and "
                                              "follow the task planned for it; payload_min_kg..payload_max_kg.")
