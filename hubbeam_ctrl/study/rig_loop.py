@@ -192,8 +192,10 @@ def on_rig(controller, rig: Rig, noise, hardware: Hardware | None, integral: boo
     integral = integral_default(rig) if integral is None else bool(integral)
     ctrl = controller
     tracks = hasattr(controller, "feedback_matrices") and getattr(controller, "measurement", None) == "state"
-    if hardware is not None and hardware.command == "voltage" and hasattr(controller, "built_on"):
-        # the NMPC predicts the drive, friction and delay itself: it commands volts (controllers.nmpc_drive)
+    if (hardware is not None and hardware.command == "voltage" and hasattr(controller, "built_on")
+            and not controller.settings.learn_payload):
+        # the NMPC predicts the drive, friction and delay itself: it commands volts (controllers.nmpc_drive);
+        # one that learns the payload keeps the beam alone's prediction behind the rig's volts stage
         from controllers.nmpc_drive import nmpc_on_drive
         d = DISTURBANCE_FRACTION * controller.tau_max if integral else None
         ctrl = nmpc_on_drive(controller, hardware, noise, d)
