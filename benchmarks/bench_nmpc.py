@@ -34,8 +34,9 @@ from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
 LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
 BEAMS = {"table1": Params(), "lab": LAB, "servo_link": "servo_link"}
 #: Slew angles [rad]: 90 degrees on the lab arm and servo_link (its DC drive in volts, friction,
-#: encoder and half a sample of delay; the NMPC runs through the rig's filter and drive stage,
-#: the drive is not in its prediction); 1 rad on Table 1's beam, whose 90 degrees at 1.1 T*
+#: encoder and half a sample of delay; LQR and MPC run through the rig's filter and volts stage, the
+#: NMPC through the filter with the drive, viscous friction, current limit and delay in its
+#: prediction, commanding volts: controllers.nmpc_drive); 1 rad on Table 1's beam, whose 90 degrees at 1.1 T*
 #: (3.33 s) is shorter than the 3.50 s in which its Eq. 44 open-loop baseline can turn it.
 ANGLES = {"table1": 1.0, "lab": math.pi / 2, "servo_link": math.pi / 2}
 
@@ -78,6 +79,7 @@ def case(beam: str, factor: float, t_opt: float, horizon: int | None = None, bac
                "peak_torque_nm": m["peak_torque_nm"], "tau_max_nm": getattr(params, "plant_params", params).tau_max,
                "peak_command": m["peak_command"], "command_unit": m.get("command_unit", "N m"),
                "within_drive_limits": bool(m["within_drive_limits"]),
+               "peak_current_a": m.get("peak_current_a"),
                "loop_spectral_radius": m.get("loop_spectral_radius")}
         if name == "nmpc":
             nmpc = _inner(c.controllers[name])
@@ -85,6 +87,9 @@ def case(beam: str, factor: float, t_opt: float, horizon: int | None = None, bac
             row.update(step_median_s=float(np.median(steps)), step_p99_s=float(np.percentile(steps, 99)),
                        dt_s=float(c.scenario.dt), model_modes=nmpc.model_modes, backend=backend)
             row.update(_function_times(nmpc))
+        step = getattr(getattr(params, "sensors", None), "encoder_step", 0.0)
+        if step:                 # the final angle in the rig's encoder counts
+            row["final_angle_error_counts"] = row["final_angle_error_rad"] / step
         out["controllers"][name] = row
     return out
 
@@ -95,7 +100,8 @@ def _function_times(nmpc, calls: int = 300) -> dict:
     calls on the controller's last plan [s]."""
     x = nmpc._X[:, 0]
     xr, ur = nmpc._reference_window(0, nmpc.settings.horizon)
-    args = (x, nmpc._X, nmpc._U[None, :], xr.T, ur[None, :], nmpc._W[0], nmpc._W[-1])
+    args = (x, nmpc._X, nmpc._U[None, :], xr.T, ur[None, :], nmpc._W[0], nmpc._W[-1],
+            *((0.0,) if getattr(nmpc, "_lag", False) else ()))          # the command in flight [V]
     times = []
     for _ in range(calls):
         t0 = time.perf_counter()
@@ -107,7 +113,7 @@ def _function_times(nmpc, calls: int = 300) -> dict:
 def table_lines(doc: dict) -> list:
     """docs/limit.md's table of this benchmark (a test keeps the page equal to the JSON)."""
     lines = ["| beam | t_f / T* | controller | verdict | settled after t_f [first-mode periods] | residual [% of L] | "
-             "final angle error [rad] | peak command | step median / p99 [ms] (sample) |",
+             "final angle error [rad] (encoder counts) | peak command (current) | step median / p99 [ms] (sample) |",
              "|---|---|---|---|---|---|---|---|---|"]
     for beam, b in doc["beams"].items():
         for f, c in b["factors"].items():
@@ -119,8 +125,13 @@ def table_lines(doc: dict) -> list:
                 step = (f"{1e3 * r['step_median_s']:.1f} / {1e3 * r['step_p99_s']:.1f} ({1e3 * r['dt_s']:g})"
                         if "step_median_s" in r else "")
                 peak = f"{r['peak_command']:.4g} {r['command_unit']}"
+                if r.get("peak_current_a") is not None:
+                    peak += f", {r['peak_current_a']:.3g} A"
+                angle = f"{r['final_angle_error_rad']:.2g}"
+                if "final_angle_error_counts" in r:
+                    angle += f" ({r['final_angle_error_counts']:+.1f} counts)"
                 lines.append(f"| {beam} | {f} | {name} | {r['verdict']} | {after} | {r['residual_pct_of_L']:.3g} | "
-                             f"{r['final_angle_error_rad']:.2g} | {peak} | {step} |")
+                             f"{angle} | {peak} | {step} |")
     return lines
 
 

@@ -34,6 +34,9 @@ converges in the slew's first 0.05-0.2 s (``benchmarks/bench_nmpc_payload.py``).
 
 The command is the first move. The NMPC reads the design model's state (``measurement ==
 "state"``): on a rig the comparison closes it through the same Kalman filter as LQR and MPC.
+
+With a rig's DC drive (``hardware=``) the command is in volts and the drive, viscous friction, current
+limit and delay are in the prediction (:mod:`controllers.nmpc_drive`).
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
+from .nmpc_drive import DrivePrediction
 
 __all__ = ["NMPCSettings", "NMPC", "QP_PLUGINS", "NMPC_MODES", "rk4_substeps", "rti_step_function"]
 
@@ -103,6 +107,9 @@ class NMPCSettings(LQSettings):
     qp_solver: str = setting("qrqp", choices=QP_PLUGINS,
                              doc="Solver of the step's condensed box QP: CasADi's active-set qrqp, part of the "
                                  "step's CasADi function, so that the generated C carries it.")
+    current_limit: str = setting("path", choices=("path", "first"),
+                                 doc="A DC drive's current limit: a linear constraint at every stage (path), or a "
+                                     "bound on the first move only (first: a box QP; the prediction clips it).")
     learn_payload: bool = setting(False, doc="Estimate the payload online from the hub's momentum balance "
                                              "(controllers.payload_estimate.PayloadMomentum), predict with it and "
                                              "follow the task planned for it; payload_min_kg..payload_max_kg.")
@@ -166,7 +173,8 @@ class _PayloadGrid(NamedTuple):
 
 
 def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, tau_max: float,
-                      parametric: bool = False) -> ca.Function:
+                      parametric: bool = False, current: tuple | None = None,
+                      in_flight: ca.Function | None = None) -> ca.Function:
     """One real-time iteration of the NMPC as a CasADi function (its C is the generated step).
 
     ``(x, X, U, XR, UR, Q, P[, p]) -> (X+, U+)``: the shooting map linearised along the
@@ -189,6 +197,15 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
         Command limit [N m].
     parametric : bool
         The shooting map takes the model's parameter vector ``p`` (a learnt payload).
+    current : tuple, optional
+        ``(row, emf, bound, stages)``: a DC drive's current limit ``|u_j - emf x_j[row]| <= bound`` at
+        the start of the first ``stages`` stages (``u`` in volts, ``x[row]`` the hub rate [rad/s],
+        ``emf = k_e N`` [V s/rad], ``bound = R I_max`` [V]): linear constraints of the QP, or with
+        ``stages == 1`` a bound on the first move (the QP stays a box QP).
+    in_flight : casadi.Function, optional
+        ``(x, u_prev) -> x``: the state where this sample's command starts to act, from the measured
+        one under the command in flight (a computation delay); the step then takes ``u_prev`` as its
+        last input.
 
     Returns
     -------
@@ -199,11 +216,20 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
     XR, UR = ca.MX.sym("XR", nx, N + 1), ca.MX.sym("UR", 1, N)
     Q, P = ca.MX.sym("Q", nx, nx), ca.MX.sym("P", nx, nx)
     extra = [ca.MX.sym("p", shooting.size1_in(2))] if parametric else []
+    measured, late = x, []
+    if in_flight is not None:
+        late = [ca.MX.sym("u_prev")]
+        x = in_flight(measured, late[0])
     Xn, Ax, Bu = shooting.map(N)(X[:, :N], U, *extra)
     eye = ca.DM.eye(N)
     S, c = ca.MX.zeros(nx, N), x - X[:, 0]        # dX_j = S_j dU + c_j, dX_0 the measured offset
     H, g = r * ca.MX.eye(N), r * (U - UR).T
+    rows, values = [], []                       # the current limit's rows on dU and values at dU = 0
     for j in range(N + 1):
+        if current is not None and j < current[3]:
+            row, emf = current[:2]
+            rows.append(eye[j, :] - emf * S[row, :])
+            values.append(U[j] - emf * (X[row, j] + c[row]))
         if j > 0:
             WS = ca.mtimes(P if j == N else Q, S)
             H = H + ca.mtimes(S.T, WS)
@@ -212,19 +238,30 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
             A = Ax[:, nx * j:nx * (j + 1)]
             S = ca.mtimes(A, S) + ca.mtimes(Bu[:, j], eye[j, :])
             c = ca.mtimes(A, c) + Xn[:, j] - X[:, j + 1]
-    qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity(0, N)},
-                  {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False})
-    dU = qp(h=0.5 * (H + H.T), g=g, lbx=-tau_max - U.T, ubx=tau_max - U.T)["x"]
+    opts = {"print_iter": False, "print_header": False, "print_info": False, "error_on_fail": False}
+    lbx, ubx = -tau_max - U.T, tau_max - U.T
+    if current is not None and current[3] == 1:   # the first move's current: a bound
+        bound, first = current[2], ca.DM.eye(N)[:, 0]
+        lbx = lbx + first * (ca.fmax(lbx[0], -bound - values[0]) - lbx[0])
+        ubx = ubx + first * (ca.fmin(ubx[0], bound - values[0]) - ubx[0])
+    if current is None or current[3] == 1:
+        qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity(0, N)}, opts)
+        dU = qp(h=0.5 * (H + H.T), g=g, lbx=lbx, ubx=ubx)["x"]
+    else:
+        Ac, val, bound = ca.vertcat(*rows), ca.vertcat(*values), current[2]
+        qp = ca.conic("nmpc_qp", "qrqp", {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity.dense(len(rows), N)}, opts)
+        dU = qp(h=0.5 * (H + H.T), g=g, a=Ac, lba=-bound - val, uba=bound - val, lbx=lbx, ubx=ubx)["x"]
     c = x - X[:, 0]
     cols = [x]
     for j in range(N):                         # the new plan, rolled out along the linearisation
         c = ca.mtimes(Ax[:, nx * j:nx * (j + 1)], c) + Bu[:, j] * dU[j] + Xn[:, j] - X[:, j + 1]
         cols.append(X[:, j + 1] + c)
-    return ca.Function("nmpc_rti", [x, X, U, XR, UR, Q, P, *extra], [ca.horzcat(*cols), U + dU.T],
-                       ["x", "X", "U", "XR", "UR", "Q", "P", *(["p"] if parametric else [])], ["X_next", "U_next"])
+    return ca.Function("nmpc_rti", [measured, X, U, XR, UR, Q, P, *extra, *late], [ca.horzcat(*cols), U + dU.T],
+                       ["x", "X", "U", "XR", "UR", "Q", "P", *(["p"] if parametric else []),
+                        *(["u_prev"] if late else [])], ["X_next", "U_next"])
 
 
-class NMPC(Controller):
+class NMPC(DrivePrediction, Controller):
     """Real-time-iteration NMPC on the reduced FOAM of the design (see the module docstring).
 
     Parameters
@@ -234,6 +271,10 @@ class NMPC(Controller):
     settings : NMPCSettings, optional
     reference : Reference, optional
         The task's reference and feedforward (default: rest at theta = 0).
+    hardware : Hardware, optional
+        A rig with a DC drive: the command is in volts and the drive, viscous friction, current
+        limit and computation delay are in the prediction (:mod:`controllers.nmpc_drive`); None (or
+        an ideal torque drive): the beam alone's NMPC, its commands bit for bit.
 
     Attributes
     ----------
@@ -248,15 +289,29 @@ class NMPC(Controller):
         The step (:func:`rti_step_function`) as built, and as called (its generated C with
         ``backend="compiled"``).
     prediction_states : ndarray of int
-        The design state's entries the prediction model holds, in its order.
+        The design state's entries the prediction model holds, in its order (then the command in
+        flight with a drive and a delay).
+    drive : PredictionDrive or None
+        The drive stage of the prediction.
+    u_max : float
+        The command's limit [N m, or V with a drive].
+    command : str
+        ``"torque"`` or ``"voltage"``.
     """
 
     measurement = "state"
 
     def __init__(self, design: DesignModel, settings: NMPCSettings | None = None,
-                 reference: Reference | None = None):
+                 reference: Reference | None = None, hardware=None):
         from hubbeam_ctrl.plant.models import build_model
         settings = settings or NMPCSettings()
+        self.built_on = (design, reference)         # what with_hardware builds again from
+        self.drive = None
+        if hardware is not None and hardware.command == "voltage":
+            from .nmpc_drive import PredictionDrive
+            self.drive = PredictionDrive.from_hardware(hardware)
+            if settings.learn_payload:
+                raise ParameterError("learn_payload does not apply with a DC drive in the prediction yet")
         if abs(design.spin) > 0.0:
             raise ParameterError(f"design spin must be 0 for the NMPC (it predicts the whole motion from rest), "
                                  f"got {design.spin:g} rad/s")
@@ -289,9 +344,14 @@ class NMPC(Controller):
         self._Q = Q[np.ix_(pick_d, pick_d)]
         self._R = float(np.asarray(R).reshape(-1)[0])
         self._Pt = np.asarray(self.P)[np.ix_(self._pick, self._pick)]
+        self.u_max, self.command, self._lag = self.tau_max, "torque", False
+        if self.drive is not None:
+            self._drive_setup(settings, design)
         self.payload = None
         if settings.learn_payload:
             self._learning_setup(model, settings)
+        elif self.drive is not None:
+            self._F = self._drive_shooting(model)
         else:
             self._F = self._shooting(model)
         self._build_qp(settings)
@@ -300,9 +360,10 @@ class NMPC(Controller):
         self.reset()
 
     # -- construction -------------------------------------------------------------
-    def _rk4(self, model, x, u, p):
+    def _rk4(self, model, x, u, p, torque=None, span=None, steps=None):
         """The state after one sample from ``x`` under ``u``: RK4 in ``substeps`` steps, the model's
-        parameter vector ``p`` (a symbol, or its numbers)."""
+        parameter vector ``p`` (a symbol, or its numbers); with ``torque(u, thd)`` the hub torque of
+        the command (a drive), over ``span`` [s] in ``steps`` steps."""
         n = self._n
         M, c = model.parametric.mass_matrix, model.parametric.bias
         B = np.zeros(n)
@@ -310,11 +371,13 @@ class NMPC(Controller):
 
         def f(z):
             q, v = z[:n], z[n:]
-            return ca.vertcat(v, ca.solve(M(q, v, p), B * u - c(q, v, p)))
+            tau = u if torque is None else torque(u, v[0])
+            return ca.vertcat(v, ca.solve(M(q, v, p), B * tau - c(q, v, p)))
 
-        h = self.dt / self.substeps
+        steps = self.substeps if steps is None else steps
+        h = (self.dt if span is None else span) / steps
         z = x
-        for _ in range(self.substeps):
+        for _ in range(steps):
             k1 = f(z)
             k2 = f(z + h / 2 * k1)
             k3 = f(z + h / 2 * k2)
@@ -403,6 +466,8 @@ class NMPC(Controller):
     def _reference_window(self, k: int, N: int) -> tuple:
         """``(x_ref, u_ff)`` on the predicted states over samples ``k .. k + N``: the table's, and with
         a learnt payload moved by what the estimate changes in the reference's quasi-static motion."""
+        if self.drive is not None:
+            return self._drive_window(k, N)
         xr = np.array([self._reference_at(k + j)[0][self._pick] for j in range(N + 1)])
         ur = np.array([self._reference_at(k + j)[1] * self._ff for j in range(N)])
         if self.payload is not None and self._grid.states is not None:
@@ -417,18 +482,27 @@ class NMPC(Controller):
         """The step as one CasADi function (:attr:`step_function`, built once)."""
         self._W = [self._Q] * s.horizon + [self._Pt]          # stage weights on x_0 .. x_N
         from hubbeam_ctrl.core.compiled import compile_function
-        self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.tau_max,
-                                               parametric=self.payload is not None)
+        current = None if self.drive is None else (self._n, self.drive.emf, self.drive.current_bound,
+                                                    s.horizon if s.current_limit == "path" else 1)
+        self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.u_max,
+                                               parametric=self.payload is not None, current=current,
+                                               in_flight=getattr(self, "_G", None))
         self.step_function = compile_function(self.symbolic_step, s.backend)    # C when asked and a compiler is there
 
     def reset(self) -> None:
         """Start from the reference: the previous solution is the planned motion."""
         N = self.settings.horizon
-        X = np.array([self._xref[min(k, len(self._xref) - 1)][self._pick] for k in range(N + 1)])
-        self._X = X.T.copy()                                  # (nx, N + 1)
-        self._U = np.array([self._reference_at(k)[1] * self._ff for k in range(N)], dtype=float)
+        if self.drive is not None:
+            xr, ur = self._reference_window(0, N)
+            self._X, self._U = xr.T.copy(), ur.copy()
+        else:
+            X = np.array([self._xref[min(k, len(self._xref) - 1)][self._pick] for k in range(N + 1)])
+            self._X = X.T.copy()                                  # (nx, N + 1)
+            self._U = np.array([self._reference_at(k)[1] * self._ff for k in range(N)], dtype=float)
         self._k_last = None
         self._u_last = None                 # the command applied at the previous sample [N m]
+        if self.drive is not None:
+            self._u_last = 0.0              # at rest before the first sample [V]
         if self.payload is not None:            # the design's payload until the first estimate
             self.payload.reset()
             self._W = [self._Q] * self.settings.horizon + [self._Pt]
@@ -448,7 +522,8 @@ class NMPC(Controller):
 
     # -- the step ------------------------------------------------------------------
     def __call__(self, t: float, y) -> float:
-        """Hub torque [N m] at time ``t`` [s] from the design-ordered state ``y``."""
+        """Hub torque [N m] (volts [V] with a drive) at time ``t`` [s] from the design-ordered state ``y``
+        (at the sample; with a drive and a delay the NMPC adds the command in flight itself)."""
         start = time.perf_counter()
         s = self.settings
         N = s.horizon
@@ -472,7 +547,8 @@ class NMPC(Controller):
             self._K_res = (1.0 - w) * g.residual_gain[a] + w * g.residual_gain[a + 1]
         xr, ur = self._reference_window(k, N)
         X, U = (np.asarray(a) for a in self.step_function(x_meas, self._X, self._U[None, :], xr.T, ur[None, :],
-                                                            self._W[0], self._W[-1], *extra))
+                                                            self._W[0], self._W[-1], *extra,
+                                                            *((self._u_last,) if self._lag else ())))
         self.qp_status = int(np.all(np.isfinite(U)) and np.all(np.isfinite(X)))
         if self.qp_status:                             # else keep the shifted plan
             self._X, self._U = X, U.ravel()
@@ -483,7 +559,11 @@ class NMPC(Controller):
             e = np.asarray(y, dtype=float) - ((1.0 - w) * X[a, j] + w * X[a + 1, j])
         else:
             e = np.asarray(y, dtype=float) - self._reference_at(k)[0]
-        u0 = saturate(float(self._U[0] - self._K_res @ e), self.tau_max)
+        if self.drive is None:
+            u0 = saturate(float(self._U[0] - self._K_res @ e), self.tau_max)
+        else:                  # where the command acts, within the voltage box and the current limit
+            e, rate = self._acting_error(k, y)
+            u0 = self.drive.clip(float(self._U[0] - self._K_res @ e), rate)
         self._u_last = u0
         self.step_times_s.append(time.perf_counter() - start)
         return u0
@@ -511,6 +591,9 @@ class NMPC(Controller):
         k_pick = np.linalg.solve(0.5 * (H + H.T), G)[0]
         K = self._K_res.copy()
         K[self._pick] = k_pick
+        if self._lag:                  # on the state where the command acts: on [x, u_prev] at the sample
+            Phi, G = self.in_flight_map()
+            K = np.r_[K @ Phi, K @ G]
         return K
 
     def feedback_matrices(self) -> tuple:
@@ -519,7 +602,6 @@ class NMPC(Controller):
         design model's states; the modes it does not predict get no gain (what the certificate closes).
         A learning NMPC's law is at its current estimate of the payload (after a run: the one it
         learnt), with that payload's weights and residual-mode gain."""
-        n = self.design.n_x
         K = self._end_gain() if self.payload is not None else self.K_end
-        return (np.zeros((0, 0)), np.zeros((0, n)), np.zeros((1, 0)), -K[None, :], [],
-                list(self.design.state_names))
+        return (np.zeros((0, 0)), np.zeros((0, len(K))), np.zeros((1, 0)), -K[None, :], [],
+                list(self.design.state_names) + (["u_prev"] if self._lag else []))

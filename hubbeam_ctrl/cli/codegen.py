@@ -56,10 +56,10 @@ def _run(args) -> int:
                              f"as C), got {args.controller!r}")
     refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
     rig, params = beam_from_args(args)
-    if rig is not None and args.controller not in ("pd", "lqr", "lqg") and not rig.drive.is_ideal:
+    if rig is not None and args.controller not in ("pd", "lqr", "lqg", "nmpc") and not rig.drive.is_ideal:
         raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor, "
-                             "motor.kind = 'dc_motor', takes a voltage command, generated as C for pd, lqr "
-                             "and lqg only)")
+                             "motor.kind = 'dc_motor', takes a voltage command, generated as C for pd, lqr, "
+                             "lqg and nmpc only)")
     sc, design = design_task(args, rig, params)
     if args.controller == "nmpc":
         return _nmpc(args, sc, design, rig, sink)
@@ -102,19 +102,26 @@ def _nmpc(args, sc, design, rig, sink) -> int:
     from controllers import CONTROLLERS, make_controller
     from hubbeam_ctrl.core.errors import ParameterError
     from hubbeam_ctrl.deploy.nmpc_c import nmpc_to_c
-    if rig is not None:
-        raise ParameterError("--controller nmpc does not apply with --rig yet (the NMPC's C is its step on the "
-                             "state; the rig's filter and drive stage around it are not generated)")
     if args.precision != "double":
         raise ParameterError("--precision single does not apply with --controller nmpc (CasADi generates double)")
-    ctrl = make_controller("nmpc", design, CONTROLLERS["nmpc"].settings.for_scenario(sc), sc.reference)
+    settings = CONTROLLERS["nmpc"].settings.for_scenario(sc)
+    if rig is None:
+        ctrl = make_controller("nmpc", design, settings, sc.reference)
+    elif rig.drive.is_ideal:
+        raise ParameterError(f"--controller nmpc with --rig {args.rig} needs a DC motor (motor.kind = 'dc_motor'): "
+                             "its C is the step with the drive in the prediction, commanding volts")
+    else:      # the step with the rig's drive, friction and delay in its prediction, commanding volts
+        from controllers import NMPC
+        from hubbeam_ctrl.sim.hardware import Hardware
+        from hubbeam_ctrl.study.rig_loop import rig_design
+        ctrl = NMPC(rig_design(design, rig), settings, sc.reference, hardware=Hardware.from_rig(rig))
     info = nmpc_to_c(ctrl, args.out, force=args.force)
     if args.json:
         print(json.dumps({**info, "out": str(args.out)}), file=sink)
     else:
         print(f"NMPC for {sc.description}: wrote {args.out}/{info['function']}.c, .h and .json (horizon "
-              f"{info['horizon']} samples, every {sc.dt:g} s; the step with its QP solver, no CasADi at run time)",
-              file=sink)
+              f"{info['horizon']} samples, every {sc.dt:g} s; the step with its QP solver, no CasADi at run time; "
+              f"commands {info['command']['unit']}, limit {info['command']['limit']:g})", file=sink)
     return 0
 
 

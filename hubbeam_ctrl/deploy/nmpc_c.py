@@ -56,14 +56,45 @@ def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti", *, force: bool = Fals
     gen = ca.CodeGenerator(f"{name}.c", {"with_header": True})
     gen.add(fn)
     gen.generate(str(out) + "/")
+    drive = controller.drive
+    unit = "N m" if drive is None else "V"
+    states = [controller.design.state_names[i] for i in controller.prediction_states]
     info = {"function": name, "horizon": controller.settings.horizon, "dt_s": controller.dt,
             "tau_max_nm": controller.tau_max,
-            "states": [controller.design.state_names[i] for i in controller.prediction_states],
+            "command": {"name": "tau" if drive is None else "voltage", "unit": unit, "limit": controller.u_max},
+            "states": states,
             "inputs": {fn.name_in(i): list(fn.size_in(i)) for i in range(fn.n_in())},
             "outputs": {fn.name_out(i): list(fn.size_out(i)) for i in range(fn.n_out())},
             "Q": np.asarray(controller._W[0]).tolist(), "P": np.asarray(controller._W[-1]).tolist(),
             "call": "X_next, U_next = f(x, X, U, XR, UR, Q, P): x the measured prediction state, (X, U) "
                     "the previous plan shifted by one sample, (XR, UR) the reference window; the command "
                     "is U_next[0] (plus the residual-mode gain of the Python NMPC), saturated"}
+    if drive is not None:
+        d = drive.hardware.drive
+        info["drive"] = {"V_max_v": d.V_max, "I_max_a": d.I_max, "R_ohm": d.R, "emf_v_s_per_rad": drive.emf,
+                         "delay_samples": drive.delay, "viscous_nm_s_per_rad": drive.hardware.friction.viscous,
+                         "coulomb": "not in the prediction (the rig's filter estimates it as a disturbance)"}
+        info["call"] += ("; with a delay the last input u_prev is the command in flight, the volts applied at "
+                         "the previous sample; the command is also kept within k_e N theta_dot +- R I_max")
+    header = out / f"{name}.h"
+    header.write_text(_units_comment(info) + header.read_text())
     atomic_write_text(out / f"{name}.json", json.dumps(info, indent=1) + "\n")
     return info
+
+
+def _units_comment(info: dict) -> str:
+    """The C comment at the top of the header: the call, the command's unit and the limits."""
+    c = info["command"]
+    lines = [f"NMPC real-time iteration step {info['function']}: horizon {info['horizon']} samples of "
+             f"{info['dt_s']:g} s.",
+             f"Command U_next[0]: {c['name']} [{c['unit']}], |u| <= {c['limit']:g} {c['unit']}.",
+             "Prediction states x: " + ", ".join(info["states"])
+             + " (theta [rad], q2 modal [m], their rates [rad/s, m/s])"
+             + ("; u_prev: the command in flight [V]." if "u_prev" in info["inputs"] else ".")]
+    if "drive" in info:
+        d = info["drive"]
+        lines.append(f"DC drive in the prediction: |i| <= {d['I_max_a']:g} A, i.e. "
+                     f"|V - {d['emf_v_s_per_rad']:.6g} theta_dot| <= {d['R_ohm'] * d['I_max_a']:g} V; "
+                     f"delay {d['delay_samples']:g} sample; viscous {d['viscous_nm_s_per_rad']:g} N m s/rad; "
+                     "Coulomb friction not in it.")
+    return "/*\n" + "".join(f" * {ln}\n" for ln in lines) + " */\n"

@@ -10,7 +10,8 @@ designed controller into the one that runs on the rig:
 * with ``integral`` (the default when the rig has friction) the filter of LQR, LQG and MPC
   estimates a constant input disturbance that the command cancels (offset-free control,
   :mod:`controllers.integral`); PD and the open loops are left as they are;
-* on a DC motor the torque command becomes a voltage (:class:`controllers.drive.VoltageCommand`).
+* on a DC motor the torque command becomes a voltage (:class:`controllers.drive.VoltageCommand`),
+  except the NMPC's, which predicts the drive and commands volts itself (:mod:`controllers.nmpc_drive`).
 
 A rig with ideal hardware changes nothing: the controllers and settings are the beam
 alone's, so a comparison on it gives the same numbers bit for bit.
@@ -200,6 +201,15 @@ def on_rig(controller, rig: Rig, noise, hardware: Hardware | None, integral: boo
     integral = integral_default(rig) if integral is None else bool(integral)
     ctrl = controller
     tracks = hasattr(controller, "feedback_matrices") and getattr(controller, "measurement", None) == "state"
+    if (hardware is not None and hardware.command == "voltage" and hasattr(controller, "built_on")
+            and not controller.settings.learn_payload):
+        # the NMPC predicts the drive, friction and delay itself: it commands volts (controllers.nmpc_drive);
+        # one that learns the payload keeps the beam alone's prediction behind the rig's volts stage
+        from controllers.nmpc_drive import nmpc_on_drive
+        d = DISTURBANCE_FRACTION * controller.tau_max if integral else None
+        ctrl = nmpc_on_drive(controller, hardware, noise, d)
+        ctrl.rig_hardware = hardware
+        return ctrl
     if tracks and _has_gain(controller):
         d = DISTURBANCE_FRACTION * controller.tau_max if integral else None
         ctrl = ObservedFeedback(controller, noise, d)
