@@ -236,7 +236,7 @@ class DesignModel:
 
     def acting_state(self, z_hat, disturbance: float = 0.0) -> np.ndarray:
         """The state where this sample's command starts to act, from a filter state
-        ``z = [x, u_prev, ...]`` (:func:`controllers.estimator.filter_matrices`); ``x`` itself
+        ``z = [x, u_prev, ...]`` (:func:`controllers.filter_model.filter_matrices`); ``x`` itself
         without a delay.
 
         Parameters

@@ -33,13 +33,11 @@ from .estimator import (
     KalmanNoise,
     decay_model,
     error_decay_rate,
-    filter_gain,
-    filter_matrices,
-    filter_state_names,
     plan_offsets,
     plan_worth_predicting,
     solve_kalman,
 )
+from .filter_model import filter_gain, filter_matrices, filter_state_names
 from .lqr import LQR
 
 __all__ = ["OffsetFreeEstimator", "ObservedFeedback", "observer_feedback_matrices", "augment_disturbance"]

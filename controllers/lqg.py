@@ -20,11 +20,10 @@ from .estimator import (
     AppliedTorque,
     KalmanEstimator,
     KalmanNoise,
-    filter_gain,
-    filter_state_names,
     plan_offsets,
     plan_worth_predicting,
 )
+from .filter_model import filter_gain, filter_state_names
 from .integral import OffsetFreeEstimator, observer_feedback_matrices
 from .lqr import dlqr_gain
 from .residual import embedding, estimator_model, residual_design

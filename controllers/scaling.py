@@ -397,7 +397,7 @@ def scaled_defaults(scales: TaskScales, tol: Tolerances | None = None) -> dict:
     Returns
     -------
     dict
-        ``weights`` (:func:`bryson_weights`), the :class:`~controllers.estimator.KalmanNoise`
+        ``weights`` (:func:`bryson_weights`), the :class:`~controllers.filter_model.KalmanNoise`
         fields (:func:`kalman_noise`) and the PD ``bandwidth`` [rad/s].
     """
     tol = tol or Tolerances()

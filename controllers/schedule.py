@@ -155,7 +155,7 @@ class ScheduledKalmanEstimator:
         Noise model of every design of the grid.
     design_modes : int, optional
         Transverse modes of the design models when the grid's models carry residual modes
-        (see :meth:`~controllers.estimator.KalmanNoise.covariances`).
+        (see :meth:`~controllers.filter_model.KalmanNoise.covariances`).
 
     Attributes
     ----------

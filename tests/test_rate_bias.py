@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from controllers import DesignModel, KalmanNoise
-from controllers.estimator import KalmanEstimator, estimates_rate_bias, filter_matrices, filter_state_names
+from controllers.estimator import KalmanEstimator
+from controllers.filter_model import estimates_rate_bias, filter_matrices, filter_state_names
 from controllers.sensing import SensorLayout
 from hubbeam_ctrl.plant.rig import load_rig
 from hubbeam_ctrl.study.rig_loop import rig_noise

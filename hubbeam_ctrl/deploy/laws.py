@@ -17,7 +17,7 @@ import numpy as np
 
 from controllers import LQG, LQR, MPC, PD, Controller, KalmanNoise, OpenLoop, ScheduledLQG, ShapedOpenLoop
 from controllers.drive import VoltageCommand
-from controllers.estimator import extra_state_gains
+from controllers.filter_model import extra_state_gains
 from controllers.integral import ObservedFeedback
 from hubbeam_ctrl.core.errors import ParameterError
 
@@ -206,7 +206,7 @@ def _acting(ctrl, fm, K, X, x0, reference_at) -> tuple:
 
 def _with_filter_states(K, X, x0, fm, noise, integral: bool, K_act) -> tuple:
     """Gain, reference table and initial state on the filter's whole state ``[x, u_prev, f, b, d]``
-    (:func:`controllers.estimator.filter_matrices`): the anti-alias filter's outputs ``f`` and the
+    (:func:`controllers.filter_model.filter_matrices`): the anti-alias filter's outputs ``f`` and the
     rate sensor's bias ``b`` are not fed back and the disturbance ``d``
     (:class:`controllers.integral.OffsetFreeEstimator`) is cancelled, ``u = K (x - x_ref) + d``;
     they start at 0 and have reference 0."""

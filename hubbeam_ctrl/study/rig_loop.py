@@ -153,7 +153,7 @@ def rig_noise(noise, rig: Rig):
 
     A rate sensor with a stated bias (``sensors.rate_bias`` or a drifting one,
     ``sensors.rate_bias_walk``) gets a bias state in the filter
-    (:attr:`~controllers.estimator.KalmanNoise.rate_bias_walk`): measured on ``space_boom`` (gyro
+    (:attr:`~controllers.filter_model.KalmanNoise.rate_bias_walk`): measured on ``space_boom`` (gyro
     bias 4.8e-7 rad/s drifting 1e-7 rad/s/sqrt(s)), LQR, LQG and MPC through a filter that trusted
     the gyro ended 9.6e-5 rad off (4 standard deviations of the star tracker); with the bias state
     1.4e-5 rad, as without any bias (1.1e-5 rad), and a residual tip of 3.4e-4 m against 1.7e-4 m.
