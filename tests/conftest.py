@@ -77,3 +77,17 @@ def bench_module(name: str):
     spec.loader.exec_module(module)
     return module, root
 
+
+
+def assert_refused_in_one_line(argv, words: str, folder, capsys, max_len: int | None = None) -> None:
+    """``hubbeam ARGV`` run in ``folder``: exit 2, one line on stderr naming ``words``, nothing on
+    stdout and no file created or removed (the fault tests' refusal check)."""
+    from hubbeam_ctrl.cli.main import main
+    before = sorted(os.listdir(folder))
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == 2, err
+    assert err.count("\n") == 1 and "Traceback" not in err and out == "", err
+    assert max_len is None or len(err) < max_len, err
+    assert words in err, err
+    assert sorted(os.listdir(folder)) == before

@@ -10,8 +10,7 @@ import os
 from importlib import resources
 
 import pytest
-
-from hubbeam_ctrl.cli.main import main
+from conftest import assert_refused_in_one_line
 
 COMPARE = ["compare", "--controllers", "lqr", "--n-modes", "2", "--tf", "1", "--t-end", "2", "--out", "c"]
 EXCITE = ["excite", "--rig", "servo_link", "--kind", "step", "--duration", "0.1", "--out", "x.csv"]
@@ -85,13 +84,7 @@ def inputs(tmp_path_factory):
                                                for k, a, w in CASES])
 def test_refused_in_one_line_naming_the_option(inputs, monkeypatch, capsys, kind, argv, words):
     monkeypatch.chdir(inputs)
-    before = sorted(os.listdir(inputs))
-    code = main(argv)
-    out, err = capsys.readouterr()
-    assert code == 2, err
-    assert err.count("\n") == 1 and "Traceback" not in err and out == "", err
-    assert words in err, err
-    assert sorted(os.listdir(inputs)) == before
+    assert_refused_in_one_line(argv, words, inputs, capsys)
 
 
 def test_full_disk_inside_an_output_folder_is_a_resource_error(tmp_path):

@@ -12,6 +12,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import assert_refused_in_one_line
 
 from hubbeam_ctrl.cli.main import main
 
@@ -131,13 +132,7 @@ def inputs(tmp_path_factory):
                                                 for c, a, w in CASES])
 def test_refused_in_one_line_naming_the_option(inputs, monkeypatch, capsys, klass, argv, words):
     monkeypatch.chdir(inputs)
-    before = sorted(os.listdir(inputs))
-    code = main(argv)
-    out, err = capsys.readouterr()
-    assert code == 2, err
-    assert err.count("\n") == 1 and len(err) < 600 and "Traceback" not in err and out == "", err
-    assert words in err, err
-    assert sorted(os.listdir(inputs)) == before
+    assert_refused_in_one_line(argv, words, inputs, capsys, max_len=600)
 
 
 def test_unreadable_rig_is_named_as_rig(tmp_path, capsys):
