@@ -105,23 +105,72 @@ class PredictionDrive:
 
     def torque(self, u, thd):
         """Hub torque [N m] at voltage ``u`` [V] and hub rate ``thd`` [rad/s]: the plant's drive minus
-        viscous friction (:func:`~hubbeam_ctrl.sim.hardware.hub_torque`, Coulomb friction left out);
-        NumPy numbers or CasADi symbols."""
+        viscous friction (:func:`~hubbeam_ctrl.sim.hardware.hub_torque`, Coulomb friction left out).
+
+        Parameters
+        ----------
+        u : float or casadi.SX
+            Voltage [V].
+        thd : float or casadi.SX
+            Hub rate [rad/s].
+
+        Returns
+        -------
+        float or casadi.SX
+            [N m].
+        """
         return hub_torque(u, thd, self.values)
 
     def volts(self, tau, thd):
         """The voltage [V] that makes the hub torque ``tau`` [N m] (after viscous friction) at hub rate
-        ``thd`` [rad/s]: the drive's static inverse (:meth:`Hardware.voltage_for_torque`), clipped."""
+        ``thd`` [rad/s]: the drive's static inverse (:meth:`Hardware.voltage_for_torque`), clipped.
+
+        Parameters
+        ----------
+        tau : float
+            Hub torque [N m].
+        thd : float
+            Hub rate [rad/s].
+
+        Returns
+        -------
+        float
+            [V].
+        """
         b = float(self.hardware.friction.viscous)
         return self.hardware.voltage_for_torque(float(tau) + b * float(thd), float(thd))
 
     def current_window(self, thd: float) -> tuple:
-        """``(lo, hi)`` [V]: the voltages within both the box and the current limit at hub rate ``thd``."""
+        """``(lo, hi)`` [V]: the voltages within both the box and the current limit at hub rate ``thd``.
+
+        Parameters
+        ----------
+        thd : float
+            Hub rate [rad/s].
+
+        Returns
+        -------
+        tuple of float
+            [V].
+        """
         c = self.emf * float(thd)
         return max(-self.v_max, c - self.current_bound), min(self.v_max, c + self.current_bound)
 
     def clip(self, u: float, thd: float) -> float:
-        """``u`` [V] within :meth:`current_window` at ``thd`` [rad/s] (the box first when they miss)."""
+        """``u`` [V] within :meth:`current_window` at ``thd`` [rad/s] (the box first when they miss).
+
+        Parameters
+        ----------
+        u : float
+            Voltage [V].
+        thd : float
+            Hub rate [rad/s].
+
+        Returns
+        -------
+        float
+            [V].
+        """
         lo, hi = self.current_window(thd)
         return saturate(u, self.v_max) if lo > hi else min(max(u, lo), hi)
 

@@ -112,7 +112,7 @@ def test_settings_toml_round_trip(tmp_path):
     ({"random": {"n": 2, "method": "grid", "E": {"dist": "uniform", "low": 1, "high": 2}}}, ["random.method"]),
     ({"grid": {"m_t": [0.1]}, "random": {"n": 2, "m_t": {"dist": "uniform", "low": 0, "high": 1}}},
      ["random.m_t", "already a [grid] factor"]),
-    ({"study": {"controllers": ["lqr", "hinf"]}}, ["controllers", "hinf"]),
+    ({"study": {"controllers": ["lqr", "h2opt"]}}, ["controllers", "h2opt"]),
     ({"study": {"design": "robust"}}, ["study.design"]),
     ({"study": {"t_end": 12.0}}, ["study", "t_end"]),
     ({"study": {"speed": 1}}, ["study", "speed"]),
