@@ -321,10 +321,12 @@ class ObservedNMPC(ObservedFeedback):
                                   D[k - 1] if D is not None and 0 < k <= len(D) else None)
         x = np.asarray(z[:fm.n_x])[self._pick]
         v = float(self.inner(t, x))
-        rate = float(fm.acting_state(z)[fm.n_x // 2])
+        d = float(z[-1]) if self.integral else 0.0
+        rate = float(fm.acting_state(z, d)[fm.n_x // 2])
         if self.integral:
-            v = drive.clip(v - float(z[-1]) / drive.gain, rate)
-            self.inner.applied(v)
+            v = drive.clip(v - d / drive.gain, rate)
+            # in flight, as the NMPC predicts the plant: the disturbance cancels its share
+            self.inner.applied(v + d / drive.gain)
         self._tau = float(drive.torque(v, rate))
         return v
 
@@ -352,11 +354,14 @@ class ObservedNMPC(ObservedFeedback):
         Kz[0, self._pick] = K_in[:len(self._pick)]
         if fm.carries_loop and len(K_in) > len(self._pick):      # the filter holds the torque in flight
             Kz[0, fm.n_x] = K_in[-1] / self.inner.drive.gain
-        if self.integral:
-            Kz[0, -1] = 1.0 / self.inner.drive.gain
+        if self.integral:               # cancelled, and in flight with the command (acting_state)
+            Kz[0, -1] = (1.0 + (K_in[-1] if fm.carries_loop and len(K_in) > len(self._pick) else 0.0)) \
+                / self.inner.drive.gain
         g, damp = self.inner.drive.gain, self.inner.drive.hardware.hub_damping()
         r = fm.action_gain(np.eye(fm.n_x)[fm.n_x // 2][None, :])
         r = np.hstack([r, np.zeros((1, nz - r.shape[1]))])
+        if self.integral and fm.delay > 0.0:
+            r[0, -1] += float(fm.action_map()[1][fm.n_x // 2])
         Kf = g * Kz + damp * r                 # the filter's input: -Kf z_hat
         F = est.A - est.B @ Kf
         M = np.eye(nz) - est.L @ est.C
