@@ -161,10 +161,8 @@ class PredictionDrive:
 
         Parameters
         ----------
-        u : float
-            Voltage [V].
-        thd : float
-            Hub rate [rad/s].
+        u, thd : float
+            Voltage [V] and hub rate [rad/s], as :meth:`torque`.
 
         Returns
         -------

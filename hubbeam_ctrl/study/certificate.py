@@ -281,13 +281,17 @@ def loop_matrix(controller: Controller, params: Params, spin: float, damping_rat
         ``(A_loop, plant_poles_s)``: the loop matrix (plant state, then the controller's) and
         the continuous-time poles of the plant [1/s].
     """
-    Ad, Bd, Cm, (Ak, Bk, Ck, Dk), A = _loop_parts(controller, params, spin, damping_ratio, hardware)
+    Ad, Bd, Cm, laws, A = _loop_parts(controller, params, spin, damping_ratio, hardware)
+    return _closed(Ad, Bd, Cm, laws), np.linalg.eigvals(A)
+
+
+def _closed(Ad, Bd, Cm, laws) -> np.ndarray:
+    """The loop matrix (plant state, then the controller's) of :func:`_loop_parts`' pieces."""
+    Ak, Bk, Ck, Dk = laws
     nk = Ak.shape[0] if Ak.size else 0
     if nk == 0:
-        A_loop = Ad + Bd @ Dk @ Cm
-    else:
-        A_loop = np.block([[Ad + Bd @ Dk @ Cm, Bd @ Ck], [Bk @ Cm, Ak]])
-    return A_loop, np.linalg.eigvals(A)
+        return Ad + Bd @ Dk @ Cm
+    return np.block([[Ad + Bd @ Dk @ Cm, Bd @ Ck], [Bk @ Cm, Ak]])
 
 
 def broken_loop(controller: Controller, params: Params, spin: float, damping_ratio: float = 0.0,
@@ -338,10 +342,10 @@ def hold_gain(controller: Controller, params: Params, spin: float = 0.0, hardwar
     float
         [rad / (N m)], >= 0; inf when the loop is not stable.
     """
-    A_loop, _ = loop_matrix(controller, params, spin, 0.0, hardware)
+    Ad, Bd, Cm, laws, _ = _loop_parts(controller, params, spin, 0.0, hardware)
+    A_loop = _closed(Ad, Bd, Cm, laws)
     if np.max(np.abs(np.linalg.eigvals(A_loop))) >= 1.0:
         return math.inf
-    Ad, Bd, _, _, _ = _loop_parts(controller, params, spin, 0.0, hardware)
     hw = getattr(controller, "rig_hardware", None) if hardware is AS_DESIGNED else hardware
     voltage = hw is not None and getattr(controller, "command", "torque") == "voltage" and hw.command == "voltage"
     g = hw.torque_per_volt() if voltage else 1.0
