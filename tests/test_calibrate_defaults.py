@@ -84,24 +84,22 @@ def test_design_from_the_records(link):
             assert both.ceiling[rec.source][s] == pytest.approx(100 * (1 - NOISE), abs=0.05)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("factor", [1.5])
-def test_defaults_find_the_truth_from_starts_off_by_1_5(link, factor):
-    """From 1.5 x the truth in every field. The start from 1 / 1.5 x reaches the same minimum (to
-    1e-4 % in each field) and is run by ``benchmarks/bench_calibrate.py`` (its JSON's ``x1/1.5``),
-    not here: each fit is 44 s of the suite's time."""
+@pytest.mark.parametrize("factor", [1.5, 1 / 1.5])
+def test_the_frequency_response_start_lands_near_the_truth(link, factor):
+    """The default fit's start from 1.5 x and 1 / 1.5 x the truth in every field: the frequency
+    responses of the records place every field near the truth before the time-domain fit, which the
+    benchmark finishes (``benchmarks/bench_calibrate.py``, 44 s a fit: checked below from its JSON).
+    The start is stopped by ``max_wall`` right after it is placed: nothing is written or converged."""
     truth, records = link
     tv = truth_values(truth)
-    res = fit_rig(scaled(truth, [factor] * 3), records, ",".join(NAMES), progress=False)
-    assert res.converged and res.status == "converged", res.message
-    err = res.estimate / tv - 1
-    # issue 38: E within 0.5 %, J_h within 2 %, m_t within 5 %
-    assert abs(err[0]) < 0.005 and abs(err[1]) < 0.02 and abs(err[2]) < 0.05, err
-    assert res.model.n_transverse == res.design.plant_modes == 4
+    res = fit_rig(scaled(truth, [factor] * 3), records, ",".join(NAMES), settings=FitSettings(max_wall=1e-3),
+                  progress=False)
+    assert res.status == "stopped at --max-wall" and not res.converged
     assert res.starts["won"] == "frequency response"
-    for src, per in res.fit.items():
-        for s, v in per.items():
-            assert v >= res.ceiling[src][s] - 1.0, (src, s, v, res.ceiling[src][s])
+    placed = np.array(res.starts["frequency response"]["values"]) / tv - 1
+    # measured at 1.5 x: E -1.2 %, J_h -2.9 %, m_t -7.5 % (from 50 % off), log-magnitude misfit 0.053
+    assert abs(placed[0]) < 0.03 and abs(placed[1]) < 0.06 and abs(placed[2]) < 0.15, placed
+    assert res.starts["frequency response"]["log_magnitude_rms"] < 0.1
 
 
 @pytest.mark.slow
@@ -134,8 +132,8 @@ def test_a_wrong_minimum_is_not_converged_and_writes_nothing(link, tmp_path, cap
 
 
 def test_the_benchmarked_start_from_two_thirds_meets_the_targets():
-    """``benchmarks/bench_calibrate.py`` fits the same records from 1 / 1.5 x the truth (the suite
-    runs the 1.5 x start above): its latest JSON meets issue 38's targets, converged."""
+    """``benchmarks/bench_calibrate.py`` fits the same records from 1.5 x and 1 / 1.5 x the truth
+    (the suite checks the starts above): its latest JSON meets issue 38's targets, converged."""
     from tests.conftest import ROOT
     latest = sorted((ROOT / "benchmarks" / "results").glob("bench_calibrate_*.json"))[-1]
     run = json.loads(latest.read_text())["steel_link_defaults"]
