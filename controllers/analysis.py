@@ -42,30 +42,11 @@ from scipy.optimize import brentq, minimize_scalar
 from hubbeam_ctrl.core.errors import ParameterError
 
 from .base import DesignModel
-from .sensing import with_anti_alias
+from .loop_plant import _SENSOR_ROWS, _measurement_matrix, hardware_plant, rig_plant, sampled_rig_plant
 
 __all__ = ["LoopMargins", "FrequencyResponse", "design_plant", "loop_transfer", "loop_matrices", "closed_loop_poles",
-           "loop_margins", "margins_of_loop", "frequency_grid", "hardware_plant", "rig_plant"]
-
-#: Signals a controller may read, with the row of the design model that gives them.
-_SENSOR_ROWS = {"theta": ("C_sensors", 0), "theta_dot": ("C_sensors", 1),
-                "root_moment": ("C_sensors", 2), "tip_deflection": ("C_tip", 0),
-                "tip_rate": ("C_tip", 1)}
-
-
-def _measurement_matrix(design, names) -> np.ndarray:
-    """Rows of the design model's state giving the signals ``names`` (sensors or states)."""
-    rows = []
-    for name in names:
-        if name in _SENSOR_ROWS:
-            attr, i = _SENSOR_ROWS[name]
-            rows.append(getattr(design, attr)[i])
-        else:
-            row = np.zeros(design.n_x)
-            row[design.state_names.index(name)] = 1.0
-            rows.append(row)
-    return np.array(rows).reshape(len(names), design.n_x)
-
+           "loop_margins", "margins_of_loop", "frequency_grid", "hardware_plant", "rig_plant",
+           "sampled_rig_plant"]
 
 def design_plant(ctrl):
     """The controller's sampled design model with the outputs the controller reads.
@@ -97,82 +78,6 @@ def _feedback_arrays(ctrl) -> tuple:
     nc, ni = len(states), len(inputs)
     return (np.asarray(Ac, dtype=float).reshape(nc, nc), np.asarray(Bc, dtype=float).reshape(nc, ni),
             np.asarray(Cc, dtype=float).reshape(1, nc), np.asarray(Dc, dtype=float).reshape(1, ni), list(inputs))
-
-
-def hardware_plant(A, B, hardware, command: str = "torque") -> tuple:
-    """A continuous linear SFOAM with the rig's drive and viscous friction at the hub.
-
-    The hub torque is ``g u - b theta_dot``: ``g`` the drive's torque per unit command and
-    ``b`` its back-EMF damping plus the viscous friction on a DC motor commanded in volts
-    (:meth:`~hubbeam_ctrl.sim.hardware.Hardware.hub_damping`), ``g = 1`` and ``b`` the viscous
-    friction for a torque command. Coulomb friction and the limits are not linear and are left out.
-
-    Parameters
-    ----------
-    A : ndarray (n, n)
-        ``x = [theta, q2, theta_dot, q2_dot]`` [1/s].
-    B : ndarray (n, 1)
-        Per N m at the hub.
-    hardware : Hardware or None
-        The rig's (None: the beam alone).
-    command : {"torque", "voltage"}
-        The controller's output.
-
-    Returns
-    -------
-    tuple
-        ``(A, B, delay)``: the input in the command's unit, the computation delay [-].
-    """
-    if hardware is None:
-        return A, B, 0.0
-    voltage = command == "voltage" and hardware.command == "voltage"
-    gain = hardware.torque_per_volt() if voltage else 1.0
-    damping = hardware.hub_damping() if voltage else hardware.friction.viscous
-    h = A.shape[0] // 2
-    A = np.array(A, dtype=float)
-    A[:, h] -= damping * np.asarray(B, dtype=float)[:, 0]
-    return A, np.asarray(B, dtype=float) * gain, float(hardware.delay)
-
-
-def rig_plant(d: DesignModel, inputs, hardware=None, command: str = "torque", params=None) -> tuple:
-    """The sampled plant of a loop as it runs on a rig: drive, viscous friction, the sensors the
-    controller reads (an accelerometer's feedthrough) and the computation delay.
-
-    The state is ``[x, u_prev, f]`` (:func:`hubbeam_ctrl.linear.delay.delay_augmented`; with no
-    delay ``u_prev`` only feeds the accelerometer; ``f`` the anti-alias filter's outputs of the
-    filtered signals, :func:`controllers.sensing.with_anti_alias`).
-
-    Parameters
-    ----------
-    d : DesignModel
-        The linear model (its continuous ``A``, ``B``, ``sensors``, ``delay`` without hardware).
-    inputs : sequence of str
-        The controller's input names.
-    hardware : Hardware, optional
-    command : {"torque", "voltage"}
-    params : Params, optional
-        The parameters of ``d``'s matrices (default ``d.params``).
-
-    Returns
-    -------
-    tuple of ndarray
-        ``(Ad, Bd, Cm)`` with ``Cm`` the rows of the inputs on ``[x, u_prev, f]``.
-    """
-    from hubbeam_ctrl.linear.delay import delay_augmented
-    A, B, delay = hardware_plant(d.A, d.B, hardware, command)
-    if hardware is None:
-        delay = d.delay
-    layout = d.sensors
-    if layout is not None and list(inputs) == list(layout.signals):
-        Cm, Dm = layout.rows(A, B, params or d.params, d.spin)
-    else:
-        Cm = _measurement_matrix(d, [("root_moment" if n == "moment_1" else n) for n in inputs])
-        Dm = np.zeros((Cm.shape[0], 1))
-    Ad, Bd = delay_augmented(A, B, d.dt, delay)
-    Cm = np.hstack([Cm, Dm])
-    if layout is not None and list(inputs) == list(layout.signals):     # the rig's anti-alias filter
-        Ad, Bd, Cm = with_anti_alias(Ad, Bd, Cm, layout, d.dt)
-    return Ad, Bd, Cm
 
 
 def loop_matrices(ctrl, plant=None):

@@ -151,7 +151,7 @@ def noise_stds(ctrl: "LQG") -> tuple:
     if model.sensors is None and model.delay == 0.0:
         A, B, C = model.Ad, model.Bd, model.C_sensors
     else:                                   # the rig's sensors and delay: the previous command is a state
-        from .analysis import rig_plant
+        from .loop_plant import rig_plant
         A, B, C = rig_plant(model, inputs)
     closed = np.block([[A + B @ Dc @ C, B @ Cc], [Bc @ C, Ac]])
     if np.max(np.abs(np.linalg.eigvals(closed))) >= 1.0:

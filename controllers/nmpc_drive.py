@@ -25,7 +25,7 @@ voltage and the hub:
   instructions a stage, 1.84 against 0.41 ms for the 20 stages as C.
 
 The terminal cost is the Riccati solution of the LQR of the same weights on the same model
-linearised (:func:`controllers.analysis.hardware_plant`: the drive's torque per volt and its
+linearised (:func:`controllers.loop_plant.hardware_plant`: the drive's torque per volt and its
 back-EMF plus viscous damping, sampled on the grid shifted by the delay), the command weight the
 torque's times the drive's torque per volt squared (the same cost for the same torque).
 """
@@ -191,8 +191,8 @@ def drive_lqr(design, weights, drive: PredictionDrive) -> tuple:
     P : ndarray (n_x, n_x)
         The Riccati solution.
     """
-    from .analysis import hardware_plant
     from .design_model import _zoh
+    from .loop_plant import hardware_plant
     from .riccati import dlqr
     A, B, _ = hardware_plant(design.A, design.B, drive.hardware, "voltage")
     Q, R = weights.matrices(design)
@@ -274,9 +274,9 @@ class DrivePrediction:
 
     def in_flight_map(self) -> tuple:
         """``(Phi, Gamma)``: the design state where the command acts, ``Phi x + Gamma V_prev``, from
-        the drive's model linearised (:func:`controllers.analysis.hardware_plant`) over the delay."""
-        from .analysis import hardware_plant
+        the drive's model linearised (:func:`controllers.loop_plant.hardware_plant`) over the delay."""
         from .design_model import _zoh
+        from .loop_plant import hardware_plant
         A, B, _ = hardware_plant(self.design.A, self.design.B, self.drive.hardware, "voltage")
         Phi, G = _zoh(A, B, self.drive.delay * self.dt)
         return Phi, G[:, 0]

@@ -35,10 +35,8 @@ import numpy as np
 import scipy.linalg
 
 from controllers import CONTROLLERS, Controller
-from controllers.analysis import hardware_plant
-from controllers.sensing import with_anti_alias
+from controllers.loop_plant import sampled_rig_plant
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
-from hubbeam_ctrl.linear.delay import delay_augmented
 from hubbeam_ctrl.linear.statespace import linear_matrices
 from hubbeam_ctrl.plant.params import Params
 
@@ -374,17 +372,11 @@ def _loop_parts(controller: Controller, params: Params, spin: float, damping_rat
         Ad, Bd = _zoh(A, B, dt)
         Cm = _measurement(controller, list(inputs), C, Ad.shape[0])
     else:
-        A, Bu, delay = hardware_plant(A, B, hw, getattr(controller, "command", "torque"))
-        delay = delay if hw is not None else float(design.delay)
-        if layout is not None and list(inputs) == list(layout.signals):
-            Cm, Dm = layout.rows(A, Bu, params, float(spin))
-        else:
-            Cm = _measurement(controller, list(inputs), C, A.shape[0])
-            Dm = np.zeros((Cm.shape[0], 1))
-        Ad, Bd = delay_augmented(A, Bu, dt, delay)
-        Cm = np.hstack([Cm, Dm])
-        if layout is not None and list(inputs) == list(layout.signals):      # the rig's anti-alias filter
-            Ad, Bd, Cm = with_anti_alias(Ad, Bd, Cm, layout, dt)
+        Ad, Bd, Cm, A = sampled_rig_plant(A, B, dt, list(inputs),
+                                          lambda n: _measurement(controller, list(inputs), C, n), hardware=hw,
+                                          command=getattr(controller, "command", "torque"),
+                                          delay=float(getattr(design, "delay", 0.0)), layout=layout, params=params,
+                                          spin=float(spin))
     return Ad, Bd, Cm, (Ak, Bk, Ck, Dk), A
 
 
