@@ -61,3 +61,23 @@ def test_a_failed_rootfinder_step_is_one_error_without_casadis_dump(capsys):
         stepper._robust_step(state, np.zeros((1, stepper.settings.substeps)))
     err = capsys.readouterr().err
     assert "Function rf" not in err and "Input 0" not in err
+
+
+def test_design_and_codegen_on_a_rig_take_the_rigs_default_slew(tmp_path, capsys):
+    """``hubbeam codegen --rig R`` (and ``design``) with no --tf design for the slew ``compare --rig R``
+    runs, not the paper beam's 10 s Eq. 44 slew (5658 rad on ``servo_link``)."""
+    from hubbeam_ctrl.study.design_task import task_and_design
+    rig = load_rig("servo_link")
+    task, _ = rig_default_slew(rig)
+    sc, _ = task_and_design(rig.plant_params, "slew", rig=rig)
+    assert sc.t_f == task.duration and (sc.task.angle, sc.task.duration) == (task.angle, task.duration)
+    assert sc.reference.theta[-1] == pytest.approx(math.pi / 2)
+    sc, _ = task_and_design(rig.plant_params, "slew", rig=rig, slew_angle=1.0)
+    assert sc.t_f == rig_default_slew(rig, 1.0)[0].duration != task.duration
+    assert sc.reference.theta[-1] == pytest.approx(1.0)
+    # a duration given, an ideal rig or no rig: as before (10 s by default)
+    assert task_and_design(rig.plant_params, "slew", rig=rig, t_f=2.0)[0].t_f == 2.0
+    assert task_and_design(load_rig("paper").plant_params, "slew", rig=load_rig("paper"))[0].t_f == 10.0
+    out = tmp_path / "c"
+    assert main(["codegen", "--controller", "lqr", "--rig", "servo_link", "--out", str(out)]) == 0
+    assert f"Theta = 1.5708 rad in tf = {task.duration:g} s" in capsys.readouterr().out

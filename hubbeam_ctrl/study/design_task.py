@@ -22,8 +22,12 @@ __all__ = ["task_and_design"]
 
 def task_and_design(params, scenario: str = "slew", *, rig=None, tau_max: float | None = None,
                     dt: float | None = None, design_modes: int | None = None, slew_angle: float | None = None,
-                    t_f: float = 10.0, w_f: float | None = None) -> tuple:
+                    t_f: float | None = None, w_f: float | None = None) -> tuple:
     """The scenario of a task and the design model sampled at its ``dt``; the simulated time is ``3 t_f``.
+
+    A slew with no ``t_f`` on a rig with hardware is the rig's default slew, the task
+    ``hubbeam compare --rig`` runs (:func:`~hubbeam_ctrl.study.yardstick.rig_default_slew`: by
+    ``slew_angle``, default pi/2 rad); any other task with no ``t_f`` lasts 10 s.
 
     Parameters
     ----------
@@ -41,8 +45,8 @@ def task_and_design(params, scenario: str = "slew", *, rig=None, tau_max: float 
         Transverse modes of the design model, 1..20 (default ``params.n_transverse``).
     slew_angle : float, optional
         Slew angle [rad], not 0 (default: the Eq. 44 angle of ``tau_max`` in ``t_f``).
-    t_f : float
-        Maneuver time [s].
+    t_f : float, optional
+        Maneuver time [s] (default: the rig's default slew, else 10).
     w_f : float, optional
         Spin-up final rate [rad/s] (default 3).
 
@@ -62,6 +66,11 @@ def task_and_design(params, scenario: str = "slew", *, rig=None, tau_max: float 
         raise ParameterError(f"design_modes must be an integer in 1..20, got {modes}")
     if slew_angle is not None and slew_angle == 0:
         raise ParameterError("slew_angle must be a finite number != 0 [rad]")
+    if t_f is None and scenario == "slew" and rig is not None and not rig.is_ideal:
+        from hubbeam_ctrl.study.yardstick import rig_default_slew
+        slew = rig_default_slew(rig, slew_angle)[0]
+        slew_angle, t_f = slew.angle, slew.duration
+    t_f = 10.0 if t_f is None else t_f
     sc = make_scenario(scenario, plant="foam", params=params, tau_max=tau_max, t_f=t_f, t_end=3 * t_f, dt=dt,
                        w_f=3.0 if w_f is None else w_f, slew_angle=slew_angle)
     return sc, DesignModel.build(params, sc.design_spin, dt, modes)
