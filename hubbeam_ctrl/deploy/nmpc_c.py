@@ -1,6 +1,6 @@
 """The NMPC's real-time iteration as C: CasADi's code generation of :attr:`controllers.NMPC.step_function`.
 
-The step (:func:`controllers.nmpc.rti_step_function`: the shooting map and its Jacobians over
+The step (:func:`controllers.nmpc_rti.rti_step_function`: the shooting map and its Jacobians over
 the horizon, the condensed QP and CasADi's active-set ``qrqp``, the new plan) is one CasADi
 function; its generated C is self-contained (no CasADi at run time) and is the very function
 the Python NMPC calls, so the two agree to rounding (the software-in-the-loop check runs a
