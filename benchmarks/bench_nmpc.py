@@ -97,9 +97,10 @@ def case(beam: str, factor: float, t_opt: float, horizon: int | None = None, bac
 def _function_times(nmpc, calls: int = 300) -> dict:
     """The step function alone (its generated C with ``backend="compiled"``), without the Python
     around it (reference window, shift, residual gain): median and 99th percentile of ``calls``
-    calls on the controller's last plan [s]."""
+    calls on the controller's last plan, its reference window at the run's last sample [s] (at the
+    slew's start, against the plan at its end, the QP can fail, which the generated C reports)."""
     x = nmpc._X[:, 0]
-    xr, ur = nmpc._reference_window(0, nmpc.settings.horizon)
+    xr, ur = nmpc._reference_window(nmpc._k_last or 0, nmpc.settings.horizon)
     args = (x, nmpc._X, nmpc._U[None, :], xr.T, ur[None, :], nmpc._W[0], nmpc._W[-1],
             *((0.0,) if getattr(nmpc, "_lag", False) else ()))          # the command in flight [V]
     times = []

@@ -54,7 +54,7 @@ from hubbeam_ctrl.core.settings import setting
 
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
 from .nmpc_drive import DrivePrediction
-from .nmpc_rti import RK4_REACH, rk4_substeps, rti_step_function
+from .nmpc_rti import RK4_REACH, rk4, rk4_substeps, rti_step_function, shooting_function
 
 __all__ = ["NMPCSettings", "NMPC", "QP_PLUGINS", "NMPC_MODES", "rk4_substeps", "rti_step_function", "RK4_REACH"]
 
@@ -102,6 +102,11 @@ class NMPCSettings(LQSettings):
         options = {k: v for k, v in options.items() if k not in ("horizon", "solver")}
         return super().for_scenario(scenario, **options)
 
+    jacobian: str = setting("linearised", choices=("linearised", "exact"),
+                            doc="The shooting map's Jacobians in the step's QP: RK4 of the model linearised at the "
+                                "stage's start (linearised: a quarter of the instructions, the C step 2.2 x faster "
+                                "on servo_link) or the exact derivative of the RK4 map (exact). The map itself, "
+                                "the defects and the prediction, is RK4 of the nonlinear model either way.")
     qp_solver: str = setting("qrqp", choices=QP_PLUGINS,
                              doc="Solver of the step's condensed box QP: CasADi's active-set qrqp, part of the "
                                  "step's CasADi function, so that the generated C carries it.")
@@ -251,36 +256,37 @@ class NMPC(DrivePrediction, Controller):
         self.reset()
 
     # -- construction -------------------------------------------------------------
-    def _rk4(self, model, x, u, p, torque=None, span=None, steps=None):
-        """The state after one sample from ``x`` under ``u``: RK4 in ``substeps`` steps, the model's
-        parameter vector ``p`` (a symbol, or its numbers); with ``torque(u, thd)`` the hub torque of
-        the command (a drive), over ``span`` [s] in ``steps`` steps."""
+    def _rhs(self, model, p, torque=None):
+        """``f(z, u)``: the prediction model's state derivative, the model's parameter vector ``p``
+        (a symbol, or its numbers); with ``torque(u, thd)`` the hub torque of the command (a drive)."""
         n = self._n
         M, c = model.parametric.mass_matrix, model.parametric.bias
         B = np.zeros(n)
         B[0] = 1.0
 
-        def f(z):
+        def f(z, u):
             q, v = z[:n], z[n:]
             tau = u if torque is None else torque(u, v[0])
             return ca.vertcat(v, ca.solve(M(q, v, p), B * tau - c(q, v, p)))
+        return f
 
-        steps = self.substeps if steps is None else steps
-        h = (self.dt if span is None else span) / steps
-        z = x
-        for _ in range(steps):
-            k1 = f(z)
-            k2 = f(z + h / 2 * k1)
-            k3 = f(z + h / 2 * k2)
-            k4 = f(z + h * k3)
-            z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return z
+    def _rk4(self, model, x, u, p, torque=None, span=None, steps=None):
+        """The state after one sample from ``x`` under ``u``: RK4 in ``substeps`` steps (:meth:`_rhs`),
+        over ``span`` [s] in ``steps`` steps."""
+        return rk4(self._rhs(model, p, torque), x, u, self.dt if span is None else span,
+                   self.substeps if steps is None else steps)
+
+    def _shooting_function(self, name: str, model, p, torque=None) -> ca.Function:
+        """``(x, u[, p]) -> (x+, dx+/dx, dx+/du)`` over one sample: ``x+`` by RK4 of the model, its
+        Jacobians by :attr:`NMPCSettings.jacobian` (:func:`controllers.nmpc_rti.shooting_function`)."""
+        x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")      # scalar expressions: no linear-solver call inside
+        extra = [p] if isinstance(p, ca.SX) else []
+        return shooting_function(name, self._rhs(model, p, torque), x, u, extra, self.dt, self.substeps,
+                                 self.settings.jacobian)
 
     def _shooting(self, model) -> ca.Function:
         """``(x, u) -> (x+, dx+/dx, dx+/du)``: RK4 over the sample in ``substeps`` steps."""
-        x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")      # scalar expressions: no linear-solver call inside
-        z = self._rk4(model, x, u, ca.DM(model.p))
-        return ca.Function("nmpc_shoot", [x, u], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
+        return self._shooting_function("nmpc_shoot", model, ca.DM(model.p))
 
     def _learning_setup(self, model, s: NMPCSettings) -> None:
         """The shooting map with the parameter vector as an input, and the payload's estimator
@@ -294,11 +300,7 @@ class NMPC(DrivePrediction, Controller):
         if not lo <= params.m_t <= hi:
             raise ParameterError(f"payload range {lo:g}..{hi:g} kg must hold the design's payload m_t = "
                                  f"{params.m_t:g} kg")
-        x, u = ca.SX.sym("x", self._nx), ca.SX.sym("u")
-        p = ca.SX.sym("p", model.parametric.n_p)
-        z = self._rk4(model, x, u, p)
-        step = ca.Function("nmpc_shoot_p", [x, u, p], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
-        self._F = step
+        self._F = self._shooting_function("nmpc_shoot_p", model, ca.SX.sym("p", model.parametric.n_p))
         table = payload_table(params, self.model_modes, lo, hi)
         # the balance on every mode the design state carries (the prediction's 2 leave 0.5 % of the
         # momentum early in Table 1's slew out: a 0.03 kg bias)

@@ -216,8 +216,7 @@ class DrivePrediction:
             early = max(1, math.ceil(self.substeps * self.drive.delay))
             self._G = ca.Function("nmpc_in_flight", [x, u],
                                   [self._rk4(model, x, u, p, tq, self.drive.delay * self.dt, early)], {"cse": True})
-        z = self._rk4(model, x, u, p, tq)
-        return ca.Function("nmpc_shoot_v", [x, u], [z, ca.jacobian(z, x), ca.jacobian(z, u)], {"cse": True})
+        return self._shooting_function("nmpc_shoot_v", model, p, tq)
 
     def _volts_at(self, k: int) -> float:
         """Feedforward voltage [V] of sample ``k``: the reference torque where the command acts (at
