@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import until_first_stick
 
 from hubbeam_ctrl.deploy import NO_COMPILER, CController, compile_c, compiler, to_c
 from hubbeam_ctrl.plant.rig import load_rig
@@ -44,18 +45,6 @@ def _rig(name: str):
         rig = load_rig("servo_link")
         return dataclasses.replace(rig, sensors=dataclasses.replace(rig.sensors, rate=False))
     return load_rig(name)
-
-
-def _until_first_stick(result, t_f: float, rig) -> np.ndarray:
-    """Samples up to the first one after ``t_f`` [s] where the hub's rate is within the rig's stick
-    velocity (every sample on a rig without Coulomb friction)."""
-    t = np.asarray(result.t)
-    if rig.friction.coulomb == 0.0:
-        return np.ones(len(t), dtype=bool)
-    thd = np.asarray(result.v)[:, 0] if np.ndim(result.v) == 2 else np.asarray(result.v)
-    stuck = np.nonzero((t > t_f) & (np.abs(thd) < rig.friction.stick_velocity))[0]
-    end = stuck[0] if stuck.size else len(t)
-    return np.arange(len(t)) < end
 
 
 def test_header_names_the_rigs_inputs_in_order_with_units():
@@ -104,7 +93,7 @@ def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, angle, t_f, t_end
         # with Coulomb friction and integral action the hub hunts about the target after the slew: a
         # rounding difference of 1e-16 moves a stick-slip decision and the two loops part (measured on
         # servo_link_delay1: 1e-9 V at 0.89 s, 7e-5 V at the end); compared until the hub first sticks
-        moving = _until_first_stick(py, sc.t_f, rig)
+        moving = until_first_stick(py, sc.t_f, rig)
         err = np.max(np.abs(run.tau - py.tau)[moving]) / limit
         print(f"{rig_name} {name}: max |C - Python| / limit = {err:.2e}")
         assert err <= 1e-8, (name, err)

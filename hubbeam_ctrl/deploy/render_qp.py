@@ -122,22 +122,55 @@ static int feasible_start({name}_instance *inst)
     return ok;
 }}
 
-/* the working set's minimiser zs and multipliers nu (range space); -1 when its block is singular */
-static int eqp({name}_instance *inst)
+/* row a of F, the Cholesky factor of the working set's block of GM, from the rows before it;
+ * -1 when constraint wc[a] is (numerically) dependent on those before it */
+static int factor_row({name}_instance *inst, int a)
 {{
-    int a, b, c, i, m = inst->nw;
-    for (a = 0; a < m; ++a) {{
-        for (b = 0; b <= a; ++b) {{
-            {R} s = GM[inst->wc[a]][inst->wc[b]];
-            for (c = 0; c < b; ++c) s -= inst->F[a][c] * inst->F[b][c];
-            if (a == b) {{
-                if (!(s > PIV_TOL * GM[inst->wc[a]][inst->wc[a]])) return -1;
-                inst->F[a][a] = {sqrt}(s);
-            }} else {{
-                inst->F[a][b] = s / inst->F[b][b];
-            }}
-        }}
+    int b, c, j = inst->wc[a];
+    {R} s;
+    for (b = 0; b < a; ++b) {{
+        s = GM[j][inst->wc[b]];
+        for (c = 0; c < b; ++c) s -= inst->F[a][c] * inst->F[b][c];
+        inst->F[a][b] = s / inst->F[b][b];
     }}
+    s = GM[j][j];
+    for (c = 0; c < a; ++c) s -= inst->F[a][c] * inst->F[a][c];
+    if (!(s > PIV_TOL * GM[j][j])) return -1;
+    inst->F[a][a] = {sqrt}(s);
+    return 0;
+}}
+
+/* constraint c at its side (-1 lower, +1 upper) into the working set; -1 (not added) when dependent */
+static int ws_add({name}_instance *inst, int c, int side)
+{{
+    int m = inst->nw;
+    if (m == NZ) return -1;
+    inst->wc[m] = c;
+    inst->ws[m] = side;
+    if (factor_row(inst, m) < 0) return -1;
+    inst->nw = m + 1;
+    inst->inws[c] = 1;
+    return 0;
+}}
+
+/* entry a out of the working set; the factor's rows after it recomputed (a subset of independent
+ * rows stays independent, and its pivots only grow) */
+static void ws_drop({name}_instance *inst, int a)
+{{
+    int b;
+    inst->inws[inst->wc[a]] = 0;
+    for (b = a; b + 1 < inst->nw; ++b) {{
+        inst->wc[b] = inst->wc[b + 1];
+        inst->ws[b] = inst->ws[b + 1];
+    }}
+    inst->nw -= 1;
+    for (b = a; b < inst->nw; ++b) (void)factor_row(inst, b);
+}}
+
+/* the working set's minimiser zs and multipliers nu (range space, F kept factored) */
+static void eqp({name}_instance *inst)
+{{
+    int a, c, i, m = inst->nw;
     for (a = 0; a < m; ++a) {{
         int j = inst->wc[a];
         {R} s = inst->ws[a] > 0 ? con_hi(inst, j) : con_lo(inst, j);
@@ -153,6 +186,38 @@ static int eqp({name}_instance *inst)
         for (c = a + 1; c < NZ; ++c) s -= HL[c][a] * inst->zs[c];
         inst->zs[a] = s / HL[a][a];
     }}
+}}
+
+/* the start: the previous working set's minimiser when it is feasible (1), else the previous plan
+ * moved into the feasible set with the previous working constraints it holds at their bounds (0);
+ * -1 when no plan is feasible (the working set emptied) */
+static int warm_start({name}_instance *inst, {R} tol)
+{{
+    int a, c, m = inst->nw, oc[NZ], os[NZ];
+    if (m > 0) {{
+        eqp(inst);
+        for (c = 0; c < NC; ++c) {{
+            {R} v;
+            if (inst->inws[c]) continue;
+            v = con_value(c, inst->zs);
+            if (v > con_hi(inst, c) + tol || v < con_lo(inst, c) - tol) break;
+        }}
+        if (c == NC) {{
+            for (c = 0; c < NZ; ++c) inst->z[c] = inst->zs[c];
+            return 1;
+        }}
+    }}
+    for (a = 0; a < m; ++a) {{
+        oc[a] = inst->wc[a];
+        os[a] = inst->ws[a];
+        inst->inws[oc[a]] = 0;
+    }}
+    inst->nw = 0;
+    if (feasible_start(inst) < 0) return -1;
+    for (a = 0; a < m; ++a) {{
+        {R} bound = os[a] > 0 ? con_hi(inst, oc[a]) : con_lo(inst, oc[a]);
+        if ({fabs}(con_value(oc[a], inst->z) - bound) <= tol) (void)ws_add(inst, oc[a], os[a]);
+    }}
     return 0;
 }}
 
@@ -160,7 +225,7 @@ static int eqp({name}_instance *inst)
  * feasible start (see hubbeam_ctrl.deploy.render_qp) */
 static int qp_solve({name}_instance *inst)
 {{
-    int it, a, c, i, blk, side, worst_a, warm = inst->nw > 0;
+    int it, a, c, i, blk, side, worst_a, have;
     {R} alpha, worst, gmax = 0, tol = FEAS_TOL * TAU_MAX;
     for (a = 0; a < NZ; ++a) {{
         {R} s = inst->g[a];
@@ -168,28 +233,11 @@ static int qp_solve({name}_instance *inst)
         inst->w[a] = s / HL[a][a];
         if ({fabs}(inst->g[a]) > gmax) gmax = {fabs}(inst->g[a]);
     }}
-    if (!warm && feasible_start(inst) < 0) return -1;
+    have = warm_start(inst, tol);
+    if (have < 0) return -1;
     for (it = 0; it < MAXIT; ++it) {{
-        int singular = eqp(inst) < 0;
-        if (warm) {{        /* the previous working set's minimiser, if it is feasible */
-            int ok = !singular;
-            warm = 0;
-            for (c = 0; c < NC && ok; ++c) {{
-                {R} v;
-                if (inst->inws[c]) continue;
-                v = con_value(c, inst->zs);
-                if (v > con_hi(inst, c) + tol || v < con_lo(inst, c) - tol) ok = 0;
-            }}
-            if (!ok) {{
-                for (a = 0; a < inst->nw; ++a) inst->inws[inst->wc[a]] = 0;
-                inst->nw = 0;
-                if (feasible_start(inst) < 0) return -1;
-                continue;
-            }}
-            for (i = 0; i < NZ; ++i) inst->z[i] = inst->zs[i];
-        }} else if (singular) {{
-            return -1;
-        }}
+        if (!have) eqp(inst);
+        have = 0;
         /* longest step toward the working set's minimiser that stays feasible */
         alpha = 1;
         blk = -1;
@@ -199,11 +247,11 @@ static int qp_solve({name}_instance *inst)
             if (inst->inws[c]) continue;
             v = con_value(c, inst->z);
             vs = con_value(c, inst->zs);
-            if (vs > con_hi(inst, c) + tol && vs > v) {{
+            if (vs > con_hi(inst, c) + tol && vs - v > tol) {{
                 r = (con_hi(inst, c) - v) / (vs - v);
                 if (r < 0) r = 0;
                 if (r < alpha) {{ alpha = r; blk = c; side = 1; }}
-            }} else if (vs < con_lo(inst, c) - tol && vs < v) {{
+            }} else if (vs < con_lo(inst, c) - tol && v - vs > tol) {{
                 r = (con_lo(inst, c) - v) / (vs - v);
                 if (r < 0) r = 0;
                 if (r < alpha) {{ alpha = r; blk = c; side = -1; }}
@@ -212,11 +260,7 @@ static int qp_solve({name}_instance *inst)
         if (blk >= 0) {{
             for (i = 0; i < NZ; ++i) inst->z[i] += alpha * (inst->zs[i] - inst->z[i]);
             if (blk < NZ) inst->z[blk] = side < 0 ? -TAU_MAX : TAU_MAX;
-            if (inst->nw == NZ) return -1;
-            inst->wc[inst->nw] = blk;
-            inst->ws[inst->nw] = side;
-            inst->nw += 1;
-            inst->inws[blk] = 1;
+            if (ws_add(inst, blk, side) < 0) return -1;
             continue;
         }}
         for (i = 0; i < NZ; ++i) inst->z[i] = inst->zs[i];
@@ -231,12 +275,7 @@ static int qp_solve({name}_instance *inst)
             }}
         }}
         if (worst_a < 0) return it + 1;
-        inst->inws[inst->wc[worst_a]] = 0;
-        for (a = worst_a; a + 1 < inst->nw; ++a) {{
-            inst->wc[a] = inst->wc[a + 1];
-            inst->ws[a] = inst->ws[a + 1];
-        }}
-        inst->nw -= 1;
+        ws_drop(inst, worst_a);
     }}
     return -1;
 }}
