@@ -87,20 +87,23 @@ def test_the_law_carries_the_rows_the_python_mpc_bounds():
     np.testing.assert_allclose(a["HL"] @ a["CM"].T, C.T, atol=1e-12)
 
 
-def test_a_tip_bound_is_still_refused():
+def test_a_tip_bound_and_single_precision_are_refused():
+    """A tip bound (not generated) and single precision (the rows' active set needs double): one line each."""
     with pytest.raises(ParameterError, match="tip_bound cannot be generated as C yet"):
         control_law(ObservedMPC(_small_mpc(tip_bound=0.01)))
+    with pytest.raises(ParameterError, match="^precision: 'single' does not apply to an MPC with a DC motor's "
+                                             "voltage limit .*; use 'double'$"):
+        to_c(ObservedMPC(_small_mpc()), None, "single")
 
 
 @needs_cc
-@pytest.mark.parametrize("precision, bound", [("double", 1e-9), ("single", 1e-3)])
-def test_c_qp_equals_daqp_on_random_measurements(precision, bound, recorded, tmp_path):
+def test_c_qp_equals_daqp_on_random_measurements(recorded, tmp_path):
     """The small MPC's C step against the Python one (DAQP), both given the same random sensor values
     (the filter's state jumps: the QP meets states of every kind): the commands agree, the voltage
     rows were at their bounds in many solves, and DAQP never failed (no LQR fallback to compare)."""
     mpc = _small_mpc()
     py = ObservedMPC(mpc)
-    code = to_c(py, tmp_path / "mpc", precision)
+    code = to_c(py, tmp_path / "mpc")
     assert "feasible_start" in code.source and "static const double H[" not in code.source
     cc = CController(compile_c(code, "-O2", tmp_path), code, py)
     rng = np.random.default_rng(36)
@@ -112,11 +115,11 @@ def test_c_qp_equals_daqp_on_random_measurements(precision, bound, recorded, tmp
         errs.append(abs(cc(k * mpc.dt, y) - py(k * mpc.dt, y)))
     err = max(errs) / mpc.tau_max
     rows, first = _row_activity(recorded, mpc.settings.emf_torque_limit)
-    print(f"{precision}: max |C - Python| / tau_max = {err:.2e}; voltage row at a bound in {rows} of "
+    print(f"max |C - Python| / tau_max = {err:.2e}; voltage row at a bound in {rows} of "
           f"{len(recorded)} solves (first step's in {first})")
     assert len(recorded) == 400 and mpc.n_fallbacks == 0
     assert rows >= 40 and first >= 10
-    assert err <= bound, err
+    assert err <= 1e-9, err
 
 
 @needs_cc
@@ -153,15 +156,14 @@ def test_c_step_equals_python_over_a_slew_on_servo_link(recorded, fast_backend, 
     assert judge(run, py_ctrl, sc, c.plant.params, "mpc")[0]["verdict"] == c.metrics["mpc"]["verdict"]
 
 
-@pytest.mark.parametrize("precision", ["double", "single"])
-def test_cli_codegen_mpc_on_a_dc_motor(precision, tmp_path, capsys):
+def test_cli_codegen_mpc_on_a_dc_motor(tmp_path, capsys):
     """``hubbeam codegen --controller mpc --rig servo_link``: once refused, now written (and compiled with
     the strict flags where a compiler is); the header says the step commands volts within +-V_max."""
     from hubbeam_ctrl.cli.main import main
     rig = load_rig("servo_link")
     out = tmp_path / "mpc"
     assert main(["codegen", "--controller", "mpc", "--rig", "servo_link", "--slew-angle", "1.5", "--tf", "0.5",
-                 "--precision", precision, "--out", str(out), "--json"]) == 0
+                 "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["command"] == {"name": "V", "unit": "V", "V_max": rig.drive.V_max}
     assert summary["compiled"] is (compiler() is not None)
@@ -173,9 +175,14 @@ def test_cli_codegen_mpc_on_a_dc_motor(precision, tmp_path, capsys):
     assert "feasible_start" in (out / "mpc.c").read_text()
 
 
-def test_cli_still_refuses_zv_on_a_dc_motor(tmp_path, capsys):
-    """ZV on servo_link's DC motor (an input-shaped torque table, not generated in volts): one line, exit 2."""
+def test_cli_still_refuses_zv_and_single_precision_on_a_dc_motor(tmp_path, capsys):
+    """ZV on servo_link's DC motor (an input-shaped torque table, not generated in volts) and the MPC in
+    single precision there: one line each, exit 2, nothing written."""
     from conftest import assert_refused_in_one_line
     assert_refused_in_one_line(["codegen", "--controller", "zv", "--rig", "servo_link", "--out",
                                 str(tmp_path / "z")], "--controller zv does not apply with --rig servo_link",
                                tmp_path, capsys)
+    assert_refused_in_one_line(["codegen", "--controller", "mpc", "--rig", "servo_link", "--precision", "single",
+                                "--out", str(tmp_path / "s")],
+                               "--precision single does not apply with --controller mpc --rig servo_link", tmp_path,
+                               capsys)

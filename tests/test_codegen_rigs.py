@@ -76,7 +76,7 @@ def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, angle, t_f, t_end
     from hubbeam_ctrl.study.judge import judge
     rig = _rig(rig_name)
     volts = Hardware.from_rig(rig).command == "voltage"
-    names = ("lqr", "lqg") if volts else ("lqr", "lqg", "mpc")     # MPC in C: on a torque source
+    names = ("lqr", "lqg", "mpc")       # the MPC on a DC motor with its voltage rows (test_codegen_mpc_dc.py)
     c = compare(rig, Slew(angle, t_f), ",".join(names), CompareSettings(run=RunChoice(t_end=t_end)))
     sc = c.scenario
     limit = rig.drive.V_max if volts else c.controllers["lqg"].tau_max

@@ -60,6 +60,9 @@ def _run(args) -> int:
         raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor, "
                              "motor.kind = 'dc_motor', takes a voltage command, generated as C for pd, lqr, "
                              "lqg, mpc and nmpc only)")
+    if rig is not None and args.controller == "mpc" and not rig.drive.is_ideal and args.precision != "double":
+        raise ParameterError(f"--precision {args.precision} does not apply with --controller mpc --rig {args.rig} "
+                             "(its QP with the DC motor's voltage limit needs double)")
     sc, design = design_task(args, rig, params)
     if args.controller == "nmpc":
         return _nmpc(args, sc, design, rig, sink)
