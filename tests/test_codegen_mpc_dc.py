@@ -26,8 +26,9 @@ from hubbeam_ctrl.sim.hardware import Hardware
 needs_cc = pytest.mark.skipif(compiler() is None, reason=NO_COMPILER)
 
 #: The slew's duration in units of servo_link's time-optimal 90 degree slew T*. At 1.2 T* the plan
-#: never reaches the voltage limit (measured: peak 9.05 V of 10 V, every row at most 94 % of its
-#: bound); at 1.1 T* it does (137 of 1791 plans with a voltage row at its bound).
+#: never reaches the voltage limit (measured: the command peaks at 9.05 V of 10 V, no voltage row
+#: at its bound); at 1.1 T* it does (137 of 1791 plans with a voltage row at its bound;
+#: benchmarks/results/bench_mpc_dc.json).
 FACTOR = 1.1
 
 
@@ -186,3 +187,21 @@ def test_cli_still_refuses_zv_and_single_precision_on_a_dc_motor(tmp_path, capsy
                                 "--out", str(tmp_path / "s")],
                                "--precision single does not apply with --controller mpc --rig servo_link", tmp_path,
                                capsys)
+
+
+def test_docs_quote_the_benchmark_and_the_c_follows_daqp_there():
+    """docs/deploy.md's table is benchmarks/results/bench_mpc_dc.json; in those replays the C volts
+    equal the Python ones to 1e-9 of V_max, never failed, stayed within the iteration limit, and at
+    1.1 T* the voltage rows bound (at 1.2 T* they need not); the step's median within the sample."""
+    from conftest import bench_module
+    bench, root = bench_module("bench_mpc_dc")
+    doc = json.loads((root / "benchmarks" / "results" / "bench_mpc_dc.json").read_text())
+    text = (root / "docs" / "deploy.md").read_text()
+    assert "<!-- bench_mpc_dc table: generated from benchmarks/results/bench_mpc_dc.json -->" in text
+    for line in bench.table_lines(doc):
+        assert line in text, line
+    for f, r in doc["factors"].items():
+        assert r["max_diff_over_v_max"] <= 1e-9 and r["c_failures"] == 0, f
+        assert r["iterations_max"] <= 4 * r["horizon"] + 10 and r["samples"] == r["plans"], f
+        assert r["c_step_us_median"] * 1e-6 < r["dt_s"], f
+    assert doc["factors"][f"{FACTOR:g}"]["plans_with_a_voltage_row_at_its_bound"] > 0
