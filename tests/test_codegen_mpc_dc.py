@@ -202,6 +202,46 @@ def test_docs_quote_the_benchmark_and_the_c_follows_daqp_there():
         assert line in text, line
     for f, r in doc["factors"].items():
         assert r["max_diff_over_v_max"] <= 1e-9 and r["c_failures"] == 0, f
-        assert r["iterations_max"] <= 4 * r["horizon"] + 10 and r["samples"] == r["plans"], f
+        assert r["iterations_max"] <= 8 * r["horizon"] + 10 and r["samples"] == r["plans"], f
         assert r["c_step_us_median"] * 1e-6 < r["dt_s"], f
     assert doc["factors"][f"{FACTOR:g}"]["plans_with_a_voltage_row_at_its_bound"] > 0
+
+
+@needs_cc
+def test_no_feasible_plan_is_counted_where_the_python_mpc_falls_back(tmp_path):
+    """Sensor values ten times wilder (the filter's hub rate beyond what the voltage can brake): some QPs
+    have no feasible plan. DAQP fails there and the Python MPC falls back to its LQR torque; the C keeps
+    its plan within the torque limit and counts a failure: on the same samples, and only there the
+    commands differ (read through a getter compiled beside the generated source)."""
+    import ctypes
+    import subprocess
+
+    from hubbeam_ctrl.deploy import STRICT_FLAGS
+    mpc = _small_mpc()
+    py = ObservedMPC(mpc)
+    code = to_c(py, tmp_path / "mpc")
+    (tmp_path / "get.c").write_text('#include "mpc/mpc.h"\nlong mpc_failures(const mpc_instance *inst);\n'
+                                    'long mpc_failures(const mpc_instance *inst) { return inst->failures; }\n')
+    lib = tmp_path / "libmpc.so"
+    subprocess.run([compiler(), *STRICT_FLAGS, "-O2", "-fPIC", "-shared", str(tmp_path / "mpc" / "mpc.c"),
+                    str(tmp_path / "get.c"), "-o", str(lib), "-lm"], check=True)
+    cc = CController(lib, code, py)
+    failures = cc._lib.mpc_failures
+    failures.argtypes, failures.restype = [ctypes.c_void_p], ctypes.c_long
+    rng = np.random.default_rng(36)
+    py.reset()
+    cc.reset()
+    c_failed, py_failed, errs = [], [], []
+    for k in range(400):
+        y = np.array([rng.normal(0.0, 0.3), rng.normal(0.0, 0.5), rng.normal(0.0, 20.0)])
+        before = mpc.n_fallbacks, failures(cc._inst)
+        tau_c, tau_py = cc(k * mpc.dt, y), py(k * mpc.dt, y)
+        assert abs(tau_c) <= mpc.tau_max
+        py_failed.append(mpc.n_fallbacks > before[0])
+        c_failed.append(failures(cc._inst) > before[1])
+        if not py_failed[-1]:
+            errs.append(abs(tau_c - tau_py))
+    print(f"{sum(c_failed)} C failures, {sum(py_failed)} Python fallbacks of 400; elsewhere max |C - Python| / "
+          f"tau_max = {max(errs) / mpc.tau_max:.2e}")
+    assert c_failed == py_failed and sum(c_failed) > 0
+    assert max(errs) <= 1e-9 * mpc.tau_max

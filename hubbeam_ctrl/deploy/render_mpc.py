@@ -174,7 +174,7 @@ def _render_mpc(law: ControlLaw, name: str, precision: str) -> tuple:
 #define KOFF {kd}
 #define PLAN_SHIFT {int(law.scalars["plan_shift"])}
 #define INTEGRAL {int(law.scalars["integral"])}
-#define MAXIT (4 * NZ + 10)
+#define MAXIT ({4 if rows is None else 8} * NZ + 10)
 static const {R} DT = {num(law.dt)};
 static const {R} TAU_MAX = {num(law.tau_max)};
 static const {R} SPIN = {num(law.scalars["spin"])};

@@ -10,17 +10,20 @@ plan kept is feasible (the failure is counted, as the box template counts its ow
 
 * each iteration solves the equality-constrained QP of the working set ``W`` in range space,
   ``z = -L^-T (w + V nu)``, ``(V'V) nu = -(b_W + V'w)``, with ``H = L L'``, ``w = L^-1 g`` and
-  ``V`` the working set's columns of ``CM = L^-1 C'`` (``V'V`` is read from their Gram matrix
-  ``GM``, so only the ``m x m`` block is factored);
-* the longest feasible step toward that minimiser adds the first constraint it meets (whose row
-  is independent of ``W``'s, since the step leaves ``W``'s values unchanged); at the minimiser the
-  working constraint with the most negative multiplier is dropped; none: the plan is optimal;
+  ``V`` the working set's columns of ``CM = L^-1 C'``; ``V'V`` is the working set's block of their
+  constant Gram matrix ``GM``, whose Cholesky factor the instance keeps (a constraint added: one
+  row; one dropped: the rows after it), valid from one sample to the next since ``GM`` is constant;
+* the longest feasible step toward that minimiser adds the first constraint it meets (a step that
+  moves it by more than the tolerance: its row is then independent of ``W``'s, whose values the
+  step leaves unchanged); at the minimiser the working constraint with the most negative
+  multiplier is dropped; none: the plan is optimal;
 * the start: the previous working set's minimiser when it is feasible (a slew keeps its active
   set for many samples: one iteration), else the previous plan moved into the feasible set row by
   row (the rows are lower triangular with a positive diagonal: the voltage at step ``i`` depends
-  on the torques before it and ``u_i``), with an empty working set. No feasible plan exists when
-  the rate is beyond what the voltage can brake: the plan is then kept within the torque limit
-  and the solve counted as failed (the Python MPC falls back to its LQR torque there).
+  on the torques before it and ``u_i``) with the previous working constraints it holds at their
+  bounds. No feasible plan exists when the rate is beyond what the voltage can brake: the plan is
+  then kept within the torque limit and the solve counted as failed (the Python MPC falls back to
+  its LQR torque there).
 
 The QP is strictly convex, so its minimiser is unique: DAQP, the Python MPC's solver, finds the
 same one (to the solvers' tolerances).
