@@ -12,6 +12,7 @@ os.environ.setdefault("HUBBEAM_CACHE_DIR", os.path.join(os.path.dirname(os.path.
 
 from pathlib import Path  # noqa: E402
 
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from hubbeam_ctrl import Params  # noqa: E402
@@ -91,3 +92,15 @@ def assert_refused_in_one_line(argv, words: str, folder, capsys, max_len: int | 
     assert max_len is None or len(err) < max_len, err
     assert words in err, err
     assert sorted(os.listdir(folder)) == before
+
+
+def until_first_stick(result, t_f: float, rig) -> np.ndarray:
+    """Samples up to the first one after ``t_f`` [s] where the hub's rate is within the rig's stick
+    velocity (every sample on a rig without Coulomb friction)."""
+    t = np.asarray(result.t)
+    if rig.friction.coulomb == 0.0:
+        return np.ones(len(t), dtype=bool)
+    thd = np.asarray(result.v)[:, 0] if np.ndim(result.v) == 2 else np.asarray(result.v)
+    stuck = np.nonzero((t > t_f) & (np.abs(thd) < rig.friction.stick_velocity))[0]
+    end = stuck[0] if stuck.size else len(t)
+    return np.arange(len(t)) < end

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import until_first_stick
 
 from hubbeam_ctrl.deploy import NO_COMPILER, CController, compile_c, compiler, to_c
 from hubbeam_ctrl.plant.rig import load_rig
@@ -46,18 +47,6 @@ def _rig(name: str):
     return load_rig(name)
 
 
-def _until_first_stick(result, t_f: float, rig) -> np.ndarray:
-    """Samples up to the first one after ``t_f`` [s] where the hub's rate is within the rig's stick
-    velocity (every sample on a rig without Coulomb friction)."""
-    t = np.asarray(result.t)
-    if rig.friction.coulomb == 0.0:
-        return np.ones(len(t), dtype=bool)
-    thd = np.asarray(result.v)[:, 0] if np.ndim(result.v) == 2 else np.asarray(result.v)
-    stuck = np.nonzero((t > t_f) & (np.abs(thd) < rig.friction.stick_velocity))[0]
-    end = stuck[0] if stuck.size else len(t)
-    return np.arange(len(t)) < end
-
-
 def test_header_names_the_rigs_inputs_in_order_with_units():
     """accel_link (encoder + tip accelerometer): the step reads theta [rad], accel_tangential [m/s^2]."""
     from controllers import LQG, DesignModel, LQGSettings, slew_reference
@@ -87,7 +76,7 @@ def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, angle, t_f, t_end
     from hubbeam_ctrl.study.judge import judge
     rig = _rig(rig_name)
     volts = Hardware.from_rig(rig).command == "voltage"
-    names = ("lqr", "lqg") if volts else ("lqr", "lqg", "mpc")     # MPC in C: on a torque source
+    names = ("lqr", "lqg", "mpc")       # the MPC on a DC motor with its voltage rows (test_codegen_mpc_dc.py)
     c = compare(rig, Slew(angle, t_f), ",".join(names), CompareSettings(run=RunChoice(t_end=t_end)))
     sc = c.scenario
     limit = rig.drive.V_max if volts else c.controllers["lqg"].tau_max
@@ -104,7 +93,7 @@ def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, angle, t_f, t_end
         # with Coulomb friction and integral action the hub hunts about the target after the slew: a
         # rounding difference of 1e-16 moves a stick-slip decision and the two loops part (measured on
         # servo_link_delay1: 1e-9 V at 0.89 s, 7e-5 V at the end); compared until the hub first sticks
-        moving = _until_first_stick(py, sc.t_f, rig)
+        moving = until_first_stick(py, sc.t_f, rig)
         err = np.max(np.abs(run.tau - py.tau)[moving]) / limit
         print(f"{rig_name} {name}: max |C - Python| / limit = {err:.2e}")
         assert err <= 1e-8, (name, err)

@@ -249,8 +249,8 @@ def test_cli_codegen_writes_compiles_and_refuses_bad_input(tmp_path, capsys):
     for bad, message in [(args, "--out: folder .* exists and is not empty"),
                          (["codegen", "--controller", "pid", "--out", str(tmp_path / "m")],
                           "--controller must be one of pd, lqr, lqg"),
-                         (["codegen", "--controller", "mpc", "--rig", "servo_link", "--out", str(tmp_path / "s")],
-                          "--controller mpc does not apply with --rig servo_link .*DC motor")]:
+                         (["codegen", "--controller", "zv", "--rig", "servo_link", "--out", str(tmp_path / "s")],
+                          "--controller zv does not apply with --rig servo_link .*DC motor")]:
         assert main(bad) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and re.search(message, err), err

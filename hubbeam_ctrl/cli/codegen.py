@@ -56,10 +56,13 @@ def _run(args) -> int:
                              f"as C), got {args.controller!r}")
     refuse_inapplicable(args, f"--scenario {args.scenario}", {"--wf": ("spinup",), "--slew-angle": ("slew",)})
     rig, params = beam_from_args(args)
-    if rig is not None and args.controller not in ("pd", "lqr", "lqg", "nmpc") and not rig.drive.is_ideal:
+    if rig is not None and args.controller not in ("pd", "lqr", "lqg", "mpc", "nmpc") and not rig.drive.is_ideal:
         raise ParameterError(f"--controller {args.controller} does not apply with --rig {args.rig} (its DC motor, "
                              "motor.kind = 'dc_motor', takes a voltage command, generated as C for pd, lqr, "
-                             "lqg and nmpc only)")
+                             "lqg, mpc and nmpc only)")
+    if rig is not None and args.controller == "mpc" and not rig.drive.is_ideal and args.precision != "double":
+        raise ParameterError(f"--precision {args.precision} does not apply with --controller mpc --rig {args.rig} "
+                             "(its QP with the DC motor's voltage limit needs double)")
     sc, design = design_task(args, rig, params)
     if args.controller == "nmpc":
         return _nmpc(args, sc, design, rig, sink)

@@ -23,13 +23,15 @@ Kinds (:data:`CODEGEN_KINDS`):
   models interpolated on the measured spin rate);
 * ``mpc``: :class:`controllers.MPC` with its observer (``ObservedFeedback``,
   :class:`ObservedMPC`): the condensed box-constrained QP solved by a generated primal
-  active-set method (no tip bound);
+  active-set method, on a DC motor with the voltage limit's rows too
+  (:mod:`~hubbeam_ctrl.deploy.render_qp`, double precision only; no tip bound);
 * ``zv``, ``zvd``, ``ei``, ``openloop`` (profile ``feedforward``): the held torque table
   of an input-shaped or feedforward open loop (reads nothing).
 
 The roles: :mod:`~hubbeam_ctrl.deploy.laws` (the law as arrays),
 :mod:`~hubbeam_ctrl.deploy.cfile` (the C text family), :mod:`~hubbeam_ctrl.deploy.render`
-and :mod:`~hubbeam_ctrl.deploy.render_mpc` (the templates), this module (files).
+and :mod:`~hubbeam_ctrl.deploy.render_mpc` (the templates; :mod:`~hubbeam_ctrl.deploy.render_qp` the
+MPC's solver with general rows), this module (files).
 
 The step's interface is double precision whatever ``precision``; with
 ``precision="single"`` the arithmetic and the stored data are ``float``.

@@ -31,8 +31,8 @@ CODEGEN_KINDS = {
     "lqr": "LQR gain on a steady-state Kalman filter of its model (the LQR with its observer)",
     "lqg": "LQG: Kalman filter (with residual modes) and gain, reference table, saturation; the "
            "gain-scheduled LQG with every gain and model interpolated on the spin rate",
-    "mpc": "MPC on a Kalman filter of its model: the condensed box-constrained QP solved by a generated "
-           "primal active-set method (no tip bound)",
+    "mpc": "MPC on a Kalman filter of its model: the condensed QP (torque bounds; on a DC motor also the "
+           "voltage limit through back-EMF) solved by a generated primal active-set method (no tip bound)",
     "zv": "ZV input-shaped open-loop torque table",
     "zvd": "ZVD input-shaped open-loop torque table",
     "ei": "EI input-shaped open-loop torque table",
@@ -333,9 +333,6 @@ def _mpc_law(ctrl: ObservedFeedback) -> ControlLaw:
     if s.tip_bound is not None:
         raise ParameterError("controller: an MPC with a tip_bound cannot be generated as C yet (the generated "
                              "QP solver handles the torque bounds only); use tip_bound=None")
-    if s.emf_torque_limit is not None:
-        raise ParameterError("controller: an MPC with an emf_torque_limit (a DC motor's voltage limit) cannot be "
-                             "generated as C yet; use emf_torque_limit=None")
     N = s.horizon
     nz = est.A.shape[0]
     Phi, G = fm.action_map()
@@ -354,6 +351,8 @@ def _mpc_law(ctrl: ObservedFeedback) -> ControlLaw:
               "GX": np.asarray(mpc._Gx, float), "H": H, "HL": np.linalg.cholesky(H), "REFT": table, "R0": r0, "R1": r1}
     if ctrl._defect is not None and len(ctrl._defect):
         arrays["OFFSET"] = _offset_rows(ctrl._defect, nz)
+    if mpc._emf is not None:
+        arrays.update(_emf_rows(mpc, arrays["HL"]))
     sensors, gauges = _model_sensors(fm)
     return ControlLaw(
         kind="mpc", controller="mpc", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=1.0,
@@ -362,6 +361,24 @@ def _mpc_law(ctrl: ObservedFeedback) -> ControlLaw:
                  "plan_shift": float(np.floor(fm.delay + 0.5)), "integral": 1.0 if ctrl.integral else 0.0},
         sensors=sensors, n_reference=N, gauges=gauges,
         reference_layout=f"r[0..{N - 1}]: the QP gradient's reference term (g = Gx x - r)")
+
+
+def _emf_rows(mpc: MPC, HL: np.ndarray) -> dict:
+    """The voltage limit's rows of an MPC on a DC motor (:attr:`controllers.MPCSettings.emf_torque_limit`)
+    as the template's data: ``lo <= AV z <= hi`` with ``hi = LIM - OFFX x``, ``lo = -LIM - OFFX x``
+    (rows scaled as the Python MPC scales them), and ``CM``: ``L^-1 c`` for every constraint ``c``
+    (the ``N`` torque bounds ``e_i``, then the ``N`` rows; ``H = L L'``) with their Gram matrix
+    ``GM = CM CM'``, so the active-set solve factors only the working set's block."""
+    N = mpc.settings.horizon
+    off_x, limit = mpc._emf
+    AV = np.asarray(mpc._A.full(), dtype=float)[-N:, :N]
+    if np.any(np.triu(AV, 1) != 0.0) or not np.all(np.diag(AV) > 0.0):
+        raise ParameterError("controller: the MPC's voltage rows are not lower triangular with a positive "
+                             "diagonal; the generated solver's feasible start needs them so")
+    C = np.vstack([np.eye(N), AV])
+    CM = np.linalg.solve(HL, C.T).T               # row j: L^-1 c_j
+    return {"AV": AV, "OFFX": np.asarray(off_x, dtype=float), "LIM": np.asarray(limit, dtype=float),
+            "CM": CM, "GM": CM @ CM.T}
 
 
 def _scheduled_lqg_law(ctrl) -> ControlLaw:

@@ -25,81 +25,33 @@ from .cfile import (
     _step_signature,
 )
 from .laws import ControlLaw
+from .render_qp import qp_rows_parts
 
-
-def _sizes(law: ControlLaw, name: str, precision: str) -> tuple:
-    """``(real, single, R, nx, nh)``: the C type, single precision or not, the real typedef's name,
-    the filter's state count and half of it."""
-    nx = len(law.arrays["X0"])
-    return PRECISIONS[precision], precision == "single", f"{name}_real", nx, nx // 2
-
-
-def _render_mpc(law: ControlLaw, name: str, precision: str) -> tuple:
-    """Body of the MPC template: Kalman filter, then a primal active-set solve of the box QP."""
-    real, single, R, nx, nh = _sizes(law, name, precision)
-    N = int(law.scalars["horizon"])
-    kt = len(law.arrays["REFT"])
-    sqrt = "sqrtf" if single else "sqrt"
-    fabs = "fabsf" if single else "fabs"
-    body = (_filter_fields(R, nx) + "\n"
-            f"    {R} z[{N}];       /* the plan (the QP's solution) */\n"
-            f"    int st[{N}];      /* active set: 0 free, -1 at -tau_max, +1 at +tau_max */\n"
-            f"    {R} g[{N}];       /* the QP's linear term */\n"
-            f"    {R} M[{N}][{N}];  /* Cholesky factor of the free block of H */\n"
-            f"    {R} v[{N}], zs[{N}];\n"
-            f"    int fidx[{N}];\n"
-            f"    int iterations;   /* active-set iterations of the last solve */\n"
-            f"    long failures;    /* solves that hit the iteration limit (plan kept feasible) */")
-    data = _filter_data(law, R, single, ("X0", "P", "GX", "H", "HL", "REFT", "R0", "R1"))
-    nu = len(law.arrays["P"])
-    kd = len(law.arrays["OFFSET"]) if "OFFSET" in law.arrays else 0
-    num = (lambda v: _number(v, single))
-    code = f"""#define NX {nx}
-#define NH {nh}
-#define NY {len(law.sensors)}
-#define NU {nu}
-#define NUH {nu // 2}
-#define NZ {N}
-#define KT {kt}
-#define KOFF {kd}
-#define PLAN_SHIFT {int(law.scalars["plan_shift"])}
-#define INTEGRAL {int(law.scalars["integral"])}
-#define MAXIT (4 * NZ + 10)
-static const {R} DT = {num(law.dt)};
-static const {R} TAU_MAX = {num(law.tau_max)};
-static const {R} SPIN = {num(law.scalars["spin"])};
-static const {R} DELAY = {num(law.scalars["delay"])};
-static const {R} LAM_TOL = {num(1e-5 if single else 1e-11)};
-
-{_saturate(name)}
-void {name}_reset({name}_instance *inst)
-{{
-    int i;
-{_filter_reset()}    for (i = 0; i < NZ; ++i) {{
+#: The box-only QP (no voltage rows): the instance's solver members, reset, solver and warm start.
+_BOX_FIELDS = """    {R} z[{N}];       /* the plan (the QP's solution) */
+    int st[{N}];      /* active set: 0 free, -1 at -tau_max, +1 at +tau_max */
+    {R} g[{N}];       /* the QP's linear term */
+    {R} M[{N}][{N}];  /* Cholesky factor of the free block of H */
+    {R} v[{N}], zs[{N}];
+    int fidx[{N}];
+    int iterations;   /* active-set iterations of the last solve */
+    long failures;    /* solves that hit the iteration limit (plan kept feasible) */"""
+_BOX_RESET = """    for (i = 0; i < NZ; ++i) {
         inst->z[i] = 0;
         inst->st[i] = 0;
-    }}
+    }
     inst->iterations = 0;
     inst->failures = 0;
-}}
-
-/* solve L L' x = v in place (L lower triangular, n x n, row stride NZ) */
-static void chol_solve(const {R} (*F)[NZ], int n, const {R} *v, {R} *x)
-{{
-    int a, c;
-    for (a = 0; a < n; ++a) {{
-        {R} s = v[a];
-        for (c = 0; c < a; ++c) s -= F[a][c] * x[c];
-        x[a] = s / F[a][a];
-    }}
-    for (a = n - 1; a >= 0; --a) {{
-        {R} s = x[a];
-        for (c = a + 1; c < n; ++c) s -= F[c][a] * x[c];
-        x[a] = s / F[a][a];
-    }}
-}}
-
-/* min 1/2 z'Hz + g'z  s.t. -TAU_MAX <= z <= TAU_MAX: primal active set from a feasible start.
+"""
+_BOX_WARM = """    /* warm start: the previous active set and plan (kept feasible) */
+    for (i = 0; i < NZ; ++i) {
+        if (inst->st[i] < 0) inst->z[i] = -TAU_MAX;
+        else if (inst->st[i] > 0) inst->z[i] = TAU_MAX;
+        else if (inst->z[i] < -TAU_MAX) inst->z[i] = -TAU_MAX;
+        else if (inst->z[i] > TAU_MAX) inst->z[i] = TAU_MAX;
+    }
+"""
+_BOX_SOLVER = """/* min 1/2 z'Hz + g'z  s.t. -TAU_MAX <= z <= TAU_MAX: primal active set from a feasible start.
  * The QP is strictly convex, so its minimiser is unique: the Python MPC's solver finds the same. */
 static int qp_solve({name}_instance *inst)
 {{
@@ -180,7 +132,78 @@ static int qp_solve({name}_instance *inst)
     return -1;
 }}
 
-{_step_signature(name)}
+"""
+
+
+def _sizes(law: ControlLaw, name: str, precision: str) -> tuple:
+    """``(real, single, R, nx, nh)``: the C type, single precision or not, the real typedef's name,
+    the filter's state count and half of it."""
+    nx = len(law.arrays["X0"])
+    return PRECISIONS[precision], precision == "single", f"{name}_real", nx, nx // 2
+
+
+def _render_mpc(law: ControlLaw, name: str, precision: str) -> tuple:
+    """Body of the MPC template: Kalman filter, then a primal active-set solve of the box QP, or with
+    a DC motor's voltage rows (``law.arrays["AV"]``) of the QP with them (:mod:`.render_qp`)."""
+    real, single, R, nx, nh = _sizes(law, name, precision)
+    N = int(law.scalars["horizon"])
+    kt = len(law.arrays["REFT"])
+    sqrt = "sqrtf" if single else "sqrt"
+    fabs = "fabsf" if single else "fabs"
+    rows = qp_rows_parts(law, name, R, single) if "AV" in law.arrays else None
+    body = _filter_fields(R, nx) + "\n" + (_BOX_FIELDS.format(R=R, N=N) if rows is None else rows["fields"])
+    data = _filter_data(law, R, single, ("X0", "P", "GX", "H", "HL", "REFT", "R0", "R1") if rows is None
+                        else ("X0", "P", "GX", "HL", "REFT", "R0", "R1"))   # the rows' solver reads H as L L'
+    if rows is not None:
+        data += rows["data"]
+    nu = len(law.arrays["P"])
+    kd = len(law.arrays["OFFSET"]) if "OFFSET" in law.arrays else 0
+    num = (lambda v: _number(v, single))
+    if rows is None:
+        reset, solver = _BOX_RESET, _BOX_SOLVER.format(R=R, name=name, sqrt=sqrt, fabs=fabs)
+        warm = _BOX_WARM
+    else:
+        reset, solver, warm = rows["reset"], rows["code"], rows["bounds"]
+    code = f"""#define NX {nx}
+#define NH {nh}
+#define NY {len(law.sensors)}
+#define NU {nu}
+#define NUH {nu // 2}
+#define NZ {N}
+#define KT {kt}
+#define KOFF {kd}
+#define PLAN_SHIFT {int(law.scalars["plan_shift"])}
+#define INTEGRAL {int(law.scalars["integral"])}
+#define MAXIT ({4 if rows is None else 8} * NZ + 10)
+static const {R} DT = {num(law.dt)};
+static const {R} TAU_MAX = {num(law.tau_max)};
+static const {R} SPIN = {num(law.scalars["spin"])};
+static const {R} DELAY = {num(law.scalars["delay"])};
+static const {R} LAM_TOL = {num(1e-5 if single else 1e-11)};
+
+{_saturate(name)}
+void {name}_reset({name}_instance *inst)
+{{
+    int i;
+{_filter_reset()}{reset}}}
+
+/* solve L L' x = v in place (L lower triangular, n x n, row stride NZ) */
+static void chol_solve(const {R} (*F)[NZ], int n, const {R} *v, {R} *x)
+{{
+    int a, c;
+    for (a = 0; a < n; ++a) {{
+        {R} s = v[a];
+        for (c = 0; c < a; ++c) s -= F[a][c] * x[c];
+        x[a] = s / F[a][a];
+    }}
+    for (a = n - 1; a >= 0; --a) {{
+        {R} s = x[a];
+        for (c = a + 1; c < n; ++c) s -= F[c][a] * x[c];
+        x[a] = s / F[a][a];
+    }}
+}}
+
+{solver}{_step_signature(name)}
 {{
     {R} t = ({R})inst->k * DT;
     {R} yd[NY];
@@ -205,14 +228,7 @@ static int qp_solve({name}_instance *inst)
         else r = R0[i] + ({R})(kr - KT) * R1[i];
         inst->g[i] = s - r;
     }}
-    /* warm start: the previous active set and plan (kept feasible) */
-    for (i = 0; i < NZ; ++i) {{
-        if (inst->st[i] < 0) inst->z[i] = -TAU_MAX;
-        else if (inst->st[i] > 0) inst->z[i] = TAU_MAX;
-        else if (inst->z[i] < -TAU_MAX) inst->z[i] = -TAU_MAX;
-        else if (inst->z[i] > TAU_MAX) inst->z[i] = TAU_MAX;
-    }}
-    inst->iterations = qp_solve(inst);
+{warm}    inst->iterations = qp_solve(inst);
     if (inst->iterations < 0) inst->failures += 1;
     tau = saturate(inst->z[0]);
     if (INTEGRAL) tau = saturate(tau - inst->x_hat[NX - 1]);  /* the estimated disturbance */
