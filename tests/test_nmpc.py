@@ -133,3 +133,29 @@ def test_docs_quote_the_nmpc_benchmark(name):
                     assert r["residual_pct_of_L"] <= 0.1 and abs(r["final_angle_error_counts"]) <= 1.0, (beam, f)
                 if doc.get("backend") == "compiled":      # the C function's median within the 1 ms sample
                     assert r["function_median_s"] <= r["dt_s"], (beam, f)
+
+
+def test_docs_prose_on_servo_link_is_the_benchmark():
+    """docs/limit.md's sentences on the NMPC on ``servo_link`` quote the benchmark's JSON: the C
+    function's median and 99th percentile, the virtual machine's step, settling and residuals."""
+    import json
+
+    from conftest import ROOT
+    text = " ".join((ROOT / "docs" / "limit.md").read_text().split())
+    res = ROOT / "benchmarks" / "results"
+    c = json.loads((res / "bench_nmpc_compiled.json").read_text())["beams"]["servo_link"]["factors"]
+    vm = json.loads((res / "bench_nmpc.json").read_text())["beams"]["servo_link"]["factors"]
+    med = {round(1e3 * c[f]["controllers"]["nmpc"]["function_median_s"], 2) for f in c}
+    p99 = sorted(1e3 * c[f]["controllers"]["nmpc"]["function_p99_s"] for f in c)
+    assert len(med) == 1 and f"takes {med.pop():.2f} ms at the median" in text
+    assert f"and {p99[0]:.2f}-{p99[-1]:.2f} ms at the 99th percentile" in text
+    steps = sorted(1e3 * vm[f]["controllers"]["nmpc"]["step_median_s"] for f in vm)
+    assert f"({steps[0]:.1f}-{steps[-1]:.1f} ms a step at the median" in text
+    n12, n13 = (vm[f]["controllers"]["nmpc"] for f in ("1.2", "1.3"))
+    lin12 = sorted(vm["1.2"]["controllers"][k]["settle_after_tf_periods"] for k in ("lqr", "mpc"))
+    assert (f"({n12['settle_after_tf_periods']:.2f} against {lin12[0]:.2f}-{lin12[1]:.2f})" in text
+            and f"({n13['settle_after_tf_periods']:.2f} against "
+                f"{vm['1.3']['controllers']['lqr']['settle_after_tf_periods']:.2f})" in text)
+    assert f"({n12['residual_pct_of_L']:.3f} and {n13['residual_pct_of_L']:.3f} % of L" in text
+    r11 = sorted(vm["1.1"]["controllers"][k]["residual_pct_of_L"] for k in ("lqr", "mpc", "nmpc"))
+    assert f"all three leave {r11[0]:.2f}-{r11[-1]:.2f} % of L" in text
