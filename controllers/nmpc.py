@@ -393,6 +393,7 @@ class NMPC(DrivePrediction, Controller):
             self._X = X.T.copy()                                  # (nx, N + 1)
             self._U = np.array([self._reference_at(k)[1] * self._ff for k in range(N)], dtype=float)
         self._k_last = None
+        self.qp_solves = self.qp_failures = 0   # steps, and those whose QP failed (the shifted plan kept)
         self._u_last = None                 # the command applied at the previous sample [N m]
         if self.drive is not None:
             self._u_last = 0.0              # at rest before the first sample [V]
@@ -439,12 +440,21 @@ class NMPC(DrivePrediction, Controller):
             self._W[-1] = (1.0 - w) * g.terminal[a] + w * g.terminal[a + 1]
             self._K_res = (1.0 - w) * g.residual_gain[a] + w * g.residual_gain[a + 1]
         xr, ur = self._reference_window(k, N)
-        X, U = (np.asarray(a) for a in self.step_function(x_meas, self._X, self._U[None, :], xr.T, ur[None, :],
-                                                            self._W[0], self._W[-1], *extra,
-                                                            *((self._u_last,) if self._lag else ())))
-        self.qp_status = int(np.all(np.isfinite(U)) and np.all(np.isfinite(X)))
-        if self.qp_status:                             # else keep the shifted plan
+        try:
+            X, U = (np.asarray(a) for a in self.step_function(x_meas, self._X, self._U[None, :], xr.T, ur[None, :],
+                                                                self._W[0], self._W[-1], *extra,
+                                                                *((self._u_last,) if self._lag else ())))
+        except RuntimeError:                           # the generated C reports the QP's failure
+            X = U = np.full(1, np.nan)
+        # a failed QP (qrqp at its iteration limit) leaves a plan outside the command's box on the
+        # virtual machine and raises in C: on both, the shifted plan is kept and the sample counted
+        self.qp_status = int(np.all(np.isfinite(U)) and np.all(np.isfinite(X))
+                             and np.max(np.abs(U)) <= self.u_max * (1.0 + 1e-6))
+        self.qp_solves += 1
+        if self.qp_status:
             self._X, self._U = X, U.ravel()
+        else:
+            self.qp_failures += 1
         if self.payload is not None and self._grid.states is not None:     # the estimate's own plan
             a, w = self._grid_at(self.payload.mass)
             X = self._grid.states
@@ -460,6 +470,12 @@ class NMPC(DrivePrediction, Controller):
         self._u_last = u0
         self.step_times_s.append(time.perf_counter() - start)
         return u0
+
+    def stats(self) -> dict:
+        """Counters since :meth:`reset`: steps, QP failures (the shifted plan kept) and their fraction."""
+        n = self.qp_solves
+        return {"qp_solves": n, "qp_fallbacks": self.qp_failures,
+                "fallback_fraction": self.qp_failures / n if n else 0.0, "horizon": self.settings.horizon}
 
     def _end_gain(self) -> np.ndarray:
         """The step's unconstrained law at the end point, ``u = -K e`` on the design state: the

@@ -64,6 +64,36 @@ def test_rk4_substeps_cover_the_fastest_mode():
     assert ctrl.model_modes == 2 and ctrl.substeps == rk4_substeps(w2, 0.01)
 
 
+def test_a_failed_qp_keeps_the_shifted_plan_on_both_backends():
+    """A QP that fails (qrqp at its iteration limit) raises in the generated C and leaves a plan outside
+    the command's box on the virtual machine: either way the NMPC keeps its previous plan shifted by one
+    sample, commands its next move, and counts the sample."""
+    d = DesignModel.build(LAB, 0.0, 0.01, 3)
+    ctrl = NMPC(d, NMPCSettings(tau_max=1.5, feedforward=False))
+    y = np.zeros(d.n_x)
+    y[0] = 0.2                                          # 0.2 rad off the reference: a plan that moves
+    ctrl(0.0, y)
+    assert np.ptp(ctrl._U) > 0.1
+    good = ctrl.step_function
+
+    def raising(*args):
+        raise RuntimeError("Error in Function::call for 'nmpc_rti' [External]")
+
+    def out_of_box(*args):
+        X, U = good(*args)
+        return X, 30.0 * np.ones(U.size())              # 47 V against 10 V on servo_link at 1.1 T*
+    for k, failing in enumerate((raising, out_of_box), start=1):
+        ctrl.step_function = failing
+        shifted = np.r_[ctrl._U[1:], ctrl._U[-1]]
+        u = ctrl(0.01 * k, y)
+        assert ctrl.qp_status == 0 and np.array_equal(ctrl._U, shifted)
+        assert abs(u) <= 1.5 and np.isfinite(u)
+    assert ctrl.stats()["qp_fallbacks"] == 2 and ctrl.stats()["qp_solves"] == 3
+    ctrl.step_function = good
+    ctrl.reset()
+    assert ctrl.stats()["qp_fallbacks"] == 0
+
+
 def test_bad_settings_are_refused_in_one_line():
     d = DesignModel.build(LAB, 0.0, 0.01, 3)
     with pytest.raises(ParameterError, match="horizon must be"):
