@@ -59,7 +59,10 @@ from .nmpc_rti import RK4_REACH, rk4, rk4_substeps, rti_step_function, shooting_
 __all__ = ["NMPCSettings", "NMPC", "QP_PLUGINS", "NMPC_MODES", "rk4_substeps", "rti_step_function", "RK4_REACH"]
 
 #: Solvers of the step's condensed QP.
-QP_PLUGINS = ("qrqp",)
+QP_PLUGINS = ("daqp", "qrqp")
+#: A step whose QP answer violates the QP's optimality conditions by more than this share of the
+#: command limit (``qp_residual`` of :func:`rti_step_function`) keeps the shifted plan.
+QP_RESIDUAL_TOL = 1e-6
 #: Bending modes of the prediction model by default (:attr:`NMPCSettings.modes`).
 NMPC_MODES = 2
 #: Payloads over the range on which a learning NMPC plans its task again before the slew (the
@@ -107,9 +110,10 @@ class NMPCSettings(LQSettings):
                                 "stage's start (linearised: a quarter of the instructions, the C step 2.2 x faster "
                                 "on servo_link) or the exact derivative of the RK4 map (exact). The map itself, "
                                 "the defects and the prediction, is RK4 of the nonlinear model either way.")
-    qp_solver: str = setting("qrqp", choices=QP_PLUGINS,
-                             doc="Solver of the step's condensed box QP: CasADi's active-set qrqp, part of the "
-                                 "step's CasADi function, so that the generated C carries it.")
+    qp_solver: str = setting("daqp", choices=QP_PLUGINS,
+                             doc="Solver of the step's condensed QP, through CasADi's conic inside the step's "
+                                 "function: DAQP (a dual active set for dense QPs; the generated C links the "
+                                 "static library in CasADi's wheel) or CasADi's own qrqp (which cycled on a rig).")
     current_limit: str = setting("path", choices=("path", "first"),
                                  doc="A DC drive's current limit: a linear constraint at every stage (path), or a "
                                      "bound on the first move only (first: a box QP; the prediction clips it).")
@@ -379,7 +383,7 @@ class NMPC(DrivePrediction, Controller):
                                                     s.horizon if s.current_limit == "path" else 1)
         self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.u_max,
                                                parametric=self.payload is not None, current=current,
-                                               in_flight=getattr(self, "_G", None))
+                                               in_flight=getattr(self, "_G", None), qp_solver=s.qp_solver)
         self.step_function = compile_function(self.symbolic_step, s.backend)    # C when asked and a compiler is there
 
     def reset(self) -> None:
@@ -441,15 +445,16 @@ class NMPC(DrivePrediction, Controller):
             self._K_res = (1.0 - w) * g.residual_gain[a] + w * g.residual_gain[a + 1]
         xr, ur = self._reference_window(k, N)
         try:
-            X, U = (np.asarray(a) for a in self.step_function(x_meas, self._X, self._U[None, :], xr.T, ur[None, :],
-                                                                self._W[0], self._W[-1], *extra,
-                                                                *((self._u_last,) if self._lag else ())))
-        except RuntimeError:                           # the generated C reports the QP's failure
-            X = U = np.full(1, np.nan)
-        # a failed QP (qrqp at its iteration limit) leaves a plan outside the command's box on the
-        # virtual machine and raises in C: on both, the shifted plan is kept and the sample counted
+            X, U, residual = (np.asarray(a) for a in self.step_function(
+                x_meas, self._X, self._U[None, :], xr.T, ur[None, :], self._W[0], self._W[-1], *extra,
+                *((self._u_last,) if self._lag else ())))
+        except RuntimeError:                           # the generated C reports a solver's error
+            X = U = residual = np.full(1, np.nan)
+        # a QP answer that does not solve the QP (a solver at its iteration limit, cycling) shows in
+        # its optimality residual on both backends: the shifted plan is kept and the sample counted
+        self.qp_residual = float(residual.ravel()[0])
         self.qp_status = int(np.all(np.isfinite(U)) and np.all(np.isfinite(X))
-                             and np.max(np.abs(U)) <= self.u_max * (1.0 + 1e-6))
+                             and self.qp_residual <= QP_RESIDUAL_TOL * self.u_max)
         self.qp_solves += 1
         if self.qp_status:
             self._X, self._U = X, U.ravel()

@@ -64,32 +64,41 @@ def test_rk4_substeps_cover_the_fastest_mode():
     assert ctrl.model_modes == 2 and ctrl.substeps == rk4_substeps(w2, 0.01)
 
 
-def test_a_failed_qp_keeps_the_shifted_plan_on_both_backends():
-    """A QP that fails (qrqp at its iteration limit) raises in the generated C and leaves a plan outside
-    the command's box on the virtual machine: either way the NMPC keeps its previous plan shifted by one
-    sample, commands its next move, and counts the sample."""
+def test_the_qp_residual_tells_a_solved_qp_from_one_stopped_short(monkeypatch):
+    """The step returns its QP's optimality residual: at rounding for DAQP and qrqp run to the end
+    (which give the same plan), large for qrqp stopped after one iteration. A step whose residual
+    exceeds the tolerance, or whose generated C raises, keeps the previous plan shifted by one
+    sample, commands its next move and is counted."""
+    import controllers.nmpc_rti as rti
+    from controllers.nmpc import QP_RESIDUAL_TOL
     d = DesignModel.build(LAB, 0.0, 0.01, 3)
-    ctrl = NMPC(d, NMPCSettings(tau_max=1.5, feedforward=False))
     y = np.zeros(d.n_x)
-    y[0] = 0.2                                          # 0.2 rad off the reference: a plan that moves
+    y[0] = 5.0                                          # 5 rad off the reference: the limit active
+    plans = {}
+    for solver in ("daqp", "qrqp"):
+        ctrl = NMPC(d, NMPCSettings(tau_max=1.5, feedforward=False, qp_solver=solver))
+        ctrl(0.0, y)
+        assert ctrl.qp_status == 1 and ctrl.qp_residual <= 1e-9 * 1.5, (solver, ctrl.qp_residual)
+        assert np.ptp(ctrl._U) > 0.1 and np.max(np.abs(ctrl._U)) == pytest.approx(1.5)   # bounds active
+        plans[solver] = ctrl._U.copy()
+    assert np.max(np.abs(plans["daqp"] - plans["qrqp"])) <= 1e-8 * 1.5
+    monkeypatch.setitem(rti._QP_OPTIONS, "qrqp", {**rti._QP_OPTIONS["qrqp"], "max_iter": 1})
+    short = NMPC(d, NMPCSettings(tau_max=1.5, feedforward=False, qp_solver="qrqp"))
+    short.reset()
+    before = short._U.copy()
+    u = short(0.0, y)
+    assert short.qp_status == 0 and short.qp_residual > 1e3 * QP_RESIDUAL_TOL * 1.5
+    assert np.array_equal(short._U, before) and abs(u) <= 1.5
+    ctrl = NMPC(d, NMPCSettings(tau_max=1.5, feedforward=False))
     ctrl(0.0, y)
-    assert np.ptp(ctrl._U) > 0.1
-    good = ctrl.step_function
 
     def raising(*args):
         raise RuntimeError("Error in Function::call for 'nmpc_rti' [External]")
-
-    def out_of_box(*args):
-        X, U = good(*args)
-        return X, 30.0 * np.ones(U.size())              # 47 V against 10 V on servo_link at 1.1 T*
-    for k, failing in enumerate((raising, out_of_box), start=1):
-        ctrl.step_function = failing
-        shifted = np.r_[ctrl._U[1:], ctrl._U[-1]]
-        u = ctrl(0.01 * k, y)
-        assert ctrl.qp_status == 0 and np.array_equal(ctrl._U, shifted)
-        assert abs(u) <= 1.5 and np.isfinite(u)
-    assert ctrl.stats()["qp_fallbacks"] == 2 and ctrl.stats()["qp_solves"] == 3
-    ctrl.step_function = good
+    ctrl.step_function = raising
+    shifted = np.r_[ctrl._U[1:], ctrl._U[-1]]
+    u = ctrl(0.01, y)
+    assert ctrl.qp_status == 0 and np.array_equal(ctrl._U, shifted) and abs(u) <= 1.5 and np.isfinite(u)
+    assert ctrl.stats()["qp_fallbacks"] == 1 and ctrl.stats()["qp_solves"] == 2
     ctrl.reset()
     assert ctrl.stats()["qp_fallbacks"] == 0
 
