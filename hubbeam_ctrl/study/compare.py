@@ -306,7 +306,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     t_f = DEFAULT_T_F if scn.t_f is None else scn.t_f
     options = dict(plant=plant, params=design_p, tau_max=scn.tau_max, t_f=t_f, dt=dt, w_f=scn.w_f,
                    slew_angle=scn.slew_angle, tolerances=dc.tolerances,
-                   reference="rigid" if reference == "optimal" else reference)
+                   reference=reference)
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
     sc = make_scenario(task, t_end=t_end, **options)    # None: the task's own
     sc = with_task_bands(sc, rig, scn.settle_angle, scn.settle_tip)
