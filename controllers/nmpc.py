@@ -80,6 +80,11 @@ class NMPCSettings(LQSettings):
                                     "below the Nyquist frequency, at most NMPC_MODES (a step's cost grows with "
                                     "the cube of the model's size: 3.4 ms with 2 modes, 6.4 ms with 3 on "
                                     "Table 1's beam, CasADi's virtual machine).")
+    axial_modes: int | None = setting(None, kind=int, lo=1, hi=20,
+                                      doc="Axial assumed modes of the prediction model's quasi-static axial "
+                                          "condensation; None: as many as its bending modes (with 2 of 5 the "
+                                          "stiffened bending frequencies at 0-10 rad/s are unchanged to 1e-5 and "
+                                          "a stage costs a third of the instructions).")
     substeps: int | None = setting(None, kind=int, lo=1, hi=200,
                                    doc="RK4 substeps per sample; None: enough for the fastest modelled mode "
                                        "(rk4_substeps).")
@@ -228,7 +233,9 @@ class NMPC(DrivePrediction, Controller):
         m, w = _model_modes(design, settings.modes)
         self.model_modes = m
         self.substeps = settings.substeps or rk4_substeps(float(w.max()) if w.size else 0.0, self.dt)
-        model = build_model("foam", design.params.replace(n_transverse=m), axial="quasi-static")
+        self.axial_modes = min(settings.axial_modes or m, design.params.n_axial)
+        model = build_model("foam", design.params.replace(n_transverse=m, n_axial=self.axial_modes),
+                            axial="quasi-static")
         n = model.n_q                       # theta and m modal coordinates
         self._n, self._nx = n, 2 * n
         # the (residual) design state's rows this model uses: theta, q2_1..m, theta_dot, q2_dot_1..m
@@ -305,7 +312,7 @@ class NMPC(DrivePrediction, Controller):
             raise ParameterError(f"payload range {lo:g}..{hi:g} kg must hold the design's payload m_t = "
                                  f"{params.m_t:g} kg")
         self._F = self._shooting_function("nmpc_shoot_p", model, ca.SX.sym("p", model.parametric.n_p))
-        table = payload_table(params, self.model_modes, lo, hi)
+        table = payload_table(params.replace(n_axial=self.axial_modes), self.model_modes, lo, hi)
         # the balance on every mode the design state carries (the prediction's 2 leave 0.5 % of the
         # momentum early in Table 1's slew out: a 0.03 kg bias)
         whole = build_model("foam", params.replace(n_transverse=self.design.n_modes), axial="quasi-static")
