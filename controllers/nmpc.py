@@ -119,6 +119,13 @@ class NMPCSettings(LQSettings):
                              doc="Solver of the step's condensed QP, through CasADi's conic inside the step's "
                                  "function: DAQP (a dual active set for dense QPs; the generated C links the "
                                  "static library in CasADi's wheel) or CasADi's own qrqp (which cycled on a rig).")
+    tip_limit_m: float | None = setting(None, unit="m", lo=0.0, lo_open=True, kind=float,
+                                        doc="Largest tip deflection |v(L, t)| the prediction allows [m]: a "
+                                            "constraint of the step's QP on every predicted state (the prediction "
+                                            "model's modes); None: none.")
+    rate_limit: float | None = setting(None, unit="rad/s", lo=0.0, lo_open=True, kind=float,
+                                       doc="Largest hub rate |theta_dot| the prediction allows [rad/s]: a constraint "
+                                           "of the step's QP on every predicted state; None: none.")
     current_limit: str = setting("path", choices=("path", "first"),
                                  doc="A DC drive's current limit: a linear constraint at every stage (path), or a "
                                      "bound on the first move only (first: a box QP; the prediction clips it).")
@@ -390,8 +397,28 @@ class NMPC(DrivePrediction, Controller):
                                                     s.horizon if s.current_limit == "path" else 1)
         self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.u_max,
                                                parametric=self.payload is not None, current=current,
-                                               in_flight=getattr(self, "_G", None), qp_solver=s.qp_solver)
+                                               in_flight=getattr(self, "_G", None), qp_solver=s.qp_solver,
+                                               state_limits=self._state_limits(s))
         self.step_function = compile_function(self.symbolic_step, s.backend)    # C when asked and a compiler is there
+
+    def _state_limits(self, s: NMPCSettings) -> tuple | None:
+        """``(C, b)`` of :attr:`NMPCSettings.tip_limit_m` and :attr:`NMPCSettings.rate_limit` on the
+        prediction state (the tip deflection is the clamped-free shapes at L times the modal
+        coordinates), or None."""
+        from hubbeam_ctrl.plant.basis import transverse_shapes
+        rows, bounds = [], []
+        if s.tip_limit_m is not None:
+            row = np.zeros(self._nx)
+            L = self.design.params.L
+            row[1:self._n] = np.asarray(transverse_shapes(np.array([L]), self._n - 1, L)).reshape(-1)
+            rows.append(row)
+            bounds.append(s.tip_limit_m)
+        if s.rate_limit is not None:
+            row = np.zeros(self._nx)
+            row[self._n] = 1.0
+            rows.append(row)
+            bounds.append(s.rate_limit)
+        return (np.array(rows), np.array(bounds)) if rows else None
 
     def reset(self) -> None:
         """Start from the reference: the previous solution is the planned motion."""

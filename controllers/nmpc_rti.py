@@ -109,7 +109,8 @@ def shooting_function(name: str, f, x, u, extra: list, span: float, steps: int,
 
 def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, tau_max: float,
                       parametric: bool = False, current: tuple | None = None,
-                      in_flight: ca.Function | None = None, qp_solver: str = "daqp") -> ca.Function:
+                      in_flight: ca.Function | None = None, qp_solver: str = "daqp",
+                      state_limits: tuple | None = None) -> ca.Function:
     """One real-time iteration of the NMPC as a CasADi function (its C is the generated step).
 
     ``(x, X, U, XR, UR, Q, P[, p]) -> (X+, U+, qp_residual)``: the shooting map linearised along the
@@ -122,7 +123,8 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
     ``qp_residual`` is the QP's optimality residual at the solver's answer, whatever the solver
     says of itself: the largest of the stationarity ``|H dU + g + lam_x + A' lam_a|``, the
     constraints' violation and the complementarity ``min(lam, slack)`` on each bound's side, on
-    the QP scaled to a unit Hessian diagonal (so in the command's unit, [N m] or [V]). A solver
+    the QP scaled to a unit Hessian diagonal (so in the command's unit, [N m] or [V], and for the
+    general rows, each divided by its bound, in shares of their limits). A solver
     that stopped short (an iteration limit, cycling) shows here; the caller keeps its shifted plan
     when it exceeds a tolerance.
 
@@ -152,6 +154,11 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
     qp_solver : {"daqp", "qrqp"}
         CasADi's ``conic`` plugin for the QP: DAQP (a dual active set for dense QPs, shipped with
         CasADi's wheel as a static library the C links) or CasADi's own ``qrqp``.
+    state_limits : tuple, optional
+        ``(C, b)``: ``|C x_j| <= b`` at every predicted state ``x_1 .. x_N`` (``C`` ``k x nx``, ``b``
+        ``k`` bounds in the outputs' units, e.g. the tip deflection [m] and the hub rate [rad/s]):
+        linear constraints of the QP in the moves. They are hard: a QP they make infeasible shows in
+        ``qp_residual`` and the caller keeps its shifted plan.
 
     Returns
     -------
@@ -170,12 +177,20 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
     eye = ca.DM.eye(N)
     S, c = ca.MX.zeros(nx, N), x - X[:, 0]        # dX_j = S_j dU + c_j, dX_0 the measured offset
     H, g = r * ca.MX.eye(N), r * (U - UR).T
-    rows, values = [], []                       # the current limit's rows on dU and values at dU = 0
+    # general rows on dU: their values at dU = 0 and bounds (the current limit's, the state limits')
+    rows, values, bounds = [], [], []
+    if state_limits is not None:
+        Cs, bs = ca.DM(state_limits[0]), ca.DM(state_limits[1])
     for j in range(N + 1):
         if current is not None and j < current[3]:
             row, emf = current[:2]
             rows.append(eye[j, :] - emf * S[row, :])
             values.append(U[j] - emf * (X[row, j] + c[row]))
+            bounds.append(ca.DM([current[2]]))
+        if j > 0 and state_limits is not None:
+            rows.append(ca.mtimes(Cs, S))
+            values.append(ca.mtimes(Cs, X[:, j] + c))
+            bounds.append(bs)
         if j > 0:
             WS = ca.mtimes(P if j == N else Q, S)
             H = H + ca.mtimes(S.T, WS)
@@ -194,11 +209,14 @@ def rti_step_function(shooting: ca.Function, horizon: int, nx: int, r: float, ta
         bound, first = current[2], ca.DM.eye(N)[:, 0]
         lbx = lbx + first * (ca.fmax(lbx[0], -bound - values[0]) - lbx[0])
         ubx = ubx + first * (ca.fmin(ubx[0], bound - values[0]) - ubx[0])
-    if current is None or current[3] == 1:
-        Ac, lba, uba = ca.MX(0, N), ca.MX(0, 1), ca.MX(0, 1)
+    if current is not None and current[3] == 1:   # the first move's current is a bound, not a row
+        rows, values, bounds = rows[1:], values[1:], bounds[1:]
+    if rows:                  # each row over its bound: the rows and their residuals as shares of the limits
+        inv = 1.0 / ca.vertcat(*bounds)
+        Ac, val = ca.mtimes(ca.diag(inv), ca.vertcat(*rows)), inv * ca.vertcat(*values)
+        lba, uba = -1.0 - val, 1.0 - val
     else:
-        Ac, val, bound = ca.vertcat(*rows), ca.vertcat(*values), current[2]
-        lba, uba = -bound - val, bound - val
+        Ac, lba, uba = ca.MX(0, N), ca.MX(0, 1), ca.MX(0, 1)
     qp = ca.conic("nmpc_qp", qp_solver, {"h": ca.Sparsity.dense(N, N), "a": ca.Sparsity.dense(Ac.size1(), N)},
                   _QP_OPTIONS[qp_solver])
     sol = qp(h=H, g=g, a=Ac, lba=lba, uba=uba, lbx=lbx, ubx=ubx)

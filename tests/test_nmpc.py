@@ -136,6 +136,28 @@ def test_nmpc_linear_form_is_certified_like_the_lqr(lab_slew):
     assert not c.grows and c.worst.spectral_radius < 1.0
 
 
+def test_tip_and_rate_limits_hold_on_the_evaluation_plant(lab_slew):
+    """``tip_limit_m`` and ``rate_limit`` are constraints of the step's QP on every predicted state: on
+    the 8-mode plant the slew's peak tip deflection and hub rate stay within 1 % of limits set at 80 %
+    and 90 % of the free NMPC's peaks (the 1 %: the modes the 2-mode prediction leaves out), and no
+    QP is infeasible or falls back."""
+    from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
+    from hubbeam_ctrl.study.scenarios import make_scenario
+    free = lab_slew.results["nmpc"]
+    tip0, rate0 = np.max(np.abs(free.v_tip)), np.max(np.abs(free.theta_dot))
+    task = Slew(math.pi / 2, 1.5)
+    own = NMPCSettings.for_scenario(make_scenario(task, params=LAB, t_end=None))
+    for limit in ({"tip_limit_m": 0.8 * tip0}, {"rate_limit": 0.9 * rate0}):
+        c = compare(LAB, task, ["nmpc"], CompareSettings(design=DesignChoice(settings={"nmpc": own.replace(**limit)})))
+        r, ctrl = c.results["nmpc"], c.controllers["nmpc"]
+        tip, rate = np.max(np.abs(r.v_tip)), np.max(np.abs(r.theta_dot))
+        if "tip_limit_m" in limit:
+            assert tip <= 1.01 * limit["tip_limit_m"] and tip < 0.85 * tip0, (tip, limit)
+        else:
+            assert rate <= 1.01 * limit["rate_limit"] and rate < 0.95 * rate0, (rate, limit)
+        assert ctrl.stats()["qp_fallbacks"] == 0 and np.max(np.abs(r.tau)) <= LAB.tau_max
+
+
 @pytest.mark.parametrize("name", ["bench_nmpc.json", "bench_nmpc_compiled.json"])
 def test_docs_quote_the_nmpc_benchmark(name):
     """docs/limit.md's NMPC tables are the benchmark's JSON (the step on CasADi's virtual machine and as
