@@ -120,12 +120,12 @@ class NMPCSettings(LQSettings):
                                  "function: DAQP (a dual active set for dense QPs; the generated C links the "
                                  "static library in CasADi's wheel) or CasADi's own qrqp (which cycled on a rig).")
     tip_limit_m: float | None = setting(None, unit="m", lo=0.0, lo_open=True, kind=float,
-                                        doc="Largest tip deflection |v(L, t)| the prediction allows [m]: a "
-                                            "constraint of the step's QP on every predicted state (the prediction "
+                                        doc="Largest tip deflection (absolute value of v(L, t)) the prediction "
+                                            "allows [m]: a constraint of the step's QP on every predicted state (the prediction "
                                             "model's modes); None: none.")
     rate_limit: float | None = setting(None, unit="rad/s", lo=0.0, lo_open=True, kind=float,
-                                       doc="Largest hub rate |theta_dot| the prediction allows [rad/s]: a constraint "
-                                           "of the step's QP on every predicted state; None: none.")
+                                       doc="Largest hub rate (absolute value) the prediction allows [rad/s]: a "
+                                           "constraint of the step's QP on every predicted state; None: none.")
     current_limit: str = setting("path", choices=("path", "first"),
                                  doc="A DC drive's current limit: a linear constraint at every stage (path), or a "
                                      "bound on the first move only (first: a box QP; the prediction clips it).")

@@ -58,7 +58,7 @@ from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
-from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_on_rig
+from hubbeam_ctrl.study.yardstick import linear_plan_note, task_dt, task_limit, task_on_rig
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
@@ -343,6 +343,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     if ref is not sc.reference:
         sc = dataclasses.replace(sc, reference=ref)
     chosen, notes = _shaped_durations(names, chosen, settings, design, dataclasses.replace(sc, reference=ref))
+    notes = linear_plan_note(ref, sc.params.L) + notes
     designs = dict(designs or {})
     if payload_range is not None:
         from hubbeam_ctrl.study.range_design import range_designs
