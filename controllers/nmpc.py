@@ -121,8 +121,8 @@ class NMPCSettings(LQSettings):
                                  "static library in CasADi's wheel) or CasADi's own qrqp (which cycled on a rig).")
     tip_limit_m: float | None = setting(None, unit="m", lo=0.0, lo_open=True, kind=float,
                                         doc="Largest tip deflection (absolute value of v(L, t)) the prediction "
-                                            "allows [m]: a constraint of the step's QP on every predicted state (the prediction "
-                                            "model's modes); None: none.")
+                                            "allows [m]: a constraint of the step's QP on every predicted state "
+                                            "(the prediction model's modes); None: none.")
     rate_limit: float | None = setting(None, unit="rad/s", lo=0.0, lo_open=True, kind=float,
                                        doc="Largest hub rate (absolute value) the prediction allows [rad/s]: a "
                                            "constraint of the step's QP on every predicted state; None: none.")
