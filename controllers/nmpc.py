@@ -393,6 +393,10 @@ class NMPC(DrivePrediction, Controller):
         """The step as one CasADi function (:attr:`step_function`, built once)."""
         self._W = [self._Q] * s.horizon + [self._Pt]          # stage weights on x_0 .. x_N
         from hubbeam_ctrl.core.compiled import compile_function
+        if not ca.has_conic(s.qp_solver):
+            have = ", ".join(p for p in QP_PLUGINS if ca.has_conic(p))
+            raise ParameterError(f"qp_solver {s.qp_solver!r} is not among the QP plugins of this CasADi "
+                                 f"({ca.__version__}); choose one of {have}")
         current = None if self.drive is None else (self._n, self.drive.emf, self.drive.current_bound,
                                                     s.horizon if s.current_limit == "path" else 1)
         self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.u_max,
