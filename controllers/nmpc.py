@@ -260,6 +260,7 @@ class NMPC(DrivePrediction, Controller):
         self._Pt = np.asarray(self.P)[np.ix_(self._pick, self._pick)]
         self.u_max, self.command, self._lag = self.tau_max, "torque", False
         if self.drive is not None:
+            self.drive = self.drive.resolved(self.dt / self.substeps, design.params.J_h)
             self._drive_setup(settings, design)
         self.payload = None
         if settings.learn_payload:
