@@ -343,7 +343,9 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     if ref is not sc.reference:
         sc = dataclasses.replace(sc, reference=ref)
     chosen, notes = _shaped_durations(names, chosen, settings, design, dataclasses.replace(sc, reference=ref))
-    notes = linear_plan_note(ref, sc.params.L) + notes
+    from controllers.base import TrackingSettings
+    if any(issubclass(CONTROLLERS[n].settings, TrackingSettings) for n in names):   # a controller tracks it
+        notes = linear_plan_note(ref, sc.params.L) + notes
     designs = dict(designs or {})
     if payload_range is not None:
         from hubbeam_ctrl.study.range_design import range_designs
