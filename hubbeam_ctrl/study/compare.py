@@ -224,7 +224,7 @@ def _design_modes(design_modes, design: Params) -> int:
 
 
 def compare(rig=None, task="slew", controllers=None, settings: CompareSettings | None = None, *,
-            designs: dict | None = None, progress: bool = False) -> Comparison:
+            designs: dict | None = None, progress: bool = False, designed=None) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with the rig's beam (or ``settings.design.design_params``) and
@@ -268,6 +268,13 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         settings) chosen beforehand.
     progress : bool
         Print one line per controller on stderr.
+    designed : callable, optional
+        Called once, with every controller designed and before the first closed-loop run, with
+        a :class:`Comparison` holding the scenario, the styles, the evaluation plant and the
+        linear controllers (no results yet): what a caller can start early, e.g. ``hubbeam
+        compare``'s loop figure (:func:`hubbeam_ctrl.study.report.loop_png`), drawn by the
+        figure worker while the controllers run. Given, the designs all come first (else each
+        just before its run); the numbers are the same.
 
     Returns
     -------
@@ -392,15 +399,21 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     # the runs side by side (a forked child runs part of them) when nothing ties them together
     together = (SIDE_BY_SIDE and can_fork() and len(names) > 1 and ev_check is None and payload_learning is None
                 and not (rig is not None and rig.uncertainty.is_set))
-    if together:
+    first = together or designed is not None     # every design before the first run
+    if first:
         for name in names:
             build(name)
+    if designed is not None:
+        designed(Comparison(sc, {}, {}, styles={n: CONTROLLERS[n].style for n in names}, plant=ev, rig=rig,
+                            controllers={n: c for n, c in linear.items() if margins[n] is not None}))
+    if together:
         runs = side_by_side(names, run)
     for name in names:
         if not together:
             if clock.expired():
                 break
-            build(name)
+            if not first:
+                build(name)
             runs = {name: run(name)}
         if runs[name] is None:
             break
