@@ -70,3 +70,26 @@ def test_what_the_child_cannot_hand_back_is_run_here():
     assert side_by_side(["a", "b", "c"], run) == {"a": "aa", "b": "bb", "c": "cc"}
     assert sorted(where) == ["a", "b", "c"]
     assert side_by_side(["x"], lambda n: n + "!") == {"x": "x!"}    # one run: here
+
+
+@needs_fork
+def test_run_choice_side_by_side_and_the_early_loop_figure(monkeypatch, fast_backend):
+    """``RunChoice(side_by_side=True)`` (what ``hubbeam compare`` asks for) runs the loops side by side
+    with the numbers of one after the other; ``designed=`` gets the comparison before any run, and
+    its loop figure (drawn while the controllers run) is the finished comparison's, byte for byte."""
+    from hubbeam_ctrl.study.report import loop_png
+    forks = []
+    monkeypatch.setattr(compare_module, "side_by_side", lambda names, run: forks.append(list(names))
+                        or side_by_side(names, run))
+    seen = []
+    a = compare_module.compare(None, "slew", "openloop,pd,lqr",
+                               CompareSettings(run=RunChoice(t_end=16.0, side_by_side=True)),
+                               designed=lambda c: seen.append((c, dict(c.results), len(forks))))
+    b = compare_module.compare(None, "slew", "openloop,pd,lqr", CompareSettings(run=RunChoice(t_end=16.0)))
+    assert forks == [["openloop", "pd", "lqr"]]                # b ran one after the other
+    for name in b.metrics:
+        assert np.array_equal(a.results[name].q, b.results[name].q)
+        assert _text(a.metrics[name]) == _text(b.metrics[name]), name
+    early, results_then, forks_then = seen[0]
+    assert len(seen) == 1 and results_then == {} and forks_then == 0 and list(early.controllers) == ["pd", "lqr"]
+    assert loop_png(early).result() == loop_png(b).result()

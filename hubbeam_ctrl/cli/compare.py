@@ -320,7 +320,9 @@ def _run_plain(args, plan, sink) -> int:
     opts = plan.options
     names, rig, out = opts["controllers"], opts.get("rig"), plan.out
     early = []              # loops.png: its data and figure need only the designs (drawn while the runs go)
-    comparison = compare(**compare_arguments(**opts), designed=lambda designed: early.append(loop_png(designed)))
+    # the closed loops side by side (a forked child runs part of them): the report reads only their results
+    comparison = compare(**compare_arguments(**opts, side_by_side=True),
+                         designed=lambda designed: early.append(loop_png(designed)))
     if plan.ladder:
         from hubbeam_ctrl.study.ladder import rig_ladder
         t_ladder = time.perf_counter()

@@ -68,6 +68,7 @@ __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare",
 #: controllers that ran in the child keep their run's state there (``step_times_s``, a learnt
 #: payload, counters): ``Comparison.controllers`` holds them as designed. Off by default for that
 #: reason; it saved 15 % of an in-process ``compare()`` (2.54 s against 2.97 s, under load).
+#: ``RunChoice(side_by_side=True)`` asks for it in one comparison (``hubbeam compare`` does).
 SIDE_BY_SIDE = False
 
 #: The controllers a comparison runs by default (the built-ins; see :func:`controllers.controller_names`).
@@ -397,8 +398,8 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         return res, mm, cert
 
     # the runs side by side (a forked child runs part of them) when nothing ties them together
-    together = (SIDE_BY_SIDE and can_fork() and len(names) > 1 and ev_check is None and payload_learning is None
-                and not (rig is not None and rig.uncertainty.is_set))
+    together = ((SIDE_BY_SIDE or rc.side_by_side) and can_fork() and len(names) > 1 and ev_check is None
+                and payload_learning is None and not (rig is not None and rig.uncertainty.is_set))
     first = together or designed is not None     # every design before the first run
     if first:
         for name in names:
