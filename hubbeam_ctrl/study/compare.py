@@ -369,7 +369,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     budget = {}                              # each run's settings with the wall time left at its start
 
     def build(name):
-        """The controller ``name`` as it runs (design, payload learning, the rig's hardware) and its margins."""
+        """The controller ``name`` as it runs (design, payload learning, the rig's hardware)."""
         spec = CONTROLLERS[name]
         d = designs[name].design if name in designs else design
         st = designs[name].settings if name in designs else chosen[name]
@@ -384,7 +384,15 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
             ctrl = _learning(ctrl, payload_learning, sc, rig)
         if rig is not None:
             ctrl = on_rig(ctrl, rig, noise, hardware, integral)
-        linear[name], margins[name] = ctrl, _margins(ctrl)
+        linear[name] = ctrl
+
+    def designs_done():
+        """Every design's margins, then ``designed``: side by side, here while the child runs its share."""
+        for name in names:
+            margins[name] = _margins(linear[name])
+        if designed is not None:
+            designed(Comparison(sc, {}, {}, styles={n: CONTROLLERS[n].style for n in names}, plant=ev, rig=rig,
+                                controllers={n: c for n, c in linear.items() if margins[n] is not None}))
 
     def run(name):
         """``(result, metrics, certificate)`` of controller ``name`` in closed loop (None: out of time)."""
@@ -404,17 +412,17 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     if first:
         for name in names:
             build(name)
-    if designed is not None:
-        designed(Comparison(sc, {}, {}, styles={n: CONTROLLERS[n].style for n in names}, plant=ev, rig=rig,
-                            controllers={n: c for n, c in linear.items() if margins[n] is not None}))
     if together:
-        runs = side_by_side(names, run)
+        runs = side_by_side(names, run, here=designs_done)
+    elif first:
+        designs_done()
     for name in names:
         if not together:
             if clock.expired():
                 break
             if not first:
                 build(name)
+                margins[name] = _margins(linear[name])
             runs = {name: run(name)}
         if runs[name] is None:
             break
