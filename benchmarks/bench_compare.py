@@ -37,8 +37,9 @@ closed-loop runs, judging with the linear certificate, the loop data of the repo
 the figures, drawing and writing each PNG, since issue 37 the wait for the figure worker's
 PNGs and writing them, the rest). Since helper cmp19 (issue 37) the command runs the closed
 loops side by side (``closed_loop_runs_side_by_side``: all of them; ``closed_loop_runs`` and
-``judge_and_certificate`` are then this process's share, inside it, not counted again in
-``other``), draws loops.png while they run, and lets OpenBLAS's threads sleep after each call
+``judge_and_certificate`` are then this process's share, inside it, and so are ``loop_margins`` and
+``report_loop_data``, computed here while the child runs: none counted again in ``other``), draws
+loops.png while they run, and lets OpenBLAS's threads sleep after each call
 (``OPENBLAS_THREAD_TIMEOUT=4``, set by ``hubbeam_ctrl.cli``; the ``*_blas1`` variants still
 differ from the default by the MPC's round-off).
 
@@ -141,7 +142,8 @@ t0 = time.perf_counter()
 main(["compare", "--out", sys.argv[1]])
 stages["command_total"] = time.perf_counter() - t0
 # side by side, the runs and judging seen here are those of this process, inside the side-by-side stage
-nested = {"closed_loop_runs", "judge_and_certificate"} if "closed_loop_runs_side_by_side" in stages else set()
+nested = ({"closed_loop_runs", "judge_and_certificate", "loop_margins", "report_loop_data"}
+          if "closed_loop_runs_side_by_side" in stages else set())
 inner = [k for k in stages if k not in ("imports", "command_total") and k not in nested]
 stages["other"] = stages["command_total"] - sum(stages[k] for k in inner)
 print(json.dumps(stages))
