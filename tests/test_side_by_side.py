@@ -110,3 +110,26 @@ def test_here_runs_in_this_process_before_its_runs_and_its_exception_is_raised()
     assert order == ["here", "a"]                           # b and c ran in the child
     with pytest.raises(ParameterError, match="refused here"):
         side_by_side(["a", "b"], run, here=lambda: (_ for _ in ()).throw(ParameterError("refused here")))
+
+
+@needs_fork
+def test_ctrl_c_while_waiting_for_the_child_stops_it(tmp_path):
+    import threading
+    import time
+    parent, pidfile = os.getpid(), tmp_path / "child.pid"
+
+    def run(name):
+        if os.getpid() != parent:
+            pidfile.write_text(str(os.getpid()))
+            time.sleep(60)                                  # the child's share: long
+        return name
+
+    timer = threading.Timer(1.0, os.kill, (parent, signal.SIGINT))   # Ctrl-C while the parent waits
+    timer.start()
+    t0 = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        side_by_side(["a", "b"], run)
+    timer.cancel()
+    assert time.perf_counter() - t0 < 30
+    with pytest.raises(ProcessLookupError):                 # killed and reaped, not left running
+        os.kill(int(pidfile.read_text()), 0)

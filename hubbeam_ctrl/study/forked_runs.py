@@ -85,13 +85,13 @@ def side_by_side(names, run, here=None) -> dict:
             if here is not None:
                 here()
             out = {name: run(name) for name in names if name not in theirs}
-        except BaseException:
+            os.waitpid(pid, 0)
+        except BaseException:                              # also Ctrl-C while waiting: no child left running
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGKILL)
             with contextlib.suppress(OSError):
                 os.waitpid(pid, 0)
             raise
-        os.waitpid(pid, 0)
         payload = None
         with contextlib.suppress(OSError, EOFError, pickle.UnpicklingError), open(path, "rb") as fh:
             payload = pickle.load(fh)
