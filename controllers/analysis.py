@@ -37,7 +37,6 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from hubbeam_ctrl.core.errors import ParameterError
 
@@ -387,6 +386,7 @@ def _roots(f, w, values) -> list:
     ``f`` itself is evaluated at the ends of every interval where they change sign and of its
     two neighbours, and the intervals where ``f`` changes sign are solved.
     """
+    from scipy.optimize import brentq  # here: 0.2 s of import that hubbeam compare makes while its runs go
     idx = np.nonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0)[0]
     near = np.unique(np.clip(np.concatenate([idx - 1, idx, idx + 1]), 0, len(w) - 2))
     at = {int(i): f(w[i]) for i in np.unique(np.concatenate([near, near + 1]))}
@@ -397,6 +397,7 @@ def _roots(f, w, values) -> list:
 def _disk_peak(S_half, w, values):
     """``(max |S - 1/2|, frequency)``, the grid's few highest local maxima refined (``values``:
     ``S_half`` on the grid ``w``, possibly less accurate; the result is ``S_half``'s)."""
+    from scipy.optimize import minimize_scalar  # as in _roots
     i_best = int(np.argmax(values))
     best, w_best = S_half(w[i_best]), w[i_best]
     local = np.nonzero((values[1:-1] >= values[:-2]) & (values[1:-1] >= values[2:]))[0] + 1

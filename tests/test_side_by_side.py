@@ -70,3 +70,66 @@ def test_what_the_child_cannot_hand_back_is_run_here():
     assert side_by_side(["a", "b", "c"], run) == {"a": "aa", "b": "bb", "c": "cc"}
     assert sorted(where) == ["a", "b", "c"]
     assert side_by_side(["x"], lambda n: n + "!") == {"x": "x!"}    # one run: here
+
+
+@needs_fork
+def test_run_choice_side_by_side_and_the_early_loop_figure(monkeypatch, fast_backend):
+    """``RunChoice(side_by_side=True)`` (what ``hubbeam compare`` asks for) runs the loops side by side
+    with the numbers of one after the other; the margins and ``designed=`` come in this process after
+    the fork, before its own runs, and the loop figure of the comparison handed to ``designed`` (drawn
+    while the controllers run) is the finished comparison's, byte for byte."""
+    from hubbeam_ctrl.study.report import loop_png
+    forks = []
+    monkeypatch.setattr(compare_module, "side_by_side", lambda names, run, here=None: forks.append(list(names))
+                        or side_by_side(names, run, here))
+    seen = []
+    a = compare_module.compare(None, "slew", "openloop,pd,lqr",
+                               CompareSettings(run=RunChoice(t_end=16.0, side_by_side=True)),
+                               designed=lambda c: seen.append((c, dict(c.results), len(forks))))
+    b = compare_module.compare(None, "slew", "openloop,pd,lqr", CompareSettings(run=RunChoice(t_end=16.0)))
+    assert forks == [["openloop", "pd", "lqr"]]                # b ran one after the other
+    for name in b.metrics:
+        assert np.array_equal(a.results[name].q, b.results[name].q)
+        assert _text(a.metrics[name]) == _text(b.metrics[name]), name
+    early, results_then, forks_then = seen[0]
+    assert len(seen) == 1 and results_then == {} and forks_then == 1 and list(early.controllers) == ["pd", "lqr"]
+    assert {n: m.disk_margin for n, m in a.margins.items()} == {n: m.disk_margin for n, m in b.margins.items()}
+    assert loop_png(early).result() == loop_png(b).result()
+
+
+@needs_fork
+def test_here_runs_in_this_process_before_its_runs_and_its_exception_is_raised():
+    parent, order = os.getpid(), []
+
+    def run(name):
+        if os.getpid() == parent:
+            order.append(name)
+        return name
+
+    assert side_by_side(["a", "b", "c"], run, here=lambda: order.append("here")) == {"a": "a", "b": "b", "c": "c"}
+    assert order == ["here", "a"]                           # b and c ran in the child
+    with pytest.raises(ParameterError, match="refused here"):
+        side_by_side(["a", "b"], run, here=lambda: (_ for _ in ()).throw(ParameterError("refused here")))
+
+
+@needs_fork
+def test_ctrl_c_while_waiting_for_the_child_stops_it(tmp_path):
+    import threading
+    import time
+    parent, pidfile = os.getpid(), tmp_path / "child.pid"
+
+    def run(name):
+        if os.getpid() != parent:
+            pidfile.write_text(str(os.getpid()))
+            time.sleep(60)                                  # the child's share: long
+        return name
+
+    timer = threading.Timer(1.0, os.kill, (parent, signal.SIGINT))   # Ctrl-C while the parent waits
+    timer.start()
+    t0 = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        side_by_side(["a", "b"], run)
+    timer.cancel()
+    assert time.perf_counter() - t0 < 30
+    with pytest.raises(ProcessLookupError):                 # killed and reaped, not left running
+        os.kill(int(pidfile.read_text()), 0)

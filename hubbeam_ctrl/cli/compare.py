@@ -315,11 +315,14 @@ def _run_plain(args, plan, sink) -> int:
     """The plain comparison of :func:`_run` (the figure worker started)."""
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.compare_values import compare_arguments
-    from hubbeam_ctrl.study.report import _json_metrics, format_table, write_outputs
+    from hubbeam_ctrl.study.report import _json_metrics, format_table, loop_png, write_outputs
     t0 = time.perf_counter()
     opts = plan.options
     names, rig, out = opts["controllers"], opts.get("rig"), plan.out
-    comparison = compare(**compare_arguments(**opts))
+    early = []              # loops.png: its data and figure need only the designs (drawn while the runs go)
+    # the closed loops side by side (a forked child runs part of them): the report reads only their results
+    comparison = compare(**compare_arguments(**opts, side_by_side=True),
+                         designed=lambda designed: early.append(loop_png(designed)))
     if plan.ladder:
         from hubbeam_ctrl.study.ladder import rig_ladder
         t_ladder = time.perf_counter()
@@ -330,7 +333,7 @@ def _run_plain(args, plan, sink) -> int:
         # the report's wall time covers the ladder too (said apart in the report)
         comparison.ladder_wall_s = time.perf_counter() - t_ladder
         comparison.wall_s = time.perf_counter() - t0
-    paths = write_outputs(comparison, out)
+    paths = write_outputs(comparison, out, loops=early[0] if early else None)
     wall = time.perf_counter() - t0
     if args.json:
         print(strict_json(_json_metrics(comparison.metrics)), file=sink)

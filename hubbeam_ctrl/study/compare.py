@@ -68,6 +68,7 @@ __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare",
 #: controllers that ran in the child keep their run's state there (``step_times_s``, a learnt
 #: payload, counters): ``Comparison.controllers`` holds them as designed. Off by default for that
 #: reason; it saved 15 % of an in-process ``compare()`` (2.54 s against 2.97 s, under load).
+#: ``RunChoice(side_by_side=True)`` asks for it in one comparison (``hubbeam compare`` does).
 SIDE_BY_SIDE = False
 
 #: The controllers a comparison runs by default (the built-ins; see :func:`controllers.controller_names`).
@@ -224,7 +225,7 @@ def _design_modes(design_modes, design: Params) -> int:
 
 
 def compare(rig=None, task="slew", controllers=None, settings: CompareSettings | None = None, *,
-            designs: dict | None = None, progress: bool = False) -> Comparison:
+            designs: dict | None = None, progress: bool = False, designed=None) -> Comparison:
     """Design the controllers on SFOAM and run them on the nonlinear evaluation plant.
 
     The design model is SFOAM with the rig's beam (or ``settings.design.design_params``) and
@@ -268,6 +269,13 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         settings) chosen beforehand.
     progress : bool
         Print one line per controller on stderr.
+    designed : callable, optional
+        Called once, with every controller designed and before the first closed-loop run, with
+        a :class:`Comparison` holding the scenario, the styles, the evaluation plant and the
+        linear controllers (no results yet): what a caller can start early, e.g. ``hubbeam
+        compare``'s loop figure (:func:`hubbeam_ctrl.study.report.loop_png`), drawn by the
+        figure worker while the controllers run. Given, the designs all come first (else each
+        just before its run); the numbers are the same.
 
     Returns
     -------
@@ -364,7 +372,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     budget = {}                              # each run's settings with the wall time left at its start
 
     def build(name):
-        """The controller ``name`` as it runs (design, payload learning, the rig's hardware) and its margins."""
+        """The controller ``name`` as it runs (design, payload learning, the rig's hardware)."""
         spec = CONTROLLERS[name]
         d = designs[name].design if name in designs else design
         st = designs[name].settings if name in designs else chosen[name]
@@ -379,7 +387,15 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
             ctrl = _learning(ctrl, payload_learning, sc, rig)
         if rig is not None:
             ctrl = on_rig(ctrl, rig, noise, hardware, integral)
-        linear[name], margins[name] = ctrl, _margins(ctrl)
+        linear[name] = ctrl
+
+    def designs_done():
+        """Every design's margins, then ``designed``: side by side, here while the child runs its share."""
+        for name in names:
+            margins[name] = _margins(linear[name])
+        if designed is not None:
+            designed(Comparison(sc, {}, {}, styles={n: CONTROLLERS[n].style for n in names}, plant=ev, rig=rig,
+                                controllers={n: c for n, c in linear.items() if margins[n] is not None}))
 
     def run(name):
         """``(result, metrics, certificate)`` of controller ``name`` in closed loop (None: out of time)."""
@@ -393,17 +409,23 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         return res, mm, cert
 
     # the runs side by side (a forked child runs part of them) when nothing ties them together
-    together = (SIDE_BY_SIDE and can_fork() and len(names) > 1 and ev_check is None and payload_learning is None
-                and not (rig is not None and rig.uncertainty.is_set))
-    if together:
+    together = ((SIDE_BY_SIDE or rc.side_by_side) and can_fork() and len(names) > 1 and ev_check is None
+                and payload_learning is None and not (rig is not None and rig.uncertainty.is_set))
+    first = together or designed is not None     # every design before the first run
+    if first:
         for name in names:
             build(name)
-        runs = side_by_side(names, run)
+    if together:
+        runs = side_by_side(names, run, here=designs_done)
+    elif first:
+        designs_done()
     for name in names:
         if not together:
             if clock.expired():
                 break
-            build(name)
+            if not first:
+                build(name)
+                margins[name] = _margins(linear[name])
             runs = {name: run(name)}
         if runs[name] is None:
             break

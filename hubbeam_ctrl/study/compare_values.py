@@ -188,11 +188,19 @@ class RunChoice:
         Plant integration and sensor settings (its ``dt`` is replaced by ``dt``); a dict gives
         fields of :class:`~hubbeam_ctrl.sim.closedloop.ClosedLoopSettings` that replace those of
         the task's default (the CLI passes ``range_limit`` and its run limits this way).
+    side_by_side : bool
+        Run the closed loops side by side, part of them in a forked child
+        (:mod:`hubbeam_ctrl.study.forked_runs`), when nothing ties them together (no check
+        plant, no uncertainty set, no payload learning). The numbers are the same; the
+        controllers that ran in the child keep their run's state (step times, counters) there,
+        so :attr:`Comparison.controllers` holds them as designed. ``hubbeam compare`` sets it;
+        default False (also :data:`hubbeam_ctrl.study.compare.SIDE_BY_SIDE`).
     """
 
     dt: float | None = None
     t_end: float | None = None
     sim_settings: object = None
+    side_by_side: bool = False
 
     def __post_init__(self):
         s = self.sim_settings

@@ -47,7 +47,7 @@ def _child(run, names, path: str) -> None:
         os._exit(code)
 
 
-def side_by_side(names, run) -> dict:
+def side_by_side(names, run, here=None) -> dict:
     """``{name: run(name)}`` for every name, part of them run in a forked child.
 
     Parameters
@@ -56,6 +56,10 @@ def side_by_side(names, run) -> dict:
         The runs, in order.
     run : callable
         ``run(name)`` -> a picklable result; it may raise (the exception is raised here).
+    here : callable, optional
+        ``here()``: work only this process needs, done here after the fork and before this
+        process's own runs (while the child runs its share, which is the larger one); without a
+        child, before the runs. Its exception stops the child and is raised.
 
     Returns
     -------
@@ -66,6 +70,8 @@ def side_by_side(names, run) -> dict:
     names = list(names)
     theirs = names[1::2] + (names[-1:] if len(names) % 2 else [])
     if len(names) < 2 or not can_fork():
+        if here is not None:
+            here()
         return {name: run(name) for name in names}
     fd, path = tempfile.mkstemp(prefix="hubbeam-runs-", suffix=".pickle")
     os.close(fd)
@@ -76,14 +82,16 @@ def side_by_side(names, run) -> dict:
         if pid == 0:                                       # pragma: no cover (the child exits in _child)
             _child(run, theirs, path)
         try:
+            if here is not None:
+                here()
             out = {name: run(name) for name in names if name not in theirs}
-        except BaseException:
+            os.waitpid(pid, 0)
+        except BaseException:                              # also Ctrl-C while waiting: no child left running
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGKILL)
             with contextlib.suppress(OSError):
                 os.waitpid(pid, 0)
             raise
-        os.waitpid(pid, 0)
         payload = None
         with contextlib.suppress(OSError, EOFError, pickle.UnpicklingError), open(path, "rb") as fh:
             payload = pickle.load(fh)

@@ -161,10 +161,12 @@ def _rows(label: str, c) -> list:
 
 def _resolved(settings: CompareSettings, sc) -> CompareSettings:
     """``settings`` with what ``compare`` resolves on the scenario ``sc`` resolved: the simulated time,
-    the settling bands, the closed loop's settings and the design model's modes."""
+    the settling bands, the closed loop's settings and the design model's modes (whether the runs went
+    side by side does not change them)."""
     run, design = settings.run, settings.design
     return dataclasses.replace(
-        settings, run=dataclasses.replace(run, t_end=sc.t_end, sim_settings=_sim_settings(run.sim_settings, sc)),
+        settings, run=dataclasses.replace(run, t_end=sc.t_end, sim_settings=_sim_settings(run.sim_settings, sc),
+                                          side_by_side=False),
         design=dataclasses.replace(design, design_modes=_design_modes(design.design_modes, sc.params)),
         scenario=dataclasses.replace(settings.scenario, settle_angle=sc.bands["settle_angle"],
                                      settle_tip=sc.bands["settle_tip"]))

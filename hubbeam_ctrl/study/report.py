@@ -21,7 +21,7 @@ from hubbeam_ctrl.study.metrics import METRIC_UNITS, SATURATION_LIMIT
 from hubbeam_ctrl.study.report_tables import _clean, format_table, markdown_table, print_table  # noqa: F401
 from hubbeam_ctrl.study.yardstick import DRIVE_BOUND
 
-__all__ = ["write_outputs", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
+__all__ = ["write_outputs", "loop_png", "print_table", "format_table", "markdown_table", "CSV_FIELDS", "PLANT_NOTE",
            "check_plant_lines", "ladder_lines", "drive_limits_text", "band_lines"]
 
 
@@ -146,7 +146,7 @@ def _plant_lines(comparison) -> list:
     return lines
 
 
-def write_outputs(comparison, out_dir) -> dict:
+def write_outputs(comparison, out_dir, loops=None) -> dict:
     """Write metrics.csv, metrics.json, tip_deflection.png, hub_angle.png, torque.png, report.md.
 
     The files go through :func:`~hubbeam_ctrl.core.fileio.write_folder`: a new folder appears
@@ -158,6 +158,9 @@ def write_outputs(comparison, out_dir) -> dict:
     comparison : Comparison
     out_dir : str or Path
         Created if missing (its parent must exist).
+    loops : object, optional
+        loops.png's render job, started before the runs by :func:`loop_png` on the comparison
+        as designed (``compare(..., designed=...)``; the same figure); default: started here.
 
     Returns
     -------
@@ -167,13 +170,13 @@ def write_outputs(comparison, out_dir) -> dict:
     out = Path(out_dir)
     names = {"csv": "metrics.csv", "json": "metrics.json", "tip_deflection.png": "tip_deflection.png",
              "hub_angle.png": "hub_angle.png", "torque.png": "torque.png", "report": "report.md"}
-    write_folder(out, lambda folder: _write_files(comparison, Path(folder), names))
+    write_folder(out, lambda folder: _write_files(comparison, Path(folder), names, loops))
     paths = {kind: out / name for kind, name in names.items()}
     comparison.paths = paths
     return paths
 
 
-def _write_files(comparison, out: Path, names: dict) -> None:
+def _write_files(comparison, out: Path, names: dict, loops=None) -> None:
     """The files of :func:`write_outputs`, written into ``out``.
 
     The figures are handed to :func:`hubbeam_ctrl.plots.worker.render` as soon as their data
@@ -198,7 +201,7 @@ def _write_files(comparison, out: Path, names: dict) -> None:
         writer.writerow({k: ("" if _clean(m.get(k)) is None else _clean(m.get(k))) for k in CSV_FIELDS})
     atomic_write_text(out / names["csv"], buf.getvalue())
     atomic_write_text(out / names["json"], strict_json(_json_metrics(metrics), indent=2) + "\n")
-    loops = _loop_png(comparison)
+    loops = loop_png(comparison) if loops is None else loops
     for fname, png in pngs.items():
         save_png(png.result(), out / names[fname])
     _write_report(comparison, out, names, loops)      # report.md, the loop figure and report.html
@@ -211,9 +214,23 @@ def _plot_runs(results: dict) -> dict:
                                   stopped=r.stopped) for name, r in results.items()}
 
 
-def _loop_png(comparison):
-    """loops.png of the report, as :func:`~hubbeam_ctrl.plots.worker.render` draws it (None without
-    a linear controller): the loop data computed here, the figure drawn by the worker."""
+def loop_png(comparison):
+    """loops.png of the report, as :func:`~hubbeam_ctrl.plots.worker.render` draws it: the loop
+    data computed here, the figure drawn by the figure worker when one runs.
+
+    It reads the comparison's scenario, styles, evaluation plant and linear controllers only,
+    so it can start before the closed-loop runs (``compare(..., designed=loop_png)``).
+
+    Parameters
+    ----------
+    comparison : Comparison
+        From :func:`hubbeam_ctrl.study.compare.compare`, or as handed to its ``designed``.
+
+    Returns
+    -------
+    object or None
+        The render job (``.result()``: the PNG's bytes); None without a linear controller.
+    """
     from hubbeam_ctrl.study.loops import comparison_loop_data
     data = comparison_loop_data(comparison)
     if data is None:
@@ -582,7 +599,7 @@ def _robust_lines(comparison) -> list:
 def _write_report(comparison, out: Path, names: dict, loops=None) -> None:
     """report.md (with loops.png, the loops of every linear controller overlaid, linked from it)
     and report.html, the same report as one page with the figures embedded. ``loops``: the loop
-    figure's render job (:func:`_loop_png`), None without a linear controller."""
+    figure's render job (:func:`loop_png`), None without a linear controller."""
     from hubbeam_ctrl.core.htmlpage import markdown_to_html
     text = _report(comparison)
     if loops is not None:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import scipy.optimize
 
 from controllers import DesignModel, ShapedOpenLoop, ShapedSettings, Shaper, design_shaper
 from controllers.shaped import shaped_profile
@@ -68,6 +67,7 @@ def plant_variant(params: Params, error: float, how: str = "stiffness", plant: s
     if f(0.0) < 0 or f(hi) > 0:
         raise ParameterError(f"error = {error:g}: no tip mass in [0, {hi:.3g}] kg moves the first "
                              f"frequency by that much; use how='stiffness'")
+    import scipy.optimize  # here: SciPy's optimize package costs 0.2 s of every command's start
     return params.replace(m_t=scipy.optimize.brentq(f, 0.0, hi, xtol=1e-12))
 
 
