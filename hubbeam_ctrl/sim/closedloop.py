@@ -525,13 +525,18 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
             applied = tau
         try:
             s = stepper.step(s, applied)
+            if not math.isfinite(float(np.sum(s))):      # a NaN that the step's error norm passed
+                raise HubbeamError(f"{model.name.upper()}: the implicit step returned non-finite values")
         except HubbeamError as exc:
             stopped, last, cause = True, k, "integrator"
             message = f"{exc} at t = {t[k]:.3f} s; run stopped"
-            if not exact and not stepper.mass_positive(x[:n], x[n:]):     # not the integrator: the model
+            # not the integrator but the model when its mass matrix is singular within the sample
+            # (at its start or where the sample's velocities take it)
+            if not exact and not (stepper.mass_positive(x[:n], x[n:])
+                                  and stepper.mass_positive(x[:n] + dt * x[n:], x[n:])):
                 cause = "diverged"
                 message = (f"{model.name.upper()} left its range at t = {t[k]:.3f} s under controller {name!r}: "
-                           f"its mass matrix is no longer positive definite at |v_tip| = "
+                           f"its mass matrix is no longer positive definite within the sample from |v_tip| = "
                            f"{abs(f2_tip @ x[sl2]) / L:.3g} L (the model's kinetic energy holds no further); "
                            "run stopped")
             break
