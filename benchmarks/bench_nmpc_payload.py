@@ -107,6 +107,15 @@ def table_lines(doc: dict) -> list:
     return lines
 
 
+def prose_numbers(vm: dict) -> dict:
+    """The numbers docs/limit.md's prose quotes from the virtual machine's run, as it prints them: the
+    learning runs' median steps (range) and their longest step [ms]."""
+    runs = [r for b in vm["beams"].values() for r in b["learning"]["runs"].values()]
+    med = [1e3 * r["step_median_s"] for r in runs]
+    return {"PAYLOAD_VM_MED": f"{min(med):.1f}-{max(med):.1f}",
+            "PAYLOAD_VM_MAX": f"{max(1e3 * r['step_max_s'] for r in runs):.1f}"}
+
+
 def main(argv=None) -> None:
     """Run the NMPC on the payloads of each of ``--beams`` (its step on ``--backend``), then print
     the JSON."""

@@ -59,7 +59,10 @@ from .nmpc_rti import RK4_REACH, rk4, rk4_substeps, rti_step_function, shooting_
 __all__ = ["NMPCSettings", "NMPC", "QP_PLUGINS", "NMPC_MODES", "rk4_substeps", "rti_step_function", "RK4_REACH"]
 
 #: Solvers of the step's condensed QP.
-QP_PLUGINS = ("qrqp",)
+QP_PLUGINS = ("daqp", "qrqp")
+#: A step whose QP answer violates the QP's optimality conditions by more than this share of the
+#: command limit (``qp_residual`` of :func:`rti_step_function`) keeps the shifted plan.
+QP_RESIDUAL_TOL = 1e-6
 #: Bending modes of the prediction model by default (:attr:`NMPCSettings.modes`).
 NMPC_MODES = 2
 #: Payloads over the range on which a learning NMPC plans its task again before the slew (the
@@ -77,6 +80,11 @@ class NMPCSettings(LQSettings):
                                     "below the Nyquist frequency, at most NMPC_MODES (a step's cost grows with "
                                     "the cube of the model's size: 3.4 ms with 2 modes, 6.4 ms with 3 on "
                                     "Table 1's beam, CasADi's virtual machine).")
+    axial_modes: int | None = setting(None, kind=int, lo=1, hi=20,
+                                      doc="Axial assumed modes of the prediction model's quasi-static axial "
+                                          "condensation; None: as many as its bending modes (with 2 of 5 the "
+                                          "stiffened bending frequencies at 0-10 rad/s are unchanged to 1e-5 and "
+                                          "a stage costs a third of the instructions).")
     substeps: int | None = setting(None, kind=int, lo=1, hi=200,
                                    doc="RK4 substeps per sample; None: enough for the fastest modelled mode "
                                        "(rk4_substeps).")
@@ -107,9 +115,17 @@ class NMPCSettings(LQSettings):
                                 "stage's start (linearised: a quarter of the instructions, the C step 2.2 x faster "
                                 "on servo_link) or the exact derivative of the RK4 map (exact). The map itself, "
                                 "the defects and the prediction, is RK4 of the nonlinear model either way.")
-    qp_solver: str = setting("qrqp", choices=QP_PLUGINS,
-                             doc="Solver of the step's condensed box QP: CasADi's active-set qrqp, part of the "
-                                 "step's CasADi function, so that the generated C carries it.")
+    qp_solver: str = setting("daqp", choices=QP_PLUGINS,
+                             doc="Solver of the step's condensed QP, through CasADi's conic inside the step's "
+                                 "function: DAQP (a dual active set for dense QPs; the generated C links the "
+                                 "static library in CasADi's wheel) or CasADi's own qrqp (which cycled on a rig).")
+    tip_limit_m: float | None = setting(None, unit="m", lo=0.0, lo_open=True, kind=float,
+                                        doc="Largest tip deflection (absolute value of v(L, t)) the prediction "
+                                            "allows [m]: a constraint of the step's QP on every predicted state "
+                                            "(the prediction model's modes); None: none.")
+    rate_limit: float | None = setting(None, unit="rad/s", lo=0.0, lo_open=True, kind=float,
+                                       doc="Largest hub rate (absolute value) the prediction allows [rad/s]: a "
+                                           "constraint of the step's QP on every predicted state; None: none.")
     current_limit: str = setting("path", choices=("path", "first"),
                                  doc="A DC drive's current limit: a linear constraint at every stage (path), or a "
                                      "bound on the first move only (first: a box QP; the prediction clips it).")
@@ -224,7 +240,9 @@ class NMPC(DrivePrediction, Controller):
         m, w = _model_modes(design, settings.modes)
         self.model_modes = m
         self.substeps = settings.substeps or rk4_substeps(float(w.max()) if w.size else 0.0, self.dt)
-        model = build_model("foam", design.params.replace(n_transverse=m), axial="quasi-static")
+        self.axial_modes = min(settings.axial_modes or m, design.params.n_axial)
+        model = build_model("foam", design.params.replace(n_transverse=m, n_axial=self.axial_modes),
+                            axial="quasi-static")
         n = model.n_q                       # theta and m modal coordinates
         self._n, self._nx = n, 2 * n
         # the (residual) design state's rows this model uses: theta, q2_1..m, theta_dot, q2_dot_1..m
@@ -242,6 +260,7 @@ class NMPC(DrivePrediction, Controller):
         self._Pt = np.asarray(self.P)[np.ix_(self._pick, self._pick)]
         self.u_max, self.command, self._lag = self.tau_max, "torque", False
         if self.drive is not None:
+            self.drive = self.drive.resolved(self.dt / self.substeps, design.params.J_h)
             self._drive_setup(settings, design)
         self.payload = None
         if settings.learn_payload:
@@ -301,7 +320,7 @@ class NMPC(DrivePrediction, Controller):
             raise ParameterError(f"payload range {lo:g}..{hi:g} kg must hold the design's payload m_t = "
                                  f"{params.m_t:g} kg")
         self._F = self._shooting_function("nmpc_shoot_p", model, ca.SX.sym("p", model.parametric.n_p))
-        table = payload_table(params, self.model_modes, lo, hi)
+        table = payload_table(params.replace(n_axial=self.axial_modes), self.model_modes, lo, hi)
         # the balance on every mode the design state carries (the prediction's 2 leave 0.5 % of the
         # momentum early in Table 1's slew out: a 0.03 kg bias)
         whole = build_model("foam", params.replace(n_transverse=self.design.n_modes), axial="quasi-static")
@@ -375,12 +394,36 @@ class NMPC(DrivePrediction, Controller):
         """The step as one CasADi function (:attr:`step_function`, built once)."""
         self._W = [self._Q] * s.horizon + [self._Pt]          # stage weights on x_0 .. x_N
         from hubbeam_ctrl.core.compiled import compile_function
+        if not ca.has_conic(s.qp_solver):
+            have = ", ".join(p for p in QP_PLUGINS if ca.has_conic(p))
+            raise ParameterError(f"qp_solver {s.qp_solver!r} is not among the QP plugins of this CasADi "
+                                 f"({ca.__version__}); choose one of {have}")
         current = None if self.drive is None else (self._n, self.drive.emf, self.drive.current_bound,
                                                     s.horizon if s.current_limit == "path" else 1)
         self.symbolic_step = rti_step_function(self._F, s.horizon, self._nx, self._R, self.u_max,
                                                parametric=self.payload is not None, current=current,
-                                               in_flight=getattr(self, "_G", None))
+                                               in_flight=getattr(self, "_G", None), qp_solver=s.qp_solver,
+                                               state_limits=self._state_limits(s))
         self.step_function = compile_function(self.symbolic_step, s.backend)    # C when asked and a compiler is there
+
+    def _state_limits(self, s: NMPCSettings) -> tuple | None:
+        """``(C, b)`` of :attr:`NMPCSettings.tip_limit_m` and :attr:`NMPCSettings.rate_limit` on the
+        prediction state (the tip deflection is the clamped-free shapes at L times the modal
+        coordinates), or None."""
+        from hubbeam_ctrl.plant.basis import transverse_shapes
+        rows, bounds = [], []
+        if s.tip_limit_m is not None:
+            row = np.zeros(self._nx)
+            L = self.design.params.L
+            row[1:self._n] = np.asarray(transverse_shapes(np.array([L]), self._n - 1, L)).reshape(-1)
+            rows.append(row)
+            bounds.append(s.tip_limit_m)
+        if s.rate_limit is not None:
+            row = np.zeros(self._nx)
+            row[self._n] = 1.0
+            rows.append(row)
+            bounds.append(s.rate_limit)
+        return (np.array(rows), np.array(bounds)) if rows else None
 
     def reset(self) -> None:
         """Start from the reference: the previous solution is the planned motion."""
@@ -441,15 +484,16 @@ class NMPC(DrivePrediction, Controller):
             self._K_res = (1.0 - w) * g.residual_gain[a] + w * g.residual_gain[a + 1]
         xr, ur = self._reference_window(k, N)
         try:
-            X, U = (np.asarray(a) for a in self.step_function(x_meas, self._X, self._U[None, :], xr.T, ur[None, :],
-                                                                self._W[0], self._W[-1], *extra,
-                                                                *((self._u_last,) if self._lag else ())))
-        except RuntimeError:                           # the generated C reports the QP's failure
-            X = U = np.full(1, np.nan)
-        # a failed QP (qrqp at its iteration limit) leaves a plan outside the command's box on the
-        # virtual machine and raises in C: on both, the shifted plan is kept and the sample counted
+            X, U, residual = (np.asarray(a) for a in self.step_function(
+                x_meas, self._X, self._U[None, :], xr.T, ur[None, :], self._W[0], self._W[-1], *extra,
+                *((self._u_last,) if self._lag else ())))
+        except RuntimeError:                           # the generated C reports a solver's error
+            X = U = residual = np.full(1, np.nan)
+        # a QP answer that does not solve the QP (a solver at its iteration limit, cycling) shows in
+        # its optimality residual on both backends: the shifted plan is kept and the sample counted
+        self.qp_residual = float(residual.ravel()[0])
         self.qp_status = int(np.all(np.isfinite(U)) and np.all(np.isfinite(X))
-                             and np.max(np.abs(U)) <= self.u_max * (1.0 + 1e-6))
+                             and self.qp_residual <= QP_RESIDUAL_TOL * self.u_max)
         self.qp_solves += 1
         if self.qp_status:
             self._X, self._U = X, U.ravel()

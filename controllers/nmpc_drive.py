@@ -82,6 +82,39 @@ class PredictionDrive:
         v[HW_LAYOUT.index("breakaway")] = 0.0
         return cls(hardware, v, float(hardware.delay))
 
+    def resolved(self, step_s: float, inertia: float) -> "PredictionDrive":
+        """This drive with the gear's efficiency switch spread so that RK4 steps of ``step_s`` resolve it.
+
+        The plant switches the gear factor from ``eta_forward`` (motoring) to ``1 / eta_backward``
+        (back-driven) over ``v_eps`` of hub rate, the friction's regularisation (1 mrad/s): in the
+        prediction that is a torque slope in the hub rate of up to ``0.77 (1 / eta_backward -
+        eta_forward) N k_t I_max / v_eps`` [N m s/rad], which on the hub's own inertia is far beyond
+        RK4's reach near rest, and flips the Gauss-Newton step's torque per volt by the ratio of the
+        two factors (1.6 on ``servo_payload``) between samples. Measured there (full-sample delay,
+        30 mN m of Coulomb friction): the NMPC was "not settled", and with a fine encoder its tip
+        grew at 5.6 /s; with the switch spread it settles (1.5 s), as it does with an ideal gear.
+        The switch's scale becomes ``max(v_eps, 0.77 (1 / eta_backward - eta_forward) N k_t I_max
+        step_s / (inertia RK4_REACH))``; away from rest the map is the plant's.
+
+        Parameters
+        ----------
+        step_s : float
+            The shooting's RK4 step [s].
+        inertia : float
+            The hub's own inertia ``J_h`` [kg m^2] (what the drive's torque meets first).
+
+        Returns
+        -------
+        PredictionDrive
+        """
+        from .nmpc_rti import RK4_REACH
+        d = self.hardware.drive
+        jump = abs(1.0 / d.eta_backward - d.eta_forward) * d.N * d.k_torque * d.I_max
+        k = HW_LAYOUT.index("v_eps")
+        values = self.values.copy()
+        values[k] = max(values[k], 0.77 * jump * step_s / (inertia * RK4_REACH))
+        return PredictionDrive(self.hardware, values, self.delay)
+
     @property
     def v_max(self) -> float:
         """Voltage limit [V]."""

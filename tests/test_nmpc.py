@@ -64,32 +64,41 @@ def test_rk4_substeps_cover_the_fastest_mode():
     assert ctrl.model_modes == 2 and ctrl.substeps == rk4_substeps(w2, 0.01)
 
 
-def test_a_failed_qp_keeps_the_shifted_plan_on_both_backends():
-    """A QP that fails (qrqp at its iteration limit) raises in the generated C and leaves a plan outside
-    the command's box on the virtual machine: either way the NMPC keeps its previous plan shifted by one
-    sample, commands its next move, and counts the sample."""
+def test_the_qp_residual_tells_a_solved_qp_from_one_stopped_short(monkeypatch):
+    """The step returns its QP's optimality residual: at rounding for DAQP and qrqp run to the end
+    (which give the same plan), large for qrqp stopped after one iteration. A step whose residual
+    exceeds the tolerance, or whose generated C raises, keeps the previous plan shifted by one
+    sample, commands its next move and is counted."""
+    import controllers.nmpc_rti as rti
+    from controllers.nmpc import QP_RESIDUAL_TOL
     d = DesignModel.build(LAB, 0.0, 0.01, 3)
-    ctrl = NMPC(d, NMPCSettings(tau_max=1.5, feedforward=False))
     y = np.zeros(d.n_x)
-    y[0] = 0.2                                          # 0.2 rad off the reference: a plan that moves
+    y[0] = 5.0                                          # 5 rad off the reference: the limit active
+    plans = {}
+    for solver in ("daqp", "qrqp"):
+        ctrl = NMPC(d, NMPCSettings(tau_max=1.5, feedforward=False, qp_solver=solver))
+        ctrl(0.0, y)
+        assert ctrl.qp_status == 1 and ctrl.qp_residual <= 1e-9 * 1.5, (solver, ctrl.qp_residual)
+        assert np.ptp(ctrl._U) > 0.1 and np.max(np.abs(ctrl._U)) == pytest.approx(1.5)   # bounds active
+        plans[solver] = ctrl._U.copy()
+    assert np.max(np.abs(plans["daqp"] - plans["qrqp"])) <= 1e-8 * 1.5
+    monkeypatch.setitem(rti._QP_OPTIONS, "qrqp", {**rti._QP_OPTIONS["qrqp"], "max_iter": 1})
+    short = NMPC(d, NMPCSettings(tau_max=1.5, feedforward=False, qp_solver="qrqp"))
+    short.reset()
+    before = short._U.copy()
+    u = short(0.0, y)
+    assert short.qp_status == 0 and short.qp_residual > 1e3 * QP_RESIDUAL_TOL * 1.5
+    assert np.array_equal(short._U, before) and abs(u) <= 1.5
+    ctrl = NMPC(d, NMPCSettings(tau_max=1.5, feedforward=False))
     ctrl(0.0, y)
-    assert np.ptp(ctrl._U) > 0.1
-    good = ctrl.step_function
 
     def raising(*args):
         raise RuntimeError("Error in Function::call for 'nmpc_rti' [External]")
-
-    def out_of_box(*args):
-        X, U = good(*args)
-        return X, 30.0 * np.ones(U.size())              # 47 V against 10 V on servo_link at 1.1 T*
-    for k, failing in enumerate((raising, out_of_box), start=1):
-        ctrl.step_function = failing
-        shifted = np.r_[ctrl._U[1:], ctrl._U[-1]]
-        u = ctrl(0.01 * k, y)
-        assert ctrl.qp_status == 0 and np.array_equal(ctrl._U, shifted)
-        assert abs(u) <= 1.5 and np.isfinite(u)
-    assert ctrl.stats()["qp_fallbacks"] == 2 and ctrl.stats()["qp_solves"] == 3
-    ctrl.step_function = good
+    ctrl.step_function = raising
+    shifted = np.r_[ctrl._U[1:], ctrl._U[-1]]
+    u = ctrl(0.01, y)
+    assert ctrl.qp_status == 0 and np.array_equal(ctrl._U, shifted) and abs(u) <= 1.5 and np.isfinite(u)
+    assert ctrl.stats()["qp_fallbacks"] == 1 and ctrl.stats()["qp_solves"] == 2
     ctrl.reset()
     assert ctrl.stats()["qp_fallbacks"] == 0
 
@@ -127,15 +136,37 @@ def test_nmpc_linear_form_is_certified_like_the_lqr(lab_slew):
     assert not c.grows and c.worst.spectral_radius < 1.0
 
 
+def test_tip_and_rate_limits_hold_on_the_evaluation_plant(lab_slew):
+    """``tip_limit_m`` and ``rate_limit`` are constraints of the step's QP on every predicted state: on
+    the 8-mode plant the slew's peak tip deflection and hub rate stay within 1 % of limits set at 80 %
+    and 90 % of the free NMPC's peaks (the 1 %: the modes the 2-mode prediction leaves out), and no
+    QP is infeasible or falls back."""
+    from hubbeam_ctrl.study.compare_values import CompareSettings, DesignChoice
+    from hubbeam_ctrl.study.scenarios import make_scenario
+    free = lab_slew.results["nmpc"]
+    tip0, rate0 = np.max(np.abs(free.v_tip)), np.max(np.abs(free.theta_dot))
+    task = Slew(math.pi / 2, 1.5)
+    own = NMPCSettings.for_scenario(make_scenario(task, params=LAB, t_end=None))
+    for limit in ({"tip_limit_m": 0.8 * tip0}, {"rate_limit": 0.9 * rate0}):
+        c = compare(LAB, task, ["nmpc"], CompareSettings(design=DesignChoice(settings={"nmpc": own.replace(**limit)})))
+        r, ctrl = c.results["nmpc"], c.controllers["nmpc"]
+        tip, rate = np.max(np.abs(r.v_tip)), np.max(np.abs(r.theta_dot))
+        if "tip_limit_m" in limit:
+            assert tip <= 1.01 * limit["tip_limit_m"] and tip < 0.85 * tip0, (tip, limit)
+        else:
+            assert rate <= 1.01 * limit["rate_limit"] and rate < 0.95 * rate0, (rate, limit)
+        assert ctrl.stats()["qp_fallbacks"] == 0 and np.max(np.abs(r.tau)) <= LAB.tau_max
+
+
 @pytest.mark.parametrize("name", ["bench_nmpc.json", "bench_nmpc_compiled.json"])
 def test_docs_quote_the_nmpc_benchmark(name):
     """docs/limit.md's NMPC tables are the benchmark's JSON (the step on CasADi's virtual machine and as
-    its generated C), and in those runs the NMPC settles every slew it ran within the drive's limits; on
-    the beams alone (10 ms samples) with at most 0.1 % of L of residual vibration and its step's 99th
-    percentile within the sample; as C, its median within a quarter of the 10 ms samples. On servo_link,
-    with the drive in its prediction, within 0.1 % of L at 1.2 and 1.3 T* and a count of the encoder, and
-    the C function's median within the 1 ms sample (its 99th percentile, 0.8-0.9 ms on a quiet machine with
-    the beam-alone prediction, was measured under a load of 5-6 on 2 cores: not asserted)."""
+    its generated C), and those runs meet issue 40's targets: 90 degrees at 1.1, 1.2 and 1.3 T* on Table
+    1's beam, the lab arm and servo_link, every slew run (none refused), the NMPC settled within one
+    first-mode period after t_f with at most 0.1 % of L of residual vibration, within the drive's limits
+    (servo_link: its 4 A, and the final angle within an encoder count), no QP fallback; the step's 99th
+    percentile within the 10 ms sample on the virtual machine; as C, the function's median within a
+    quarter of every sample (servo_link's 1 ms included) and the whole step's 99th percentile within it."""
     import json
 
     from conftest import bench_module
@@ -146,46 +177,69 @@ def test_docs_quote_the_nmpc_benchmark(name):
     text = (root / "docs" / "limit.md").read_text()
     for line in bench.table_lines(doc):
         assert line in text, line
+    assert doc["reference"] == "optimal" and sorted(doc["beams"]) == ["lab", "servo_link", "table1"]
     for beam, b in doc["beams"].items():
+        assert sorted(b["factors"]) == ["1.1", "1.2", "1.3"], beam
         for f, c in b["factors"].items():
-            if "not_run" in c:
-                continue
+            assert "not_run" not in c, (beam, f)
+            assert c["t_f_s"] == pytest.approx(float(f) * b["t_opt_s"])
             r = c["controllers"]["nmpc"]
-            assert r["verdict"] == "settled" and r["within_drive_limits"], (beam, f)
-            if beam != "servo_link":     # a rig at 1 ms: not within 0.1 % of L at 1.1 T*, nor in real time in Python
-                assert r["residual_pct_of_L"] <= 0.1, (beam, f)
-                assert r["step_p99_s"] <= r["dt_s"], (beam, f)          # every step within its sample (99 %)
-                if doc.get("backend") == "compiled":
-                    assert r["step_median_s"] <= 0.25 * r["dt_s"], (beam, f)
-            else:                          # the drive in the prediction: the targets it meets on servo_link
-                assert r["peak_current_a"] <= 4.0, (beam, f)
-                if f != "1.1":
-                    assert r["residual_pct_of_L"] <= 0.1 and abs(r["final_angle_error_counts"]) <= 1.0, (beam, f)
-                if doc.get("backend") == "compiled":      # the C function's median within the 1 ms sample
-                    assert r["function_median_s"] <= r["dt_s"], (beam, f)
+            assert r["verdict"] == "settled" and r["within_drive_limits"] and r["qp_fallbacks"] == 0, (beam, f)
+            assert r["settle_after_tf_periods"] <= 1.0 and r["residual_pct_of_L"] <= 0.1, (beam, f)
+            if beam == "servo_link":
+                assert r["peak_current_a"] <= 4.0 and abs(r["final_angle_error_counts"]) <= 1.0, (beam, f)
+            elif doc["backend"] == "vm":       # the beams alone's 10 ms: real time in Python too
+                assert r["step_p99_s"] <= r["dt_s"], (beam, f)
+            if doc["backend"] == "compiled":
+                assert r["function_median_s"] <= 0.25 * r["dt_s"] and r["step_p99_s"] <= r["dt_s"], (beam, f)
 
 
-def test_docs_prose_on_servo_link_is_the_benchmark():
-    """docs/limit.md's sentences on the NMPC on ``servo_link`` quote the benchmark's JSON: the C
-    function's median and 99th percentile, the virtual machine's step, settling and residuals."""
+def test_docs_prose_on_the_nmpc_is_the_benchmark():
+    """docs/limit.md's sentences on the NMPC quote the benchmark's JSON (``bench_nmpc.prose_numbers``):
+    the largest settling and residual, the C function's median and 99th percentile, the virtual
+    machine's step and its ratio to the C step (issue 40: at most 20)."""
     import json
 
-    from conftest import ROOT
-    text = " ".join((ROOT / "docs" / "limit.md").read_text().split())
-    res = ROOT / "benchmarks" / "results"
-    c = json.loads((res / "bench_nmpc_compiled.json").read_text())["beams"]["servo_link"]["factors"]
-    vm = json.loads((res / "bench_nmpc.json").read_text())["beams"]["servo_link"]["factors"]
-    med = {round(1e3 * c[f]["controllers"]["nmpc"]["function_median_s"], 2) for f in c}
-    p99 = sorted(1e3 * c[f]["controllers"]["nmpc"]["function_p99_s"] for f in c)
-    assert len(med) == 1 and f"takes {med.pop():.2f} ms at the median" in text
-    assert f"and {p99[0]:.2f}-{p99[-1]:.2f} ms at the 99th percentile" in text
-    steps = sorted(1e3 * vm[f]["controllers"]["nmpc"]["step_median_s"] for f in vm)
-    assert f"({steps[0]:.1f}-{steps[-1]:.1f} ms a step at the median" in text
-    n12, n13 = (vm[f]["controllers"]["nmpc"] for f in ("1.2", "1.3"))
-    lin12 = sorted(vm["1.2"]["controllers"][k]["settle_after_tf_periods"] for k in ("lqr", "mpc"))
-    assert (f"({n12['settle_after_tf_periods']:.2f} against {lin12[0]:.2f}-{lin12[1]:.2f})" in text
-            and f"({n13['settle_after_tf_periods']:.2f} against "
-                f"{vm['1.3']['controllers']['lqr']['settle_after_tf_periods']:.2f})" in text)
-    assert f"({n12['residual_pct_of_L']:.3f} and {n13['residual_pct_of_L']:.3f} % of L" in text
-    r11 = sorted(vm["1.1"]["controllers"][k]["residual_pct_of_L"] for k in ("lqr", "mpc", "nmpc"))
-    assert f"all three leave {r11[0]:.2f}-{r11[-1]:.2f} % of L" in text
+    from conftest import bench_module
+    bench, root = bench_module("bench_nmpc")
+    text = " ".join((root / "docs" / "limit.md").read_text().split())
+    res = root / "benchmarks" / "results"
+    numbers = bench.prose_numbers(json.loads((res / "bench_nmpc.json").read_text()),
+                                  json.loads((res / "bench_nmpc_compiled.json").read_text()))
+    assert float(numbers["NMPC_VM_RATIO"].split("-")[-1]) <= 20.0
+    for sentence in ("the NMPC's at most {NMPC_SETTLE_MAX} periods, with at most {NMPC_RESID_MAX} % of L",
+                     "except on the lab arm at 1.1 T* ({MPC_LAB11} periods)",
+                     "the Python step takes {NMPC_VM_SERVO} ms at the median and {NMPC_VM_SERVO_P99} ms at the "
+                     "99th percentile",
+                     "takes {NMPC_C_MED} ms at the median and {NMPC_C_P99} ms at the 99th percentile",
+                     "The CasADi virtual machine's step is {NMPC_VM_RATIO} times the C step"):
+        assert sentence.format(**numbers) in text, sentence.format(**numbers)
+
+
+@pytest.mark.parametrize("rig", ["lab", "servo_link"])
+def test_two_axial_modes_keep_the_stiffened_bending_frequencies(rig):
+    """The prediction's quasi-static axial condensation on as many axial modes as bending modes (the
+    default ``axial_modes``) gives the 2-mode model's bending frequencies of the 5-axial model to 1e-5,
+    at rest and spinning at 5 and 10 rad/s (the centrifugal stiffening the NMPC predicts with)."""
+    import casadi as ca
+
+    from hubbeam_ctrl.plant.models import build_model
+    from hubbeam_ctrl.plant.rig import load_rig
+    params = LAB if rig == "lab" else load_rig(rig).beam
+    ctrl = NMPC(DesignModel.build(params, 0.0, 0.01, 3), NMPCSettings(tau_max=params.tau_max))
+    assert ctrl.axial_modes == ctrl.model_modes == 2
+
+    def frequencies(n_axial, spin):
+        model = build_model("foam", params.replace(n_transverse=2, n_axial=n_axial), axial="quasi-static")
+        M, c = model.parametric.mass_matrix, model.parametric.bias
+        z = ca.SX.sym("z", 2 * model.n_q)
+        q, v = z[:model.n_q], z[model.n_q:]
+        f = ca.Function("f", [z], [ca.jacobian(ca.vertcat(v, ca.solve(M(q, v, model.p), -c(q, v, model.p))), z)])
+        z0 = np.zeros(2 * model.n_q)
+        z0[model.n_q] = spin
+        lam = np.linalg.eigvals(np.asarray(f(z0)))
+        return np.sort(np.abs(lam.imag[lam.imag > 1e-6]))
+    for spin in (0.0, 5.0, 10.0):
+        few, full = frequencies(2, spin), frequencies(5, spin)
+        assert few.size == 2 and np.max(np.abs(few / full - 1.0)) <= 1e-5, (spin, few, full)
+    assert frequencies(2, 10.0)[0] > frequencies(2, 0.0)[0]                 # stiffened

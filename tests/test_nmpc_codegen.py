@@ -26,7 +26,7 @@ def test_the_step_function_is_the_python_step():
     y = np.zeros(design.n_x)
     y[ctrl.prediction_states] = 1e-3 * np.arange(1, len(ctrl.prediction_states) + 1)
     xr, ur = ctrl._reference_window(0, 8)
-    X, U = (np.asarray(a) for a in ctrl.symbolic_step(y[ctrl.prediction_states], ctrl._X, ctrl._U[None, :],
+    X, U, _ = (np.asarray(a) for a in ctrl.symbolic_step(y[ctrl.prediction_states], ctrl._X, ctrl._U[None, :],
                                                        xr.T, ur[None, :], ctrl._W[0], ctrl._W[-1]))
     u = ctrl(0.0, y)
     np.testing.assert_array_equal(ctrl._U, U.ravel())
@@ -68,8 +68,41 @@ def test_nmpc_to_c_writes_a_self_contained_step(tmp_path):
     saved = json.loads((tmp_path / "arm_nmpc.json").read_text())
     assert saved == json.loads(json.dumps(info))
     assert saved["inputs"]["X"] == [len(ctrl.prediction_states), 7] and saved["outputs"]["U_next"] == [1, 6]
+    assert saved["qp_solver"] == "daqp" and saved["outputs"]["qp_residual"] == [1, 1]
     with pytest.raises(ParameterError, match="name must be a C identifier"):
         nmpc_to_c(ctrl, tmp_path, name="1bad")
+
+
+@pytest.mark.skipif(not find_compiler(), reason="no C compiler: the written step cannot be built here")
+def test_the_written_c_links_daqp_and_is_the_python_step(tmp_path):
+    """The files ``nmpc_to_c`` writes, built with the compiler flags and DAQP's library it names
+    (from CasADi's wheel), give the Python step's plan and QP residual at a moving state."""
+    import subprocess
+
+    import casadi as ca
+
+    from hubbeam_ctrl.core.compiled import solver_link_flags
+    from hubbeam_ctrl.deploy.nmpc_c import nmpc_to_c
+    design = DesignModel.build(LAB.replace(n_transverse=3), 0.0, 0.01, 3)
+    ctrl = NMPC(design, NMPCSettings(horizon=6))
+    info = nmpc_to_c(ctrl, tmp_path, name="arm_nmpc")
+    source = (tmp_path / "arm_nmpc.c").read_text()
+    cflags, libs = solver_link_flags(source)
+    assert "#include <daqp/api.h>" in source and len(libs) == 1 and libs[0] in info["build"]
+    lib = tmp_path / "arm_nmpc.so"
+    subprocess.run([*find_compiler(), "-O1", "-fPIC", "-shared", *cflags, str(tmp_path / "arm_nmpc.c"), *libs,
+                    "-o", str(lib), "-lm"], check=True, capture_output=True, timeout=300)
+    c_step = ca.external("arm_nmpc", str(lib))
+    ctrl.reset()
+    x = np.zeros(len(ctrl.prediction_states))
+    x[0] = 5.0                                                  # far off the reference: bounds active
+    xr, ur = ctrl._reference_window(0, 6)
+    args = (x, ctrl._X, ctrl._U[None, :], xr.T, ur[None, :], ctrl._W[0], ctrl._W[-1])
+    py, c = ctrl.symbolic_step(*args), c_step(*args)
+    assert np.max(np.abs(np.asarray(py[1]))) == pytest.approx(LAB.tau_max)
+    np.testing.assert_allclose(np.asarray(c[1]), np.asarray(py[1]), rtol=0, atol=1e-10 * LAB.tau_max)
+    np.testing.assert_allclose(np.asarray(c[0]), np.asarray(py[0]), rtol=1e-9, atol=1e-12)
+    assert float(c[2]) <= 1e-9 * LAB.tau_max
 
 
 def test_cli_codegen_writes_the_nmpc_step(tmp_path, capsys):

@@ -154,3 +154,19 @@ def test_docs_quote_the_learning_nmpc_benchmark(name):
             assert all(v for k, v in r["met"].items() if k != "real_time"), (beam, m)
             if doc.get("backend") == "compiled":         # as C: every step of every run within its sample
                 assert r["met"]["real_time"] and r["steps_late"] == 0, (beam, m)
+
+
+def test_docs_prose_on_the_learning_nmpc_is_the_benchmark():
+    """docs/limit.md's sentence on the learning NMPC's step on the virtual machine quotes the JSON, and
+    every learning run there is real-time (12 of 12)."""
+    import json
+
+    from conftest import bench_module
+    bench, root = bench_module("bench_nmpc_payload")
+    vm = json.loads((root / "benchmarks" / "results" / "bench_nmpc_payload.json").read_text())
+    n = bench.prose_numbers(vm)
+    text = " ".join((root / "docs" / "limit.md").read_text().split())
+    assert (f"runs' median steps are {n['PAYLOAD_VM_MED']} ms and the longest {n['PAYLOAD_VM_MAX']} ms: every "
+            "run meets the real-time target there too") in text
+    assert all(r["met"]["real_time"] and r["steps_late"] == 0
+               for b in vm["beams"].values() for r in b["learning"]["runs"].values())

@@ -61,7 +61,7 @@ from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 
 __all__ = ["BACKENDS", "OPT_HOT", "OPT_HOT_MAX_CHARS", "OPT_HOT_LARGE", "OPT_COLD", "check_backend",
            "resolve_backend", "cache_dir", "find_compiler", "compile_function", "cache_info", "clear_cache",
-           "CompileError"]
+           "CompileError", "solver_link_flags"]
 
 #: Accepted values of every ``backend`` argument.
 BACKENDS = ("auto", "compiled", "vm")
@@ -423,21 +423,63 @@ def _lock(path: Path):
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
+#: QP solvers whose C CasADi's generated code calls (``#include`` line) and the static library of
+#: each in CasADi's wheel.
+_LINKED_SOLVERS = {"daqp": ("#include <daqp/api.h>", ("libdaqpstat.a", "daqpstat.lib"))}
+
+
+def solver_link_flags(source: str) -> tuple:
+    """What building ``source`` (CasADi's generated C) needs to link the QP solvers it calls.
+
+    DAQP's header and static library come with CasADi's wheel (``casadi/include/daqp``,
+    ``casadi/libdaqpstat.a``): the generated C is linked against them, not a copy of them.
+
+    Parameters
+    ----------
+    source : str
+        Generated C.
+
+    Returns
+    -------
+    tuple of (list, list)
+        Compiler flags (include folders) and linker arguments (library files); both empty when
+        ``source`` calls no such solver.
+
+    Raises
+    ------
+    CompileError
+        A solver's library is not in CasADi's installation.
+    """
+    root = Path(ca.__file__).parent
+    cflags, libs = [], []
+    for name, (include, files) in _LINKED_SOLVERS.items():
+        if include not in source:
+            continue
+        found = [root / f for f in files if (root / f).is_file()]
+        if not found or not (root / "include" / name).is_dir():
+            raise CompileError(f"the generated C calls {name}, whose header or static library is not in "
+                               f"CasADi's installation ({root})")
+        cflags, libs = cflags + ["-I" + str(root / "include")], libs + [str(found[0])]
+    return cflags, libs
+
+
 def _build(sources: list, compiler: list, lib: Path, meta: Path, key: str) -> None:
     """Compile ``sources`` into ``lib`` (atomically) and write its side file."""
     timeout = _timeout_s()
     pic = [] if os.name == "nt" else ["-fPIC"]
+    linked = [solver_link_flags(src) for _, src, _ in sources]
+    libs = list(dict.fromkeys(f for _, fs in linked for f in fs))
     with tempfile.TemporaryDirectory(dir=lib.parent, prefix=".build-") as tmp:
         objects = []
-        for name, src, flags in sources:
+        for (name, src, flags), (includes, _) in zip(sources, linked):
             c_file = Path(tmp) / f"{name}.c"
             c_file.write_text(src, encoding="utf-8")
             obj = c_file.with_suffix(".o")
-            _run_compiler(compiler + [flags, *pic, "-c", str(c_file), "-o", str(obj)],
+            _run_compiler(compiler + [flags, *pic, *includes, "-c", str(c_file), "-o", str(obj)],
                           f"{name} ({flags})", timeout)
             objects.append(str(obj))
         out = Path(tmp) / lib.name
-        _run_compiler(compiler + ["-shared", *objects, "-o", str(out), "-lm"], f"{lib.name} (link)", timeout)
+        _run_compiler(compiler + ["-shared", *objects, *libs, "-o", str(out), "-lm"], f"{lib.name} (link)", timeout)
         info = {"key": key, "sha256": _file_sha256(out), "functions": [s[0] for s in sources],
                 "flags": [s[2] for s in sources], "casadi": ca.__version__,
                 "compiler": _compiler_identity(tuple(compiler)), "created": time.time()}

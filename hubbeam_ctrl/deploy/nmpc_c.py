@@ -1,12 +1,15 @@
 """The NMPC's real-time iteration as C: CasADi's code generation of :attr:`controllers.NMPC.step_function`.
 
 The step (:func:`controllers.nmpc_rti.rti_step_function`: the shooting map and its Jacobians over
-the horizon, the condensed QP and CasADi's active-set ``qrqp``, the new plan) is one CasADi
-function; its generated C is self-contained (no CasADi at run time) and is the very function
-the Python NMPC calls, so the two agree to rounding (the software-in-the-loop check runs a
+the horizon, the condensed QP and its active-set solver, the new plan) is one CasADi function; its
+generated C needs no CasADi at run time and is the very function the Python NMPC calls, so the two
+agree to rounding (the software-in-the-loop check runs a
 whole slew with each, ``tests/test_nmpc_codegen.py``). The caller keeps the plan between samples
 (shift by one), the reference window and the saturation, as :meth:`controllers.NMPC.__call__`
-does; ``<name>.json`` gives the sizes, weights and limits it needs.
+does; ``<name>.json`` gives the sizes, weights and limits it needs. With the default QP solver,
+DAQP (``NMPCSettings.qp_solver``), the C calls DAQP's library: link the static library that comes
+with CasADi's wheel (``<name>.json``, ``"build"``, gives the command on this machine) or build DAQP
+(MIT licence, github.com/darnstrom/daqp) for the target.
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti", *, force: bool = Fals
         horizon, the sample time [s], the command limit [N m], the stage and terminal weights.
     """
     from controllers import NMPC
+    from controllers.nmpc import QP_RESIDUAL_TOL
     if not isinstance(controller, NMPC):
         raise ParameterError(f"controller must be an NMPC, got {type(controller).__name__}")
     if not (isinstance(name, str) and name.isidentifier() and len(name) <= 31):
@@ -76,10 +80,25 @@ def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti", *, force: bool = Fals
                          "coulomb": "not in the prediction (the rig's filter estimates it as a disturbance)"}
         info["call"] += ("; with a delay the last input u_prev is the command in flight, the volts applied at "
                          "the previous sample; the command is also kept within k_e N theta_dot +- R I_max")
+    info["qp_solver"] = controller.settings.qp_solver
+    info["build"] = _build_line(name, (out / f"{name}.c").read_text())
+    info["call"] += ("; qp_residual: the QP's optimality residual [command unit]: above "
+                     f"{QP_RESIDUAL_TOL:g} x the limit, keep the previous plan shifted instead")
     header = out / f"{name}.h"
     header.write_text(_units_comment(info) + header.read_text())
     atomic_write_text(out / f"{name}.json", json.dumps(info, indent=1) + "\n")
     return info
+
+
+def _build_line(name: str, source: str) -> str:
+    """A compiler command that builds ``<name>.c`` into an object file on this machine, with the QP
+    solver's header and library from CasADi's installation."""
+    from hubbeam_ctrl.core.compiled import CompileError, solver_link_flags
+    try:
+        cflags, libs = solver_link_flags(source)
+    except CompileError as exc:
+        return f"cc -O2 -c {name}.c ({exc})"
+    return " ".join(["cc", "-O2", *cflags, "-c", f"{name}.c", "&&", "link", f"{name}.o", *libs, "-lm"])
 
 
 def _units_comment(info: dict) -> str:
@@ -97,4 +116,5 @@ def _units_comment(info: dict) -> str:
                      f"|V - {d['emf_v_s_per_rad']:.6g} theta_dot| <= {d['R_ohm'] * d['I_max_a']:g} V; "
                      f"delay {d['delay_samples']:g} sample; viscous {d['viscous_nm_s_per_rad']:g} N m s/rad; "
                      "Coulomb friction not in it.")
+    lines.append(f"QP solver: {info['qp_solver']}; build: {info['build']}")
     return "/*\n" + "".join(f" * {ln}\n" for ln in lines) + " */\n"

@@ -58,7 +58,7 @@ from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
-from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_on_rig
+from hubbeam_ctrl.study.yardstick import linear_plan_note, task_dt, task_limit, task_on_rig
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
@@ -306,7 +306,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     t_f = DEFAULT_T_F if scn.t_f is None else scn.t_f
     options = dict(plant=plant, params=design_p, tau_max=scn.tau_max, t_f=t_f, dt=dt, w_f=scn.w_f,
                    slew_angle=scn.slew_angle, tolerances=dc.tolerances,
-                   reference="rigid" if reference == "optimal" else reference)
+                   reference=reference)
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
     sc = make_scenario(task, t_end=t_end, **options)    # None: the task's own
     sc = with_task_bands(sc, rig, scn.settle_angle, scn.settle_tip)
@@ -343,6 +343,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     if ref is not sc.reference:
         sc = dataclasses.replace(sc, reference=ref)
     chosen, notes = _shaped_durations(names, chosen, settings, design, dataclasses.replace(sc, reference=ref))
+    notes = linear_plan_note(ref, sc.params.L) + notes
     designs = dict(designs or {})
     if payload_range is not None:
         from hubbeam_ctrl.study.range_design import range_designs

@@ -44,7 +44,7 @@ __all__ = ["REFERENCE_KINDS", "DEFAULT_T_F", "PlantChoice", "DesignChoice", "Run
 
 #: The references :func:`~hubbeam_ctrl.study.compare.compare` accepts: the scenario's
 #: (:data:`~hubbeam_ctrl.study.scenarios.REFERENCES`) and the nonlinear minimum-vibration slew.
-REFERENCE_KINDS = (*REFERENCES, "optimal")
+REFERENCE_KINDS = REFERENCES
 
 
 def _params_or_none(name: str, value) -> None:

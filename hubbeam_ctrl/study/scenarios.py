@@ -38,7 +38,7 @@ from hubbeam_ctrl.study.tasks import Slew, SpinUp, check_target
 __all__ = ["RANGES", "SCENARIOS", "PLANTS", "REFERENCES", "Scenario", "make_scenario", "register_scenario"]
 
 #: Hub references a scenario can give its controllers (see :func:`make_scenario`).
-REFERENCES = ("task", "rigid", "planned")
+REFERENCES = ("task", "rigid", "planned", "optimal")
 
 #: Scenario name -> builder, in registration order (see :func:`register_scenario`).
 SCENARIOS: dict = {}
@@ -234,7 +234,7 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
         bands, residual window, reference shaping) to the beam and the task.
     preview_s : float
         Reference tabulated this long beyond ``t_end`` (MPC preview) [s].
-    reference : {"task", "rigid", "planned"}
+    reference : {"task", "rigid", "planned", "optimal"}
         The hub reference of the controllers that track one (:data:`REFERENCES`). ``"task"``
         (default): for a slew given by its angle (a :class:`~hubbeam_ctrl.study.tasks.Slew`
         or ``slew_angle``) the slew planned on the design model so that the beam ends at
@@ -242,7 +242,11 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
         slew (no angle given) and for spin-ups the rigid body's smooth reference, as in the
         paper. ``"rigid"``: always the rigid body's smooth reference
         (:func:`controllers.slew_reference`). ``"planned"``: always the planned slew (a slew
-        only). The scales of the defaults (weights, bands, noise) come from the rigid
+        only). ``"optimal"``: the caller tracks the beam's nonlinear minimum-vibration slew
+        (:func:`hubbeam_ctrl.limit.min_vibration_slew`, which decides whether the motor can do the
+        task): the scenario holds the rigid reference, for the scales only, and skips the rigid
+        Eq. 44 profile's torque check (a slew near the time-optimal one needs more peak torque
+        on that profile than the motor has). The scales of the defaults (weights, bands, noise) come from the rigid
         reference in every case.
 
     Returns
@@ -267,8 +271,8 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
         raise ParameterError(f"plant must be one of {', '.join(PLANTS)}, got {plant!r}")
     if reference not in REFERENCES:
         raise ParameterError(f"reference must be one of {', '.join(REFERENCES)}, got {reference!r}")
-    if reference == "planned" and name != "slew":
-        raise ParameterError(f"reference = 'planned' applies to a slew, not a {name}")
+    if reference in ("planned", "optimal") and name != "slew":
+        raise ParameterError(f"reference = {reference!r} applies to a slew, not a {name}")
     params = params if params is not None else Params()
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
@@ -293,7 +297,7 @@ def make_scenario(scenario="slew", *, plant: str = "foam", params: Params | None
     eq44 = task is None and name == "slew" and slew_angle is None
     if task is None:
         task = _task(name, tau_max, t_f, w_f, slew_angle, params)
-    if task is not None:
+    if task is not None and reference != "optimal":      # the optimal planner decides that one
         task.check_feasible(J, tau_max, tf_name)
     parts = SCENARIOS[name](params=params, tau_max=tau_max, t_f=t_f, dt=dt, t_ref_end=t_end + preview_s,
                             w_f=w_f, flatness=flatness, smoothing=smoothing, tolerances=tol, task=task,
@@ -385,7 +389,14 @@ def _slew(*, params, tau_max, t_f, dt, t_ref_end, flatness=None, smoothing=None,
                               tolerances or Tolerances())
     shape = {"flatness": shape["flatness"] if flatness is None else flatness,
              "smoothing": shape["smoothing"] if smoothing is None else smoothing}
-    ref = slew_reference(theta, t_f, J, tau_max, dt, t_ref_end, **shape)
+    # with the nonlinear plan tracked, the rigid reference only gives the scales: its own torque
+    # may exceed the motor's near the time-optimal slew
+    shape_budget = tau_max
+    if reference == "optimal":
+        from controllers.reference import slew_shape_constant
+        need = J * abs(theta) / (slew_shape_constant(shape["flatness"]) * (t_f - shape["smoothing"]) ** 2)
+        shape_budget = max(tau_max, (1 + 1e-9) * need)
+    ref = slew_reference(theta, t_f, J, shape_budget, dt, t_ref_end, **shape)
     text = (f"rest-to-rest slew by Theta = tau_m tf^2/(2 pi J_total) = {theta:.4f} rad "
             f"(tau_m = {tau_max:g} N m, tf = {t_f:g} s, J_total = {J:.4g} kg m^2)") if eq44 else task.describe(J)
     parts = dict(design_spin=0.0, target=theta, target_key="slew_angle_rad", baseline="eq44", reference=ref,
