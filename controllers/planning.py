@@ -61,6 +61,11 @@ ELASTIC_WEIGHT = 1e6
 #: (a quarter: at least four held torques per period); faster modes are left to the torque's
 #: smoothness.
 RESOLVED_FRACTION = 0.25
+#: Largest planned ``|v_tip|`` relative to L (the models' validated range, as the time-optimal slew's
+#: :attr:`~hubbeam_ctrl.limit.slew.SlewSettings.deflection_limit`): the smoothest plan on a light link
+#: swings the hub ahead of its beam, which the linear design model follows to any deflection (issue 36:
+#: ``servo_payload`` at 1.05 T* planned 0.58 L, where FOAM's mass matrix is singular) [-].
+DEFLECTION_LIMIT = 0.3
 
 
 def terminal_map(design: DesignModel, n_samples: int) -> np.ndarray:
@@ -128,6 +133,38 @@ def _knots(n: int, m: int) -> np.ndarray:
     return P
 
 
+def _within_deflection(design: DesignModel, U: np.ndarray, v: np.ndarray, H, rows, rhs, limit: float) -> tuple:
+    """The plan ``v`` (torques ``U v``) with its tip on ``design`` kept within ``limit`` [m].
+
+    ``(v, note)``: ``v`` itself when its planned ``|v_tip|`` stays within ``limit`` (note ""),
+    else ``min 1/2 v' H v`` on the same equality ``rows = rhs`` and ``|v| <= 1`` with
+    ``|v_tip| <= limit`` at every sample (DAQP); when that has no solution, ``v`` with a note
+    saying how far its tip goes.
+    """
+    c = np.asarray(design.C_tip, dtype=float)[0]
+    tip = _trajectory(design, U @ v)[1:] @ c
+    peak = float(np.max(np.abs(tip)))
+    if peak <= limit:
+        return v, ""
+    A, B = design.Ad, np.asarray(design.Bd, dtype=float).ravel()
+    X, T = np.zeros((A.shape[0], U.shape[1])), np.empty_like(U)
+    for k in range(U.shape[0]):                 # the tip at sample k + 1 of each unknown's torque
+        X = A @ X + np.outer(B, U[k])
+        T[k] = c @ X
+    from .mpc import DirectDAQP  # the QP solver the MPC uses
+
+    n = len(v)
+    qp = DirectDAQP(H, np.vstack([rows, T / limit]), -np.ones(n), np.ones(n))
+    try:
+        bounded = qp.solve(np.zeros(n), lba=np.concatenate([rhs, -np.ones(len(T))]),
+                           uba=np.concatenate([rhs, np.ones(len(T))]))
+    except RuntimeError:
+        bounded = None
+    if bounded is None or not np.allclose(rows @ bounded, rhs, rtol=0, atol=ROW_TOLERANCE):
+        return v, f"; its tip reaches {peak:.3g} m, past the deflection limit {limit:.3g} m, which no plan keeps"
+    return bounded, f"; tip within {limit:.3g} m (the smoothest plan reached {peak:.3g} m)"
+
+
 def _solve(H, rows, rhs, bound: float):
     """``min 1/2 v' H v  s.t.  rows v = rhs, |v| <= bound``, or None if infeasible.
 
@@ -156,7 +193,8 @@ def _solve(H, rows, rhs, bound: float):
 
 
 def planned_slew_reference(params: Params, angle: float, duration: float, tau_max: float, dt: float,
-                           t_end: float, n_modes: int | None = None) -> Reference:
+                           t_end: float, n_modes: int | None = None,
+                           deflection_limit: float | None = DEFLECTION_LIMIT) -> Reference:
     """Rest-to-rest slew planned on the design model: reference, feedforward and planned bending.
 
     Parameters
@@ -176,6 +214,11 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
         at the slew angle with zero torque.
     n_modes : int, optional
         Bending modes of the design model (default ``params.n_transverse``).
+    deflection_limit : float or None
+        Largest planned ``|v_tip|`` on the design model at rest, relative to L, > 0 (default
+        :data:`DEFLECTION_LIMIT`, the models' validated range; None: unbounded). Kept when a plan
+        within the budget can keep it; else the smoothest plan, and its description says how far
+        its tip goes.
 
     Returns
     -------
@@ -199,8 +242,10 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
     differences, the plan is ``min |D u|^2`` subject to ``theta_N = angle``,
     ``theta_dot_N = 0`` on the model at rest, ``W_m G_m u = 0`` on both models (the model at
     rest and the one linearised at ``u_r``'s peak hub rate, within ``params.max_spin``), and
-    ``|u_k| <= tau_max``. If the budget cannot bring both models to rest, the stiffened model's
-    rows, then also the rest model's, move into the objective with weight
+    ``|u_k| <= tau_max``, and ``|c_tip x_k| <= deflection_limit L`` at every sample when the plan
+    without that bound passes it (its rows join the QP; a plan within it is left as it is). If
+    the budget cannot bring both models to rest, the stiffened model's rows, then also the rest
+    model's, move into the objective with weight
     :data:`ELASTIC_WEIGHT`; the reference's description says which.
     """
     if not isinstance(params, Params):
@@ -260,6 +305,11 @@ def planned_slew_reference(params: Params, angle: float, duration: float, tau_ma
     if v is None:
         v = v_rigid
         how = "the rigid body only: the budget leaves no room for the beam"
+    elif deflection_limit is not None:
+        limit = check_positive("deflection_limit", deflection_limit, "of L") * params.L
+        rhs = np.concatenate([target, np.zeros(len(rows) - 2)])
+        v, note = _within_deflection(rest, tau_max * P, v, H + 1e-12 * np.eye(n_unknowns), rows, rhs, limit)
+        how += note
     u = tau_max * (P @ v)
     X = _trajectory(rest, u)
     k_end = int(round(t_end / dt)) + 1

@@ -85,8 +85,10 @@ def test_design_and_codegen_on_a_rig_take_the_rigs_default_slew(tmp_path, capsys
 
 def test_a_linear_plan_that_bends_the_tip_far_is_noted():
     """A slew planned on the linear design model that bends the tip past 10 % of L is noted, with the
-    remedy; servo_link at 1.1 T* (0.332 s, the plan bends it by about 47 % of L) is noted, the paper's
-    beam at 2 T* of its 90 degrees (8 % of L) is not."""
+    remedy; servo_link at 1.1 T* (0.332 s) is noted: the plan bends it by 30 % of L, the deflection
+    bound of the plan (controllers.planning.DEFLECTION_LIMIT; the smoothest plan bent it by 47 %, the
+    bound is active since the servo_payload fix of issue 36); the paper's beam at 2 T* of its 90
+    degrees (8 % of L) is not."""
     import math
 
     from hubbeam_ctrl import Params
@@ -98,7 +100,7 @@ def test_a_linear_plan_that_bends_the_tip_far_is_noted():
     fast = make_scenario(Slew(math.pi / 2, 1.1 * 0.30224), params=rig.beam, t_end=None)
     (note,) = linear_plan_note(fast.reference, rig.beam.L)
     share = int(note.split("bends the tip by ")[1].split(" %")[0])
-    assert 40 <= share <= 55 and "--reference optimal" in note and LINEAR_PLAN_TIP_SHARE == 0.1
+    assert 29 <= share <= 30 and "--reference optimal" in note and LINEAR_PLAN_TIP_SHARE == 0.1
     slow = make_scenario(Slew(math.pi / 2, 2.0 * 3.0275), params=Params(), t_end=None)
     assert linear_plan_note(slow.reference, Params().L) == []
     rigid = make_scenario(Slew(math.pi / 2, 1.1 * 0.30224), params=rig.beam, t_end=None, reference="rigid")

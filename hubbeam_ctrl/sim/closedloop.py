@@ -366,7 +366,10 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
     A plant that passes ``range_limit * L`` (default 0.3 L, the models' validated range) is
     flagged (``outside_validated_range``, ``outside_range_time_s``) and the run goes on. A
     controller that returns a non-finite torque or raises, an integrator failure, or a plant
-    that passes ``divergence_limit * L`` (default L) stops the run: the result is cut there,
+    that passes ``divergence_limit * L`` (default L) or whose mass matrix is no longer positive
+    definite (a large deflection, past what the model's kinetic energy holds: the implicit step
+    cannot converge there, and the cause is the model's range, ``"diverged"``, not the
+    integrator) stops the run: the result is cut there,
     with ``stopped = True``, a message naming the cause and ``stats["stop_cause"]`` (one of
     ``"controller"``, ``"integrator"``, ``"diverged"``, ``"wall_clock"``; None for a run that
     completed). So does ``settings.max_wall_s``
@@ -522,8 +525,20 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
             applied = tau
         try:
             s = stepper.step(s, applied)
+            if not math.isfinite(float(np.sum(s))):      # a NaN that the step's error norm passed
+                raise HubbeamError(f"{model.name.upper()}: the implicit step returned non-finite values")
         except HubbeamError as exc:
-            stopped, message, last, cause = True, f"{exc} at t = {t[k]:.3f} s; run stopped", k, "integrator"
+            stopped, last, cause = True, k, "integrator"
+            message = f"{exc} at t = {t[k]:.3f} s; run stopped"
+            # not the integrator but the model when its mass matrix is singular within the sample
+            # (at its start or where the sample's velocities take it)
+            if not exact and not (stepper.mass_positive(x[:n], x[n:])
+                                  and stepper.mass_positive(x[:n] + dt * x[n:], x[n:])):
+                cause = "diverged"
+                message = (f"{model.name.upper()} left its range at t = {t[k]:.3f} s under controller {name!r}: "
+                           f"its mass matrix is no longer positive definite within the sample from |v_tip| = "
+                           f"{abs(f2_tip @ x[sl2]) / L:.3g} L (the model's kinetic energy holds no further); "
+                           "run stopped")
             break
         x = s[:2 * n]
         if exact:

@@ -347,7 +347,9 @@ def verdict(evidence: Evidence) -> str:
 
     * ``"failed"``: the run stopped because the integrator or the controller failed, or
       the wall-clock limit ended it (the loop's stability is unknown);
-    * ``"diverged"``: the run stopped because the plant passed the divergence limit (L);
+    * ``"diverged"``: the run stopped because the plant left its model's range: it passed the
+      divergence limit (L), or its mass matrix is no longer positive definite (a first-order
+      model past the deflection its kinetic energy holds, e.g. 0.58 L on ``servo_payload``);
     * ``"unstable"``: the linear certificate's loop grows (spectral radius above
       ``1 + RADIUS_TOLERANCE``), or the envelope of the tip deflection, of the torque's
       ripple or of the hub-angle error grows at a resolved rate in the residual window
