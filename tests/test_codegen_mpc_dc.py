@@ -226,6 +226,8 @@ def test_docs_quote_the_benchmark_and_the_c_follows_daqp_there():
         assert r["iterations_max"] <= 8 * r["horizon"] + 10 and r["samples"] == r["plans"], f
         assert r["c_step_us_median"] * 1e-6 < r["dt_s"], f
     assert doc["factors"][f"{FACTOR:g}"]["plans_with_a_voltage_row_at_its_bound"] > 0
+    peak = doc["factors"]["1.2"]["peak_volts"]
+    assert peak < doc["factors"]["1.2"]["v_max"] and f"(the command peaks at {peak:.2f} V of 10 V)" in text
 
 
 @needs_cc
