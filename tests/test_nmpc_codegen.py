@@ -81,7 +81,7 @@ def test_the_written_c_links_daqp_and_is_the_python_step(tmp_path):
 
     import casadi as ca
 
-    from hubbeam_ctrl.core.compiled import solver_link_flags
+    from hubbeam_ctrl.core.linked_solvers import solver_link_flags
     from hubbeam_ctrl.deploy.nmpc_c import nmpc_to_c
     design = DesignModel.build(LAB.replace(n_transverse=3), 0.0, 0.01, 3)
     ctrl = NMPC(design, NMPCSettings(horizon=6))

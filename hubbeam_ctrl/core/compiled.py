@@ -58,10 +58,11 @@ from pathlib import Path
 import casadi as ca
 
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
+from hubbeam_ctrl.core.linked_solvers import LinkError, solver_link_flags
 
 __all__ = ["BACKENDS", "OPT_HOT", "OPT_HOT_MAX_CHARS", "OPT_HOT_LARGE", "OPT_COLD", "check_backend",
            "resolve_backend", "cache_dir", "find_compiler", "compile_function", "cache_info", "clear_cache",
-           "CompileError", "solver_link_flags"]
+           "CompileError"]
 
 #: Accepted values of every ``backend`` argument.
 BACKENDS = ("auto", "compiled", "vm")
@@ -423,51 +424,14 @@ def _lock(path: Path):
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
-#: QP solvers whose C CasADi's generated code calls (``#include`` line) and the static library of
-#: each in CasADi's wheel.
-_LINKED_SOLVERS = {"daqp": ("#include <daqp/api.h>", ("libdaqpstat.a", "daqpstat.lib"))}
-
-
-def solver_link_flags(source: str) -> tuple:
-    """What building ``source`` (CasADi's generated C) needs to link the QP solvers it calls.
-
-    DAQP's header and static library come with CasADi's wheel (``casadi/include/daqp``,
-    ``casadi/libdaqpstat.a``): the generated C is linked against them, not a copy of them.
-
-    Parameters
-    ----------
-    source : str
-        Generated C.
-
-    Returns
-    -------
-    tuple of (list, list)
-        Compiler flags (include folders) and linker arguments (library files); both empty when
-        ``source`` calls no such solver.
-
-    Raises
-    ------
-    CompileError
-        A solver's library is not in CasADi's installation.
-    """
-    root = Path(ca.__file__).parent
-    cflags, libs = [], []
-    for name, (include, files) in _LINKED_SOLVERS.items():
-        if include not in source:
-            continue
-        found = [root / f for f in files if (root / f).is_file()]
-        if not found or not (root / "include" / name).is_dir():
-            raise CompileError(f"the generated C calls {name}, whose header or static library is not in "
-                               f"CasADi's installation ({root})")
-        cflags, libs = cflags + ["-I" + str(root / "include")], libs + [str(found[0])]
-    return cflags, libs
-
-
 def _build(sources: list, compiler: list, lib: Path, meta: Path, key: str) -> None:
     """Compile ``sources`` into ``lib`` (atomically) and write its side file."""
     timeout = _timeout_s()
     pic = [] if os.name == "nt" else ["-fPIC"]
-    linked = [solver_link_flags(src) for _, src, _ in sources]
+    try:
+        linked = [solver_link_flags(src) for _, src, _ in sources]
+    except LinkError as exc:              # the VM then (compile_function's fallback)
+        raise CompileError(str(exc)) from None
     libs = list(dict.fromkeys(f for _, fs in linked for f in fs))
     with tempfile.TemporaryDirectory(dir=lib.parent, prefix=".build-") as tmp:
         objects = []

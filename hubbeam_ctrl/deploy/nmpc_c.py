@@ -93,10 +93,10 @@ def nmpc_to_c(controller, out_dir, name: str = "nmpc_rti", *, force: bool = Fals
 def _build_line(name: str, source: str) -> str:
     """A compiler command that builds ``<name>.c`` into an object file on this machine, with the QP
     solver's header and library from CasADi's installation."""
-    from hubbeam_ctrl.core.compiled import CompileError, solver_link_flags
+    from hubbeam_ctrl.core.linked_solvers import LinkError, solver_link_flags
     try:
         cflags, libs = solver_link_flags(source)
-    except CompileError as exc:
+    except LinkError as exc:
         return f"cc -O2 -c {name}.c ({exc})"
     return " ".join(["cc", "-O2", *cflags, "-c", f"{name}.c", "&&", "link", f"{name}.o", *libs, "-lm"])
 

@@ -15,7 +15,8 @@ The controller is any object with
 * ``reset()``: prepare a new run;
 * ``measurement``: ``"state"`` or ``"sensors"`` (see :func:`simulate_closed_loop`);
 * optionally ``signals``: the names of the rig's signals a ``"sensors"`` controller reads, in
-  order (:func:`~hubbeam_ctrl.plant.instruments.signal_names`; default :data:`DEFAULT_SIGNALS`);
+  order (:func:`~hubbeam_ctrl.plant.instruments.signal_names`; default
+  :data:`~hubbeam_ctrl.sim.measurement.DEFAULT_SIGNALS`);
 * optionally ``name``, ``dt`` (its sample time, checked against the simulator's),
   ``n_modes`` (the transverse modes of its design model), ``state_modes`` (those it reads
   with ``measurement="state"``, default ``n_modes``), ``design`` (with ``params`` and
@@ -40,18 +41,17 @@ from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.settings import setting
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.exact import ExactBeamPlant, element_rule, require_exudyn
-from hubbeam_ctrl.plant.instruments import signal_names
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import HubBeamModel, build_model, resolve_model
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 from hubbeam_ctrl.plant.sensors import SensorSettings, sensor_matrix
 from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.sim.hardware import Hardware
-from hubbeam_ctrl.sim.measurement import MeasurementChain
+from hubbeam_ctrl.sim.measurement import rig_measurement
 from hubbeam_ctrl.sim.results import Result
 from hubbeam_ctrl.sim.stepper import MAX_SUBSTEPS, PlantStepper, StepperSettings, substep_rule
 
-__all__ = ["ClosedLoopSettings", "simulate_closed_loop", "DEFAULT_SIGNALS"]
+__all__ = ["ClosedLoopSettings", "simulate_closed_loop"]
 
 
 @dataclass(frozen=True)
@@ -194,15 +194,6 @@ def _plant_and_rule(plant, controller, params, design_params, plant_params, plan
     return model, info
 
 
-#: The signals a controller with ``measurement = "sensors"`` reads from a rig unless it names
-#: its own (``signals``): today's hub angle, hub rate and the first strain gauge.
-DEFAULT_SIGNALS = ("theta", "theta_dot", "moment_1")
-
-#: The rig key that provides each kind of signal (for refusals).
-_RIG_KEYS = {"theta": "sensors.encoder_counts", "moment": "sensors.strain_gauges",
-             "accel": "sensors.tip_accelerometer"}
-
-
 def _delay_substeps(n: int, delay: float, dt: float) -> dict:
     """The rule's substeps raised (by at most half) to a count on which the delay falls on a substep.
 
@@ -234,42 +225,6 @@ def _delay_substeps(n: int, delay: float, dt: float) -> dict:
     if best != n:
         out["delay_substeps_reason"] = f"{best} substeps instead of the rule's {n} so that the delay falls on a substep"
     return out
-
-
-def _rig_key(signal: str) -> str:
-    return "sensors.rate" if signal == "theta_dot" else _RIG_KEYS.get(signal.split("_")[0], signal)
-
-
-def _rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, backend):
-    """``(chain, state_pick)``: the rig's measurement chain reading what the controller reads
-    (None: today's sensors) and, for state feedback (None otherwise), where the measured hub
-    rate goes in its vector (the angle goes first)."""
-    sensors = None if hardware is None else hardware.sensors
-    wanted = getattr(controller, "signals", None)
-    name = _controller_name(controller)
-    if sensors is None:
-        if wanted is not None and tuple(wanted) != DEFAULT_SIGNALS[:len(tuple(wanted))]:
-            raise ParameterError(f"controller {name!r} reads signals {tuple(wanted)} but the closed loop has no "
-                                 "rig sensors: give hardware=Hardware.from_rig(rig)")
-        return None, None
-    default = sensors.strain_gauges == (0.0,) and not sensors.tip_accelerometer and sensors.rate
-    if sensors.is_ideal and default and wanted is None:
-        return None, None                          # the beam alone's sensors, bit for bit
-    if kind == "state":
-        chain = MeasurementChain(sensors, model, dt, n_samples, seed, read=("theta", "theta_dot"),
-                                 backend=backend)
-        return chain, 1 + m
-    names = tuple(DEFAULT_SIGNALS if wanted is None else wanted)
-    all_names = signal_names(len(sensors.strain_gauges), sensors.tip_accelerometer)
-    if not names:
-        raise ParameterError(f"controller {name!r}: signals must name at least one of {', '.join(all_names)}")
-    if not sensors.rate:
-        all_names = tuple(n for n in all_names if n != "theta_dot")
-    for signal in names:
-        if signal not in all_names:
-            raise ParameterError(f"controller {name!r} reads {signal!r} ({_rig_key(signal)}), "
-                                 f"which the rig does not have; its sensors give {', '.join(all_names)}")
-    return MeasurementChain(sensors, model, dt, n_samples, seed, read=names, backend=backend), None
 
 
 def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Params | None = None,
@@ -339,7 +294,8 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         stored as ``tau``). With the rig's ``sensors`` (``Hardware.from_rig`` gives them) the
         measurement comes from :class:`~hubbeam_ctrl.sim.measurement.MeasurementChain`: a
         ``"sensors"`` controller reads the signals it names in its ``signals`` attribute (names of
-        :func:`~hubbeam_ctrl.plant.instruments.signal_names`, default :data:`DEFAULT_SIGNALS`), a
+        :func:`~hubbeam_ctrl.plant.instruments.signal_names`, default
+        :data:`~hubbeam_ctrl.sim.measurement.DEFAULT_SIGNALS`), a
         ``"state"`` controller gets the measured hub angle and rate in place of the exact ones;
         the accelerometer reads the accelerations before the sample's new command acts. Ideal
         rig sensors with the root gauge only and no ``signals`` keep the closed loop's own
@@ -429,7 +385,7 @@ def simulate_closed_loop(plant, controller, t_end: float = 30.0, *, params: Para
         stepper = PlantStepper(model, settings.stepper_settings(plant_info["substeps"]), backend,
                                hardware=hardware)
     t = dt * np.arange(N + 1)
-    chain, state_pick = _rig_measurement(hardware, controller, kind, model, m, dt, N + 1,
+    chain, state_pick = rig_measurement(hardware, controller, kind, model, m, dt, N + 1,
                                          settings.sensors.seed, backend if exact else stepper.backend)
     rng = np.random.default_rng(settings.sensors.seed)
     noise = rng.standard_normal((N + 1, 3)) * settings.sensors.std if kind == "sensors" and chain is None \

@@ -30,7 +30,7 @@ from hubbeam_ctrl.plant.instruments import _kinematics, moment_rows, signal_name
 from hubbeam_ctrl.plant.models import HubBeamModel
 from hubbeam_ctrl.plant.rig import Sensors
 
-__all__ = ["AntiAliasFilter", "MeasurementChain", "anti_alias_coefficients"]
+__all__ = ["AntiAliasFilter", "MeasurementChain", "anti_alias_coefficients", "DEFAULT_SIGNALS", "rig_measurement"]
 
 
 def anti_alias_coefficients(cutoff_hz: float, dt: float) -> tuple:
@@ -315,3 +315,75 @@ class MeasurementChain:
             self._state[:] = self._next
             self._coef[4] = 0.0
         return self._y_read.copy()
+
+
+#: The signals a controller with ``measurement = "sensors"`` reads from a rig unless it names
+#: its own (``signals``): today's hub angle, hub rate and the first strain gauge.
+DEFAULT_SIGNALS = ("theta", "theta_dot", "moment_1")
+
+#: The rig key that provides each kind of signal (for refusals).
+_RIG_KEYS = {"theta": "sensors.encoder_counts", "moment": "sensors.strain_gauges",
+             "accel": "sensors.tip_accelerometer"}
+
+
+def _rig_key(signal: str) -> str:
+    return "sensors.rate" if signal == "theta_dot" else _RIG_KEYS.get(signal.split("_")[0], signal)
+
+
+def rig_measurement(hardware, controller, kind, model, m, dt, n_samples, seed, backend):
+    """``(chain, state_pick)``: the rig's measurement chain reading what the controller reads
+    (None: today's sensors) and, for state feedback (None otherwise), where the measured hub
+    rate goes in its vector (the angle goes first).
+
+    Parameters
+    ----------
+    hardware : Hardware or None
+        The rig's hardware (its sensors).
+    controller : controllers.Controller
+        The controller (its ``signals``, if any, and its name for refusals).
+    kind : {"state", "sensors"}
+        What the controller reads.
+    model : HubBeamModel
+        The plant.
+    m : int
+        The plant's bending modes.
+    dt : float
+        Sample time [s].
+    n_samples : int
+        Samples of the run.
+    seed : int or None
+        Noise seed.
+    backend : str
+        The chain's CasADi backend.
+
+    Returns
+    -------
+    tuple
+        ``(MeasurementChain or None, int or None)``.
+    """
+    sensors = None if hardware is None else hardware.sensors
+    wanted = getattr(controller, "signals", None)
+    name = str(getattr(controller, "name", type(controller).__name__))
+    if sensors is None:
+        if wanted is not None and tuple(wanted) != DEFAULT_SIGNALS[:len(tuple(wanted))]:
+            raise ParameterError(f"controller {name!r} reads signals {tuple(wanted)} but the closed loop has no "
+                                 "rig sensors: give hardware=Hardware.from_rig(rig)")
+        return None, None
+    default = sensors.strain_gauges == (0.0,) and not sensors.tip_accelerometer and sensors.rate
+    if sensors.is_ideal and default and wanted is None:
+        return None, None                          # the beam alone's sensors, bit for bit
+    if kind == "state":
+        chain = MeasurementChain(sensors, model, dt, n_samples, seed, read=("theta", "theta_dot"),
+                                 backend=backend)
+        return chain, 1 + m
+    names = tuple(DEFAULT_SIGNALS if wanted is None else wanted)
+    all_names = signal_names(len(sensors.strain_gauges), sensors.tip_accelerometer)
+    if not names:
+        raise ParameterError(f"controller {name!r}: signals must name at least one of {', '.join(all_names)}")
+    if not sensors.rate:
+        all_names = tuple(n for n in all_names if n != "theta_dot")
+    for signal in names:
+        if signal not in all_names:
+            raise ParameterError(f"controller {name!r} reads {signal!r} ({_rig_key(signal)}), "
+                                 f"which the rig does not have; its sensors give {', '.join(all_names)}")
+    return MeasurementChain(sensors, model, dt, n_samples, seed, read=names, backend=backend), None
