@@ -52,6 +52,7 @@ from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, as_r
 from hubbeam_ctrl.study.forked_runs import can_fork, side_by_side
 from hubbeam_ctrl.study.friction_bound import friction_prediction
 from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for, same_laws
+from hubbeam_ctrl.study.references import tracked_reference
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
@@ -347,13 +348,14 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         design = rig_design(design, rig)
     shaper = None if shaping is None else as_shaper(design, shaping)
     sched = _design_schedule(sc, schedule, m)
-    ref = _reference(sc, reference, rig)
+    ref, range_notes = tracked_reference(sc, reference, rig)
     if ref is not sc.reference:
         sc = dataclasses.replace(sc, reference=ref)
     chosen, notes = _shaped_durations(names, chosen, settings, design, dataclasses.replace(sc, reference=ref))
     from controllers.base import TrackingSettings
     if any(issubclass(CONTROLLERS[n].settings, TrackingSettings) for n in names):   # a controller tracks it
         notes = linear_plan_note(ref, sc.params.L) + notes
+    notes = range_notes + notes
     designs = dict(designs or {})
     if payload_range is not None:
         from hubbeam_ctrl.study.range_design import range_designs
@@ -485,18 +487,6 @@ def _check_plant(check_plant, sc: Scenario, ev: EvaluationPlant, design_modes: i
         require_exudyn("check_plant='ancf'")
     return evaluation_plant(check_plant, sc.params, sc.dt, design_modes, sc.design_spin,
                             plant_params=ev.params, plant_modes=ev.modes)
-
-
-def _reference(sc: Scenario, kind: str, rig):
-    """The tracked reference: the scenario's, or the minimum-vibration slew of the beam in ``t_f``."""
-    if kind != "optimal":
-        return sc.reference
-    if sc.name != "slew":
-        raise ParameterError(f"reference = 'optimal' applies to a slew, not a {sc.name}")
-    from controllers import optimal_reference
-    from hubbeam_ctrl.limit import min_vibration_slew
-    opt = min_vibration_slew(rig if rig is not None else sc.params, sc.target, sc.t_f, name="t_f")
-    return optimal_reference(opt, sc.dt, sc.t_end)
 
 
 #: Controllers that learn the payload with ``PayloadChoice(payload_learning=...)`` of ``compare`` by

@@ -23,7 +23,7 @@ import math
 
 from hubbeam_ctrl.core.errors import ParameterError
 
-__all__ = ["LINEAR_PLAN_TIP_SHARE", "linear_plan_note",
+__all__ = ["LINEAR_PLAN_TIP_SHARE", "linear_plan_note", "linear_plan_tip_share",
            "LIMIT_KINDS", "RESIDUAL_PERIODS", "rigid_limit", "task_limit", "yardstick_metrics", "task_t_end",
            "task_dt", "SAMPLES_PER_PERIOD", "DEFAULT_RIG_SLEW_RAD", "DEFAULT_RIG_PACE", "rig_default_slew",
            "task_on_rig"]
@@ -258,6 +258,33 @@ def task_on_rig(rig, task, scenario):
 LINEAR_PLAN_TIP_SHARE = 0.1
 
 
+def linear_plan_tip_share(reference, length: float) -> float | None:
+    """The largest tip deflection of a slew planned on the linear design model, as a share of L
+    (None for a reference that is not such a plan).
+
+    Parameters
+    ----------
+    reference : controllers.Reference
+        The tracked reference.
+    length : float
+        The beam's length L [m].
+
+    Returns
+    -------
+    float or None
+        ``max |v_tip| / L`` of the plan's modal coordinates [-].
+    """
+    import numpy as np
+
+    from hubbeam_ctrl.plant.basis import transverse_shapes
+    elastic = getattr(reference, "elastic", None)
+    if not getattr(reference, "planned_on_design", False) or elastic is None or np.ndim(elastic) != 2:
+        return None
+    m = np.shape(elastic)[1] // 2
+    tip = np.asarray(elastic)[:, :m] @ np.asarray(transverse_shapes(np.array([length]), m, length)).reshape(-1)
+    return float(np.max(np.abs(tip))) / length
+
+
 def linear_plan_note(reference, length: float) -> list:
     """The report's line when the tracked slew, planned on the linear design model, bends the tip by
     more than :data:`LINEAR_PLAN_TIP_SHARE` of L (empty otherwise, or for a reference that is not such
@@ -279,16 +306,8 @@ def linear_plan_note(reference, length: float) -> list:
     -------
     list of str
     """
-    import numpy as np
-
-    from hubbeam_ctrl.plant.basis import transverse_shapes
-    elastic = getattr(reference, "elastic", None)
-    if not getattr(reference, "planned_on_design", False) or elastic is None or np.ndim(elastic) != 2:
-        return []
-    m = np.shape(elastic)[1] // 2
-    tip = np.asarray(elastic)[:, :m] @ np.asarray(transverse_shapes(np.array([length]), m, length)).reshape(-1)
-    share = float(np.max(np.abs(tip))) / length
-    if share <= LINEAR_PLAN_TIP_SHARE:
+    share = linear_plan_tip_share(reference, length)
+    if share is None or share <= LINEAR_PLAN_TIP_SHARE:
         return []
     return [f"the slew planned on the linear design model bends the tip by {100 * share:.0f} % of L (more than "
             f"{100 * LINEAR_PLAN_TIP_SHARE:.0f} %): its rest at t_f is not the nonlinear beam's; the plan on the "
