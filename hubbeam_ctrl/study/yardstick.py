@@ -293,7 +293,7 @@ def linear_plan_note(reference, length: float) -> list:
     Measured on ``servo_link`` at 1.1 T* (the smoothest plan bent it by 47 % of L; the plan now keeps
     30 %, :data:`controllers.planning.DEFLECTION_LIMIT`): the NMPC tracking the 47 % plan settled
     3.55 first-mode periods after t_f with 0.33 % of L left; tracking the minimum-vibration slew of the
-    nonlinear model (``reference="optimal"``), 0.35 periods and 0.0068 % (docs/limit.md).
+    nonlinear model (``reference="optimal"``), 0.35 periods and 0.0077 % (docs/limit.md).
 
     Parameters
     ----------
