@@ -408,15 +408,10 @@ class NMPC(DrivePrediction, Controller):
 
     def _state_limits(self, s: NMPCSettings) -> tuple | None:
         """``(C, b)`` of :attr:`NMPCSettings.tip_limit_m` and :attr:`NMPCSettings.rate_limit` on the
-        prediction state (the tip deflection is the clamped-free shapes at L times the modal
-        coordinates), or None."""
-        from hubbeam_ctrl.plant.basis import transverse_shapes
+        prediction state (the tip: the design model's tip row on the states it predicts), or None."""
         rows, bounds = [], []
         if s.tip_limit_m is not None:
-            row = np.zeros(self._nx)
-            L = self.design.params.L
-            row[1:self._n] = np.asarray(transverse_shapes(np.array([L]), self._n - 1, L)).reshape(-1)
-            rows.append(row)
+            rows.append(np.asarray(self.design.C_tip, dtype=float)[0][self._pick])
             bounds.append(s.tip_limit_m)
         if s.rate_limit is not None:
             row = np.zeros(self._nx)

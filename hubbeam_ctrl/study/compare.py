@@ -59,7 +59,7 @@ from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
-from hubbeam_ctrl.study.yardstick import linear_plan_note, task_dt, task_limit, task_on_rig
+from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_on_rig
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
 
@@ -348,14 +348,12 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
         design = rig_design(design, rig)
     shaper = None if shaping is None else as_shaper(design, shaping)
     sched = _design_schedule(sc, schedule, m)
-    ref, range_notes = tracked_reference(sc, reference, rig)
+    ref, ref_notes = tracked_reference(sc, reference, rig)
     if ref is not sc.reference:
         sc = dataclasses.replace(sc, reference=ref)
     chosen, notes = _shaped_durations(names, chosen, settings, design, dataclasses.replace(sc, reference=ref))
-    from controllers.base import TrackingSettings
-    if any(issubclass(CONTROLLERS[n].settings, TrackingSettings) for n in names):   # a controller tracks it
-        notes = linear_plan_note(ref, sc.params.L) + notes
-    notes = range_notes + notes
+    if any(CONTROLLERS[n].tracks_reference for n in names):       # the reference's notes: for who tracks it
+        notes = ref_notes + notes
     designs = dict(designs or {})
     if payload_range is not None:
         from hubbeam_ctrl.study.range_design import range_designs

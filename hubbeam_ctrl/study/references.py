@@ -5,7 +5,7 @@ models' range."""
 from __future__ import annotations
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.study.yardstick import linear_plan_tip_share
+from hubbeam_ctrl.study.yardstick import linear_plan_note, linear_plan_tip_share
 
 __all__ = ["tracked_reference"]
 
@@ -25,9 +25,12 @@ def tracked_reference(sc, kind: str, rig) -> tuple:
     Returns
     -------
     tuple
-        ``(controllers.Reference, list of str)``: the reference, and the report's notes on it.
+        ``(controllers.Reference, list of str)``: the reference, and the report's notes on it (the
+        switch to the nonlinear plan, or a linear plan that bends the tip past
+        :data:`~hubbeam_ctrl.study.yardstick.LINEAR_PLAN_TIP_SHARE` of L).
     """
-    return _within_range(sc, _reference(sc, kind, rig), kind, rig)
+    ref, notes = _within_range(sc, _reference(sc, kind, rig), kind, rig)
+    return ref, notes or linear_plan_note(ref, sc.params.L)
 
 
 def _within_range(sc, ref, kind: str, rig) -> tuple:
