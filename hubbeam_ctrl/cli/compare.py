@@ -111,7 +111,8 @@ def add_compare_options(p, controllers: bool = True) -> None:
                    help="settling band of |v_tip|: a number [m] or 0.5mm, 1e-3L (a fraction of L); default 1.25e-4 L")
     p.add_argument("--reference", choices=("task", "rigid", "planned", "optimal"), default="task",
                    help="reference and feedforward of the tracking controllers: 'task' (default): a slew given by "
-                        "--slew-angle planned on the design model to end with the beam at rest, the paper's Eq. 44 "
+                        "--slew-angle planned on the design model to end with the beam at rest (the optimal one "
+                        "instead when that plan cannot keep the tip within 0.3 L), the paper's Eq. 44 "
                         "slew and spin-ups the rigid body's smooth reference; 'rigid': always the smooth rigid "
                         "reference; 'planned': always the planned slew; 'optimal': the minimum-vibration slew of the "
                         "nonlinear beam in --tf within the drive's limits (seconds of optimisation). Planned and "
