@@ -49,3 +49,22 @@ def test_ladder_takes_the_comparison_as_its_last_step(monkeypatch, fast_backend)
     assert labels == [label for label, _ in ladder_rigs(rig)]
     with pytest.raises(ParameterError, match=r"workers must be an integer in 1\.\.1024, got 0"):
         rig_ladder(rig, "slew", "lqg", settings, workers=0)
+
+
+def test_ladder_started_before_the_comparison_takes_it_at_the_end(monkeypatch, fast_backend):
+    """``LadderRun`` as ``hubbeam compare --rig`` uses it: started in forked workers before the comparison
+    exists, its rows taken with the comparison as the last step are those of the ladder run after it, and
+    the last step is not run here again."""
+    from hubbeam_ctrl.study.ladder import LadderRun
+    full = load_rig("servo_link")
+    rig = Rig(beam=full.beam, drive=full.drive, friction=full.friction, timing=full.timing.replace(delay=0.0))
+    settings = CompareSettings(run=RunChoice(t_end=1.0), scenario=ScenarioChoice(slew_angle=1.5708, t_f=0.6))
+    serial = rig_ladder(rig, "slew", "openloop,lqg", settings, workers=1)
+    calls = []
+    real = ladder_module.compare
+    monkeypatch.setattr(ladder_module, "compare", lambda *a, **k: calls.append(a[0]) or real(*a, **k))
+    with LadderRun(rig, "slew", "openloop,lqg", settings, workers=2) as ladder:
+        done = compare(rig, "slew", "openloop,lqg", settings)       # the comparison, meanwhile
+        rows = ladder.rows(done=done)
+    assert calls == []                                               # every step in the workers or taken
+    assert _rows(rows) == _rows(serial)

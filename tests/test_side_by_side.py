@@ -133,3 +133,37 @@ def test_ctrl_c_while_waiting_for_the_child_stops_it(tmp_path):
     assert time.perf_counter() - t0 < 30
     with pytest.raises(ProcessLookupError):                 # killed and reaped, not left running
         os.kill(int(pidfile.read_text()), 0)
+
+
+@needs_fork
+def test_forked_runs_with_several_children_and_stop(tmp_path):
+    """Several shares run in as many children; ``collect`` gives every result share by share; ``stop``
+    (leaving the block) kills and reaps children still running."""
+    import time
+    from hubbeam_ctrl.study.forked_runs import ForkedRuns
+    parent = os.getpid()
+    pids = set()
+
+    def run(name):
+        assert os.getpid() != parent or name == "lost"
+        return (name, os.getpid())
+
+    with ForkedRuns([["a", "b"], ["c"], []], run) as f:
+        got = f.collect()
+    assert [k for k in got] == ["a", "b", "c"]
+    pids = {pid for _, pid in got.values()}
+    assert len(pids) == 2 and parent not in pids and got["a"][1] == got["b"][1] != got["c"][1]
+
+    def slow(name):
+        (tmp_path / f"{name}.pid").write_text(str(os.getpid()))
+        time.sleep(60)
+        return name
+
+    t0 = time.perf_counter()
+    with ForkedRuns([["x"], ["y"]], slow):
+        while len(list(tmp_path.glob("*.pid"))) < 2:
+            time.sleep(0.05)
+    assert time.perf_counter() - t0 < 30
+    for name in ("x", "y"):
+        with pytest.raises(ProcessLookupError):             # killed and reaped
+            os.kill(int((tmp_path / f"{name}.pid").read_text()), 0)

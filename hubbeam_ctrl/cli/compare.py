@@ -319,21 +319,30 @@ def _run_plain(args, plan, sink) -> int:
     from hubbeam_ctrl.study.report import _json_metrics, format_table, loop_png, write_outputs
     t0 = time.perf_counter()
     opts = plan.options
-    names, rig, out = opts["controllers"], opts.get("rig"), plan.out
+    names, out = opts["controllers"], plan.out
     early = []              # loops.png: its data and figure need only the designs (drawn while the runs go)
-    # the closed loops side by side (a forked child runs part of them): the report reads only their results
-    comparison = compare(**compare_arguments(**opts, side_by_side=True),
-                         designed=lambda designed: early.append(loop_png(designed)))
-    if plan.ladder:
-        from hubbeam_ctrl.study.ladder import rig_ladder
-        t_ladder = time.perf_counter()
-        comparison.ladder = rig_ladder(rig, opts["scenario"], names, _ladder_settings(opts, comparison.scenario),
-                                       progress=None if args.json else (lambda step: print(f"ladder: {step}",
-                                                                                           file=sys.stderr)),
-                                       done=comparison)          # its last step: the comparison's own runs
-        # the report's wall time covers the ladder too (said apart in the report)
-        comparison.ladder_wall_s = time.perf_counter() - t_ladder
-        comparison.wall_s = time.perf_counter() - t0
+    ladder = []             # the rig ladder: started in forked workers as soon as the designs are made
+
+    def designed(designed):
+        if plan.ladder:     # the ladder's steps run while this comparison runs (its last step is this one)
+            ladder.append(_start_ladder(opts, designed.scenario))
+        early.append(loop_png(designed))
+
+    try:
+        # the closed loops side by side (a forked child runs part of them): the report reads only their results
+        comparison = compare(**compare_arguments(**opts, side_by_side=True), designed=designed)
+        if plan.ladder:
+            t_ladder = time.perf_counter()
+            if not ladder:
+                ladder.append(_start_ladder(opts, comparison.scenario))
+            comparison.ladder = ladder[0].rows(done=comparison, progress=None if args.json else (
+                lambda step: print(f"ladder: {step}", file=sys.stderr)))    # its last step: the comparison's runs
+            # the report's wall time covers the ladder too (said apart in the report: the time waited for it)
+            comparison.ladder_wall_s = time.perf_counter() - t_ladder
+            comparison.wall_s = time.perf_counter() - t0
+    finally:
+        for run in ladder:
+            run.stop()
     paths = write_outputs(comparison, out, loops=early[0] if early else None)
     wall = time.perf_counter() - t0
     if args.json:
@@ -373,6 +382,15 @@ def _ladder_settings(opts: dict, sc):
         scenario=ScenarioChoice(t_f=opts["t_f"], w_f=opts["w_f"], slew_angle=opts["slew_angle"],
                                 tau_max=opts["tau_max"], settle_angle=sc.bands["settle_angle"],
                                 settle_tip=sc.bands["settle_tip"]))
+
+
+def _start_ladder(opts: dict, sc):
+    """The rig ladder of the comparison ``opts`` on the scenario ``sc``, started in as many forked
+    workers as this process may use processors (:class:`hubbeam_ctrl.study.ladder.LadderRun`)."""
+    from hubbeam_ctrl.study.ladder import LadderRun
+    from hubbeam_ctrl.study.sweep import available_processors
+    return LadderRun(opts["rig"], opts["scenario"], opts["controllers"], _ladder_settings(opts, sc),
+                     workers=available_processors())
 
 
 def _bands(args, rig) -> dict:

@@ -1,10 +1,12 @@
-"""Independent runs of a comparison side by side: some in a forked child process, the rest here.
+"""Independent runs side by side: some in forked child processes, the rest here.
 
 A comparison's closed-loop runs (each controller on the plant, then judged) do not depend on
-each other. :func:`side_by_side` forks one child that runs part of them while this process
-runs the others; the child inherits everything built so far (the controllers, the plant, the
-compiled functions) and hands its results back pickled through a temporary file. The
-numbers are those of running them here: the same code on the same memory.
+each other, nor do the rig ladder's. :class:`ForkedRuns` forks children that each run their
+share while this process goes on; every child inherits everything built so far (the
+controllers, the plant, the compiled functions) and hands its results back pickled through a
+temporary file. The numbers are those of running them here: the same code on the same memory.
+:func:`side_by_side` is the common case: one child runs part of the runs while this process
+runs the others.
 """
 
 from __future__ import annotations
@@ -16,11 +18,11 @@ import signal
 import sys
 import tempfile
 
-__all__ = ["side_by_side", "can_fork"]
+__all__ = ["ForkedRuns", "side_by_side", "can_fork"]
 
 
 def can_fork() -> bool:
-    """Whether :func:`side_by_side` can run anything in a child (``fork``, at least 2 processors)."""
+    """Whether :class:`ForkedRuns` can run anything in a child (``fork``, at least 2 processors)."""
     return hasattr(os, "fork") and (os.cpu_count() or 1) >= 2
 
 
@@ -45,6 +47,90 @@ def _child(run, names, path: str) -> None:
             sys.stdout.flush()
             sys.stderr.flush()
         os._exit(code)
+
+
+class ForkedRuns:
+    """Runs handed to forked children at construction, collected by :meth:`collect`.
+
+    Parameters
+    ----------
+    shares : sequence of sequence
+        One child per non-empty share: the run names (hashable, picklable) it runs, in order.
+    run : callable
+        ``run(name)`` -> a picklable result; it may raise (the exception is raised by
+        :meth:`collect`).
+
+    Notes
+    -----
+    Use it as a context manager (or call :meth:`stop`): leaving the block by an exception, Ctrl-C
+    included, kills and reaps every child still running, so none is left behind. Without
+    ``fork`` (or on one processor) no child is made and :meth:`collect` runs everything here.
+    """
+
+    def __init__(self, shares, run):
+        self._run = run
+        self._shares = [list(s) for s in shares if len(s)]
+        self._children = []                                # (pid, path, names)
+        if not can_fork():
+            return
+        sys.stdout.flush()
+        sys.stderr.flush()
+        try:
+            for names in self._shares:
+                fd, path = tempfile.mkstemp(prefix="hubbeam-runs-", suffix=".pickle")
+                os.close(fd)
+                pid = os.fork()
+                if pid == 0:                               # pragma: no cover (the child exits in _child)
+                    _child(run, names, path)
+                self._children.append((pid, path, names))
+        except BaseException:
+            self.stop()
+            raise
+
+    def __enter__(self) -> "ForkedRuns":
+        return self
+
+    def __exit__(self, kind, exc, tb) -> None:
+        self.stop()
+
+    def stop(self) -> None:
+        """Kill and reap the children still running and remove their files (idempotent)."""
+        for pid, path, _ in self._children:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+            with contextlib.suppress(OSError):
+                os.waitpid(pid, 0)
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+        self._children = []
+
+    def collect(self) -> dict:
+        """Wait for the children and return ``{name: result}`` for every name of every share.
+
+        Returns
+        -------
+        dict
+            Name -> result, share by share. Names a child could not hand back (it was killed, or
+            a result would not pickle) are run here.
+
+        Raises
+        ------
+        Exception
+            The first exception a child's run raised (the other children are stopped).
+        """
+        got = {}
+        try:
+            for pid, path, _ in self._children:
+                os.waitpid(pid, 0)
+                payload = None
+                with contextlib.suppress(OSError, EOFError, pickle.UnpicklingError), open(path, "rb") as fh:
+                    payload = pickle.load(fh)
+                if payload is not None and payload[0] == "error":
+                    raise payload[1]
+                got.update(payload[1] if payload is not None else {})
+        finally:
+            self.stop()
+        return {name: got[name] if name in got else self._run(name) for share in self._shares for name in share}
 
 
 def side_by_side(names, run, here=None) -> dict:
@@ -73,34 +159,9 @@ def side_by_side(names, run, here=None) -> dict:
         if here is not None:
             here()
         return {name: run(name) for name in names}
-    fd, path = tempfile.mkstemp(prefix="hubbeam-runs-", suffix=".pickle")
-    os.close(fd)
-    try:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        pid = os.fork()
-        if pid == 0:                                       # pragma: no cover (the child exits in _child)
-            _child(run, theirs, path)
-        try:
-            if here is not None:
-                here()
-            out = {name: run(name) for name in names if name not in theirs}
-            os.waitpid(pid, 0)
-        except BaseException:                              # also Ctrl-C while waiting: no child left running
-            with contextlib.suppress(OSError):
-                os.kill(pid, signal.SIGKILL)
-            with contextlib.suppress(OSError):
-                os.waitpid(pid, 0)
-            raise
-        payload = None
-        with contextlib.suppress(OSError, EOFError, pickle.UnpicklingError), open(path, "rb") as fh:
-            payload = pickle.load(fh)
-        if payload is not None and payload[0] == "error":
-            raise payload[1]
-        got = payload[1] if payload is not None else {}
-        for name in theirs:                                # what the child did not hand back: here
-            out[name] = got[name] if name in got else run(name)
-        return {name: out[name] for name in names}
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(path)
+    with ForkedRuns([theirs], run) as child:
+        if here is not None:
+            here()
+        out = {name: run(name) for name in names if name not in theirs}
+        out.update(child.collect())
+    return {name: out[name] for name in names}

@@ -383,7 +383,7 @@ def _wall_line(comparison) -> str:
     if ladder_s is None:
         return f"- Wall time of the comparison: {comparison.wall_s:.1f} s."
     return (f"- Wall time of the comparison and the rig ladder: {comparison.wall_s:.1f} s "
-            f"(the ladder {ladder_s:.1f} s).")
+            f"(the ladder's steps run beside the comparison; waited for them after it: {ladder_s:.1f} s).")
 
 
 def ladder_lines(rows: list) -> list:

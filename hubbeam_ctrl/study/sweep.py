@@ -280,7 +280,13 @@ def check_workers(workers) -> int:
     return workers
 
 
-def _default_workers() -> int:
+def available_processors() -> int:
+    """The processors this process may run on (its affinity; ``os.cpu_count()`` where that is unknown).
+
+    Returns
+    -------
+    int
+    """
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:
@@ -354,7 +360,7 @@ class Engine:
         if workers is not None:
             check_workers(workers)
         self.client, self.retries = client, retries
-        self.workers = _dask_workers(client) if client is not None else (workers or _default_workers())
+        self.workers = _dask_workers(client) if client is not None else (workers or available_processors())
         self._pool = None
 
     def __enter__(self):
