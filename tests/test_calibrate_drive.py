@@ -59,7 +59,7 @@ def test_kt_and_r_enter_only_as_their_ratio(chirp):
     assert [f.path for f in fields] == ["beam.E", "motor.k_t", "motor.k_e"]
     assert plan.fixed["motor.R"]["value"] == rig.drive.R and "k_t / R" in plan.fixed["motor.R"]["reason"]
     # a current limit the records reach separates them: R stays fitted
-    peak = peak_current(rig, [chirp])         # hubbeam excite keeps the tip within 0.1 L: 0.43 A
+    peak = peak_current(rig, [chirp])         # hubbeam excite keeps the tip within 0.05 L
     low = rig.replace(drive=rig.drive.replace(I_max=0.5 * peak))
     assert peak_current(low, [chirp]) > low.drive.I_max
     jk, jr = _log_sensitivity(low, chirp, "motor.k_t"), _log_sensitivity(low, chirp, "motor.R")

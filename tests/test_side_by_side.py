@@ -140,6 +140,7 @@ def test_forked_runs_with_several_children_and_stop(tmp_path):
     """Several shares run in as many children; ``collect`` gives every result share by share; ``stop``
     (leaving the block) kills and reaps children still running."""
     import time
+
     from hubbeam_ctrl.study.forked_runs import ForkedRuns
     parent = os.getpid()
     pids = set()

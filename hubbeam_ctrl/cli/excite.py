@@ -31,7 +31,7 @@ def _options(p) -> None:
     p.add_argument("--modes", metavar="N", type=integer(),
                    help="modes to identify, which set the default band (default 2; not with --kind step)")
     p.add_argument("--max-tip", metavar="M", type=real("m"), help="largest predicted tip deflection [m] "
-                   "(default 0.1 L)")
+                   "(default 0.05 L)")
     p.add_argument("--max-hub", metavar="RAD", type=real("rad"), help="largest predicted hub travel [rad] "
                    "(default pi)")
     p.add_argument("--seed", metavar="N", type=integer(), help="PRBS seed (default 0; --kind prbs only)")
