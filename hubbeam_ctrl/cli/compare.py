@@ -263,7 +263,8 @@ def _plan(args) -> ComparePlan:
                              f"the design model's {design_modes}), got {args.plant_modes}")
     options = dict(plant=args.plant, scenario=args.scenario, controllers=names, params=params,
                    limit=args.limit, reference=args.reference, plant_params=plant_params,
-                   design_modes=design_modes, plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
+                   # not given: compare's default (the beam's, fewer when its plant cannot be integrated)
+                   design_modes=args.design_modes, plant_modes=args.plant_modes, tau_max=args.tau_max, t_f=args.tf,
                    t_end=args.t_end, dt=args.dt, w_f=3.0 if args.wf is None else args.wf,
                    slew_angle=args.slew_angle, horizon=50 if args.horizon is None else args.horizon,
                    solver=args.solver or "daqp", shaping=args.shaping, schedule=args.schedule,

@@ -26,8 +26,8 @@ from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.plant.modal import converged_bending_hz
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 
-__all__ = ["EXTRA_MODES", "PLANT_MODELS", "EvaluationPlant", "default_plant_modes", "evaluation_plant",
-           "modes_to_cover"]
+__all__ = ["EXTRA_MODES", "PLANT_MODELS", "EvaluationPlant", "default_design_modes", "default_plant_modes",
+           "evaluation_plant", "modes_to_cover"]
 
 #: The default evaluation plant has at least this many more transverse modes than the design.
 EXTRA_MODES = 3
@@ -139,6 +139,57 @@ def default_plant_modes(params: Params, dt: float, design_modes: int, spin: floa
         n = MAX_MODES
         reason += f" (capped at {MAX_MODES}: modes above {f[MAX_MODES - 1]:.4g} Hz are left out)"
     return n, reason + f": {n} transverse modes"
+
+
+def default_design_modes(params: Params, dt: float, spin: float = 0.0, tolerance: float = 0.01) -> tuple:
+    """The design model's default modes at the sample time ``dt``, and why when fewer than the beam's.
+
+    ``params.n_transverse``, fewer when the default evaluation plant of that design
+    (:func:`default_plant_modes`: at least three more modes) could not be integrated within
+    :data:`~hubbeam_ctrl.sim.step_rule.MAX_SUBSTEPS` steps per sample (with a 10 % margin: the
+    plant's own top mode is a little stiffer than the converged one). Found on a random rig: a 0.66 m
+    CFRP link sampled at 5 ms (bending modes 12, 72, 223 ... Hz), whose 5-mode design asked an 8-mode
+    plant with mode 8 at 2.3 kHz, 210 steps per sample: every default run was refused. Design modes
+    that far above the sampling frequency are aliased anyway.
+
+    Parameters
+    ----------
+    params : Params
+        The design's beam (its ``n_transverse``: the most modes).
+    dt : float
+        Sample time [s].
+    spin : float
+        Spin rate of the modal analysis [rad/s].
+    tolerance : float
+        The integrator's accepted frequency error [-] (the closed loop's
+        ``ClosedLoopSettings.frequency_tolerance``, 1 %).
+
+    Returns
+    -------
+    tuple
+        ``(modes, note)``: the note is empty when the beam's count is kept.
+
+    Examples
+    --------
+    >>> default_design_modes(Params(), 0.01)[0]       # the paper's beam at 100 Hz: its 5
+    5
+    """
+    from hubbeam_ctrl.sim.step_rule import MAX_SUBSTEPS, substep_rule
+    dt = check_positive("dt", dt, "s")
+    f = modes_to_cover(params, 1.0 / dt, spin)[2]
+    m = params.n_transverse
+    while m > 1:
+        n = default_plant_modes(params, dt, m, spin)[0]
+        try:
+            substep_rule(f[:n], dt, tolerance=tolerance, max_substeps=int(0.9 * MAX_SUBSTEPS))
+            break
+        except ParameterError:
+            m -= 1
+    if m == params.n_transverse:
+        return m, ""
+    return m, (f"design model: {m} modes, not the beam's {params.n_transverse}: the evaluation plant of a "
+               f"{params.n_transverse}-mode design would need more than {MAX_SUBSTEPS} integration steps per "
+               f"sample of {1e3 * dt:g} ms")
 
 
 def evaluation_plant(model: str = "foam", design_params: Params | None = None, dt: float = 0.01,

@@ -46,7 +46,7 @@ from hubbeam_ctrl.exact import require_exudyn
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.plant.rig import Rig
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings, simulate_closed_loop
-from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
+from hubbeam_ctrl.sim.evaluation import EvaluationPlant, default_design_modes, evaluation_plant
 from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.forked_runs import can_fork, side_by_side
@@ -220,9 +220,13 @@ def _run_bytes(steps: int, params: Params) -> float:
     return 16.0 * (steps + 1) * (2 * n_q + 9)
 
 
-def _design_modes(design_modes, design: Params) -> int:
-    """The design model's modes: DesignChoice's (checked there), else the design parameters'."""
-    return design.n_transverse if design_modes is None else design_modes
+def _design_modes(design_modes, design: Params, dt: float | None = None) -> int:
+    """The design model's modes: DesignChoice's (checked there), else the design parameters', fewer
+    when the default plant could not be integrated at ``dt`` (:func:`default_design_modes`)."""
+    if design_modes is not None:
+        return design_modes
+    return design.n_transverse if dt is None else default_design_modes(
+        design, dt, tolerance=ClosedLoopSettings().frequency_tolerance)[0]
 
 
 def compare(rig=None, task="slew", controllers=None, settings: CompareSettings | None = None, *,
@@ -319,7 +323,9 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
     sc = make_scenario(task, t_end=t_end, **options)    # None: the task's own
     sc = with_task_bands(sc, rig, scn.settle_angle, scn.settle_tip)
-    m = _design_modes(design_modes, sc.params)
+    m = _design_modes(design_modes, sc.params, sc.dt if plant_modes is None else None)
+    if m < sc.params.n_transverse and design_modes is None and plant_modes is None:
+        rate_notes.append(default_design_modes(sc.params, sc.dt, tolerance=ClosedLoopSettings().frequency_tolerance)[1])
     ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
                           plant_params=plant_params if plant_params is not None else params,
                           plant_modes=plant_modes)
