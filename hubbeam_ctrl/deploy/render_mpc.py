@@ -269,7 +269,7 @@ def _render_scheduled_lqg(law: ControlLaw, name: str, precision: str) -> tuple:
         data += _array3("CS", np.asarray(law.arrays["CS"]).reshape(S, ny, nx), R, single)
     num = (lambda v: _number(v, single))
     rate = int(law.scalars.get("rate_index", 1))
-    measured = f"{fabs}(y[{rate}])" if rate >= 0 else f"{fabs}(inst->x_pred[NRH])  /* no rate sensor: the prediction's */"
+    measured = f"{fabs}(y[{rate}])" if rate >= 0 else f"{fabs}(inst->x_pred[NRH])"   # no rate sensor: the prediction's
     spin_const = f"static const {R} SPIN = {num(law.scalars['spin'])};\n" if "RATE" in law.arrays else ""
     c_row = ("w == 0 ? CS[s][j][i] : (1 - w) * CS[s][j][i] + w * CS[s + 1][j][i]" if "CS" in law.arrays
              else "C[j][i]")
