@@ -250,11 +250,13 @@ def test_scheduled_lqg_on_the_rigs_sensors_in_c_equals_python(rig_name, angle, t
         # model's stiffness, so the measurement rows are scheduled too
         assert law.sensors == ("theta", "accel_tangential") and nz == inner.filter_model.n_x + 1
         assert "CS" in law.arrays and law.scalars["rate_index"] == -1.0
-        limit, unit = inner.tau_max, f"the hub torque [N m] to hold until the next sample, within +-{inner.tau_max:.12g} N m."
+        limit = inner.tau_max
+        unit = f"the hub torque [N m] to hold until the next sample, within +-{inner.tau_max:.12g} N m."
     else:
         # half a sample of delay (u_prev) and integral action (d): two filter states past the model's
         assert inner.settings.integral and nz == inner.filter_model.n_x + 2
-        limit, unit = rig.drive.V_max, f"the DC motor's voltage [V] to hold until the next sample, within +-V_max = {rig.drive.V_max:.12g} V"
+        limit = rig.drive.V_max
+        unit = f"the DC motor's voltage [V] to hold until the next sample, within +-V_max = {limit:.12g} V"
         assert f"#define LQG_V_MAX {rig.drive.V_max:.17g}  /* [V] */" in code.header
     assert f" *   command:      {unit}" in code.header
     assert f"#define LQG_TAU_MAX {inner.tau_max:.17g}  /* [N m] */" in code.header
