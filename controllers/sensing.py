@@ -240,7 +240,15 @@ DEFAULT_LAYOUT = SensorLayout()
 
 
 def observability_defect(Ad: np.ndarray, C: np.ndarray, names, tol: float = 1e-9) -> str | None:
-    """Which state the sensors cannot see (PBH test on each eigenvalue of ``Ad``), or None.
+    """Which state the sensors cannot see (the PBH eigenvector test on each mode of ``Ad``), or None.
+
+    A mode ``Ad v = z v`` is unobservable when every sensor row misses it, ``C v = 0``. The test is
+    made on unit eigenvectors and on sensor rows scaled to unit norm, so it does not depend on the
+    sensors' units: a tip accelerometer's row (entries up to the square of the highest modelled
+    frequency, 1e5-1e7) beside an encoder's (1) once made the rank test on ``[z I - Ad; C]``
+    relative to its largest singular value refuse a rig whose encoder sees the rotation (a 1 m
+    steel link with a 3.8 kg payload sampled at 5 ms: every mode's smallest singular value
+    3-8e-10 of the largest).
 
     Parameters
     ----------
@@ -249,18 +257,19 @@ def observability_defect(Ad: np.ndarray, C: np.ndarray, names, tol: float = 1e-9
     names : sequence of str
         State names (for the message).
     tol : float
-        Relative singular-value threshold.
+        Threshold on the largest ``|c v|`` over the unit rows ``c`` [-].
 
     Returns
     -------
     str or None
         The state with the largest share in an unobservable mode.
     """
-    n = Ad.shape[0]
-    z, V = np.linalg.eig(Ad)
-    for i, zi in enumerate(z):
-        M = np.vstack([zi * np.eye(n) - Ad, C.astype(complex)])
-        s = np.linalg.svd(M, compute_uv=False)
-        if s[-1] <= tol * max(s[0], 1.0):
-            return str(names[int(np.argmax(np.abs(V[:, i])))])
+    C = np.atleast_2d(np.asarray(C, dtype=float))
+    norms = np.linalg.norm(C, axis=1)
+    Cn = C[norms > 0] / norms[norms > 0, None]
+    _, V = np.linalg.eig(Ad)
+    for i in range(V.shape[1]):
+        v = V[:, i] / np.linalg.norm(V[:, i])
+        if Cn.shape[0] == 0 or np.max(np.abs(Cn @ v)) <= tol:
+            return str(names[int(np.argmax(np.abs(v)))])
     return None

@@ -193,3 +193,19 @@ def test_the_default_controllers_on_a_rig_without_a_rate_sensor_leave_pd_out(tmp
                  "--tf", "1.32", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
     assert code == 2 and "sensors.rate" in err and "Traceback" not in err and not (tmp_path / "o").exists()
+
+
+def test_observability_does_not_depend_on_the_sensors_units():
+    """An encoder beside a tip accelerometer whose row is 1e5-1e6 times larger (a 1 m steel link with a
+    3.8 kg payload at 5 ms): the rotation is observed (the rank test relative to the largest singular
+    value of ``[z I - Ad; C]`` refused it); without the encoder it is not."""
+    from hubbeam_ctrl.plant.params import Params
+    from hubbeam_ctrl.plant.rig import Rig, Sensors
+    beam = Params(L=1.064, rho=7850.0, A=4.50021e-4, E=200e9, I=4.1267e-9, J_h=1.511799, r=0.0, m_t=3.75876,
+                  tau_max=214.45)
+    rig = Rig(beam=beam, sensors=Sensors(encoder_counts=4096, strain_gauges=(), rate=False,
+                                         tip_accelerometer=True, accel_noise=5e-3))
+    d = DesignModel.build(rig.plant_params, 0.0, 0.005, 5).on_rig(SensorLayout.from_rig(rig.sensors), 0.5)
+    assert np.abs(d.C_sensors).max() > 1e5 * np.abs(d.C_sensors[0]).max()
+    assert observability_defect(d.Ad, d.C_sensors, d.state_names) is None
+    assert observability_defect(d.Ad, d.C_sensors[1:], d.state_names) == "theta"

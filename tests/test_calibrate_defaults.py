@@ -135,7 +135,7 @@ def test_the_benchmarked_start_from_two_thirds_meets_the_targets():
     """``benchmarks/bench_calibrate.py`` fits the same records from 1.5 x and 1 / 1.5 x the truth
     (the suite checks the starts above): its latest JSON meets issue 38's targets, converged."""
     from tests.conftest import ROOT
-    latest = sorted((ROOT / "benchmarks" / "results").glob("bench_calibrate_*.json"))[-1]
+    latest = sorted((ROOT / "benchmarks" / "results").glob("bench_calibrate_2*.json"))[-1]
     run = json.loads(latest.read_text())["steel_link_defaults"]
     for label in ("x1.5", "x1/1.5"):
         start = run["starts"][label]

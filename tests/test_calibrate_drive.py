@@ -110,7 +110,7 @@ def test_the_benchmarked_drive_identifiability():
     import json
 
     from tests.conftest import ROOT
-    latest = sorted((ROOT / "benchmarks" / "results").glob("bench_calibrate_*.json"))[-1]
+    latest = sorted((ROOT / "benchmarks" / "results").glob("bench_calibrate_2*.json"))[-1]
     run = json.loads(latest.read_text())
     servo, ideal = run["drive_fisher"]["servo_gear"], run["drive_fisher"]["ideal_gear"]
     for fisher in (servo, ideal):          # k_t and R only as k_t / R: one null direction d log k_t = d log R

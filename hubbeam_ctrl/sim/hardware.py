@@ -439,7 +439,25 @@ class Hardware:
             x = min(max(-thd * sign / self.friction.v_eps, 0.0), 50.0)
             e = d.eta_forward + (1.0 / d.eta_backward - d.eta_forward) * math.tanh(x) ** 2
             return min(max(d.R * tau / (d.N * d.k_torque * e) + d.k_e * d.N * thd, -d.V_max), d.V_max)
+        return np.clip(self.voltage_needed(tau, thd), -d.V_max, d.V_max)
+
+    def voltage_needed(self, tau, thd) -> np.ndarray:
+        """The voltage [V] the DC motor needs for the hub torque ``tau`` [N m] at the hub rate ``thd``
+        [rad/s], not clipped (above ``V_max`` the drive cannot give it); for the torque drive, ``tau``.
+
+        Parameters
+        ----------
+        tau, thd : array_like
+            Hub torque [N m] and rate [rad/s].
+
+        Returns
+        -------
+        ndarray
+        """
         tau, thd = np.asarray(tau, dtype=float), np.asarray(thd, dtype=float)
+        d = self.drive
+        if d.is_ideal:
+            return tau
         h = _unpack(self.values())
         i = tau / (d.N * d.k_torque * _efficiency(tau, thd, h, np.clip, np.tanh))     # sign(i) = sign(tau)
-        return np.clip(d.R * i + d.k_e * d.N * thd, -d.V_max, d.V_max)
+        return d.R * i + d.k_e * d.N * thd

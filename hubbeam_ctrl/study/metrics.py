@@ -341,6 +341,22 @@ class Evidence:
         return (self.certificate_grows is False and self.settled and tuple(self.growing) == ("torque",)
                 and not self.saturated > SATURATION_LIMIT)
 
+    @property
+    def torque_chatter(self) -> bool:
+        """Only the torque's ripple grows, off its limit, in a run whose linear certificate is stable and
+        whose tip and hub-angle error do not grow, but that has not settled.
+
+        With the loop's linear part stable and the command off its limit, a ripple that rises while the
+        tip and the hub do not is the chatter of a bounded nonlinearity (an encoder's counts, the hub's
+        friction) or of sensor noise, not growth: the run is judged by its bands. Found on a random rig
+        (a 1 m steel link with a 3.8 kg payload, a 4096-count encoder, 2.1 N m of Coulomb friction at
+        5 ms): the command toggled by +-1 V between counts after the slew, its envelope rising at
+        3.5 1/s from near zero, the tip decaying at 0.08 1/s and the hub within a count of the target;
+        it was judged "unstable".
+        """
+        return (self.certificate_grows is False and not self.settled and tuple(self.growing) == ("torque",)
+                and not self.saturated > SATURATION_LIMIT)
+
 
 def verdict(evidence: Evidence) -> str:
     """The verdict of a closed-loop run (:data:`VERDICTS`), tested in this order.
@@ -357,7 +373,8 @@ def verdict(evidence: Evidence) -> str:
       :data:`SATURATION_LIMIT` of the window (a saturation limit cycle); except a settled
       run whose certificate is stable and whose torque ripple alone rises
       (:attr:`Evidence.torque_build_up`: sensor noise building up, judged ``"settled"`` and
-      said in the reason);
+      said in the reason), and such a run that has not settled (:attr:`Evidence.torque_chatter`:
+      ``"not settled"``);
     * ``"settled"``: hub-angle error and tip deflection are inside their settling bands at
       the end;
     * ``"not settled"``: anything else (e.g. the undamped open loop, which rings on).
@@ -383,6 +400,8 @@ def verdict(evidence: Evidence) -> str:
         return "diverged" if evidence.stop_cause == "diverged" else "failed"
     if evidence.torque_build_up:
         return "settled"
+    if evidence.torque_chatter:
+        return "not settled"
     if evidence.friction_hunting:
         return "settled" if evidence.settled else "not settled"
     if evidence.certificate_grows or evidence.growing or evidence.saturated > SATURATION_LIMIT:
@@ -565,6 +584,10 @@ def _reason(evidence: Evidence, fits: dict, certificate, message: str) -> str:
     if evidence.torque_build_up:
         return (parts[0] + "; the linear certificate says stable and the tip and hub stay in their "
                 "bands: the loop's response to sensor noise building up, not growth")
+    if evidence.torque_chatter:
+        return (parts[0] + "; the tip and hub do not grow, the command stays off its limit and the linear "
+                "certificate says stable: chatter of a bounded nonlinearity (encoder counts, friction) or of "
+                "sensor noise, not growth; outside the settling bands at the end")
     if parts:
         if evidence.certificate_grows is False:
             parts.append("the linear certificate says stable: the growth is nonlinear (saturation, "
