@@ -146,6 +146,27 @@ class DesignSchedule:
         """Transverse modes of the design models."""
         return self.designs[0].n_modes
 
+    def on_rig(self, sensors=None, delay: float = 0.0) -> "DesignSchedule":
+        """Every design of the grid reading the rig's sensors with its computation delay
+        (:meth:`DesignModel.on_rig`).
+
+        Parameters
+        ----------
+        sensors : controllers.sensing.SensorLayout, optional
+            The signals the estimators read (default: the beam alone's three).
+        delay : float
+            Computation delay as a fraction of the sample [-], in [0, 1].
+
+        Returns
+        -------
+        DesignSchedule
+            ``self`` when no design changes (the beam alone's grid, bit for bit).
+        """
+        designs = tuple(d.on_rig(sensors, delay) for d in self.designs)
+        if all(a is b for a, b in zip(designs, self.designs)):
+            return self
+        return DesignSchedule(self.spins, designs)
+
     def locate(self, spin: float) -> tuple:
         """``(i, w)`` with ``value(spin) = (1 - w) table[i] + w table[i + 1]`` (clamped to the grid).
 

@@ -121,6 +121,12 @@ class VoltageCommand:
         tau = float(self.inner(t, y))
         self.last_torque = tau
         self._last_rate = self._rate(y)
+        clipped = self.hardware.clipped_torque(tau, self._last_rate)
+        if clipped is not None and hasattr(self.inner, "applied"):
+            # the voltage clipped at V_max (the back-EMF eats the rest) gives less torque than the law's:
+            # its filter predicts with that torque (without it the filter wound up and the command
+            # chattered between the limit and a fraction of it: servo_payload at 1.1 T*, 9.8 V steps)
+            self.inner.applied(clipped)
         return self.hardware.voltage_for_torque(tau, self._last_rate)
 
     def applied(self, command: float) -> None:

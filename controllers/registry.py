@@ -200,7 +200,8 @@ def make_controller(name: str, design: DesignModel, settings=None, reference: Re
         Only for controllers that track the reference (:attr:`ControllerSpec.tracks_reference`).
     schedule : DesignSchedule, optional
         Build the controller's gain-scheduled version on it (:attr:`ControllerSpec.scheduled`);
-        ``design`` then only gives the shaper.
+        ``design`` then gives the shaper, and its rig's sensors and delay, which every design of
+        the grid takes (:meth:`DesignSchedule.on_rig`: a scheduled LQG reads the rig's own sensors).
 
     Returns
     -------
@@ -227,7 +228,8 @@ def make_controller(name: str, design: DesignModel, settings=None, reference: Re
     if spec.scheduled is None:
         raise ParameterError(f"schedule: no scheduled version of {name!r}; allowed: "
                              f"{', '.join(n for n, s in CONTROLLERS.items() if s.scheduled)}")
-    return spec.scheduled(schedule, settings, reference)
+    # the grid's designs read what the design reads (a rig's sensors and delay: DesignModel.on_rig)
+    return spec.scheduled(schedule.on_rig(design.sensors, design.delay), settings, reference)
 
 
 def _tracking_names() -> list:

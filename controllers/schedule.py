@@ -145,8 +145,13 @@ class ScheduledKalmanEstimator:
     The interface of :class:`~controllers.estimator.KalmanEstimator`, in absolute
     coordinates (a steady rotation at any rate is a solution of every linear model of the
     grid); :meth:`update` also takes the spin rate that schedules the gain and the next
-    prediction: ``x_hat = x_pred + L(Omega) (y - C x_pred)``, then
-    ``x_pred+ = Ad(Omega) x_hat + Bd(Omega) u``.
+    prediction: ``x_hat = x_pred + L(Omega) (y - C(Omega) x_pred)``, then
+    ``x_pred+ = A(Omega) x_hat + B(Omega) u``. Each spin's filter is the plain LQG's
+    (:class:`~controllers.estimator.KalmanEstimator`, or with ``disturbance_noise``
+    :class:`~controllers.integral.OffsetFreeEstimator`) on that spin's design: on a rig
+    (:meth:`DesignSchedule.on_rig`) its state is :func:`~controllers.filter_model.filter_matrices`'
+    ``[x, u_prev, f, b, d]`` and it reads the rig's own sensors. ``C`` is scheduled too when it
+    changes with the spin (a tip accelerometer's row holds the model's stiffness).
 
     Parameters
     ----------
@@ -156,23 +161,44 @@ class ScheduledKalmanEstimator:
     design_modes : int, optional
         Transverse modes of the design models when the grid's models carry residual modes
         (see :meth:`~controllers.filter_model.KalmanNoise.covariances`).
+    disturbance_noise : float, optional
+        Random-walk standard deviation of an input disturbance state per sample [N m]
+        (integral action, :class:`~controllers.integral.OffsetFreeEstimator`); None: none.
 
     Attributes
     ----------
-    L : ndarray (S, nx, 3)
+    L : ndarray (S, nz, ny)
         Filter gain (measurement update) at each spin of the schedule.
-    models : ndarray (S, nx, nx + 1)
-        ``[Ad, Bd]`` at each spin.
-    x_pred, x_hat : ndarray (nx,)
+    models : ndarray (S, nz, nz + 1)
+        ``[A, B]`` at each spin.
+    A, B, C : ndarray
+        The filter's model at the grid's first spin.
+    Cs : ndarray (S, ny, nz) or None
+        The measurement rows at each spin; None when they do not change (``C`` is then used).
+    x_pred, x_hat : ndarray (nz,)
         Prediction used by the last update, and the current estimate.
     """
 
-    def __init__(self, schedule: "DesignSchedule", noise: KalmanNoise, design_modes: int | None = None):
+    def __init__(self, schedule: "DesignSchedule", noise: KalmanNoise, design_modes: int | None = None,
+                 disturbance_noise: float | None = None):
+        from .integral import OffsetFreeEstimator
         self.schedule = schedule
-        self.L = schedule.stack(lambda d: KalmanEstimator(d, noise, design_modes).L)
-        self.models = schedule.stack(lambda d: np.hstack([d.Ad, d.Bd]))
-        self._C = schedule.designs[0].C_sensors
+        if disturbance_noise is None:
+            filters = [KalmanEstimator(d, noise, design_modes) for d in schedule.designs]
+        else:
+            filters = [OffsetFreeEstimator(d, noise, disturbance_noise, design_modes) for d in schedule.designs]
+        self.L = np.array([f.L for f in filters])
+        self.models = np.array([np.hstack([f.A, f.B]) for f in filters])
+        Cs = np.array([f.C for f in filters])
+        self.A, self.B = filters[0].A, filters[0].B      # the grid's first spin (a drive's rate row reads A)
+        self.C = self._C = Cs[0]
+        self.Cs = None if np.array_equal(Cs, np.broadcast_to(Cs[0], Cs.shape)) else Cs
         self.reset()
+
+    @property
+    def n_z(self) -> int:
+        """Number of filter states."""
+        return self.models.shape[1]
 
     def reset(self, x0=None) -> None:
         """Start again from a state guess, with no measurement yet (the scheduling spin back to 0).
@@ -180,15 +206,19 @@ class ScheduledKalmanEstimator:
         Parameters
         ----------
         x0 : array_like (nx,), optional
-            As :meth:`KalmanEstimator.reset <controllers.estimator.KalmanEstimator.reset>`.
+            As :meth:`KalmanEstimator.reset <controllers.estimator.KalmanEstimator.reset>` (the
+            states past its length, e.g. ``u_prev``, start at 0).
         """
-        x0 = np.zeros(self.schedule.n_x) if x0 is None else np.array(x0, dtype=float)
-        self.x_pred = x0
-        self.x_hat = x0
+        x = np.zeros(self.n_z)
+        if x0 is not None:
+            x0 = np.array(x0, dtype=float)
+            x[:len(x0)] = x0
+        self.x_pred = x
+        self.x_hat = x
         self._spin = 0.0
 
     def predict(self, u: float) -> np.ndarray:
-        """Prediction ``Ad(mu) x_hat + Bd(mu) u`` of the next sample's state (ndarray (nx,)) with the
+        """Prediction ``A(mu) x_hat + B(mu) u`` of the next sample's state (ndarray (nz,)) with the
         model at the last update's spin ``mu`` (the estimator is unchanged).
 
         Parameters
@@ -199,27 +229,32 @@ class ScheduledKalmanEstimator:
         ab = self.schedule.interpolate(self.models, self._spin)
         return ab[:, :-1] @ self.x_hat + ab[:, -1] * u
 
-    def update(self, y, u_prev: float | None, spin: float) -> np.ndarray:
+    def update(self, y, u_prev: float | None, spin: float | None) -> np.ndarray:
         """Take one measurement at spin rate ``spin`` [rad/s] and return the new estimate.
 
         Parameters
         ----------
-        y : ndarray (3,)
-            Measurement ``[theta, theta_dot, M_root]`` (absolute).
+        y : ndarray (ny,)
+            Measurement of the designs' signals (the beam alone's ``[theta, theta_dot, M_root]``),
+            absolute.
         u_prev : float or None
             Torque held since the previous update [N m]; ``None`` right after :meth:`reset`.
-        spin : float
-            Scheduling variable [rad/s].
+        spin : float or None
+            Scheduling variable [rad/s]; None: the magnitude of the prediction's hub rate (a rig
+            without a rate sensor).
 
         Returns
         -------
-        ndarray (nx,)
+        ndarray (nz,)
         """
         if u_prev is not None:
             self.x_pred = self.predict(u_prev)
+        if spin is None:
+            spin = abs(float(self.x_pred[self.schedule.n_x // 2]))
         self._spin = spin
         L = self.schedule.interpolate(self.L, spin)
-        self.x_hat = self.x_pred + L @ (np.asarray(y, dtype=float) - self._C @ self.x_pred)
+        C = self._C if self.Cs is None else self.schedule.interpolate(self.Cs, spin)
+        self.x_hat = self.x_pred + L @ (np.asarray(y, dtype=float) - C @ self.x_pred)
         return self.x_hat
 
 
@@ -256,6 +291,16 @@ class ScheduledLQG(_Scheduled, LQG):
     ``tau = sat(tau_ff - K(Omega) (x_hat - x_ref))``; with ``settings.robust`` the
     estimator's models have the residual modes of :func:`filter_schedule`.
 
+    On a rig (a schedule of :meth:`DesignSchedule.on_rig`, which
+    :func:`controllers.registry.make_controller` gives it) the filter is the plain LQG's on each
+    spin's design (the rig's own sensors; the previous command, the anti-alias filter, the rate
+    sensor's bias and, with ``settings.integral``, the input disturbance as states) and the law is
+    the plain LQG's where the command acts (:meth:`DesignModel.acting_state`):
+    ``tau = sat(tau_ff(k + d) - K_z(Omega) z_hat + K(Omega) x_ref(k + d))`` with
+    ``K_z = filter_gain(K)`` per spin (:func:`controllers.filter_model.filter_gain`), both
+    interpolated in the spin. The measured spin is the rate sensor's, or without one the
+    magnitude of the filter's predicted hub rate.
+
     Parameters
     ----------
     schedule : DesignSchedule
@@ -266,21 +311,35 @@ class ScheduledLQG(_Scheduled, LQG):
 
     Attributes
     ----------
-    gains : ndarray (S, nx_est)
-        LQR gain at each spin of the schedule, on the filter's states (zero on residual modes).
+    gains : ndarray (S, nz)
+        Gain at each spin of the schedule on the filter's states (zero on residual modes; on a rig
+        the gain on the whole filter state, :func:`~controllers.filter_model.filter_gain`).
+    reference_gains : ndarray (S, nx_est)
+        LQR gain at each spin on the filter model's states, which multiplies the reference.
     estimator : ScheduledKalmanEstimator
     """
 
     def __init__(self, schedule: DesignSchedule, settings: LQGSettings | None = None,
                  reference: Reference | None = None, variable: str = "measured"):
+        from .filter_model import filter_gain
         self._init_schedule(schedule, variable)
         settings = (settings or LQGSettings()).replace(residual_control=False)   # per-point designs
         super().__init__(schedule.designs[0], settings, reference)
         models, self._E = filter_schedule(schedule, settings)
-        self.filter_model = models.designs[0]
-        self.estimator = ScheduledKalmanEstimator(models, settings, schedule.n_modes)
-        self.gains = schedule.stack(lambda d: dlqr_gain(d, settings.weights)[0]) @ self._E.T
-        self._Ke = self.gains[0]            # the loop at the grid's first spin (study.loop_poles)
+        self.filter_model = fm = models.designs[0]
+        self._on_rig = fm.sensors is not None or fm.carries_loop or settings.integral
+        disturbance = (settings.disturbance_noise_nm or 0.01 * self.tau_max) if settings.integral else None
+        self.estimator = ScheduledKalmanEstimator(models, settings, schedule.n_modes, disturbance)
+        if self.estimator.Cs is not None and not self._on_rig:
+            self.estimator.Cs = None        # the beam alone's filter reads the first spin's rows (as ever)
+        self.reference_gains = schedule.stack(lambda d: dlqr_gain(d, settings.weights)[0]) @ self._E.T
+        self.gains = self.reference_gains
+        if self._on_rig:
+            self.gains = np.array([filter_gain(K[None, :], m, settings, settings.integral)[0]
+                                   for K, m in zip(self.reference_gains, models.designs)])
+        signals = list(fm.signals)
+        self._rate_index = signals.index("theta_dot") if "theta_dot" in signals else None
+        self._Ke = self.reference_gains[0]      # the loop at the grid's first spin (study.loop_poles)
         self.reset()
 
     def reset(self) -> None:
@@ -289,13 +348,26 @@ class ScheduledLQG(_Scheduled, LQG):
         self._tau = None
 
     def __call__(self, t: float, y) -> float:
-        """Hub torque [N m] at time ``t`` [s] from the sensors ``y = [theta, theta_dot, M_root]``."""
+        """Hub torque [N m] at time ``t`` [s] from the sensors ``y`` (the beam alone's ``[theta, theta_dot,
+        M_root]``, or the rig's :attr:`signals`)."""
         k = int(round(t / self.dt))
-        xr, tff = self._reference_at(k)
-        spin = self._spin(k, y[1])
-        x_hat = self.estimator.update(y, self._tau, spin)
-        K = self.schedule.interpolate(self.gains, spin)
-        self._tau = saturate(float(self._ff * tff - K @ (x_hat - self._E @ xr)), self.tau_max)
+        if not self._on_rig:
+            xr, tff = self._reference_at(k)
+            spin = self._spin(k, y[1])
+            x_hat = self.estimator.update(y, self._tau, spin)
+            K = self.schedule.interpolate(self.gains, spin)
+            self._tau = saturate(float(self._ff * tff - K @ (x_hat - self._E @ xr)), self.tau_max)
+            return self._tau
+        xr, tff = self._reference_acting(k)         # where the command acts (the rig's delay)
+        if self.variable == "measured":
+            spin = None if self._rate_index is None else abs(float(y[self._rate_index]))
+        else:                                       # the reference rate where the command acts
+            spin = abs(float(xr[self.design.n_x // 2]))
+        z_hat = self.estimator.update(y, self._tau, spin)
+        spin = self.estimator._spin
+        u = (self.schedule.interpolate(self.gains, spin) @ z_hat
+             - self.schedule.interpolate(self.reference_gains, spin) @ (self._E @ xr))
+        self._tau = saturate(float(self._ff * tff - u), self.tau_max)
         return self._tau
 
 

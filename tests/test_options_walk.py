@@ -167,7 +167,7 @@ def test_compare_derives_t_end_from_a_long_task(tmp_path, capsys, fast_backend):
 
 #: ``hubbeam design`` and ``codegen``: a valid value other than the default for each option
 #: (choices: from the parser).
-RUN_SAMPLES = {"--params": "DAMPED", "--tip-mass": "0.2", "--tip-position": "7.5", "--n-modes": "4",
+RUN_SAMPLES = {"--params": "DAMPED", "--schedule": "3", "--tip-mass": "0.2", "--tip-position": "7.5", "--n-modes": "4",
                "--slew-angle": "1", "--tf": "8", "--wf": "2", "--payload-range": "0,0.5", "--dt": "0.005",
                "--rig": "servo_link", "--design-modes": "1", "--tau-max": "150", "--controller": "pd",
                "--duration": "5", "--amplitude": "0.5", "--band": "2:40", "--modes": "1", "--max-tip": "0.01",

@@ -24,12 +24,16 @@ __all__ = []
 def _options(p) -> None:
     """``hubbeam codegen``'s options on its parser ``p``."""
     from hubbeam_ctrl.cli.args import add_rig_option, add_task_options, add_verbose
+    from hubbeam_ctrl.cli.main import positive_int
 
     p.add_argument("--controller", required=True, metavar="KIND",
                    help="controller kind: pd, lqr, lqg, zv, zvd, ei, mpc, nmpc (nmpc: its real-time iteration "
                         "step, hubbeam_ctrl.deploy.nmpc_c)")
     add_rig_option(p, "rig file or preset: the beam (with the reflected rotor), its sensors and its sample time")
     add_task_options(p, "the rig's timing.dt, else 20 samples per period of the first flexible mode, at most 0.01")
+    p.add_argument("--schedule", metavar="N", type=positive_int("schedule"), default=1,
+                   help="lqg only: the gain-scheduled LQG designed at N spin rates from 0 to the top reference "
+                        "rate, interpolated on the measured rate (default 1: one design point)")
     p.add_argument("--precision", choices=["double", "single"], default="double",
                    help="type of the data and the arithmetic (default double)")
     p.add_argument("--out", metavar="DIR", required=True, help="output folder (created; must be empty)")
@@ -63,18 +67,27 @@ def _run(args) -> int:
     if rig is not None and args.controller == "mpc" and not rig.drive.is_ideal and args.precision != "double":
         raise ParameterError(f"--precision {args.precision} does not apply with --controller mpc --rig {args.rig} "
                              "(its QP with the DC motor's voltage limit needs double)")
+    if args.schedule > 1 and args.controller != "lqg":
+        raise ParameterError(f"--schedule {args.schedule} applies to --controller lqg only (the gain-scheduled LQG "
+                             f"is the scheduled controller that can be generated as C), got {args.controller!r}")
     sc, design = design_task(args, rig, params)
     if args.controller == "nmpc":
         return _nmpc(args, sc, design, rig, sink)
     settings = task_shaped_settings(args.controller, CONTROLLERS[args.controller].settings.for_scenario(sc),
                                     design, sc)[0]
+    schedule = None
+    if args.schedule > 1:
+        from controllers import DesignSchedule
+        from hubbeam_ctrl.study.compare_values import check_schedule
+        schedule = DesignSchedule.for_scenario(sc, check_schedule(args.schedule), design.n_modes)
     if rig is None:
-        ctrl = make_controller(args.controller, design, settings, sc.reference)
+        ctrl = make_controller(args.controller, design, settings, sc.reference, schedule=schedule)
     else:      # the controller that runs on the rig: integral action, observer, volts (as compare --rig)
         from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
         # the rig's sensors and delay in the design, as compare --rig has them: the C reads what the rig gives
         design = rig_design(design, rig)
-        ctrl = make_controller(args.controller, design, rig_settings(args.controller, settings, rig), sc.reference)
+        ctrl = make_controller(args.controller, design, rig_settings(args.controller, settings, rig), sc.reference,
+                               schedule=schedule)
         ctrl = on_rig(ctrl, rig, task_noise(sc, rig), rig_closed_loop(rig, sc.closed_loop_settings())[1])
     cc = compiler()
 

@@ -126,10 +126,11 @@ def _innovation(law: ControlLaw) -> str:
     return " + ".join(f"L[i][{j}] * yd[{j}]" for j in range(len(law.sensors)))
 
 
-def _reference_row(R: str) -> str:
+def _reference_row(R: str, n: str = "NX", nh: str = "NH") -> str:
     """C lines that read this sample's reference ``xr[NX]``, ``tff``: the external vector, else
     the table's row, else (beyond the table) its last row with the final rate continuing, as
-    :meth:`controllers.Controller._reference_at`."""
+    :meth:`controllers.Controller._reference_at`; ``n``, ``nh``: the C names of the row's length and
+    of its hub rate's index."""
     return """    if (reference) {
         for (i = 0; i < NX; ++i) xr[i] = (%(R)s)reference[i];
         tff = (%(R)s)reference[NX];
@@ -141,7 +142,7 @@ def _reference_row(R: str) -> str:
         xr[0] = XREF[KT - 1][0] + XREF[KT - 1][NH] * (%(R)s)(inst->k - KT + 1) * DT;
         tff = TFF[KT - 1];
     }
-""" % {"R": R}
+""".replace("NX", n).replace("NH", nh) % {"R": R}
 
 
 def _filter_fields(R: str, nx: int, coordinates: str = "deviation from steady spin", extra: str = "") -> str:

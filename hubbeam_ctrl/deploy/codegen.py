@@ -19,8 +19,8 @@ Kinds (:data:`CODEGEN_KINDS`):
   alone's ``theta``, ``theta_dot``, ``root_moment``, or a rig's own set:
   :meth:`controllers.DesignModel.on_rig`);
 * ``lqg``: :class:`controllers.LQG` (the same sensors), and the gain-scheduled
-  :class:`controllers.ScheduledLQG` (the beam alone's three sensors; gains, filter gains and
-  models interpolated on the measured spin rate);
+  :class:`controllers.ScheduledLQG` (the same sensors, the beam alone's or a rig's own; gains,
+  filter gains and models interpolated on the measured spin rate);
 * ``mpc``: :class:`controllers.MPC` with its observer (``ObservedFeedback``,
   :class:`ObservedMPC`): the condensed box-constrained QP solved by a generated primal
   active-set method, on a DC motor with the voltage limit's rows too

@@ -244,7 +244,7 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
                                  "(motor.slew_rate) cannot be generated as C yet (the filter would need the torque "
                                  "the limited voltage gives)")
         law = control_law(controller.inner, noise)
-        if law.kind not in ("pd", "observer", "mpc"):
+        if law.kind not in ("pd", "observer", "mpc", "scheduled_lqg"):
             raise ParameterError(f"controller: a voltage command of {law.controller!r} cannot be generated as C")
         d, f = controller.hardware.drive, controller.hardware.friction
         drive = {"R": d.R, "N": d.N, "k_t": d.k_torque, "k_e": d.k_e, "eta_forward": d.eta_forward,
@@ -382,25 +382,40 @@ def _emf_rows(mpc: MPC, HL: np.ndarray) -> dict:
 
 
 def _scheduled_lqg_law(ctrl) -> ControlLaw:
-    """A :class:`controllers.ScheduledLQG` as arrays: gains, filter gains and models per spin."""
+    """A :class:`controllers.ScheduledLQG` as arrays: gains, filter gains and models per spin.
+
+    On a rig's own sensors (:meth:`controllers.DesignSchedule.on_rig`) the same tables on the
+    filter's whole state ``[x, u_prev, f, b, d]`` (the plain LQG's filter at each spin), the
+    measurement rows per spin when they change (``CS``), the LQR gain on the reference
+    (``GREF``) and the reference table where the command acts (the rig's delay)."""
     est = ctrl.estimator
-    if np.shape(est._C)[0] != 3 or ctrl.filter_model.sensors is not None:
-        raise ParameterError("controller: a scheduled LQG on a rig's own sensors cannot be generated as C yet "
-                             "(the template reads the beam alone's theta, theta_dot, root_moment)")
     E = ctrl._E
     K = len(ctrl._tff)
-    X = np.array([E @ ctrl._reference_at(k)[0] for k in range(K)])
     models = np.asarray(est.models, dtype=float)
-    S, nx = models.shape[0], models.shape[1]
+    S, nz = models.shape[0], models.shape[1]
+    ny = np.shape(est._C)[0]
+    rig = bool(ctrl._on_rig)
+    rows = [ctrl._reference_acting(k) if rig else ctrl._reference_at(k) for k in range(K)]
+    X = np.array([E @ xr for xr, _ in rows])
+    nx = X.shape[1]
+    x0 = np.zeros(nz)
+    x0[:nx] = X[0] if not rig else E @ ctrl._reference_at(0)[0]
+    arrays = {"SPINS": np.asarray(est.schedule._grid, dtype=float),
+              "AD": models[:, :, :nz].reshape(S * nz, nz), "BD": models[:, :, nz],
+              "LK": np.asarray(est.L, dtype=float).reshape(S * nz, ny), "C": np.asarray(est._C, dtype=float),
+              "GAINS": np.asarray(ctrl.gains, dtype=float), "X0": x0, "XREF": X,
+              "TFF": np.array([t for _, t in rows], dtype=float) if rig else np.asarray(ctrl._tff, dtype=float)}
+    if est.Cs is not None:
+        arrays["CS"] = np.asarray(est.Cs, dtype=float).reshape(S * ny, nz)
+    if rig:
+        arrays["GREF"] = np.asarray(ctrl.reference_gains, dtype=float)
+    rate = ctrl._rate_index if rig else 1
+    sensors, gauges = _model_sensors(ctrl.filter_model)
     return ControlLaw(
         kind="scheduled_lqg", controller="lqg", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
-        feedforward=float(ctrl._ff),
-        arrays={"SPINS": np.asarray(est.schedule._grid, dtype=float),
-                "AD": models[:, :, :nx].reshape(S * nx, nx), "BD": models[:, :, nx],
-                "LK": np.asarray(est.L, dtype=float).reshape(S * nx, 3), "C": np.asarray(est._C, dtype=float),
-                "GAINS": np.asarray(ctrl.gains, dtype=float), "X0": X[0].copy(), "XREF": X,
-                "TFF": np.asarray(ctrl._tff, dtype=float)},
-        scalars={"measured": 1.0 if ctrl.variable == "measured" else 0.0}, sensors=_SENSORS,
-        n_reference=nx + 1,
-        reference_layout=f"x_ref[0..{nx - 1}] (the filter model's states, absolute hub angle and rate), "
-                         f"then tau_ff [N m]")
+        feedforward=float(ctrl._ff), arrays=arrays,
+        scalars={"measured": 1.0 if ctrl.variable == "measured" else 0.0,
+                 "rate_index": -1.0 if rate is None else float(rate), "spin": float(ctrl.filter_model.spin)},
+        sensors=sensors, gauges=gauges, n_reference=nx + 1,
+        reference_layout=f"x_ref[0..{nx - 1}] (the filter model's states, absolute hub angle and rate"
+                         f"{', where the command acts' if rig else ''}), then tau_ff [N m]")

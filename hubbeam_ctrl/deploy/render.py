@@ -83,13 +83,40 @@ static {R} drive_voltage({R} tau, {R} thd)
     return v > {sc["V_max"]} ? {sc["V_max"]} : (v < -{sc["V_max"]} ? -{sc["V_max"]} : v);
 }}
 """
+    if "inst->tau_prev" in source:
+        stage += f"""
+/* Hardware.clipped_torque: past +-V_max the filter predicts with the torque +-V_max gives (the law's
+   tau needs more than the back-EMF leaves) */
+static void clipped_torque({name}_instance *inst, {R} tau, {R} thd)
+{{
+    {R} x = -thd * (tau >= 0 ? 1 : -1) / {sc["v_eps"]};
+    {R} e, th, v;
+    x = x < 0 ? 0 : (x > 50 ? 50 : x);
+    th = tanh(x);
+    e = {sc["eta_forward"]} + (1 / {sc["eta_backward"]} - {sc["eta_forward"]}) * th * th;
+    v = {sc["R"]} * tau / ({sc["N"]} * {sc["k_t"]} * e) + {sc["k_e"]} * {sc["N"]} * thd;
+    if (v > {sc["V_max"]})
+        inst->tau_prev = ({sc["V_max"]} - {sc["k_e"]} * {sc["N"]} * thd) * {sc["N"]} * {sc["k_t"]} * e / {sc["R"]};
+    else if (v < -{sc["V_max"]})
+        inst->tau_prev = (-{sc["V_max"]} - {sc["k_e"]} * {sc["N"]} * thd) * {sc["N"]} * {sc["k_t"]} * e / {sc["R"]};
+}}
+"""
     sat = _saturate(name)
     if sat not in source:
         raise HubbeamError("the voltage stage needs the template's saturate()")
     source = source.replace(sat, sat + stage, 1)
+    filtered = "inst->tau_prev" in source
     for old in ("*command = (double)tau;", "*command = (double)saturate(tau);"):
         inner = old[len("*command = (double)"):-1]
-        source = source.replace(old, f"*command = (double)drive_voltage({inner}, {rate});")
+        if not filtered:
+            source = source.replace(old, f"*command = (double)drive_voltage({inner}, {rate});")
+            continue
+        # clipped at V_max: the filter predicts with the torque V_max gives at that rate (VoltageCommand)
+        source = source.replace(old, f"""{{
+        {R} thd = {rate};
+        clipped_torque(inst, {inner}, thd);
+        *command = (double)drive_voltage({inner}, thd);
+    }}""")
     return header, source
 
 

@@ -244,28 +244,59 @@ static void chol_solve(const {R} (*F)[NZ], int n, const {R} *v, {R} *x)
 
 
 def _render_scheduled_lqg(law: ControlLaw, name: str, precision: str) -> tuple:
-    """The gain-scheduled LQG: every gain and model interpolated in the spin rate per sample."""
-    real, single, R, nx, nh = _sizes(law, name, precision)
+    """The gain-scheduled LQG: every gain and model interpolated in the spin rate per sample.
+
+    ``NX`` filter states (the beam alone's model, or on a rig the plain LQG's filter state
+    ``[x, u_prev, f, b, d]``), ``NR`` reference states, ``NY`` measurements. On a rig
+    (``GREF`` in the law) the law is ``K_z(Omega) z_hat - K(Omega) x_ref``; the measurement rows
+    are interpolated too when they change with the spin (``CS``); without a rate sensor the
+    measured spin is the prediction's hub rate."""
+    real, single, R, nx, _ = _sizes(law, name, precision)
     S = len(law.arrays["SPINS"])
     kt = len(law.arrays["TFF"])
+    nr = np.shape(law.arrays["XREF"])[1]
+    ny = len(law.sensors)
+    rig = "GREF" in law.arrays
     fabs = "fabsf" if single else "fabs"
     body = _filter_fields(R, nx, "absolute coordinates",
                           f"    {R} spin;        /* scheduling variable of the last update [rad/s] */\n")
-    arrays = dict(law.arrays)
-    arrays["AD"] = np.asarray(arrays["AD"]).reshape(S, nx, nx)
-    data = "".join(_array(k, law.arrays[k], R, single) for k in ("SPINS", "BD", "C", "GAINS", "X0", "XREF", "TFF"))
-    data += _array3("AD", arrays["AD"], R, single)
-    data += _array3("LK", np.asarray(law.arrays["LK"]).reshape(S, nx, 3), R, single)
+    names = ("SPINS", "BD") + (() if "CS" in law.arrays else ("C",)) + ("GAINS", "X0", "XREF", "TFF") \
+        + (("GREF",) if rig else ())
+    data = "".join(_array(k, law.arrays[k], R, single) for k in names)
+    data += _array3("AD", np.asarray(law.arrays["AD"]).reshape(S, nx, nx), R, single)
+    data += _array3("LK", np.asarray(law.arrays["LK"]).reshape(S, nx, ny), R, single)
+    if "CS" in law.arrays:
+        data += _array3("CS", np.asarray(law.arrays["CS"]).reshape(S, ny, nx), R, single)
     num = (lambda v: _number(v, single))
+    rate = int(law.scalars.get("rate_index", 1))
+    measured = f"{fabs}(y[{rate}])" if rate >= 0 else f"{fabs}(inst->x_pred[NRH])"   # no rate sensor: the prediction's
+    spin_const = f"static const {R} SPIN = {num(law.scalars['spin'])};\n" if "RATE" in law.arrays else ""
+    c_row = ("w == 0 ? CS[s][j][i] : (1 - w) * CS[s][j][i] + w * CS[s + 1][j][i]" if "CS" in law.arrays
+             else "C[j][i]")
+    if rig:
+        gain = """    /* the plain LQG's law where the command acts: K_z(spin) z_hat - K(spin) x_ref */
+    u = 0;
+    for (i = 0; i < NX; ++i) u += (w == 0 ? GAINS[s][i] : (1 - w) * GAINS[s][i] + w * GAINS[s + 1][i]) * inst->x_hat[i];
+    for (i = 0; i < NR; ++i) u -= (w == 0 ? GREF[s][i] : (1 - w) * GREF[s][i] + w * GREF[s + 1][i]) * xr[i];
+"""
+    else:
+        gain = f"""    u = 0;
+    for (i = 0; i < NX; ++i) {{
+        {R} kk = w == 0 ? GAINS[s][i] : (1 - w) * GAINS[s][i] + w * GAINS[s + 1][i];
+        u += kk * (inst->x_hat[i] - xr[i]);
+    }}
+"""
     code = f"""#define NX {nx}
-#define NH {nh}
+#define NR {nr}
+#define NRH {nr // 2}
+#define NY {ny}
 #define NS {S}
 #define KT {kt}
 static const {R} DT = {num(law.dt)};
 static const {R} TAU_MAX = {num(law.tau_max)};
 static const {R} FF = {num(law.feedforward)};
 static const int MEASURED = {int(law.scalars["measured"])};
-
+{spin_const}
 {_saturate(name)}
 /* as DesignSchedule.locate: value = (1 - w) table[i] + w table[i + 1], clamped to the grid */
 static void locate({R} spin, int *i, {R} *w)
@@ -287,12 +318,11 @@ void {name}_reset({name}_instance *inst)
 
 {_step_signature(name)}
 {{
-    {R} y[3], innov[3], xr[NX];
-    {R} tff, u, spin, w;
+    {R} y[NY], innov[NY], xr[NR];
+    {R} tff, u, tau, spin, w;
     int i, j, s;
-    for (i = 0; i < 3; ++i) y[i] = ({R})measurements[i];
-{_reference_row(R)}    spin = MEASURED ? {fabs}(y[1]) : {fabs}(xr[NH]);
-    /* predict with the model at the last update's spin */
+    for (i = 0; i < NY; ++i) y[i] = ({R})measurements[i];
+{_reference_row(R, "NR", "NRH")}    /* predict with the model at the last update's spin */
     if (inst->has_tau) {{
         locate(inst->spin, &s, &w);
         for (i = 0; i < NX; ++i) {{
@@ -304,30 +334,27 @@ void {name}_reset({name}_instance *inst)
             inst->x_pred[i] = acc + (w == 0 ? BD[s][i] : (1 - w) * BD[s][i] + w * BD[s + 1][i]) * inst->tau_prev;
         }}
     }}
+    spin = MEASURED ? {measured} : {fabs}(xr[NRH]);
     inst->spin = spin;
     locate(spin, &s, &w);
-    for (j = 0; j < 3; ++j) {{
+    for (j = 0; j < NY; ++j) {{
         {R} acc = 0;
-        for (i = 0; i < NX; ++i) acc += C[j][i] * inst->x_pred[i];
+        for (i = 0; i < NX; ++i) acc += ({c_row}) * inst->x_pred[i];
         innov[j] = y[j] - acc;
     }}
     for (i = 0; i < NX; ++i) {{
         {R} acc = 0;
-        for (j = 0; j < 3; ++j) {{
+        for (j = 0; j < NY; ++j) {{
             {R} l = w == 0 ? LK[s][i][j] : (1 - w) * LK[s][i][j] + w * LK[s + 1][i][j];
             acc += l * innov[j];
         }}
         inst->x_hat[i] = inst->x_pred[i] + acc;
     }}
-    u = 0;
-    for (i = 0; i < NX; ++i) {{
-        {R} kk = w == 0 ? GAINS[s][i] : (1 - w) * GAINS[s][i] + w * GAINS[s + 1][i];
-        u += kk * (inst->x_hat[i] - xr[i]);
-    }}
-    inst->tau_prev = saturate(FF * tff - u);
+{gain}    tau = saturate(FF * tff - u);
+    inst->tau_prev = tau;
     inst->has_tau = 1;
     inst->k += 1;
-    *command = (double)inst->tau_prev;
+    *command = (double)tau;
 }}
 """
     header = _header(name, law, real, body, len(law.sensors))

@@ -399,6 +399,27 @@ class Hardware:
         is left out)."""
         return self.torque_per_volt() * self.back_emf_constant() + self.friction.viscous
 
+    def clipped_torque(self, tau: float, thd: float) -> float | None:
+        """The hub torque [N m] the drive gives at hub rate ``thd`` [rad/s] when the voltage that
+        ``tau`` [N m] needs (:meth:`voltage_for_torque`, same efficiency) is past ``+-V_max``: the
+        torque of ``+-V_max`` through the same static model; None when it is within (or a torque drive).
+
+        Parameters
+        ----------
+        tau : float
+        thd : float
+        """
+        d = self.drive
+        if d.is_ideal:
+            return None
+        sign = 1.0 if tau >= 0 else -1.0
+        x = min(max(-thd * sign / self.friction.v_eps, 0.0), 50.0)
+        e = d.eta_forward + (1.0 / d.eta_backward - d.eta_forward) * math.tanh(x) ** 2
+        v = d.R * tau / (d.N * d.k_torque * e) + d.k_e * d.N * thd
+        if -d.V_max <= v <= d.V_max:
+            return None
+        return (math.copysign(d.V_max, v) - d.k_e * d.N * thd) * d.N * d.k_torque * e / d.R
+
     def voltage_for_torque(self, tau, thd):
         """The voltage [V] that gives the hub torque ``tau`` [N m] at hub rate ``thd`` [rad/s].
 

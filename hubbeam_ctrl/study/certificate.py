@@ -35,6 +35,7 @@ import numpy as np
 import scipy.linalg
 
 from controllers import CONTROLLERS, Controller
+from controllers.drive import VoltageCommand
 from controllers.loop_plant import sampled_rig_plant
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.linear.statespace import linear_matrices
@@ -199,13 +200,24 @@ def linear_points(controller: Controller, name: str | None = None) -> list:
         spec = CONTROLLERS.get(name or controller.name)
         if spec is None:
             return []
-        return [(float(d.spin), spec.controller(d, controller.settings, controller.reference))
-                for d in schedule.designs]
+        points = [(float(d.spin), spec.controller(d, controller.settings, controller.reference))
+                  for d in schedule.designs]
+        if isinstance(controller, VoltageCommand):      # each point commands the DC motor's volts too
+            points = [(w, _volts(c, controller)) for w, c in points]
+        return points
     try:
         controller.feedback_matrices()
     except HubbeamError:
         return []
     return [(float(controller.design.spin), controller)]
+
+
+def _volts(point: Controller, scheduled) -> Controller:
+    """A schedule point behind the scheduled controller's drive stage, with its rig hardware."""
+    out = VoltageCommand(point, scheduled.hardware)
+    if getattr(scheduled, "rig_hardware", None) is not None:
+        out.rig_hardware = scheduled.rig_hardware
+    return out
 
 
 @lru_cache(maxsize=32)
