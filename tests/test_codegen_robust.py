@@ -85,6 +85,7 @@ def test_msmpc_in_c_equals_python_over_a_slew(msmpc, ref, tmp_path, m_t):
     py, c = _loop(py_ctrl, ref, m_t), _loop(cc, ref, m_t)
     assert len(c.tau) == len(py.tau) == round(T_END / DT) + 1
     err = np.max(np.abs(c.tau - py.tau)) / msmpc.tau_max
+    print(f"Table 1 msmpc (payloads {PAYLOADS} kg, plant {m_t} kg): max |C - Python| / tau_max = {err:.2e}")
     assert err <= 1e-9, err
     assert np.mean(np.abs(py.tau) >= msmpc.tau_max * (1 - 1e-12)) > 0.02     # the bound was active
     assert msmpc.n_fallbacks == 0
@@ -121,6 +122,7 @@ def test_hinf_in_c_equals_python_over_a_slew(hinf, ref, tmp_path, m_t):
     cc = CController(compile_c(code, "-O2", tmp_path), code, hinf)
     py, c = _loop(hinf, ref, m_t), _loop(cc, ref, m_t)
     err = np.max(np.abs(c.tau - py.tau)) / hinf.tau_max
+    print(f"Table 1 hinf (payloads {PAYLOADS} kg, plant {m_t} kg): max |C - Python| / tau_max = {err:.2e}")
     assert err <= 1e-9, err
     assert np.max(np.abs(py.tau)) > 0.05 * hinf.tau_max
 
@@ -217,3 +219,23 @@ def test_cli_codegen_msmpc_and_hinf_over_a_payload_range(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "payload-range" in err and "Traceback" not in err
 
+
+
+@needs_slycot
+def test_certify_writes_the_certified_hinf_with_its_verdict_in_the_header(tmp_path, capsys):
+    """``hubbeam certify hinf --uncertainty m_t=0:0.5,damping=0.0005:0.02 --c-out DIR`` on Table 1's
+    beam: certified, written as C whose header opens with the verdict, the set and the worst radius
+    found (the certificate.json's), and whose NAME.json carries the certificate."""
+    from hubbeam_ctrl.cli import main
+    status = main(["certify", "hinf", "--uncertainty", "m_t=0:0.5,damping=0.0005:0.02", "--check", "none",
+                   "--c-out", str(tmp_path / "c"), "--out", str(tmp_path / "cert")])
+    capsys.readouterr()
+    doc = json.loads((tmp_path / "cert" / "certificate.json").read_text())
+    cert = doc["controllers"]["hinf"]["certificate"]
+    assert status == 0 and cert["robust_verdict"] == "certified" and cert["robust_radius"] <= 1 - 1e-6
+    assert doc["controllers"]["hinf"]["c_code"]["written"] is True
+    header = (tmp_path / "c" / "hinf" / "hinf.h").read_text()
+    assert header.startswith("/* Robust certificate: CERTIFIED over m_t [0, 0.5], damping [0.0005, 0.02].")
+    assert f"found {cert['robust_radius']:.8f} at m_t = " in header.splitlines()[1]
+    meta = json.loads((tmp_path / "c" / "hinf" / "hinf.json").read_text())
+    assert meta["controller"] == "hinf" and meta["robust_certificate"]["robust_radius"] == cert["robust_radius"]

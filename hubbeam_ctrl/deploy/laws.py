@@ -260,9 +260,6 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
                                  "(motor.slew_rate) cannot be generated as C yet (the filter would need the torque "
                                  "the limited voltage gives)")
         law = control_law(controller.inner, noise)
-        if controller._rate_index is None and law.controller == "hinf":
-            raise ParameterError("controller: a voltage command of 'hinf' without a rate sensor (sensors.rate) "
-                                 "cannot be generated as C (the drive stage needs a filter's hub rate)")
         if law.kind not in ("pd", "observer", "mpc"):
             raise ParameterError(f"controller: a voltage command of {law.controller!r} cannot be generated as C")
         d, f = controller.hardware.drive, controller.hardware.friction
