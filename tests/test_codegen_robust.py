@@ -239,3 +239,28 @@ def test_certify_writes_the_certified_hinf_with_its_verdict_in_the_header(tmp_pa
     assert f"found {cert['robust_radius']:.8f} at m_t = " in header.splitlines()[1]
     meta = json.loads((tmp_path / "c" / "hinf" / "hinf.json").read_text())
     assert meta["controller"] == "hinf" and meta["robust_certificate"]["robust_radius"] == cert["robust_radius"]
+
+
+def robust_bench_rows(doc: dict) -> list:
+    """docs/deploy.md's robust table from ``benchmarks/results/bench_codegen_robust.json``."""
+    kg = " / ".join(f"{m:g}" for m in doc["payloads_kg"])
+    names = {"msmpc": lambda e: f"msmpc, scenarios {kg} kg, horizon {e['horizon']} ({e['qp_torques']} torques)",
+             "hinf": lambda e: f"hinf, payloads {kg} kg ({e['order']} states)"}
+    us = lambda v: f"{v:.3g}" if v < 1000 else f"{v:.0f}"      # noqa: E731
+    rows = []
+    for kind, e in doc["controllers"].items():
+        rows.append(f"| {names[kind](e)} | {us(e['c_step_us_median'])} / {us(e['c_step_us_p99'])} / "
+                    f"{us(e['c_step_us_max'])} | {us(e['python_step_us_median'])} | {e['code_text_bytes']} | "
+                    f"{e['rodata_bytes']} | {e['max_diff_over_tau_max']:.2g} |")
+    return rows
+
+
+def test_docs_quote_the_robust_codegen_benchmark():
+    """docs/deploy.md's robust table is bench_codegen_robust.json's; the replayed C followed Python there."""
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    doc = json.loads((root / "benchmarks" / "results" / "bench_codegen_robust.json").read_text())
+    text = (root / "docs" / "deploy.md").read_text()
+    for row in robust_bench_rows(doc):
+        assert row in text, row
+    assert all(e["max_diff_over_tau_max"] <= 1e-9 for e in doc["controllers"].values())
