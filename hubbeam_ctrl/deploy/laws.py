@@ -408,31 +408,6 @@ def _emf_rows(mpc: MPC, HL: np.ndarray) -> dict:
             "CM": CM, "GM": CM @ CM.T}
 
 
-def _scheduled_lqg_law(ctrl) -> ControlLaw:
-    """A :class:`controllers.ScheduledLQG` as arrays: gains, filter gains and models per spin."""
-    est = ctrl.estimator
-    if np.shape(est._C)[0] != 3 or ctrl.filter_model.sensors is not None:
-        raise ParameterError("controller: a scheduled LQG on a rig's own sensors cannot be generated as C yet "
-                             "(the template reads the beam alone's theta, theta_dot, root_moment)")
-    E = ctrl._E
-    K = len(ctrl._tff)
-    X = np.array([E @ ctrl._reference_at(k)[0] for k in range(K)])
-    models = np.asarray(est.models, dtype=float)
-    S, nx = models.shape[0], models.shape[1]
-    return ControlLaw(
-        kind="scheduled_lqg", controller="lqg", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
-        feedforward=float(ctrl._ff),
-        arrays={"SPINS": np.asarray(est.schedule._grid, dtype=float),
-                "AD": models[:, :, :nx].reshape(S * nx, nx), "BD": models[:, :, nx],
-                "LK": np.asarray(est.L, dtype=float).reshape(S * nx, 3), "C": np.asarray(est._C, dtype=float),
-                "GAINS": np.asarray(ctrl.gains, dtype=float), "X0": X[0].copy(), "XREF": X,
-                "TFF": np.asarray(ctrl._tff, dtype=float)},
-        scalars={"measured": 1.0 if ctrl.variable == "measured" else 0.0}, sensors=_SENSORS,
-        n_reference=nx + 1,
-        reference_layout=f"x_ref[0..{nx - 1}] (the filter model's states, absolute hub angle and rate), "
-                         f"then tau_ff [N m]")
-
-
 def _msmpc_law(ctrl: ObservedFeedback) -> ControlLaw:
     """A multi-stage MPC (:class:`controllers.MultiStageMPC`) closed through its observer, as the MPC
     template's law with the tree's QP: ``z`` the ``1 + S (N - 1)`` torques (the shared first one at
@@ -501,3 +476,28 @@ def _hinf_law(ctrl) -> ControlLaw:
         scalars={"spin": 0.0}, sensors=sensors, n_reference=nx + 1,
         reference_layout=f"x_ref[0] the hub angle's reference [rad], x_ref[{nh}] its rate [rad/s] (used past the "
                          f"table only), the other entries to {nx - 1} zero, then tau_ff [N m]")
+
+
+def _scheduled_lqg_law(ctrl) -> ControlLaw:
+    """A :class:`controllers.ScheduledLQG` as arrays: gains, filter gains and models per spin."""
+    est = ctrl.estimator
+    if np.shape(est._C)[0] != 3 or ctrl.filter_model.sensors is not None:
+        raise ParameterError("controller: a scheduled LQG on a rig's own sensors cannot be generated as C yet "
+                             "(the template reads the beam alone's theta, theta_dot, root_moment)")
+    E = ctrl._E
+    K = len(ctrl._tff)
+    X = np.array([E @ ctrl._reference_at(k)[0] for k in range(K)])
+    models = np.asarray(est.models, dtype=float)
+    S, nx = models.shape[0], models.shape[1]
+    return ControlLaw(
+        kind="scheduled_lqg", controller="lqg", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
+        feedforward=float(ctrl._ff),
+        arrays={"SPINS": np.asarray(est.schedule._grid, dtype=float),
+                "AD": models[:, :, :nx].reshape(S * nx, nx), "BD": models[:, :, nx],
+                "LK": np.asarray(est.L, dtype=float).reshape(S * nx, 3), "C": np.asarray(est._C, dtype=float),
+                "GAINS": np.asarray(ctrl.gains, dtype=float), "X0": X[0].copy(), "XREF": X,
+                "TFF": np.asarray(ctrl._tff, dtype=float)},
+        scalars={"measured": 1.0 if ctrl.variable == "measured" else 0.0}, sensors=_SENSORS,
+        n_reference=nx + 1,
+        reference_layout=f"x_ref[0..{nx - 1}] (the filter model's states, absolute hub angle and rate), "
+                         f"then tau_ff [N m]")
