@@ -21,6 +21,11 @@ QP has a second named alternative, CasADi's generated ``qrqp`` on the same recor
 (``mpc_qp_alternative_qrqp``: does it compile with the strict flags, its includes, its plans'
 distance from DAQP's). Targets
 (issue 26): LQG under 2 us, MPC horizon 50 under 50 us per step.
+
+``--robust`` measures the robust designs of issue 39 the same way instead (no qrqp alternative):
+the multi-stage MPC over the payloads 0 / 0.1 / 0.5 kg (horizon 50: 148 torques) and the
+H-infinity law for the same range, written to ``benchmarks/results/bench_codegen_robust.json``
+(docs/deploy.md's robust table is generated from it).
 """
 
 from __future__ import annotations
@@ -222,6 +227,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--t-end", type=float, default=12.0, help="closed-loop run replayed [s]")
     ap.add_argument("--repeat", type=int, default=20, help="replays timed in C (the first is a warm-up)")
+    ap.add_argument("--robust", action="store_true", help="the multi-stage MPC and H-infinity instead")
     args = ap.parse_args()
     cc = compiler()
     if cc is None:
@@ -230,6 +236,8 @@ def main() -> None:
     dt = 0.01
     design = DesignModel.build(p, 0.0, dt)
     ref = slew_reference(1.0, 6.0, p.total_inertia, 200.0, dt, args.t_end)
+    if args.robust:
+        return _robust(args, cc, design, ref)
     ctrls = {
         "pd": PD(design, reference=ref),
         "lqr": LQR(design, LQRSettings(residual_control=True), reference=ref),
@@ -253,6 +261,33 @@ def main() -> None:
     RESULTS.mkdir(exist_ok=True)
     path = RESULTS / f"bench_codegen_{datetime.date.today().isoformat()}.json"
     path.write_text(json.dumps(out, indent=2) + "\n")
+    print(json.dumps(out, indent=2))
+
+
+#: The payload scenarios of the robust designs [kg]: ``--payload-range 0,0.5`` on Table 1 (tip mass 0.1 kg).
+ROBUST_PAYLOADS = (0.0, 0.1, 0.5)
+
+
+def _robust(args, cc, design, ref) -> None:
+    """``--robust``: the multi-stage MPC and the H-infinity law, replayed like the others."""
+    from controllers import HInfSettings, KalmanNoise, MultiStageMPC, MultiStageMPCSettings, make_controller
+    from controllers.integral import ObservedFeedback
+    ms = MultiStageMPC(design, MultiStageMPCSettings(horizon=50, residual_control=True, payloads=ROBUST_PAYLOADS),
+                       ref)
+    hinf = make_controller("hinf", design, HInfSettings(payloads=ROBUST_PAYLOADS), ref)
+    out = {"benchmark": "codegen_robust", "machine": platform.machine(), "cpu_count": os.cpu_count(),
+           "compiler": subprocess.run([cc, "--version"], capture_output=True, text=True).stdout.splitlines()[0],
+           "flags": [*STRICT_FLAGS, "-O2"], "beam": "Table 1", "dt_s": design.dt, "design_modes": design.n_modes,
+           "payloads_kg": list(ROBUST_PAYLOADS), "load_before": os.getloadavg(), "controllers": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        out["controllers"]["msmpc"] = _bench("msmpc", ms, ObservedFeedback(ms, KalmanNoise()), args.t_end,
+                                             args.repeat, cc, Path(tmp))
+        out["controllers"]["msmpc"].update(horizon=50, qp_torques=int(ms._n_u))
+        out["controllers"]["hinf"] = _bench("hinf", hinf, hinf, args.t_end, args.repeat, cc, Path(tmp))
+        out["controllers"]["hinf"]["order"] = hinf.order
+    out["load_after"] = os.getloadavg()
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "bench_codegen_robust.json").write_text(json.dumps(out, indent=2) + "\n")
     print(json.dumps(out, indent=2))
 
 

@@ -27,8 +27,11 @@ def _options(p) -> None:
     from hubbeam_ctrl.cli.main import positive_int
 
     p.add_argument("--controller", required=True, metavar="KIND",
-                   help="controller kind: pd, lqr, lqg, zv, zvd, ei, mpc, nmpc (nmpc: its real-time iteration "
-                        "step, hubbeam_ctrl.deploy.nmpc_c)")
+                   help="controller kind: pd, lqr, lqg, zv, zvd, ei, mpc, msmpc, hinf, nmpc (nmpc: its real-time "
+                        "iteration step, hubbeam_ctrl.deploy.nmpc_c)")
+    p.add_argument("--payload-range", metavar="MIN,MAX",
+                   help="tip payloads [kg] a robust design covers (msmpc: one scenario each at MIN, the nominal tip "
+                        "mass and MAX; hinf: the spread weight of those plants); must hold the tip mass")
     add_rig_option(p, "rig file or preset: the beam (with the reflected rotor), its sensors and its sample time")
     add_task_options(p, "the rig's timing.dt, else 20 samples per period of the first flexible mode, at most 0.01")
     p.add_argument("--schedule", metavar="N", type=positive_int("schedule"), default=1,
@@ -80,6 +83,8 @@ def _run(args) -> int:
         from controllers import DesignSchedule
         from hubbeam_ctrl.study.compare_values import check_schedule
         schedule = DesignSchedule.for_scenario(sc, check_schedule(args.schedule), design.n_modes)
+    if args.payload_range is not None:
+        settings = _payload_settings(args, settings, design)
     if rig is None:
         ctrl = make_controller(args.controller, design, settings, sc.reference, schedule=schedule)
     else:      # the controller that runs on the rig: integral action, observer, volts (as compare --rig)
@@ -111,6 +116,19 @@ def _run(args) -> int:
     elif not args.json:
         print("  compiled warning-free with -std=c99 -Wall -Wextra -pedantic -Werror -O2", file=sink)
     return 0
+
+
+def _payload_settings(args, settings, design):
+    """``settings`` with the payloads of ``--payload-range`` (the range's ends and the nominal tip mass,
+    :func:`controllers.robust.payload_grid`): the multi-stage MPC's scenarios, the H-infinity spread weight's."""
+    from controllers.robust import payload_grid
+    from hubbeam_ctrl.cli.compare import parse_payload_range
+    from hubbeam_ctrl.core.errors import ParameterError
+    if args.controller not in ("msmpc", "hinf"):
+        raise ParameterError(f"--payload-range does not apply with --controller {args.controller} (it sets the "
+                             "payloads of msmpc and hinf)")
+    m_t = design.params.m_t
+    return settings.replace(payloads=payload_grid(parse_payload_range(args.payload_range, m_t), m_t))
 
 
 def _nmpc(args, sc, design, rig, sink) -> int:

@@ -172,6 +172,8 @@ def _filter_step(law: ControlLaw, R: str) -> str:
     law has one), then ``x_hat = (I - L C) x_pred + L yd``."""
     offset = ("\n            if (inst->k >= 1 && inst->k - 1 < KOFF) s += OFFSET[inst->k - 1][i];  "
               "/* along the plan */") if "OFFSET" in law.arrays else ""
+    if "BREF" in law.arrays:     # a law whose state update reads the last sample's reference angle
+        offset += "\n            s += BREF[i] * inst->r_prev;"
     return f"""    /* predict with the torque held since the last sample */
     if (inst->has_tau) {{
         for (i = 0; i < NX; ++i) {{

@@ -25,6 +25,10 @@ Kinds (:data:`CODEGEN_KINDS`):
   :class:`ObservedMPC`): the condensed box-constrained QP solved by a generated primal
   active-set method, on a DC motor with the voltage limit's rows too
   (:mod:`~hubbeam_ctrl.deploy.render_qp`, double precision only; no tip bound);
+* ``msmpc``: :class:`controllers.MultiStageMPC` with its observer: the MPC's template with the
+  scenario tree's QP (``1 + S (N - 1)`` torques, the first shared; no tip bound, no voltage rows);
+* ``hinf``: :class:`controllers.HInf`, the sampled H-infinity law on the hub angle's error, in the
+  observer template (its state ``[theta, x_k]``, the reference angle in the prediction);
 * ``zv``, ``zvd``, ``ei``, ``openloop`` (profile ``feedforward``): the held torque table
   of an input-shaped or feedforward open loop (reads nothing).
 

@@ -15,7 +15,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers import LQG, LQR, MPC, PD, Controller, KalmanNoise, OpenLoop, ScheduledLQG, ShapedOpenLoop
+from controllers import (
+    LQG,
+    LQR,
+    MPC,
+    PD,
+    Controller,
+    HInf,
+    KalmanNoise,
+    MultiStageMPC,
+    OpenLoop,
+    ScheduledLQG,
+    ShapedOpenLoop,
+)
 from controllers.drive import VoltageCommand
 from controllers.filter_model import extra_state_gains
 from controllers.integral import ObservedFeedback
@@ -33,6 +45,10 @@ CODEGEN_KINDS = {
            "gain-scheduled LQG with every gain and model interpolated on the spin rate",
     "mpc": "MPC on a Kalman filter of its model: the condensed QP (torque bounds; on a DC motor also the "
            "voltage limit through back-EMF) solved by a generated primal active-set method (no tip bound)",
+    "msmpc": "multi-stage (scenario-tree) MPC over payload scenarios on a Kalman filter of its nominal model: the "
+             "tree's QP (1 + S (N - 1) torques, the first shared; torque bounds only) by the MPC's solver",
+    "hinf": "H-infinity LTI law on the hub angle's error (sampled hinfsyn controller), reference table, feedforward, "
+            "saturation",
     "zv": "ZV input-shaped open-loop torque table",
     "zvd": "ZVD input-shaped open-loop torque table",
     "ei": "EI input-shaped open-loop torque table",
@@ -261,8 +277,10 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         ctrl = ObservedLQR(ctrl, noise)
     elif type(ctrl) is MPC:
         ctrl = ObservedMPC(ctrl, noise)
-    if isinstance(ctrl, ObservedFeedback) and type(ctrl.inner) is MPC:
-        law = _mpc_law(ctrl)
+    elif type(ctrl) is MultiStageMPC:     # with its observer, as a bare MPC
+        ctrl = ObservedFeedback(ctrl, KalmanNoise() if noise is None else noise)
+    if isinstance(ctrl, ObservedFeedback) and type(ctrl.inner) in (MPC, MultiStageMPC):
+        law = _mpc_law(ctrl) if type(ctrl.inner) is MPC else _msmpc_law(ctrl)
         law.check_finite()
         return law
     if isinstance(ctrl, ObservedFeedback):
@@ -292,6 +310,8 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
             reference_layout="theta_ref [rad], theta_dot_ref [rad/s], tau_ff [N m]")
     elif type(ctrl) is ScheduledLQG:
         law = _scheduled_lqg_law(ctrl)
+    elif type(ctrl) is HInf:
+        law = _hinf_law(ctrl)
     elif type(ctrl) is LQG:
         X, tff = _reference_table(ctrl, ctrl._xref_filter, ctrl._E)
         x0 = ctrl._E @ ctrl._reference_at(0)[0]        # LQG.reset
@@ -328,13 +348,27 @@ def _mpc_law(ctrl: ObservedFeedback) -> ControlLaw:
     arrays: the filter (any sensor set, the previous command and the disturbance as states), the
     map ``P`` from the filter's state to the MPC's state where the command acts, the condensed QP
     and its reference terms."""
-    mpc, fm, est = ctrl.inner, ctrl.filter_model, ctrl.estimator
-    s = mpc.settings
-    if s.tip_bound is not None:
+    mpc = ctrl.inner
+    if mpc.settings.tip_bound is not None:
         raise ParameterError("controller: an MPC with a tip_bound cannot be generated as C yet (the generated "
                              "QP solver handles the torque bounds only); use tip_bound=None")
-    N = s.horizon
+    H = np.asarray(mpc._H.full(), dtype=float)
+    kt = len(mpc._ref_term)
+    r0 = np.asarray(mpc._reference_term(kt), dtype=float)
+    qp = {"GX": np.asarray(mpc._Gx, float), "H": H, "HL": np.linalg.cholesky(H),
+          "REFT": np.asarray(mpc._ref_term, dtype=float), "R0": r0,
+          "R1": np.asarray(mpc._reference_term(kt + 1), dtype=float) - r0}
+    if mpc._emf is not None:
+        qp.update(_emf_rows(mpc, qp["HL"]))
+    return _observed_qp_law(ctrl, "mpc", qp)
+
+
+def _observed_qp_law(ctrl: ObservedFeedback, controller: str, qp: dict) -> ControlLaw:
+    """The MPC template's law: the observer of ``ctrl`` around the condensed QP ``qp`` (``GX``,
+    ``H``, ``HL``, ``REFT``, ``R0``, ``R1`` and the voltage rows' arrays; its size ``len(H)``)."""
+    fm, est = ctrl.filter_model, ctrl.estimator
     nz = est.A.shape[0]
+    n_z = len(qp["H"])
     Phi, G = fm.action_map()
     act = np.zeros((fm.n_x, nz))                   # the acting state (controllers.DesignModel.acting_state)
     act[:, :fm.n_x] = Phi
@@ -342,25 +376,18 @@ def _mpc_law(ctrl: ObservedFeedback) -> ControlLaw:
         act[:, fm.n_x] = G
         if ctrl.integral:                          # the disturbance acts with the previous command
             act[:, nz - 1] = G
-    H = np.asarray(mpc._H.full(), dtype=float)
-    table = np.asarray(mpc._ref_term, dtype=float)
-    kt = len(table)
-    r0 = np.asarray(mpc._reference_term(kt), dtype=float)
-    r1 = np.asarray(mpc._reference_term(kt + 1), dtype=float) - r0
-    arrays = {**_filter_arrays(est), "X0": ctrl.initial_state(), "P": act[ctrl._pick],
-              "GX": np.asarray(mpc._Gx, float), "H": H, "HL": np.linalg.cholesky(H), "REFT": table, "R0": r0, "R1": r1}
+    arrays = {**_filter_arrays(est), "X0": ctrl.initial_state(), "P": act[ctrl._pick], **qp}
     if ctrl._defect is not None and len(ctrl._defect):
         arrays["OFFSET"] = _offset_rows(ctrl._defect, nz)
-    if mpc._emf is not None:
-        arrays.update(_emf_rows(mpc, arrays["HL"]))
     sensors, gauges = _model_sensors(fm)
     return ControlLaw(
-        kind="mpc", controller="mpc", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=1.0,
+        kind="mpc", controller=controller, dt=float(ctrl.dt), tau_max=float(ctrl.tau_max), feedforward=1.0,
         arrays=arrays,
-        scalars={"spin": float(ctrl.design.spin), "horizon": float(N), "delay": float(fm.delay),
-                 "plan_shift": float(np.floor(fm.delay + 0.5)), "integral": 1.0 if ctrl.integral else 0.0},
-        sensors=sensors, n_reference=N, gauges=gauges,
-        reference_layout=f"r[0..{N - 1}]: the QP gradient's reference term (g = Gx x - r)")
+        scalars={"spin": float(ctrl.design.spin), "horizon": float(ctrl.inner.settings.horizon),
+                 "delay": float(fm.delay), "plan_shift": float(np.floor(fm.delay + 0.5)),
+                 "integral": 1.0 if ctrl.integral else 0.0},
+        sensors=sensors, n_reference=n_z, gauges=gauges,
+        reference_layout=f"r[0..{n_z - 1}]: the QP gradient's reference term (g = Gx x - r)")
 
 
 def _emf_rows(mpc: MPC, HL: np.ndarray) -> dict:
@@ -379,6 +406,76 @@ def _emf_rows(mpc: MPC, HL: np.ndarray) -> dict:
     CM = np.linalg.solve(HL, C.T).T               # row j: L^-1 c_j
     return {"AV": AV, "OFFX": np.asarray(off_x, dtype=float), "LIM": np.asarray(limit, dtype=float),
             "CM": CM, "GM": CM @ CM.T}
+
+
+def _msmpc_law(ctrl: ObservedFeedback) -> ControlLaw:
+    """A multi-stage MPC (:class:`controllers.MultiStageMPC`) closed through its observer, as the MPC
+    template's law with the tree's QP: ``z`` the ``1 + S (N - 1)`` torques (the shared first one at
+    index 0), the tree's Hessian and state gradient, and the reference term ``r_k``: each scenario's
+    plain-MPC term weighted and placed at its variables (:meth:`controllers.MultiStageMPC.qp_at`)."""
+    ms = ctrl.inner
+    if ms._soft:
+        raise ParameterError("controller: a multi-stage MPC with a tip_bound cannot be generated as C yet (the "
+                             "generated QP solver handles the torque bounds only); use tip_bound=None")
+    if ms._A.shape[0]:
+        raise ParameterError("controller: a multi-stage MPC with the DC motor's voltage rows (emf_torque_limit) "
+                             "cannot be generated as C yet (the generated solver's feasible start needs one "
+                             "lower-triangular row per torque; the tree has one per scenario and step); use "
+                             "emf_torque_limit=None or a torque-source drive")
+    n_u = ms._n_u
+
+    def term(k: int) -> np.ndarray:
+        r = np.zeros(n_u)
+        for st, w, idx in zip(ms.stages, ms.weights, ms._index):
+            r[idx] += w * np.asarray(st._reference_term(k), dtype=float)
+        return r
+
+    kt = min(len(st._ref_term) for st in ms.stages)
+    table = np.zeros((kt, n_u))
+    for st, w, idx in zip(ms.stages, ms.weights, ms._index):
+        table[:, idx] += w * np.asarray(st._ref_term[:kt], dtype=float)
+    r0 = term(kt)
+    H = np.asarray(ms._Hu, dtype=float)
+    qp = {"GX": np.asarray(ms._Gx, float), "H": H, "HL": np.asarray(ms._chol, dtype=float), "REFT": table,
+          "R0": r0, "R1": term(kt + 1) - r0}
+    return _observed_qp_law(ctrl, "msmpc", qp)
+
+
+def _hinf_law(ctrl) -> ControlLaw:
+    """An H-infinity controller (:class:`controllers.HInf`, the sampled LTI law on the hub angle's error)
+    as the observer template's law, in absolute coordinates (``spin`` 0).
+
+    The filter's state is ``[theta, x_k (split at NH by a zero entry)]``: the measurement update puts
+    the measured hub angle in entry 0 (``I - L C`` keeps ``x_k``), the gain ``K = [D_k, -C_k]`` on
+    ``x_hat - x_ref`` with ``x_ref = [theta_ref, 0...]`` gives ``tau = tau_ff + C_k x_k + D_k (theta_ref -
+    theta)``, and the prediction ``x_k+ = A_k x_k + B_k (theta_ref - theta)`` reads the previous sample's
+    reference angle through ``BREF``. The zero entry at ``NH`` holds the reference's rate (the template
+    extends the angle past the table with it, as :meth:`controllers.Reference.window`); its gain is 0."""
+    Ak, Bk, Ck, Dk = ctrl._Ak, ctrl._Bk[:, 0], ctrl._Ck[0], float(ctrl._Dk[0, 0])
+    n = len(Ak)
+    nx = n + 2
+    nh = nx // 2
+    pos = np.r_[1:nh, nh + 1:nx]                      # where x_k sits
+    sensors = _SENSORS if ctrl.signals is None else tuple(ctrl.signals)
+    A, IMLC, L = np.zeros((nx, nx)), np.zeros((nx, nx)), np.zeros((nx, len(sensors)))
+    A[np.ix_(pos, pos)] = Ak
+    A[pos, 0] = -Bk
+    IMLC[pos, pos] = 1.0
+    L[0, sensors.index("theta")] = 1.0
+    bref, K = np.zeros(nx), np.zeros(nx)
+    bref[pos] = Bk
+    K[0], K[pos] = Dk, -Ck
+    ref = ctrl.reference
+    X = np.zeros((len(ref.theta), nx))
+    X[:, 0], X[:, nh] = ref.theta, ref.theta_dot
+    return ControlLaw(
+        kind="observer", controller="hinf", dt=float(ctrl.dt), tau_max=float(ctrl.tau_max),
+        feedforward=float(ctrl._ff),
+        arrays={"A": A, "B": np.zeros(nx), "IMLC": IMLC, "L": L, "K": K, "X0": np.zeros(nx), "XREF": X,
+                "TFF": np.asarray(ref.torque, dtype=float), "BREF": bref},
+        scalars={"spin": 0.0}, sensors=sensors, n_reference=nx + 1,
+        reference_layout=f"x_ref[0] the hub angle's reference [rad], x_ref[{nh}] its rate [rad/s] (used past the "
+                         f"table only), the other entries to {nx - 1} zero, then tau_ff [N m]")
 
 
 def _scheduled_lqg_law(ctrl) -> ControlLaw:

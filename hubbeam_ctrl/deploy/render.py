@@ -139,8 +139,10 @@ def _render_law(law: ControlLaw, name: str, precision: str = "double") -> tuple:
         nx = len(law.arrays["K"])
         nh = nx // 2
         kt = len(law.arrays["TFF"])
-        body = _filter_fields(R, nx)
-        data = _filter_data(law, R, single, ("K", "X0", "XREF", "TFF"))
+        bref = "BREF" in law.arrays      # the prediction reads the reference angle (an LTI law on the error)
+        body = _filter_fields(R, nx, extra=f"    {R} r_prev;      /* reference angle of the last sample [rad] */\n"
+                              if bref else "")
+        data = _filter_data(law, R, single, ("K", "X0", "XREF", "TFF", *(("BREF",) if bref else ())))
         kd = len(law.arrays["OFFSET"]) if "OFFSET" in law.arrays else 0
         code = f"""#define NX {nx}
 #define NH {nh}
@@ -153,7 +155,7 @@ def _render_law(law: ControlLaw, name: str, precision: str = "double") -> tuple:
 void {name}_reset({name}_instance *inst)
 {{
     int i;
-{_filter_reset()}}}
+{_filter_reset()}{"    inst->r_prev = 0;" + chr(10) if bref else ""}}}
 
 {_step_signature(name)}
 {{
@@ -168,7 +170,7 @@ void {name}_reset({name}_instance *inst)
     for (i = 0; i < NX; ++i) u += K[i] * (inst->x_hat[i] - xr[i]);
     u = u + K[0] * SPIN * t + K[NH] * SPIN;
     tau = saturate(FF * tff - u);
-    inst->tau_prev = tau;
+{"    inst->r_prev = xr[0];" + chr(10) if bref else ""}    inst->tau_prev = tau;
     inst->has_tau = 1;
     inst->k += 1;
     *command = (double)tau;

@@ -146,7 +146,7 @@ def _render_mpc(law: ControlLaw, name: str, precision: str) -> tuple:
     """Body of the MPC template: Kalman filter, then a primal active-set solve of the box QP, or with
     a DC motor's voltage rows (``law.arrays["AV"]``) of the QP with them (:mod:`.render_qp`)."""
     real, single, R, nx, nh = _sizes(law, name, precision)
-    N = int(law.scalars["horizon"])
+    N = len(law.arrays["HL"])     # the QP's torques: the horizon, or a scenario tree's 1 + S (N - 1)
     kt = len(law.arrays["REFT"])
     sqrt = "sqrtf" if single else "sqrt"
     fabs = "fabsf" if single else "fabs"
