@@ -15,19 +15,29 @@ from .sensing import with_anti_alias
 
 __all__ = ["hardware_plant", "rig_plant", "sampled_rig_plant"]
 
-#: Signals a controller may read, with the row of the design model that gives them.
-_SENSOR_ROWS = {"theta": ("C_sensors", 0), "theta_dot": ("C_sensors", 1),
-                "root_moment": ("C_sensors", 2), "tip_deflection": ("C_tip", 0),
-                "tip_rate": ("C_tip", 1)}
+#: Signals a controller may read besides the sensors and the states, with their row of ``C_tip``.
+_TIP_ROWS = {"tip_deflection": 0, "tip_rate": 1}
+#: The beam alone's signal names (its sensors and the tip's rows).
+_SENSOR_ROWS = ("theta", "theta_dot", "root_moment", *_TIP_ROWS)
 
 
 def _measurement_matrix(design, names) -> np.ndarray:
-    """Rows of the design model's state giving the signals ``names`` (sensors or states)."""
+    """Rows of the design model's state giving the signals ``names`` (sensors or states).
+
+    A sensor signal is the design's own row for it (:attr:`DesignModel.signals`: the beam alone's
+    theta, theta_dot and root moment, or the rig's layout); the tip's deflection and rate are its
+    ``C_tip`` rows; a state name (``theta``, ``theta_dot`` among them when no sensor of the rig gives
+    them) is that state. The rows were once taken at the beam alone's fixed places in ``C_sensors``,
+    so on a rig without a rate sensor a state feedback's ``theta_dot`` read the tip accelerometer's row
+    (a stable LQR then looked unstable, radius 1.80 on ``accel_link``).
+    """
+    signals = [("root_moment" if s == "moment_1" else s) for s in design.signals]
     rows = []
     for name in names:
-        if name in _SENSOR_ROWS:
-            attr, i = _SENSOR_ROWS[name]
-            rows.append(getattr(design, attr)[i])
+        if name in signals:
+            rows.append(design.C_sensors[signals.index(name)])
+        elif name in _TIP_ROWS:
+            rows.append(design.C_tip[_TIP_ROWS[name]])
         else:
             row = np.zeros(design.n_x)
             row[design.state_names.index(name)] = 1.0

@@ -209,3 +209,18 @@ def test_observability_does_not_depend_on_the_sensors_units():
     assert np.abs(d.C_sensors).max() > 1e5 * np.abs(d.C_sensors[0]).max()
     assert observability_defect(d.Ad, d.C_sensors, d.state_names) is None
     assert observability_defect(d.Ad, d.C_sensors[1:], d.state_names) == "theta"
+
+
+def test_a_state_feedback_on_a_rig_design_reads_the_states_not_the_beam_alones_sensor_rows():
+    """A bare LQR on ``accel_link``'s design (encoder and tip accelerometer, no rate sensor) reads the
+    states theta_dot etc.: its loop is the beam alone's (radius 0.99968). The rows were taken at the
+    beam alone's fixed places in C_sensors, so theta_dot read the accelerometer's row: radius 1.80,
+    and ``certify msmpc --rig accel_link`` found no stable tree."""
+    from controllers import LQR, LQRSettings
+    from controllers.analysis import closed_loop_poles
+    from hubbeam_ctrl.study.rig_loop import rig_design
+    rig = load_rig("accel_link")
+    alone = DesignModel.build(rig.plant_params, 0.0, rig.timing.dt, 4)
+    on_rig = rig_design(alone, rig)
+    radius = [float(np.max(np.abs(closed_loop_poles(LQR(d, LQRSettings()))))) for d in (alone, on_rig)]
+    assert radius[0] < 1.0 and radius[1] == pytest.approx(radius[0], abs=1e-9)
