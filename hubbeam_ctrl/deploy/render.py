@@ -70,16 +70,22 @@ static {R} rate_estimate(const {name}_instance *inst)
 }}
 """)
     stage = estimate + f"""
+/* the gear's efficiency for the hub torque tau at the hub rate thd: eta_forward driving, 1 / eta_backward
+   back-driven, switched smoothly over the friction's v_eps (sim.hardware) */
+static {R} drive_efficiency({R} tau, {R} thd)
+{{
+    {R} x = -thd * (tau >= 0 ? 1 : -1) / {sc["v_eps"]};
+    {R} th;
+    x = x < 0 ? 0 : (x > 50 ? 50 : x);
+    th = tanh(x);
+    return {sc["eta_forward"]} + (1 / {sc["eta_backward"]} - {sc["eta_forward"]}) * th * th;
+}}
+
 /* the DC drive's static inverse (controllers.drive.VoltageCommand): the voltage that gives the hub
    torque tau at the measured hub rate thd, through back-EMF and the gear's efficiency, clipped */
 static {R} drive_voltage({R} tau, {R} thd)
 {{
-    {R} x = -thd * (tau >= 0 ? 1 : -1) / {sc["v_eps"]};
-    {R} e, th, v;
-    x = x < 0 ? 0 : (x > 50 ? 50 : x);
-    th = tanh(x);
-    e = {sc["eta_forward"]} + (1 / {sc["eta_backward"]} - {sc["eta_forward"]}) * th * th;
-    v = {sc["R"]} * tau / ({sc["N"]} * {sc["k_t"]} * e) + {sc["k_e"]} * {sc["N"]} * thd;
+    {R} v = {sc["R"]} * tau / ({sc["N"]} * {sc["k_t"]} * drive_efficiency(tau, thd)) + {sc["k_e"]} * {sc["N"]} * thd;
     return v > {sc["V_max"]} ? {sc["V_max"]} : (v < -{sc["V_max"]} ? -{sc["V_max"]} : v);
 }}
 """
@@ -89,12 +95,8 @@ static {R} drive_voltage({R} tau, {R} thd)
    tau needs more than the back-EMF leaves) */
 static void clipped_torque({name}_instance *inst, {R} tau, {R} thd)
 {{
-    {R} x = -thd * (tau >= 0 ? 1 : -1) / {sc["v_eps"]};
-    {R} e, th, v;
-    x = x < 0 ? 0 : (x > 50 ? 50 : x);
-    th = tanh(x);
-    e = {sc["eta_forward"]} + (1 / {sc["eta_backward"]} - {sc["eta_forward"]}) * th * th;
-    v = {sc["R"]} * tau / ({sc["N"]} * {sc["k_t"]} * e) + {sc["k_e"]} * {sc["N"]} * thd;
+    {R} e = drive_efficiency(tau, thd);
+    {R} v = {sc["R"]} * tau / ({sc["N"]} * {sc["k_t"]} * e) + {sc["k_e"]} * {sc["N"]} * thd;
     if (v > {sc["V_max"]})
         inst->tau_prev = ({sc["V_max"]} - {sc["k_e"]} * {sc["N"]} * thd) * {sc["N"]} * {sc["k_t"]} * e / {sc["R"]};
     else if (v < -{sc["V_max"]})
