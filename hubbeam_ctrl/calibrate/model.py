@@ -51,6 +51,11 @@ class ModelSettings(Settings):
                                 doc="Largest accepted last Newton correction of the plant integrator: the "
                                     "simulated sensors are smooth in the parameters to about this level, "
                                     "which sets the useful difference step of the fit's Jacobian.")
+    residual_moment: bool = setting(False, doc="Add to ``root_moment`` the quasi-static root moment of the "
+                                               "bending modes the plant leaves out (up to 20) under the "
+                                               "inertial load of the kept coordinates' accelerations: the "
+                                               "mode-acceleration correction of the truncated modes (issue 38; "
+                                                "off by default until measured on every fit).")
 
 
 def rig_sensors(rig: Rig) -> tuple:
@@ -165,6 +170,51 @@ def _plant(rig: Rig, settings: ModelSettings, dt: float):
                                   newton_tol=settings.newton_tol)
 
 
+_RESIDUAL: dict = {}
+
+
+def residual_moment(params, model_name: str = "foam") -> np.ndarray:
+    """Root moment of the omitted bending modes per acceleration of the kept coordinates [N m s^2].
+
+    The root moment of a plant with ``params.n_transverse`` modes is the modes' displacements
+    times their curvature at the root (mode displacement), which converges slowly: each omitted
+    mode k deflects quasi-statically under the inertial load of the hub's and the kept modes'
+    accelerations ``a``, ``q_k = -K_kk^-1 M_k a``, and adds ``C_k q_k`` (the mode-acceleration
+    correction; :data:`~hubbeam_ctrl.plant.params.MAX_MODES` modes stand for the beam's). The
+    vector ``w`` returned gives ``root_moment += a @ w``; it depends on neither E (the curvature
+    and the stiffness scale together) nor J_h, so it is cached without them.
+
+    Parameters
+    ----------
+    params : Params
+        The plant (``n_transverse`` kept modes).
+    model_name : str
+        ``foam``, ``cfoam`` or ``tlam``.
+
+    Returns
+    -------
+    ndarray (1 + n_transverse,)
+        Zero when the plant keeps :data:`~hubbeam_ctrl.plant.params.MAX_MODES` modes.
+    """
+    from hubbeam_ctrl.plant.linearization import second_order_linearization
+    from hubbeam_ctrl.plant.params import MAX_MODES
+    n = params.n_transverse
+    if n >= MAX_MODES:
+        return np.zeros(n + 1)
+    p = params.replace(E=1e9, J_h=1.0, n_transverse=MAX_MODES, n_axial=1)
+    key = (model_name, n, repr(p))
+    if key not in _RESIDUAL:
+        big = build_model(model_name, p, axial="quasi-static")
+        lin = second_order_linearization(big, 0.0, "free")
+        M, K = np.asarray(lin.M, dtype=float), np.asarray(lin.K, dtype=float)
+        C = sensor_matrix(big.params, big.n_transverse, big.n_axial)[2, :big.n_q]
+        kept, omitted = slice(0, n + 1), slice(n + 1, big.n_q)
+        _RESIDUAL[key] = -C[omitted] @ np.linalg.solve(K[omitted, omitted], M[omitted, kept])
+        if len(_RESIDUAL) > 256:
+            _RESIDUAL.pop(next(iter(_RESIDUAL)))
+    return _RESIDUAL[key]
+
+
 def _bending_hz(params, model_name):
     """Free-hub bending frequencies of the plant (with the clamped ones as an upper bound)."""
     r = modal_analysis(model_name, 0.0, "prescribed", params)
@@ -225,6 +275,9 @@ def simulate_sensors(rig: Rig, t, u, sensors, settings: ModelSettings | None = N
     if "root_moment" in sensors:
         C = sensor_matrix(model.params, model.n_transverse, model.n_axial)
         out["root_moment"] = res.q @ C[2, :model.n_q]
+        if settings.residual_moment:
+            out["root_moment"] = out["root_moment"] + res.a[:, :model.n_q] @ residual_moment(model.params,
+                                                                                            settings.model)
     if "tip_accel" in sensors:
         p = model.params
         arm = p.r + (p.L if p.l is None else p.l)
