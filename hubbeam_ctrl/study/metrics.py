@@ -346,13 +346,11 @@ class Evidence:
         """Only the torque's ripple grows, off its limit, in a run whose linear certificate is stable and
         whose tip and hub-angle error do not grow, but that has not settled.
 
-        With the loop's linear part stable and the command off its limit, a ripple that rises while the
-        tip and the hub do not is the chatter of a bounded nonlinearity (an encoder's counts, the hub's
-        friction) or of sensor noise, not growth: the run is judged by its bands. Found on a random rig
-        (a 1 m steel link with a 3.8 kg payload, a 4096-count encoder, 2.1 N m of Coulomb friction at
-        5 ms): the command toggled by +-1 V between counts after the slew, its envelope rising at
-        3.5 1/s from near zero, the tip decaying at 0.08 1/s and the hub within a count of the target;
-        it was judged "unstable".
+        With the linear loop stable and the command off its limit, a ripple rising while tip and hub do
+        not is a bounded nonlinearity's chatter (encoder counts, friction) or sensor noise: the run is
+        judged by its bands. Found on a random rig (1 m steel link, 3.8 kg payload, 4096 counts, 2.1 N m
+        Coulomb friction, 5 ms): +-1 V between counts after the slew, its envelope rising at 3.5 1/s,
+        the tip decaying and the hub within a count; it was judged "unstable".
         """
         return (self.certificate_grows is False and not self.settled and tuple(self.growing) == ("torque",)
                 and not self.saturated > SATURATION_LIMIT)
