@@ -220,13 +220,13 @@ def _run_bytes(steps: int, params: Params) -> float:
     return 16.0 * (steps + 1) * (2 * n_q + 9)
 
 
-def _design_modes(design_modes, design: Params, dt: float | None = None) -> int:
-    """The design model's modes: DesignChoice's (checked there), else the design parameters', fewer
-    when the default plant could not be integrated at ``dt`` (:func:`default_design_modes`)."""
-    if design_modes is not None:
-        return design_modes
-    return design.n_transverse if dt is None else default_design_modes(
-        design, dt, tolerance=ClosedLoopSettings().frequency_tolerance)[0]
+def _design_modes(design_modes, design: Params, dt: float | None = None) -> tuple:
+    """``(modes, note)`` of the design model: DesignChoice's (checked there), else the design parameters',
+    fewer when the default plant could not be integrated at ``dt`` (:func:`default_design_modes`, its
+    note); ``dt`` None: the parameters' as they are."""
+    if design_modes is not None or dt is None:
+        return (design.n_transverse if design_modes is None else design_modes), ""
+    return default_design_modes(design, dt, tolerance=ClosedLoopSettings().frequency_tolerance)
 
 
 def compare(rig=None, task="slew", controllers=None, settings: CompareSettings | None = None, *,
@@ -323,9 +323,8 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
     sc = make_scenario(task, t_end=t_end, **options)    # None: the task's own
     sc = with_task_bands(sc, rig, scn.settle_angle, scn.settle_tip)
-    m = _design_modes(design_modes, sc.params, sc.dt if plant_modes is None else None)
-    if m < sc.params.n_transverse and design_modes is None and plant_modes is None:
-        rate_notes.append(default_design_modes(sc.params, sc.dt, tolerance=ClosedLoopSettings().frequency_tolerance)[1])
+    m, modes_note = _design_modes(design_modes, sc.params, sc.dt if plant_modes is None else None)
+    rate_notes += [modes_note] if modes_note else []
     ev = evaluation_plant(sc.plant, sc.params, sc.dt, m, sc.design_spin,
                           plant_params=plant_params if plant_params is not None else params,
                           plant_modes=plant_modes)

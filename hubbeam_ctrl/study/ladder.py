@@ -244,7 +244,7 @@ def _resolved(settings: CompareSettings, sc) -> CompareSettings:
     the settling bands, the closed loop's settings and the design model's modes (whether the runs went
     side by side does not change them)."""
     run, design = settings.run, settings.design
-    modes = _design_modes(design.design_modes, sc.params, sc.dt if settings.plant.plant_modes is None else None)
+    modes = _design_modes(design.design_modes, sc.params, sc.dt if settings.plant.plant_modes is None else None)[0]
     return dataclasses.replace(
         settings, run=dataclasses.replace(run, t_end=sc.t_end, sim_settings=_sim_settings(run.sim_settings, sc),
                                           side_by_side=False),
