@@ -105,7 +105,7 @@ def loop_matrices(ctrl, plant=None):
     needed = int(getattr(ctrl, "state_modes", 0) or 0)
     if plant is not None and d.n_modes < needed and d.dt == ctrl.design.dt:
         # a gain on the residual modes (residual_control) reads them: the same plant with them
-        d = DesignModel.build(d.params, d.spin, d.dt, needed).on_rig(d.sensors, d.delay)
+        d = DesignModel.build(d.params, d.spin, d.dt, needed).like(d)
     hw = getattr(ctrl, "rig_hardware", None)
     if d.sensors is not None or d.delay > 0 or hw is not None:
         Ad, Bd, Cm = rig_plant(d, input_labels, hw, getattr(ctrl, "command", "torque"))

@@ -29,6 +29,7 @@ from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.plant.params import MAX_MODES, Params
 
 from .design_model import DesignModel, _zoh  # noqa: F401 - re-exported: every controller takes one
+from .reference import Reference  # noqa: F401 - re-exported: every controller follows one
 
 __all__ = ["DesignModel", "Reference", "Weights", "Controller", "saturate", "torque_limit", "ControllerSettings",
            "TrackingSettings", "LQSettings", "check_positive", "check_psd"]
@@ -119,158 +120,6 @@ def torque_limit(tau_max, params: Params, name: str = "tau_max") -> float:
         raise ParameterError(f"{name} must be in (0, {motor:g}] N m (the motor's Params.tau_max), "
                              f"got {tau_max:g}")
     return tau_max
-
-
-# -- reference ------------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class Reference:
-    """A hub reference sampled at the controller's instants ``t_k = k dt``.
-
-    Beyond the last sample the reference continues at its final rate with its final
-    feedforward torque.
-
-    Attributes
-    ----------
-    dt : float
-        Sample time [s].
-    theta : ndarray (K,)
-        Reference hub angle [rad].
-    theta_dot : ndarray (K,)
-        Reference hub rate [rad/s].
-    theta_ddot : ndarray (K,)
-        Reference hub acceleration [rad/s^2].
-    torque : ndarray (K,)
-        Feedforward torque [N m] that drives the rigid body along the reference.
-    description : str
-    elastic : ndarray (K, 2 m) or None
-        Planned modal coordinates and rates ``[q2, q2_dot]`` [m, m/s] of a reference that
-        knows the beam's motion (an optimal slew); None: the quasi-static deflection of
-        :meth:`DesignModel.reference_states`.
-    planned_on_design : bool
-        The planned motion is the design model's own response to the feedforward
-        (:func:`controllers.planning.planned_slew_reference`): a filter that predicts with the
-        applied torque already follows it, so the filters do not predict along it by default
-        (``plan_prediction``); False for a plan of the nonlinear model (an optimal slew).
-    plan : tuple or None
-        ``(angle, duration, tau_max, n_modes)`` of a plan on the design model
-        (:func:`controllers.planning.planned_slew_reference`), so that a controller can plan the
-        same task for other parameters (:func:`controllers.planning.replanned`); None otherwise.
-    """
-
-    dt: float
-    theta: np.ndarray
-    theta_dot: np.ndarray
-    theta_ddot: np.ndarray
-    torque: np.ndarray
-    description: str = ""
-    elastic: np.ndarray | None = None
-    planned_on_design: bool = False
-    plan: tuple | None = None
-
-    @classmethod
-    def from_profile(cls, profile, dt: float, t_end: float, description: str = "") -> "Reference":
-        """Sample ``profile(t) -> (theta, theta_dot, theta_ddot, torque)`` on ``0..t_end``.
-
-        Parameters
-        ----------
-        profile : callable
-            ``profile(t)`` of an array of times [s] -> ``(theta, theta_dot, theta_ddot, torque)``
-            [rad, rad/s, rad/s^2, N m].
-        dt : float
-            Sample time [s], > 0.
-        t_end : float
-            Last sample [s].
-        description : str
-            What the reference is (for reports).
-        """
-        dt = check_positive("dt", dt, "s")
-        t = dt * np.arange(int(round(t_end / dt)) + 1)
-        th, thd, thdd, tau = (np.asarray(a, dtype=float) * np.ones_like(t) for a in profile(t))
-        return cls(dt, th, thd, thdd, tau, description)
-
-    @classmethod
-    def rest(cls, dt: float, theta: float = 0.0) -> "Reference":
-        """Stay at rest at ``theta`` [rad].
-
-        Parameters
-        ----------
-        dt : float
-            Sample time [s].
-        theta : float
-            Hub angle to hold [rad].
-        """
-        z = np.zeros(1)
-        return cls(dt, z + theta, z, z, z, "rest")
-
-    @property
-    def t(self) -> np.ndarray:
-        """Sample instants [s]."""
-        return self.dt * np.arange(len(self.theta))
-
-    def index(self, t: float) -> int:
-        """Sample index of time ``t`` [s] (rounded).
-
-        Parameters
-        ----------
-        t : float
-            Time [s].
-        """
-        return int(round(t / self.dt))
-
-    def window(self, k: int, n: int):
-        """Reference at samples ``k..k+n-1``: ``(theta, theta_dot, torque)`` arrays.
-
-        Parameters
-        ----------
-        k : int
-            First sample.
-        n : int
-            Number of samples (the last value is held beyond the table).
-        """
-        K = len(self.theta)
-        if k + n <= K:
-            return self.theta[k:k + n], self.theta_dot[k:k + n], self.torque[k:k + n]
-        idx = np.arange(k, k + n)
-        inside = np.minimum(idx, K - 1)
-        extra = (idx - inside) * self.dt
-        return (self.theta[inside] + self.theta_dot[-1] * extra, self.theta_dot[inside],
-                self.torque[inside])
-
-    def at(self, t):
-        """``(theta, theta_dot, torque)`` at time(s) ``t`` [s] (nearest sample).
-
-        Parameters
-        ----------
-        t : float or array_like
-            Time(s) [s].
-        """
-        t = np.asarray(t, dtype=float)
-        K = len(self.theta)
-        k = np.rint(t / self.dt).astype(int)
-        inside = np.clip(k, 0, K - 1)
-        extra = np.maximum(k - (K - 1), 0) * self.dt
-        return (self.theta[inside] + self.theta_dot[-1] * extra, self.theta_dot[inside],
-                self.torque[inside])
-
-    def theta_at(self, t):
-        """Reference hub angle at ``t`` [rad].
-
-        Parameters
-        ----------
-        t : float or array_like
-            Time(s) [s].
-        """
-        return self.at(t)[0]
-
-    def theta_dot_at(self, t):
-        """Reference hub rate at ``t`` [rad/s].
-
-        Parameters
-        ----------
-        t : float or array_like
-            Time(s) [s].
-        """
-        return self.at(t)[1]
 
 
 # -- weights -----------------------------------------------------------------------------------
@@ -456,7 +305,8 @@ class Controller:
                                  f"model's dt = {design.dt:g} s")
         self.design = design
         self.settings = settings
-        self.reference = reference
+        # a design that carries the hub's damping (a DC drive's back-EMF) is driven by the torque at rest
+        self.reference = reference.with_hub_damping(design.hub_damping)
         self.dt = design.dt
         self.n_modes = design.n_modes
         self.state_modes = design.n_modes

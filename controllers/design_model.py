@@ -77,6 +77,10 @@ class DesignModel:
     delay : float
         Computation delay as a fraction of the sample [-], in [0, 1]: the command computed at a
         sample acts ``delay * dt`` later (the rig's ``timing.delay``).
+    hub_damping : float
+        Linear damping of the hub in ``A`` [N m s/rad] (:meth:`on_rig`): a DC drive's back-EMF and
+        the viscous friction; its input is then the drive's torque at rest, ``tau - b theta_dot``
+        reaching the hub. 0: the beam alone's.
     """
 
     params: Params
@@ -96,6 +100,7 @@ class DesignModel:
     sensors: object = None
     D_sensors: np.ndarray = None
     delay: float = 0.0
+    hub_damping: float = 0.0
     _linear_model: object = field(default=None, repr=False, init=False)
     _action: tuple = field(default=None, repr=False, init=False)
 
@@ -179,8 +184,9 @@ class DesignModel:
         """The filter needs the previous command as a state: a delay or an accelerometer."""
         return self.delay > 0.0 or (self.D_sensors is not None and bool(np.any(self.D_sensors)))
 
-    def on_rig(self, sensors=None, delay: float = 0.0) -> "DesignModel":
-        """The same model reading the rig's sensors with the rig's computation delay.
+    def on_rig(self, sensors=None, delay: float = 0.0, hub_damping: float = 0.0) -> "DesignModel":
+        """The same model reading the rig's sensors with the rig's computation delay and, when
+        given, the hub's linear damping (a DC drive's back-EMF and viscous friction).
 
         Parameters
         ----------
@@ -188,6 +194,9 @@ class DesignModel:
             The signals the estimator reads (default: the three of the beam alone).
         delay : float
             Computation delay as a fraction of the sample [-], in [0, 1].
+        hub_damping : float
+            Linear damping of the hub [N m s/rad], >= 0: ``A`` gets ``-b B e_rate^T`` (the input is
+            the torque at rest, the hub gets ``tau - b theta_dot``) and is sampled again. 0: none.
 
         Returns
         -------
@@ -197,15 +206,40 @@ class DesignModel:
         from .sensing import DEFAULT_LAYOUT
         if not (isinstance(delay, (int, float)) and 0.0 <= delay <= 1.0):
             raise ParameterError(f"timing.delay must be in [0, 1] (a fraction of the sample), got {delay!r}")
+        if not (isinstance(hub_damping, (int, float)) and math.isfinite(hub_damping) and hub_damping >= 0.0):
+            raise ParameterError(f"hub_damping must be a finite number >= 0 [N m s/rad], got {hub_damping!r}")
         layout = sensors or DEFAULT_LAYOUT
-        if layout.is_default and delay == 0.0 and self.sensors is None and self.delay == 0.0:
+        same_damping = float(hub_damping) == self.hub_damping
+        if (layout.is_default and delay == 0.0 and self.sensors is None and self.delay == 0.0
+                and same_damping):
             return self
+        A, Ad, Bd = self.A, self.Ad, self.Bd
+        if not same_damping:
+            n = self.n_x // 2
+            A = A.copy()
+            A[:, n] -= (float(hub_damping) - self.hub_damping) * self.B[:, 0]
+            Ad, Bd = _zoh(A, self.B, self.dt)
         if layout.is_default:           # the beam alone's three sensors: the model's own rows and names
             C, D, layout = (self.C_sensors if self.sensors is None else layout.rows(
-                self.A, self.B, self.params, self.spin, self.C_tip[0])[0]), None, None
+                A, self.B, self.params, self.spin, self.C_tip[0])[0]), None, None
         else:
-            C, D = layout.rows(self.A, self.B, self.params, self.spin, self.C_tip[0])
-        return dataclasses.replace(self, C_sensors=C, D_sensors=D, sensors=layout, delay=float(delay))
+            C, D = layout.rows(A, self.B, self.params, self.spin, self.C_tip[0])
+        return dataclasses.replace(self, A=A, Ad=Ad, Bd=Bd, C_sensors=C, D_sensors=D, sensors=layout,
+                                   delay=float(delay), hub_damping=float(hub_damping))
+
+    def like(self, other: "DesignModel") -> "DesignModel":
+        """This model (e.g. with more modes, or another beam) on ``other``'s rig: its sensors, delay
+        and hub damping (:meth:`on_rig`).
+
+        Parameters
+        ----------
+        other : DesignModel
+
+        Returns
+        -------
+        DesignModel
+        """
+        return self.on_rig(other.sensors, other.delay, other.hub_damping)
 
     def sensor_deviation(self, y, t: float) -> np.ndarray:
         """The measurement ``y`` of :attr:`signals` in deviation coordinates about the steady

@@ -146,9 +146,9 @@ class DesignSchedule:
         """Transverse modes of the design models."""
         return self.designs[0].n_modes
 
-    def on_rig(self, sensors=None, delay: float = 0.0) -> "DesignSchedule":
-        """Every design of the grid reading the rig's sensors with its computation delay
-        (:meth:`DesignModel.on_rig`).
+    def on_rig(self, sensors=None, delay: float = 0.0, hub_damping: float = 0.0) -> "DesignSchedule":
+        """Every design of the grid reading the rig's sensors with its computation delay and hub
+        damping (:meth:`DesignModel.on_rig`).
 
         Parameters
         ----------
@@ -156,13 +156,15 @@ class DesignSchedule:
             The signals the estimators read (default: the beam alone's three).
         delay : float
             Computation delay as a fraction of the sample [-], in [0, 1].
+        hub_damping : float
+            Linear damping of the hub [N m s/rad], >= 0.
 
         Returns
         -------
         DesignSchedule
             ``self`` when no design changes (the beam alone's grid, bit for bit).
         """
-        designs = tuple(d.on_rig(sensors, delay) for d in self.designs)
+        designs = tuple(d.on_rig(sensors, delay, hub_damping) for d in self.designs)
         if all(a is b for a, b in zip(designs, self.designs)):
             return self
         return DesignSchedule(self.spins, designs)

@@ -7,9 +7,16 @@ every sample with the measured hub rate, ``V = R tau / (N k_t eta) + k_e N theta
 clipped at the amplifier's ``V_max``: back-EMF compensation, the standard inner loop of a
 servo drive. What the inversion misses (the clip, the current limit, a wrong constant,
 friction) is a torque error the integral action of :mod:`controllers.integral` removes.
+
+A design model that carries the drive's back-EMF as hub damping
+(:attr:`controllers.DesignModel.hub_damping`, on rigs where the cancellation one sample late
+would feed the rate back: :func:`hubbeam_ctrl.study.rig_loop.design_hub_damping`) commands the
+torque at rest instead: ``V = R tau / (N k_t eta)``, no back-EMF term.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -45,6 +52,9 @@ class VoltageCommand:
             raise ParameterError("VoltageCommand needs a rig with a DC motor (motor.kind = 'dc_motor')")
         self.inner = inner
         self.hardware = hardware
+        #: the design carries the back-EMF (DesignModel.hub_damping): the static inverse leaves it out
+        self.cancels_back_emf = not getattr(getattr(inner, "design", None), "hub_damping", 0.0)
+        self._emf = hardware.back_emf_constant() if self.cancels_back_emf else 0.0
         if inner.measurement != "sensors":
             self._rate_index = inner.state_modes + 1
         else:
@@ -75,9 +85,9 @@ class VoltageCommand:
         """The voltage law, sensors -> volts: ``V = tau / g + k_e N theta_dot``, with ``g`` the
         drive's torque per volt (:meth:`~hubbeam_ctrl.sim.hardware.Hardware.torque_per_volt`) and the
         measured hub rate (or the estimator's, at the instant the command acts, on a rig without a
-        rate sensor)."""
+        rate sensor); ``V = tau / g`` when the design carries the back-EMF."""
         Ak, Bk, Ck, Dk, states, inputs = self.inner.feedback_matrices()
-        g, emf = self.hardware.torque_per_volt(), self.hardware.back_emf_constant()
+        g, emf = self.hardware.torque_per_volt(), self._emf
         Ck, Dk = np.atleast_2d(Ck) / g, np.atleast_2d(Dk) / g
         if self._rate_index is not None:
             Dk = Dk.copy()
@@ -121,6 +131,8 @@ class VoltageCommand:
         tau = float(self.inner(t, y))
         self.last_torque = tau
         self._last_rate = self._rate(y)
+        if not self.cancels_back_emf:
+            return self._torque_at_rest(tau)
         clipped = self.hardware.clipped_torque(tau, self._last_rate)
         if clipped is not None and hasattr(self.inner, "applied"):
             # the voltage clipped at V_max (the back-EMF eats the rest) gives less torque than the law's:
@@ -128,6 +140,19 @@ class VoltageCommand:
             # chattered between the limit and a fraction of it: servo_payload at 1.1 T*, 9.8 V steps)
             self.inner.applied(clipped)
         return self.hardware.voltage_for_torque(tau, self._last_rate)
+
+    def _torque_at_rest(self, tau: float) -> float:
+        """The voltage [V] whose torque at rest is ``tau`` [N m] (the gear's efficiency for the
+        direction of the power at the hub rate), clipped at ``V_max``; past it the filter predicts
+        with the torque at rest of ``+-V_max``."""
+        rate = self._last_rate
+        v = float(self.hardware.voltage_needed(tau, rate)) - self.hardware.back_emf_constant() * rate
+        v_max = self.hardware.drive.V_max
+        if abs(v) > v_max:
+            if hasattr(self.inner, "applied"):
+                self.inner.applied(tau * v_max / abs(v))
+            return math.copysign(v_max, v)
+        return v
 
     def applied(self, command: float) -> None:
         """The drive gave ``command`` [V], not the voltage just returned (an amplifier's slew-rate
@@ -141,4 +166,4 @@ class VoltageCommand:
         """
         if hasattr(self.inner, "applied"):
             g = self.hardware.torque_per_volt()
-            self.inner.applied(g * (float(command) - self.hardware.back_emf_constant() * self._last_rate))
+            self.inner.applied(g * (float(command) - self._emf * self._last_rate))

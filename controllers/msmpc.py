@@ -148,7 +148,7 @@ def scenario_models(design: DesignModel, payloads) -> list:
             out.append(design)
             continue
         d = DesignModel.build(design.params.replace(m_t=float(m)), design.spin, design.dt, design.n_modes)
-        out.append(d.on_rig(design.sensors, design.delay))
+        out.append(d.like(design))
     return out
 
 

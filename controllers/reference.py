@@ -1,4 +1,4 @@
-"""Hub references for the two scenarios: a rest-to-rest slew and a spin-up.
+"""The hub reference (:class:`Reference`), and those of the two scenarios: a rest-to-rest slew and a spin-up.
 
 Each gives the hub angle and rate to follow and the feedforward torque that drives the
 *rigid* body (inertia ``J_total``) along them; the feedback controllers add what the
@@ -9,16 +9,192 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.core.validation import check_finite
+from hubbeam_ctrl.core.validation import check_finite, check_positive
 from hubbeam_ctrl.plant.maneuvers import SpinUp
 
-from .base import Reference, check_positive
+__all__ = ["Reference", "slew_reference", "spinup_reference", "eq44_reference", "slew_shape_constant",
+           "optimal_reference"]
 
-__all__ = ["slew_reference", "spinup_reference", "eq44_reference", "slew_shape_constant", "optimal_reference"]
+
+@dataclass(frozen=True, eq=False)
+class Reference:
+    """A hub reference sampled at the controller's instants ``t_k = k dt``.
+
+    Beyond the last sample the reference continues at its final rate with its final
+    feedforward torque.
+
+    Attributes
+    ----------
+    dt : float
+        Sample time [s].
+    theta : ndarray (K,)
+        Reference hub angle [rad].
+    theta_dot : ndarray (K,)
+        Reference hub rate [rad/s].
+    theta_ddot : ndarray (K,)
+        Reference hub acceleration [rad/s^2].
+    torque : ndarray (K,)
+        Feedforward torque [N m] that drives the rigid body along the reference.
+    description : str
+    elastic : ndarray (K, 2 m) or None
+        Planned modal coordinates and rates ``[q2, q2_dot]`` [m, m/s] of a reference that
+        knows the beam's motion (an optimal slew); None: the quasi-static deflection of
+        :meth:`DesignModel.reference_states`.
+    planned_on_design : bool
+        The planned motion is the design model's own response to the feedforward
+        (:func:`controllers.planning.planned_slew_reference`): a filter that predicts with the
+        applied torque already follows it, so the filters do not predict along it by default
+        (``plan_prediction``); False for a plan of the nonlinear model (an optimal slew).
+    plan : tuple or None
+        ``(angle, duration, tau_max, n_modes)`` of a plan on the design model
+        (:func:`controllers.planning.planned_slew_reference`), so that a controller can plan the
+        same task for other parameters (:func:`controllers.planning.replanned`); None otherwise.
+    hub_damping : float
+        Hub damping [N m s/rad] the feedforward ``torque`` already overcomes
+        (:meth:`with_hub_damping`); 0: the undamped hub's torque.
+    """
+
+    dt: float
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    theta_ddot: np.ndarray
+    torque: np.ndarray
+    description: str = ""
+    elastic: np.ndarray | None = None
+    planned_on_design: bool = False
+    plan: tuple | None = None
+    hub_damping: float = 0.0
+
+    @classmethod
+    def from_profile(cls, profile, dt: float, t_end: float, description: str = "") -> "Reference":
+        """Sample ``profile(t) -> (theta, theta_dot, theta_ddot, torque)`` on ``0..t_end``.
+
+        Parameters
+        ----------
+        profile : callable
+            ``profile(t)`` of an array of times [s] -> ``(theta, theta_dot, theta_ddot, torque)``
+            [rad, rad/s, rad/s^2, N m].
+        dt : float
+            Sample time [s], > 0.
+        t_end : float
+            Last sample [s].
+        description : str
+            What the reference is (for reports).
+        """
+        dt = check_positive("dt", dt, "s")
+        t = dt * np.arange(int(round(t_end / dt)) + 1)
+        th, thd, thdd, tau = (np.asarray(a, dtype=float) * np.ones_like(t) for a in profile(t))
+        return cls(dt, th, thd, thdd, tau, description)
+
+    @classmethod
+    def rest(cls, dt: float, theta: float = 0.0) -> "Reference":
+        """Stay at rest at ``theta`` [rad].
+
+        Parameters
+        ----------
+        dt : float
+            Sample time [s].
+        theta : float
+            Hub angle to hold [rad].
+        """
+        z = np.zeros(1)
+        return cls(dt, z + theta, z, z, z, "rest")
+
+    @property
+    def t(self) -> np.ndarray:
+        """Sample instants [s]."""
+        return self.dt * np.arange(len(self.theta))
+
+    def index(self, t: float) -> int:
+        """Sample index of time ``t`` [s] (rounded).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        """
+        return int(round(t / self.dt))
+
+    def with_hub_damping(self, b: float) -> "Reference":
+        """The same motion for a hub damped by ``b``: the feedforward adds the damping's torque over
+        each sample, ``b (theta[k+1] - theta[k]) / dt`` (the sample's mean rate; the last sample's
+        rate after the table), to what :attr:`hub_damping` already holds.
+
+        Parameters
+        ----------
+        b : float
+            Linear hub damping [N m s/rad], >= 0 (:attr:`controllers.DesignModel.hub_damping`).
+
+        Returns
+        -------
+        Reference
+            ``self`` when ``b`` is the damping it already has.
+        """
+        b = float(b)
+        if b == self.hub_damping:
+            return self
+        rate = np.append(np.diff(self.theta) / self.dt, self.theta_dot[-1:])
+        return dataclasses.replace(self, torque=self.torque + (b - self.hub_damping) * rate, hub_damping=b)
+
+    def window(self, k: int, n: int):
+        """Reference at samples ``k..k+n-1``: ``(theta, theta_dot, torque)`` arrays.
+
+        Parameters
+        ----------
+        k : int
+            First sample.
+        n : int
+            Number of samples (the last value is held beyond the table).
+        """
+        K = len(self.theta)
+        if k + n <= K:
+            return self.theta[k:k + n], self.theta_dot[k:k + n], self.torque[k:k + n]
+        idx = np.arange(k, k + n)
+        inside = np.minimum(idx, K - 1)
+        extra = (idx - inside) * self.dt
+        return (self.theta[inside] + self.theta_dot[-1] * extra, self.theta_dot[inside],
+                self.torque[inside])
+
+    def at(self, t):
+        """``(theta, theta_dot, torque)`` at time(s) ``t`` [s] (nearest sample).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+        """
+        t = np.asarray(t, dtype=float)
+        K = len(self.theta)
+        k = np.rint(t / self.dt).astype(int)
+        inside = np.clip(k, 0, K - 1)
+        extra = np.maximum(k - (K - 1), 0) * self.dt
+        return (self.theta[inside] + self.theta_dot[-1] * extra, self.theta_dot[inside],
+                self.torque[inside])
+
+    def theta_at(self, t):
+        """Reference hub angle at ``t`` [rad].
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+        """
+        return self.at(t)[0]
+
+    def theta_dot_at(self, t):
+        """Reference hub rate at ``t`` [rad/s].
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+        """
+        return self.at(t)[1]
 
 
 def _shape(u, flatness):

@@ -229,7 +229,7 @@ def make_controller(name: str, design: DesignModel, settings=None, reference: Re
         raise ParameterError(f"schedule: no scheduled version of {name!r}; allowed: "
                              f"{', '.join(n for n, s in CONTROLLERS.items() if s.scheduled)}")
     # the grid's designs read what the design reads (a rig's sensors and delay: DesignModel.on_rig)
-    return spec.scheduled(schedule.on_rig(design.sensors, design.delay), settings, reference)
+    return spec.scheduled(schedule.on_rig(design.sensors, design.delay, design.hub_damping), settings, reference)
 
 
 def _tracking_names() -> list:

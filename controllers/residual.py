@@ -74,7 +74,7 @@ def estimator_model(design: DesignModel, n_modes: int | None = None) -> DesignMo
                              f"(the estimator's transverse modes), got {n!r}")
     if n == design.n_modes:
         return design
-    return DesignModel.build(design.params, design.spin, design.dt, int(n)).on_rig(design.sensors, design.delay)
+    return DesignModel.build(design.params, design.spin, design.dt, int(n)).like(design)
 
 
 def embedding(n_design: int, n_estimator: int) -> np.ndarray:

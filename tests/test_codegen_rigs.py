@@ -41,6 +41,9 @@ def _rig(name: str):
     if name == "servo_link_aa":           # a 30 Hz first-order anti-alias filter on the analog signals
         rig = load_rig("servo_link")
         return dataclasses.replace(rig, sensors=dataclasses.replace(rig.sensors, anti_alias_hz=30.0))
+    if name == "geared_strip":            # a back-EMF the design carries (tests/test_drive_damping.py)
+        from test_drive_damping import geared_strip
+        return geared_strip(100)
     if name == "servo_link_norate":
         rig = load_rig("servo_link")
         return dataclasses.replace(rig, sensors=dataclasses.replace(rig.sensors, rate=False))
@@ -69,7 +72,8 @@ def test_header_names_the_rigs_inputs_in_order_with_units():
     ("servo_link_norate", math.pi / 2, 0.6, 1.0),     # DC motor, no tachometer: back-EMF on the filter's rate
     ("servo_link_delay1", math.pi / 2, 0.6, 1.0),     # one full sample of computation delay
     ("servo_link_aa", math.pi / 2, 0.6, 1.0),         # the anti-alias filter's states in the C filter
-    ("space_boom", math.pi / 6, 65.0, 100.0)])         # star tracker + gyro, no gauge, 10 Hz, one sample of delay
+    ("space_boom", math.pi / 6, 65.0, 100.0),          # star tracker + gyro, no gauge, 10 Hz, one sample of delay
+    ("geared_strip", math.pi / 2, 2.2, 3.4)])          # 100:1 DC motor, b dt / J_h = 1.13: V = R tau / (N k_t eta)
 @pytest.mark.slow
 def test_c_step_equals_python_over_a_slew_on_the_rig(rig_name, angle, t_f, t_end, tmp_path):
     from hubbeam_ctrl.study import Slew, compare

@@ -263,7 +263,8 @@ def control_law(controller: Controller, noise: KalmanNoise | None = None) -> Con
         if law.kind not in ("pd", "observer", "mpc", "scheduled_lqg"):
             raise ParameterError(f"controller: a voltage command of {law.controller!r} cannot be generated as C")
         d, f = controller.hardware.drive, controller.hardware.friction
-        drive = {"R": d.R, "N": d.N, "k_t": d.k_torque, "k_e": d.k_e, "eta_forward": d.eta_forward,
+        k_e = d.k_e if controller.cancels_back_emf else 0.0       # 0: the design carries the back-EMF
+        drive = {"R": d.R, "N": d.N, "k_t": d.k_torque, "k_e": k_e, "eta_forward": d.eta_forward,
                  "eta_backward": d.eta_backward, "v_eps": f.v_eps, "V_max": d.V_max}
         arrays = dict(law.arrays)
         if controller._rate_index is None:      # no rate sensor: the estimator's rate where the command acts

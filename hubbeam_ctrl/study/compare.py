@@ -54,7 +54,7 @@ from hubbeam_ctrl.study.friction_bound import friction_prediction
 from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.references import tracked_reference
 from hubbeam_ctrl.study.report import write_outputs
-from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
+from hubbeam_ctrl.study.rig_loop import hub_damping_note, on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
 from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
@@ -351,6 +351,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     design = DesignModel.build(sc.params, sc.design_spin, sc.dt, m)
     if rig is not None:
         design = rig_design(design, rig)
+        rate_notes += [hub_damping_note(design, rig)] if design.hub_damping else []
     shaper = None if shaping is None else as_shaper(design, shaping)
     sched = _design_schedule(sc, schedule, m)
     ref, ref_notes = tracked_reference(sc, reference, rig)

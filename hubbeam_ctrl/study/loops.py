@@ -166,7 +166,7 @@ def evaluation_model(ctrl, params: Params | None = None, modes: int | None = Non
     m = p.n_transverse if modes is None else modes
     if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not design.n_modes <= m <= MAX_MODES:
         raise ParameterError(f"modes must be an integer in {design.n_modes}..{MAX_MODES}, got {m!r}")
-    return DesignModel.build(p, design.spin, design.dt, int(m)).on_rig(design.sensors, design.delay)
+    return DesignModel.build(p, design.spin, design.dt, int(m)).like(design)
 
 
 def controller_loops(ctrl, evaluation: DesignModel | None = None, t_end: float = 15.0) -> list:

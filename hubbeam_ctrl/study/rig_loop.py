@@ -32,11 +32,61 @@ from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.hardware import Hardware
 
 __all__ = ["rig_closed_loop", "on_rig", "rig_design", "rig_settings", "rig_noise", "task_noise", "integral_default",
-           "DISTURBANCE_FRACTION"]
+           "design_hub_damping", "hub_damping_note", "DISTURBANCE_FRACTION", "HUB_DAMPING_SHARE"]
 
 #: Random-walk standard deviation per sample of the estimated disturbance, as a fraction of the
 #: torque limit (the integral action's speed; measured on ``servo_link``: see docs/rig.md).
 DISTURBANCE_FRACTION = 0.01
+
+
+#: The design model carries the hub's linear damping ``b`` (a DC drive's back-EMF plus the viscous
+#: friction) when ``b dt / J_h`` reaches this share: the hub's own speed loses that share of itself
+#: to the damping within one sample. Below it a DC drive's command cancels the back-EMF with the hub
+#: rate (:class:`controllers.drive.VoltageCommand`); above it that cancellation, one sample late,
+#: is a positive rate feedback that grows with ``b``. Measured on a 1.5 m steel link at 10 ms with a
+#: full sample of delay (J_h 0.05 kg m^2) on gear ratios 30, 60 and 100 (``b dt / J_h`` 0.10,
+#: 0.41 and 1.12): with the cancellation LQR, LQG and MPC settled, banged between +-24 V, and
+#: were unstable (loop radius 1.205); see tests/test_drive_damping.py. The presets sit at 0.05 or less.
+HUB_DAMPING_SHARE = 0.1
+
+
+def design_hub_damping(rig: Rig) -> float:
+    """The hub damping [N m s/rad] the design model carries on ``rig`` (:meth:`controllers.DesignModel.on_rig`):
+    the drive's back-EMF plus the viscous friction when ``b dt / J_h`` reaches :data:`HUB_DAMPING_SHARE`,
+    else 0 (and a DC drive's command cancels the back-EMF instead).
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    float
+        ``b`` [N m s/rad] or 0.
+    """
+    if rig.is_ideal:
+        return 0.0
+    b = Hardware.from_rig(rig).hub_damping()
+    j_h = rig.beam.J_h + rig.drive.reflected_inertia      # the hub's own inertia, rotor included
+    if b <= 0.0:
+        return 0.0
+    return b if (j_h <= 0.0 or b * rig.timing.dt / j_h >= HUB_DAMPING_SHARE) else 0.0
+
+
+def hub_damping_note(design, rig: Rig) -> str:
+    """The report's line on a design that carries the hub's damping (:func:`design_hub_damping`).
+
+    Parameters
+    ----------
+    design : DesignModel
+        On ``rig`` (:func:`rig_design`).
+    rig : Rig
+    """
+    j_h = rig.beam.J_h + rig.drive.reflected_inertia
+    b = design.hub_damping
+    return (f"the design model carries the hub's damping b = {b:.4g} N m s/rad (back-EMF and viscous "
+            f"friction; b dt / J_h = {b * design.dt / j_h:.3g} >= {HUB_DAMPING_SHARE:g}): the command is the voltage "
+            "of the torque at rest, without back-EMF compensation")
 
 
 def integral_default(rig: Rig) -> bool:
@@ -93,7 +143,7 @@ def rig_design(design, rig: Rig):
     if not isinstance(rig, Rig):
         raise ParameterError(f"rig must be a Rig (hubbeam_ctrl.plant.rig.load_rig), got {type(rig).__name__}")
     layout = SensorLayout.from_rig(rig.sensors)
-    out = design.on_rig(layout, rig.timing.delay)
+    out = design.on_rig(layout, rig.timing.delay, design_hub_damping(rig))
     missing = observability_defect(out.Ad, out.C_sensors, out.state_names)
     if missing is not None:
         keys = ", ".join(dict.fromkeys(rig_key(s) for s in layout.signals))
@@ -123,11 +173,12 @@ def rig_settings(name: str, settings, rig: Rig, integral: bool | None = None):
     if isinstance(settings, LQGSettings) and not rig.is_ideal:
         return dataclasses.replace(rig_noise(settings, rig), integral=integral)
     if isinstance(settings, MPCSettings) and not rig.drive.is_ideal and settings.emf_torque_limit is None:
-        # the plan keeps the voltage within V_max through the back-EMF at every step
+        # the plan keeps the voltage within V_max through the back-EMF at every step (a design that
+        # carries the back-EMF, design_hub_damping, commands the torque at rest: its bound is g V_max)
         hw = Hardware.from_rig(rig)
         g = hw.torque_per_volt()
-        return dataclasses.replace(settings, emf_torque_limit=g * rig.drive.V_max,
-                                   emf_damping=g * hw.back_emf_constant())
+        emf = 0.0 if design_hub_damping(rig) else g * hw.back_emf_constant()
+        return dataclasses.replace(settings, emf_torque_limit=g * rig.drive.V_max, emf_damping=emf)
     return settings
 
 
