@@ -152,6 +152,7 @@ def test_rig_doc_quotes_the_any_rig_benchmark():
         assert line in text, line
 
 
+@pytest.mark.slow
 def test_amplifier_slew_rate_limits_the_command_and_the_filters_know():
     """motor.slew_rate = 40 V/s on servo_link (0.04 V per 1 ms sample): the command the drive gives
     changes by at most 0.04 V a sample (it changes by 0.08 V without the limit), and the loop with
@@ -170,6 +171,7 @@ def test_amplifier_slew_rate_limits_the_command_and_the_filters_know():
         dataclasses.replace(rig.drive, slew_rate=-1.0)
 
 
+@pytest.mark.slow
 def test_one_law_two_rows_is_said():
     """On servo_link the observer-fed LQR is the LQG (the same gain on the same filter): the row says
     so (``same_law_as``) and the report's notes name it; the MPC (a constrained plan) is not named."""
@@ -181,6 +183,7 @@ def test_one_law_two_rows_is_said():
     assert any(n.startswith("lqg is the same linear law as lqr") for n in c.notes)
 
 
+@pytest.mark.slow
 def test_the_default_controllers_on_a_rig_without_a_rate_sensor_leave_pd_out(tmp_path, capsys, fast_backend):
     """accel_link has no rate sensor: the default list runs without PD (a note says why), before any
     run; an explicit PD is refused in one line naming sensors.rate (exit 2 from the CLI)."""

@@ -218,6 +218,7 @@ def test_cli_compare_with_own_bands(tmp_path, capsys, fast_backend):
     assert m["settle_tip_source"].startswith("task default 0.000125 L")
 
 
+@pytest.mark.slow
 def test_servo_payload_settles_within_its_two_count_band_and_ends_inside_one_count():
     """servo_payload (1024 counts, 3 x Coulomb, a full sample of delay), 90 degrees at 1.5 x its T*
     (0.417 s), all defaults: the default band is two counts (the floor, bands.ANGLE_FLOOR_COUNTS);

@@ -67,6 +67,7 @@ def _truth_values(truth):
     return np.array([truth.beam.E, truth.beam.J_h, truth.beam.m_t, truth.damping.ratios[0], truth.friction.coulomb])
 
 
+@pytest.mark.slow
 def test_fit_meets_the_issue_targets(case):
     guess, truth, (chirp, prbs, multi) = case
     # no restart (it costs 40 % more simulations; the CLI test runs the default with it, the benchmark
@@ -88,6 +89,7 @@ def test_fit_meets_the_issue_targets(case):
     assert set(d["estimates"]) == set(TRUE_NAMES) and d["estimates"]["E"]["field"] == "beam.E"
 
 
+@pytest.mark.slow
 def test_bad_start_converges_or_says_so(case):
     guess, truth, (chirp, prbs, _) = case
     tv = _truth_values(truth)
@@ -220,6 +222,7 @@ def test_excitation_respects_the_limits(fast_backend_module):
         excitation(rig, "step", 1.0, amplitude=20.0)
 
 
+@pytest.mark.slow
 def test_cli_excite_and_identify(tmp_path, case, capsys):
     from hubbeam_ctrl.calibrate.excitation import EXCITATION_KINDS
     from hubbeam_ctrl.cli.excite import KINDS

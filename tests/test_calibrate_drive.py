@@ -84,6 +84,7 @@ def test_ideal_gear_fixes_viscous_with_k_e(chirp):
     assert len(drive_plan(rig, [chirp], resolve_fields("motor.k_e,viscous", rig))[0]) == 2
 
 
+@pytest.mark.slow
 def test_fit_returns_kt_over_r_and_says_r_is_fixed(chirp):
     rig = _rig()
     truth = _truth(rig)
@@ -130,6 +131,7 @@ def test_the_benchmarked_drive_identifiability():
         assert abs(err["motor.k_t / motor.R"]) < 2.0 and abs(err["motor.k_e"]) < 2.0
 
 
+@pytest.mark.slow
 def test_identify_reports_the_fixed_resistance(tmp_path, chirp, capsys):
     """``hubbeam identify --fit motor.k_t,motor.R``: R fixed and said so, k_t / R in result.json and report.md."""
     import json

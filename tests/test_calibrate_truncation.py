@@ -35,6 +35,7 @@ def test_each_omitted_mode_shifts_the_static_root_moment_by_a_share_that_alterna
     assert 3e-3 < abs(err[1]) < 6e-3          # 5 modes: the 0.44 % that item 5's k_t / R absorbs
 
 
+@pytest.mark.slow
 def test_the_mode_acceleration_correction_removes_the_omitted_modes_root_moment_gain():
     import numpy as np
 

@@ -221,6 +221,7 @@ def test_cli_codegen_msmpc_and_hinf_over_a_payload_range(tmp_path, capsys):
 
 
 
+@pytest.mark.slow
 @needs_slycot
 def test_certify_writes_the_certified_hinf_with_its_verdict_in_the_header(tmp_path, capsys):
     """``hubbeam certify hinf --uncertainty m_t=0:0.5,damping=0.0005:0.02 --c-out DIR`` on Table 1's

@@ -110,6 +110,7 @@ def test_print_table(slew_foam, capsys):
     assert text.startswith("verdict") and text.splitlines()[3].startswith("settled")
 
 
+@pytest.mark.slow
 def test_spinup_scenario_runs(tmp_path):
     p = Params(n_axial=2, n_transverse=2)
     m = run_compare(p, "spinup", ("openloop", "lqr", "mpc"),

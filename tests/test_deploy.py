@@ -290,6 +290,7 @@ def test_gain_scheduled_lqg_in_c_equals_python_in_a_spin_up(tmp_path):
     assert np.max(np.abs(c.tau - py.tau)) <= 1e-9 * ctrl.tau_max
 
 
+@pytest.mark.slow
 @needs_cc
 def test_rig_controllers_with_integral_action_and_voltage_in_c_equal_python(tmp_path):
     """servo_link: the LQG with integral action and the observer-fed LQR with integral action, both

@@ -58,6 +58,7 @@ def test_clipped_torque_is_the_torque_of_v_max_through_the_same_drive_model():
     assert Hardware.from_rig(load_rig("accel_link")).clipped_torque(2.0, 10.0) is None     # a torque drive
 
 
+@pytest.mark.slow
 def test_the_lqr_behind_a_clipping_drive_does_not_alternate_between_the_limit_and_a_fraction(monkeypatch):
     v_max = RIG.drive.V_max
     c = _run()
@@ -78,6 +79,7 @@ def test_the_lqr_behind_a_clipping_drive_does_not_alternate_between_the_limit_an
     assert m["residual_tip_max_m"] <= m0["residual_tip_max_m"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(compiler() is None, reason=NO_COMPILER)
 def test_the_generated_c_predicts_with_the_clipped_torque_too(tmp_path):
     c = _run()

@@ -20,6 +20,7 @@ def _rows(rows):
     return json.dumps(rows, sort_keys=True, default=str)
 
 
+@pytest.mark.slow
 def test_ladder_takes_the_comparison_as_its_last_step(monkeypatch, fast_backend):
     full = load_rig("servo_link")
     rig = Rig(beam=full.beam, drive=full.drive, friction=full.friction, timing=full.timing.replace(delay=0.0))
@@ -51,6 +52,7 @@ def test_ladder_takes_the_comparison_as_its_last_step(monkeypatch, fast_backend)
         rig_ladder(rig, "slew", "lqg", settings, workers=0)
 
 
+@pytest.mark.slow
 def test_ladder_started_before_the_comparison_takes_it_at_the_end(monkeypatch, fast_backend):
     """``LadderRun`` as ``hubbeam compare --rig`` uses it: started in forked workers before the comparison
     exists, its rows taken with the comparison as the last step are those of the ladder run after it, and

@@ -133,6 +133,7 @@ def _cli(*args):
                           capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 def test_cli_json_and_bad_input(tmp_path):
     toml = tmp_path / "p.toml"
     toml.write_text("n_transverse = 2\nn_axial = 2\n")

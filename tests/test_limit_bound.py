@@ -44,6 +44,7 @@ def _simulated_bang_bang(J, theta, drive):
     return run(lo)[0]
 
 
+@pytest.mark.slow
 def test_drive_bound_is_the_rigid_bang_bang_within_back_emf_and_friction():
     """servo_link, 90 degrees: the drive's torque falls with the speed (back-EMF) and friction takes
     its share, so the rigid body needs 0.1569 s, not the 0.1329 s of a constant 1.86 N m (18 % more);

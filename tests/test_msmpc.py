@@ -190,6 +190,7 @@ def test_table1_payload_range_settles_and_is_certified(fast_backend):
         assert wc.worst.radius > 0.99                       # lightly damped: close to, not far from, 1
 
 
+@pytest.mark.slow
 def test_on_a_rig_one_scenario_runs_as_the_mpc():
     """On ``servo_link`` (encoder, DC drive in volts with its back-EMF limit in the plan, the rig's
     observer with integral action, half a sample of delay) the single-scenario tree is the MPC: the
@@ -260,6 +261,7 @@ def test_the_lab_arm_needs_the_heaviest_payloads_window():
     assert tree["worst_residual_pct_of_openloop"] < lab["controllers"]["msmpc"]["worst_residual_pct_of_openloop"] / 5
 
 
+@pytest.mark.slow
 def test_certify_msmpc_certifies_the_tree_over_the_sets_payloads(tmp_path, capsys, fast_backend):
     """``hubbeam certify msmpc,mpc --uncertainty m_t=0:0.5`` on Table 1: the multi-stage MPC is the
     tree over the set's payloads (its ends and the nominal 0.1 kg, designed as ``compare

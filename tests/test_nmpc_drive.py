@@ -126,6 +126,7 @@ def test_on_the_rig_the_nmpc_commands_volts_and_its_loop_is_certified(servo):
     assert not c.grows and c.worst.spectral_radius < 1.0
 
 
+@pytest.mark.slow
 def test_the_efficiency_switch_is_spread_for_the_shooting_and_servo_payload_settles():
     """The gear's switch between eta_forward and 1 / eta_backward, over the friction's v_eps (1 mrad/s)
     in the plant, is spread in the prediction to what the shooting's RK4 step resolves (0.77 jump N k_t

@@ -6,6 +6,7 @@ import io
 import re
 
 import casadi as ca
+import pytest
 
 from hubbeam_ctrl.core.progress import progress_bar
 from hubbeam_ctrl.limit import time_optimal_slew
@@ -34,6 +35,7 @@ def test_the_callback_counts_ipopt_iterations():
     assert iteration_callback(nlp, progress_bar(100, "pipe", file=io.StringIO())) is None
 
 
+@pytest.mark.slow
 def test_optimal_draws_its_iterations_on_a_terminal_only(monkeypatch):
     settings = OptimalSettings(check=False)
     terminal = _Terminal()

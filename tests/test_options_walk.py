@@ -258,6 +258,7 @@ def test_every_design_option_acts_or_is_refused(tmp_path, files, capsys, fast_ba
     assert status == 2 and "--payload-range does not apply to --controller pd (only to lqr, lqg)" in err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("controller", ["lqr", "zvd"])
 def test_every_codegen_option_acts_or_is_refused(controller, tmp_path, files, capsys):
     """``hubbeam codegen`` for a feedback controller and an input shaper: each option changes the
@@ -316,6 +317,7 @@ def test_every_optimal_option_acts_or_is_refused(mode, files):
     assert walked == 10 - len(OPTIMAL_MODES[mode]) // 2, walked
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["chirp", "prbs", "multisine", "step"])
 def test_every_excite_option_acts_or_is_refused(kind, tmp_path, files, capsys):
     """``hubbeam excite`` on ``servo_link``, each kind of record: each option changes the record or

@@ -112,6 +112,7 @@ def test_wheel_installs_into_fresh_venv_without_warnings(tmp_path):
     assert (outside / "demo_out" / "spinup_comparison.png").is_file()
 
 
+@pytest.mark.slow
 def test_editable_install_prints_no_setuptools_notice(tmp_path):
     """make demo / make test install the checkout in editable mode: setuptools printed a ten-line
     'Editable installation ... be careful with folders ... same name as your package' notice for

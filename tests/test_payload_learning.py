@@ -51,6 +51,7 @@ def _meets_the_targets_learning(name: str, payload: float):
     return c
 
 
+@pytest.mark.slow
 def test_the_lqr_that_learns_the_payload_settles_the_heavy_beam_in_time():
     """Table 1's beam designed for 0.1 kg carrying 0.5 kg, 1 rad in 4.614 s: the nominal LQR
     settles at 19.2 s leaving 2.3 % of L (docs/limit.md); learning the payload at 25 % and 50 %
@@ -93,6 +94,7 @@ def test_the_re_plan_keeps_the_modes_its_torque_grid_can_shape():
     assert shapeable_modes(d, 40, 3.46) == 2 and shapeable_modes(d, 40, 2.3) == 3     # 0.37, 2.33, 6.95 Hz
 
 
+@pytest.mark.slow
 def test_the_lqg_learns_the_payload_from_its_filters_estimate(fast_backend):
     """The LQG re-plans from its filter's estimate and hands it to the new payload's filter, which
     does not predict along the 2-3-mode re-plan: on the 0.5 kg beam it settles within its target
@@ -180,6 +182,7 @@ def test_the_cli_refuses_learning_without_a_range_or_a_slew(tmp_path, capsys, ar
     assert "--learn-payload needs --payload-range MIN,MAX and --scenario slew" in err
 
 
+@pytest.mark.slow
 def test_a_fast_slew_caps_the_allowance_at_the_next_switch_and_half_the_time_left():
     """The lab arm (1 m aluminium, 0.05 kg nominal, 0-0.2 kg range), 90 degrees in 1.79 s: the 1 s allowance
     would outlast the slew's second half (it stopped the run before); it is capped at the next

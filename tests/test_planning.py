@@ -134,6 +134,7 @@ def test_a_long_slew_at_a_fast_sample_is_planned_on_knots_and_still_ends_at_rest
     assert "at rest on both models" in ref.description
 
 
+@pytest.mark.slow
 def test_the_papers_lqg_settles_within_one_period_and_does_not_predict_along_its_own_plan():
     """The paper's beam, 1 rad at 1.5 x its time-optimal slew (2.642 s, docs/limit.md), LQG with
     the filter decay of before issue 22's noise rule (0.3 w_1): the plan is the design model's own

@@ -80,6 +80,7 @@ def test_held_torques_are_the_plans_first_and_a_bad_hold_names_it(slew):
         min_vibration_replan(LAB, x, 1.0, 0.8, hold=[2.0])
 
 
+@pytest.mark.slow
 def test_the_prebuilt_solver_re_plans_any_payload_of_the_beam(slew):
     """ReplanSolver: one NLP for the arm's family (the payload a parameter), scaled for 0.2 kg.
     For the arm carrying 0.12 kg, from the slew's state at 0.49 s, its plan starts there, ends at

@@ -29,6 +29,7 @@ def _column(table: str, header: str) -> list:
     return [r[k] for r in rows[2:]]
 
 
+@pytest.mark.slow
 def test_servo_link_table_and_targets_in_the_drives_units(servo, tmp_path):
     m = servo.metrics["lqr"]
     rig = load_rig("servo_link")

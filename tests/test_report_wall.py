@@ -5,9 +5,12 @@ from __future__ import annotations
 import re
 import time
 
+import pytest
+
 from hubbeam_ctrl.plant.rig import Rig, load_rig, rig_to_toml
 
 
+@pytest.mark.slow
 def test_report_wall_time_covers_the_ladder(tmp_path, monkeypatch, capsys):
     """The ladder's collection is slowed by 1.0 s: the report's wall time and its ladder share both hold it,
     and the whole command's time (printed by the CLI) is no shorter than the report's."""

@@ -31,6 +31,7 @@ def test_the_default_duration_bounds_the_time_optimal_slew(name):
     assert f"{task.duration:.4g} s" in note and "\n" not in note
 
 
+@pytest.mark.slow
 def test_compare_on_a_rig_with_its_defaults_settles(tmp_path, capsys, fast_backend):
     out = tmp_path / "sl"
     assert main(["compare", "--rig", "servo_link", "--controllers", "openloop,lqr", "--out", str(out),

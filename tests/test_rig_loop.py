@@ -146,6 +146,7 @@ def test_friction_leaves_a_steady_error_without_integral_action():
     assert c.metrics["lqg"]["verdict"] == "not settled"
 
 
+@pytest.mark.slow
 def test_cli_compare_on_a_rig_writes_the_rig_and_its_ladder(tmp_path, capsys):
     """hubbeam compare --rig: the API's numbers on the rig, and the ladder's last step is the rig itself."""
     from hubbeam_ctrl.cli.main import main
@@ -182,6 +183,7 @@ def test_ladder_rigs_add_one_part_at_a_time():
     assert [label for label, _ in ideal] == ["ideal plant"]
 
 
+@pytest.mark.slow
 def test_sweep_on_a_rig_gives_the_rows_of_compare(tmp_path):
     """[study] rig = "servo_link": the sweep's case at the base beam equals compare(rig=...) bit for bit
     (the rig's dt, its hardware and the controllers on the rig, the same code path), and a spec whose

@@ -70,6 +70,7 @@ def table1():
     return rig, compare(rig, "slew", ["openloop", "lqr", "lqg"])
 
 
+@pytest.mark.slow
 def test_a_zero_width_set_is_the_linear_certificate(table1):
     rig, cmp = table1
     ctrl = cmp.controllers["lqr"]
@@ -118,6 +119,7 @@ def test_the_worst_plant_found_agrees_with_a_nonlinear_run(table1, fast_backend)
 
 # --- the command -----------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_certify_cli_writes_the_certificate_and_exits_1_when_not_certified(tmp_path, capsys):
     code = main(["certify", "lqg", "--uncertainty", "m_t=0:0.5,damping=0.0005:0.0005", "--check", "none",
                  "--out", str(tmp_path), "--json"])
@@ -151,6 +153,7 @@ def test_certify_refuses_bad_input_in_one_line(tmp_path, capsys, argv, message):
 
 # --- designs that pass it ----------------------------------------------------------------
 
+@pytest.mark.slow
 def test_a_robust_lqg_is_certified_where_the_nominal_one_is_not(table1):
     """Table 1's LQG over 0-0.5 kg at a 0.05 % floor: the nominal design grows at 0.5 kg; the design
     search finds one the certificate accepts, and the nonlinear run at its worst plant settles."""

@@ -53,6 +53,7 @@ def test_the_plan_keeps_the_tip_within_the_range_and_leaves_a_plan_within_it_as_
     np.testing.assert_array_equal(slow[0].torque, slow[1].torque)
 
 
+@pytest.mark.slow
 def test_mpc_at_1_2_tstar_stays_in_range_and_settles_within_the_drive():
     c = compare(RIG, Slew(math.pi / 2, 1.2 * T_STAR), "mpc")
     r, m = c.results["mpc"], c.metrics["mpc"]
@@ -84,6 +85,7 @@ def test_a_plant_past_its_models_kinetic_energy_is_called_diverged_and_keeps_its
     assert m["peak_current_a"] <= RIG.drive.I_max * (1 + 1e-12)
 
 
+@pytest.mark.slow
 def test_a_linear_plan_past_the_range_gives_way_to_the_nonlinear_plan():
     """At T* on servo_payload no plan on the linear design model keeps the tip within 0.3 L (the runs
     left FOAM's range and stopped, "diverged"): the comparison tracks the minimum-vibration slew of the

@@ -44,6 +44,7 @@ def same_numbers(a, b):
             assert list(x) == list(y), c
 
 
+@pytest.mark.slow
 def test_matched_rows_equal_single_comparisons():
     spec = load_spec(small(study={"design": "matched"}, grid={"m_t": [0.0, 0.3]}, plant_modes=None))
     df = sweep(spec, workers=1, progress=False)

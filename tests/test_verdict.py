@@ -86,6 +86,7 @@ def test_pd_certificate_reports_what_a_static_pd_cannot_do():
     assert cert.worst.damping_needed == pytest.approx(5e-4, rel=0.1)
 
 
+@pytest.mark.slow
 def test_growing_loop_is_unstable_whatever_the_window_shows():
     """The old LQR on the paper's slew: the 30 s run's window looks settled (the quarter
     ratio of the tip envelope stays below 2), the torque's 30 Hz ripple grows at the
@@ -202,6 +203,7 @@ def test_torque_ripple_rising_alone_in_a_settled_certified_loop_is_noise_not_gro
     assert q["verdict"] == "settled" and q["torque_growth_rate_per_s"] < 0.0
 
 
+@pytest.mark.slow
 def test_unstable_run_reports_no_settling_time():
     """Issue 37: a run judged "unstable" (here by a growing linear certificate) reports no
     settling time even when its window sat inside the bands; the same run judged on its own
