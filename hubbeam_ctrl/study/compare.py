@@ -54,7 +54,15 @@ from hubbeam_ctrl.study.friction_bound import friction_prediction
 from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.references import tracked_reference
 from hubbeam_ctrl.study.report import write_outputs
-from hubbeam_ctrl.study.rig_loop import hub_damping_note, on_rig, rig_closed_loop, rig_design, rig_settings, task_noise
+from hubbeam_ctrl.study.rig_loop import (
+    count_note,
+    hub_damping_note,
+    on_rig,
+    rig_closed_loop,
+    rig_design,
+    rig_settings,
+    task_noise,
+)
 from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
@@ -393,6 +401,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
             ctrl = _learning(ctrl, payload_learning, sc, rig)
         if rig is not None:
             ctrl = on_rig(ctrl, rig, noise, hardware, integral)
+            rate_notes.extend(count_note(name, ctrl))
         linear[name] = ctrl
 
     def designs_done():
