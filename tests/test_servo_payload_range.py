@@ -104,3 +104,26 @@ def test_a_linear_plan_past_the_range_gives_way_to_the_nonlinear_plan():
     print(f"servo_payload at T*, LQR on the nonlinear plan: peak tip {peak:.3f} L, settled {m['settling_time_s']} s")
     assert m["completed"] and m["verdict"] == "settled", m["verdict_reason"]
     assert peak <= 0.33                      # the plan keeps 0.3 L on its model; the plant's modes add a little
+
+
+@pytest.mark.slow
+def test_a_nonlinear_plan_that_fails_to_integrate_leaves_the_linear_plan_and_says_so(monkeypatch):
+    """Found on a random rig (a 4.9 m aluminium boom on a 3.7 kN m drive): its linear plan bent the tip by
+    111 % of L, and the nonlinear plan's check on FOAM failed to integrate (a HubbeamError, not a
+    refusal); the whole comparison exited 2. Now the linear plan is kept with a note, and each run says
+    for itself that it left the range."""
+    import math
+
+    from hubbeam_ctrl.core.errors import HubbeamError
+    from hubbeam_ctrl.study import Slew, compare, references
+
+    def failing(sc, kind, rig):
+        if kind == "optimal":
+            raise HubbeamError("FOAM: the implicit step did not converge")
+        return sc.reference
+    monkeypatch.setattr(references, "_reference", failing)
+    c = compare(load_rig("servo_payload"), Slew(math.pi / 2, 0.4169), ["lqr"])
+    note = next(n for n in c.notes if "past the models' range" in n)
+    assert "the nonlinear plan failed too (FOAM: the implicit step did not converge): the runs may leave" in note
+    assert c.scenario.reference.planned_on_design
+    assert c.metrics["lqr"]["verdict"] in ("diverged", "failed"), c.metrics["lqr"]["verdict"]
