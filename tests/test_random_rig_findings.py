@@ -100,3 +100,28 @@ def test_one_encoder_count_does_not_bang_the_command_between_its_limits(fast_bac
     # the presets' laws trust their encoders as they are (tests/test_any_rig.py and bench_any_rig keep their numbers)
     p = compare(load_rig("accel_link"), "slew", "lqr", CompareSettings(run=RunChoice(t_end=4.0)))
     assert count_note("lqr", p.controllers["lqr"]) == [] and 0.1 < count_chatter(p.controllers["lqr"], p.rig) < 0.3
+
+
+def test_the_voltage_a_plan_needs_includes_the_friction_along_it():
+    """Found in session 21's batch: a 4.5 m steel link on a 5000:1 motor whose Coulomb friction is 38 % of the
+    stall torque. Its default plan needed 20 V of back-EMF and 9 V against friction of the drive's 24 V; the
+    check counted only the plan's own 1.5 V of torque, kept the linear plan, and LQR, LQG and MPC sat at 24 V
+    for 20.4 s. The plan the drive can give (the nonlinear plan on the rig) leaves 0.13 s at the limit."""
+    import numpy as np
+
+    from controllers import Reference
+    from hubbeam_ctrl.study.references import _voltage_share
+    drive = Drive(kind="dc_motor", R=2.0, L=0.0, k_t=0.05, k_e=0.05, N=5000.0, eta_forward=0.9, eta_backward=0.8,
+                  J_r=0.0, V_max=24.0, I_max=20.0)
+    beam = Params(L=4.505, rho=7850.0, A=0.0104558, E=200e9, I=2.46695e-06, J_h=2519.64, r=0.0, m_t=369.76,
+                  tau_max=drive.torque_limit)
+    rig = Rig(beam=beam, drive=drive, friction=Friction(viscous=100.0, coulomb=1020.0))
+    rate = 0.08
+    n = 50
+    ref = Reference(0.01, rate * 0.01 * np.arange(n), np.full(n, rate), np.zeros(n), np.zeros(n),
+                    planned_on_design=True)
+    need, peak = _voltage_share(ref, rig)
+    friction = 100.0 * rate + 1020.0 * np.tanh(rate / rig.friction.v_eps)
+    volts = 2.0 * friction / (5000.0 * 0.05 * 0.9) + 0.05 * 5000.0 * rate        # motoring: eta_forward
+    assert peak == rate and need * 24.0 == pytest.approx(volts, rel=1e-9)
+    assert need > 1.0 > 0.05 * 5000.0 * rate / 24.0          # 21.4 V of 24 V without the friction's 9.4 V

@@ -64,7 +64,8 @@ def _within_range(sc, ref, kind: str, rig) -> tuple:
 
 def _voltage_share(ref, rig) -> tuple | None:
     """``(largest |V| / V_max, peak hub rate [rad/s])`` the tracked plan needs from the rig's DC motor
-    (the drive's static inverse with back-EMF, not clipped), or None on a torque drive or for a
+    (the drive's static inverse with back-EMF, not clipped, for the plan's torque plus the sliding
+    friction along it), or None on a torque drive or for a
     reference that is not planned on the design model. Found on a random rig (a 1 m steel link on a
     397:1 geared motor, no-load speed 1.21 rad/s at the hub): the smooth plan of the default slew
     peaked at 1.48 rad/s, every feedback design sat at 24 V for 0.8-0.9 s and lagged 0.05-0.07 rad
@@ -73,8 +74,13 @@ def _voltage_share(ref, rig) -> tuple | None:
         return None
     import numpy as np
 
-    from hubbeam_ctrl.sim.hardware import Hardware
-    volts = Hardware.from_rig(rig).voltage_needed(ref.torque, ref.theta_dot[:len(ref.torque)])
+    from hubbeam_ctrl.sim.hardware import Hardware, friction_torque
+    hw = Hardware.from_rig(rig)
+    rate = ref.theta_dot[:len(ref.torque)]
+    # the drive gives the plan's torque and the friction's along it (found on a random rig: a 4.5 m steel link
+    # on a 5000:1 motor, Coulomb friction 38 % of the stall torque; its plan needed 20 V of back-EMF and 9 V
+    # against friction of 24 V, and every feedback design sat at 24 V for 20 s)
+    volts = hw.voltage_needed(ref.torque + friction_torque(rate, hw.values()), rate)
     return float(np.max(np.abs(volts))) / rig.drive.V_max, float(np.max(np.abs(ref.theta_dot)))
 
 
