@@ -97,3 +97,26 @@ def test_a_high_gear_drive_at_a_coarse_sample_settles_with_the_damping_in_the_de
         assert m["loop_spectral_radius"] < 1.0 and m["verdict"] == "settled", (name, m["verdict_reason"])
         assert m["within_voltage_limit"] and m["peak_voltage_v"] < 12.0, m["peak_voltage_v"]
         assert m["residual_tip_max_m"] < 1e-3 * rig.beam.L
+
+
+@pytest.mark.slow
+def test_a_current_limited_drive_commands_up_to_its_voltage_with_the_damping_in_the_design(fast_backend):
+    """The design's input is the torque at rest ``g V``: bounded by ``g V_max``, not by the stall torque a
+    current limit sets lower. A 1 m aluminium link on a 100:1 motor whose 8 A limit gives 19.2 N m against
+    57.6 N m at 24 V at rest (``b dt / J_h`` = 0.36 at 1 ms): bounded at 19.2 N m the laws commanded at most
+    8 V, the hub lagged 0.51 rad at t_f and nothing settled."""
+    from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.compare_values import CompareSettings
+    beam = Params(L=1.0, rho=2700.0, A=3e-4, E=69e9, I=2.25e-9, J_h=0.02, r=0.0, m_t=0.2)
+    drive = Drive(kind="dc_motor", R=1.0, L=0.0, k_t=0.03, k_e=0.03, N=100.0, eta_forward=0.8, eta_backward=0.6,
+                  J_r=0.0, V_max=24.0, I_max=8.0)
+    rig = Rig(beam=beam.replace(tau_max=drive.torque_limit), drive=drive,
+              friction=Friction(viscous=0.05, coulomb=0.2 * drive.torque_limit),
+              sensors=Sensors(encoder_counts=4096, strain_gauges=(0.0,)), timing=Timing(dt=0.001, delay=0.5))
+    assert drive.torque_limit == pytest.approx(19.2) and design_hub_damping(rig) == pytest.approx(7.25)
+    c = compare(rig, "slew", "lqr,mpc", CompareSettings())
+    for name in ("lqr", "mpc"):
+        m = c.metrics[name]
+        assert m["verdict"] == "settled" and abs(m["angle_error_tf_rad"]) < 1e-3, (name, m["angle_error_tf_rad"])
+        assert 8.5 < m["peak_voltage_v"] <= 24.0 and m["within_drive_limits"], m["peak_voltage_v"]
+        assert c.controllers[name].tau_max == pytest.approx(0.8 * 100 * 0.03 * 24.0)

@@ -147,6 +147,11 @@ def rig_design(design, rig: Rig):
         raise ParameterError(f"rig must be a Rig (hubbeam_ctrl.plant.rig.load_rig), got {type(rig).__name__}")
     layout = SensorLayout.from_rig(rig.sensors)
     out = design.on_rig(layout, rig.timing.delay, design_hub_damping(rig))
+    if out.hub_damping and not rig.drive.is_ideal:
+        # its input is the torque at rest g V: bounded by the voltage, g V_max, not by the stall torque (which a
+        # current limit may set lower: the hub's current is |V - k_e N thd| / R, and the drive clips it)
+        hw = Hardware.from_rig(rig)
+        out = dataclasses.replace(out, params=out.params.replace(tau_max=hw.torque_per_volt() * rig.drive.V_max))
     missing = observability_defect(out.Ad, out.C_sensors, out.state_names)
     if missing is not None:
         keys = ", ".join(dict.fromkeys(rig_key(s) for s in layout.signals))
@@ -173,6 +178,10 @@ def rig_settings(name: str, settings, rig: Rig, integral: bool | None = None):
     ControllerSettings
     """
     integral = integral_default(rig) if integral is None else bool(integral)
+    if design_hub_damping(rig) and not rig.drive.is_ideal and getattr(settings, "tau_max", None) is not None:
+        # a design that carries the back-EMF commands the torque at rest g V: bounded by g V_max (rig_design)
+        g_v = Hardware.from_rig(rig).torque_per_volt() * rig.drive.V_max
+        settings = dataclasses.replace(settings, tau_max=max(settings.tau_max, g_v))
     if isinstance(settings, LQGSettings) and not rig.is_ideal:
         return dataclasses.replace(rig_noise(settings, rig), integral=integral)
     if isinstance(settings, MPCSettings) and not rig.drive.is_ideal and settings.emf_torque_limit is None:
