@@ -116,10 +116,10 @@ def torque_limit(tau_max, params: Params, name: str = "tau_max") -> float:
     if tau_max is None:
         return motor
     tau_max = check_positive(name, tau_max, "N m")
-    if tau_max > motor:
+    if tau_max > motor * (1.0 + 1e-9):   # a rounding above it is the limit (a rig's drive gives 13.361999...)
         raise ParameterError(f"{name} must be in (0, {motor:g}] N m (the motor's Params.tau_max), "
                              f"got {tau_max:g}")
-    return tau_max
+    return min(tau_max, motor)
 
 
 # -- weights -----------------------------------------------------------------------------------

@@ -125,3 +125,15 @@ def test_the_voltage_a_plan_needs_includes_the_friction_along_it():
     volts = 2.0 * friction / (5000.0 * 0.05 * 0.9) + 0.05 * 5000.0 * rate        # motoring: eta_forward
     assert peak == rate and need * 24.0 == pytest.approx(volts, rel=1e-9)
     assert need > 1.0 > 0.05 * 5000.0 * rate / 24.0          # 21.4 V of 24 V without the friction's 9.4 V
+
+
+def test_a_torque_limit_a_rounding_above_the_motors_is_the_motors():
+    """Found in session 21's DC batch: a rig file stating the drive's stall torque to 6 digits (13.362 N m against
+    13.361999999999998 from the drive's constants) was kept as consistent, and then every controller refused it:
+    "--tau-max must be in (0, 13.362] N m ..., got 13.362"."""
+    from controllers.base import torque_limit
+    from hubbeam_ctrl.core.errors import ParameterError
+    motor = Params(tau_max=13.361999999999998)
+    assert torque_limit(13.362, motor) == 13.361999999999998
+    with pytest.raises(ParameterError, match=r"tau_max must be in \(0, 13.362\] N m"):
+        torque_limit(13.3621, motor)
