@@ -69,6 +69,16 @@ static {R} rate_estimate(const {name}_instance *inst)
     return s + SPIN;
 }}
 """)
+    if law.scalars["k_e"]:
+        inverse_doc = ("/* the DC drive's static inverse (controllers.drive.VoltageCommand): the voltage that gives "
+                       "the hub\n   torque tau at the measured hub rate thd, through back-EMF and the gear's "
+                       "efficiency, clipped */")
+        emf_term = f' + {sc["k_e"]} * {sc["N"]} * thd'
+    else:       # the design model carries the back-EMF (DesignModel.hub_damping): no compensation
+        inverse_doc = ("/* the DC drive's voltage for the torque at rest tau (controllers.drive.VoltageCommand; the "
+                       "design\n   model carries the back-EMF as hub damping), through the gear's efficiency, "
+                       "clipped */")
+        emf_term = ""
     stage = estimate + f"""
 /* the gear's efficiency for the hub torque tau at the hub rate thd: eta_forward driving, 1 / eta_backward
    back-driven, switched smoothly over the friction's v_eps (sim.hardware) */
@@ -81,11 +91,10 @@ static {R} drive_efficiency({R} tau, {R} thd)
     return {sc["eta_forward"]} + (1 / {sc["eta_backward"]} - {sc["eta_forward"]}) * th * th;
 }}
 
-/* the DC drive's static inverse (controllers.drive.VoltageCommand): the voltage that gives the hub
-   torque tau at the measured hub rate thd, through back-EMF and the gear's efficiency, clipped */
+{inverse_doc}
 static {R} drive_voltage({R} tau, {R} thd)
 {{
-    {R} v = {sc["R"]} * tau / ({sc["N"]} * {sc["k_t"]} * drive_efficiency(tau, thd)) + {sc["k_e"]} * {sc["N"]} * thd;
+    {R} v = {sc["R"]} * tau / ({sc["N"]} * {sc["k_t"]} * drive_efficiency(tau, thd)){emf_term};
     return v > {sc["V_max"]} ? {sc["V_max"]} : (v < -{sc["V_max"]} ? -{sc["V_max"]} : v);
 }}
 """
