@@ -254,3 +254,26 @@ def test_a_slew_the_drive_cannot_start_is_one_line():
     with pytest.raises(ParameterError, match=r"friction.breakaway \(1.9 N m\) must be below the drive's stall "
                                              r"torque 1.861 N m"):
         time_optimal_slew(rig, math.pi / 2)
+
+
+def test_a_check_that_fails_to_integrate_keeps_the_slew_and_exits_1(monkeypatch, capsys):
+    """Found on a random rig (a 0.54 m steel strip on a 26:1 motor, hub inertia 6.4e-4 kg m^2): the slew
+    converged and its check on the evaluation plant raised "the implicit step did not converge"; the
+    command exited 2 (the code for bad input) and printed no slew. Now the slew is kept, its check is
+    called failed, and the command exits 1 with one line."""
+    import hubbeam_ctrl.sim.stepper as stepper
+    from hubbeam_ctrl.cli import main
+    from hubbeam_ctrl.core.errors import HubbeamError
+
+    def failing(*args, **kwargs):
+        raise HubbeamError("FOAM: the implicit step did not converge")
+    monkeypatch.setattr(stepper, "simulate_fixed_step", failing)
+    p = Params(n_transverse=2, n_axial=2)
+    r = time_optimal_slew(p, 0.5)
+    assert r.converged and r.residual_plant is None and r.duration_s >= rigid_bang_bang_time(p, 0.5)
+    assert "the check FAILED on FOAM" in r.plant and "implicit step did not converge" in r.plant
+    capsys.readouterr()
+    assert main(["optimal", "--slew-angle", "0.5", "--n-modes", "2"]) == 1
+    out, err = capsys.readouterr()
+    assert "time-optimal slew by 0.5 rad" in out and "the check FAILED" in out
+    assert err.startswith("hubbeam: error: optimal: the check FAILED") and len(err.strip().splitlines()) == 1
