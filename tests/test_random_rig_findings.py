@@ -137,3 +137,20 @@ def test_a_torque_limit_a_rounding_above_the_motors_is_the_motors():
     assert torque_limit(13.362, motor) == 13.361999999999998
     with pytest.raises(ParameterError, match=r"tau_max must be in \(0, 13.362\] N m"):
         torque_limit(13.3621, motor)
+
+
+def test_the_default_excitation_keeps_the_modes_the_sample_rate_resolves():
+    """Found in session 21: ``hubbeam excite`` on the light strip above (modes 12 and 76 Hz, sampled at 10 ms)
+    refused its own default ("the default band of the rig's first 2 bending modes reaches 114.8 Hz, past the
+    Nyquist frequency 50 Hz"). The default now excites the first mode alone and says so; asked for 2 modes, it
+    still refuses in one line."""
+    from hubbeam_ctrl.calibrate import excitation
+    from hubbeam_ctrl.calibrate.excitation import excitation_band
+    from hubbeam_ctrl.core.errors import ParameterError
+    rig = light_strip_on_a_small_torque_source()
+    rec = excitation(rig, "chirp", 6.0)
+    assert "of the rig's first 1 bending mode (the next is past Nyquist)" in rec.source
+    lo, hi = excitation_band(rig, 1)
+    assert hi < 50.0 < excitation_band(rig, 2)[1] and 11.0 < hi / 1.5 < 13.0
+    with pytest.raises(ParameterError, match="first 2 bending modes reaches 114.8"):
+        excitation(rig, "chirp", 6.0, n_modes=2)

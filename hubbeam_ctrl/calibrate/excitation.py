@@ -101,7 +101,7 @@ def _check_limit(name: str, value, unit: str, hi: float, what: str) -> float:
 
 
 def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: float | None = None,
-               amplitude: float | None = None, band_hz=None, n_modes: int = 2,
+               amplitude: float | None = None, band_hz=None, n_modes: int | None = None,
                max_tip_deflection: float | None = None, max_hub_travel: float | None = None,
                seed: int = 0, settings: ModelSettings | None = None) -> Record:
     """An input record for identification (see the module docstring).
@@ -119,8 +119,10 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
         ``V_max`` or ``tau_max``); at most that limit.
     band_hz : (float, float), optional
         Band [Hz] (default :func:`excitation_band`).
-    n_modes : int
-        Modes to identify (sets the default band).
+    n_modes : int, optional
+        Modes to identify (sets the default band). Default: the rig's first 2, or the first alone
+        when the second's band (1.5 f_2) is past the Nyquist frequency of ``dt`` (the record says so
+        in its ``source``).
     max_tip_deflection : float, optional
         Largest predicted tip deflection [m] (default :data:`DEFAULT_TIP_FRACTION` L).
     max_hub_travel : float, optional
@@ -141,7 +143,8 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     if duration / dt > MAX_SAMPLES:
         raise ParameterError(f"dt = {dt:g} s over duration = {duration:g} s makes {duration / dt:.3g} samples, "
                              f"at most {MAX_SAMPLES:.0e} (a longer dt or a shorter duration)")
-    n_modes = check_integer("n_modes", n_modes, 1, MAX_MODES)
+    default_modes = n_modes is None
+    n_modes = 2 if default_modes else check_integer("n_modes", n_modes, 1, MAX_MODES)
     seed = check_integer("seed", seed, 0, 2 ** 63 - 1)
     limit = rig.drive.V_max if not rig.drive.is_ideal else rig.beam.tau_max
     unit = "V" if not rig.drive.is_ideal else "N m"
@@ -156,13 +159,21 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
     travel = math.pi if max_hub_travel is None else _check_limit("max_hub_travel", max_hub_travel, "rad",
                                                                  MAX_HUB_TRAVEL, "1e6 rad, far past any rig")
     band = excitation_band(rig, n_modes) if band_hz is None else tuple(float(b) for b in band_hz)
+    fewer = ""
+    while band_hz is None and default_modes and n_modes > 1 and band[1] >= 0.5 / dt:
+        # found on a random rig (a 0.49 m aluminium strip sampled at 10 ms: mode 2 at 76 Hz): the default refused
+        n_modes -= 1
+        band = excitation_band(rig, n_modes)
+        fewer = f" of the rig's first {n_modes} bending mode{'s' if n_modes > 1 else ''} (the next is past Nyquist)"
     if len(band) != 2 or not (0 < band[0] < band[1]) or not all(map(math.isfinite, band)):
         raise ParameterError(f"band_hz must be (lo, hi) with 0 < lo < hi [Hz], got {band_hz!r}")
     if band[1] >= 0.5 / dt:
         if band_hz is None:                # the default: the rig's modes, not a band the caller gave
-            raise ParameterError(f"the default band of the rig's first {n_modes} bending modes reaches {band[1]:g} "
-                                 f"Hz, past the Nyquist frequency {0.5 / dt:g} Hz of dt = {dt:g} s (check the rig's "
-                                 f"beam; or give a band, --band, or fewer modes, --modes)")
+            what = "first bending mode" if n_modes == 1 else f"first {n_modes} bending modes"
+            hint = "a shorter --dt" if n_modes == 1 else "fewer modes, --modes"
+            raise ParameterError(f"the default band of the rig's {what} reaches {band[1]:g} Hz, past the Nyquist "
+                                 f"frequency {0.5 / dt:g} Hz of dt = {dt:g} s (check the rig's beam; or give a band, "
+                                 f"--band, or {hint})")
         raise ParameterError(f"band_hz upper end {band[1]:g} Hz must be below the Nyquist frequency "
                              f"{0.5 / dt:g} Hz of dt = {dt:g} s")
     if duration < 2.0 / band[0] and kind != "step":
@@ -215,4 +226,4 @@ def excitation(rig: Rig, kind: str = "chirp", duration: float = 10.0, *, dt: flo
                              f"than {seen}: the record would show nothing to fit; give a larger amplitude "
                              f"(at most {limit:g} {unit})")
     return Record(t=t, columns={inp: a * shape, "theta": y["theta"], "v_tip": y["v_tip"]},
-                  source=f"{kind} excitation")
+                  source=f"{kind} excitation{fewer}")

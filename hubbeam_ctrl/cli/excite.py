@@ -29,7 +29,8 @@ def _options(p) -> None:
                    help="largest command (default the drive's limit)")
     p.add_argument("--band", metavar="LO:HI", help="band [Hz] (default 0.2 f1 : 1.5 f_n)")
     p.add_argument("--modes", metavar="N", type=integer(),
-                   help="modes to identify, which set the default band (default 2; not with --kind step)")
+                   help="modes to identify, which set the default band (default 2, or 1 when the second is past "
+                        "the Nyquist frequency; not with --kind step)")
     p.add_argument("--max-tip", metavar="M", type=real("m"), help="largest predicted tip deflection [m] "
                    "(default 0.05 L)")
     p.add_argument("--max-hub", metavar="RAD", type=real("rad"), help="largest predicted hub travel [rad] "
@@ -65,7 +66,7 @@ def _run(args) -> int:
     check_output("--out", args.out, (".csv", ".npz"))
     rig = load_rig(args.rig)
     rec = excitation(rig, args.kind, args.duration, dt=args.dt, amplitude=args.amplitude,
-                     band_hz=_parse_band(args.band), n_modes=2 if args.modes is None else args.modes,
+                     band_hz=_parse_band(args.band), n_modes=args.modes,
                      max_tip_deflection=args.max_tip,
                      max_hub_travel=args.max_hub, seed=0 if args.seed is None else args.seed)
     signal = type(rec)(t=rec.t, columns={rec.input_name: rec.input}, source=rec.source)
@@ -76,7 +77,8 @@ def _run(args) -> int:
                "predicted_peak_tip_m": float(np.max(np.abs(rec.columns["v_tip"]))),
                "predicted_peak_hub_rad": float(np.max(np.abs(rec.columns["theta"])))}
     tip, hub = summary["predicted_peak_tip_m"], summary["predicted_peak_hub_rad"]
-    print_result(args, summary, f"wrote {args.out}: {args.kind}, {len(rec.t)} samples, peak {rec.input_name} "
+    summary["band"] = rec.source
+    print_result(args, summary, f"wrote {args.out}: {rec.source}, {len(rec.t)} samples, peak {rec.input_name} "
                                 f"{summary['peak_input']:.4g}; predicted peak tip {tip:.4g} m, hub {hub:.4g} rad")
     return 0
 
