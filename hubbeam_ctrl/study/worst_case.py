@@ -156,10 +156,12 @@ class WorstCase:
         """A few sentences for reports and the CLI: what is searched, what is bounded."""
         w = self.worst
         where = ", ".join(f"{k} = {v:.4g}" for k, v in w.values.items())
+        # the rig's own values, clipped into the set (a set that leaves the rig's value out says where it is)
+        nominal = ", ".join(f"{k} = {v:.4g}" for k, v in self.nominal.values.items()) or "the rig's values"
         text = (f"{self.controller}: {self.verdict().upper()} over {self.uncertainty.describe()}: "
                 f"worst spectral radius found {w.radius:.8f} at {where} (spin {w.spin:g} rad/s, "
                 f"{self.worst_source}; searched, {self.evaluations} loops of {self.plant_modes} bending modes); "
-                f"nominal {self.nominal.radius:.8f}.")
+                f"nominal {self.nominal.radius:.8f} (at {nominal}).")
         if self.undamped_radius is not None:
             text += f" Without structural damping the worst plant's radius is {self.undamped_radius:.8f}."
         text += (f" First-order bound over the grid's cells: {self.bound:.4g}"
