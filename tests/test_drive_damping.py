@@ -120,3 +120,18 @@ def test_a_current_limited_drive_commands_up_to_its_voltage_with_the_damping_in_
         assert m["verdict"] == "settled" and abs(m["angle_error_tf_rad"]) < 1e-3, (name, m["angle_error_tf_rad"])
         assert 8.5 < m["peak_voltage_v"] <= 24.0 and m["within_drive_limits"], m["peak_voltage_v"]
         assert c.controllers[name].tau_max == pytest.approx(0.8 * 100 * 0.03 * 24.0)
+
+
+def test_a_rig_file_that_rounds_the_stall_torque_up_still_builds_on_the_damped_design():
+    """Found in session 21's last batch: a rig file stating 677.603 N m for a drive whose constants give
+    677.6028 (kept: within the rig's 1 % tolerance). The damped design's bound was g V_max = 677.6028 and the
+    settings' the file's 677.603, 3e-7 above it: every controller refused "tau_max must be in (0, 677.603]"."""
+    from controllers import LQR, DesignModel, LQRSettings
+    from hubbeam_ctrl.study.rig_loop import rig_design, rig_settings
+    rig = geared_strip(100)
+    rig = rig.replace(beam=rig.beam.replace(tau_max=rig.drive.torque_limit * (1 + 3e-7)))
+    assert rig.beam.tau_max > rig.drive.torque_limit and design_hub_damping(rig) > 0
+    design = rig_design(DesignModel.build(rig.plant_params, 0.0, rig.timing.dt, 2), rig)
+    settings = rig_settings("lqr", LQRSettings(tau_max=rig.beam.tau_max), rig)
+    assert settings.tau_max == design.params.tau_max == rig.beam.tau_max
+    assert LQR(design, settings).tau_max == rig.beam.tau_max

@@ -151,7 +151,8 @@ def rig_design(design, rig: Rig):
         # its input is the torque at rest g V: bounded by the voltage, g V_max, not by the stall torque (which a
         # current limit may set lower: the hub's current is |V - k_e N thd| / R, and the drive clips it)
         hw = Hardware.from_rig(rig)
-        out = dataclasses.replace(out, params=out.params.replace(tau_max=hw.torque_per_volt() * rig.drive.V_max))
+        g_v = max(out.params.tau_max, hw.torque_per_volt() * rig.drive.V_max)     # as rig_settings
+        out = dataclasses.replace(out, params=out.params.replace(tau_max=g_v))
     missing = observability_defect(out.Ad, out.C_sensors, out.state_names)
     if missing is not None:
         keys = ", ".join(dict.fromkeys(rig_key(s) for s in layout.signals))
