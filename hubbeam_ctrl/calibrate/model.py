@@ -117,9 +117,7 @@ def hub_damping(rig: Rig) -> float:
     -------
     float
     """
-    d = rig.drive
-    emf = 0.0 if d.is_ideal else d.eta_forward * d.N ** 2 * d.k_torque * d.k_e / d.R
-    return rig.friction.viscous + emf
+    return Hardware.from_rig(rig).hub_damping()
 
 
 def sliding_hub_modes(rig: Rig, n: int = 2) -> tuple:

@@ -76,6 +76,13 @@ def design_hub_damping(rig: Rig) -> float:
     return b if (j_h <= 0.0 or b * rig.timing.dt / j_h >= HUB_DAMPING_SHARE) else 0.0
 
 
+def _torque_at_rest_bound(rig: Rig, tau_max: float) -> float:
+    """The bound [N m] of a design that carries the back-EMF (:func:`design_hub_damping`): its input is the
+    torque at rest ``g V``, bounded by the voltage, ``g V_max``, not by a stall torque that a current limit
+    sets lower (the drive clips the current itself); at least ``tau_max`` (a rig file's rounding of it)."""
+    return max(tau_max, Hardware.from_rig(rig).torque_per_volt() * rig.drive.V_max)
+
+
 def hub_damping_note(design, rig: Rig) -> str:
     """The report's line on a design that carries the hub's damping (:func:`design_hub_damping`).
 
@@ -148,11 +155,8 @@ def rig_design(design, rig: Rig):
     layout = SensorLayout.from_rig(rig.sensors)
     out = design.on_rig(layout, rig.timing.delay, design_hub_damping(rig))
     if out.hub_damping and not rig.drive.is_ideal:
-        # its input is the torque at rest g V: bounded by the voltage, g V_max, not by the stall torque (which a
-        # current limit may set lower: the hub's current is |V - k_e N thd| / R, and the drive clips it)
-        hw = Hardware.from_rig(rig)
-        g_v = max(out.params.tau_max, hw.torque_per_volt() * rig.drive.V_max)     # as rig_settings
-        out = dataclasses.replace(out, params=out.params.replace(tau_max=g_v))
+        bound = _torque_at_rest_bound(rig, out.params.tau_max)
+        out = dataclasses.replace(out, params=out.params.replace(tau_max=bound))
     missing = observability_defect(out.Ad, out.C_sensors, out.state_names)
     if missing is not None:
         keys = ", ".join(dict.fromkeys(rig_key(s) for s in layout.signals))
@@ -180,9 +184,7 @@ def rig_settings(name: str, settings, rig: Rig, integral: bool | None = None):
     """
     integral = integral_default(rig) if integral is None else bool(integral)
     if design_hub_damping(rig) and not rig.drive.is_ideal and getattr(settings, "tau_max", None) is not None:
-        # a design that carries the back-EMF commands the torque at rest g V: bounded by g V_max (rig_design)
-        g_v = Hardware.from_rig(rig).torque_per_volt() * rig.drive.V_max
-        settings = dataclasses.replace(settings, tau_max=max(settings.tau_max, g_v))
+        settings = dataclasses.replace(settings, tau_max=_torque_at_rest_bound(rig, settings.tau_max))
     if isinstance(settings, LQGSettings) and not rig.is_ideal:
         return dataclasses.replace(rig_noise(settings, rig), integral=integral)
     if isinstance(settings, MPCSettings) and not rig.drive.is_ideal and settings.emf_torque_limit is None:
