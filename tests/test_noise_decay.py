@@ -13,7 +13,16 @@ import numpy as np
 import pytest
 
 from controllers import LQG, DesignModel, LQGSettings
-from controllers.lqg import DECAY_LADDER, NOISE_SHARE_OF_BAND, noise_limited_decay, noise_tip_std
+from controllers.lqg import (
+    DECAY_LADDER,
+    NOISE_SHARE_OF_BAND,
+    PROCESS_NOISE_LADDER,
+    STEP_NOISE_SHARE,
+    noise_limited_decay,
+    noise_stds,
+    noise_tip_std,
+    quiet_process_noise,
+)
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.rig import load_rig
@@ -53,6 +62,80 @@ def test_noise_tip_std_equals_a_long_noisy_run_of_the_controller_on_its_design_m
         x = design.Ad @ x + design.Bd[:, 0] * float(tau)
     measured = float(np.std(tip[2000:]))
     assert predicted > 0 and measured == pytest.approx(predicted, rel=0.02), (measured, predicted)
+
+
+def test_noise_step_std_equals_a_long_noisy_run_of_the_controller_on_its_design_model():
+    """The command's change per sample that the sensor noise drives (noise_stds' third value, from
+    the loop's lag-one covariance) against 40 000 samples through ``ctrl(t, y)`` on the design
+    model at rest (lab arm, 0.3 w_1): within 3 %; and the command's own std within 3 %."""
+    sc, design, st = _lab(0.3)
+    ctrl = LQG(design, st)
+    _, u_std, step_std = noise_stds(ctrl)
+    rng = np.random.default_rng(11)
+    n = 40_000
+    sigma = np.array([st.angle_noise_rad, st.rate_noise_rad_s, st.moment_noise_nm])
+    noise = rng.standard_normal((n, 3)) * sigma
+    x = np.zeros(design.n_x)
+    u = np.empty(n)
+    ctrl.reset()
+    for k in range(n):
+        u[k] = ctrl(k * design.dt, design.C_sensors @ x + noise[k])
+        x = design.Ad @ x + design.Bd[:, 0] * float(u[k])
+    assert float(np.std(np.diff(u[2000:]))) == pytest.approx(step_std, rel=0.03), step_std
+    assert float(np.std(u[2000:])) == pytest.approx(u_std, rel=0.03), u_std
+    assert step_std > u_std          # the noise reaches the command nearly white: steps exceed sqrt(2) x
+
+
+def test_the_filter_trusts_its_model_more_until_the_noise_steps_fit_table_1s_limit():
+    """Table 1's beam, the default Eq. 44 slew: at the default process noise the sensor noise moves
+    the command by 4.67 N m a sample (std; its 4.6-sigma peak was issue 36's 21.5 N m against 20).
+    The rule scales the process noise down to the first rung within STEP_NOISE_SHARE x 200 N m
+    = 4 N m; the rung before it is over, the default is kept where it already fits (lab arm)."""
+    sc = make_scenario("slew", params=Params())
+    design = DesignModel.build(sc.params, sc.design_spin, sc.dt)
+    st = dataclasses.replace(LQGSettings.for_scenario(sc), error_decay=DECAY_LADDER[0])
+    limit = STEP_NOISE_SHARE * 200.0
+
+    def step(settings):
+        return noise_stds(LQG(design, dataclasses.replace(settings, tip_noise_budget_m=None)))[2]
+
+    assert step(st) > limit                                  # measured 4.67 N m
+    quiet = quiet_process_noise(design, st)
+    scale = quiet.torque_noise_nm / st.torque_noise_nm
+    assert scale < 1.0 and step(quiet) <= limit
+    assert quiet.modal_noise == pytest.approx(scale * st.modal_noise)
+    rung = PROCESS_NOISE_LADDER.index(pytest.approx(scale))
+    before = PROCESS_NOISE_LADDER[rung - 1]
+    louder = dataclasses.replace(st, torque_noise_nm=before * st.torque_noise_nm, modal_noise=before * st.modal_noise,
+                                 modal_rate_noise=before * (st.modal_rate_noise or st.modal_noise))
+    assert step(louder) > limit
+    # the default design takes it: LQG(design, for_scenario) carries the quieter filter
+    assert LQG(design, LQGSettings.for_scenario(sc)).settings.torque_noise_nm == pytest.approx(quiet.torque_noise_nm)
+    _, lab_design, lab_st = _lab(0.3)
+    assert step(lab_st) <= STEP_NOISE_SHARE * LAB.tau_max and quiet_process_noise(lab_design, lab_st) is lab_st
+
+
+def test_a_filter_that_would_lose_its_margin_keeps_the_default_noise():
+    """accel_link (tip accelerometer, no tachometer): the noise moves the command by 0.076 of its
+    limit a sample, over STEP_NOISE_SHARE, but the first quieter rung (0.7) drops the loop's disk
+    margin from 0.51 to 0.36, below MARGIN_KEPT of it: the rule keeps the default filter."""
+    from controllers.analysis import loop_margins
+    from controllers.lqg import MARGIN_KEPT
+    from hubbeam_ctrl.study.rig_loop import rig_design, rig_settings
+
+    rig = load_rig("accel_link")
+    sc = make_scenario(Slew(math.pi / 2, 1.317), params=rig.plant_params, dt=rig.timing.dt)
+    design = rig_design(DesignModel.build(sc.params, sc.design_spin, sc.dt), rig)
+    st = dataclasses.replace(rig_settings("lqg", LQGSettings.for_scenario(sc), rig), error_decay=DECAY_LADDER[0])
+    base = LQG(design, dataclasses.replace(st, tip_noise_budget_m=None))
+    assert noise_stds(base)[2] > STEP_NOISE_SHARE * base.tau_max            # measured 0.076 x tau_max
+    rung = PROCESS_NOISE_LADDER[1]
+    quieter = LQG(design, dataclasses.replace(st, tip_noise_budget_m=None, torque_noise_nm=rung * st.torque_noise_nm,
+                                              modal_noise=rung * st.modal_noise,
+                                              modal_rate_noise=rung * (st.modal_rate_noise or st.modal_noise)))
+    assert (loop_margins(quieter, n_points=1000).disk_margin
+            < MARGIN_KEPT * loop_margins(base, n_points=1000).disk_margin)   # 0.36 against 0.9 x 0.51
+    assert quiet_process_noise(design, st) is st
 
 
 @pytest.mark.parametrize("case, expected", [("paper", 1.0), ("lab", 0.3), ("link", 0.3)])
