@@ -51,6 +51,14 @@ def certificate_text(certificate: dict) -> tuple:
             "modes; hubbeam_ctrl.study.worst_case).")
 
 
+def _set(table, where: str) -> Uncertainty:
+    """The uncertainty set of a certificate's ``name -> [lo, hi]`` table (one line naming ``where``)."""
+    try:
+        return Uncertainty.from_table({k: tuple(v) if isinstance(v, list) else v for k, v in dict(table).items()})
+    except (ParameterError, TypeError, ValueError) as exc:
+        raise ParameterError(f"{where}: its set is not an uncertainty set ({exc})") from None
+
+
 def _finite_or_none(value):
     return value if not isinstance(value, float) or math.isfinite(value) else None
 
@@ -116,13 +124,10 @@ class Certificate:
         if not entries or not isinstance(table, dict):
             raise ParameterError(f"{where} must be hubbeam certify's JSON (its \"set\" and \"controllers\") or a "
                                  "robust_* dict (robust_verdict, robust_set, ...); found no certificate in it")
-        try:
-            u = Uncertainty.from_table({k: tuple(v) if isinstance(v, list) else v for k, v in table.items()})
-        except (ParameterError, TypeError) as exc:
-            raise ParameterError(f"{where}: its set is not an uncertainty set ({exc})") from None
+        u = _set(table, where)
         for name, cert in entries:
-            own = cert.get("robust_set", table)
-            if own is not None and Uncertainty.from_table({k: tuple(v) for k, v in own.items()}) != u:
+            own = cert.get("robust_set")
+            if own is not None and _set(own, where) != u:
                 raise ParameterError(f"{where}: controller {name}'s set is not the document's set")
         return cls(u, tuple((n, {k: _finite_or_none(v) for k, v in c.items()}) for n, c in entries))
 
