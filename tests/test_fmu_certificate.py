@@ -98,7 +98,7 @@ def test_the_set_is_the_parameters_min_max(tmp_path):
     assert md.description.endswith("Uncertainty set m_t 0-0.03 kg, E 1.85e+11-2e+11 Pa, J_h 0.002-0.0022 kg m^2, "
                                    "damping 0.02-0.05, viscous 0.003-0.005 N m s/rad, coulomb 0.008-0.012 N m, "
                                    f"k_t 0.0075-0.0078 N m/A, delay 0.3-0.7 ({len(ranged)} parameters carry their "
-                                   "range over it as min/max; delay not in the FMU).")
+                                   "range over it as min/max; delay moving none of them).")
     ranges = _xml(info.path).findall("VendorAnnotations/Tool[@name='hubbeam_ctrl']/Robustness/UncertaintySet/Range")
     assert {r.get("name"): [float(r.get("lo")), float(r.get("hi"))] for r in ranges} == SERVO_SET.to_table()
     assert [r.get("movesParameters") for r in ranges].count("false") == 1          # the delay
@@ -259,16 +259,30 @@ def test_the_corners_give_the_range_of_a_grid():
 
     u = Uncertainty.from_table({"m_t": (0.0, 0.03), "E": (185e9, 200e9), "J_h": (2.0e-3, 2.2e-3),
                                 "damping": (0.02, 0.05)})
-    ranges = set_ranges(rig.replace(uncertainty=u), starts_at)
+    ranges = set_ranges(rig.replace(uncertainty=u), starts_at).ranges
     grid = hull(u, [np.linspace(r.lo, r.hi, 5) for r in u.ranges])
     for name, (lo, hi) in ranges.items():
         scale = max(abs(grid[name][0]), abs(grid[name][1]))
         assert abs(lo - grid[name][0]) <= 1e-14 * scale and abs(hi - grid[name][1]) <= 1e-14 * scale, name
     assert {n for n, (lo, hi) in grid.items() if hi > lo} == set(ranges)
     u = Uncertainty.from_table({"m_t": (0.0, 0.03), "l": (0.2, 0.381)})
-    ranges = set_ranges(rig.replace(uncertainty=u), starts_at)
+    ranges = set_ranges(rig.replace(uncertainty=u), starts_at).ranges
     scan = hull(u, [(0.0, 0.03), np.linspace(0.2, 0.381, 257)])
     worst = max(max(abs(lo - scan[n][0]), abs(hi - scan[n][1])) / max(abs(scan[n][0]), abs(scan[n][1]))
                 for n, (lo, hi) in ranges.items())
     print(f"l: 65 positions vs 257, largest relative gap {worst:.2e}")
     assert worst <= 1e-3
+
+
+def test_what_the_set_moves_is_said(tmp_path):
+    """On Table 1's beam with an ideal torque drive the FMU has no friction parameters: a viscous range
+    moves none of them, said in the description and the annotation; the tip position moves the mass
+    moments even though the payload's range starts at 0 kg (where it moves nothing)."""
+    u = Uncertainty.from_table({"m_t": (0.0, 0.2), "l": (7.0, 8.0), "viscous": (0.0, 0.5)})
+    rig = Rig(beam=Params(n_axial=2, n_transverse=3, l=7.5), uncertainty=u)
+    info = build_fmu(rig, "foam", tmp_path / "t.fmu")
+    root = _xml(info.path)
+    moves = {r.get("name"): r.get("movesParameters") for r in root.iter("Range")}
+    assert moves == {"m_t": "true", "l": "true", "viscous": "false"}
+    assert "as min/max; viscous moving none of them)." in root.get("description")
+    assert "p.J" in info.ranges and not any(n.startswith("hw.") for n in info.ranges)

@@ -59,6 +59,7 @@ from hubbeam_ctrl.core.fileio import atomic_write, check_writable
 from hubbeam_ctrl.core.validation import check_in_range
 from hubbeam_ctrl.fmu.description import (
     MODEL_IDENTIFIER,
+    SetRanges,
     describe_set,
     model_description,
     set_ranges,
@@ -487,12 +488,12 @@ def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: f
     hot, cold, n_moments = _functions(plant, settings, hardware is not None, gauges)
     sizes = {k: max(getattr(f, f"sz_{k.lower()}")() for f in hot + cold) for k in ("ARG", "RES", "IW", "W")}
     V = _variables(plant, hardware, rig, n_moments, gauges, settings)
-    ranges = {} if rig is None else set_ranges(rig, _starts_at(model, hardware is not None, n_moments, gauges,
-                                                                settings))
+    ranges = SetRanges({}, ()) if rig is None else set_ranges(
+        rig, _starts_at(model, hardware is not None, n_moments, gauges, settings))
     for var in V:
-        if var["name"] in ranges:
-            var["min"], var["max"] = ranges[var["name"]]
-    annotation = vendor_annotation(uncertainty, certificate)
+        if var["name"] in ranges.ranges:
+            var["min"], var["max"] = ranges.ranges[var["name"]]
+    annotation = vendor_annotation(uncertainty, certificate, ranges.still)
     with tempfile.TemporaryDirectory(prefix="hubbeam-fmu-") as tmp:
         src = Path(tmp) / "sources"
         src.mkdir()
@@ -532,7 +533,7 @@ def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: f
                    substeps=int(substeps), step_reason=reason,
                    command="torque" if hardware is None else hardware.command, inputs=names("input"),
                    outputs=names("output"), parameters=names("parameter"), binary=binary,
-                   build_s=time.perf_counter() - start, ranges=ranges, certificate=certificate)
+                   build_s=time.perf_counter() - start, ranges=ranges.ranges, certificate=certificate)
 
 
 def _compile(src: Path, headers: Path, root: Path, hot_c: str) -> str | None:

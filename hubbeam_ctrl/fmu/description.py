@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import datetime
 import itertools
+from typing import NamedTuple
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -29,7 +30,8 @@ import numpy as np
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.uncertainty import UNCERTAIN, Uncertainty
 
-__all__ = ["MODEL_IDENTIFIER", "TOOL_NAME", "describe_set", "model_description", "set_ranges", "vendor_annotation"]
+__all__ = ["MODEL_IDENTIFIER", "TOOL_NAME", "SetRanges", "describe_set", "model_description", "set_ranges",
+           "vendor_annotation"]
 
 #: modelIdentifier of every FMU (the name of its shared library and of the C entry points' file).
 MODEL_IDENTIFIER = "hubbeam_plant"
@@ -67,7 +69,24 @@ def _points(uncertainty: Uncertainty) -> list:
     return [dict(zip(names, values)) for values in itertools.product(*(a[1] for a in axes))]
 
 
-def set_ranges(rig, starts_at) -> dict:
+class SetRanges(NamedTuple):
+    """What the set does to the FMU's parameters.
+
+    Attributes
+    ----------
+    ranges : dict
+        name -> ``(min, max)`` in the parameter's unit, for the parameters whose value moves over
+        the set (the others are not covered by it).
+    still : tuple of str
+        The set's parameters that move none of the FMU's (``delay``; a fixed range; friction on a
+        rig built without hardware).
+    """
+
+    ranges: dict
+    still: tuple
+
+
+def set_ranges(rig, starts_at) -> SetRanges:
     """Each FMU parameter's range over the rig's uncertainty set.
 
     Parameters
@@ -80,9 +99,7 @@ def set_ranges(rig, starts_at) -> dict:
 
     Returns
     -------
-    dict
-        name -> ``(min, max)`` in the parameter's unit, for the parameters whose value moves over
-        the set (the others are not covered by it).
+    SetRanges
 
     Raises
     ------
@@ -92,10 +109,11 @@ def set_ranges(rig, starts_at) -> dict:
     """
     u = rig.uncertainty
     if not u.is_set:
-        return {}
+        return SetRanges({}, ())
     bare = rig.replace(uncertainty=Uncertainty())
     nominal = starts_at(bare)
-    samples = [starts_at(u.apply(bare, values)) for values in _points(u)]
+    points = _points(u)
+    samples = [starts_at(u.apply(bare, values)) for values in points]
     ranges = {}
     for name, start in nominal.items():
         vals = np.array([s[name] for s in samples] + [start], dtype=float)
@@ -106,7 +124,19 @@ def set_ranges(rig, starts_at) -> dict:
         if not lo - tol <= start <= hi + tol:
             raise ParameterError(_outside(bare, u, name, start, lo, hi))
         ranges[name] = (min(lo, start), max(hi, start))
-    return ranges
+    return SetRanges(ranges, tuple(n for n in u.names if not _moves(n, points, samples)))
+
+
+def _moves(name: str, points: list, samples: list) -> bool:
+    """Whether changing ``name`` alone, anywhere in the sampled set, changes an FMU parameter."""
+    groups = {}
+    for values, sample in zip(points, samples):
+        if name not in values:
+            return False
+        key = tuple((k, v) for k, v in values.items() if k != name)
+        if groups.setdefault(key, sample) != sample:
+            return True
+    return False
 
 
 def _outside(rig, u: Uncertainty, name: str, start: float, lo: float, hi: float) -> str:
@@ -134,7 +164,7 @@ def _number(value) -> str:
     return repr(float(value))
 
 
-def vendor_annotation(uncertainty: Uncertainty, certificate=None) -> list:
+def vendor_annotation(uncertainty: Uncertainty, certificate=None, still: tuple = NOT_IN_FMU) -> list:
     """The ``<VendorAnnotations>`` lines: the set and each controller's certificate.
 
     Parameters
@@ -146,6 +176,9 @@ def vendor_annotation(uncertainty: Uncertainty, certificate=None) -> list:
         attribute of ``<Certificate>`` (the prefix dropped; floats as ``repr``, so they read back
         equal to the JSON's); ``robust_worst`` and ``robust_disk_margin_at`` are ``<Worst>`` and
         ``<DiskMarginAt>`` elements, ``robust_not_covered`` ``<NotCovered>``.
+    still : tuple of str
+        The set's parameters that move none of the FMU's (:attr:`SetRanges.still`):
+        ``movesParameters="false"`` on their ``<Range>``.
 
     Returns
     -------
@@ -159,7 +192,7 @@ def vendor_annotation(uncertainty: Uncertainty, certificate=None) -> list:
     for r in uncertainty.ranges:
         lines.append(f'          <Range name="{r.name}" lo="{_number(r.lo)}" hi="{_number(r.hi)}" '
                      f'unit={quoteattr(r.unit)} description={quoteattr(UNCERTAIN[r.name][3])}'
-                     f' movesParameters="{_number(r.name not in NOT_IN_FMU)}"/>')
+                     f' movesParameters="{_number(r.name not in still)}"/>')
     lines.append('        </UncertaintySet>')
     for name, cert in (() if certificate is None else certificate.controllers):
         attrs = [f'controller={quoteattr(name)}']
@@ -261,13 +294,13 @@ def _version() -> str:
     return __version__
 
 
-def describe_set(uncertainty: Uncertainty, ranges: dict, certificate=None) -> str:
+def describe_set(uncertainty: Uncertainty, ranges: SetRanges, certificate=None) -> str:
     """What the description adds for a set and a certificate (one line, empty without a set).
 
     Parameters
     ----------
     uncertainty : Uncertainty
-    ranges : dict
+    ranges : SetRanges
         :func:`set_ranges`'s result.
     certificate : Certificate, optional
 
@@ -277,10 +310,9 @@ def describe_set(uncertainty: Uncertainty, ranges: dict, certificate=None) -> st
     """
     if not uncertainty.is_set:
         return ""
-    absent = [n for n in uncertainty.names if n in NOT_IN_FMU]
-    note = f"; {', '.join(absent)} not in the FMU" if absent else ""
-    out = [f"Uncertainty set {uncertainty.describe()} ({len(ranges)} parameters carry their range over it as "
-           f"min/max{note})."]
+    note = f"; {', '.join(ranges.still)} moving none of them" if ranges.still else ""
+    out = [f"Uncertainty set {uncertainty.describe()} ({len(ranges.ranges)} parameters carry their range over it "
+           f"as min/max{note})."]
     if certificate is not None:
         out.append(certificate.summary())
     return " ".join(out)
