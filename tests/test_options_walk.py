@@ -366,12 +366,18 @@ def test_identify_modal_table_refuses_record_options(words, tmp_path, capsys):
 
 
 
-#: ``hubbeam fmu``: its modes (the options that select each) and the values of its own.
+#: ``hubbeam fmu``: its modes (the options that select each) and the values of its own. "set": servo_link
+#: with an [uncertainty] table (FMU_SET), where --certificate (certify's JSON over that set) acts; on the
+#: other modes it is refused (their rigs have no set).
 FMU_MODES = {"model": ["--n-modes", "2"], "substeps": ["--n-modes", "2", "--substeps", "3"],
-             "rig": ["--n-modes", "2", "--rig", "servo_link"]}
-FMU_SAMPLES = {"model": {"--dt": "0.005", "--substeps": "4", "--spin": "20"},
-               "substeps": {"--dt": "0.005", "--substeps": "4", "--spin": "20"},
-               "rig": {"--dt": "0.002", "--substeps": "4", "--spin": "20", "--tip-position": "0.3"}}
+             "rig": ["--n-modes", "2", "--rig", "servo_link"], "set": ["--n-modes", "2", "--rig", "SETRIG"]}
+FMU_SAMPLES = {"model": {"--dt": "0.005", "--substeps": "4", "--spin": "20", "--certificate": "CERT"},
+               "substeps": {"--dt": "0.005", "--substeps": "4", "--spin": "20", "--certificate": "CERT"},
+               "rig": {"--dt": "0.002", "--substeps": "4", "--spin": "20", "--tip-position": "0.3",
+                       "--certificate": "CERT"},
+               "set": {"--dt": "0.002", "--substeps": "4", "--spin": "20", "--tip-position": "0.3",
+                       "--certificate": "CERT"}}
+FMU_SET = {"m_t": [0.0, 0.25], "E": [185e9, 200e9], "damping": [0.02, 0.05]}
 
 
 @pytest.mark.parametrize("mode", list(FMU_MODES))
@@ -381,9 +387,17 @@ def test_every_fmu_option_acts_or_is_refused(mode, tmp_path, files, capsys, monk
     its generated sources alone, which the binary is compiled from: 0.2 s a build instead of 2 s
     (tests/test_fmu.py builds and runs the binary)."""
     monkeypatch.setenv("CC", str(tmp_path / "no-compiler"))
-    base = FMU_MODES[mode]
+    from hubbeam_ctrl.plant.rig import load_rig, rig_to_toml
+    from hubbeam_ctrl.plant.uncertainty import Uncertainty
+    (tmp_path / "set.toml").write_text(rig_to_toml(load_rig("servo_link").replace(
+        uncertainty=Uncertainty.from_table(FMU_SET))))
+    cert = {"robust_verdict": "certified", "robust_radius": 0.99, "robust_worst": {"m_t": 0.25, "E": 185e9,
+            "damping": 0.02}, "robust_set": FMU_SET, "robust_evaluations": 10, "robust_plant_modes": 2}
+    (tmp_path / "cert.json").write_text(json.dumps({"set": FMU_SET, "controllers": {"lqr": {"certificate": cert}}}))
+    files = {**files, "SETRIG": str(tmp_path / "set.toml"), "CERT": str(tmp_path / "cert.json")}
+    base = [files.get(w, w) for w in FMU_MODES[mode]]
     walked = _walk_runs("fmu", base, ".fmu", tmp_path, files, capsys, skip=base[2::2], samples=FMU_SAMPLES[mode])
-    assert walked == 12 - len(base[2::2]), walked
+    assert walked == 13 - len(base[2::2]), walked
 
 
 #: A small study spec: a grid over the tip mass, and the same spread as a Monte Carlo sample (a spin-up:

@@ -54,6 +54,7 @@ import numpy as np
 from controllers import Controller, KalmanNoise
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.fileio import write_folder
+from hubbeam_ctrl.plant.robust_certificate import certificate_text
 
 from .cfile import PRECISIONS, command_text
 from .laws import CODEGEN_KINDS, SENSOR_UNITS, ControlLaw, control_law, sensor_unit
@@ -218,11 +219,8 @@ def certificate_comment(certificate: dict) -> str:
     Returns
     -------
     str
+        The two sentences of :func:`hubbeam_ctrl.plant.robust_certificate.certificate_text` as a C
+        comment (the FMU's model description says the same).
     """
-    worst = ", ".join(f"{k} = {v:.6g}" for k, v in (certificate.get("robust_worst") or {}).items())
-    box = ", ".join(f"{k} [{lo:.6g}, {hi:.6g}]" for k, (lo, hi) in (certificate.get("robust_set") or {}).items())
-    text = (f"/* Robust certificate: {str(certificate.get('robust_verdict', '?')).upper()} over {box}.\n"
-            f"   Worst spectral radius of the sampled loop found {certificate.get('robust_radius', float('nan')):.8f} "
-            f"at {worst} (searched, {certificate.get('robust_evaluations')} loops of "
-            f"{certificate.get('robust_plant_modes')} bending modes; hubbeam_ctrl.study.worst_case). */\n")
-    return text + "\n"
+    verdict, worst = certificate_text(certificate)
+    return f"/* {verdict}\n   {worst} */\n\n"

@@ -28,7 +28,6 @@ hold, as the closed loop holds the controller's command).
 
 from __future__ import annotations
 
-import datetime
 import hashlib
 import os
 import platform
@@ -37,10 +36,10 @@ import tempfile
 import time
 import uuid
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
+from xml.sax.saxutils import escape
 
 import casadi as ca
 import numpy as np
@@ -58,11 +57,21 @@ from hubbeam_ctrl.core.compiled import (
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.core.fileio import atomic_write, check_writable
 from hubbeam_ctrl.core.validation import check_in_range
+from hubbeam_ctrl.fmu.description import (
+    MODEL_IDENTIFIER,
+    SetRanges,
+    describe_set,
+    model_description,
+    set_ranges,
+    vendor_annotation,
+)
 from hubbeam_ctrl.plant.basis import transverse_shapes
 from hubbeam_ctrl.plant.modal import modal_analysis
 from hubbeam_ctrl.plant.models import build_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.plant.rig import Rig, load_rig
+from hubbeam_ctrl.plant.robust_certificate import Certificate
+from hubbeam_ctrl.plant.uncertainty import Uncertainty
 from hubbeam_ctrl.sim.hardware import HW_LAYOUT, Hardware, drive_torque, hub_torque
 from hubbeam_ctrl.sim.stepper import (
     StepperSettings,
@@ -79,18 +88,7 @@ __all__ = ["FMU_MODELS", "FMI_VERSIONS", "FmuInfo", "build_fmu", "fmi_headers", 
 FMU_MODELS = ("foam", "cfoam")
 #: FMI versions :func:`build_fmu` writes.
 FMI_VERSIONS = ("2.0",)
-#: modelIdentifier of every FMU (the name of its shared library and of the C entry points' file).
-MODEL_IDENTIFIER = "hubbeam_plant"
 
-_UNITS = {   # name -> SI base-unit exponents (FMI 2.0 BaseUnit attributes)
-    "rad": {"rad": 1}, "rad/s": {"rad": 1, "s": -1}, "N.m": {"kg": 1, "m": 2, "s": -2}, "m": {"m": 1},
-    "m/s": {"m": 1, "s": -1}, "V": {"kg": 1, "m": 2, "s": -3, "A": -1}, "ohm": {"kg": 1, "m": 2, "s": -3, "A": -2},
-    "A": {"A": 1}, "N.m/A": {"kg": 1, "m": 2, "s": -2, "A": -1},
-    "V.s/rad": {"kg": 1, "m": 2, "s": -2, "A": -1, "rad": -1},
-    "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1}, "kg.m2": {"kg": 1, "m": 2}, "kg.m": {"kg": 1, "m": 1},
-    "kg": {"kg": 1}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1}, "1/m": {"m": -1}, "s": {"s": 1},
-    "1": {},
-}
 # units of the parameter vector's blocks (parameter_layout); others are left without a unit
 _P_UNITS = {"J_h": "kg.m2", "J": "kg.m2", "V1": "kg.m", "V2": "kg.m", "M1": "kg", "M2": "kg", "R": "kg",
             "D": "kg", "K1": "N/m", "K2": "N/m", "C": "N.s/m", "f1_tip": "1", "f2_tip": "1", "S_tip": "1/m"}
@@ -138,6 +136,11 @@ class FmuInfo:
         (the FMU then holds the sources only).
     build_s : float
         Wall time of the build [s].
+    ranges : dict
+        Parameter name -> ``(min, max)``: the range over the rig's ``[uncertainty]`` set that the
+        parameter carries as its FMI ``min``/``max`` (empty without a set).
+    certificate : Certificate or None
+        The robust certificate in the model description (its ``VendorAnnotations``).
     """
 
     path: Path
@@ -154,6 +157,8 @@ class FmuInfo:
     parameters: tuple
     binary: str | None
     build_s: float
+    ranges: dict = field(default_factory=dict)
+    certificate: Certificate | None = None
 
 
 def fmi_headers() -> Path:
@@ -342,54 +347,6 @@ def _variables(model, hardware: Hardware | None, rig: Rig | None, n_moments: int
     return V
 
 
-def _model_description(V: list, guid: str, model_name: str, description: str, dt: float, sources: list) -> str:
-    used = sorted({v["unit"] for v in V if v.get("unit")})
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>',
-             f'<fmiModelDescription fmiVersion="2.0" modelName={quoteattr(model_name)} guid="{guid}"',
-             f'  description={quoteattr(description)}',
-             f'  generationTool="hubbeam-ctrl {_version()}"'
-             f' generationDateAndTime="{datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}"',
-             '  variableNamingConvention="structured" numberOfEventIndicators="0">',
-             f'  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" canHandleVariableCommunicationStepSize="false"'
-             ' canInterpolateInputs="false" canGetAndSetFMUstate="false" canSerializeFMUstate="false"'
-             ' providesDirectionalDerivative="false">',
-             '    <SourceFiles>'] + [f'      <File name="{s}"/>' for s in sources] + [
-             '    </SourceFiles>', '  </CoSimulation>', '  <UnitDefinitions>']
-    for u in used:
-        base = " ".join(f'{k}="{e}"' for k, e in _UNITS[u].items())
-        lines.append(f'    <Unit name={quoteattr(u)}><BaseUnit {base}/></Unit>' if base
-                     else f'    <Unit name={quoteattr(u)}/>')
-    lines += ['  </UnitDefinitions>', f'  <DefaultExperiment startTime="0" stopTime="{100 * dt:.17g}" '
-              f'stepSize="{dt:.17g}"/>', '  <ModelVariables>']
-    for v in V:
-        attrs = (f'name={quoteattr(v["name"])} valueReference="{v["vr"]}" causality="{v["causality"]}" '
-                 f'variability="{v["variability"]}"')
-        if v["causality"] in ("parameter", "local") and v["variability"] in ("fixed", "constant"):
-            attrs += ' initial="exact"'
-        attrs += f' description={quoteattr(v["description"])}'
-        typ = v.get("type", "Real")
-        inner = ""
-        if typ == "Real" and v.get("unit"):
-            inner += f' unit={quoteattr(v["unit"])}'
-        if "start" in v:
-            inner += f' start="{v["start"]:.17g}"' if typ == "Real" else f' start="{int(v["start"])}"'
-        lines.append(f'    <ScalarVariable {attrs}>')
-        lines.append(f'      <{typ}{inner}/>')
-        lines.append('    </ScalarVariable>')
-    lines += ['  </ModelVariables>', '  <ModelStructure>', '    <Outputs>']
-    outputs = [k + 1 for k, v in enumerate(V) if v["causality"] == "output"]
-    lines += [f'      <Unknown index="{i}"/>' for i in outputs]
-    lines += ['    </Outputs>', '    <InitialUnknowns>']
-    lines += [f'      <Unknown index="{i}"/>' for i in outputs]
-    lines += ['    </InitialUnknowns>', '  </ModelStructure>', '</fmiModelDescription>', '']
-    return "\n".join(lines)
-
-
-def _version() -> str:
-    from hubbeam_ctrl import __version__
-    return __version__
-
-
 def _header(model, V, guid: str, settings, hardware: Hardware | None, n_moments: int, sizes: dict) -> str:
     n = model.n_q
     hw_start = hardware.values() if hardware is not None else np.zeros(len(HW_LAYOUT))
@@ -418,6 +375,15 @@ def _header(model, V, guid: str, settings, hardware: Hardware | None, n_moments:
     return "\n".join(lines)
 
 
+def _starts_at(model: str, hardware: bool, n_moments: int, gauges, settings):
+    """``starts_at(rig) -> {name: start}`` of the FMU's Real parameters built for a rig (the set's points)."""
+    def starts_at(rig: Rig) -> dict:
+        plant = build_model(model, rig.plant_params)
+        V = _variables(plant, Hardware.from_rig(rig) if hardware else None, rig, n_moments, gauges, settings)
+        return {v["name"]: v["start"] for v in V if v["causality"] == "parameter" and v.get("type", "Real") == "Real"}
+    return starts_at
+
+
 def _check_model(model) -> str:
     if not isinstance(model, str) or model.lower() not in FMU_MODELS:
         raise ParameterError(f"model must be one of {', '.join(FMU_MODELS)}, got {model!r}")
@@ -426,7 +392,8 @@ def _check_model(model) -> str:
 
 def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: float | None = None,
               substeps: int | None = None, frequency_tolerance: float = 0.005, rho_inf: float = 0.9,
-              spin: float = 0.0, force: bool = False, fmi_version: str = "2.0") -> FmuInfo:
+              spin: float = 0.0, force: bool = False, fmi_version: str = "2.0",
+              certificate: Certificate | dict | str | os.PathLike | None = None) -> FmuInfo:
     """Write the nonlinear plant with the rig's hardware as an FMI 2.0 co-simulation FMU.
 
     Parameters
@@ -459,6 +426,12 @@ def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: f
         Replace an existing file at ``out``.
     fmi_version : {"2.0"}
         FMI 3.0 is not written (see ``docs/fmu.md``).
+    certificate : Certificate, dict, str or Path, optional
+        A controller's robust certificate over the rig's ``[uncertainty]`` set: ``hubbeam certify
+        --json``'s document (or its file), or a ``robust_*`` dict (``GeneratedCode.certificate``).
+        Its verdict, worst spectral radius and worst plant go into the model description's
+        ``<VendorAnnotations><Tool name="hubbeam_ctrl">`` and one sentence of its ``description``;
+        a certificate over another set than the rig's is refused.
 
     Returns
     -------
@@ -473,6 +446,11 @@ def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: f
 
     Notes
     -----
+    With an ``[uncertainty]`` table on the rig, every parameter the set moves carries its range over
+    the set as FMI ``min``/``max`` (:func:`hubbeam_ctrl.fmu.description.set_ranges`), and the set is in
+    the description and the vendor annotation; a set that leaves the rig's own value out is refused
+    (the FMU's start values are the rig's).
+
     Without a C compiler the FMU holds the sources only (``FmuInfo.binary`` is None) and one line
     on stderr says so.
     """
@@ -483,6 +461,10 @@ def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: f
     if not isinstance(force, bool):
         raise ParameterError(f"force must be True or False, got {force!r}")
     params, hardware, rig = _resolve_plant(rig_or_params)
+    uncertainty = rig.uncertainty if rig is not None else Uncertainty()
+    if certificate is not None:
+        certificate = Certificate.read(certificate)
+        certificate.check(uncertainty)
     if dt is None:
         dt = (rig.timing.dt if rig is not None and rig.timing.dt is not None else 0.01)
     dt = check_in_range("dt", dt, "s", 1e-6, 10.0)
@@ -506,6 +488,12 @@ def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: f
     hot, cold, n_moments = _functions(plant, settings, hardware is not None, gauges)
     sizes = {k: max(getattr(f, f"sz_{k.lower()}")() for f in hot + cold) for k in ("ARG", "RES", "IW", "W")}
     V = _variables(plant, hardware, rig, n_moments, gauges, settings)
+    ranges = SetRanges({}, ()) if rig is None else set_ranges(
+        rig, _starts_at(model, hardware is not None, n_moments, gauges, settings))
+    for var in V:
+        if var["name"] in ranges.ranges:
+            var["min"], var["max"] = ranges.ranges[var["name"]]
+    annotation = vendor_annotation(uncertainty, certificate, ranges.still)
     with tempfile.TemporaryDirectory(prefix="hubbeam-fmu-") as tmp:
         src = Path(tmp) / "sources"
         src.mkdir()
@@ -513,7 +501,7 @@ def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: f
         cold_c = _generate(cold, "hb_cold", src)
         template = resources.files("hubbeam_ctrl.fmu").joinpath("hubbeam_fmu.c").read_text(encoding="utf-8")
         (src / "hubbeam_fmu.c").write_text(template, encoding="utf-8")
-        digest = hashlib.sha256((hot_c + cold_c + template + repr(V)).encode()).hexdigest()
+        digest = hashlib.sha256((hot_c + cold_c + template + repr(V) + "".join(annotation)).encode()).hexdigest()
         guid = "{" + str(uuid.UUID(digest[:32])) + "}"
         (src / "hubbeam_model.h").write_text(_header(plant, V, guid, settings, hardware, n_moments, sizes),
                                              encoding="utf-8")
@@ -522,12 +510,15 @@ def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: f
         what = (f"{model.upper()} with {plant.n_axial} axial and {plant.n_transverse} transverse modes, "
                 f"{'ideal torque drive' if hardware is None else hardware.command + ' command'}, "
                 f"dt = {dt:g} s, {substeps} generalized-alpha steps per sample (hubbeam-ctrl)")
+        robust = describe_set(uncertainty, ranges, certificate)
+        description = what + (". " + robust if robust else "")
         (Path(tmp) / "modelDescription.xml").write_text(
-            _model_description(V, guid, name, what, dt, sources), encoding="utf-8")
+            model_description(V, guid, name, description, dt, sources, annotation), encoding="utf-8")
         binary = _compile(src, headers, Path(tmp), hot_c)
         (Path(tmp) / "documentation").mkdir()
         (Path(tmp) / "documentation" / "index.html").write_text(
-            f"<html><body><h1>{name}</h1><p>{what}.</p><p>Step reason: {reason}.</p><p>See hubbeam-ctrl's "
+            f"<html><body><h1>{name}</h1><p>{what}.</p><p>Step reason: {reason}.</p>"
+            + (f"<p>{escape(robust)}</p>" if robust else "") + "<p>See hubbeam-ctrl's "
             "docs/fmu.md.</p></body></html>\n", encoding="utf-8")
 
         def write(path):
@@ -542,7 +533,7 @@ def build_fmu(rig_or_params=None, model: str = "foam", out="plant.fmu", *, dt: f
                    substeps=int(substeps), step_reason=reason,
                    command="torque" if hardware is None else hardware.command, inputs=names("input"),
                    outputs=names("output"), parameters=names("parameter"), binary=binary,
-                   build_s=time.perf_counter() - start)
+                   build_s=time.perf_counter() - start, ranges=ranges.ranges, certificate=certificate)
 
 
 def _compile(src: Path, headers: Path, root: Path, hot_c: str) -> str | None:

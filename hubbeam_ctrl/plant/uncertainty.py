@@ -291,6 +291,31 @@ class Uncertainty:
         except ParameterError as exc:
             raise ParameterError(f"uncertainty: {exc}") from None
 
+    @staticmethod
+    def rig_value(rig, name: str) -> float:
+        """The rig's own value of an uncertain parameter.
+
+        Parameters
+        ----------
+        rig : Rig
+        name : str
+            A key of :data:`UNCERTAIN`.
+
+        Returns
+        -------
+        float
+            In the parameter's unit (``damping``: the first bending mode's ratio; ``l`` unset:
+            the beam's length, the free end).
+        """
+        part, fld, _, _ = UNCERTAIN[name]
+        if part == "damping":
+            ratios = rig.damping.ratios if rig.damping.is_set else (rig.beam.damping_ratio,)
+            return float(ratios[0]) if ratios else 0.0
+        if part == "beam":
+            value = getattr(rig.beam, fld)
+            return float(rig.beam.L if value is None else value)
+        return float(getattr({"drive": rig.drive, "friction": rig.friction, "timing": rig.timing}[part], fld))
+
     def check(self, rig) -> None:
         """Refuse (one line) a set whose ends do not fit ``rig`` (each range's both ends applied).
 

@@ -413,18 +413,7 @@ def certify_set(controller, rig: Rig, uncertainty: Uncertainty | None = None, *,
 
 def _nominal(rig: Rig, name: str, r) -> float:
     """The rig's own value of an uncertain parameter, clipped into its range."""
-    from hubbeam_ctrl.plant.uncertainty import UNCERTAIN
-    part, fld, _, _ = UNCERTAIN[name]
-    if part == "damping":
-        ratios = rig.damping.ratios if rig.damping.is_set else (rig.beam.damping_ratio,)
-        value = float(ratios[0]) if ratios else 0.0
-    elif part == "beam":
-        value = getattr(rig.beam, fld)
-        if value is None:        # l unset: the free end
-            value = rig.beam.L
-    else:
-        value = getattr({"drive": rig.drive, "friction": rig.friction, "timing": rig.timing}[part], fld)
-    return float(min(max(float(value), r.lo), r.hi))
+    return float(min(max(Uncertainty.rig_value(rig, name), r.lo), r.hi))
 
 
 def _worst_source(loop: _Loop, worst: SetPoint) -> str:
