@@ -79,3 +79,113 @@ def test_hunting_is_predicted_with_a_stribeck_drop_and_integral_action():
     assert held["friction_hold_rad"] > 0.0
     frictionless = dataclasses.replace(rig, friction=type(rig.friction)())
     assert friction_prediction(lqr, p, 0.0, frictionless, 1e-3) is None
+
+
+# ---- the encoder's counts at rest: the l1 bound from the angle reading to the tip -----------------
+
+def test_the_angle_to_tip_gain_is_the_l1_norm_of_the_controllers_own_impulse_response():
+    """Independent of the certificate's loop assembly: an angle-reading impulse of 1e-6 rad through
+    the LQG object itself (``ctrl(t, y)``) on its own design model, the tip recorded until it has
+    decayed; the sum of |tip| / 1e-6 equals angle_error_tip_gain within 1e-6. And the bound is
+    reached: the error sequence of the reversed impulse response's signs, at +-1e-6 rad, drives
+    the tip to gain x 1e-6 at its last sample."""
+    import numpy as np
+
+    from controllers import LQG, LQGSettings
+    from hubbeam_ctrl.study.certificate import angle_error_tip_gain
+
+    params = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5,
+                    damping_ratios=(0.02, 0.02, 0.02), n_transverse=3)
+    design = DesignModel.build(params, 0.0, 0.005, 3)
+    ctrl = LQG(design, LQGSettings(tau_max=1.5, robust=False, error_decay=0.5))
+    gain = angle_error_tip_gain(ctrl, params, 0.0)
+
+    def run(errors):
+        ctrl.reset()
+        x, tip = np.zeros(design.n_x), np.empty(errors.size)
+        for k, e in enumerate(errors):
+            y = design.C_sensors @ x
+            y[0] += e
+            tau = ctrl(k * design.dt, y)
+            tip[k] = design.C_tip[0] @ x
+            x = design.Ad @ x + design.Bd[:, 0] * float(tau)
+        return tip
+
+    n, eps = 15000, 1e-6
+    h = run(np.r_[eps, np.zeros(n - 1)]) / eps
+    assert abs(h[-200:]).max() < 1e-9 * abs(h).max()             # decayed within the run
+    assert gain == pytest.approx(float(np.sum(np.abs(h))), rel=1e-6)
+    worst = eps * np.sign(h[::-1])                               # n_j = eps sign(h_(n-1-j))
+    assert run(worst)[-1] == pytest.approx(gain * eps, rel=1e-6)
+
+
+def test_a_rig_without_an_encoder_has_no_count_bound():
+    """The paper's rig reads the angle exactly: no prediction, though the law's gain is finite."""
+    from controllers import LQR
+    from hubbeam_ctrl.study.certificate import angle_error_tip_gain
+    from hubbeam_ctrl.study.friction_bound import count_prediction
+
+    d = DesignModel.build(Params(), 0.0, 0.01, 2)
+    ctrl, plant = LQR(d), Params().replace(n_transverse=2)
+    assert 0.0 < angle_error_tip_gain(ctrl, plant, 0.0) < float("inf")
+    assert load_rig("paper").sensors.encoder_step == 0.0
+    assert count_prediction(ctrl, plant, 0.0, load_rig("paper"), 1e-3) is None
+
+
+#: A random rig of the session-22 fuzzing (a 0.88 m steel strip, J_h 0.036 kg m^2 on a low-geared DC
+#: motor, 4096 counts, tip accelerometer and no tachometer, 1 kHz): LQR ended "not settled" with the
+#: tip at 0.54 mm against a 0.11 mm band; with a 2^24-count encoder it settles at 1e-6 m.
+CHATTER_RIG = """
+[beam]
+L = 0.8845
+rho = 7850
+A = 8.6167e-05
+E = 2e+11
+I = 2.0856e-11
+J_h = 0.035868
+r = 0.0
+m_t = 0
+[motor]
+kind = "dc_motor"
+R = 2.91
+L = 0.0
+k_t = 0.02229
+k_e = 0.02229
+N = 3.9
+eta_forward = 0.9
+eta_backward = 0.9
+J_r = 2.05e-06
+V_max = 24.0
+I_max = 8.461
+[damping]
+ratios = [0.004127]
+[sensors]
+encoder_counts = 4096
+strain_gauges = []
+tip_accelerometer = true
+accel_noise = 0.01
+rate = false
+[timing]
+dt = 0.001
+delay = 0.0
+"""
+
+
+@pytest.mark.slow
+def test_a_coarse_encoder_is_named_as_the_cause_of_a_tip_that_does_not_settle(tmp_path, fast_backend):
+    """The bound says the counts can hold the tip past its band (3.3 mm against 0.11 mm; the run's
+    0.54 mm is within the bound) and the verdict's reason names the encoder; servo_link's bound is
+    within its band (3.5e-5 m against 4.8e-5 m) and names nothing."""
+    from hubbeam_ctrl.study.compare import compare
+    from hubbeam_ctrl.study.compare_values import CompareSettings
+
+    path = tmp_path / "chatter.toml"
+    path.write_text(CHATTER_RIG)
+    rig = load_rig(str(path))
+    m = compare(rig, "slew", ("openloop", "lqr"), CompareSettings()).metrics["lqr"]
+    assert m["verdict"] == "not settled" and m["count_holds_tip"]
+    assert m["settle_tip_m"] < m["residual_tip_max_m"] <= m["count_tip_bound_m"]
+    assert "cause: the encoder's half count can move the tip" in m["verdict_reason"]
+    servo = compare(load_rig("servo_link"), "slew", ("openloop", "lqr"), CompareSettings()).metrics["lqr"]
+    assert servo["count_holds_tip"] is False and servo["count_tip_bound_m"] < servo["settle_tip_m"]
+    assert servo["residual_tip_max_m"] <= servo["count_tip_bound_m"] and "encoder" not in servo["verdict_reason"]

@@ -42,7 +42,7 @@ from hubbeam_ctrl.linear.statespace import linear_matrices
 from hubbeam_ctrl.plant.params import Params
 
 __all__ = ["RADIUS_TOLERANCE", "DAMPING_SEARCH_MAX", "LoopCertificate", "Certificate", "linear_points",
-           "certify", "loop_matrix", "broken_loop", "hold_gain", "AS_DESIGNED"]
+           "certify", "loop_matrix", "broken_loop", "hold_gain", "angle_error_tip_gain", "AS_DESIGNED"]
 
 #: A sampled loop whose spectral radius exceeds ``1 + RADIUS_TOLERANCE`` grows [-] (a pole
 #: of an undamped mode the controller cannot reach stays within it of the unit circle).
@@ -363,6 +363,65 @@ def hold_gain(controller: Controller, params: Params, spin: float = 0.0, hardwar
     b[:Bd.shape[0]] = Bd[:, 0] / g
     x = np.linalg.solve(np.eye(A_loop.shape[0]) - A_loop, b)
     return abs(float(x[0]))
+
+
+def angle_error_tip_gain(controller: Controller, params: Params, spin: float = 0.0,
+                         max_samples: int = 400_000) -> float:
+    """The loop's peak-to-peak gain from an error in the hub-angle reading to the tip deflection.
+
+    An error ``n_k`` added to the angle the controller reads (an encoder's rounding, within half a
+    count) moves the tip of the sampled loop of :func:`loop_matrix` by
+    ``v_k = sum_j h_j n_(k-j)``, so ``max |v| <= (sum_j |h_j|) max |n|``: the l1 norm of the
+    impulse response ``h`` is the least bound that holds for every error sequence of that size
+    (Dahleh and Diaz-Bobillo 1995, "Control of Uncertain Systems: A Linear Programming Approach",
+    chapter 3). The plant is the certificate's (its hardware, the design's delay, no damping
+    beyond ``params``' own).
+
+    Parameters
+    ----------
+    controller : Controller
+        With a linear form that reads ``theta``.
+    params : Params
+        The plant.
+    spin : float
+        Spin rate of the linearisation [rad/s].
+    max_samples : int
+        Length of the impulse response summed at most.
+
+    Returns
+    -------
+    float
+        [m / rad], >= 0; inf when the loop is not stable or its response has not decayed to
+        1e-9 of its start within ``max_samples``; 0 when the controller does not read ``theta``.
+    """
+    inputs = list(controller.feedback_matrices()[5])
+    if "theta" not in inputs:
+        return 0.0
+    Ad, Bd, Cm, laws, A = _loop_parts(controller, params, spin, 0.0, AS_DESIGNED)
+    A_loop = _closed(Ad, Bd, Cm, laws)
+    if np.max(np.abs(np.linalg.eigvals(A_loop))) >= 1.0:
+        return math.inf
+    Ak, Bk, _, Dk = laws
+    j = inputs.index("theta")
+    b = Bd @ Dk[:, j]
+    if Ak.size:
+        b = np.concatenate([b, Bk[:, j]])
+    tip = np.asarray(linear_matrices("sfoam", float(spin), params, ("tip_deflection",))[2], dtype=float)[0]
+    c = np.zeros(A_loop.shape[0])
+    c[:tip.size] = tip
+    block = 64                           # the response in blocks: X holds A^(64 i + 0..63) b
+    X = np.empty((b.size, block))
+    X[:, 0] = b
+    for k in range(1, block):
+        X[:, k] = A_loop @ X[:, k - 1]
+    step = np.linalg.matrix_power(A_loop, block)
+    start, total = float(np.linalg.norm(b)), 0.0
+    for _ in range(max(1, max_samples // block)):
+        total += float(np.sum(np.abs(c @ X)))
+        X = step @ X
+        if float(np.linalg.norm(X[:, 0])) <= 1e-9 * start:
+            return total
+    return math.inf
 
 
 def _loop_parts(controller: Controller, params: Params, spin: float, damping_ratio: float, hardware) -> tuple:

@@ -50,8 +50,8 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, default_design_modes, e
 from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.forked_runs import can_fork, side_by_side
-from hubbeam_ctrl.study.friction_bound import friction_prediction
-from hubbeam_ctrl.study.judge import judge, margin_cause, residual_modes_for, same_laws
+from hubbeam_ctrl.study.friction_bound import count_prediction, friction_prediction
+from hubbeam_ctrl.study.judge import count_cause, judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.references import tracked_reference
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.rig_loop import (
@@ -470,6 +470,8 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
             if rig is not None:                  # what friction leaves at rest, predicted before the run
                 metrics[name].update(friction_prediction(ctrl, ev.params, float(ref.theta_dot[-1]), rig,
                                                          sc.bands["settle_angle"]) or {})
+                count_cause(metrics[name], count_prediction(ctrl, ev.params, float(ref.theta_dot[-1]), rig,
+                                                            sc.bands["settle_tip"]))
         if progress:
             mm = metrics[name]
             print(f"compare {sc.plant}/{sc.name}: {name:8s} {mm['verdict']:11s} residual "

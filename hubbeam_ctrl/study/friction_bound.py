@@ -16,7 +16,11 @@ constant hub torque):
   the control of machines with friction", Automatica 30(7), section 5); with equal breakaway and
   sliding friction none is;
 * an encoder of step ``q`` reads the angle to ``+-q/2``: a loop with integral action hunts
-  between two counts when the friction lets it.
+  between two counts when the friction lets it;
+* that rounding moves the tip through the loop by at most ``q/2`` times the loop's peak-to-peak
+  gain from the angle reading to the tip (:func:`hubbeam_ctrl.study.certificate.angle_error_tip_gain`,
+  a bound for every sequence of rounding errors): within the task's tip band the counts cannot
+  hold the tip outside it; past it a limit cycle between counts can (:func:`count_prediction`).
 
 The prediction is stated beside the run's verdict (the run judges hunting after the fact:
 :attr:`hubbeam_ctrl.study.metrics.Evidence.friction_hunting`).
@@ -26,9 +30,9 @@ from __future__ import annotations
 
 import math
 
-from .certificate import hold_gain
+from .certificate import angle_error_tip_gain, hold_gain
 
-__all__ = ["friction_prediction"]
+__all__ = ["friction_prediction", "count_prediction"]
 
 #: A compliance below this [rad per N m] is integral action (the offset-free estimator cancels a
 #: constant torque exactly at rest; rounding leaves about 1e-13).
@@ -83,3 +87,49 @@ def friction_prediction(controller, params, spin: float, rig, angle_band: float)
     if q > 0:
         text += f"; the encoder reads the angle to +-{q / 2:.3g} rad (half a count)"
     return {"friction_hold_rad": 0.0, "friction_hunting_predicted": hunting, "friction_prediction": text}
+
+
+def count_prediction(controller, params, spin: float, rig, tip_band: float) -> dict | None:
+    """What the rig's encoder can leave on the tip at rest: a bound from the linear loop.
+
+    Parameters
+    ----------
+    controller : Controller
+        On the rig, with a linear form that reads the hub angle.
+    params : Params
+        The evaluation plant's parameters.
+    spin : float
+        Spin rate at the end of the task [rad/s].
+    rig : Rig
+        Its ``sensors.encoder_step`` [rad].
+    tip_band : float
+        The task's settling band on the tip deflection [m].
+
+    Returns
+    -------
+    dict or None
+        ``count_tip_bound_m`` (half a count times
+        :func:`~hubbeam_ctrl.study.certificate.angle_error_tip_gain` [m]), ``count_holds_tip``
+        (the bound is past the band) and ``count_prediction`` (one sentence, with the encoder
+        that would bring the bound within the band); None without an encoder, for a law that
+        does not read the angle or a loop that is not stable.
+    """
+    q = rig.sensors.encoder_step
+    if not q:
+        return None
+    gain = angle_error_tip_gain(controller, params, spin)
+    if not (math.isfinite(gain) and gain > 0.0):
+        return None
+    bound = gain * q / 2.0
+    past = bound > tip_band
+    text = (f"the encoder reads the angle to +-{q / 2:.3g} rad (half a count), which moves the tip by at most "
+            f"{bound:.3g} m through this loop (its peak-to-peak gain from the angle reading to the tip, "
+            f"{gain:.3g} m/rad), ")
+    if past:
+        counts = 2.0 * math.pi * gain / (2.0 * tip_band)
+        text += (f"past the tip band ({tip_band:.3g} m): a limit cycle between counts can hold the tip outside it "
+                 f"(the bound is within it from about {counts:.3g} counts per revolution with this law, or "
+                 "widen --settle-tip)")
+    else:
+        text += f"within the tip band ({tip_band:.3g} m): the counts cannot hold the tip outside it"
+    return {"count_tip_bound_m": bound, "count_holds_tip": past, "count_prediction": text}

@@ -22,7 +22,7 @@ from hubbeam_ctrl.study.certificate import certify
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
 from hubbeam_ctrl.study.yardstick import task_limit, yardstick_metrics
 
-__all__ = ["judge", "residual_modes_for", "margin_cause", "same_laws", "THIN_DISK_MARGIN"]
+__all__ = ["judge", "residual_modes_for", "margin_cause", "count_cause", "same_laws", "THIN_DISK_MARGIN"]
 
 #: A loop whose disk margin (as it runs: drive, sensors, delay) is below this is called near
 #: instability in a verdict's reason [-].
@@ -125,6 +125,27 @@ def margin_cause(metrics: dict, margins, delay_s: float = 0.0) -> None:
     if delay_s > 0:
         what += f" (the rig's computation delay: {1e3 * delay_s:.3g} ms)"
     metrics["verdict_reason"] = f"{metrics.get('verdict_reason', '')}; cause: {what}, near instability".lstrip("; ")
+
+
+def count_cause(metrics: dict, prediction: dict | None) -> None:
+    """Add what the encoder's counts can leave on the tip to a run's metrics and, for a run that
+    did not settle, name it as the cause when it reaches past the tip band (in place).
+
+    Parameters
+    ----------
+    metrics : dict
+        One run's metrics (``verdict``, ``verdict_reason``).
+    prediction : dict or None
+        :func:`hubbeam_ctrl.study.friction_bound.count_prediction` of its loop.
+    """
+    if not prediction:
+        return
+    metrics.update(prediction)
+    if metrics.get("verdict") != "not settled" or not prediction["count_holds_tip"]:
+        return
+    what = (f"the encoder's half count can move the tip by up to {prediction['count_tip_bound_m']:.3g} m through "
+            f"this loop, past the tip band (a limit cycle between counts)")
+    metrics["verdict_reason"] = f"{metrics.get('verdict_reason', '')}; cause: {what}".lstrip("; ")
 
 
 def same_laws(controllers: dict, metrics: dict) -> list:

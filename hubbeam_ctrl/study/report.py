@@ -478,14 +478,16 @@ def _certificate_lines(comparison) -> list:
 
 
 def _friction_lines(comparison) -> list:
-    """What the rig's Coulomb friction leaves at rest, predicted from each linear loop
-    (:func:`hubbeam_ctrl.study.friction_bound.friction_prediction`)."""
-    rows = [(name, m) for name, m in comparison.metrics.items() if m.get("friction_prediction")]
-    if not rows:
-        return []
-    lines = ["## Friction at rest: predicted from the linear loop", ""]
-    lines += [f"- {name} ({m['verdict']}): {m['friction_prediction']}." for name, m in rows]
-    return lines + [""]
+    """What the rig's Coulomb friction and its encoder's counts leave at rest, predicted from each
+    linear loop (:func:`hubbeam_ctrl.study.friction_bound.friction_prediction`,
+    :func:`~hubbeam_ctrl.study.friction_bound.count_prediction`)."""
+    lines = []
+    for key, title in (("friction_prediction", "Friction at rest"), ("count_prediction", "Encoder counts at rest")):
+        rows = [(name, m) for name, m in comparison.metrics.items() if m.get(key)]
+        if rows:
+            lines += [f"## {title}: predicted from the linear loop", ""]
+            lines += [f"- {name} ({m['verdict']}): {m[key]}." for name, m in rows] + [""]
+    return lines
 
 
 def _robust_lines(comparison) -> list:
