@@ -154,3 +154,44 @@ def test_the_default_excitation_keeps_the_modes_the_sample_rate_resolves():
     assert hi < 50.0 < excitation_band(rig, 2)[1] and 11.0 < hi / 1.5 < 13.0
     with pytest.raises(ParameterError, match="first 2 bending modes reaches 114.8"):
         excitation(rig, "chirp", 6.0, n_modes=2)
+
+
+def slow_link_with_a_coarse_encoder() -> Rig:
+    """Found in session 22's batch: a 0.41 m aluminium link (48 x 4.5 mm, a 115 g payload) on a 0.71 N m
+    torque source with Coulomb friction, a 2000-count encoder and a root gauge (no rate sensor), sampled at
+    5 ms with half a sample of delay."""
+    beam = Params(L=0.4121, rho=2700.0, A=2.1879e-4, E=69e9, I=3.6342e-10, J_h=0.063222, r=0.0, m_t=0.115,
+                  tau_max=0.70649, damping_ratio=0.01003)
+    return Rig(beam=beam, friction=Friction(viscous=0.001367, coulomb=0.03293),
+               sensors=Sensors(encoder_counts=2000, strain_gauges=(0.0,), rate=False),
+               timing=Timing(dt=0.005, delay=0.5))
+
+
+@pytest.mark.slow
+def test_gains_the_encoder_cannot_carry_are_lowered(fast_backend):
+    """With the filter's angle noise raised 64x (the most the filter rule tries) one count still moved
+    LQR's command by 98 % of its limit: it stepped by 80 % of the limit a sample, sat 0.115 s at the limit,
+    settled in 4.45 s with a disk margin of 0.083. The torque weight is now raised (SOFTER_LADDER) until a
+    count moves the command by at most COUNT_SHARE of it: 1000x here, and the loop settles in 1.7 s with
+    a disk margin of 0.36, stepping by at most half the limit."""
+    from hubbeam_ctrl.study.rig_loop import COUNT_SHARE, SOFTER_LADDER, count_chatter
+    rig = slow_link_with_a_coarse_encoder()
+    c = compare(rig, "slew", "lqr,lqg,mpc", CompareSettings())
+    for name in ("lqr", "lqg", "mpc"):
+        m, law = c.metrics[name], c.controllers[name]
+        assert m["verdict"] == "settled", (name, m["verdict_reason"])
+        assert law.count_softened in SOFTER_LADDER and count_chatter(law, rig) <= COUNT_SHARE, name
+        assert m["disk_margin"] > 0.3 and m["peak_command_step"] <= 0.6 * rig.beam.tau_max, name   # 0.36; 0.49-0.55
+        assert m["settling_time_s"] < 3.0 and m["time_at_limit_s"] <= 0.02, name                   # 1.7-2.3 s
+        assert any(n.startswith(f"{name}: the torque weight is raised") for n in c.notes), name
+    lqr = c.controllers["lqr"]
+    assert lqr.count_softened == 1000.0
+    stiff = type(lqr.inner)(lqr.inner.design, dataclasses.replace(
+        lqr.inner.settings, weights=dataclasses.replace(lqr.inner.settings.weights,
+                                                        torque=lqr.inner.settings.weights.torque / 1000.0)),
+        lqr.inner.reference)
+    from controllers.integral import ObservedFeedback
+    from hubbeam_ctrl.study.rig_loop import DISTURBANCE_FRACTION
+    noisy = dataclasses.replace(lqr.noise, angle_noise_rad=lqr.noise.angle_noise_rad * 64 / lqr.count_noise_factor)
+    d = DISTURBANCE_FRACTION * stiff.tau_max if lqr.integral else None
+    assert count_chatter(ObservedFeedback(stiff, noisy, d), rig) > 0.9           # 0.98: the filter alone could not
