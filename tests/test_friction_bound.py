@@ -189,3 +189,35 @@ def test_a_coarse_encoder_is_named_as_the_cause_of_a_tip_that_does_not_settle(tm
     servo = compare(load_rig("servo_link"), "slew", ("openloop", "lqr"), CompareSettings()).metrics["lqr"]
     assert servo["count_holds_tip"] is False and servo["count_tip_bound_m"] < servo["settle_tip_m"]
     assert servo["residual_tip_max_m"] <= servo["count_tip_bound_m"] and "encoder" not in servo["verdict_reason"]
+
+
+def test_count_cause_names_the_encoder_only_where_the_evidence_fits():
+    """The verdict's reason gets the encoder as its cause for a run that did not settle with the bound
+    past the band, and for a run at its command's limit ("unstable" by saturation) only when nothing
+    grows, the certificate is stable and the tip stays within the bound (session 22: a 0.31 m link on a
+    4 mN m drive with 1024 counts cycled between counts at the limit, tip 2.0e-4 m within the 4.5e-4 m
+    bound); a growing run keeps its reason."""
+    from hubbeam_ctrl.study.judge import count_cause
+
+    past = {"count_tip_bound_m": 4.5e-4, "count_holds_tip": True, "count_prediction": "..."}
+    within = {"count_tip_bound_m": 1e-5, "count_holds_tip": False, "count_prediction": "..."}
+    m = {"verdict": "not settled", "verdict_reason": "outside the settling bands at the end"}
+    count_cause(m, past)
+    assert m["verdict_reason"].endswith("cause: the encoder's half count can move the tip by up to 0.00045 m "
+                                        "through this loop, past the tip band (a limit cycle between counts)")
+    assert m["count_tip_bound_m"] == 4.5e-4
+    m = {"verdict": "not settled", "verdict_reason": "r"}
+    count_cause(m, within)
+    assert m["verdict_reason"] == "r" and m["count_holds_tip"] is False
+    cycling = {"verdict": "unstable", "verdict_reason": "the command sits at its limit 69 %",
+               "growth_resolution_per_s": 0.14, "tip_growth_rate_per_s": 6e-4, "angle_growth_rate_per_s": 5e-4,
+               "torque_growth_rate_per_s": 0.013, "loop_spectral_radius": 0.9994, "residual_tip_max_m": 2.0e-4}
+    m = dict(cycling)
+    count_cause(m, past)
+    assert "cause: a limit cycle between encoder counts at the command's limit, bounded" in m["verdict_reason"]
+    for change in ({"tip_growth_rate_per_s": 0.5}, {"loop_spectral_radius": 1.01}, {"residual_tip_max_m": 5e-4}):
+        m = {**cycling, **change}
+        count_cause(m, past)
+        assert m["verdict_reason"] == "the command sits at its limit 69 %", change
+    count_cause(m := {"verdict": "settled", "verdict_reason": "in"}, past)
+    assert m["verdict_reason"] == "in"

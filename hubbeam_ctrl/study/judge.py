@@ -141,10 +141,22 @@ def count_cause(metrics: dict, prediction: dict | None) -> None:
     if not prediction:
         return
     metrics.update(prediction)
-    if metrics.get("verdict") != "not settled" or not prediction["count_holds_tip"]:
+    verdict, bound = metrics.get("verdict"), prediction["count_tip_bound_m"]
+    if not prediction["count_holds_tip"] or verdict not in ("not settled", "unstable"):
         return
-    what = (f"the encoder's half count can move the tip by up to {prediction['count_tip_bound_m']:.3g} m through "
-            f"this loop, past the tip band (a limit cycle between counts)")
+    what = (f"the encoder's half count can move the tip by up to {bound:.3g} m through this loop, past the tip band "
+            "(a limit cycle between counts)")
+    if verdict == "unstable":
+        # a command at its limit in a loop whose certificate is stable, nothing growing and the tip within
+        # the bound: the counts' limit cycle, bounded
+        resolution = metrics.get("growth_resolution_per_s") or 0.0
+        quiet = all((metrics.get(k) or 0.0) <= resolution for k in
+                    ("tip_growth_rate_per_s", "angle_growth_rate_per_s", "torque_growth_rate_per_s"))
+        radius = metrics.get("loop_spectral_radius")
+        if not (quiet and radius is not None and radius < 1.0 and metrics.get("residual_tip_max_m", math.inf) <= bound):
+            return
+        what = (f"a limit cycle between encoder counts at the command's limit, bounded: nothing grows and the tip "
+                f"stays within the {bound:.3g} m the half count can move it through this loop")
     metrics["verdict_reason"] = f"{metrics.get('verdict_reason', '')}; cause: {what}".lstrip("; ")
 
 
