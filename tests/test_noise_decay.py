@@ -41,6 +41,21 @@ def _lab(decay: float = 0.3):
     return sc, design, st
 
 
+def _noisy_run(ctrl, design, st, n: int, seed: int) -> tuple:
+    """``ctrl`` on its design model at rest for ``n`` samples of white sensor noise at the filter's
+    levels: the tip deflection [m] and the command [N m] per sample."""
+    rng = np.random.default_rng(seed)
+    noise = rng.standard_normal((n, 3)) * np.array([st.angle_noise_rad, st.rate_noise_rad_s, st.moment_noise_nm])
+    x = np.zeros(design.n_x)
+    tip, u = np.empty(n), np.empty(n)
+    ctrl.reset()
+    for k in range(n):
+        u[k] = ctrl(k * design.dt, design.C_sensors @ x + noise[k])
+        tip[k] = design.C_tip[0] @ x
+        x = design.Ad @ x + design.Bd[:, 0] * float(u[k])
+    return tip, u
+
+
 def test_noise_tip_std_equals_a_long_noisy_run_of_the_controller_on_its_design_model():
     """The Lyapunov solve against the LQG object itself: 60 000 samples of white sensor noise at
     the filter's levels through ``ctrl(t, y)`` on the design model at rest (lab arm, 1.0 w_1).
@@ -49,17 +64,7 @@ def test_noise_tip_std_equals_a_long_noisy_run_of_the_controller_on_its_design_m
     sc, design, st = _lab(1.0)
     ctrl = LQG(design, st)
     predicted = noise_tip_std(ctrl)
-    rng = np.random.default_rng(7)
-    n = 60_000
-    sigma = np.array([st.angle_noise_rad, st.rate_noise_rad_s, st.moment_noise_nm])
-    noise = rng.standard_normal((n, 3)) * sigma
-    x = np.zeros(design.n_x)
-    tip = np.empty(n)
-    ctrl.reset()
-    for k in range(n):
-        tau = ctrl(k * design.dt, design.C_sensors @ x + noise[k])
-        tip[k] = design.C_tip[0] @ x
-        x = design.Ad @ x + design.Bd[:, 0] * float(tau)
+    tip, _ = _noisy_run(ctrl, design, st, 60_000, seed=7)
     measured = float(np.std(tip[2000:]))
     assert predicted > 0 and measured == pytest.approx(predicted, rel=0.02), (measured, predicted)
 
@@ -71,16 +76,7 @@ def test_noise_step_std_equals_a_long_noisy_run_of_the_controller_on_its_design_
     sc, design, st = _lab(0.3)
     ctrl = LQG(design, st)
     _, u_std, step_std = noise_stds(ctrl)
-    rng = np.random.default_rng(11)
-    n = 40_000
-    sigma = np.array([st.angle_noise_rad, st.rate_noise_rad_s, st.moment_noise_nm])
-    noise = rng.standard_normal((n, 3)) * sigma
-    x = np.zeros(design.n_x)
-    u = np.empty(n)
-    ctrl.reset()
-    for k in range(n):
-        u[k] = ctrl(k * design.dt, design.C_sensors @ x + noise[k])
-        x = design.Ad @ x + design.Bd[:, 0] * float(u[k])
+    _, u = _noisy_run(ctrl, design, st, 40_000, seed=11)
     assert float(np.std(np.diff(u[2000:]))) == pytest.approx(step_std, rel=0.03), step_std
     assert float(np.std(u[2000:])) == pytest.approx(u_std, rel=0.03), u_std
     assert step_std > u_std          # the noise reaches the command nearly white: steps exceed sqrt(2) x
