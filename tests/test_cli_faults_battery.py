@@ -34,6 +34,9 @@ CASES = [
     ("sw", SWEEP + ["--scheduler", ""], "--scheduler must name a scheduler address, got ''"),
     ("sw", TUNE + ["--scheduler", " "], "--scheduler must name a scheduler address, got ' '"),
     ("sw", TUNE + ["--seed=9223372036854775808"], "--seed (tune.seed) must be an integer in 0..9223372036854775807"),
+    # a search width whose bounds round to the scaled defaults (1e-300: one run, the defaults called tuned)
+    ("sw", TUNE + ["--decades=1e-300"], "--decades (tune.decades) must be in [1e-06, 10] (the weights searched "
+                                        "within 10^-decades..10^decades of the scaled defaults), got 1e-300"),
     # excitation limits past the beam / any rig
     ("sw", EXCITE + ["--max-tip=1e308"], "--max-tip (max_tip_deflection) must be in (0, 0.381] [m] (at most the "
                                          "beam length L), got 1e+308"),
