@@ -73,11 +73,18 @@ BASES = {
     "certify": ["certify", "lqr", "--n-modes", "2", "--tf", "1", "--t-end", "2", "--dt", "0.01", "--uncertainty",
                 "m_t=0:0.1", "--grid", "2", "--check", "none", "--out", "ce"],
 }
-#: Further command lines battered the same way (the controllers and options this stage added).
+#: Further command lines battered the same way (the controllers and options this stage added; a rig's
+#: default task, which a slew without --tf takes from the rig), on the options of :data:`VARIANT_OPTIONS`.
 VARIANTS = {
     "codegen nmpc": ["codegen", "--controller", "nmpc", "--n-modes", "1", "--out", "cg"],
     "codegen msmpc": ["codegen", "--controller", "msmpc", "--n-modes", "1", "--out", "cg"],
+    "compare rig": ["compare", "--rig", "servo_link", "--controllers", "lqr", "--out", "c"],
+    "design rig": ["design", "--controller", "lqr", "--rig", "servo_link", "--out", "d.json"],
 }
+VARIANT_OPTIONS = {"codegen nmpc": ("--controller", "--horizon", "--dt", "--tf", "--n-modes"),
+                   "compare rig": ("--slew-angle", "--tf", "--dt", "--tip-mass", "--settle-angle", "--settle-tip"),
+                   "design rig": ("--slew-angle", "--tf", "--dt", "--tip-mass")}
+VARIANT_OPTIONS["codegen msmpc"] = VARIANT_OPTIONS["codegen nmpc"]
 #: Options whose values run nothing but the whole command (the demo): only their file faults.
 NO_VALUES = {("demo", "--out")}
 
@@ -246,7 +253,7 @@ def cases(parser, only, inputs: str, bad: dict, places: dict) -> list:
             if isinstance(action, (argparse._HelpAction, argparse._StoreTrueAction)):
                 continue
             option = action.option_strings[0] if action.option_strings else action.dest
-            if label in VARIANTS and option not in ("--controller", "--horizon", "--dt", "--tf", "--n-modes"):
+            if label in VARIANTS and option not in VARIANT_OPTIONS[label]:
                 continue
             positional = not action.option_strings
             if option in FILE_OPTIONS:

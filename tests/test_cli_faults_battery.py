@@ -34,6 +34,16 @@ CASES = [
     ("sw", SWEEP + ["--scheduler", ""], "--scheduler must name a scheduler address, got ''"),
     ("sw", TUNE + ["--scheduler", " "], "--scheduler must name a scheduler address, got ' '"),
     ("sw", TUNE + ["--seed=9223372036854775808"], "--seed (tune.seed) must be an integer in 0..9223372036854775807"),
+    # a search width whose bounds round to the scaled defaults (1e-300: one run, the defaults called tuned)
+    ("sw", TUNE + ["--decades=1e-300"], "--decades (tune.decades) must be in [1e-06, 10] (the weights searched "
+                                        "within 10^-decades..10^decades of the scaled defaults), got 1e-300"),
+    # a rig's default slew by --slew-angle (no --tf): named 'angle', or '--tf' the user did not type, before
+    *[("nm", [*cmd, "--rig", "servo_link", "--slew-angle=1e-300", "--out", out],
+       "--slew-angle must be a finite number with |slew_angle| >= 1e-06 [rad], got 1e-300")
+      for cmd, out in ((["compare", "--controllers", "lqr"], "c"), (["design", "--controller", "lqr"], "d.json"))],
+    ("nm", ["compare", "--rig", "servo_link", "--slew-angle=1e308", "--controllers", "lqr", "--out", "c"],
+     "--slew-angle = 1e+308 rad takes the rig's default slew 8.432e+306 s (1.5 x (rigid bound + first-mode "
+     "period)), past the longest tf, 1e+06 s"),
     # excitation limits past the beam / any rig
     ("sw", EXCITE + ["--max-tip=1e308"], "--max-tip (max_tip_deflection) must be in (0, 0.381] [m] (at most the "
                                          "beam length L), got 1e+308"),

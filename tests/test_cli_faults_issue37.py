@@ -60,7 +60,7 @@ CASES = [
     ("nm", ["compare", "--schedule=1e308", "--controllers", "lqr", "--out", "c"],
      "--schedule must be an integer >= 1 and <= 1000 (number of spin rates"),
     ("tb", ["tune", "spec.toml", "--controller", "lqr", "--out", "t", "--workers", "1", "--decades=1e308"],
-     "--decades (tune.decades) must be in (0, 10]"),
+     "--decades (tune.decades) must be in [1e-06, 10]"),
     # silent wrong results
     ("sw", ["codegen", "--controller", "lqr", "--rig", "servo_link", "--dt", "0.01", "--out", "cg"],
      "--dt must be the --rig's sample time timing.dt = 0.001 s (or left out), got 0.01"),

@@ -35,7 +35,7 @@ from hubbeam_ctrl.study.bands import MAX_ANGLE_BAND
 from hubbeam_ctrl.study.scenarios import RANGES as SCENARIO_RANGES
 from hubbeam_ctrl.study.sweep import MAX_WORKERS
 from hubbeam_ctrl.study.tasks import MIN_TARGET
-from hubbeam_ctrl.study.tune import MAX_DECADES, MAX_SEED
+from hubbeam_ctrl.study.tune import MAX_DECADES, MAX_SEED, MIN_DECADES
 
 __all__ = ["ranges_markdown", "settings_classes", "main"]
 
@@ -165,7 +165,7 @@ def _function_rows() -> list:
          "`--modes`, `--seed` (excite)"),
         ("`excitation`", "`max_tip_deflection`, `max_hub_travel`", "m, rad",
          f"(0, L] (the beam length); (0, {MAX_HUB_TRAVEL:g}]", "`--max-tip`, `--max-hub` (excite)"),
-        ("`TuneOptions`", "`decades`", "-", f"(0, {MAX_DECADES:g}]", "`--decades` (tune)"),
+        ("`TuneOptions`", "`decades`", "-", f"[{MIN_DECADES:g}, {MAX_DECADES:g}]", "`--decades` (tune)"),
         ("`TuneOptions`", "`seed`", "-", f"integer in 0..{MAX_SEED}", "`--seed` (tune)"),
         ("`Engine`, `sweep`, `tune`", "`workers`", "-", f"integer in 1..{MAX_WORKERS}", "`--workers` (sweep, tune)"),
         ("`compare`, `Slew`, `SpinUp`", "`settle_angle`, `settle_tip`", "rad, m",

@@ -57,6 +57,9 @@ MAX_MAXITER, MAX_POPSIZE, MAX_TUNE_RUNS = 10_000, 1_000, 1_000_000
 #: Largest ``tune.decades``: the weights ``10^x`` searched stay within 1e-10..1e10 of the scaled
 #: defaults (far past any useful design; beyond it the optimiser's bounds overflow).
 MAX_DECADES = 10.0
+#: Smallest ``tune.decades``: narrower, the weights searched differ from the scaled defaults by less
+#: than 2.3e-6 of themselves (at 1e-300 the bounds round to the defaults: no search, one run).
+MIN_DECADES = 1e-6
 #: Largest ``tune.seed`` (a 64-bit signed integer, as the other seeds: ``SensorSettings.seed``, ``excitation``).
 MAX_SEED = 2 ** 63 - 1
 
@@ -76,7 +79,7 @@ class TuneOptions:
     angle_weight : float
         Penalty per unit of ``|final angle error| / angle scale`` [decades], >= 0.
     decades : float
-        Search ``x_k`` within this many decades of the scaled defaults, in (0, 10].
+        Search ``x_k`` within this many decades of the scaled defaults, in [1e-6, 10].
     maxiter : int
         Generations of differential evolution, >= 1.
     popsize : int
@@ -110,9 +113,9 @@ class TuneOptions:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise ParameterError(f"tune.{name} must be a finite number > 0, got {v!r}")
-        if self.decades > MAX_DECADES:
-            raise ParameterError(f"tune.decades must be in (0, {MAX_DECADES:g}] (the weights searched within "
-                                 f"10^-decades..10^decades of the scaled defaults), got {self.decades:g}")
+        if not MIN_DECADES <= self.decades <= MAX_DECADES:
+            raise ParameterError(f"tune.decades must be in [{MIN_DECADES:g}, {MAX_DECADES:g}] (the weights searched "
+                                 f"within 10^-decades..10^decades of the scaled defaults), got {self.decades:g}")
         for name, hi in (("maxiter", MAX_MAXITER), ("popsize", MAX_POPSIZE)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= hi:
