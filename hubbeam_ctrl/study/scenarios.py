@@ -33,7 +33,7 @@ from hubbeam_ctrl.plant.sensors import SensorSettings
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.sim.evaluation import PLANT_MODELS
 from hubbeam_ctrl.study.bands import default_band_sources
-from hubbeam_ctrl.study.tasks import Slew, SpinUp, check_target
+from hubbeam_ctrl.study.tasks import MAX_DURATION, Slew, SpinUp, check_target
 
 __all__ = ["RANGES", "SCENARIOS", "PLANTS", "REFERENCES", "Scenario", "make_scenario", "register_scenario"]
 
@@ -79,7 +79,7 @@ def register_scenario(name: str):
 #: Ranges of :func:`make_scenario`'s numbers: name as in messages -> (lo, hi, unit). Also
 #: ``t_end > tf (1 + residual_delay)`` (the task's Tolerances), ``dt <= tf / 10``,
 #: ``abs(wf) <= params.max_spin`` and, for the slew, ``tau_max tf / (pi J_total) <= params.max_spin``.
-RANGES = {"tau_max": (1e-6, 1e9, "N m"), "tf": (1e-3, 1e6, "s"), "t_end": (1e-3, T_END_MAX, "s"),
+RANGES = {"tau_max": (1e-6, 1e9, "N m"), "tf": (1e-3, MAX_DURATION, "s"), "t_end": (1e-3, T_END_MAX, "s"),
           "dt": (1e-6, 10.0, "s")}
 
 

@@ -51,6 +51,8 @@ __all__ = ["Slew", "SpinUp", "TASKS", "MIN_TARGET", "check_target"]
 #: shortest time) degenerate below it (a Riccati equation without a solution at 1e-9 rad,
 #: an overflow at 1e-300, a division by zero at 0).
 MIN_TARGET = 1e-6
+#: The longest task duration (maneuver time) a study takes [s].
+MAX_DURATION = 1e6
 
 
 def check_target(name: str, value, unit: str, what: str) -> float:

@@ -216,8 +216,7 @@ def rig_default_slew(rig, slew_angle: float | None = None):
     from controllers import DesignModel
     from controllers.scaling import first_mode
     from hubbeam_ctrl.limit.bound import rigid_bound
-    from hubbeam_ctrl.study.scenarios import RANGES
-    from hubbeam_ctrl.study.tasks import Slew, check_target
+    from hubbeam_ctrl.study.tasks import MAX_DURATION, Slew, check_target
 
     angle = DEFAULT_RIG_SLEW_RAD if slew_angle is None else check_target("slew_angle", slew_angle, "rad",
                                                                            "a slew by 0 is no task")
@@ -227,10 +226,10 @@ def rig_default_slew(rig, slew_angle: float | None = None):
     design = DesignModel.build(params.replace(n_transverse=modes), 0.0, rig.timing.dt or task_dt(params), modes)
     period = 2.0 * math.pi / first_mode(design)
     duration = DEFAULT_RIG_PACE * (bound + period)
-    if not duration <= RANGES["tf"][1]:
+    if not duration <= MAX_DURATION:
         raise ParameterError(f"slew_angle = {angle:g} rad takes the rig's default slew {duration:.4g} s "
                              f"({DEFAULT_RIG_PACE:g} x (rigid bound + first-mode period)), past the longest "
-                             f"tf, {RANGES['tf'][1]:g} s")
+                             f"tf, {MAX_DURATION:g} s")
     note = (f"task: the rig's default slew, {angle:.4g} rad in {duration:.4g} s = {DEFAULT_RIG_PACE:g} x (rigid "
             f"bound {bound:.4g} s + first-mode period {period:.4g} s, an upper bound of the time-optimal slew); "
             "give --tf (or a Slew) for another, `hubbeam optimal --rig` for the time-optimal one")
