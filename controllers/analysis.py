@@ -44,7 +44,7 @@ from .base import DesignModel
 from .loop_plant import _SENSOR_ROWS, _measurement_matrix, hardware_plant, rig_plant, sampled_rig_plant
 
 __all__ = ["LoopMargins", "FrequencyResponse", "design_plant", "loop_transfer", "loop_matrices", "closed_loop_poles",
-           "loop_margins", "margins_of_loop", "frequency_grid", "hardware_plant", "rig_plant",
+           "loop_margins", "margins_of_loop", "grid_disk_margin", "frequency_grid", "hardware_plant", "rig_plant",
            "sampled_rig_plant"]
 
 def design_plant(ctrl):
@@ -438,6 +438,32 @@ def loop_margins(ctrl, n_points: int = 3000, plant=None, check: bool = False) ->
     LoopMargins
     """
     return margins_of_loop(*loop_matrices(ctrl, plant), ctrl.dt, ctrl.name, n_points, check)
+
+
+def grid_disk_margin(ctrl, n_points: int = 500) -> float:
+    """The disk margin at the plant input on the design model, on the frequency grid alone: the
+    :attr:`LoopMargins.disk_margin_grid` of :func:`loop_margins` without its refinement, gain, phase
+    and delay margins (a cheap comparison of two designs of one loop).
+
+    Parameters
+    ----------
+    ctrl : Controller
+        A linear controller (:meth:`~controllers.base.Controller.feedback_matrices`).
+    n_points : int
+        Points of the logarithmic background grid (the grid adds points around each pole).
+
+    Returns
+    -------
+    float
+        ``1 / max |S - 1/2|`` over the grid [-]; 0 when the loop is not stable.
+    """
+    A, B, C, D = loop_matrices(ctrl)
+    cl = np.linalg.eigvals(A - B @ C)
+    if float(np.max(np.abs(cl))) >= 1.0:
+        return 0.0
+    w = frequency_grid(np.concatenate([np.linalg.eigvals(A), cl]), ctrl.dt, n_points)
+    Lw = FrequencyResponse(A, B, C, D)(np.exp(1j * w * ctrl.dt))
+    return float(1.0 / np.max(np.abs(1.0 / (1.0 + Lw) - 0.5)))
 
 
 def margins_of_loop(A, B, C, D, dt: float, name: str = "", n_points: int = 3000, check: bool = False) -> LoopMargins:

@@ -15,7 +15,7 @@ import numpy as np
 
 from hubbeam_ctrl.core.settings import setting
 
-from .analysis import loop_margins
+from .analysis import grid_disk_margin
 from .base import Controller, DesignModel, LQSettings, Reference, saturate
 from .estimator import (
     AppliedTorque,
@@ -256,10 +256,10 @@ def quiet_process_noise(design: DesignModel, settings: "LQGSettings") -> "LQGSet
     -------
     LQGSettings
         ``settings`` with ``torque_noise_nm``, ``modal_noise`` and ``modal_rate_noise`` times the
-        first scale of :data:`PROCESS_NOISE_LADDER` that meets the share, or the last before one
-        whose disk margin (:func:`controllers.analysis.loop_margins`) falls below
-        :data:`MARGIN_KEPT` of the default's: ``settings`` itself when the default meets the
-        share or the first quieter scale would cost that margin.
+        first scale of :data:`PROCESS_NOISE_LADDER` that meets the share (the quietest if none
+        does) or, when that one's disk margin (:func:`controllers.analysis.grid_disk_margin`)
+        falls below :data:`MARGIN_KEPT` of the default's, the quietest louder scale that keeps it:
+        ``settings`` itself when the default meets the share or no quieter scale keeps the margin.
 
     Notes
     -----
@@ -284,17 +284,21 @@ def quiet_process_noise(design: DesignModel, settings: "LQGSettings") -> "LQGSet
     limit = STEP_NOISE_SHARE * first.tau_max
     if noise_stds(first)[2] <= limit:
         return settings
-    floor = MARGIN_KEPT * loop_margins(first, n_points=1000).disk_margin
-    chosen = settings
-    for scale in PROCESS_NOISE_LADDER[1:]:
-        candidate = scaled(scale)
-        ctrl = trial(candidate)
-        if not loop_margins(ctrl, n_points=1000).disk_margin >= floor:
+    # the first rung within the limit (the quietest if none is), then back up the ladder to the
+    # first that keeps the margin: the step noise falls and the margin mostly falls along it
+    rungs = [(scale, scaled(scale)) for scale in PROCESS_NOISE_LADDER[1:]]
+    laws = {}
+    pick = len(rungs) - 1
+    for i, (_, candidate) in enumerate(rungs):
+        laws[i] = trial(candidate)
+        if noise_stds(laws[i])[2] <= limit:
+            pick = i
             break
-        chosen = candidate
-        if noise_stds(ctrl)[2] <= limit:
-            break
-    return chosen
+    floor = MARGIN_KEPT * grid_disk_margin(first)
+    for i in range(pick, -1, -1):
+        if grid_disk_margin(laws.get(i) or trial(rungs[i][1])) >= floor:
+            return rungs[i][1]
+    return settings
 
 
 class LQG(AppliedTorque, Controller):
