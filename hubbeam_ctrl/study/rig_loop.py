@@ -278,23 +278,20 @@ def on_rig(controller, rig: Rig, noise, hardware: Hardware | None, integral: boo
         return ctrl
     if tracks and _has_gain(controller):
         d = DISTURBANCE_FRACTION * controller.tau_max if integral else None
-        ctrl = _quiet_to_a_count(lambda n: ObservedFeedback(controller, n, d), noise, rig)
-        if ctrl.count_share > COUNT_SHARE and isinstance(getattr(controller.settings, "weights", None), Weights):
-            for factor in SOFTER_LADDER:           # the encoder cannot carry these gains: lower them
-                softer = type(controller)(controller.design, _softer(controller.settings, factor), controller.reference)
-                ctrl = _quiet_to_a_count(lambda n, law=softer: ObservedFeedback(law, n, d), noise, rig)
-                ctrl.count_softened = factor
-                if ctrl.count_share <= COUNT_SHARE:
-                    break
+
+        def observed(factor):
+            law = controller if factor == 1.0 else type(controller)(
+                controller.design, _softer(controller.settings, factor), controller.reference)
+            return lambda n: ObservedFeedback(law, n, d)
+
+        softens = isinstance(getattr(controller.settings, "weights", None), Weights)
+        ctrl = _quiet_or_softer(observed, noise, rig, softens)
     elif type(controller) is LQG:
-        ctrl = _quiet_to_a_count(lambda n: (controller if n is controller.settings else
-                                            LQG(controller.design, n, controller.reference)), controller.settings, rig)
-        for factor in SOFTER_LADDER if ctrl.count_share > COUNT_SHARE else ():
-            ctrl = _quiet_to_a_count(lambda n: LQG(controller.design, n, controller.reference),
-                                     _softer(controller.settings, factor), rig)
-            ctrl.count_softened = factor
-            if ctrl.count_share <= COUNT_SHARE:
-                break
+        def filtered(factor):
+            return lambda n: (controller if factor == 1.0 and n is controller.settings else
+                              LQG(controller.design, _softer(n, factor), controller.reference))
+
+        ctrl = _quiet_or_softer(filtered, controller.settings, rig, True)
     if hardware is not None and hardware.command == "voltage":
         ctrl = VoltageCommand(ctrl, hardware)
     if hardware is not None:
@@ -321,9 +318,25 @@ SOFTER_LADDER = (10.0, 100.0, 1000.0, 1e4)
 
 
 def _softer(settings, factor: float):
-    """``settings`` with its torque weight times ``factor`` (lower gains)."""
+    """``settings`` with its torque weight times ``factor`` (lower gains; itself at 1)."""
+    if factor == 1.0:
+        return settings
     w = settings.weights
     return dataclasses.replace(settings, weights=dataclasses.replace(w, torque=w.torque * factor))
+
+
+def _quiet_or_softer(make, noise, rig: Rig, softens: bool):
+    """:func:`_quiet_to_a_count` of ``make(1.0)``; where no filter brings one count within
+    :data:`COUNT_SHARE` (and ``softens``), of ``make(factor)`` along :data:`SOFTER_LADDER` until one
+    does. ``make(factor)`` gives the ``build(noise)`` of the law with its torque weight times
+    ``factor``; the law keeps the factor in ``count_softened``."""
+    law = _quiet_to_a_count(make(1.0), noise, rig)
+    for factor in SOFTER_LADDER if softens and law.count_share > COUNT_SHARE else ():
+        law = _quiet_to_a_count(make(factor), noise, rig)
+        law.count_softened = factor
+        if law.count_share <= COUNT_SHARE:
+            break
+    return law
 
 
 def count_chatter(law, rig: Rig) -> float:
@@ -382,7 +395,7 @@ def count_note(name: str, controller) -> list:
     while not hasattr(law, "count_noise_factor") and hasattr(law, "inner"):
         law = law.inner
     factor = getattr(law, "count_noise_factor", 1)
-    softened = getattr(controller, "count_softened", None) or getattr(law, "count_softened", None)
+    softened = getattr(law, "count_softened", None)
     if factor == 1 and not softened:
         return []
     what = []
