@@ -239,3 +239,32 @@ def test_docs_quote_the_robust_benchmark_and_it_meets_the_targets():
     assert all(doc["cases"]["servo_identified"]["identify"]["truth_inside"].values())
     assert doc["timing"]["search"]["wall_s"] <= 30.0
     assert doc["timing"]["search"]["radius"] >= doc["timing"]["grid6_alone"]["radius"] - 1e-9
+
+
+def test_a_bounded_score_stops_at_the_best_so_far_and_runs_the_hardest_point_first(monkeypatch):
+    """ResidualScore is a largest value over the set's points: a run past ``bound`` ends the
+    candidate (it cannot win), and the point that gave the largest value runs first next."""
+    import types
+
+    import hubbeam_ctrl.study.robust_check as rc
+    u = Uncertainty.from_table({"m_t": (0.0, 0.5), "damping": (0.0005, 0.0005)})
+    comparison = types.SimpleNamespace(scenario=types.SimpleNamespace(bands={"settle_angle": 1e-3}))
+    residual = {0.0: 1.0, 0.5: 3.0, 0.25: 0.5}          # % of the open loop at m_t
+    calls = []
+
+    def fake_run_at(comparison, ctrl, rig, values, uncertainty, openloop):
+        calls.append(values["m_t"])
+        return {"verdict": "settled", "residual_pct_of_openloop": residual[values["m_t"]],
+                "final_angle_error_rad": 0.0}
+    monkeypatch.setattr(rc, "run_at", fake_run_at)
+    score = rc.residual_score(comparison, None, u)
+    assert [v["m_t"] for v in score.points] == [0.0, 0.5, 0.25]       # corners, then the centre
+    assert score("c") == pytest.approx(1.5) and calls == [0.0, 0.5, 0.25]
+    calls.clear()
+    # the heavy end gave the largest value: it runs first, and a bound of 1.2 stops there
+    assert score("c", bound=1.2) == pytest.approx(1.5) and calls == [0.5]
+    calls.clear()
+    assert score("c", bound=2.0) == pytest.approx(1.5) and calls == [0.5, 0.0, 0.25]
+    residual[0.5] = float("nan")                           # a run that failed: inf, and it stops
+    calls.clear()
+    assert score("c") == float("inf") and calls == [0.5]

@@ -24,7 +24,7 @@ from hubbeam_ctrl.study.judge import judge
 from hubbeam_ctrl.study.rig_loop import on_rig, rig_closed_loop, rig_design, task_noise
 from hubbeam_ctrl.study.yardstick import task_limit
 
-__all__ = ["run_at", "CHECK_KEYS", "check_points", "residual_score", "TARGET_RESIDUAL_PCT"]
+__all__ = ["run_at", "CHECK_KEYS", "check_points", "residual_score", "ResidualScore", "TARGET_RESIDUAL_PCT"]
 
 #: The residual target of a design over the set [% of each plant's open loop] (issue 39).
 TARGET_RESIDUAL_PCT = 2.0
@@ -132,11 +132,54 @@ def check_points(uncertainty: Uncertainty, worst: dict | None = None) -> list:
     return out
 
 
-def residual_score(comparison, rig: Rig, uncertainty: Uncertainty, target_pct: float = TARGET_RESIDUAL_PCT):
-    """``score(ctrl)``: how far the worst run over the set's corners and centre is from the
-    targets, 1 on the boundary: the largest of its residual over that plant's open loop's
-    relative to ``target_pct`` and its final angle error relative to the task's settling band
-    (inf for a run that is unstable or fails).
+class ResidualScore:
+    """``score(ctrl, bound=inf)``: how far the worst run over the set's corners and centre is
+    from the targets, 1 on the boundary (:func:`residual_score` builds it).
+
+    The score is a largest value over points, so a candidate stops being run as soon as one
+    point reaches ``bound`` (the best score so far: it cannot win); the point that gave the
+    last largest value runs first. A stopped candidate's score is then a lower bound, at
+    least ``bound``.
+    """
+
+    #: :func:`~hubbeam_ctrl.study.robust_design.design_for_set` passes the best score so far.
+    takes_bound = True
+
+    def __init__(self, comparison, rig: Rig, uncertainty: Uncertainty, target_pct: float):
+        self.comparison, self.rig, self.uncertainty, self.target_pct = comparison, rig, uncertainty, target_pct
+        self.points = [values for _, values in check_points(uncertainty)]
+        self.band = float(comparison.scenario.bands["settle_angle"])
+        self.openloop = {}
+        self.runs = 0
+
+    def __call__(self, ctrl, bound: float = math.inf) -> float:
+        """The score [-] of ``ctrl``: inf for a run that is unstable or fails; at least ``bound``
+        when the runs stopped there."""
+        worst, worst_at = 0.0, 0
+        for i, values in enumerate(self.points):
+            m = run_at(self.comparison, ctrl, self.rig, values, self.uncertainty, self.openloop)
+            self.runs += 1
+            pct, err = m["residual_pct_of_openloop"], m["final_angle_error_rad"]
+            if m["verdict"] in ("unstable", "failed") or pct is None or not math.isfinite(pct) \
+                    or err is None or not math.isfinite(err):
+                value = math.inf
+            else:
+                value = max(float(pct) / self.target_pct, abs(float(err)) / self.band)
+            if value > worst:
+                worst, worst_at = value, i
+            if worst >= bound:
+                break
+        if worst_at:                   # the hardest point first next time
+            self.points.insert(0, self.points.pop(worst_at))
+        return worst
+
+
+def residual_score(comparison, rig: Rig, uncertainty: Uncertainty,
+                   target_pct: float = TARGET_RESIDUAL_PCT) -> ResidualScore:
+    """``score(ctrl, bound=inf)``: how far the worst run over the set's corners and centre is
+    from the targets, 1 on the boundary: the largest of its residual over that plant's open
+    loop's relative to ``target_pct`` and its final angle error relative to the task's settling
+    band (inf for a run that is unstable or fails).
 
     Parameters
     ----------
@@ -150,20 +193,8 @@ def residual_score(comparison, rig: Rig, uncertainty: Uncertainty, target_pct: f
 
     Returns
     -------
-    callable
+    ResidualScore
+        Called with a controller (and optionally the best score so far, ``bound``, past which
+        its runs stop).
     """
-    points = [values for _, values in check_points(uncertainty)]
-    band = float(comparison.scenario.bands["settle_angle"])
-    openloop = {}
-
-    def score(ctrl) -> float:
-        worst = 0.0
-        for values in points:
-            m = run_at(comparison, ctrl, rig, values, uncertainty, openloop)
-            pct, err = m["residual_pct_of_openloop"], m["final_angle_error_rad"]
-            if m["verdict"] in ("unstable", "failed") or pct is None or not math.isfinite(pct) \
-                    or err is None or not math.isfinite(err):
-                return math.inf
-            worst = max(worst, float(pct) / target_pct, abs(float(err)) / band)
-        return worst
-    return score
+    return ResidualScore(comparison, rig, uncertainty, target_pct)

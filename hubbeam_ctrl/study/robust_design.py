@@ -47,6 +47,7 @@ alternatives; nothing is called robust that the certificate does not accept.
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -250,7 +251,10 @@ def design_for_set(comparison, name: str, rig: Rig, uncertainty: Uncertainty | N
         points of the set relative to each point's open loop,
         :func:`~hubbeam_ctrl.study.robust_check.residual_score`): among the certified
         candidates the best score wins; a candidate that is not certified is ranked by its
-        radius after every certified one. Default: the radius alone.
+        radius after every certified one. Default: the radius alone. A score with
+        ``takes_bound`` (:class:`~hubbeam_ctrl.study.robust_check.ResidualScore`) is called
+        with ``bound=`` the best score so far and may stop its runs there: the same choice,
+        fewer runs.
     progress : bool
         A progress bar over the candidates (stderr, on a terminal).
 
@@ -273,8 +277,11 @@ def design_for_set(comparison, name: str, rig: Rig, uncertainty: Uncertainty | N
     def objective(ctrl, radius: float) -> tuple:
         if radius > 1.0 - RADIUS_MARGIN or score is None:
             return (1 if radius > 1.0 - RADIUS_MARGIN else 0, radius)
+        if getattr(score, "takes_bound", False) and best[0][0] == 0:   # runs past the best stop
+            return (0, float(score(ctrl, bound=best[0][1] - 1e-9)))
         return (0, float(score(ctrl)))
 
+    best = ((1, math.inf), comparison.controllers[name])
     first = objective(comparison.controllers[name], nominal.worst.radius)
     best = (first, comparison.controllers[name])
     tried = [(_label(current), nominal.worst.radius, first[1] if first[0] == 0 and score else None)]
