@@ -51,6 +51,7 @@ from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.forked_runs import can_fork, side_by_side
 from hubbeam_ctrl.study.friction_bound import count_prediction, friction_prediction
+from hubbeam_ctrl.study.frozen_loop import frozen_cause, frozen_scan
 from hubbeam_ctrl.study.judge import count_cause, judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.references import tracked_reference
 from hubbeam_ctrl.study.report import write_outputs
@@ -472,6 +473,8 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
                                                          sc.bands["settle_angle"]) or {})
                 count_cause(metrics[name], count_prediction(ctrl, ev.params, float(ref.theta_dot[-1]), rig,
                                                             sc.bands["settle_tip"]))
+            if (metrics[name].get("time_at_limit_slew_s") or 0.0) > 0.0 or metrics[name]["verdict"] != "settled":
+                frozen_cause(metrics[name], frozen_scan(res, ctrl, ev.model, ev.params, sc.t_f))
         if progress:
             mm = metrics[name]
             print(f"compare {sc.plant}/{sc.name}: {name:8s} {mm['verdict']:11s} residual "

@@ -1,0 +1,72 @@
+"""The loop frozen along a run (hubbeam_ctrl.study.frozen_loop, issue 36): the evaluation model
+linearised about the bent beam by CasADi's derivatives of its inverse dynamics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hubbeam_ctrl import Params
+from hubbeam_ctrl.core.errors import ParameterError
+from hubbeam_ctrl.plant.rig import rig_from_dict
+from hubbeam_ctrl.study.certificate import loop_matrix
+from hubbeam_ctrl.study.compare import compare
+from hubbeam_ctrl.study.frozen_loop import frozen_loop, frozen_scan
+
+
+def test_at_rest_the_frozen_foam_loop_is_the_certificates_sfoam_loop(fast_backend):
+    """Straight and at rest, FOAM's linearisation is SFOAM's with the axial modes apart: with the
+    axial modes damped (Params.damping_ratio), the frozen loop's radius is the certificate's.
+    Two derivations meet: CasADi's derivatives of FOAM's inverse dynamics, and SFOAM's linear
+    model (hubbeam_ctrl.linear)."""
+    cmp = compare(Params(), "slew", ["lqr"])
+    ctrl = cmp.controllers["lqr"]
+    params = cmp.plant.params.replace(damping_ratio=0.01)
+    n_q = 1 + params.n_axial + params.n_transverse
+    frozen = frozen_loop(ctrl, "foam", params, np.zeros(n_q), np.zeros(n_q), 0.0)
+    A, _ = loop_matrix(ctrl, params, 0.0, 0.01)
+    radius = float(np.max(np.abs(np.linalg.eigvals(A))))
+    assert frozen["radius"] == pytest.approx(radius, abs=1e-9)
+    assert radius < 1.0
+    # bent by a tenth of L in its first mode, the loop moves (the coupling the certificate lacks)
+    q = np.zeros(n_q)
+    q[1 + params.n_axial] = 0.1 * params.L / 2
+    bent = frozen_loop(ctrl, "foam", params, q, np.zeros(n_q), 0.0)
+    assert bent["radius"] != pytest.approx(radius, abs=1e-9)
+    with pytest.raises(ParameterError, match="q must hold the model's 16 coordinates"):
+        frozen_loop(ctrl, "foam", params, np.zeros(n_q - 1), np.zeros(n_q - 1), 0.0)
+
+
+#: A random rig of the session-22 fuzzing (a 2.53 m steel strip, E 200 GPa, rho 7850 kg/m^3, on a
+#: 493 N m torque source with Coulomb friction, 10000 counts, a root gauge, 1 kHz and one sample of
+#: computation delay). Its first axial mode (498 Hz) sits at the 500 Hz Nyquist frequency; the
+#: default slew bends the tip by 0.62 m and the command alternates between +-tau_max for 0.5 s
+#: of it, while the straight-beam certificate says stable (0.99905).
+AXIAL_RIG = {
+    "beam": {"L": 2.533, "rho": 7850, "A": 0.00018433, "E": 2e11, "I": 7.8502e-10, "J_h": 3.3703, "r": 0.0,
+             "m_t": 0, "tau_max": 493.19},
+    "friction": {"viscous": 0.007359, "coulomb": 29.8},
+    "damping": {"ratios": [0.004275]},
+    "sensors": {"encoder_counts": 10000, "strain_gauges": [0.0]},
+    "timing": {"dt": 0.001, "delay": 1.0},
+}
+
+
+@pytest.mark.slow
+def test_a_bent_beam_that_couples_its_axial_mode_into_the_delayed_loop_is_named(fast_backend):
+    rig = rig_from_dict(AXIAL_RIG)
+    cmp = compare(rig, "slew", ["openloop", "lqr"])
+    m, res, ctrl = cmp.metrics["lqr"], cmp.results["lqr"], cmp.controllers["lqr"]
+    assert m["time_at_limit_slew_s"] > 0.2 and m["loop_spectral_radius"] < 1.0
+    # the command alternates between the limits: an oscillation at the Nyquist frequency
+    u = np.asarray(res.tau)
+    at = np.abs(u) >= 0.999 * rig.beam.tau_max
+    assert np.sum((u[1:] * u[:-1] < 0) & at[1:] & at[:-1]) > 100
+    assert m["frozen_radius"] > 1.1 and m["frozen_hz"] == pytest.approx(500.0, abs=5.0)
+    assert m["frozen_tip_m"] > 0.2 * rig.beam.L and "axial mode" in m["frozen_mode"]
+    assert "the loop frozen at the bent beam" in m["verdict_reason"]
+    # straight, the same loop is neutral at most (the undamped axial modes), as the certificate says
+    t = np.asarray(res.t)
+    end = frozen_loop(ctrl, "foam", cmp.plant.params, res.q[-1], res.v[-1], float(res.tau[-1]))
+    assert end["radius"] < 1.0 + 1e-4
+    assert frozen_scan(res, ctrl, "ancf", cmp.plant.params, float(t[-1])) is None
