@@ -51,7 +51,7 @@ from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.forked_runs import can_fork, side_by_side
 from hubbeam_ctrl.study.friction_bound import count_prediction, friction_prediction
-from hubbeam_ctrl.study.frozen_loop import frozen_cause, frozen_scan
+from hubbeam_ctrl.study.frozen import frozen_cause, frozen_scan
 from hubbeam_ctrl.study.judge import count_cause, judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.references import tracked_reference
 from hubbeam_ctrl.study.report import write_outputs

@@ -140,6 +140,17 @@ class ResidualScore:
     point reaches ``bound`` (the best score so far: it cannot win); the point that gave the
     last largest value runs first. A stopped candidate's score is then a lower bound, at
     least ``bound``.
+
+    Parameters
+    ----------
+    comparison : Comparison
+        Its task and evaluation plant.
+    rig : Rig
+        The nominal rig, without its uncertainty.
+    uncertainty : Uncertainty
+        The set whose corners and centre the runs take.
+    target_pct : float
+        The residual target [% of the open loop's].
     """
 
     #: :func:`~hubbeam_ctrl.study.robust_design.design_for_set` passes the best score so far.

@@ -35,7 +35,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.linear.delay import delay_augmented
 from hubbeam_ctrl.plant.models import build_model, jacobian_columns
 from hubbeam_ctrl.plant.params import Params
-from hubbeam_ctrl.study import certificate as cert
+from hubbeam_ctrl.study.certificate import _closed, _linear_plant, _measurement
 
 __all__ = ["frozen_loop", "frozen_scan", "frozen_cause", "FROZEN_POINTS", "FROZEN_MODELS"]
 
@@ -66,7 +66,7 @@ def _measured_rows(controller, params: Params, n_axial: int, hardware, command: 
     """The rows of the controller's inputs on the model's ``[q, v]`` (and the drive's states after
     them), with the feedthrough of the command, from the straight beam's SFOAM rows."""
     inputs = list(controller.feedback_matrices()[5])
-    A0, A1, B0, C0 = cert._linear_plant(params, 0.0)
+    A0, A1, B0, C0 = _linear_plant(params, 0.0)
     A_s, B_s, _ = hardware_plant(A0, B0, hardware, command)
     design = getattr(controller, "design", None)
     layout = getattr(design, "sensors", None)
@@ -74,7 +74,7 @@ def _measured_rows(controller, params: Params, n_axial: int, hardware, command: 
     if rig_signals:
         C_s, D_s = layout.rows(A_s, B_s, params, 0.0)
     else:
-        C_s = cert._measurement(controller, inputs, C0, A_s.shape[0])
+        C_s = _measurement(controller, inputs, C0, A_s.shape[0])
         D_s = np.zeros((C_s.shape[0], 1))
     n_s = 1 + params.n_transverse                      # SFOAM coordinates: theta, q2
     n_q = n_s + n_axial
@@ -134,7 +134,7 @@ def frozen_loop(controller, model_name: str, params: Params, q, v, tau: float) -
     if layout is not None:
         Ad, Bd, Cm = with_anti_alias(Ad, Bd, Cm, layout, dt)
     laws = tuple(np.atleast_2d(np.asarray(x, dtype=float)) for x in controller.feedback_matrices()[:4])
-    z = np.linalg.eigvals(cert._closed(Ad, Bd, Cm, laws))
+    z = np.linalg.eigvals(_closed(Ad, Bd, Cm, laws))
     k = int(np.argmax(np.abs(z)))
     return {"radius": float(abs(z[k])), "hz": float(abs(np.angle(z[k])) / (2 * math.pi * dt)),
             "mode": _mode_of(z[k], A, n, model.n_axial, dt)}
