@@ -58,7 +58,11 @@ CASES = [
     ("tb", ["sweep", "spec.toml", "--rig", PAST_PATH_MAX, "--out", "s", "--workers", "1"],
      "cannot be read (File name too long)"),
     ("nm", ["compare", "--schedule=1e308", "--controllers", "lqr", "--out", "c"],
-     "--schedule must be an integer >= 1 and <= 1000 (number of spin rates"),
+     "--schedule must be an integer >= 1 and <= 1000 (number of spin rates; 1 = a single design at the "
+     "scenario's design spin), got 1e+308"),
+    ("nm", ["codegen", "--controller", "lqr", "--schedule=1e308", "--out", "cg"],
+     "--schedule must be an integer >= 1 and <= 1000 (number of spin rates; 1 = a single design at the "
+     "scenario's design spin), got 1e+308"),
     ("tb", ["tune", "spec.toml", "--controller", "lqr", "--out", "t", "--workers", "1", "--decades=1e308"],
      "--decades (tune.decades) must be in [1e-06, 10]"),
     # silent wrong results

@@ -71,6 +71,8 @@ def _run(args) -> int:
         raise ParameterError(f"--precision {args.precision} does not apply with --controller mpc --rig {args.rig} "
                              "(its QP with the DC motor's voltage limit needs double)")
     if args.schedule > 1 and args.controller != "lqg":
+        from hubbeam_ctrl.study.compare_values import check_schedule
+        check_schedule(args.schedule)                 # its range first: --schedule=1e308 is not "for lqg only"
         raise ParameterError(f"--schedule {args.schedule} applies to --controller lqg only (the gain-scheduled LQG "
                              f"is the scheduled controller that can be generated as C), got {args.controller!r}")
     sc, design = design_task(args, rig, params)

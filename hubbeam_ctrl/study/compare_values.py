@@ -66,7 +66,8 @@ def check_schedule(points) -> int:
     int
     """
     if isinstance(points, bool) or not isinstance(points, int) or not 1 <= points <= MAX_SCHEDULE_POINTS:
-        shown = repr(points) if len(repr(points)) <= 40 else repr(points)[:37] + "..."
+        shown = (f"{points:.4g}" if isinstance(points, int) and abs(points) >= 10**15     # 1e308 as 1e+308
+                 else repr(points) if len(repr(points)) <= 40 else repr(points)[:37] + "...")
         raise ParameterError(f"schedule must be an integer >= 1 and <= {MAX_SCHEDULE_POINTS} (number of spin rates; "
                              f"1 = a single design at the scenario's design spin), got {shown}")
     return points

@@ -35,12 +35,15 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.linear.delay import delay_augmented
 from hubbeam_ctrl.plant.models import build_model, jacobian_columns
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.study.certificate import _closed, _linear_plant, _measurement
 
 __all__ = ["frozen_loop", "frozen_scan", "frozen_cause", "FROZEN_POINTS", "FROZEN_MODELS"]
 
 #: Samples of the run a scan freezes the loop at (the largest bends over equal spans of the slew).
 FROZEN_POINTS = 8
+#: The simulators' validated range of the tip deflection [share of L] (ClosedLoopSettings.range_limit).
+RANGE_LIMIT = ClosedLoopSettings().range_limit
 #: Plant modes within this share of the sampling frequency of a loop pole's are named with it.
 NEAR_SHARE = 0.02
 #: At most this many of them (the nearest).
@@ -105,7 +108,8 @@ def frozen_loop(controller, model_name: str, params: Params, q, v, tau: float) -
     Returns
     -------
     dict
-        ``radius`` (the largest |z| of the frozen loop) [-], ``hz`` (its frequency) [Hz] and
+        ``radius`` (the largest modulus of the frozen loop's eigenvalues; inf when the
+        linearisation is not finite) [-], ``hz`` (its frequency) [Hz] and
         ``mode``: the frozen plant's modes nearest it in the sampled frequency (folded into
         ``[0, 1 / (2 dt)]``; the :data:`NEAR_COUNT` nearest within :data:`NEAR_SHARE` of the sampling frequency):
         ``"axial mode 1 (498.2 Hz) and axial mode 2 (1501 Hz, folded to 499 Hz)"``.
@@ -134,7 +138,10 @@ def frozen_loop(controller, model_name: str, params: Params, q, v, tau: float) -
     if layout is not None:
         Ad, Bd, Cm = with_anti_alias(Ad, Bd, Cm, layout, dt)
     laws = tuple(np.atleast_2d(np.asarray(x, dtype=float)) for x in controller.feedback_matrices()[:4])
-    z = np.linalg.eigvals(_closed(Ad, Bd, Cm, laws))
+    loop = _closed(Ad, Bd, Cm, laws)
+    if not np.all(np.isfinite(loop)):          # the sampled plant overflows: a state far past the model's range
+        return {"radius": math.inf, "hz": math.nan, "mode": "not finite"}
+    z = np.linalg.eigvals(loop)
     k = int(np.argmax(np.abs(z)))
     return {"radius": float(abs(z[k])), "hz": float(abs(np.angle(z[k])) / (2 * math.pi * dt)),
             "mode": _mode_of(z[k], A, n, model.n_axial, dt)}
@@ -167,7 +174,7 @@ def _mode_of(z: complex, A: np.ndarray, n: int, n_axial: int, dt: float) -> str:
 
 
 def frozen_scan(result, controller, model_name: str, params: Params, t_f: float,
-                points: int = FROZEN_POINTS) -> dict | None:
+                points: int = FROZEN_POINTS, range_limit: float = RANGE_LIMIT) -> dict | None:
     """The loop frozen at a run's largest bends: the largest tip deflection in each of ``points``
     equal spans of ``[0, t_f]`` (the slew).
 
@@ -185,15 +192,21 @@ def frozen_scan(result, controller, model_name: str, params: Params, t_f: float,
         The manoeuvre time [s].
     points : int
         Spans of the slew, >= 1.
+    range_limit : float
+        States with ``|v_tip| > range_limit L`` are past the models' validated range and are
+        not frozen [-] (default the simulators' ``range_limit``).
 
     Returns
     -------
     dict or None
-        :func:`frozen_loop`'s entries at the worst point, with ``t_s`` [s] and ``tip_m`` [m].
+        :func:`frozen_loop`'s entries at the worst point, with ``t_s`` [s] and ``tip_m`` [m]
+        (None: no state to freeze).
     """
     if model_name not in FROZEN_MODELS or not hasattr(controller, "feedback_matrices"):
         return None
     t, v_tip = np.asarray(result.t), np.abs(np.asarray(result.v_tip))
+    # the models hold within range_limit L (the run says when it left it): no bend past it is frozen
+    v_tip = np.where(v_tip <= range_limit * params.L, v_tip, -1.0)
     q, v, tau = np.asarray(result.q), np.asarray(result.v), np.asarray(result.tau)
     edges = np.searchsorted(t, np.linspace(0.0, min(t_f, float(t[-1])), points + 1))
     worst = None
@@ -201,7 +214,12 @@ def frozen_scan(result, controller, model_name: str, params: Params, t_f: float,
         if hi <= lo:
             continue
         i = int(lo + np.argmax(v_tip[lo:hi]))
-        out = frozen_loop(controller, model_name, params, q[i], v[i], float(tau[min(i, len(tau) - 1)]))
+        if v_tip[i] < 0.0:
+            continue
+        try:       # a diagnostic: a state the linearisation cannot take is left out, the run stands
+            out = frozen_loop(controller, model_name, params, q[i], v[i], float(tau[min(i, len(tau) - 1)]))
+        except (np.linalg.LinAlgError, ValueError):
+            continue
         out.update(t_s=float(t[i]), tip_m=float(v_tip[i]))
         if worst is None or out["radius"] > worst["radius"]:
             worst = out
@@ -224,7 +242,7 @@ def frozen_cause(metrics: dict, scan: dict | None) -> None:
         return
     metrics.update(frozen_radius=scan["radius"], frozen_at_s=scan["t_s"], frozen_tip_m=scan["tip_m"],
                    frozen_hz=scan["hz"], frozen_mode=scan["mode"])
-    if scan["radius"] <= 1.0:
+    if not scan["radius"] > 1.0 or not math.isfinite(scan["radius"]):    # stable, or no finite linearisation
         return
     what = (f"the loop frozen at the bent beam of t = {scan['t_s']:.3g} s (tip {scan['tip_m']:.3g} m) has spectral "
             f"radius {scan['radius']:.4g} at {scan['hz']:.4g} Hz, next to the bent beam's {scan['mode']}: bent, the "
