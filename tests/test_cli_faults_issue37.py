@@ -104,6 +104,11 @@ CASES = [
      "--slew-angle must be a finite number with |slew_angle| <= 3.9363e+07 [rad] (a slew in the longest tf, "
      "1e+06 s, within Params.max_spin), got 1e+308"),
     ("nm", [], "usage: hubbeam [-h] [--version] COMMAND ..."),
+    # a hang: the rig's default slew by 1e5 rad lasts 8432 s (the drive's rigid bound); its reference was
+    # planned on 8.4 million samples for 49 s before running out of memory
+    ("hg", ["compare", "--rig", "servo_link", "--slew-angle=1e5", "--controllers", "lqr", "--no-ladder", "--out", "c"],
+     "the task's runs (at least 3 tf = 25296.5 s) at dt = 0.001 s (1 runs of 25296493 samples) needs about 13 GB of "
+     "memory, above max_memory_mb = 2048 MB"),
 ]
 
 

@@ -51,7 +51,7 @@ from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.forked_runs import can_fork, side_by_side
 from hubbeam_ctrl.study.friction_bound import count_prediction, friction_prediction
-from hubbeam_ctrl.study.frozen import frozen_cause, frozen_scan
+from hubbeam_ctrl.study.frozen import frozen_check
 from hubbeam_ctrl.study.judge import count_cause, judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.references import tracked_reference
 from hubbeam_ctrl.study.report import write_outputs
@@ -201,10 +201,11 @@ def _sim_settings(sim_settings, sc: Scenario) -> ClosedLoopSettings:
     return sim_settings
 
 
-def _check_runs_fit(t_end, dt, names, params: Params, sim_settings) -> None:
+def _check_runs_fit(t_end, dt, names, params: Params, sim_settings, what: str | None = None) -> None:
     """Refuse, before the scenario's reference is tabulated (which alone takes gigabytes for a
-    ``t_end`` of 1e6 s), a comparison whose runs' arrays alone exceed the memory limit: a lower
-    bound of :func:`_check_budget`'s estimate, with its message."""
+    ``t_end`` of 1e6 s) or planned, a comparison whose runs' arrays alone exceed the memory limit: a
+    lower bound of :func:`_check_budget`'s estimate, with its message (``what``: how the runs' length
+    came about, default the ``t_end`` given)."""
     if t_end is None or not isinstance(dt, (int, float)) or not isinstance(t_end, (int, float)):
         return
     if not (math.isfinite(t_end) and math.isfinite(dt) and t_end > 0 and dt > 0):
@@ -218,7 +219,7 @@ def _check_runs_fit(t_end, dt, names, params: Params, sim_settings) -> None:
         limit = sim_settings["max_memory_mb"]
     steps = int(round(t_end / dt))
     memory = len(names) * _run_bytes(steps, params)
-    check_budget(f"t_end = {t_end:g} s at dt = {dt:g} s ({len(names)} runs of {steps + 1} samples)",
+    check_budget(f"{what or f't_end = {t_end:g} s'} at dt = {dt:g} s ({len(names)} runs of {steps + 1} samples)",
                  memory_bytes=memory, seconds=0.0, max_memory_mb=limit, max_wall_s=math.inf)
 
 
@@ -329,7 +330,9 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
     options = dict(plant=plant, params=design_p, tau_max=scn.tau_max, t_f=t_f, dt=dt, w_f=scn.w_f,
                    slew_angle=scn.slew_angle, tolerances=dc.tolerances,
                    reference=reference)
-    _check_runs_fit(t_end, dt, names, plant_params if plant_params is not None else base, sim_settings)
+    least = 3.0 * (getattr(task, "duration", None) or t_f)      # without t_end the runs last at least 3 tf
+    _check_runs_fit(least if t_end is None else t_end, dt, names, plant_params if plant_params is not None else base,
+                    sim_settings, f"the task's runs (at least 3 tf = {least:.6g} s)" if t_end is None else None)
     sc = make_scenario(task, t_end=t_end, **options)    # None: the task's own
     sc = with_task_bands(sc, rig, scn.settle_angle, scn.settle_tip)
     m, modes_note = _design_modes(design_modes, sc.params, sc.dt if plant_modes is None else None)
@@ -473,8 +476,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
                                                          sc.bands["settle_angle"]) or {})
                 count_cause(metrics[name], count_prediction(ctrl, ev.params, float(ref.theta_dot[-1]), rig,
                                                             sc.bands["settle_tip"]))
-            if (metrics[name].get("time_at_limit_slew_s") or 0.0) > 0.0 or metrics[name]["verdict"] != "settled":
-                frozen_cause(metrics[name], frozen_scan(res, ctrl, ev.model, ev.params, sc.t_f))
+            frozen_check(metrics[name], res, ctrl, ev.model, ev.params, sc.t_f)
         if progress:
             mm = metrics[name]
             print(f"compare {sc.plant}/{sc.name}: {name:8s} {mm['verdict']:11s} residual "

@@ -38,7 +38,7 @@ from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
 from hubbeam_ctrl.study.certificate import _closed, _linear_plant, _measurement
 
-__all__ = ["frozen_loop", "frozen_scan", "frozen_cause", "FROZEN_POINTS", "FROZEN_MODELS"]
+__all__ = ["frozen_loop", "frozen_scan", "frozen_cause", "frozen_check", "FROZEN_POINTS", "FROZEN_MODELS"]
 
 #: Samples of the run a scan freezes the loop at (the largest bends over equal spans of the slew).
 FROZEN_POINTS = 8
@@ -252,3 +252,26 @@ def frozen_cause(metrics: dict, scan: dict | None) -> None:
     else:
         what = f"cause: {what}"
     metrics["verdict_reason"] = f"{metrics.get('verdict_reason', '')}; {what}".lstrip("; ")
+
+
+def frozen_check(metrics: dict, result, controller, model_name: str, params: Params, t_f: float) -> None:
+    """:func:`frozen_cause` of :func:`frozen_scan` for a run whose command sat at its limit during
+    the slew (``time_at_limit_slew_s`` > 0) or that did not settle; nothing for the others (in place).
+
+    Parameters
+    ----------
+    metrics : dict
+        The run's metrics (:func:`~hubbeam_ctrl.study.judge.judge`).
+    result : SimResult
+        The run.
+    controller : Controller
+        As it ran.
+    model_name : str
+        The evaluation model.
+    params : Params
+        Its parameters.
+    t_f : float
+        The manoeuvre time [s].
+    """
+    if (metrics.get("time_at_limit_slew_s") or 0.0) > 0.0 or metrics.get("verdict") != "settled":
+        frozen_cause(metrics, frozen_scan(result, controller, model_name, params, t_f))
