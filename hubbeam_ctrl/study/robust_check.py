@@ -134,7 +134,9 @@ def check_points(uncertainty: Uncertainty, worst: dict | None = None) -> list:
 
 class ResidualScore:
     """``score(ctrl, bound=inf)``: how far the worst run over the set's corners and centre is
-    from the targets, 1 on the boundary (:func:`residual_score` builds it).
+    from the targets, 1 on the boundary: the largest of its residual over that plant's open
+    loop's relative to ``target_pct`` and its final angle error relative to the task's settling
+    band (inf for a run that is unstable or fails). ``residual_score`` is this class.
 
     The score is a largest value over points, so a candidate stops being run as soon as one
     point reaches ``bound`` (the best score so far: it cannot win); the point that gave the
@@ -156,7 +158,7 @@ class ResidualScore:
     #: :func:`~hubbeam_ctrl.study.robust_design.design_for_set` passes the best score so far.
     takes_bound = True
 
-    def __init__(self, comparison, rig: Rig, uncertainty: Uncertainty, target_pct: float):
+    def __init__(self, comparison, rig: Rig, uncertainty: Uncertainty, target_pct: float = TARGET_RESIDUAL_PCT):
         self.comparison, self.rig, self.uncertainty, self.target_pct = comparison, rig, uncertainty, target_pct
         self.points = [values for _, values in check_points(uncertainty)]
         self.band = float(comparison.scenario.bands["settle_angle"])
@@ -185,27 +187,6 @@ class ResidualScore:
         return worst
 
 
-def residual_score(comparison, rig: Rig, uncertainty: Uncertainty,
-                   target_pct: float = TARGET_RESIDUAL_PCT) -> ResidualScore:
-    """``score(ctrl, bound=inf)``: how far the worst run over the set's corners and centre is
-    from the targets, 1 on the boundary: the largest of its residual over that plant's open
-    loop's relative to ``target_pct`` and its final angle error relative to the task's settling
-    band (inf for a run that is unstable or fails).
-
-    Parameters
-    ----------
-    comparison : Comparison
-        Its task and evaluation plant.
-    rig : Rig
-        The nominal rig, without its uncertainty.
-    uncertainty : Uncertainty
-    target_pct : float
-        The residual target [% of the open loop's].
-
-    Returns
-    -------
-    ResidualScore
-        Called with a controller (and optionally the best score so far, ``bound``, past which
-        its runs stop).
-    """
-    return ResidualScore(comparison, rig, uncertainty, target_pct)
+#: ``residual_score(comparison, rig, uncertainty, target_pct=TARGET_RESIDUAL_PCT)``: the score
+#: :func:`~hubbeam_ctrl.study.robust_design.design_for_set` takes (:class:`ResidualScore`).
+residual_score = ResidualScore
