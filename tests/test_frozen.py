@@ -28,6 +28,7 @@ def test_at_rest_the_frozen_foam_loop_is_the_certificates_sfoam_loop(fast_backen
     radius = float(np.max(np.abs(np.linalg.eigvals(A))))
     assert frozen["radius"] == pytest.approx(radius, abs=1e-9)
     assert radius < 1.0
+    _every_pole_is_there(np.linalg.eigvals(A), frozen["poles"], params.n_axial)
     # bent by a tenth of L in its first mode, the loop moves (the coupling the certificate lacks)
     q = np.zeros(n_q)
     q[1 + params.n_axial] = 0.1 * params.L / 2
@@ -70,3 +71,28 @@ def test_a_bent_beam_that_couples_its_axial_mode_into_the_delayed_loop_is_named(
     end = frozen_loop(ctrl, "foam", cmp.plant.params, res.q[-1], res.v[-1], float(res.tau[-1]))
     assert end["radius"] < 1.0 + 1e-4
     assert frozen_scan(res, ctrl, "ancf", cmp.plant.params, float(t[-1])) is None
+
+
+def test_at_rest_the_frozen_loop_reads_the_rigs_accelerometer_as_the_certificate_does(fast_backend):
+    """The rig-signal path (the sensor layout's rows, the accelerometer's feedthrough of the command):
+    on accel_link (encoder and tip accelerometer, 1 kHz) the frozen FOAM loop at rest is the
+    certificate's loop with the rig's damping."""
+    from hubbeam_ctrl.plant.rig import load_rig
+    rig = load_rig("accel_link")
+    cmp = compare(rig, "slew", ["lqr"])
+    ctrl = cmp.controllers["lqr"]
+    assert "accel" in " ".join(ctrl.feedback_matrices()[5])
+    params = cmp.plant.params.replace(damping_ratio=0.01)
+    n_q = 1 + params.n_axial + params.n_transverse
+    frozen = frozen_loop(ctrl, cmp.plant.model, params, np.zeros(n_q), np.zeros(n_q), 0.0)
+    A, _ = loop_matrix(ctrl, params, 0.0, rig.damping.ratios[0])
+    assert frozen["radius"] == pytest.approx(float(np.max(np.abs(np.linalg.eigvals(A)))), abs=1e-9)
+    _every_pole_is_there(np.linalg.eigvals(A), frozen["poles"], params.n_axial)
+
+
+def _every_pole_is_there(certificate, frozen, n_axial):
+    """Each pole of the certificate's loop is a pole of the frozen one, which has the axial modes' too."""
+    gaps = [float(np.min(np.abs(frozen - z))) for z in certificate]
+    # the axial modes' poles, and without a rig one held command (delay_augmented's state, a pole at 0)
+    assert len(frozen) - len(certificate) - 2 * n_axial in (0, 1)
+    assert max(gaps) < 1e-6, max(gaps)

@@ -112,7 +112,8 @@ def frozen_loop(controller, model_name: str, params: Params, q, v, tau: float) -
         linearisation is not finite) [-], ``hz`` (its frequency) [Hz] and
         ``mode``: the frozen plant's modes nearest it in the sampled frequency (folded into
         ``[0, 1 / (2 dt)]``; the :data:`NEAR_COUNT` nearest within :data:`NEAR_SHARE` of the sampling frequency):
-        ``"axial mode 1 (498.2 Hz) and axial mode 2 (1501 Hz, folded to 499 Hz)"``.
+        ``"axial mode 1 (498.2 Hz) and axial mode 2 (1501 Hz, folded to 499 Hz)"``; ``poles``, every
+        eigenvalue of the frozen loop [-].
     """
     model, derivatives = _derivatives(model_name, params)
     q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
@@ -140,11 +141,11 @@ def frozen_loop(controller, model_name: str, params: Params, q, v, tau: float) -
     laws = tuple(np.atleast_2d(np.asarray(x, dtype=float)) for x in controller.feedback_matrices()[:4])
     loop = _closed(Ad, Bd, Cm, laws)
     if not np.all(np.isfinite(loop)):          # the sampled plant overflows: a state far past the model's range
-        return {"radius": math.inf, "hz": math.nan, "mode": "not finite"}
+        return {"radius": math.inf, "hz": math.nan, "mode": "not finite", "poles": np.full(len(loop), np.nan)}
     z = np.linalg.eigvals(loop)
     k = int(np.argmax(np.abs(z)))
     return {"radius": float(abs(z[k])), "hz": float(abs(np.angle(z[k])) / (2 * math.pi * dt)),
-            "mode": _mode_of(z[k], A, n, model.n_axial, dt)}
+            "mode": _mode_of(z[k], A, n, model.n_axial, dt), "poles": z}
 
 
 def _mode_of(z: complex, A: np.ndarray, n: int, n_axial: int, dt: float) -> str:
