@@ -65,7 +65,7 @@ def test_a_bent_beam_that_couples_its_axial_mode_into_the_delayed_loop_is_named(
     assert np.sum((u[1:] * u[:-1] < 0) & at[1:] & at[:-1]) > 100
     assert m["frozen_radius"] > 1.1 and m["frozen_hz"] == pytest.approx(500.0, abs=5.0)
     assert m["frozen_tip_m"] == pytest.approx(0.62, abs=0.01) and "axial mode" in m["frozen_mode"]   # docs/rig.md
-    assert "the loop frozen at the bent beam" in m["verdict_reason"]
+    assert "the loop frozen at the bent beam" in m["verdict_reason"] and "anti_alias_hz" in m["verdict_reason"]
     # straight, the same loop is neutral at most (the undamped axial modes), as the certificate says
     t = np.asarray(res.t)
     end = frozen_loop(ctrl, "foam", cmp.plant.params, res.q[-1], res.v[-1], float(res.tau[-1]))
@@ -96,3 +96,17 @@ def _every_pole_is_there(certificate, frozen, n_axial):
     # the axial modes' poles, and without a rig one held command (delay_augmented's state, a pole at 0)
     assert len(frozen) - len(certificate) - 2 * n_axial in (0, 1)
     assert max(gaps) < 1e-6, max(gaps)
+
+
+
+@pytest.mark.slow
+def test_an_anti_alias_filter_the_design_models_removes_the_cycle(fast_backend):
+    """The hint the reason gives, on the same strip: a first-order 100 Hz filter on the gauge (a tenth
+    of the sampling frequency), modelled by the design, and the command never reaches its limit."""
+    import copy
+    d = copy.deepcopy(AXIAL_RIG)
+    d["sensors"]["anti_alias_hz"] = 100.0
+    rig = rig_from_dict(d)
+    m = compare(rig, "slew", ["openloop", "lqr"]).metrics["lqr"]
+    assert m["verdict"] == "settled" and m["time_at_limit_slew_s"] == 0.0
+    assert m["peak_command_step"] < 0.02 * rig.beam.tau_max and "frozen_radius" not in m

@@ -42,6 +42,8 @@ __all__ = ["frozen_loop", "frozen_scan", "frozen_cause", "frozen_check", "FROZEN
 
 #: Samples of the run a scan freezes the loop at (the largest bends over equal spans of the slew).
 FROZEN_POINTS = 8
+#: A frozen pole above this share of the Nyquist frequency gets the anti-alias filter's hint.
+NYQUIST_SHARE = 0.8
 #: The simulators' validated range of the tip deflection [share of L] (ClosedLoopSettings.range_limit).
 RANGE_LIMIT = ClosedLoopSettings().range_limit
 #: Plant modes within this share of the sampling frequency of a loop pole's are named with it.
@@ -200,8 +202,8 @@ def frozen_scan(result, controller, model_name: str, params: Params, t_f: float,
     Returns
     -------
     dict or None
-        :func:`frozen_loop`'s entries at the worst point, with ``t_s`` [s] and ``tip_m`` [m]
-        (None: no state to freeze).
+        :func:`frozen_loop`'s entries at the worst point, with ``t_s`` [s], ``tip_m`` [m] and
+        ``nyquist_hz`` [Hz] (None: no state to freeze).
     """
     if model_name not in FROZEN_MODELS or not hasattr(controller, "feedback_matrices"):
         return None
@@ -221,7 +223,7 @@ def frozen_scan(result, controller, model_name: str, params: Params, t_f: float,
             out = frozen_loop(controller, model_name, params, q[i], v[i], float(tau[min(i, len(tau) - 1)]))
         except (np.linalg.LinAlgError, ValueError):
             continue
-        out.update(t_s=float(t[i]), tip_m=float(v_tip[i]))
+        out.update(t_s=float(t[i]), tip_m=float(v_tip[i]), nyquist_hz=0.5 / float(controller.dt))
         if worst is None or out["radius"] > worst["radius"]:
             worst = out
     return worst
@@ -248,6 +250,9 @@ def frozen_cause(metrics: dict, scan: dict | None) -> None:
     what = (f"the loop frozen at the bent beam of t = {scan['t_s']:.3g} s (tip {scan['tip_m']:.3g} m) has spectral "
             f"radius {scan['radius']:.4g} at {scan['hz']:.4g} Hz, next to the bent beam's {scan['mode']}: bent, the "
             "beam couples into the loop what the straight-beam certificate does not see")
+    if scan["hz"] >= NYQUIST_SHARE * scan.get("nyquist_hz", math.inf):
+        what += ("; an anti-alias filter on the analog signals, which the design models ([sensors] anti_alias_hz, "
+                 "e.g. a tenth of the sampling frequency), lowers the loop's gain there")
     if metrics.get("verdict") == "settled":       # settled, but banging at the limit on the way
         what = f"the command at its limit {metrics.get('time_at_limit_slew_s') or 0.0:.3g} s of the slew: {what}"
     else:
