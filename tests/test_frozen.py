@@ -110,3 +110,25 @@ def test_an_anti_alias_filter_the_design_models_removes_the_cycle(fast_backend):
     m = compare(rig, "slew", ["openloop", "lqr"]).metrics["lqr"]
     assert m["verdict"] == "settled" and m["time_at_limit_slew_s"] == 0.0
     assert m["peak_command_step"] < 0.02 * rig.beam.tau_max and "frozen_radius" not in m
+
+
+def test_the_reason_names_growth_not_round_off():
+    """frozen_cause: a neutral mode's round-off (1 + 1e-13, the undamped axial modes at rest) is
+    recorded but not named; a growth past FROZEN_MARGIN is, with the anti-alias hint only near Nyquist,
+    as the cause of a run that did not settle and as a remark on one that did."""
+    from hubbeam_ctrl.study.frozen import FROZEN_MARGIN, frozen_cause
+    scan = {"radius": 1.0 + 1e-13, "hz": 484.0, "mode": "axial mode 5 (4484 Hz, folded to 484 Hz)", "t_s": 0.0,
+            "tip_m": 0.0, "nyquist_hz": 500.0}
+    m = {"verdict": "settled", "verdict_reason": "inside the settling bands"}
+    frozen_cause(m, scan)
+    assert m["frozen_radius"] == 1.0 + 1e-13 and m["verdict_reason"] == "inside the settling bands"
+    m = {"verdict": "not settled", "verdict_reason": "outside the bands"}
+    frozen_cause(m, dict(scan, radius=1.0 + 2 * FROZEN_MARGIN, hz=100.0))
+    assert m["verdict_reason"].startswith("outside the bands; cause: the loop frozen at the bent beam")
+    assert "anti_alias_hz" not in m["verdict_reason"]
+    m = {"verdict": "settled", "verdict_reason": "", "time_at_limit_slew_s": 0.5}
+    frozen_cause(m, dict(scan, radius=1.11, hz=500.0))
+    assert m["verdict_reason"].startswith("the command at its limit 0.5 s of the slew: the loop frozen")
+    assert "anti_alias_hz" in m["verdict_reason"]
+    frozen_cause(m, None)                                  # nothing frozen: nothing added
+    assert m["frozen_radius"] == 1.11

@@ -42,6 +42,10 @@ __all__ = ["frozen_loop", "frozen_scan", "frozen_cause", "frozen_check", "FROZEN
 
 #: Samples of the run a scan freezes the loop at (the largest bends over equal spans of the slew).
 FROZEN_POINTS = 8
+#: A frozen radius past ``1 + FROZEN_MARGIN`` is named in the reason [-]: a growth of 0.1 % a sample
+#: (doubling in 700 samples), not the round-off of a neutral mode (an undamped axial mode at rest
+#: gives 1 + 1e-13).
+FROZEN_MARGIN = 1e-3
 #: A frozen pole above this share of the Nyquist frequency gets the anti-alias filter's hint.
 NYQUIST_SHARE = 0.8
 #: The simulators' validated range of the tip deflection [share of L] (ClosedLoopSettings.range_limit).
@@ -230,8 +234,8 @@ def frozen_scan(result, controller, model_name: str, params: Params, t_f: float,
 
 
 def frozen_cause(metrics: dict, scan: dict | None) -> None:
-    """Add the frozen loop's radius to a run's metrics and, when it is past 1, name it in the
-    verdict's reason (in place).
+    """Add the frozen loop's radius to a run's metrics and, when it is past ``1 +``
+    :data:`FROZEN_MARGIN`, name it in the verdict's reason (in place).
 
     Parameters
     ----------
@@ -245,8 +249,8 @@ def frozen_cause(metrics: dict, scan: dict | None) -> None:
         return
     metrics.update(frozen_radius=scan["radius"], frozen_at_s=scan["t_s"], frozen_tip_m=scan["tip_m"],
                    frozen_hz=scan["hz"], frozen_mode=scan["mode"])
-    if not scan["radius"] > 1.0 or not math.isfinite(scan["radius"]):    # stable, or no finite linearisation
-        return
+    if not scan["radius"] > 1.0 + FROZEN_MARGIN or not math.isfinite(scan["radius"]):
+        return              # decaying, neutral (the undamped axial modes: 1 + 1e-13) or no finite linearisation
     what = (f"the loop frozen at the bent beam of t = {scan['t_s']:.3g} s (tip {scan['tip_m']:.3g} m) has spectral "
             f"radius {scan['radius']:.4g} at {scan['hz']:.4g} Hz, next to the bent beam's {scan['mode']}: bent, the "
             "beam couples into the loop what the straight-beam certificate does not see")
