@@ -107,7 +107,7 @@ def rig_plant(d: DesignModel, inputs, hardware=None, command: str = "torque", pa
 
 
 def sampled_rig_plant(A, B, dt: float, inputs, measurement, *, hardware=None, command: str = "torque",
-                      delay: float = 0.0, layout=None, params=None, spin: float = 0.0) -> tuple:
+                      delay: float = 0.0, layout=None, params=None, spin: float = 0.0, rows=None) -> tuple:
     """The sampled plant of a loop as it runs on a rig: drive, viscous friction, the sensors the
     controller reads (an accelerometer's feedthrough), the computation delay and the anti-alias
     filter. The one assembly the margins (:func:`rig_plant`) and the certificate
@@ -142,6 +142,10 @@ def sampled_rig_plant(A, B, dt: float, inputs, measurement, *, hardware=None, co
         The parameters of ``A`` (for the sensors' rows).
     spin : float
         Spin rate of ``A`` [rad/s].
+    rows : tuple, optional
+        ``(C, D)``: the inputs' rows on the plant state with the drive's states and their
+        feedthrough of the command, given instead of computed (a plant in other coordinates than
+        SFOAM's, e.g. :func:`hubbeam_ctrl.study.frozen.frozen_loop`'s FOAM).
 
     Returns
     -------
@@ -154,7 +158,9 @@ def sampled_rig_plant(A, B, dt: float, inputs, measurement, *, hardware=None, co
     if hardware is not None:
         delay = hw_delay
     rig_signals = layout is not None and list(inputs) == list(layout.signals)
-    if rig_signals:
+    if rows is not None:
+        Cm, Dm = rows
+    elif rig_signals:
         Cm, Dm = layout.rows(A, Bu, params, spin)
     else:
         Cm = measurement(A.shape[0])

@@ -29,10 +29,8 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from controllers.loop_plant import hardware_plant
-from controllers.sensing import with_anti_alias
+from controllers.loop_plant import hardware_plant, sampled_rig_plant
 from hubbeam_ctrl.core.errors import ParameterError
-from hubbeam_ctrl.linear.delay import delay_augmented
 from hubbeam_ctrl.plant.models import build_model, jacobian_columns
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
@@ -135,15 +133,11 @@ def frozen_loop(controller, model_name: str, params: Params, q, v, tau: float) -
     B = np.concatenate([np.zeros(n), Minv[:, 0]])[:, None]
     hw = getattr(controller, "rig_hardware", None)
     command = getattr(controller, "command", "torque")
-    A_h, B_u, delay = hardware_plant(A, B, hw, command)
-    if hw is None:
-        delay = float(getattr(getattr(controller, "design", None), "delay", 0.0))
     C, D, layout = _measured_rows(controller, params, model.n_axial, hw, command)
-    dt = float(controller.dt)
-    Ad, Bd = delay_augmented(A_h, B_u, dt, delay)
-    Cm = np.hstack([C, D, np.zeros((C.shape[0], Ad.shape[0] - C.shape[1] - D.shape[1]))])
-    if layout is not None:
-        Ad, Bd, Cm = with_anti_alias(Ad, Bd, Cm, layout, dt)
+    delay = float(getattr(getattr(controller, "design", None), "delay", 0.0))    # without hardware
+    dt, inputs = float(controller.dt), list(controller.feedback_matrices()[5])
+    Ad, Bd, Cm, _ = sampled_rig_plant(A, B, dt, inputs, None, hardware=hw, command=command, delay=delay,
+                                      layout=layout, rows=(C, D))
     laws = tuple(np.atleast_2d(np.asarray(x, dtype=float)) for x in controller.feedback_matrices()[:4])
     loop = _closed(Ad, Bd, Cm, laws)
     if not np.all(np.isfinite(loop)):          # the sampled plant overflows: a state far past the model's range
