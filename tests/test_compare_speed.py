@@ -96,7 +96,7 @@ def test_split_frequency_response_keeps_the_margins_bit_for_bit(design, monkeypa
     """A hub-beam loop is not diagonalisable (the free hub's Jordan block at z = 1): its frequency
     response splits off the repeated eigenvalues (fast, for grids and plots); the margins' roots
     and peaks take the solves, so every margin is what the solves alone give, bit for bit."""
-    import controllers.analysis as analysis
+    import controllers.frequency as frequency
     from controllers import LQG, LQR
     from controllers.analysis import FrequencyResponse, frequency_grid, loop_margins, loop_matrices
     for ctrl in (PD(design), LQR(design), LQG(design)):
@@ -109,7 +109,7 @@ def test_split_frequency_response_keeps_the_margins_bit_for_bit(design, monkeypa
         assert np.median(rel) < 1e-10 and np.max(rel[np.abs(precise) < 1e5]) < 1e-2
         with_split = loop_margins(ctrl).to_dict()
         with monkeypatch.context() as m:
-            m.setattr(analysis, "_cluster_split", lambda *a, **k: None)
+            m.setattr(frequency, "_cluster_split", lambda *a, **k: None)
             assert FrequencyResponse(A, B, C, D)._split is None
             solves = loop_margins(ctrl).to_dict()
         with_split.pop("disk_margin_grid"), solves.pop("disk_margin_grid")    # the grid's own maximum
