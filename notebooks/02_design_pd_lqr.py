@@ -221,7 +221,7 @@ assert metrics["lqr"]["residual_tip_max_m"] < 0.01 * base
 assert metrics["lqg"]["residual_tip_max_m"] < 0.02 * base
 
 # %%
-display(plot_tip_deflection(results, t_f=sc.t_f, residual_start=sc.t_f + 5.0,
+display(plot_tip_deflection(results, t_f=sc.t_f, residual_start=sc.t_f + sc.bands["residual_delay"],
                             title="Slew on FOAM: tip deflection (shaded: residual window)"))
 fig, ax = plt.subplots(1, 2, figsize=(10, 3.4))
 for name, res in results.items():

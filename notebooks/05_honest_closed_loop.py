@@ -105,7 +105,7 @@ for (p, label), style in (((today, "lqg (old)"), "C0-"), ((richer, "lqg (old)"),
     r = runs[p, label]
     ax1.semilogy(r.t, np.abs(r.v_tip) + 1e-6, style, lw=0.8, label=f"{label}, {p.split(':')[0]} plant")
     ax2.plot(r.t, r.tau, style, lw=0.8)
-ax1.axvspan(sc.t_f + 5, sc.t_end, color="0.9")
+ax1.axvspan(sc.t_f + sc.bands["residual_delay"], sc.t_end, color="0.9")
 ax1.set_ylabel("|v_tip| [m]")
 ax1.legend(fontsize=8)
 ax2.set_ylabel("torque [N m]")

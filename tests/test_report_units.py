@@ -73,3 +73,23 @@ def test_command_figure_is_in_volts_with_v_max_on_a_dc_motor(servo):
     assert ax.get_ylabel() == "command voltage [V]"
     limits = sorted(line.get_ydata()[0] for line in ax.lines if line.get_linestyle() == ":")
     assert limits == [-10.0, 10.0]
+
+
+def test_the_tip_figure_shades_the_residual_window_the_metrics_use(servo, tmp_path, monkeypatch):
+    """The shaded window starts at t_f + the task's residual delay (the metrics' window), not at
+    t_f + 5 s, which is the paper's slew's only (here t_f = 0.6 s, t_end = 3 s: the old shading
+    started past the run's end)."""
+    import hubbeam_ctrl.study.report as report
+    calls = {}
+    real = report.render
+
+    def spy(plot, *args, **kwargs):
+        calls[plot.__name__] = args
+        return real(plot, *args, **kwargs)
+
+    monkeypatch.setattr(report, "render", spy)
+    write_outputs(servo, tmp_path / "out")
+    sc = servo.scenario
+    start = calls["plot_tip_deflection"][2]
+    assert start == sc.t_f + sc.bands["residual_delay"] < sc.t_end
+    assert f"from tf + {sc.bands['residual_delay']:g} s = {start:g} s" in (tmp_path / "out" / "report.md").read_text()

@@ -89,8 +89,9 @@ def add_compare_options(p, controllers: bool = True) -> None:
                         "turn, or --slew-angle, in 1.5 x an upper bound of its time-optimal slew); refused, naming "
                         "the shortest feasible one, if the task needs more torque than --tau-max")
     p.add_argument("--t-end", metavar="S", type=real("s"),
-                   help="simulated time [s], > tf + 5 (default: the task's, the residual window lasts six "
-                        "first-mode periods, at least 3 tf: 30 s for the paper's slew)")
+                   help="simulated time [s], past the residual window's start (tf + 5 s on the paper's slew; "
+                        "default: the task's, the residual window lasts six first-mode periods, at least 3 tf: "
+                        "30 s for the paper's slew)")
     p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
                    help="spin-up final rate [rad/s] (default 3, above TLAM's critical speed; "
                         "--scenario spinup only)")

@@ -187,7 +187,7 @@ def _write_files(comparison, out: Path, names: dict, loops=None) -> None:
     title = f"{sc.plant.upper()}{modes}, {sc.name}: "
     styles, runs, command = comparison.styles, _plot_runs(results), _command_args(comparison, title)
     pngs = {
-        "tip_deflection.png": render(plot_tip_deflection, runs, sc.t_f, sc.t_f + 5.0,
+        "tip_deflection.png": render(plot_tip_deflection, runs, sc.t_f, sc.t_f + sc.bands["residual_delay"],
                                      title + "tip deflection (shaded: residual window)", styles=styles),
         "hub_angle.png": render(plot_hub_angle, runs, sc.t_f, title + "hub angle and error vs reference",
                                 styles=styles),
