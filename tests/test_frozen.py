@@ -115,10 +115,11 @@ def test_an_anti_alias_filter_the_design_models_removes_the_cycle(fast_backend):
 def test_the_reason_names_growth_not_round_off():
     """frozen_cause: a neutral mode's round-off (1 + 1e-13, the undamped axial modes at rest) is
     recorded but not named; a growth past FROZEN_MARGIN is, with the anti-alias hint only near Nyquist,
-    as the cause of a run that did not settle and as a remark on one that did."""
+    as the cause of a run that did not settle and as a remark on one that did, unless held over one span
+    of the scan it would grow less than FROZEN_GROWTH."""
     from hubbeam_ctrl.study.frozen import FROZEN_MARGIN, frozen_cause
     scan = {"radius": 1.0 + 1e-13, "hz": 484.0, "mode": "axial mode 5 (4484 Hz, folded to 484 Hz)", "t_s": 0.0,
-            "tip_m": 0.0, "nyquist_hz": 500.0}
+            "tip_m": 0.0, "nyquist_hz": 500.0, "span_samples": 1000.0}
     m = {"verdict": "settled", "verdict_reason": "inside the settling bands"}
     frozen_cause(m, scan)
     assert m["frozen_radius"] == 1.0 + 1e-13 and m["verdict_reason"] == "inside the settling bands"
@@ -132,3 +133,7 @@ def test_the_reason_names_growth_not_round_off():
     assert "anti_alias_hz" in m["verdict_reason"]
     frozen_cause(m, None)                                  # nothing frozen: nothing added
     assert m["frozen_radius"] == 1.11
+    # past the margin but brief: random rig s34/2 (1.14 m steel link, 200 Hz), 1.0018 over a 50-sample span
+    m = {"verdict": "not settled", "verdict_reason": "outside the bands"}
+    frozen_cause(m, dict(scan, radius=1.00175, hz=1.246, span_samples=50.0))
+    assert m["verdict_reason"] == "outside the bands" and m["frozen_growth"] == pytest.approx(1.0914, abs=1e-4)
