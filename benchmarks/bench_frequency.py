@@ -29,15 +29,9 @@ from controllers.analysis import loop_matrices, margins_of_loop  # noqa: E402
 from hubbeam_ctrl.plant.rig import rig_from_dict  # noqa: E402
 from hubbeam_ctrl.study.compare import compare  # noqa: E402
 
-#: The strip of tests/test_frozen.py (AXIAL_RIG), random rig s32/0 of session 22's fuzzing.
-STRIP = {
-    "beam": {"L": 2.533, "rho": 7850, "A": 0.00018433, "E": 2e11, "I": 7.8502e-10, "J_h": 3.3703, "r": 0.0,
-             "m_t": 0, "tau_max": 493.19},
-    "friction": {"viscous": 0.007359, "coulomb": 29.8},
-    "damping": {"ratios": [0.004275]},
-    "sensors": {"encoder_counts": 10000, "strain_gauges": [0.0]},
-    "timing": {"dt": 0.001, "delay": 1.0},
-}
+#: The strip: random rig s32/0 of session 22's fuzzing, kept with the tests of its frozen loop.
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
+from test_frozen import AXIAL_RIG as STRIP  # noqa: E402
 
 
 def main(argv=None) -> dict:
