@@ -306,7 +306,7 @@ def on_rig(controller, rig: Rig, noise, hardware: Hardware | None, integral: boo
 #: count moved LQR's, LQG's and MPC's command by 3.0 times the limit, and all three sat at the limit 49 %
 #: of the residual window ("unstable"; a 2^20-count encoder settled). Lowered from 0.5 on another (a 1.26 m
 #: aluminium link on a geared DC motor, 2000 counts, a root gauge, no tachometer, 5 ms and a sample of
-#: delay; tests/test_count_share.py): at 0.5 the filter kept its angle noise (a count moved the command by
+#: delay; tests/test_fuzzed_rigs.py): at 0.5 the filter kept its angle noise (a count moved the command by
 #: 33 %) and LQR, LQG and MPC rang at the first mode for ever, the reading toggling between two counts, a
 #: 1.5 mm RMS tip (1.6 times the open loop's residual) against a 0.16 mm band; with the noise raised 4x
 #: (7 %) all three settle to 1.1 um. On accel_link the rule now raises its filter's noise 4x (18 % -> 6 %):
@@ -338,7 +338,7 @@ def _softer(settings, factor: float):
 #: an 8.8 m CFRP boom on a 36 kg m^2 body, a 16 mN m actuator, a star tracker of 90 urad and a gyro of
 #: 21 urad/s at 20 Hz): the laws designed from the task's weights turned the star tracker's noise into a
 #: command of 4 times the limit (RMS); LQR, LQG and MPC banged between +-tau_max every sample ("unstable",
-#: tests/test_count_share.py).
+#: tests/test_fuzzed_rigs.py).
 NOISE_SHARE = 0.1
 
 

@@ -1,6 +1,7 @@
-"""A count that toggles at a bending mode: the filter's trust in a coarse encoder (study.rig_loop.COUNT_SHARE).
+"""Rigs of session 24's fuzzing whose defaults failed: a count that toggles at a bending mode (COUNT_SHARE), a star
+tracker whose noise banged the command (NOISE_SHARE), a slow boom whose default plant was refused.
 
-Random rig 6 of seed 34 (session 24's fuzzing, /tmp/fz/fuzz.py: a 1.26 m aluminium link, 93.6 mm^2,
+Random rig 6 of seed 34 (benchmarks/fuzz_rigs.py link 34: a 1.26 m aluminium link, 93.6 mm^2,
 on a geared DC motor, 2000 counts, a root gauge, no tachometer, 5 ms and one sample of delay). With
 COUNT_SHARE at 0.5 the filter kept the counts' own noise (one count moved the command by 33 % of
 its limit): LQR, LQG and MPC rang at the first mode (3.2 Hz) for ever, the hub toggling between two
@@ -40,7 +41,7 @@ def test_a_link_whose_counts_rang_its_first_mode_settles(fast_backend):
 
 
 
-#: Random slow space structure 0 of session 24's space fuzzing (seed 1): an 8.8 m CFRP tube on a 36 kg m^2
+#: Rig 0 of `benchmarks/fuzz_rigs.py space 1`: an 8.8 m CFRP tube on a 36 kg m^2
 #: body, a 16 mN m actuator, a star tracker of 90 urad and a gyro of 21 urad/s (drifting) at 20 Hz, half a
 #: sample of delay. The laws from the task's weights turned the star tracker's noise into a command of 4
 #: times the limit RMS: LQR, LQG and MPC banged between +-tau_max every sample for 230 s of the run.
@@ -84,3 +85,30 @@ def test_a_boom_whose_star_tracker_noise_banged_the_command_settles(fast_backend
         u[k] = c @ x + Dk[0] @ n
         x = A @ x + B @ n
     assert np.std(u[2000:]) / law.tau_max == pytest.approx(share, rel=0.05)
+
+
+#: Rig 3 of `benchmarks/fuzz_rigs.py space 1`: a 5.3 m CFRP tube on a 290 kg m^2
+#: body at 10 Hz (bending modes 3.5, 21, 58, 114 Hz). Every default run was refused: the 1-mode design's
+#: plant (design + 3 modes) needed 207 integration steps per sample, past the 200 the integrator takes.
+SLOW_BOOM = {
+    "beam": {"L": 5.334, "rho": 1600, "A": 0.00031658, "E": 1.2e11, "I": 1.2082e-07, "J_h": 290.61, "r": 0.48,
+             "m_t": 0.0, "tau_max": 0.02949},
+    "damping": {"ratios": [0.004729]},
+    "timing": {"dt": 0.1},
+}
+
+
+def test_the_default_plant_of_a_slow_boom_keeps_what_the_integrator_resolves():
+    from hubbeam_ctrl.sim.evaluation import default_design_modes, default_plant_modes
+    rig = rig_from_dict(SLOW_BOOM)
+    modes, note = default_design_modes(rig.plant_params, 0.1)
+    assert modes == 1 and "not the beam's 5" in note
+    n, reason = default_plant_modes(rig.plant_params, 0.1, 1)
+    assert n == 3 and "4 would need more than 180 integration steps per sample of 100 ms, so 3" in reason
+
+
+@pytest.mark.slow
+def test_a_slow_boom_is_compared_with_its_defaults(fast_backend):
+    c = compare(rig_from_dict(SLOW_BOOM), "slew", ["lqr"])
+    assert c.plant.modes == 3 and c.metrics["lqr"]["design_modes"] == 1
+    assert c.metrics["lqr"]["verdict"] == "settled", c.metrics["lqr"]["verdict_reason"]
