@@ -138,7 +138,7 @@ def default_plant_modes(params: Params, dt: float, design_modes: int, spin: floa
     kept = n
     while n > least:
         try:
-            substep_rule(f[:n], dt, max_substeps=budget)
+            substep_rule(f[:n], dt, tolerance=PLANT_TOLERANCE, max_substeps=budget)
             break
         except ParameterError:
             n -= 1
@@ -146,6 +146,11 @@ def default_plant_modes(params: Params, dt: float, design_modes: int, spin: floa
         reason += (f": {kept} would need more than {budget} integration steps per sample of {1e3 * dt:g} ms, "
                    f"so {n}")
     return n, reason + f": {n} transverse modes"
+
+
+#: The frequency error the closed loop's integrator accepts by default (``ClosedLoopSettings.frequency_tolerance``),
+#: with which :func:`default_plant_modes` counts the steps its plant needs.
+PLANT_TOLERANCE = 0.01
 
 
 def _plant_rule(params: Params, dt: float, design_modes: int, spin: float = 0.0) -> tuple:

@@ -321,7 +321,10 @@ COUNT_SHARE = 0.1
 #: LQR's command by 98 % of its limit; it stepped by 80 % of the limit a sample, sat 0.12 s at the limit and
 #: settled in 4.45 s with a disk margin of 0.08. At 1000x the torque weight: a count moves it by 27 %,
 #: the disk margin is 0.34 and it settles in 1.7 s.
-SOFTER_LADDER = (10.0, 100.0, 1000.0, 1e4)
+#: 10^5 and 10^6 since a random slow boom (5.3 m on 290 kg m^2 at 10 Hz, a 21 urad star tracker and a
+#: 28 urad/s gyro): at 10^4 its sensors still moved the command by 15 % of the limit RMS and it sat at
+#: the limit 11.6 s of the slew; at 10^5 (5 %) 0.1 s, with a disk margin of 1.5.
+SOFTER_LADDER = (10.0, 100.0, 1000.0, 1e4, 1e5, 1e6)
 
 
 def _softer(settings, factor: float):
