@@ -403,9 +403,8 @@ def noise_chatter(law, rig: Rig) -> float:
 
     Parameters
     ----------
-    law : Controller
-        A law that reads the rig's sensors (an LQG, an observer-fed LQR or MPC), in torque.
-    rig : Rig
+    law, rig
+        As :func:`count_chatter`.
 
     Returns
     -------
