@@ -77,7 +77,8 @@ def test_design_and_codegen_on_a_rig_take_the_rigs_default_slew(tmp_path, capsys
     assert sc.t_f == rig_default_slew(rig, 1.0)[0].duration != task.duration
     assert sc.reference.theta[-1] == pytest.approx(1.0)
     # a duration given, an ideal rig or no rig: as before (10 s by default)
-    assert task_and_design(rig.plant_params, "slew", rig=rig, t_f=2.0)[0].t_f == 2.0
+    given = task_and_design(rig.plant_params, "slew", rig=rig, t_f=2.0)[0]
+    assert given.t_f == 2.0 and given.reference.theta[-1] == pytest.approx(math.pi / 2)
     assert task_and_design(load_rig("paper").plant_params, "slew", rig=load_rig("paper"))[0].t_f == 10.0
     out = tmp_path / "c"
     assert main(["codegen", "--controller", "lqr", "--rig", "servo_link", "--out", str(out)]) == 0
@@ -106,3 +107,22 @@ def test_a_linear_plan_that_bends_the_tip_far_is_noted():
     assert linear_plan_note(slow.reference, Params().L) == []
     rigid = make_scenario(Slew(math.pi / 2, 1.1 * 0.30224), params=rig.beam, t_end=None, reference="rigid")
     assert linear_plan_note(rigid.reference, rig.beam.L) == []
+
+
+def test_a_duration_alone_on_a_rig_turns_the_rigs_default_angle():
+    """``compare --rig R --tf T`` with no --slew-angle turns the rig's default quarter turn in T, as the
+    default slew's note says ("give --tf for another"), not Eq. 44's ``tau_max T^2 / (2 pi J)``: found on
+    a random 2.4 m aluminium link on a geared motor (``benchmarks/fuzz_rigs.py link 36``, rig 4), where
+    --tf 4 asked 39.5 rad of a 27 N m drive and every run left FOAM's range at 0.24 s. On the beam
+    alone (and an ideal rig) --tf still gives Eq. 44's angle."""
+    from hubbeam_ctrl.study.compare_values import ScenarioChoice
+    from hubbeam_ctrl.study.yardstick import DEFAULT_RIG_SLEW_RAD, task_on_rig
+    rig = load_rig("servo_link")
+    task, scenario, notes = task_on_rig(rig, "slew", ScenarioChoice(t_f=0.8))
+    assert (task, scenario.t_f, scenario.slew_angle) == ("slew", 0.8, DEFAULT_RIG_SLEW_RAD)
+    assert len(notes) == 1 and "default angle, 1.571 rad, in the given tf = 0.8 s" in notes[0]
+    chosen = ScenarioChoice(t_f=0.8, slew_angle=1.0)
+    assert task_on_rig(rig, "slew", chosen) == ("slew", chosen, [])
+    ideal = ScenarioChoice(t_f=0.8)
+    assert task_on_rig(load_rig("paper"), "slew", ideal) == ("slew", ideal, [])
+    assert task_on_rig(None, "slew", ideal) == ("slew", ideal, [])

@@ -491,7 +491,8 @@ def add_task_options(p, dt_help: str) -> None:
                    help="slew angle [rad], not 0 (default: the Eq. 44 angle of --tau-max in --tf)")
     p.add_argument("--tf", metavar="S", type=real("s", positive=True),
                    help="maneuver time [s] (default: a slew on a --rig with hardware is the rig's default slew, "
-                        "as compare --rig runs; else 10)")
+                        "as compare --rig runs; else 10); a slew on such a rig turns --slew-angle, default a "
+                        "quarter turn, in it")
     p.add_argument("--wf", metavar="RAD_S", type=real("rad/s"),
                    help="spin-up final rate [rad/s] (default 3; --scenario spinup only)")
     p.add_argument("--dt", metavar="S", type=real("s", positive=True), help=f"sample time [s] (default: {dt_help})")

@@ -27,7 +27,8 @@ def task_and_design(params, scenario: str = "slew", *, rig=None, tau_max: float 
 
     A slew with no ``t_f`` on a rig with hardware is the rig's default slew, the task
     ``hubbeam compare --rig`` runs (:func:`~hubbeam_ctrl.study.yardstick.rig_default_slew`: by
-    ``slew_angle``, default pi/2 rad); any other task with no ``t_f`` lasts 10 s.
+    ``slew_angle``, default pi/2 rad), and one with a ``t_f`` and no ``slew_angle`` turns that default
+    angle in ``t_f`` (as ``compare`` does); any other task with no ``t_f`` lasts 10 s.
 
     Parameters
     ----------
@@ -66,10 +67,13 @@ def task_and_design(params, scenario: str = "slew", *, rig=None, tau_max: float 
         raise ParameterError(f"design_modes must be an integer in 1..20, got {modes}")
     if slew_angle is not None and slew_angle == 0:
         raise ParameterError("slew_angle must be a finite number != 0 [rad]")
-    if t_f is None and scenario == "slew" and rig is not None and not rig.is_ideal:
-        from hubbeam_ctrl.study.yardstick import rig_default_slew
-        slew = rig_default_slew(rig, slew_angle)[0]
-        slew_angle, t_f = slew.angle, slew.duration
+    if scenario == "slew" and rig is not None and not rig.is_ideal:
+        from hubbeam_ctrl.study.yardstick import DEFAULT_RIG_SLEW_RAD, rig_default_slew
+        if t_f is None:
+            slew = rig_default_slew(rig, slew_angle)[0]
+            slew_angle, t_f = slew.angle, slew.duration
+        elif slew_angle is None:        # a duration alone: the rig's default angle, as compare turns it
+            slew_angle = DEFAULT_RIG_SLEW_RAD
     t_f = 10.0 if t_f is None else t_f
     sc = make_scenario(scenario, plant="foam", params=params, tau_max=tau_max, t_f=t_f, t_end=3 * t_f, dt=dt,
                        w_f=3.0 if w_f is None else w_f, slew_angle=slew_angle)

@@ -26,7 +26,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 __all__ = ["LINEAR_PLAN_TIP_SHARE", "linear_plan_note", "linear_plan_tip_share",
            "LIMIT_KINDS", "RESIDUAL_PERIODS", "rigid_limit", "task_limit", "yardstick_metrics", "task_t_end",
            "task_dt", "SAMPLES_PER_PERIOD", "DEFAULT_RIG_SLEW_RAD", "DEFAULT_RIG_PACE", "rig_default_slew",
-           "task_on_rig"]
+           "task_on_rig", "rig_angle_note"]
 
 #: The angle of a rig's default slew [rad]: a quarter turn.
 DEFAULT_RIG_SLEW_RAD = math.pi / 2
@@ -240,8 +240,11 @@ def task_on_rig(rig, task, scenario):
     """The task a comparison runs on ``rig``: ``(task, scenario, notes)``.
 
     A registered ``slew`` with no duration (``scenario.t_f`` None) on a rig with any hardware is
-    the rig's default slew (:func:`rig_default_slew`, by ``scenario.slew_angle`` if given); anything
-    else, and any task on an ideal rig or the beam alone, is returned as it is.
+    the rig's default slew (:func:`rig_default_slew`, by ``scenario.slew_angle`` if given); with a
+    duration and no angle it turns the rig's default angle :data:`DEFAULT_RIG_SLEW_RAD` in that
+    duration (not Eq. 44's ``tau_max t_f^2 / (2 pi J)``, which on a drive's torque is tens of
+    radians: 39 rad for a 2.4 m link's 4 s); anything else, and any task on an ideal rig or the
+    beam alone, is returned as it is.
 
     Parameters
     ----------
@@ -257,10 +260,30 @@ def task_on_rig(rig, task, scenario):
     notes : list of str
         The report's line saying where the task came from (empty when unchanged).
     """
-    if rig is None or rig.is_ideal or task != "slew" or scenario.t_f is not None:
+    if rig is None or rig.is_ideal or task != "slew":
         return task, scenario, []
+    if scenario.t_f is not None:
+        if scenario.slew_angle is not None:
+            return task, scenario, []
+        return task, dataclasses.replace(scenario, slew_angle=DEFAULT_RIG_SLEW_RAD), [rig_angle_note(scenario.t_f)]
     slew, note = rig_default_slew(rig, scenario.slew_angle)
     return slew, dataclasses.replace(scenario, slew_angle=None), [note]
+
+
+def rig_angle_note(t_f: float) -> str:
+    """The report's line when a rig's slew is given a duration and no angle (:func:`task_on_rig`).
+
+    Parameters
+    ----------
+    t_f : float
+        The given duration [s].
+
+    Returns
+    -------
+    str
+    """
+    return (f"task: the rig's default angle, {DEFAULT_RIG_SLEW_RAD:.4g} rad, in the given tf = {t_f:.4g} s "
+            "(give --slew-angle for another; Eq. 44's angle from tf is the beam alone's task)")
 
 
 #: A slew planned on the linear design model that bends the tip past this share of L is noted: the
