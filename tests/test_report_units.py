@@ -93,3 +93,21 @@ def test_the_tip_figure_shades_the_residual_window_the_metrics_use(servo, tmp_pa
     start = calls["plot_tip_deflection"][2]
     assert start == sc.t_f + sc.bands["residual_delay"] < sc.t_end
     assert f"from tf + {sc.bands['residual_delay']:g} s = {start:g} s" in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_a_quiet_open_loop_gives_no_percentage_in_the_table():
+    """Where the open loop's residual already lies within the tip band (slow space booms: the table read
+    10^6-10^20 %), ``% of OL`` reads "OL in band" and a note says why; metrics.json keeps the ratio. A
+    loud open loop keeps the percentage."""
+    from hubbeam_ctrl.study.report_tables import against_openloop, markdown_table
+    base = {"verdict": "settled", "completed": True}
+    quiet = {"openloop": {**base, "residual_tip_max_m": 2e-6}, "lqr": {**base, "residual_tip_max_m": 4e-3}}
+    (note,) = against_openloop(quiet, 1e-4)
+    assert "within the tip band 0.0001 m" in note and "2e-06 m" in note
+    assert quiet["lqr"]["residual_pct_of_openloop"] == pytest.approx(2e5)
+    assert quiet["lqr"]["openloop_within_tip_band"] is True
+    assert markdown_table(quiet).count("OL in band") == 2 and "2e+05" not in markdown_table(quiet)
+    loud = {"openloop": {**base, "residual_tip_max_m": 2e-2}, "lqr": {**base, "residual_tip_max_m": 4e-5}}
+    assert against_openloop(loud, 1e-4) == []
+    assert loud["lqr"]["residual_pct_of_openloop"] == pytest.approx(0.2) and "OL in band" not in markdown_table(loud)
+    assert against_openloop({"lqr": dict(loud["lqr"])}, 1e-4) == []

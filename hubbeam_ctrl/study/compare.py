@@ -68,6 +68,7 @@ from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
+from hubbeam_ctrl.study.report_tables import against_openloop
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_on_rig
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]
@@ -482,11 +483,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
             print(f"compare {sc.plant}/{sc.name}: {name:8s} {mm['verdict']:11s} residual "
                   f"{mm['residual_tip_max_m']:.3e} m, run {res.wall_s:.1f} s"
                   + ("" if mm["completed"] else f"  [{res.message}]"), file=sys.stderr)
-    if "openloop" in metrics:
-        base_res = metrics["openloop"]["residual_tip_max_m"]
-        for mm in metrics.values():
-            mm["residual_pct_of_openloop"] = (100.0 * mm["residual_tip_max_m"] / base_res
-                                              if base_res and math.isfinite(base_res) else float("nan"))
+    notes += against_openloop(metrics, sc.bands["settle_tip"])
     notes = task_notes + rate_notes + notes + same_laws(linear, metrics)
     return Comparison(sc, results, metrics, time.perf_counter() - start,
                       styles={n: CONTROLLERS[n].style for n in names},
