@@ -10,6 +10,10 @@ counts, a 1.5 mm RMS tip in the residual window, 1.6 times the open loop's, agai
 they settle to about 1 um.
 """
 
+import json
+import math
+import re
+
 import pytest
 
 from hubbeam_ctrl.plant.rig import rig_from_dict
@@ -27,6 +31,32 @@ RING_LINK = {
 }
 
 
+def _shares() -> dict:
+    """The cases of ``benchmarks/results/bench_rig_shares.json``."""
+    from tests.conftest import ROOT
+    return json.loads((ROOT / "benchmarks" / "results" / "bench_rig_shares.json").read_text())["cases"]
+
+
+def test_docs_quote_the_shares_benchmark():
+    """docs/rig.md's numbers on the count and noise shares are ``bench_rig_shares.json``'s (the rule as it
+    runs against the rule before, on this file's two rigs), and that file says what its ``before`` was."""
+    from tests.conftest import ROOT
+    doc = re.sub(r"\s+", " ", (ROOT / "docs" / "rig.md").read_text())
+    ring, boom = _shares()["ring_link"], _shares()["noisy_boom"]
+    assert ring["before"]["patch"] == {"COUNT_SHARE": 0.5} and boom["before"]["patch"] == {"NOISE_SHARE": 1e300}
+    b, n = ring["before"], ring["now"]
+    assert (f"a tip ringing at {b['rms_over_band']:.1f} times its band ({1e3 * b['residual_tip_rms_m']:.2f} mm RMS), "
+            f"where the filter that trusts the counts {n['filter_noise_factor']}x less settles it to "
+            f"{1e6 * n['residual_tip_rms_m']:.1f} um RMS") in doc
+    assert b["verdict"] == "not settled" and n["verdict"] == "settled"
+    b, n = boom["before"], boom["now"]
+    assert (f"noise into {b['noise_share']:.1f} times the limit RMS and sat at the limits for "
+            f"{b['time_at_limit_s']:.0f} s of the {b['t_end_s']:.0f} s run; with the torque weight raised "
+            f"10^{round(math.log10(n['torque_weight_factor']))}x they settle with "
+            f"{1e6 * n['residual_tip_rms_m']:.1f} um RMS at the tip") in doc
+    assert b["verdict"] == "unstable" and n["verdict"] == "settled"
+
+
 @pytest.mark.slow
 def test_a_link_whose_counts_rang_its_first_mode_settles(fast_backend):
     rig = rig_from_dict(RING_LINK)
@@ -38,6 +68,9 @@ def test_a_link_whose_counts_rang_its_first_mode_settles(fast_backend):
     assert m["verdict"] == "settled", m["verdict_reason"]
     assert m["residual_tip_rms_m"] < 0.02 * m["settle_tip_m"]          # 1.1e-6 m against 1.6e-4 m (was 1.5e-3 m)
     assert any(n.startswith("lqr: the filter's angle noise is raised 4x") for n in c.notes)
+    now = _shares()["ring_link"]["now"]              # the benchmark docs/rig.md quotes is this run's
+    assert law.count_noise_factor == now["filter_noise_factor"] and m["verdict"] == now["verdict"]
+    assert m["residual_tip_rms_m"] == pytest.approx(now["residual_tip_rms_m"], rel=0.05)
 
 
 
@@ -68,6 +101,10 @@ def test_a_boom_whose_star_tracker_noise_banged_the_command_settles(fast_backend
     assert m["time_at_limit_s"] < 1.0 and m["residual_tip_rms_m"] < 0.02 * m["settle_tip_m"]   # 0.1 s; 5.8e-6 m
     assert any(n.startswith("lqr: the torque weight is raised") and "the sensors' stated noise moves it by" in n
                for n in c.notes)
+    now = _shares()["noisy_boom"]["now"]             # the benchmark docs/rig.md quotes is this run's
+    assert law.count_softened == now["torque_weight_factor"] and m["verdict"] == now["verdict"]
+    assert m["residual_tip_rms_m"] == pytest.approx(now["residual_tip_rms_m"], rel=0.05)
+    assert law.noise_share == pytest.approx(now["noise_share"], rel=1e-3)
 
     # noise_chatter is the command's spread in the loop driven by white noise of the stated sizes on every signal
     # the law reads (60 000 samples: the estimate within a few per cent)
