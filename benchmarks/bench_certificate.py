@@ -20,9 +20,10 @@ import time
 
 from hubbeam_ctrl import Params
 from hubbeam_ctrl.study import Slew, compare
-from hubbeam_ctrl.study.certificate import _linear_plant, certify
+from hubbeam_ctrl.study.certificate import certify
 from hubbeam_ctrl.study.compare_values import compare_arguments
 from hubbeam_ctrl.study.metrics import closed_loop_metrics
+from hubbeam_ctrl.study.sampled_loop import linear_plant
 
 LAB = Params(L=1, rho=2700, A=9e-5, E=69e9, I=6.75e-11, J_h=0.02, r=0.05, m_t=0.05, tau_max=1.5)
 
@@ -38,7 +39,7 @@ def main() -> None:
     comp = compare(**compare_arguments("foam", **kw))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     ctrls = comp.controllers
-    _linear_plant.cache_clear()
+    linear_plant.cache_clear()
     c1 = time.process_time()
     certs = {}
     for name, res in comp.results.items():

@@ -110,9 +110,9 @@ def test_a_boom_whose_star_tracker_noise_banged_the_command_settles(fast_backend
     # the law reads (60 000 samples: the estimate within a few per cent)
     import numpy as np
 
-    from hubbeam_ctrl.study.certificate import AS_DESIGNED, _closed, _loop_parts
-    Ad, Bd, Cm, (Ak, Bk, Ck, Dk), _ = _loop_parts(law, law.design.params, 0.0, 0.0, AS_DESIGNED)
-    A = _closed(Ad, Bd, Cm, (Ak, Bk, Ck, Dk))
+    from hubbeam_ctrl.study.sampled_loop import AS_DESIGNED, closed_loop_matrix, loop_parts
+    Ad, Bd, Cm, (Ak, Bk, Ck, Dk), _ = loop_parts(law, law.design.params, 0.0, 0.0, AS_DESIGNED)
+    A = closed_loop_matrix(Ad, Bd, Cm, (Ak, Bk, Ck, Dk))
     sig = np.array([{"theta": 8.99e-05, "theta_dot": 2.07e-05}.get(n, 0.0) for n in law.feedback_matrices()[5]])
     B, c = np.vstack([Bd @ Dk, Bk]), np.hstack([Dk @ Cm, Ck])[0]
     rng = np.random.default_rng(1)

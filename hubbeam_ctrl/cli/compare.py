@@ -86,8 +86,8 @@ def add_compare_options(p, controllers: bool = True) -> None:
                         "angle and --tf")
     p.add_argument("--tf", metavar="S", type=real("s"), default=None,
                    help="maneuver time [s] (default 10; with --rig and the slew, the rig's default slew: a quarter "
-                        "turn, or --slew-angle, in 1.5 x an upper bound of its time-optimal slew; given, the rig's slew "
-                        "turns that angle in it, not Eq. 44's); refused, naming "
+                        "turn, or --slew-angle, in 1.5 x an upper bound of its time-optimal slew; given, the rig's "
+                        "slew turns that angle in it, not Eq. 44's); refused, naming "
                         "the shortest feasible one, if the task needs more torque than --tau-max")
     p.add_argument("--t-end", metavar="S", type=real("s"),
                    help="simulated time [s], past the residual window's start (tf + 5 s on the paper's slew; "

@@ -29,17 +29,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
-import scipy.linalg
 
 from controllers import CONTROLLERS, Controller
 from controllers.drive import VoltageCommand
-from controllers.loop_plant import sampled_rig_plant
 from hubbeam_ctrl.core.errors import HubbeamError, ParameterError
 from hubbeam_ctrl.linear.statespace import linear_matrices
 from hubbeam_ctrl.plant.params import Params
+from hubbeam_ctrl.study.sampled_loop import AS_DESIGNED, closed_loop_matrix, loop_matrix, loop_parts
 
 __all__ = ["RADIUS_TOLERANCE", "DAMPING_SEARCH_MAX", "LoopCertificate", "Certificate", "linear_points",
            "certify", "loop_matrix", "broken_loop", "hold_gain", "angle_error_tip_gain", "AS_DESIGNED"]
@@ -50,9 +48,6 @@ RADIUS_TOLERANCE = 1e-7
 #: The damping search stops here: a loop still unstable with this modal damping ratio in
 #: every mode is reported as needing more than it [-].
 DAMPING_SEARCH_MAX = 0.05
-
-#: The signals a sensor-reading controller may name, and the linear model's outputs.
-_SENSORS = ("theta", "theta_dot", "root_moment")
 
 
 @dataclass(frozen=True)
@@ -220,90 +215,6 @@ def _volts(point: Controller, scheduled) -> Controller:
     return out
 
 
-@lru_cache(maxsize=32)
-def _linear_plant(params: Params, spin: float):
-    """Continuous ``(A0, A1, B, C)`` of the linear SFOAM, ``A = A0 + zeta A1``, and its sampled
-    undamped ``(Ad, Bd)``."""
-    outputs = _SENSORS
-    A0, B, C, _ = linear_matrices("sfoam", spin, params.replace(damping_ratio=0.0), outputs)
-    zeta = 0.01
-    A1 = (np.asarray(linear_matrices("sfoam", spin, params.replace(damping_ratio=zeta), outputs)[0], dtype=float)
-          - np.asarray(A0, dtype=float)) / zeta
-    return np.asarray(A0, dtype=float), A1, np.asarray(B, dtype=float), np.asarray(C, dtype=float)
-
-
-def _zoh(A: np.ndarray, B: np.ndarray, dt: float):
-    n, m = B.shape
-    E = scipy.linalg.expm(np.block([[A, B], [np.zeros((m, n + m))]]) * dt)
-    return E[:n, :n], E[:n, n:]
-
-
-def _measurement(controller: Controller, inputs, C_sensors: np.ndarray, n_plant: int) -> np.ndarray:
-    """Rows of the plant state giving the controller's inputs (sensors, or design-mode states)."""
-    m = n_plant // 2 - 1
-    rows = []
-    for label in inputs:
-        if label in _SENSORS:
-            rows.append(C_sensors[_SENSORS.index(label)])
-            continue
-        row = np.zeros(n_plant)
-        if label == "theta":
-            row[0] = 1.0
-        elif label == "theta_dot":
-            row[m + 1] = 1.0
-        elif label.startswith("q2_dot_"):
-            row[m + 1 + int(label[7:])] = 1.0
-        elif label.startswith("q2_"):
-            row[int(label[3:])] = 1.0
-        else:
-            raise ParameterError(f"controller {controller.name!r} reads {label!r}, which the linear plant "
-                                 "does not give")
-        rows.append(row)
-    return np.array(rows).reshape(len(inputs), n_plant)
-
-
-#: ``loop_matrix(hardware=AS_DESIGNED)``: the plant carries the hardware the controller was put on.
-AS_DESIGNED = "as designed"
-
-
-def loop_matrix(controller: Controller, params: Params, spin: float, damping_ratio: float = 0.0,
-                hardware=AS_DESIGNED) -> tuple:
-    """The sampled closed-loop matrix of ``controller`` on the linear SFOAM of ``params``.
-
-    Parameters
-    ----------
-    controller : Controller
-        With a linear form (:meth:`~controllers.Controller.feedback_matrices`).
-    params : Params
-        The plant (``n_transverse`` its modes, at least the controller's).
-    spin : float
-        Spin rate of the linearisation [rad/s].
-    damping_ratio : float
-        Modal damping ratio of every bending mode [-], >= 0.
-    hardware : Hardware or None, optional
-        The plant's drive, friction and delay (default :data:`AS_DESIGNED`: the
-        ``rig_hardware`` the controller was put on; a robust certificate passes the hardware
-        of another point of an uncertainty set).
-
-    Returns
-    -------
-    tuple
-        ``(A_loop, plant_poles_s)``: the loop matrix (plant state, then the controller's) and
-        the continuous-time poles of the plant [1/s].
-    """
-    Ad, Bd, Cm, laws, A = _loop_parts(controller, params, spin, damping_ratio, hardware)
-    return _closed(Ad, Bd, Cm, laws), np.linalg.eigvals(A)
-
-
-def _closed(Ad, Bd, Cm, laws) -> np.ndarray:
-    """The loop matrix (plant state, then the controller's) of :func:`_loop_parts`' pieces."""
-    Ak, Bk, Ck, Dk = laws
-    nk = Ak.shape[0] if Ak.size else 0
-    if nk == 0:
-        return Ad + Bd @ Dk @ Cm
-    return np.block([[Ad + Bd @ Dk @ Cm, Bd @ Ck], [Bk @ Cm, Ak]])
-
-
 def broken_loop(controller: Controller, params: Params, spin: float, damping_ratio: float = 0.0,
                 hardware=AS_DESIGNED) -> tuple:
     """The loop of :func:`loop_matrix` broken at the plant input, for its margins.
@@ -319,7 +230,7 @@ def broken_loop(controller: Controller, params: Params, spin: float, damping_rat
         ``(A, B, C, D)`` of the return ratio ``L`` with the loop ``u = -L u``
         (:func:`controllers.analysis.margins_of_loop` takes them).
     """
-    Ad, Bd, Cm, (Ak, Bk, Ck, Dk), _ = _loop_parts(controller, params, spin, damping_ratio, hardware)
+    Ad, Bd, Cm, (Ak, Bk, Ck, Dk), _ = loop_parts(controller, params, spin, damping_ratio, hardware)
     n, nk = Ad.shape[0], (Ak.shape[0] if Ak.size else 0)
     A = np.block([[Ad, np.zeros((n, nk))], [Bk @ Cm, Ak]]) if nk else Ad
     B = np.vstack([Bd, np.zeros((nk, Bd.shape[1]))])
@@ -352,8 +263,8 @@ def hold_gain(controller: Controller, params: Params, spin: float = 0.0, hardwar
     float
         [rad / (N m)], >= 0; inf when the loop is not stable.
     """
-    Ad, Bd, Cm, laws, _ = _loop_parts(controller, params, spin, 0.0, hardware)
-    A_loop = _closed(Ad, Bd, Cm, laws)
+    Ad, Bd, Cm, laws, _ = loop_parts(controller, params, spin, 0.0, hardware)
+    A_loop = closed_loop_matrix(Ad, Bd, Cm, laws)
     if np.max(np.abs(np.linalg.eigvals(A_loop))) >= 1.0:
         return math.inf
     hw = getattr(controller, "rig_hardware", None) if hardware is AS_DESIGNED else hardware
@@ -397,8 +308,8 @@ def angle_error_tip_gain(controller: Controller, params: Params, spin: float = 0
     inputs = list(controller.feedback_matrices()[5])
     if "theta" not in inputs:
         return 0.0
-    Ad, Bd, Cm, laws, A = _loop_parts(controller, params, spin, 0.0, AS_DESIGNED)
-    A_loop = _closed(Ad, Bd, Cm, laws)
+    Ad, Bd, Cm, laws, A = loop_parts(controller, params, spin, 0.0, AS_DESIGNED)
+    A_loop = closed_loop_matrix(Ad, Bd, Cm, laws)
     if np.max(np.abs(np.linalg.eigvals(A_loop))) >= 1.0:
         return math.inf
     Ak, Bk, _, Dk = laws
@@ -422,33 +333,6 @@ def angle_error_tip_gain(controller: Controller, params: Params, spin: float = 0
         if float(np.linalg.norm(X[:, 0])) <= 1e-9 * start:
             return total
     return math.inf
-
-
-def _loop_parts(controller: Controller, params: Params, spin: float, damping_ratio: float, hardware) -> tuple:
-    """``(Ad, Bd, Cm, (Ak, Bk, Ck, Dk), A)``: the sampled plant as the loop sees it, the
-    controller's matrices and the continuous plant matrix."""
-    needed = int(getattr(controller, "state_modes", controller.n_modes))
-    if params.n_transverse < needed:
-        raise ParameterError(f"plant_modes must be at least the {needed} modes the controller's gain "
-                             f"acts on, got {params.n_transverse}")
-    dt = float(controller.dt)
-    A0, A1, B, C = _linear_plant(params, float(spin))
-    A = A0 + damping_ratio * A1
-    Ak, Bk, Ck, Dk, _, inputs = controller.feedback_matrices()
-    Ak, Bk, Ck, Dk = (np.atleast_2d(np.asarray(M, dtype=float)) for M in (Ak, Bk, Ck, Dk))
-    hw = getattr(controller, "rig_hardware", None) if hardware is AS_DESIGNED else hardware
-    design = getattr(controller, "design", None)
-    layout = getattr(design, "sensors", None)
-    if hw is None and layout is None:
-        Ad, Bd = _zoh(A, B, dt)
-        Cm = _measurement(controller, list(inputs), C, Ad.shape[0])
-    else:
-        Ad, Bd, Cm, A = sampled_rig_plant(A, B, dt, list(inputs),
-                                          lambda n: _measurement(controller, list(inputs), C, n), hardware=hw,
-                                          command=getattr(controller, "command", "torque"),
-                                          delay=float(getattr(design, "delay", 0.0)), layout=layout, params=params,
-                                          spin=float(spin))
-    return Ad, Bd, Cm, (Ak, Bk, Ck, Dk), A
 
 
 def _source(z: complex, plant_poles_s: np.ndarray, dt: float, n_plant: int, n_loop: int):

@@ -55,6 +55,7 @@ from hubbeam_ctrl.study.frozen import frozen_check
 from hubbeam_ctrl.study.judge import count_cause, judge, margin_cause, residual_modes_for, same_laws
 from hubbeam_ctrl.study.references import tracked_reference
 from hubbeam_ctrl.study.report import write_outputs
+from hubbeam_ctrl.study.report_tables import against_openloop
 from hubbeam_ctrl.study.rig_loop import (
     count_note,
     hub_damping_note,
@@ -68,7 +69,6 @@ from hubbeam_ctrl.study.scenarios import RANGES, Scenario, make_scenario
 from hubbeam_ctrl.study.shaping import task_shaped_settings
 from hubbeam_ctrl.study.tasks import Slew
 from hubbeam_ctrl.study.worst_case import certify_set
-from hubbeam_ctrl.study.report_tables import against_openloop
 from hubbeam_ctrl.study.yardstick import task_dt, task_limit, task_on_rig
 
 __all__ = ["DEFAULT_CONTROLLERS", "TARGET_CONTROLLERS", "Comparison", "compare", "run_compare"]

@@ -34,7 +34,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.plant.models import build_model, jacobian_columns
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.closedloop import ClosedLoopSettings
-from hubbeam_ctrl.study.certificate import _closed, _linear_plant, _measurement
+from hubbeam_ctrl.study.sampled_loop import closed_loop_matrix, linear_plant, measurement_rows
 
 __all__ = ["frozen_loop", "frozen_scan", "frozen_cause", "frozen_check", "FROZEN_POINTS", "FROZEN_MODELS"]
 
@@ -80,7 +80,7 @@ def _measured_rows(controller, params: Params, n_axial: int, hardware, command: 
     """The rows of the controller's inputs on the model's ``[q, v]`` (and the drive's states after
     them), with the feedthrough of the command, from the straight beam's SFOAM rows."""
     inputs = list(controller.feedback_matrices()[5])
-    A0, A1, B0, C0 = _linear_plant(params, 0.0)
+    A0, A1, B0, C0 = linear_plant(params, 0.0)
     A_s, B_s, _ = hardware_plant(A0, B0, hardware, command)
     design = getattr(controller, "design", None)
     layout = getattr(design, "sensors", None)
@@ -88,7 +88,7 @@ def _measured_rows(controller, params: Params, n_axial: int, hardware, command: 
     if rig_signals:
         C_s, D_s = layout.rows(A_s, B_s, params, 0.0)
     else:
-        C_s = _measurement(controller, inputs, C0, A_s.shape[0])
+        C_s = measurement_rows(controller, inputs, C0, A_s.shape[0])
         D_s = np.zeros((C_s.shape[0], 1))
     n_s = 1 + params.n_transverse                      # SFOAM coordinates: theta, q2
     n_q = n_s + n_axial
@@ -146,7 +146,7 @@ def frozen_loop(controller, model_name: str, params: Params, q, v, tau: float) -
     Ad, Bd, Cm, _ = sampled_rig_plant(A, B, dt, inputs, None, hardware=hw, command=command, delay=delay,
                                       layout=layout, rows=(C, D))
     laws = tuple(np.atleast_2d(np.asarray(x, dtype=float)) for x in controller.feedback_matrices()[:4])
-    loop = _closed(Ad, Bd, Cm, laws)
+    loop = closed_loop_matrix(Ad, Bd, Cm, laws)
     if not np.all(np.isfinite(loop)):          # the sampled plant overflows: a state far past the model's range
         return {"radius": math.inf, "hz": math.nan, "mode": "not finite", "poles": np.full(len(loop), np.nan)}
     z = np.linalg.eigvals(loop)

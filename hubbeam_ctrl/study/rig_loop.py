@@ -413,7 +413,7 @@ def noise_chatter(law, rig: Rig) -> float:
     """
     import scipy.linalg
 
-    from hubbeam_ctrl.study.certificate import AS_DESIGNED, _closed, _loop_parts
+    from hubbeam_ctrl.study.sampled_loop import AS_DESIGNED, closed_loop_matrix, loop_parts
     sn = rig.sensors
     Ak, Bk, Ck, Dk, _, inputs = law.feedback_matrices()
 
@@ -424,8 +424,8 @@ def noise_chatter(law, rig: Rig) -> float:
     sig = np.array([sigma(str(n)) for n in inputs], dtype=float)
     if not np.any(sig > 0.0):
         return 0.0
-    Ad, Bd, Cm, laws, _ = _loop_parts(law, law.design.params, 0.0, 0.0, AS_DESIGNED)
-    A_loop = _closed(Ad, Bd, Cm, laws)
+    Ad, Bd, Cm, laws, _ = loop_parts(law, law.design.params, 0.0, 0.0, AS_DESIGNED)
+    A_loop = closed_loop_matrix(Ad, Bd, Cm, laws)
     if np.max(np.abs(np.linalg.eigvals(A_loop))) >= 1.0:
         return math.inf
     Ak, Bk, Ck, Dk = laws
