@@ -177,9 +177,10 @@ def test_a_coarse_encoder_is_named_as_the_cause_of_a_tip_that_does_not_settle(tm
     0.54 mm is within the bound) and the verdict's reason names the encoder; servo_link's bound is
     within its band (3.5e-5 m against 4.8e-5 m) and names nothing. With the law that trusts the counts
     as COUNT_SHARE 0.5 let it (session 22's rule): at 0.1 the default filter trusts them 32x less with
-    gains 100x softer, the tip's residual halves (0.28 mm) and a run 4 times longer settles, but the
-    default window sees its envelope fall and rise at 1.34 1/s against a 0.9 1/s resolution and calls it
-    "unstable" (session 24's note)."""
+    gains 100x softer, the tip's residual halves (0.28 mm) and a run 4 times longer settles; the default
+    window sees its envelope fall and rise at 1.34 1/s against a 0.9 1/s resolution, within the 2.75 mm
+    bound, in a stable loop off its limit: "not settled" by the counts since session 25 (it was
+    "unstable"; ``test_count_cause_names_the_encoder_only_where_the_evidence_fits``)."""
     import hubbeam_ctrl.study.rig_loop as rig_loop
     from hubbeam_ctrl.study.compare import compare
     from hubbeam_ctrl.study.compare_values import CompareSettings
@@ -192,6 +193,11 @@ def test_a_coarse_encoder_is_named_as_the_cause_of_a_tip_that_does_not_settle(tm
     assert m["verdict"] == "not settled" and m["count_holds_tip"]
     assert m["settle_tip_m"] < m["residual_tip_max_m"] <= m["count_tip_bound_m"]
     assert "cause: the encoder's half count can move the tip" in m["verdict_reason"]
+    monkeypatch.undo()                        # the default law: its rising envelope is the counts' bounded cycle
+    m = compare(rig, "slew", ("openloop", "lqr"), CompareSettings()).metrics["lqr"]
+    assert m["verdict"] == "not settled" and m["tip_growth_rate_per_s"] > m["growth_resolution_per_s"]
+    assert m["settle_tip_m"] < m["residual_tip_max_m"] <= m["count_tip_bound_m"]
+    assert "cause: the tip's envelope rises at" in m["verdict_reason"]
     servo = compare(load_rig("servo_link"), "slew", ("openloop", "lqr"), CompareSettings()).metrics["lqr"]
     assert servo["count_holds_tip"] is False and servo["count_tip_bound_m"] < servo["settle_tip_m"]
     assert servo["residual_tip_max_m"] <= servo["count_tip_bound_m"] and "encoder" not in servo["verdict_reason"]
@@ -215,9 +221,26 @@ def test_count_cause_names_the_encoder_only_where_the_evidence_fits():
     m = {"verdict": "not settled", "verdict_reason": "r"}
     count_cause(m, within)
     assert m["verdict_reason"] == "r" and m["count_holds_tip"] is False
+    # the tip's envelope rising off the limit in a stable loop, within the bound: a bounded limit cycle
+    # (session 25: the chatter rig's default law, 1.34 1/s against a 0.9 1/s resolution, a 4x run settles)
+    rising = {"verdict": "unstable", "verdict_reason": "the tip envelope grows at 1.34 1/s",
+              "growth_resolution_per_s": 0.902, "tip_growth_rate_per_s": 1.34, "angle_growth_rate_per_s": 0.1,
+              "torque_growth_rate_per_s": 2.0, "loop_spectral_radius": 0.99953, "residual_tip_max_m": 2.8e-4,
+              "torque_saturated_fraction": 0.0}
+    bound = {"count_tip_bound_m": 2.75e-3, "count_holds_tip": True, "count_prediction": "..."}
+    m = dict(rising)
+    count_cause(m, bound)
+    assert m["verdict"] == "not settled" and m["verdict_reason"].startswith("outside the settling bands at the end; "
+                                                                          "cause: the tip's envelope rises at 1.34 1/s")
+    for change in ({"torque_saturated_fraction": 0.3}, {"angle_growth_rate_per_s": 1.0},
+                   {"loop_spectral_radius": 1.0001}, {"residual_tip_max_m": 3e-3}):
+        m = {**rising, **change}           # at the limit, the hub drifting, a growing loop, past the bound
+        count_cause(m, bound)
+        assert m["verdict"] == "unstable" and m["verdict_reason"] == rising["verdict_reason"], change
     cycling = {"verdict": "unstable", "verdict_reason": "the command sits at its limit 69 %",
                "growth_resolution_per_s": 0.14, "tip_growth_rate_per_s": 6e-4, "angle_growth_rate_per_s": 5e-4,
-               "torque_growth_rate_per_s": 0.013, "loop_spectral_radius": 0.9994, "residual_tip_max_m": 2.0e-4}
+               "torque_growth_rate_per_s": 0.013, "loop_spectral_radius": 0.9994, "residual_tip_max_m": 2.0e-4,
+               "torque_saturated_fraction": 0.69}
     m = dict(cycling)
     count_cause(m, past)
     assert "cause: a limit cycle between encoder counts at the command's limit, bounded" in m["verdict_reason"]
