@@ -114,8 +114,16 @@ def loop_parts(controller: Controller, params: Params, spin: float, damping_rati
 
     Parameters
     ----------
-    controller, params, spin, damping_ratio, hardware
-        As :func:`loop_matrix`.
+    controller : Controller
+        With a linear form; its ``rig_hardware`` and design's ``sensors`` and ``delay`` are the loop's.
+    params : Params
+        The plant, with at least the modes the controller's gain acts on.
+    spin : float
+        Spin rate of the linearisation [rad/s].
+    damping_ratio : float
+        Modal damping ratio of every bending mode [-].
+    hardware : Hardware, None or AS_DESIGNED
+        As :func:`loop_matrix`'s.
 
     Returns
     -------
