@@ -197,3 +197,42 @@ def test_a_slow_boom_whose_noise_the_old_ladder_could_not_quieten(fast_backend):
     m, law = c.metrics["lqr"], c.controllers["lqr"]
     assert law.count_softened == 1e5 and law.noise_share <= NOISE_SHARE
     assert m["verdict"] == "settled" and m["time_at_limit_slew_s"] < 1.0, m["verdict_reason"]     # 0.1 s
+
+
+#: Rig 4 of `benchmarks/fuzz_rigs.py space 4`: a 3.8 m CFRP tube on a 3.6 kg m^2 body, a 0.3 mN m actuator, a
+#: star tracker and a gyro at 5 Hz; its bending modes (about 10 and 62 Hz) lie above the sampling frequency.
+#: Its fewest default plant modes, one more than the 1-mode design, needed 226 integration steps per sample,
+#: past the 200 the integrator then took: every default run was refused (session 25).
+STIFF_BOOM_5HZ = {
+    "beam": {"L": 3.782, "rho": 1600, "A": 0.00022379, "E": 1.2e11, "I": 1.619e-07, "J_h": 3.55, "r": 0.896,
+             "m_t": 0.0, "tau_max": 0.0002976},
+    "damping": {"ratios": [0.007077]},
+    "sensors": {"angle_noise": 3.61e-05, "rate_noise": 1.75e-05, "rate_bias": 1.61e-06, "rate_bias_walk": 7.65e-08,
+                "strain_gauges": [0.0]},
+    "timing": {"dt": 0.2, "delay": 1.0},
+}
+
+
+def test_the_fewest_default_plant_modes_are_integrated_past_the_preferred_budget():
+    """The default plant's rules prefer 180 steps a sample (90 % of SUBSTEP_BUDGET) and drop modes for it; where
+    the fewest they allow need more, the integrator takes them (a 2-mode plant up to substep_cap(2) = 1000, the
+    work of a 20-mode plant at 200) instead of refusing the run."""
+    from hubbeam_ctrl.sim.evaluation import default_design_modes, default_plant_modes, modes_to_cover
+    from hubbeam_ctrl.sim.step_rule import SUBSTEP_BUDGET, substep_cap, substep_rule
+    rig = rig_from_dict(STIFF_BOOM_5HZ)
+    assert default_design_modes(rig.plant_params, 0.2)[0] == 1
+    n, reason = default_plant_modes(rig.plant_params, 0.2, 1)
+    assert n == 2 and "so 2" in reason
+    f = modes_to_cover(rig.plant_params, 5.0)[2]
+    assert f[0] > 5.0 and 60 < f[1] < 65                          # both bending modes above the 5 Hz sampling
+    rule = substep_rule(f[:2], 0.2, tolerance=0.01)
+    assert SUBSTEP_BUDGET < rule.substeps <= substep_cap(2) == 1000          # 226 steps of 0.88 ms
+    assert substep_cap(20) == SUBSTEP_BUDGET == 200
+
+
+@pytest.mark.slow
+def test_a_boom_sampled_below_its_first_mode_is_compared_with_its_defaults(fast_backend):
+    c = compare(rig_from_dict(STIFF_BOOM_5HZ), "slew", ["lqr"])
+    m = c.metrics["lqr"]
+    assert c.plant.modes == 2 and m["substeps"] > 200
+    assert m["verdict"] == "settled", m["verdict_reason"]

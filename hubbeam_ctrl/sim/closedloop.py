@@ -49,6 +49,7 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, evaluation_plant
 from hubbeam_ctrl.sim.hardware import Hardware
 from hubbeam_ctrl.sim.measurement import rig_measurement
 from hubbeam_ctrl.sim.results import Result
+from hubbeam_ctrl.sim.step_rule import SUBSTEP_BUDGET
 from hubbeam_ctrl.sim.stepper import MAX_SUBSTEPS, PlantStepper, StepperSettings, substep_rule
 
 __all__ = ["ClosedLoopSettings", "simulate_closed_loop"]
@@ -216,7 +217,8 @@ def _delay_substeps(n: int, delay: float, dt: float) -> dict:
     dict
         ``substeps``, ``step_s`` and, when raised, a note on ``step_reason``'s key ``delay_substeps_reason``.
     """
-    candidates = range(n, min(MAX_SUBSTEPS, int(math.ceil(1.5 * n))) + 1)
+    cap = SUBSTEP_BUDGET if n <= SUBSTEP_BUDGET else MAX_SUBSTEPS
+    candidates = range(n, min(cap, int(math.ceil(1.5 * n))) + 1)
     def error(k):                      # the applied delay's error as a fraction of the sample
         return abs(delay * k - round(delay * k)) / k
     exact = [k for k in candidates if error(k) * k <= 1e-9]

@@ -25,7 +25,8 @@ from hubbeam_ctrl.plant.models import resolve_model
 from hubbeam_ctrl.plant.params import Params
 from hubbeam_ctrl.sim.results import Result
 from hubbeam_ctrl.sim.simulate import _check_maneuver_spin
-from hubbeam_ctrl.sim.stepper import MAX_SUBSTEPS, StepperSettings, simulate_fixed_step
+from hubbeam_ctrl.sim.step_rule import SUBSTEP_BUDGET
+from hubbeam_ctrl.sim.stepper import StepperSettings, simulate_fixed_step
 
 __all__ = ["simulate_estimated"]
 
@@ -175,7 +176,7 @@ def simulate_estimated(model="foam", maneuver=None, t_end: float = 30.0, *, para
         peak_err, series_err = _peak_and_series_error(fine, coarse, stride)
         if peak_err <= tolerance or not np.isfinite(peak_err):
             break
-        if 2 * substeps > MAX_SUBSTEPS:
+        if 2 * substeps > SUBSTEP_BUDGET:
             raise ParameterError(f"tolerance {tolerance:g} is not met with {substeps} steps per {dt:g} s sample "
                                  f"(estimated peak error {peak_err:.2g}); use a larger tolerance or simulate (IDAS)")
         coarse, stride, substeps = fine, 1, 2 * substeps

@@ -119,7 +119,7 @@ def default_plant_modes(params: Params, dt: float, design_modes: int, spin: floa
     n : int
         ``max(design_modes + 3, (modes below 1/dt) + 1)``, at most 20; fewer extra modes (at least
         one more than the design and the first above the sampling frequency) where the integrator
-        would need more than 90 % of :data:`~hubbeam_ctrl.sim.step_rule.MAX_SUBSTEPS` steps a sample
+        would need more than 90 % of :data:`~hubbeam_ctrl.sim.step_rule.SUBSTEP_BUDGET` steps a sample
         for them (:func:`default_design_modes` first lowers the design's modes; this is for a
         1-mode design that still does not fit). Found on a random slow boom (5.3 m on a 290 kg m^2
         body at 10 Hz, modes 3.5, 21, 58, 114 Hz): the 1-mode design's 4-mode plant needed 207 steps a
@@ -131,10 +131,10 @@ def default_plant_modes(params: Params, dt: float, design_modes: int, spin: floa
     >>> default_plant_modes(Params(), 0.01, 5)[0]      # the paper's beam at 100 Hz
     10
     """
-    from hubbeam_ctrl.sim.step_rule import MAX_SUBSTEPS, substep_rule
+    from hubbeam_ctrl.sim.step_rule import SUBSTEP_BUDGET, substep_rule
     n, reason, f, below = _plant_rule(params, dt, design_modes, spin)
     least = max(_check_modes("design_modes", design_modes, 1) + 1, below + 1)
-    budget = int(0.9 * MAX_SUBSTEPS)
+    budget = int(0.9 * SUBSTEP_BUDGET)
     kept = n
     while n > least:
         try:
@@ -176,7 +176,7 @@ def default_design_modes(params: Params, dt: float, spin: float = 0.0, tolerance
 
     ``params.n_transverse``, fewer when the default evaluation plant of that design
     (:func:`default_plant_modes`: at least three more modes) could not be integrated within
-    :data:`~hubbeam_ctrl.sim.step_rule.MAX_SUBSTEPS` steps per sample (with a 10 % margin: the
+    :data:`~hubbeam_ctrl.sim.step_rule.SUBSTEP_BUDGET` steps per sample (with a 10 % margin: the
     plant's own top mode is a little stiffer than the converged one). Found on a random rig: a 0.66 m
     CFRP link sampled at 5 ms (bending modes 12, 72, 223 ... Hz), whose 5-mode design asked an 8-mode
     plant with mode 8 at 2.3 kHz, 210 steps per sample: every default run was refused. Design modes
@@ -204,21 +204,21 @@ def default_design_modes(params: Params, dt: float, spin: float = 0.0, tolerance
     >>> default_design_modes(Params(), 0.01)[0]       # the paper's beam at 100 Hz: its 5
     5
     """
-    from hubbeam_ctrl.sim.step_rule import MAX_SUBSTEPS, substep_rule
+    from hubbeam_ctrl.sim.step_rule import SUBSTEP_BUDGET, substep_rule
     dt = check_positive("dt", dt, "s")
     f = modes_to_cover(params, 1.0 / dt, spin)[2]
     m = params.n_transverse
     while m > 1:
         n = _plant_rule(params, dt, m, spin)[0]
         try:
-            substep_rule(f[:n], dt, tolerance=tolerance, max_substeps=int(0.9 * MAX_SUBSTEPS))
+            substep_rule(f[:n], dt, tolerance=tolerance, max_substeps=int(0.9 * SUBSTEP_BUDGET))
             break
         except ParameterError:
             m -= 1
     if m == params.n_transverse:
         return m, ""
     return m, (f"design model: {m} modes, not the beam's {params.n_transverse}: the evaluation plant of a "
-               f"{params.n_transverse}-mode design would need more than {MAX_SUBSTEPS} integration steps per "
+               f"{params.n_transverse}-mode design would need more than {SUBSTEP_BUDGET} integration steps per "
                f"sample of {1e3 * dt:g} ms")
 
 

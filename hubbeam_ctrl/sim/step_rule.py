@@ -17,12 +17,44 @@ import numpy as np
 
 from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive as _check_positive
+from hubbeam_ctrl.plant.params import MAX_MODES
 
 __all__ = ["generalized_alpha_coefficients", "period_error", "max_step_for_frequency", "SubstepRule",
-           "substep_rule", "MAX_SUBSTEPS"]
+           "substep_rule", "MAX_SUBSTEPS", "SUBSTEP_BUDGET", "substep_cap"]
 
-#: Largest number of integration steps per sample that :func:`substep_rule` accepts.
-MAX_SUBSTEPS = 200
+#: Largest number of integration steps per sample that :func:`substep_rule` accepts (the step runs them in a
+#: compiled loop, ``mapaccum``: the count costs run time, which the comparison's budget checks, not code).
+MAX_SUBSTEPS = 1000
+#: The steps per sample a plant of ``plant.params.MAX_MODES`` (20) modes may take (:func:`substep_cap`), and the
+#: default evaluation plant and design keep within 90 % of (adding or dropping modes,
+#: :func:`~hubbeam_ctrl.sim.evaluation.default_plant_modes`).
+SUBSTEP_BUDGET = 200
+
+
+def substep_cap(n_modes: int) -> int:
+    """The most integration steps per sample a plant of ``n_modes`` bending modes may take: the work of
+    the largest plant (``plant.params.MAX_MODES`` modes at :data:`SUBSTEP_BUDGET` steps), at most
+    :data:`MAX_SUBSTEPS`.
+
+    Found on a random slow boom (3.8 m at 5 Hz, modes 10 and 62 Hz): its 2-mode plant, the fewest the
+    default rules allow, needed 226 steps a sample and every run was refused while every plant's cap
+    was 200; a 20-mode plant keeps 200.
+
+    Parameters
+    ----------
+    n_modes : int
+        The plant's bending modes, >= 1.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> substep_cap(20), substep_cap(10), substep_cap(2)
+    (200, 400, 1000)
+    """
+    return int(min(MAX_SUBSTEPS, max(SUBSTEP_BUDGET, SUBSTEP_BUDGET * MAX_MODES // max(int(n_modes), 1))))
 
 
 def generalized_alpha_coefficients(rho_inf: float) -> tuple:
@@ -171,7 +203,7 @@ class SubstepRule:
 
 
 def substep_rule(frequencies_hz, dt: float, *, tolerance: float = 0.005, rho_inf: float = 0.9,
-                 max_substeps: int = MAX_SUBSTEPS) -> SubstepRule:
+                 max_substeps: int | None = None) -> SubstepRule:
     """Integration steps per sample that keep every bending frequency within ``tolerance``.
 
     The generalized-alpha method's frequency error grows with ``w h`` (about
@@ -188,8 +220,9 @@ def substep_rule(frequencies_hz, dt: float, *, tolerance: float = 0.005, rho_inf
         Largest accepted relative frequency error [-] (default 0.5 %).
     rho_inf : float
         Spectral radius at infinity of the method [-].
-    max_substeps : int
-        Largest accepted count (default 200).
+    max_substeps : int, optional
+        Largest accepted count (default :func:`substep_cap` of the plant's modes: 200 for 20 modes,
+        1000 for 2).
 
     Returns
     -------
@@ -211,6 +244,7 @@ def substep_rule(frequencies_hz, dt: float, *, tolerance: float = 0.005, rho_inf
         raise ParameterError("frequencies_hz must hold at least one finite frequency > 0 [Hz]")
     _check_positive("dt", dt, "s")
     k = int(np.argmax(f))
+    max_substeps = substep_cap(f.size) if max_substeps is None else max_substeps
     h_max = max_step_for_frequency(f[k], tolerance, rho_inf)
     n = max(1, int(np.ceil(dt / h_max * (1 - 1e-12))))
     if n > max_substeps:
