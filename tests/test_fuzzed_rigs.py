@@ -236,3 +236,48 @@ def test_a_boom_sampled_below_its_first_mode_is_compared_with_its_defaults(fast_
     m = c.metrics["lqr"]
     assert c.plant.modes == 2 and m["substeps"] > 200
     assert m["verdict"] == "settled", m["verdict_reason"]
+
+
+#: Rig 2 of `benchmarks/fuzz_rigs.py link 37`: a 1.01 m aluminium link with a 91 g tip mass on a 0.44 N m torque
+#: source, Coulomb and viscous friction, 1024 counts, a root gauge and a tip accelerometer, 2 ms. After the slew
+#: the tip fell e-fold every 3.1 s (the loop's slowest pole) and the default window ended at 0.44 mm against a
+#: 0.13 mm band: "not settled", with only the counts named, which can move the tip by 0.2 mm at most.
+SLOW_POLE_LINK = {
+    "beam": {"L": 1.011, "rho": 2700, "A": 5.8881e-05, "E": 6.9e10, "I": 6.0939e-12, "J_h": 0.011429, "r": 0.0,
+             "m_t": 0.0913, "tau_max": 0.44406},
+    "friction": {"viscous": 0.006369, "coulomb": 0.0171},
+    "damping": {"ratios": [0.005835]},
+    "sensors": {"encoder_counts": 1024, "strain_gauges": [0.0], "tip_accelerometer": True, "accel_noise": 0.01},
+    "timing": {"dt": 0.002, "delay": 0.0},
+}
+
+
+@pytest.mark.slow
+def test_a_run_ended_before_its_slowest_pole_decayed_names_it_and_a_longer_run_settles(fast_backend):
+    from hubbeam_ctrl.study.compare_values import CompareSettings, RunChoice
+    from hubbeam_ctrl.study.judge import SLOW_POLE_SPANS
+    rig = rig_from_dict(SLOW_POLE_LINK)
+    c = compare(rig, "slew", ["lqr"])
+    m = c.metrics["lqr"]
+    window = c.scenario.t_end - c.scenario.t_f - c.scenario.bands["residual_delay"]
+    assert m["verdict"] == "not settled" and m["loop_certificate"] == "stable"
+    assert m["slow_pole_s"] == m["loop_slowest_decay_s"] and SLOW_POLE_SPANS * m["slow_pole_s"] > window
+    assert m["residual_tip_max_m"] > m["count_tip_bound_m"]          # the counts alone do not explain it
+    assert "cause: the loop's slowest pole decays e-fold in 3.08 s" in m["verdict_reason"]
+    longer = compare(rig, "slew", ["lqr"], CompareSettings(run=RunChoice(
+        t_end=c.scenario.t_end + SLOW_POLE_SPANS * m["slow_pole_s"]))).metrics["lqr"]
+    assert longer["verdict"] == "settled", longer["verdict_reason"]
+
+
+def test_the_slow_pole_is_named_only_for_a_stable_loop_that_did_not_settle():
+    from hubbeam_ctrl.study.judge import slow_pole_cause
+    base = {"verdict": "not settled", "verdict_reason": "r", "loop_certificate": "stable", "loop_slowest_decay_s": 3.0}
+    m = dict(base)
+    slow_pole_cause(m, 4.0)
+    assert m["slow_pole_s"] == 3.0 and "5 s longer" in m["verdict_reason"]
+    assert m["verdict_reason"].startswith("r; cause: the loop's slowest pole decays e-fold in 3 s")
+    for change, window in (({}, 9.5), ({"verdict": "settled"}, 4.0), ({"verdict": "unstable"}, 4.0),
+                           ({"loop_certificate": "grows"}, 4.0), ({"loop_slowest_decay_s": None}, 4.0)):
+        m = {**base, **change}
+        slow_pole_cause(m, window)
+        assert m["verdict_reason"] == "r" and "slow_pole_s" not in m, change

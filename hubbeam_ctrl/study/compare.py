@@ -50,9 +50,7 @@ from hubbeam_ctrl.sim.evaluation import EvaluationPlant, default_design_modes, e
 from hubbeam_ctrl.study.bands import with_task_bands
 from hubbeam_ctrl.study.compare_values import DEFAULT_T_F, CompareSettings, as_rig, check_schedule
 from hubbeam_ctrl.study.forked_runs import can_fork, side_by_side
-from hubbeam_ctrl.study.friction_bound import count_prediction, friction_prediction
-from hubbeam_ctrl.study.frozen import frozen_check
-from hubbeam_ctrl.study.judge import count_cause, judge, margin_cause, residual_modes_for, same_laws
+from hubbeam_ctrl.study.judge import judge, name_causes, residual_modes_for, same_laws
 from hubbeam_ctrl.study.references import tracked_reference
 from hubbeam_ctrl.study.report import write_outputs
 from hubbeam_ctrl.study.report_tables import against_openloop
@@ -466,18 +464,7 @@ def compare(rig=None, task="slew", controllers=None, settings: CompareSettings |
             metrics[name].update(check_plant=ev_check.model, check_verdict=mc["verdict"],
                                  check_peak_tip_m=mc["peak_tip_m"], check_residual_tip_max_m=mc["residual_tip_max_m"],
                                  check_outside_range_time_s=mc["outside_range_time_s"])
-        if margins[name] is not None:
-            lm = margins[name]
-            metrics[name].update(disk_margin=lm.disk_margin, gain_margin_upper=lm.gain_margin_upper,
-                                 gain_margin_lower=lm.gain_margin_lower, phase_margin_deg=lm.phase_margin_deg,
-                                 delay_margin_s=lm.delay_margin_s)
-            margin_cause(metrics[name], lm, 0.0 if rig is None else rig.timing.delay * sc.dt)
-            if rig is not None:                  # what friction leaves at rest, predicted before the run
-                metrics[name].update(friction_prediction(ctrl, ev.params, float(ref.theta_dot[-1]), rig,
-                                                         sc.bands["settle_angle"]) or {})
-                count_cause(metrics[name], count_prediction(ctrl, ev.params, float(ref.theta_dot[-1]), rig,
-                                                            sc.bands["settle_tip"]))
-            frozen_check(metrics[name], res, ctrl, ev.model, ev.params, sc.t_f)
+        name_causes(metrics[name], res, ctrl, margins[name], sc, ev, float(ref.theta_dot[-1]), rig)
         if progress:
             mm = metrics[name]
             print(f"compare {sc.plant}/{sc.name}: {name:8s} {mm['verdict']:11s} residual "

@@ -19,6 +19,8 @@ import numpy as np
 from controllers.scaling import first_mode
 from hubbeam_ctrl.core.errors import HubbeamError
 from hubbeam_ctrl.study.certificate import certify
+from hubbeam_ctrl.study.friction_bound import count_prediction, friction_prediction
+from hubbeam_ctrl.study.frozen import frozen_check
 from hubbeam_ctrl.study.metrics import SATURATION_LIMIT, closed_loop_metrics
 from hubbeam_ctrl.study.yardstick import task_limit, yardstick_metrics
 
@@ -177,6 +179,74 @@ def count_cause(metrics: dict, prediction: dict | None) -> None:
         else:
             return
     metrics["verdict_reason"] = f"{metrics.get('verdict_reason', '')}; cause: {what}".lstrip("; ")
+
+
+#: A run that did not settle names its loop's slowest pole when the residual window is shorter than this
+#: many of its decay times (the pole's part of a disturbance falls by e^3, 95 %, in them).
+SLOW_POLE_SPANS = 3.0
+
+
+def slow_pole_cause(metrics: dict, window_s: float) -> None:
+    """For a run that did not settle in a loop the certificate calls stable, name the loop's slowest
+    pole when the residual window is shorter than :data:`SLOW_POLE_SPANS` of its decay times (in
+    place): the run may have ended while that pole's part still decays; a longer run tells.
+
+    Found on a random rig (a 1 m aluminium link, 1024 counts, Coulomb friction, 2 ms): the tip fell
+    e-fold every 3.1 s after the slew (the loop's slowest pole, the hub's), from 0.5 mm toward its
+    0.13 mm band, and the 4.8 s window ended before it got there: "not settled" with nothing named.
+
+    Parameters
+    ----------
+    metrics : dict
+        One run's metrics (``verdict``, ``verdict_reason``, ``loop_slowest_decay_s``,
+        ``loop_certificate``); ``slow_pole_s`` is added when named.
+    window_s : float
+        The residual window's length [s].
+    """
+    tau = metrics.get("loop_slowest_decay_s")
+    if (metrics.get("verdict") != "not settled" or metrics.get("loop_certificate") != "stable" or tau is None
+            or not SLOW_POLE_SPANS * tau > window_s):
+        return
+    metrics["slow_pole_s"] = tau
+    metrics["verdict_reason"] = (f"{metrics.get('verdict_reason', '')}; cause: the loop's slowest pole decays "
+                                 f"e-fold in {tau:.3g} s, and the residual window ({window_s:.3g} s) is shorter "
+                                 f"than {SLOW_POLE_SPANS:g} of that: a run {SLOW_POLE_SPANS * tau - window_s:.3g} s "
+                                 "longer (--t-end) tells whether it settles").lstrip("; ")
+
+
+def name_causes(metrics: dict, result, controller, margins, sc, ev, rest_rate: float, rig) -> None:
+    """What a comparison adds to a run's metrics after its verdict (in place): the loop's margins and
+    their cause, on a rig what friction and the encoder's counts leave at rest, the loop frozen at
+    the bent beam, and the loop's slowest pole for a run that did not settle.
+
+    Parameters
+    ----------
+    metrics : dict
+        The run's metrics (:func:`judge`).
+    result : Result
+        The run.
+    controller : Controller
+        As it ran.
+    margins : LoopMargins or None
+        Its loop margins (None: no linear form; then only the slowest pole is looked at).
+    sc : Scenario
+        The comparison's scenario (its ``t_f``, ``t_end``, ``dt`` and bands).
+    ev : EvaluationPlant
+        The evaluation plant.
+    rest_rate : float
+        The reference's hub rate at rest [rad/s].
+    rig : Rig or None
+    """
+    if margins is not None:
+        metrics.update(disk_margin=margins.disk_margin, gain_margin_upper=margins.gain_margin_upper,
+                       gain_margin_lower=margins.gain_margin_lower, phase_margin_deg=margins.phase_margin_deg,
+                       delay_margin_s=margins.delay_margin_s)
+        margin_cause(metrics, margins, 0.0 if rig is None else rig.timing.delay * sc.dt)
+        if rig is not None:                  # what friction leaves at rest, predicted before the run
+            metrics.update(friction_prediction(controller, ev.params, rest_rate, rig, sc.bands["settle_angle"]) or {})
+            count_cause(metrics, count_prediction(controller, ev.params, rest_rate, rig, sc.bands["settle_tip"]))
+        frozen_check(metrics, result, controller, ev.model, ev.params, sc.t_f)
+    slow_pole_cause(metrics, sc.t_end - sc.t_f - sc.bands["residual_delay"])
 
 
 def same_laws(controllers: dict, metrics: dict) -> list:
