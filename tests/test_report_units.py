@@ -111,3 +111,9 @@ def test_a_quiet_open_loop_gives_no_percentage_in_the_table():
     assert against_openloop(loud, 1e-4) == []
     assert loud["lqr"]["residual_pct_of_openloop"] == pytest.approx(0.2) and "OL in band" not in markdown_table(loud)
     assert against_openloop({"lqr": dict(loud["lqr"])}, 1e-4) == []
+    # an open loop that never moved (a fuzzed 2.4 m link whose drive cannot break 216 N m of Coulomb friction away)
+    stuck = {"openloop": {**base, "residual_tip_max_m": 0.0, "final_angle_error_rad": -1.5708,
+                          "settle_angle_rad": 1.6e-3}, "lqr": {**base, "residual_tip_max_m": 8e-4}}
+    (note,) = against_openloop(stuck, 3e-4)
+    assert "but it ends 1.57 rad off the target, outside the angle band 0.0016 rad: it did not do the task" in note
+    assert "off the target" not in against_openloop(quiet, 1e-4)[0]
