@@ -8,7 +8,7 @@ STAMP_BENCH := $(VENV)/.installed-bench
 STAMP_DOCS := $(VENV)/.installed-docs
 export MPLBACKEND := Agg
 
-.PHONY: demo test test-fast lint coverage bench bench-notebooks notebooks docs clean
+.PHONY: demo test test-fast lint coverage bench bench-notebooks notebooks docs clean bytecode
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -30,18 +30,23 @@ $(STAMP_DOCS): $(BIN)/python pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[docs]"
 	touch $@ $(STAMP)
 
-demo: $(STAMP)
+# the package's bytecode, written even where PYTHONDONTWRITEBYTECODE is set (this project's machines set it): every
+# process then reads it instead of compiling 150 modules (0.35 s of each hubbeam command and test process)
+bytecode: $(BIN)/python
+	$(BIN)/python -m compileall -q hubbeam_ctrl controllers > /dev/null
+
+demo: $(STAMP) bytecode
 	$(BIN)/python -m hubbeam_ctrl.cli.demo --out demo_out
 
 # the suite runs on 2 processes (pytest-xdist; PYTEST_WORKERS=1 for one): under 10 minutes on 2 cores
 PYTEST_WORKERS ?= 2
 PYTEST_PAR := -n $(PYTEST_WORKERS) --dist worksteal
 
-test: lint
+test: lint bytecode
 	$(BIN)/python -m pytest -q $(PYTEST_PAR)
 
 # everyday tier: everything but the tests marked slow (under 2 minutes on 2 cores)
-test-fast: lint
+test-fast: lint bytecode
 	$(BIN)/python -m pytest -q $(PYTEST_PAR) -m "not slow"
 
 # the whole suite with line coverage of hubbeam_ctrl and controllers (report in build/coverage.json);
