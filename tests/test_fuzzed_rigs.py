@@ -260,7 +260,7 @@ def test_a_run_ended_before_its_slowest_pole_decayed_names_it_and_a_longer_run_s
     c = compare(rig, "slew", ["lqr"])
     m = c.metrics["lqr"]
     window = c.scenario.t_end - c.scenario.t_f - c.scenario.bands["residual_delay"]
-    assert m["verdict"] == "not settled" and m["loop_certificate"] == "stable"
+    assert m["verdict"] == "not settled" and m["loop_certificate"] == "stable" and m["tip_growth_rate_per_s"] < 0
     assert m["slow_pole_s"] == m["loop_slowest_decay_s"] and SLOW_POLE_SPANS * m["slow_pole_s"] > window
     assert m["residual_tip_max_m"] > m["count_tip_bound_m"]          # the counts alone do not explain it
     assert "cause: the loop's slowest pole decays e-fold in 3.08 s" in m["verdict_reason"]
@@ -271,13 +271,15 @@ def test_a_run_ended_before_its_slowest_pole_decayed_names_it_and_a_longer_run_s
 
 def test_the_slow_pole_is_named_only_for_a_stable_loop_that_did_not_settle():
     from hubbeam_ctrl.study.judge import slow_pole_cause
-    base = {"verdict": "not settled", "verdict_reason": "r", "loop_certificate": "stable", "loop_slowest_decay_s": 3.0}
+    base = {"verdict": "not settled", "verdict_reason": "r", "loop_certificate": "stable", "loop_slowest_decay_s": 3.0,
+            "tip_growth_rate_per_s": -0.16}
     m = dict(base)
     slow_pole_cause(m, 4.0)
     assert m["slow_pole_s"] == 3.0 and "5 s longer" in m["verdict_reason"]
     assert m["verdict_reason"].startswith("r; cause: the loop's slowest pole decays e-fold in 3 s")
     for change, window in (({}, 9.5), ({"verdict": "settled"}, 4.0), ({"verdict": "unstable"}, 4.0),
-                           ({"loop_certificate": "grows"}, 4.0), ({"loop_slowest_decay_s": None}, 4.0)):
+                           ({"loop_certificate": "grows"}, 4.0), ({"loop_slowest_decay_s": None}, 4.0),
+                           ({"tip_growth_rate_per_s": 0.45}, 4.0)):       # a count cycle building up (s36/4)
         m = {**base, **change}
         slow_pole_cause(m, window)
         assert m["verdict_reason"] == "r" and "slow_pole_s" not in m, change

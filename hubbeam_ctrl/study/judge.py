@@ -187,9 +187,11 @@ SLOW_POLE_SPANS = 3.0
 
 
 def slow_pole_cause(metrics: dict, window_s: float) -> None:
-    """For a run that did not settle in a loop the certificate calls stable, name the loop's slowest
-    pole when the residual window is shorter than :data:`SLOW_POLE_SPANS` of its decay times (in
-    place): the run may have ended while that pole's part still decays; a longer run tells.
+    """For a run that did not settle in a loop the certificate calls stable, with the tip's envelope not
+    rising in the window, name the loop's slowest pole when the residual window is shorter than
+    :data:`SLOW_POLE_SPANS` of its decay times (in place): the run may have ended while that pole's
+    part still decays; a longer run tells. A rising tip (a count cycle building up, as on a 2.4 m strip
+    whose counts hold it at 5.7 mm against a 0.3 mm band) is not named so.
 
     Found on a random rig (a 1 m aluminium link, 1024 counts, Coulomb friction, 2 ms): the tip fell
     e-fold every 3.1 s after the slew (the loop's slowest pole, the hub's), from 0.5 mm toward its
@@ -199,13 +201,14 @@ def slow_pole_cause(metrics: dict, window_s: float) -> None:
     ----------
     metrics : dict
         One run's metrics (``verdict``, ``verdict_reason``, ``loop_slowest_decay_s``,
-        ``loop_certificate``); ``slow_pole_s`` is added when named.
+        ``loop_certificate``, ``tip_growth_rate_per_s``); ``slow_pole_s`` is added when named.
     window_s : float
         The residual window's length [s].
     """
     tau = metrics.get("loop_slowest_decay_s")
+    falling = (metrics.get("tip_growth_rate_per_s") or 0.0) <= 0.0     # a rising tip is not a pole's tail
     if (metrics.get("verdict") != "not settled" or metrics.get("loop_certificate") != "stable" or tau is None
-            or not SLOW_POLE_SPANS * tau > window_s):
+            or not SLOW_POLE_SPANS * tau > window_s or not falling):
         return
     metrics["slow_pole_s"] = tau
     metrics["verdict_reason"] = (f"{metrics.get('verdict_reason', '')}; cause: the loop's slowest pole decays "
