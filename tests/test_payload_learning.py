@@ -169,7 +169,11 @@ def test_payload_comparison_and_the_cli_learn_the_payload(tmp_path, capsys, fast
     assert rc == 0
     doc = json.loads((tmp_path / "cli" / "payload.json").read_text())
     assert [r["payload_kg"] for r in doc["rows"]] == [0.1, 0.5]
-    assert all(r["design"].startswith("learns the payload") and r["verdict"] == "settled" for r in doc["rows"])
+    # the CLI learns in real time (PayloadLearningSettings.real_time): on a loaded machine a re-plan past its
+    # allowance is dropped, said in the row's design, and the run keeps its plan (it failed a fresh-clone
+    # suite so once, session 25); every re-plan that was kept settles the run
+    assert all(r["design"].startswith("learns the payload") for r in doc["rows"])
+    assert all(r["verdict"] == "settled" or "(dropped)" in r["design"] for r in doc["rows"]), doc["rows"]
 
 
 @pytest.mark.parametrize("argv", [["--learn-payload"], ["--learn-payload", "--payload-range", "0,0.5",
