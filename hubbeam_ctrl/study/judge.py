@@ -22,6 +22,7 @@ from hubbeam_ctrl.study.certificate import certify
 from hubbeam_ctrl.study.friction_bound import count_prediction, friction_prediction
 from hubbeam_ctrl.study.frozen import frozen_check
 from hubbeam_ctrl.study.metrics import SATURATION_LIMIT, closed_loop_metrics
+from hubbeam_ctrl.study.settling import describe_end
 from hubbeam_ctrl.study.yardstick import task_limit, yardstick_metrics
 
 __all__ = ["judge", "residual_modes_for", "margin_cause", "count_cause", "same_laws", "THIN_DISK_MARGIN"]
@@ -175,7 +176,8 @@ def count_cause(metrics: dict, prediction: dict | None) -> None:
                     f"{bound:.3g} m the encoder's half count can move it through this loop, whose linear certificate "
                     f"is stable (radius {radius:.7f}) and whose command stays off its limit: a limit cycle between "
                     "counts, bounded, judged by its bands (not settled), not growth")
-            metrics["verdict_reason"] = "outside the settling bands at the end"
+            metrics["verdict_reason"] = describe_end(False, metrics.get("inside_bands_at_end_s"),
+                                                     metrics.get("settle_hold_s") or 0.0)
         else:
             return
     metrics["verdict_reason"] = f"{metrics.get('verdict_reason', '')}; cause: {what}".lstrip("; ")

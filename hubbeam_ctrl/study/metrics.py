@@ -23,6 +23,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.sim.hardware import Hardware, drive_torque
 from hubbeam_ctrl.study.drive_figures import command_limit, drive_metrics, drive_of, friction_of
+from hubbeam_ctrl.study.settling import describe_end, settle_hold, settling_time, time_inside_at_end
 
 __all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time", "VERDICTS", "verdict", "Evidence",
            "residual_growth", "saturated_fraction", "GROWTH_LIMIT", "SATURATION_LIMIT", "FRICTION_HUNTING_BOUND",
@@ -63,6 +64,9 @@ METRIC_UNITS = {
     "settling_over_limit": ("-", "settling time over limit_s (1: the physical limit; None: not settled)"),
     "settle_angle_rad": ("rad", "settling band of the hub-angle error (settle_angle_source says where it came from)"),
     "settle_tip_m": ("m", "settling band of |v_tip| (settle_tip_source says where it came from)"),
+    "settle_hold_s": ("s", "time a settled run stays inside both bands before its end: a tenth of the residual "
+                           "window, at least one period of the first bending mode"),
+    "inside_bands_at_end_s": ("s", "time the run has been inside both bands at its end (0: outside at the end)"),
     "residual_pct_of_L": ("%", "residual tip vibration (max |v_tip| in the residual window) in % of L"),
     "peak_command": ("command", "peak |u| of the controller's command (V on a DC motor, N m on a torque source)"),
     "peak_command_step": ("command", "largest change of the command from one sample to the next"),
@@ -115,34 +119,6 @@ METRIC_UNITS = {
 #: Entries of the result's settings that describe the plant and its integration step.
 _PLANT_KEYS = ("plant_model", "plant_modes", "plant_axial_modes", "design_modes", "plant_modes_reason",
                "substeps", "step_s", "step_mode", "step_mode_hz", "step_mode_frequency_error", "step_reason")
-
-
-def settling_time(t, angle_error, v_tip, angle_band: float, tip_band: float):
-    """First time after which both ``|angle_error| <= angle_band`` and ``|v_tip| <= tip_band``.
-
-    Parameters
-    ----------
-    t : ndarray
-        Times [s].
-    angle_error : ndarray
-        Hub-angle error [rad].
-    v_tip : ndarray
-        Tip deflection [m].
-    angle_band : float
-        [rad], > 0.
-    tip_band : float
-        [m], > 0.
-
-    Returns
-    -------
-    float or None
-        [s]; None if the response is outside the bands at the last sample.
-    """
-    inside = (np.abs(angle_error) <= angle_band) & (np.abs(v_tip) <= tip_band)
-    if not inside.size or not inside[-1]:
-        return None
-    outside = np.nonzero(~inside)[0]
-    return float(t[0]) if not outside.size else float(t[outside[-1] + 1])
 
 
 def residual_growth(v_tip) -> float:
@@ -294,12 +270,16 @@ class Evidence:
     saturated : float
         :func:`saturated_fraction` of the residual window [-] (NaN: no torque limit).
     settled : bool
-        Inside the settling bands at the end.
+        Inside the settling bands for the hold before the end (:func:`settle_hold`).
     certificate_grows : bool or None
         The linear certificate's loop grows (None: no certificate).
     friction_bound : float or None
         Largest hub torque of the drive in the residual window over the hub's breakaway torque
         [-] (None: no Coulomb friction); see :attr:`friction_hunting`.
+    inside_at_end_s : float or None
+        How long the run has been inside both bands at its end [s] (None: not measured).
+    hold_s : float
+        The hold a settled run needs [s] (:func:`settle_hold`; 0: the last sample decides).
     """
 
     stop_cause: str | None
@@ -308,6 +288,8 @@ class Evidence:
     settled: bool
     certificate_grows: bool | None = None
     friction_bound: float | None = None
+    inside_at_end_s: float | None = None
+    hold_s: float = 0.0
 
     @property
     def friction_hunting(self) -> bool:
@@ -373,8 +355,9 @@ def verdict(evidence: Evidence) -> str:
       (:attr:`Evidence.torque_build_up`: sensor noise building up, judged ``"settled"`` and
       said in the reason), and such a run that has not settled (:attr:`Evidence.torque_chatter`:
       ``"not settled"``);
-    * ``"settled"``: hub-angle error and tip deflection are inside their settling bands at
-      the end;
+    * ``"settled"``: hub-angle error and tip deflection have stayed inside their settling bands
+      for the hold before the end (:func:`~hubbeam_ctrl.study.settling.settle_hold`: a tenth of
+      the residual window, at least one period of the first bending mode);
     * ``"not settled"``: anything else (e.g. the undamped open loop, which rings on).
 
     Parameters
@@ -484,7 +467,9 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
     limit = command_limit(drive, tau_max)
     drive_out = drive_metrics(t, tau, result.v[:, 0], t_f, drive, tau_max, friction_of(result))
     saturated = saturated_fraction(tau[window], limit) if limit is not None else nan
-    settle = settling_time(t, err, v_tip, settle_angle, settle_tip)
+    hold = settle_hold(float(t[-1]) - start, 2.0 * block_s if block_s else None)
+    inside_at_end = time_inside_at_end(t, err, v_tip, settle_angle, settle_tip)
+    settle = settling_time(t, err, v_tip, settle_angle, settle_tip, hold)
     t_w = t[window]
     block = float(block_s) if block_s is not None else 0.0
     fits = {"tip": envelope_growth(t_w, res, block),        # the ripple is fast: short blocks
@@ -500,7 +485,8 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         cause = "diverged" if "left its range" in result.message else "failed"
     cert_grows = certificate.grows if certificate is not None and certificate.available else None
     evidence = Evidence(cause, growing, saturated, settle is not None, cert_grows,
-                        _friction_bound(tau[window], result.v[window, 0], drive, friction_of(result)))
+                        _friction_bound(tau[window], result.v[window, 0], drive, friction_of(result)),
+                        inside_at_end, hold)
     out["verdict"] = verdict(evidence)
     out["verdict_reason"] = _reason(evidence, fits, certificate, result.message)
     out.update({
@@ -513,6 +499,8 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
         "settling_time_s": None if out["verdict"] in _NOT_SETTLING else settle,
         "settle_angle_rad": settle_angle,
         "settle_tip_m": settle_tip,
+        "settle_hold_s": hold,
+        "inside_bands_at_end_s": inside_at_end,
         "peak_torque_nm": drive_out["peak_hub_torque_nm"],
         "torque_squared_integral_n2m2s": drive_out.pop("hub_torque_squared_integral"),
         "torque_saturated_fraction": saturated,
@@ -564,13 +552,13 @@ def _friction_bound(u, thd, drive, friction) -> float | None:
 
 def _reason(evidence: Evidence, fits: dict, certificate, message: str) -> str:
     """One sentence saying what decided the verdict."""
+    end = describe_end(evidence.settled, evidence.inside_at_end_s, evidence.hold_s)
     if evidence.stop_cause is not None:
         return message
     if evidence.friction_hunting:
         return (f"the command works against the hub's Coulomb friction: the hub torque stays within "
                 f"{evidence.friction_bound:.2g} x the breakaway torque (stick-slip hunting, bounded) and the "
-                "linear certificate says stable; " + ("inside" if evidence.settled else "outside")
-                + " the settling bands at the end")
+                "linear certificate says stable; " + end)
     parts = []
     if evidence.certificate_grows:
         parts.append(certificate.describe())
@@ -585,7 +573,7 @@ def _reason(evidence: Evidence, fits: dict, certificate, message: str) -> str:
     if evidence.torque_chatter:
         return (parts[0] + "; the tip and hub do not grow, the command stays off its limit and the linear "
                 "certificate says stable: chatter of a bounded nonlinearity (encoder counts, friction) or of "
-                "sensor noise, not growth; outside the settling bands at the end")
+                "sensor noise, not growth; " + end)
     if parts:
         if evidence.certificate_grows is False:
             parts.append("the linear certificate says stable: the growth is nonlinear (saturation, "
@@ -595,5 +583,5 @@ def _reason(evidence: Evidence, fits: dict, certificate, message: str) -> str:
         lead = "no growth in the run (no linear certificate)"
     else:
         lead = "no growth in the run or in the linear certificate"
-    return lead + ("; inside the settling bands at the end" if evidence.settled
-                   else "; outside the settling bands at the end")
+    return lead + "; " + end
+
