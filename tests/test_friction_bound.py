@@ -177,7 +177,8 @@ def test_a_coarse_encoder_is_named_as_the_cause_of_a_tip_that_does_not_settle(tm
     0.54 mm is within the bound) and the verdict's reason names the encoder; servo_link's bound is
     within its band (3.5e-5 m against 4.8e-5 m) and names nothing. With the law that trusts the counts
     as COUNT_SHARE 0.5 let it (session 22's rule): at 0.1 the default filter trusts them 32x less with
-    gains 100x softer, the tip's residual halves (0.28 mm) and a run 4 times longer settles; the default
+    gains 100x softer, the tip's residual halves (0.28 mm; a run 4 times longer cycles steadily at 0.32 mm
+    against a 0.11 mm band, inside it for 0.87 s at the end, short of the 2.6 s hold); the default
     window sees its envelope fall and rise at 1.34 1/s against a 0.9 1/s resolution, within the 2.75 mm
     bound, in a stable loop off its limit: "not settled" by the counts since session 25 (it was
     "unstable"; ``test_count_cause_names_the_encoder_only_where_the_evidence_fits``)."""
@@ -222,7 +223,7 @@ def test_count_cause_names_the_encoder_only_where_the_evidence_fits():
     count_cause(m, within)
     assert m["verdict_reason"] == "r" and m["count_holds_tip"] is False
     # the tip's envelope rising off the limit in a stable loop, within the bound: a bounded limit cycle
-    # (session 25: the chatter rig's default law, 1.34 1/s against a 0.9 1/s resolution, a 4x run settles)
+    # (session 25: the chatter rig's default law, 1.34 1/s against a 0.9 1/s resolution; a 4x run cycles steadily)
     rising = {"verdict": "unstable", "verdict_reason": "the tip envelope grows at 1.34 1/s",
               "growth_resolution_per_s": 0.902, "tip_growth_rate_per_s": 1.34, "angle_growth_rate_per_s": 0.1,
               "torque_growth_rate_per_s": 2.0, "loop_spectral_radius": 0.99953, "residual_tip_max_m": 2.8e-4,

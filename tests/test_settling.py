@@ -1,7 +1,9 @@
 """A run is settled when it has stayed inside its bands for the hold before its end, not when its last
 sample happens to be inside (hubbeam_ctrl.study.settling)."""
 
+import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -87,8 +89,47 @@ def test_a_count_cycle_is_not_settled_by_the_phase_of_its_last_sample(fast_backe
         assert m["settle_hold_s"] == pytest.approx(SETTLE_HOLD_SHARE * window, rel=0.01)
         assert m["inside_bands_at_end_s"] < m["settle_hold_s"]
     assert 0 < c.metrics["lqr"]["inside_bands_at_end_s"] < 0.2
+    bench = _causes()["settle_hold"]["now"]                 # the benchmark's figures are this run's
+    for name, m in c.metrics.items():
+        assert m["inside_bands_at_end_s"] == pytest.approx(bench[name]["inside_bands_at_end_s"], abs=0.011)
+        assert m["residual_tip_max_m"] == pytest.approx(bench[name]["residual_tip_max_m"], rel=0.05)
     assert "inside the settling bands only for the last" in c.metrics["lqr"]["verdict_reason"]
     # the rule before: the last sample decides, and LQR is "settled" on 0.1 s inside
     monkeypatch.setattr(metrics, "settle_hold", lambda *a: 0.0)
     before = compare(rig, "slew", ["lqr"]).metrics["lqr"]
     assert before["verdict"] == "settled" and before["settling_time_s"] > c.scenario.t_end - 0.2
+
+
+def _causes() -> dict:
+    from tests.conftest import ROOT
+    return json.loads((ROOT / "benchmarks" / "results" / "bench_verdict_causes.json").read_text())["cases"]
+
+
+def test_docs_quote_the_verdict_causes_benchmark():
+    """docs/rig.md's count-cycle and slow-pole figures and docs/controllers.md's hold figures are
+    ``bench_verdict_causes.json``'s, and the benchmark's verdicts are the rules' claims."""
+    from tests.conftest import ROOT
+    rig_doc = re.sub(r"\s+", " ", (ROOT / "docs" / "rig.md").read_text())
+    ctl_doc = re.sub(r"\s+", " ", (ROOT / "docs" / "controllers.md").read_text())
+    cases = _causes()
+    n, lo = cases["count_cycle_growth"]["now"], cases["count_cycle_growth"]["longer"]
+    assert (f"the envelope rose at {n['tip_growth_rate_per_s']:.2f} 1/s against a {n['growth_resolution_per_s']:.2f} "
+            f"1/s resolution, the tip at {1e3 * n['residual_tip_max_m']:.2f} mm within the "
+            f"{1e3 * n['count_tip_bound_m']:.2f} mm bound, and a run 4 times longer shows the steady cycle, its "
+            f"envelope at {lo['tip_growth_rate_per_s']:.3f} 1/s and its tip at {1e3 * lo['residual_tip_max_m']:.2f} mm "
+            f"against a {1e3 * lo['settle_tip_m']:.2f} mm band: not settled") in rig_doc
+    assert n["verdict"] == lo["verdict"] == "not settled" and lo["t_end_s"] == pytest.approx(4 * n["t_end_s"])
+    assert lo["residual_tip_max_m"] <= lo["count_tip_bound_m"]
+    n, lo = cases["slow_pole"]["now"], cases["slow_pole"]["longer"]
+    assert (f"the tip fell e-fold every {n['loop_slowest_decay_s']:.1f} s, the {n['window_s']:.1f} s window ended at "
+            f"{1e3 * n['residual_tip_max_m']:.2f} mm against a {1e3 * n['settle_tip_m']:.2f} mm band, and the run that "
+            f"much longer settles, inside its bands for the last {lo['inside_bands_at_end_s']:.1f} s") in rig_doc
+    assert n["verdict"] == "not settled" and lo["verdict"] == "settled"
+    now, before = cases["settle_hold"]["now"], cases["settle_hold"]["before"]
+    lqr = before["lqr"]
+    assert (f"LQR was `settled` on {lqr['inside_bands_at_end_s']:.1f} s inside, its tip at "
+            f"{lqr['residual_tip_max_m'] / lqr['settle_tip_m']:.1f} x the band in the window, LQG on "
+            f"{before['lqg']['inside_bands_at_end_s']:.2f} s, and MPC, with LQR's ripple, `not settled`") in ctl_doc
+    assert [before[k]["verdict"] for k in ("lqr", "lqg", "mpc")] == ["settled", "settled", "not settled"]
+    assert before["mpc"]["residual_tip_max_m"] == pytest.approx(lqr["residual_tip_max_m"], rel=0.01)
+    assert all(m["verdict"] == "not settled" and m["inside_bands_at_end_s"] < m["settle_hold_s"] for m in now.values())

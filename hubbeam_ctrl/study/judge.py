@@ -139,7 +139,8 @@ def count_cause(metrics: dict, prediction: dict | None) -> None:
     tip within the bound, becomes ``"not settled"``: a stable loop driven by a bounded quantisation
     error stays within that bound. Found on a 0.88 m steel link on 4096 counts without a tachometer
     (``tests/test_friction_bound.py``): its envelope rose at 1.34 1/s against a 0.9 1/s resolution,
-    "unstable", while a run 4 times longer settles.
+    "unstable", while a run 4 times longer shows a steady cycle (-0.004 1/s) at 0.32 mm, within the
+    2.75 mm bound (``benchmarks/results/bench_verdict_causes.json``).
 
     Parameters
     ----------
