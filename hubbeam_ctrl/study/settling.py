@@ -63,16 +63,8 @@ def time_inside_at_end(t, angle_error, v_tip, angle_band: float, tip_band: float
 
     Parameters
     ----------
-    t : ndarray
-        Times [s].
-    angle_error : ndarray
-        Hub-angle error [rad].
-    v_tip : ndarray
-        Tip deflection [m].
-    angle_band : float
-        [rad], > 0.
-    tip_band : float
-        [m], > 0.
+    t, angle_error, v_tip, angle_band, tip_band
+        As :func:`settling_time` ([s], [rad], [m], [rad], [m]).
 
     Returns
     -------
