@@ -268,13 +268,14 @@ def _report(comparison) -> str:
     lines += [f"- Residual vibration: |v_tip| from tf + {sc.bands['residual_delay']:g} s = "
               f"{sc.t_f + sc.bands['residual_delay']:g} s to the end. Settling: hub-angle error within "
               f"{1e3 * sc.bands['settle_angle']:.3g} mrad and |v_tip| within {1e3 * sc.bands['settle_tip']:.3g} mm "
-              f"at the end.",
+              f"for the hold before the end (a tenth of the residual window, at least one first-mode period; "
+              f"settle_hold_s in metrics.json).",
               *band_lines(sc),
               f"- Verdicts: failed (the integrator or the controller failed, or the wall-clock limit), "
               f"diverged (the plant passed its divergence limit), unstable (the linear certificate's loop "
               f"grows, or the envelope of the tip, the torque ripple or the angle error grows at a "
               f"resolved rate, or the command is at its limit more than {100 * SATURATION_LIMIT:g} % of the "
-              f"residual window), settled, not settled.",
+              f"residual window), settled (inside both bands for the hold), not settled.",
               _wall_line(comparison), ""]
     lines += _yardstick_lines(comparison)
     lines += ["",
