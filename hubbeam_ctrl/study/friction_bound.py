@@ -16,7 +16,16 @@ constant hub torque):
   the control of machines with friction", Automatica 30(7), section 5); with equal breakaway and
   sliding friction none is;
 * an encoder of step ``q`` reads the angle to ``+-q/2``: a loop with integral action hunts
-  between two counts when the friction lets it;
+  between two counts when the friction lets it; a loop without it whose dead band is narrower than
+  half a count can hold the hub only where the encoder reads the target's count: a count off, its
+  command at rest (``q / hold_gain``) is past the breakaway torque, so a hub that stops there slips
+  again, and stick-slip between counts is predicted until it stops on the target's count. Found on a
+  random rig (``benchmarks/fuzz_rigs.py link 41``, rig 7: a 0.33 m steel link with a 146 g payload
+  on a geared DC motor, Coulomb friction 0.071 N m, 40 000 counts, dead band 0.01 counts): the
+  prediction said the hub stops in the dead band; the default run was "settled", the hub stuck more
+  than a count off while the law's slow states built the command up to the breakaway, and the run 4
+  times longer slipped at 2.3 s and stuck and slipped again to its end (tip 0.19 mm against a 0.041 mm
+  band);
 * that rounding moves the tip through the loop by at most ``q/2`` times the loop's peak-to-peak
   gain from the angle reading to the tip (:func:`hubbeam_ctrl.study.certificate.angle_error_tip_gain`,
   a bound for every sequence of rounding errors): within the task's tip band the counts cannot
@@ -59,8 +68,10 @@ def friction_prediction(controller, params, spin: float, rig, angle_band: float)
     -------
     dict or None
         ``friction_hold_rad`` (the largest offset friction can hold [rad]; 0 with integral
-        action), ``friction_hunting_predicted`` (bool) and ``friction_prediction`` (one sentence);
-        None without Coulomb friction or for a loop that is not stable.
+        action), ``friction_hunting_predicted`` (bool: stick-slip about the target, from a Stribeck
+        drop with integral action or from a dead band within half a count) and
+        ``friction_prediction`` (one sentence); None without Coulomb friction or for a loop that is
+        not stable.
     """
     f = rig.friction
     breakaway = f.coulomb if f.breakaway is None else f.breakaway
@@ -76,7 +87,16 @@ def friction_prediction(controller, params, spin: float, rig, angle_band: float)
         where = "inside" if hold <= angle_band else "outside"
         text = (f"no integral action: the loop's compliance at rest is {compliance:.3g} rad/N m, so the breakaway "
                 f"torque {breakaway:.3g} N m can hold the hub up to {hold:.3g} rad{counts(hold)} off the target, "
-                f"{where} the angle band ({angle_band:.3g} rad); no limit cycle (the hub stops in this dead band)")
+                f"{where} the angle band ({angle_band:.3g} rad)")
+        if q > 0 and hold < q / 2:
+            # the law sees counts: one count off, its command at rest is q / compliance
+            push = q / compliance
+            text += (f"; that is within half a count, so the hub can rest only where the encoder reads the target's "
+                     f"count: a count off, the law's command at rest is {push:.3g} N m, {push / breakaway:.3g} x the "
+                     "breakaway torque, and a hub that stops there slips again once it builds up: stick-slip between "
+                     "counts is predicted until the hub stops on the target's count")
+            return {"friction_hold_rad": hold, "friction_hunting_predicted": True, "friction_prediction": text}
+        text += "; no limit cycle (the hub stops in this dead band)"
         return {"friction_hold_rad": hold, "friction_hunting_predicted": False, "friction_prediction": text}
     hunting = breakaway > f.coulomb
     text = ("integral action: friction holds no offset; the command builds up to the breakaway torque "

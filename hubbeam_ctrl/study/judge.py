@@ -184,6 +184,46 @@ def count_cause(metrics: dict, prediction: dict | None) -> None:
     metrics["verdict_reason"] = f"{metrics.get('verdict_reason', '')}; cause: {what}".lstrip("; ")
 
 
+def rest_count_cause(metrics: dict, result, rig) -> None:
+    """A settled run whose hub rests where the encoder reads a count at which the law's command at rest
+    is past the breakaway torque will slip again: "not settled", the cause named (in place).
+
+    Without integral action the law's command at rest is the reading's offset from the target over the
+    loop's compliance at rest (:func:`~hubbeam_ctrl.study.friction_bound.friction_prediction`'s
+    ``friction_hold_rad`` is the breakaway torque times that compliance). Where the encoder's reading at
+    the run's end is further off the target than that hold, the command builds up past the breakaway
+    torque (the law's slower states take their time) and the hub slips. Found on a random rig
+    (``benchmarks/fuzz_rigs.py link 41`` rig 7, 40 000 counts, a dead band of 0.01 counts): "settled" in
+    the default window with the hub stuck a count off while the command crept up; the run 4 times longer
+    slipped at 2.3 s and stuck and slipped again to its end.
+
+    Parameters
+    ----------
+    metrics : dict
+        One run's metrics (``verdict``, ``verdict_reason``, ``friction_hold_rad``).
+    result : Result
+        The run (its last hub angle and reference [rad]).
+    rig : Rig
+        Its ``friction`` and ``sensors.encoder_step``.
+    """
+    hold, q = metrics.get("friction_hold_rad"), rig.sensors.encoder_step
+    if metrics.get("verdict") != "settled" or not hold or not q > 0 or result.theta_ref is None:
+        return
+    reading = q * math.floor(float(result.theta[-1]) / q + 0.5)
+    offset = reading - float(result.theta_ref[-1])
+    if abs(offset) <= hold:
+        return
+    breakaway = rig.friction.coulomb if rig.friction.breakaway is None else rig.friction.breakaway
+    push = abs(offset) / hold * breakaway
+    metrics.update(verdict="not settled", settling_time_s=None, settling_over_limit=None,
+                   rest_reading_offset_rad=offset)
+    metrics["verdict_reason"] = (
+        f"{metrics.get('verdict_reason', '')}; cause: the hub rests where the encoder reads {offset / q:+.3g} counts "
+        f"off the target, where the law's command at rest is {push:.3g} N m, {push / breakaway:.3g} x the breakaway "
+        "torque: it slips again once the command builds up (stick-slip between counts; a longer run shows it)"
+    ).lstrip("; ")
+
+
 #: A run that did not settle names its loop's slowest pole when the residual window is shorter than this
 #: many of its decay times (the pole's part of a disturbance falls by e^3, 95 %, in them).
 SLOW_POLE_SPANS = 3.0
@@ -250,6 +290,7 @@ def name_causes(metrics: dict, result, controller, margins, sc, ev, rest_rate: f
         margin_cause(metrics, margins, 0.0 if rig is None else rig.timing.delay * sc.dt)
         if rig is not None:                  # what friction leaves at rest, predicted before the run
             metrics.update(friction_prediction(controller, ev.params, rest_rate, rig, sc.bands["settle_angle"]) or {})
+            rest_count_cause(metrics, result, rig)
             count_cause(metrics, count_prediction(controller, ev.params, rest_rate, rig, sc.bands["settle_tip"]))
         frozen_check(metrics, result, controller, ev.model, ev.params, sc.t_f)
     slow_pole_cause(metrics, sc.t_end - sc.t_f - sc.bands["residual_delay"])
