@@ -297,7 +297,13 @@ def filter_matrices(model: DesignModel, noise: KalmanNoise, design_modes: int | 
         Aa = np.zeros((n + 1, n + 1))
         Aa[:n, :n], Aa[:nx, n] = A, model.Bd[:, 0]
         Aa[n, n] = 1.0
-        A, B, C = Aa, np.vstack([B, [[0.0]]]), np.hstack([C, np.zeros((C.shape[0], 1))])
+        # the disturbance is a hub torque: a sensor that reads the torque directly (the accelerometer's
+        # feedthrough) reads it as it reads the command; without this column the filter's integral leaked
+        # (the compensator's pole at 1 +- 1e-5 on rigs with a tip accelerometer, a finite hold at rest)
+        Cd = np.zeros((C.shape[0], 1))
+        if model.carries_loop and model.D_sensors is not None:
+            Cd[:, 0] = np.asarray(model.D_sensors, dtype=float)[:, 0]
+        A, B, C = Aa, np.vstack([B, [[0.0]]]), np.hstack([C, Cd])
         Qa = np.zeros((n + 1, n + 1))
         Qa[:n, :n], Qa[n, n] = Q, float(disturbance_noise) ** 2
         Q = Qa

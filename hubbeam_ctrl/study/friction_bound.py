@@ -105,7 +105,9 @@ def friction_prediction(controller, params, spin: float, rig, angle_band: float)
              "sticks again: a stick-slip hunting limit cycle about the target is predicted" if hunting else
              "; breakaway and sliding friction are equal, so no hunting is predicted")
     if q > 0:
-        text += f"; the encoder reads the angle to +-{q / 2:.3g} rad (half a count)"
+        text += (f"; the encoder reads the angle to +-{q / 2:.3g} rad (half a count): the hub can rest only where the "
+                 "encoder reads the target's count, and on any other the integral action builds the command up until "
+                 "the hub slips again")
     return {"friction_hold_rad": 0.0, "friction_hunting_predicted": hunting, "friction_prediction": text}
 
 

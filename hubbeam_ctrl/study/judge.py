@@ -139,8 +139,8 @@ def count_cause(metrics: dict, prediction: dict | None) -> None:
     tip within the bound, becomes ``"not settled"``: a stable loop driven by a bounded quantisation
     error stays within that bound. Found on a 0.88 m steel link on 4096 counts without a tachometer
     (``tests/test_friction_bound.py``): its envelope rose at 1.34 1/s against a 0.9 1/s resolution,
-    "unstable", while a run 4 times longer shows a steady cycle (-0.004 1/s) at 0.32 mm, within the
-    2.75 mm bound (``benchmarks/results/bench_verdict_causes.json``).
+    "unstable", while a run 4 times longer shows a steady cycle within the 2.75 mm bound
+    (``benchmarks/results/bench_verdict_causes.json``).
 
     Parameters
     ----------
@@ -192,7 +192,9 @@ def rest_count_cause(metrics: dict, result, rig) -> None:
     loop's compliance at rest (:func:`~hubbeam_ctrl.study.friction_bound.friction_prediction`'s
     ``friction_hold_rad`` is the breakaway torque times that compliance). Where the encoder's reading at
     the run's end is further off the target than that hold, the command builds up past the breakaway
-    torque (the law's slower states take their time) and the hub slips. Found on a random rig
+    torque (the law's slower states take their time) and the hub slips. With integral action
+    (``friction_hold_rad`` 0) nothing is said: a hub resting a count off also slips, but where it goes
+    (a count on, inside a band of counts) the run does not tell. Found on a random rig
     (``benchmarks/fuzz_rigs.py link 41`` rig 7, 40 000 counts, a dead band of 0.01 counts): "settled" in
     the default window with the hub stuck a count off while the command crept up; the run 4 times longer
     slipped at 2.3 s and stuck and slipped again to its end.
@@ -215,13 +217,13 @@ def rest_count_cause(metrics: dict, result, rig) -> None:
         return
     breakaway = rig.friction.coulomb if rig.friction.breakaway is None else rig.friction.breakaway
     push = abs(offset) / hold * breakaway
+    law = (f"the law's command at rest is {push:.3g} N m, {push / breakaway:.3g} x the breakaway torque: it slips "
+           "again once the command builds up")
     metrics.update(verdict="not settled", settling_time_s=None, settling_over_limit=None,
                    rest_reading_offset_rad=offset)
     metrics["verdict_reason"] = (
         f"{metrics.get('verdict_reason', '')}; cause: the hub rests where the encoder reads {offset / q:+.3g} counts "
-        f"off the target, where the law's command at rest is {push:.3g} N m, {push / breakaway:.3g} x the breakaway "
-        "torque: it slips again once the command builds up (stick-slip between counts; a longer run shows it)"
-    ).lstrip("; ")
+        f"off the target, where {law} (stick-slip between counts; a longer run shows it)").lstrip("; ")
 
 
 #: A run that did not settle names its loop's slowest pole when the residual window is shorter than this

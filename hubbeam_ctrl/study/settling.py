@@ -141,7 +141,8 @@ def describe_end(settled: bool, inside_at_end_s: float | None, hold_s: float) ->
     if settled:
         return "inside the settling bands at the end"
     if inside_at_end_s and inside_at_end_s < hold_s:
-        return (f"inside the settling bands only for the last {inside_at_end_s:.3g} s, short of the "
-                f"{hold_s:.3g} s hold (a tenth of the residual window, at least one period of the first "
+        digits = next((d for d in range(3, 7) if f"{inside_at_end_s:.{d}g}" != f"{hold_s:.{d}g}"), 7)
+        return (f"inside the settling bands only for the last {inside_at_end_s:.{digits}g} s, short of the "
+                f"{hold_s:.{digits}g} s hold (a tenth of the residual window, at least one period of the first "
                 "bending mode): a run that passes through its bands is not settled")
     return "outside the settling bands at the end"
