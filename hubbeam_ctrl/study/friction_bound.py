@@ -21,11 +21,11 @@ constant hub torque):
   command at rest (``q / hold_gain``) is past the breakaway torque, so a hub that stops there slips
   again, and stick-slip between counts is predicted until it stops on the target's count. Found on a
   random rig (``benchmarks/fuzz_rigs.py link 41``, rig 7: a 0.33 m steel link with a 146 g payload
-  on a geared DC motor, Coulomb friction 0.071 N m, 40 000 counts, dead band 0.01 counts): the
-  prediction said the hub stops in the dead band; the default run was "settled", the hub stuck more
-  than a count off while the law's slow states built the command up to the breakaway, and the run 4
-  times longer slipped at 2.3 s and stuck and slipped again to its end (tip 0.19 mm against a 0.041 mm
-  band);
+  on a geared DC motor, Coulomb friction 0.071 N m, 40 000 counts, a dead band of 0.01 counts while its
+  filter's integral leaked, exact since): the prediction said the hub stops in the dead band; the
+  default run was "settled", the hub stuck more than a count off while the law's slow states built the
+  command up to the breakaway, and the run 4 times longer slipped at 2.3 s and stuck and slipped again
+  to its end (tip 0.19 mm against a 0.041 mm band);
 * that rounding moves the tip through the loop by at most ``q/2`` times the loop's peak-to-peak
   gain from the angle reading to the tip (:func:`hubbeam_ctrl.study.certificate.angle_error_tip_gain`,
   a bound for every sequence of rounding errors): within the task's tip band the counts cannot

@@ -195,8 +195,9 @@ def rest_count_cause(metrics: dict, result, rig) -> None:
     torque (the law's slower states take their time) and the hub slips. With integral action
     (``friction_hold_rad`` 0) nothing is said: a hub resting a count off also slips, but where it goes
     (a count on, inside a band of counts) the run does not tell. Found on a random rig
-    (``benchmarks/fuzz_rigs.py link 41`` rig 7, 40 000 counts, a dead band of 0.01 counts): "settled" in
-    the default window with the hub stuck a count off while the command crept up; the run 4 times longer
+    (``benchmarks/fuzz_rigs.py link 41`` rig 7, 40 000 counts) while its filter's integral leaked (a dead
+    band of 0.01 counts; exact since, :func:`controllers.filter_model.filter_matrices`): "settled" in the
+    default window with the hub stuck a count off while the command crept up; the run 4 times longer
     slipped at 2.3 s and stuck and slipped again to its end.
 
     Parameters
