@@ -23,7 +23,7 @@ from hubbeam_ctrl.core.errors import ParameterError
 from hubbeam_ctrl.core.validation import check_positive
 from hubbeam_ctrl.sim.hardware import Hardware, drive_torque
 from hubbeam_ctrl.study.drive_figures import command_limit, drive_metrics, drive_of, friction_of
-from hubbeam_ctrl.study.settling import describe_end, settle_hold, settling_time, time_inside_at_end
+from hubbeam_ctrl.study.settling import describe_end, settle_hold, settling_time
 
 __all__ = ["closed_loop_metrics", "METRIC_UNITS", "settling_time", "VERDICTS", "verdict", "Evidence",
            "residual_growth", "saturated_fraction", "GROWTH_LIMIT", "SATURATION_LIMIT", "FRICTION_HUNTING_BOUND",
@@ -468,8 +468,9 @@ def closed_loop_metrics(result, t_f: float, *, residual_delay: float = 5.0,
     drive_out = drive_metrics(t, tau, result.v[:, 0], t_f, drive, tau_max, friction_of(result))
     saturated = saturated_fraction(tau[window], limit) if limit is not None else nan
     hold = settle_hold(float(t[-1]) - start, 2.0 * block_s if block_s else None)
-    inside_at_end = time_inside_at_end(t, err, v_tip, settle_angle, settle_tip)
-    settle = settling_time(t, err, v_tip, settle_angle, settle_tip, hold)
+    entered = settling_time(t, err, v_tip, settle_angle, settle_tip)      # inside from then on, any hold
+    inside_at_end = 0.0 if entered is None else float(t[-1]) - entered
+    settle = entered if entered is not None and inside_at_end >= hold else None
     t_w = t[window]
     block = float(block_s) if block_s is not None else 0.0
     fits = {"tip": envelope_growth(t_w, res, block),        # the ripple is fast: short blocks
